@@ -1,0 +1,56 @@
+"""One set-up call for every notebook: print precision, plot style, warnings and a seeded RNG."""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+import pandas as pd
+
+PRINT_PRECISION = 4
+"""Digits after the decimal point in printed arrays and DataFrames."""
+
+
+def _use_inline_backend() -> None:
+    """Show figures inline even if the caller inherited ``MPLBACKEND`` (it would hide them from nbval)."""
+    os.environ.pop("MPLBACKEND", None)
+    try:
+        from IPython import get_ipython
+    except ImportError:  # pragma: no cover - IPython always ships with ipykernel
+        return
+    ip = get_ipython()
+    if ip is not None and getattr(ip, "kernel", None) is not None:
+        ip.run_line_magic("matplotlib", "inline")
+
+
+def setup(precision: int = PRINT_PRECISION, seed: int = 0) -> np.random.Generator:
+    """Configure a notebook so that its stored outputs are reproducible.
+
+    - numpy prints plain floats (``0.5345``, not ``np.float64(0.5345)``) with fixed precision;
+    - pandas shows ``precision`` digits;
+    - matplotlib draws inline with the project's style;
+    - warnings are shown once per location (never with temporary file paths in the outputs).
+
+    Parameters
+    ----------
+    precision : int
+        Digits after the decimal point.
+    seed : int
+        Seed of the returned random generator.
+
+    Returns
+    -------
+    numpy.random.Generator
+        A generator seeded with ``seed``, for any randomness a notebook needs.
+    """
+    np.set_printoptions(precision=precision, suppress=True, legacy="1.25")
+    pd.set_option("display.precision", precision)
+    pd.set_option("display.width", 120)
+    pd.set_option("display.max_columns", 20)
+    _use_inline_backend()
+    from helpers.plotting import apply_style
+
+    apply_style()
+    warnings.simplefilter("once")
+    return np.random.default_rng(seed)

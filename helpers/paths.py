@@ -1,0 +1,37 @@
+"""Where the project's folders are, so that no notebook or module hard-codes a relative path."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+REPO_ROOT: Path = Path(__file__).resolve().parent.parent
+"""The repository's top folder (the package is installed editable from it)."""
+
+DATA_DIR: Path = REPO_ROOT / "data"
+"""Recordings, calibration and identification results."""
+
+FIGURES_DIR: Path = REPO_ROOT / "figures"
+"""Regenerated figures and tables."""
+
+NOTEBOOKS_DIR: Path = REPO_ROOT / "notebooks"
+"""The numbered notebooks."""
+
+FIRMWARE_DIR: Path = REPO_ROOT / "firmware"
+"""Arduino sketches, the Makefile and the simavr harness."""
+
+
+def figure_path(name: str) -> Path:
+    """Return ``figures/<name>``, creating the folder if needed.
+
+    Parameters
+    ----------
+    name : str
+        File name, e.g. ``"fig12_model_shaping.png"``.
+
+    Returns
+    -------
+    pathlib.Path
+        The full path.
+    """
+    FIGURES_DIR.mkdir(parents=True, exist_ok=True)
+    return FIGURES_DIR / name

@@ -1,0 +1,136 @@
+"""``python -m helpers reproduce``: execute every numbered notebook in place and summarise.
+
+Each notebook runs top to bottom in a fresh kernel (nbclient), from its own folder, with the live cells
+inactive (``LIVE = False`` in every parameters cell). Figures and tables land in ``figures/``. On the first
+error the run stops and names the notebook and the cell.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import nbformat
+from nbclient import NotebookClient
+from nbclient.exceptions import CellExecutionError
+
+from helpers.paths import FIGURES_DIR, NOTEBOOKS_DIR
+
+
+class NotebookFailed(RuntimeError):
+    """A notebook cell raised; the message names the notebook, the cell index and the error."""
+
+
+@dataclass(frozen=True)
+class NotebookRun:
+    """The outcome of executing one notebook."""
+
+    path: Path
+    seconds: float
+    n_cells: int
+
+
+def numbered_notebooks(folder: Path = NOTEBOOKS_DIR) -> list[Path]:
+    """Return the notebooks named ``NN_topic.ipynb`` in order.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        Where to look.
+
+    Returns
+    -------
+    list of pathlib.Path
+        Sorted by name, so by number.
+    """
+    return sorted(p for p in folder.glob("[0-9][0-9]_*.ipynb"))
+
+
+def _failing_cell(nb: nbformat.NotebookNode) -> tuple[int, str]:
+    """Find the code cell whose stored output is an error (nbclient stores it before raising)."""
+    code_index = 0
+    for cell in nb.cells:
+        if cell.cell_type != "code":
+            continue
+        code_index += 1
+        for out in cell.get("outputs", []):
+            if out.get("output_type") == "error":
+                first_line = cell.source.strip().splitlines()[0] if cell.source.strip() else ""
+                return code_index, first_line
+    return -1, ""
+
+
+def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
+    """Execute ``path`` in place in a fresh kernel and write the outputs back.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The notebook.
+    timeout : int
+        Seconds any one cell may take.
+
+    Returns
+    -------
+    NotebookRun
+        Wall time and number of cells.
+
+    Raises
+    ------
+    NotebookFailed
+        If a cell raises; the notebook is still written so the error can be inspected.
+    """
+    nb = nbformat.read(path, as_version=4)
+    os.environ.pop("MPLBACKEND", None)  # an inherited backend would hide inline figures
+    client = NotebookClient(
+        nb,
+        timeout=timeout,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(path.parent)}},
+    )
+    start = time.perf_counter()
+    try:
+        client.execute()
+    except CellExecutionError as exc:
+        nbformat.write(nb, path)
+        index, first = _failing_cell(nb)
+        last = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise NotebookFailed(f"{path.name}: code cell {index} ({first!r}) failed: {last}") from exc
+    nbformat.write(nb, path)
+    return NotebookRun(path=path, seconds=time.perf_counter() - start, n_cells=len(nb.cells))
+
+
+def reproduce(notebooks: list[Path] | None = None, timeout: int = 600) -> list[NotebookRun]:
+    """Execute the numbered notebooks in order and print a one-screen summary.
+
+    Parameters
+    ----------
+    notebooks : list of pathlib.Path, optional
+        Which notebooks; all numbered ones by default.
+    timeout : int
+        Seconds any one cell may take.
+
+    Returns
+    -------
+    list of NotebookRun
+        One entry per executed notebook.
+    """
+    notebooks = numbered_notebooks() if notebooks is None else notebooks
+    runs: list[NotebookRun] = []
+    total_start = time.perf_counter()
+    for path in notebooks:
+        print(f"executing {path.name} ...", flush=True)
+        run = execute_notebook(path, timeout=timeout)
+        print(f"  done in {run.seconds:.1f} s", flush=True)
+        runs.append(run)
+    total = time.perf_counter() - total_start
+    print()
+    print(f"{len(runs)} notebooks executed in {total:.1f} s")
+    from helpers.summary import print_summary
+
+    print_summary()
+    n_figs = len(list(FIGURES_DIR.glob("*"))) if FIGURES_DIR.exists() else 0
+    print(f"{n_figs} files in {FIGURES_DIR}")
+    return runs

@@ -1,0 +1,27 @@
+"""The code style gate: ruff over the package and the tests (part of the README's test command)."""
+
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from helpers.paths import REPO_ROOT
+
+
+def test_ruff_clean():
+    ruff = shutil.which("ruff")
+    if ruff is None:
+        pytest.skip("ruff is not installed: pip install -r environment.txt")
+    result = subprocess.run(
+        [ruff, "check", "helpers", "tests", "conftest.py"], cwd=REPO_ROOT, capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_cli_help_lists_reproduce():
+    result = subprocess.run(
+        [sys.executable, "-m", "helpers", "--help"], cwd=REPO_ROOT, capture_output=True, text=True
+    )
+    assert result.returncode == 0
+    assert "reproduce" in result.stdout
