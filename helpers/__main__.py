@@ -1,40 +1,37 @@
-"""Command line: ``python -m helpers {reproduce,bench,serve-virtual-rig,record}``."""
+"""Command line: ``python -m helpers <command>``.
+
+Each command lives in the module that owns the job; that module provides ``add_arguments(parser)`` and
+``run(args) -> int``. Modules are imported only when their command runs.
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
-
-def _cmd_reproduce(args: argparse.Namespace) -> int:
-    from helpers.reproduce import NotebookFailed, reproduce
-
-    from pathlib import Path
-
-    notebooks = [Path(n).resolve() for n in args.notebooks] or None
-    try:
-        reproduce(notebooks, timeout=args.timeout)
-    except NotebookFailed as exc:
-        print(f"\nERROR: {exc}", file=sys.stderr)
-        return 1
-    return 0
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """Return the argument parser of the command line (one sub-command per job)."""
-    parser = argparse.ArgumentParser(prog="python -m helpers", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("reproduce", help="execute every notebook in order; regenerate figures/ and tables")
-    p.add_argument("--timeout", type=int, default=600, help="seconds any one cell may take")
-    p.add_argument("notebooks", nargs="*", help="only these notebooks (default: every numbered one)")
-    p.set_defaults(func=_cmd_reproduce)
-    return parser
+COMMANDS: dict[str, tuple[str, str]] = {
+    "reproduce": ("helpers.reproduce", "execute every notebook in order; regenerate figures/ and tables"),
+    "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
+    "serve-virtual-rig": ("helpers.virtual.server", "serve the virtual rig's two boards on pseudo-terminals"),
+    "record": ("helpers.rig.record", "record the paper's experiments into data/ (hardware or virtual rig)"),
+}
+"""command name -> (module, one-line help)."""
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line and return its exit status."""
-    args = build_parser().parse_args(argv)
-    return int(args.func(args))
+    argv = sys.argv[1:] if argv is None else argv
+    parser = argparse.ArgumentParser(prog="python -m helpers", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="command")
+    chosen = argv[0] if argv else None
+    for name, (module, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.set_defaults(module=module)
+        if name == chosen:
+            importlib.import_module(module).add_arguments(p)
+    args = parser.parse_args(argv)
+    return int(importlib.import_module(args.module).run(args))
 
 
 if __name__ == "__main__":

@@ -7,7 +7,9 @@ error the run stops and names the notebook and the cell.
 
 from __future__ import annotations
 
+import argparse
 import os
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -134,3 +136,20 @@ def reproduce(notebooks: list[Path] | None = None, timeout: int = 600) -> list[N
     n_figs = len(list(FIGURES_DIR.glob("*"))) if FIGURES_DIR.exists() else 0
     print(f"{n_figs} files in {FIGURES_DIR}")
     return runs
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``reproduce`` command's options to ``parser``."""
+    parser.add_argument("--timeout", type=int, default=600, help="seconds any one cell may take")
+    parser.add_argument("notebooks", nargs="*", help="only these notebooks (default: every numbered one)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``python -m helpers reproduce``; exit status 1 names the failing notebook and cell."""
+    notebooks = [Path(n).resolve() for n in args.notebooks] or None
+    try:
+        reproduce(notebooks, timeout=args.timeout)
+    except NotebookFailed as exc:
+        print(f"\nERROR: {exc}", file=sys.stderr)
+        return 1
+    return 0
