@@ -1,0 +1,40 @@
+"""``python -m helpers bench``: the project's speed figures, printed, never asserted in unit tests.
+
+- ``plant``: simulated seconds per wall second of the virtual rig's plant (and of a plain ``solve_ivp``
+  implementation of the same equations, measured in the same run);
+- ``serial``: sustained DAQ rate over the pseudo-terminal server and the wall time to record one scenario on
+  the in-process virtual rig.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import platform
+import time
+
+SUITES: dict[str, tuple[str, str]] = {
+    "plant": ("helpers.benchmarks.plant", "run_plant_benchmark"),
+    "serial": ("helpers.benchmarks.serial", "run_serial_benchmark"),
+}
+"""suite name -> (module, function); each function prints its figures and returns them as a dict."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``bench`` command's options."""
+    parser.add_argument("suites", nargs="*", metavar="suite", help=f"any of {', '.join(SUITES)} (default: all)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the chosen benchmark suites and print their figures."""
+    chosen = args.suites or list(SUITES)
+    unknown = sorted(set(chosen) - set(SUITES))
+    if unknown:
+        print(f"unknown benchmark suite(s): {', '.join(unknown)}; choose from {', '.join(SUITES)}")
+        return 2
+    print(f"python {platform.python_version()} on {platform.machine()}, {time.strftime('%Y-%m-%d')}")
+    for name in chosen:
+        module, func = SUITES[name]
+        print(f"\n== {name} ==")
+        getattr(importlib.import_module(module), func)()
+    return 0
