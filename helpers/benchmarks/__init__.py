@@ -22,7 +22,9 @@ SUITES: dict[str, tuple[str, str]] = {
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``bench`` command's options."""
-    parser.add_argument("suites", nargs="*", metavar="suite", help=f"any of {', '.join(SUITES)} (default: all)")
+    parser.add_argument(
+        "suites", nargs="*", metavar="suite", help=f"any of {', '.join(SUITES)} (default: all)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
