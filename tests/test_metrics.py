@@ -1,0 +1,406 @@
+"""helpers.metrics on synthetic up-hold-down recordings whose metrics are known in closed form.
+
+The tension is a step (up at 1 s, down at 8 s) through a second-order system, whose overshoot is
+exp(-zeta pi / sqrt(1 - zeta^2)); settling instants are found independently by brute force on a 10 us grid of
+the continuous closed form. The step count rises from exactly the sample where the tension's step starts.
+"""
+
+import math
+from types import SimpleNamespace
+
+import matplotlib
+import numpy as np
+import pandas as pd
+import pytest
+
+from helpers import metrics
+from helpers.paper import TABLE_I_CONDITIONS, table_ii
+
+matplotlib.use("Agg")
+
+FS = 1000.0
+T = np.arange(0.0, 12.0, 1.0 / FS)
+T_UP, T_DOWN = 1.0, 8.0
+N_STEPS = 78
+
+
+def step2(tau, zeta, wn):
+    """Unit step response of wn^2 / (s^2 + 2 zeta wn s + wn^2), zero for tau < 0."""
+    tau = np.asarray(tau, dtype=float)
+    wd = wn * math.sqrt(1.0 - zeta**2)
+    y = 1.0 - np.exp(-zeta * wn * tau) * (np.cos(wd * tau) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * tau))
+    return np.where(tau >= 0.0, y, 0.0)
+
+
+def tension(t, zeta=0.2, wn=25.0, low=1.0, high=9.0):
+    """Up step at T_UP from ``low`` to ``high`` and down step at T_DOWN back (superposition)."""
+    return low + (high - low) * (step2(t - T_UP, zeta, wn) - step2(t - T_DOWN, zeta, wn))
+
+
+def steps_profile(t=T, t_up=T_UP, t_down=T_DOWN, duration=0.1):
+    """Step count ramping 0 -> N_STEPS from t_up (first step on the sample at t_up) and back from t_down."""
+    ramp = lambda t0: np.clip(np.floor((t - t0) / duration * N_STEPS) + 1, 0, N_STEPS) * (t >= t0 - 1e-9)  # noqa: E731
+    return (ramp(t_up) - ramp(t_down)).astype(int)
+
+
+def reference_levels(f, start, end):
+    """y0 and yf by the definition, computed here on the sample grid: medians of the 0.5 s before the start
+    and of the last 1.0 s of the window [start, end) (end included if it is the last sample)."""
+    pre = T[(T >= start - 0.5) & (T < start)]
+    win = T[(T >= start) & ((T < end) | (end >= T[-1]))]
+    return float(np.median(f(pre))), float(np.median(f(win[win >= win[-1] - 1.0])))
+
+
+def brute_settling(f, start, end, band, dt=1e-5):
+    """Last time the continuous signal is outside the band, from ``start`` (ms), on a 10 us grid."""
+    y0, yf = reference_levels(f, start, end)
+    tt = np.arange(start, end, dt)
+    out = np.flatnonzero(np.abs(f(tt) - yf) > band * abs(yf - y0))
+    return 1e3 * (tt[out[-1]] + dt - start)
+
+
+def frame_of(t, y, steps):
+    return pd.DataFrame({"t_s": t, "tension_n": y, "steps": steps, "cable_mm": steps * 0.25525})
+
+
+# ---------------------------------------------------------------------------------------------------------
+# segmentation
+
+
+def test_segmentation_uses_the_recorded_steps_not_nominal_times():
+    s = steps_profile(t_up=1.2345, t_down=8.4321)
+    m = metrics.segment_motions(T, s)
+    assert m.up_start == pytest.approx(1.235)  # first sample at or after the first step
+    assert m.down_start == pytest.approx(8.433)
+    assert m.end == T[-1]
+    assert s[m.up_index - 1] == 0 and s[m.up_index] > 0
+    assert s[m.down_index] < s[m.down_index - 1] == N_STEPS
+
+
+def test_segmentation_errors_are_named():
+    with pytest.raises(ValueError, match="no up move"):
+        metrics.segment_motions(T, np.zeros(T.size))
+    with pytest.raises(ValueError, match="no down move"):
+        metrics.segment_motions(T, np.minimum(np.arange(T.size), 50))
+    with pytest.raises(ValueError, match="same length"):
+        metrics.segment_motions(T, np.zeros(T.size - 1))
+    with pytest.raises(ValueError, match="increasing"):
+        metrics.segment_motions(T[::-1], steps_profile())
+
+
+# ---------------------------------------------------------------------------------------------------------
+# closed-form metrics
+
+
+@pytest.mark.parametrize("zeta", [0.05, 0.2, 0.4, 0.7])
+def test_up_and_down_of_a_second_order_step(zeta):
+    wn, low, high = 25.0, 1.0, 9.0
+    y = tension(T, zeta, wn, low, high)
+    mp = math.exp(-zeta * math.pi / math.sqrt(1.0 - zeta**2))
+    up = metrics.motion_metrics(T, y, T_UP, T_DOWN, "Up")
+    down = metrics.motion_metrics(T, y, T_DOWN, T[-1], "Down")
+    assert up.reason == "" and down.reason == ""
+    assert up.y0 == pytest.approx(low) and up.yf == pytest.approx(high, rel=1e-4)
+    assert up.peak == pytest.approx(high + (high - low) * mp, rel=1e-4)
+    assert up.overshoot_pct == pytest.approx(100.0 * mp, abs=0.02)
+
+    def f(tt):
+        return tension(tt, zeta, wn, low, high)
+
+    # Down: the minimum undershoots the final value; the overshoot is positive, the same closed form when the
+    # record is long enough to settle (for zeta = 0.05 it still rings by 0.5 % of the step at 12 s, so the
+    # levels are the medians of the definition, computed here from the closed form)
+    trough = low - (high - low) * mp
+    assert down.peak == pytest.approx(trough, rel=1e-3, abs=1e-4)
+    y0_ref, yf_ref = reference_levels(f, T_DOWN, T[-1])
+    assert down.overshoot_pct == pytest.approx(100.0 * (yf_ref - trough) / (y0_ref - yf_ref), abs=0.02)
+    if zeta >= 0.2:
+        assert down.overshoot_pct == pytest.approx(100.0 * mp, abs=0.02)
+
+    assert up.settling_ms == pytest.approx(brute_settling(f, T_UP, T_DOWN, 0.05), abs=0.1)
+    assert down.settling_ms == pytest.approx(brute_settling(f, T_DOWN, T[-1], 0.05), abs=0.1)
+    assert up.settled_s == pytest.approx(T_UP + up.settling_ms / 1e3)
+
+
+@pytest.mark.parametrize("band", [0.01, 0.02, 0.05, 0.1, 0.2])
+def test_first_order_approach_settles_at_tau_ln_one_over_band(band):
+    tau = 0.3
+    y = 2.0 + 5.0 * np.where(T >= T_UP, 1.0 - np.exp(-(T - T_UP) / tau), 0.0)
+    m = metrics.motion_metrics(T, y, T_UP, T[-1], "Up", band)
+    assert m.settling_ms == pytest.approx(1e3 * tau * math.log(1.0 / band), abs=0.05)
+    assert m.overshoot_pct == pytest.approx(0.0, abs=1e-6)
+
+
+def test_settling_time_does_not_grow_with_the_band():
+    y = tension(T, 0.1)
+    bands = [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.4]
+    settle = [metrics.motion_metrics(T, y, T_UP, T_DOWN, "Up", b).settling_ms for b in bands]
+    assert np.all(np.isfinite(settle))
+    assert np.all(np.diff(settle) <= 0) and settle[0] > settle[-1]
+
+
+def test_slack_cable_on_the_down_move():
+    """Tension cannot go below zero: the undershoot is clipped, the peak is 0, the overshoot follows."""
+    zeta, wn, low, high = 0.1, 25.0, 2.0, 10.0
+
+    def f(tt):
+        return np.maximum(tension(tt, zeta, wn, low, high), 0.0)
+
+    y = f(T)
+    assert np.sum(y[T > T_DOWN] == 0.0) > 10  # slack for a while
+    d = metrics.motion_metrics(T, y, T_DOWN, T[-1], "Down")
+    assert d.peak == 0.0
+    assert d.overshoot_pct == pytest.approx(100.0 * (low - 0.0) / (high - low), abs=0.01)
+    assert d.settling_ms == pytest.approx(brute_settling(f, T_DOWN, T[-1], 0.05), abs=0.1)
+
+
+@pytest.mark.parametrize(("gain", "offset"), [(2.5, 0.0), (0.1, 30.0), (7.0, -3.0)])
+def test_metrics_follow_an_affine_change_of_units(gain, offset):
+    """Overshoot and settling do not depend on the sensor's gain and offset; peaks transform with them."""
+    y = tension(T, 0.15)
+    for start, end, motion in ((T_UP, T_DOWN, "Up"), (T_DOWN, T[-1], "Down")):
+        a = metrics.motion_metrics(T, y, start, end, motion)
+        b = metrics.motion_metrics(T, gain * y + offset, start, end, motion)
+        assert b.peak == pytest.approx(gain * a.peak + offset)
+        assert b.overshoot_pct == pytest.approx(a.overshoot_pct, rel=1e-9)
+        assert b.settling_ms == pytest.approx(a.settling_ms, abs=1e-6)
+
+
+def test_down_motion_is_the_mirror_image_of_an_up_motion():
+    """Sign convention: a Down motion of y has the metrics of an Up motion of -y (peak mirrored)."""
+    y = tension(T, 0.25)
+    down = metrics.motion_metrics(T, y, T_DOWN, T[-1], "Down")
+    up_of_mirror = metrics.motion_metrics(T, -y, T_DOWN, T[-1], "Up")
+    assert down.overshoot_pct > 0
+    assert down.overshoot_pct == pytest.approx(up_of_mirror.overshoot_pct, rel=1e-12)
+    assert down.settling_ms == pytest.approx(up_of_mirror.settling_ms, abs=1e-9)
+    assert down.peak == pytest.approx(-up_of_mirror.peak)
+
+
+def test_wrong_direction_gives_nan_overshoot_with_reason():
+    y = tension(T, 0.2, low=9.0, high=1.0)  # tension falls on the "up" move
+    m = metrics.motion_metrics(T, y, T_UP, T_DOWN, "Up")
+    assert math.isnan(m.overshoot_pct) and "falls" in m.reason
+    assert math.isfinite(m.settling_ms)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# metrics that cannot be computed
+
+
+def test_undamped_oscillation_never_settles():
+    y = tension(T, 1e-9)  # zeta ~ 0: keeps ringing
+    m = metrics.motion_metrics(T, y, T_UP, T_DOWN, "Up")
+    assert math.isnan(m.settling_ms) and math.isnan(m.settled_s)
+    assert "settle" in m.reason
+    assert math.isfinite(m.peak) and math.isfinite(m.overshoot_pct)
+
+
+def test_drift_to_the_end_never_settles():
+    y = np.where(T >= T_UP, np.expm1(T - T_UP), 0.0)  # still growing by 65 % in the last half second
+    m = metrics.motion_metrics(T, y, T_UP, T[-1], "Up")
+    assert math.isnan(m.settling_ms)
+    assert "never settles" in m.reason
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.05])
+def test_flat_signal_is_a_zero_step(noise):
+    y = 4.0 + np.random.default_rng(1).normal(0.0, noise, T.size)
+    m = metrics.motion_metrics(T, y, T_UP, T_DOWN, "Up")
+    assert math.isnan(m.overshoot_pct) and math.isnan(m.settling_ms)
+    assert "zero step" in m.reason
+    assert m.peak == pytest.approx(np.max(y[(T >= T_UP) & (T < T_DOWN)]))
+
+
+def test_ringing_before_the_motion_is_not_taken_for_noise():
+    """An Up motion still ringing when the Down move starts is signal, not noise: the Down step is a step."""
+    y = tension(T, 0.01)  # sigma = 0.25 /s: 1.4 N of ringing left at 8 s on an 8 N step
+    assert np.ptp(y[(T > 7.5) & (T < T_DOWN)]) > 2.0
+    m = metrics.motion_metrics(T, y, T_DOWN, T[-1], "Down")
+    assert "zero step" not in m.reason
+    assert math.isfinite(m.overshoot_pct)
+
+
+def test_missing_samples_beyond_tolerance_give_nan():
+    y = tension(T, 0.2)
+    lost = (T > 1.30) & (T < 1.35)  # 50 ms lost in the up window
+    m = metrics.motion_metrics(T[~lost], y[~lost], T_UP, T_DOWN, "Up")
+    assert all(math.isnan(v) for v in (m.y0, m.yf, m.peak, m.overshoot_pct, m.settling_ms))
+    assert "gap" in m.reason
+    # the same gap as NaN samples
+    y_nan = np.where(lost, np.nan, y)
+    m_nan = metrics.motion_metrics(T, y_nan, T_UP, T_DOWN, "Up")
+    assert "gap" in m_nan.reason and math.isnan(m_nan.peak)
+    # a gap in the pre-motion span counts too; a gap in the other motion does not
+    pre_lost = (T > 0.7) & (T < 0.75)
+    assert "gap" in metrics.motion_metrics(T[~pre_lost], y[~pre_lost], T_UP, T_DOWN, "Up").reason
+    assert metrics.motion_metrics(T[~lost], y[~lost], T_DOWN, T[-1], "Down").reason == ""
+
+
+def test_a_few_missing_samples_are_tolerated():
+    y = tension(T, 0.2)
+    keep = np.ones(T.size, bool)
+    keep[[1500, 3000, 3001]] = False  # one, then two consecutive samples lost
+    full = metrics.motion_metrics(T, y, T_UP, T_DOWN, "Up")
+    m = metrics.motion_metrics(T[keep], y[keep], T_UP, T_DOWN, "Up")
+    assert m.reason == ""
+    assert m.overshoot_pct == pytest.approx(full.overshoot_pct, abs=0.05)
+    assert m.settling_ms == pytest.approx(full.settling_ms, abs=1.0)
+
+
+def test_too_little_data_before_the_motion():
+    y = tension(T, 0.2)
+    keep = T >= 0.8
+    m = metrics.motion_metrics(T[keep], y[keep], T_UP, T_DOWN, "Up")
+    assert math.isnan(m.y0) and "before the motion" in m.reason
+
+
+def test_settling_at_the_very_end_is_not_confirmed():
+    y = np.where(T >= T_UP, 1.0 - np.exp(-(T - T_UP) / 0.3), 0.0)
+    m = metrics.motion_metrics(T, y, T_UP, 2.5, "Up", 0.05, final_s=0.3, min_hold_s=1.0)
+    assert math.isnan(m.settling_ms) and "cannot confirm" in m.reason
+
+
+def test_bad_arguments_raise():
+    y = tension(T)
+    with pytest.raises(ValueError, match="motion"):
+        metrics.motion_metrics(T, y, T_UP, T_DOWN, "Sideways")
+    with pytest.raises(ValueError, match="band"):
+        metrics.motion_metrics(T, y, T_UP, T_DOWN, "Up", band=0.0)
+    with pytest.raises(ValueError, match="start < end"):
+        metrics.motion_metrics(T, y, T_DOWN, T_UP, "Up")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# recordings and Table II
+
+
+def fake_recording(v_in, x_f, system, repetition, zeta, noise=0.0, seed=0, source="virtual-rig"):
+    rng = np.random.default_rng(seed)
+    y = tension(T, zeta) + rng.normal(0.0, noise, T.size)
+    meta = {
+        "source": {"kind": source},
+        "scenario": {"v_in_mm_s": v_in, "x_f_mm": x_f, "system": system, "repetition": repetition},
+    }
+    return SimpleNamespace(frame=frame_of(T, y, steps_profile()), meta=meta)
+
+
+def test_recording_metrics_rows():
+    df = metrics.recording_metrics(fake_recording(200, 20, "zv", 1, 0.3).frame)
+    assert list(df["motion"]) == ["Up", "Down"]
+    mp = 100.0 * math.exp(-0.3 * math.pi / math.sqrt(1 - 0.09))
+    assert np.allclose(df["overshoot_pct"], mp, atol=0.02)
+    assert df.loc[0, "start_s"] == pytest.approx(T_UP) and df.loc[1, "start_s"] == pytest.approx(T_DOWN)
+    assert (df["reason"] == "").all()
+
+
+def test_recording_without_a_down_move_gives_nan_rows():
+    rec = fake_recording(200, 20, "zv", 1, 0.3)
+    rec.frame["steps"] = np.minimum(np.arange(T.size), 50)
+    df = metrics.recording_metrics(rec.frame)
+    assert df["peak_n"].isna().all() and df["reason"].str.contains("no down move").all()
+    with pytest.raises(ValueError, match="lacks column"):
+        metrics.recording_metrics(rec.frame.drop(columns="tension_n"))
+
+
+def test_scenario_table_mean_spread_and_order():
+    zetas = {"unshaped": (0.05, 0.06, 0.07), "zv": (0.3, 0.35, 0.4), "zvd": (0.6, 0.65, 0.7)}
+    recs = [
+        fake_recording(v, x, system, rep + 1, z)
+        for (v, x) in reversed(TABLE_I_CONDITIONS)
+        for system, zs in zetas.items()
+        for rep, z in enumerate(zs)
+    ]
+    table = metrics.scenario_table(recs, band=0.05)
+    assert len(table) == 4 * 3 * 2
+    assert table.attrs["band"] == 0.05 and (table["band"] == 0.05).all()
+    # paper's order: conditions as Table I, then pulse / non-robust / robust, then Up / Down
+    assert list(zip(table["v_in_mm_s"], table["x_f_mm"], strict=True))[::6] == list(TABLE_I_CONDITIONS)
+    assert list(table["system"][:6]) == ["unshaped", "unshaped", "zv", "zv", "zvd", "zvd"]
+    assert list(table["motion"][:2]) == ["Up", "Down"]
+    mp = np.array([100.0 * math.exp(-z * math.pi / math.sqrt(1 - z * z)) for z in zetas["zv"]])
+    row = table[(table["system"] == "zv") & (table["motion"] == "Up")].iloc[0]
+    assert row["overshoot_pct_mean"] == pytest.approx(mp.mean(), abs=0.02)
+    assert row["overshoot_pct_std"] == pytest.approx(mp.std(ddof=1), abs=0.02)
+    assert row["overshoot_pct_n"] == 3 and row["n_runs"] == 3
+    # more damping, less overshoot and faster settling: unshaped > zv > zvd
+    up = table[table["motion"] == "Up"].groupby("system")[["overshoot_pct_mean", "settling_ms_mean"]].mean()
+    assert up.loc["unshaped"].gt(up.loc["zv"]).all() and up.loc["zv"].gt(up.loc["zvd"]).all()
+
+
+def test_scenario_table_counts_only_computable_values():
+    good = fake_recording(200, 20, "zv", 1, 0.3)
+    flat = fake_recording(200, 20, "zv", 2, 0.3)
+    flat.frame["tension_n"] = 3.0
+    table = metrics.scenario_table([good, flat])
+    up = table[table["motion"] == "Up"].iloc[0]
+    assert up["n_runs"] == 2 and up["overshoot_pct_n"] == 1 and up["peak_n_n"] == 2
+    assert math.isnan(up["overshoot_pct_std"])
+    assert "rep 2: zero step" in up["reason"]
+
+
+def test_scenario_table_needs_scenario_metadata():
+    rec = fake_recording(200, 20, "zv", 1, 0.3)
+    del rec.meta["scenario"]["system"]
+    with pytest.raises(ValueError, match="scenario"):
+        metrics.scenario_table([rec])
+    with pytest.raises(ValueError, match="no recordings"):
+        metrics.scenario_table([])
+
+
+def test_paper_comparison_sets_the_paper_beside_ours():
+    recs = [fake_recording(200, 20, s, 1, z) for s, z in (("unshaped", 0.05), ("zv", 0.3), ("zvd", 0.6))]
+    cmp = metrics.paper_comparison(metrics.scenario_table(recs))
+    paper = table_ii()
+    assert len(cmp) == len(paper)
+    row = cmp[
+        (cmp["x_f_mm"] == 20)
+        & (cmp["v_in_mm_s"] == 200)
+        & (cmp["system"] == "zvd")
+        & (cmp["motion"] == "Down")
+    ]
+    ref = paper[
+        (paper["x_f_mm"] == 20)
+        & (paper["v_in_mm_s"] == 200)
+        & (paper["system"] == "zvd")
+        & (paper["motion"] == "Down")
+    ]
+    assert row["settling_ms_paper"].item() == ref["settling_ms"].item()
+    assert math.isfinite(row["settling_ms"].item())
+    assert cmp[(cmp["x_f_mm"] == 30)]["peak_n"].isna().all()  # no recordings of that condition
+
+
+def test_band_sweep_is_monotonic():
+    recs = [fake_recording(200, 20, "unshaped", 1, 0.08)]
+    sweep = metrics.band_sweep(recs, (0.02, 0.05, 0.1))
+    up = sweep[sweep["motion"] == "Up"].sort_values("band")["settling_ms_mean"].to_numpy()
+    assert np.all(np.diff(up) < 0)
+
+
+def test_scenario_figure_is_written(tmp_path, monkeypatch):
+    import matplotlib.pyplot as plt
+
+    import helpers.paths
+    from helpers.plotting import experiments as plots
+
+    monkeypatch.setattr(helpers.paths, "FIGURES_DIR", tmp_path)
+    recs = [
+        fake_recording(v, x, s, r, z)
+        for (v, x) in ((200, 20), (200, 10))
+        for s, z in (("unshaped", 0.05), ("zv", 0.3), ("zvd", 0.6))
+        for r in (1, 2)
+    ]
+    fig = plots.fig_scenario(recs, (200, 20), 9, save=True)
+    assert (tmp_path / "fig9_20mm_200mms.png").stat().st_size > 0
+    assert "virtual rig" in fig.axes[0].get_title()
+    assert len(fig.axes[0].lines) == 6  # three systems x two repetitions, other condition ignored
+    by_system = {"unshaped": recs[:2], "zv": recs[2:4], "zvd": recs[4:6]}
+    plots.fig_scenario(by_system, (200.0, 20.0), save=True)  # number from the paper's numbering
+    fig_a = plots.fig_scenario(recs, (200, 10), save=True)
+    assert (tmp_path / "figA_10mm_200mms.png").exists()
+    assert "no figure in the paper" in fig_a.axes[0].get_title()
+    with pytest.raises(ValueError, match="no recording"):
+        plots.fig_scenario(recs, (300, 20), 11)
+    hw = [fake_recording(200, 20, "zv", 1, 0.3, source="hardware")]
+    assert "virtual" not in plots.fig_scenario(hw, (200, 20), 9).axes[0].get_title()
+    plt.close("all")
