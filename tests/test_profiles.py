@@ -1,0 +1,289 @@
+"""Tests of helpers.profiles: the pulse, exact shaped profiles and stepper programmes."""
+
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from helpers import paper, profiles, shapers
+from helpers.profiles import LIMITS, MM_PER_STEP, Dwell, Programme, Segment, VelocityProfile
+
+ZV, ZVD = shapers.paper_tdfs()
+OMEGA_N = shapers.omega_n_from_damped(paper.OMEGA_D, paper.ZETA)
+SYSTEMS = {"unshaped": None, "zv": ZV, "zvd": ZVD}
+
+
+def test_mm_per_step_from_spool_and_steps():
+    assert MM_PER_STEP == pytest.approx(math.pi * paper.SPOOL_DIAMETER_M * 1e3 / paper.STEPS_PER_REV)
+    assert f"{MM_PER_STEP:.5f}" == "0.25525"
+
+
+# -- the pulse -------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("v", "x"), paper.TABLE_I_CONDITIONS)
+def test_pulse_integral_equals_x_f(v, x):
+    dt = 1e-5
+    t = np.arange(0.0, 10.0, dt)
+    vel = profiles.velocity_pulse(t, v, x)
+    up = np.sum(vel[t < 5.0]) * dt
+    down = np.sum(vel[t >= 5.0]) * dt
+    assert up == pytest.approx(x, abs=v * dt)
+    assert down == pytest.approx(-x, abs=v * dt)
+
+
+def test_pulse_shape_matches_eq_14():
+    t_p = 20.0 / 200.0
+    t = np.array([0.99, 1.0, 1.0 + t_p / 2, 1.0 + t_p + 1e-9, 7.99, 8.0, 8.0 + t_p / 2, 8.0 + t_p + 1e-9])
+    np.testing.assert_array_equal(
+        profiles.velocity_pulse(t, 200.0, 20.0), [0, 200, 200, 0, 0, -200, -200, 0]
+    )
+
+
+def test_pulse_refuses_bad_arguments():
+    with pytest.raises(ValueError, match="v_in"):
+        profiles.velocity_pulse(0.0, -1.0, 10.0)
+    with pytest.raises(ValueError, match="x_f"):
+        profiles.velocity_pulse(0.0, 100.0, float("nan"))
+    with pytest.raises(ValueError, match="down move"):
+        profiles.pulse_profile(1.0, 10.0, t_up=1.0, t_down=8.0)
+
+
+def test_table_i():
+    table = profiles.table_i()
+    assert len(table) == 12
+    assert set(table["system"]) == set(paper.SYSTEMS)
+    assert list(table.columns) == ["profile", "system", "v_in_mm_s", "x_f_mm", "t_p_s"]
+    printed = {(200.0, 10.0): 0.05, (200.0, 20.0): 0.10, (200.0, 30.0): 0.15, (300.0, 20.0): 0.067}
+    for row in table.itertuples():
+        assert round(row.t_p_s, 3) == printed[(row.v_in_mm_s, row.x_f_mm)]
+    assert set(table["profile"]) == {"Pulse", "Non-robust TDF", "Robust TDF"}
+
+
+# -- exact piecewise-constant profiles -------------------------------------------------------------
+@pytest.mark.parametrize("family", list(shapers.FAMILIES))
+def test_shaped_profile_keeps_displacement(family):
+    prof = profiles.single_pulse(200.0, 20.0, 1.0)
+    shaped = prof.shaped(shapers.FAMILIES[family](OMEGA_N, paper.ZETA))
+    assert shaped.total_displacement == pytest.approx(20.0, rel=1e-12)
+    assert shaped.end == pytest.approx(prof.end + shapers.FAMILIES[family](OMEGA_N, paper.ZETA).duration)
+
+
+def test_shaped_profile_is_sum_of_delayed_copies():
+    prof = profiles.pulse_profile(300.0, 20.0)
+    shaped = prof.shaped(ZVD)
+    t = np.linspace(0.5, 9.0, 4001)
+    expected = sum(a * prof.sample(t - ti) for a, ti in zip(ZVD.amplitudes, ZVD.times, strict=True))
+    np.testing.assert_allclose(shaped.sample(t), expected, atol=1e-9)
+
+
+def test_shaped_profile_agrees_with_shaper_apply_on_grid():
+    dt = 1e-4
+    s = shapers.Shaper(np.array([0.3, 0.7]), np.array([0.0, 0.1]), "grid")
+    t = np.arange(0.0, 2.0, dt)
+    prof = profiles.single_pulse(200.0, 10.0, 0.5)
+    np.testing.assert_allclose(prof.shaped(s).sample(t), s.apply(t, prof.sample(t)), atol=1e-9)
+
+
+def test_displacement_is_integral_of_velocity():
+    prof = profiles.shaped_pulse(200.0, 30.0, ZV)
+    dt = 1e-5
+    t = np.arange(0.0, 10.0, dt)
+    numeric = np.cumsum(prof.sample(t)) * dt
+    np.testing.assert_allclose(prof.displacement(t), numeric, atol=200 * dt * 2)
+    assert prof.displacement(12.0) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_velocity_profile_validation():
+    with pytest.raises(ValueError, match="n\\+1"):
+        VelocityProfile(np.array([0.0, 1.0]), np.array([1.0, 2.0]))
+    with pytest.raises(ValueError, match="increasing"):
+        VelocityProfile(np.array([0.0, 0.0]), np.array([1.0]))
+
+
+# -- programme items and limits --------------------------------------------------------------------
+def test_segment_and_dwell_timing():
+    prog = Programme((Dwell(2), Segment(1, 3, 1000), Dwell(1), Segment(-1, 2, 700)))
+    t, s = prog.step_times()
+    np.testing.assert_allclose(t, [0.003, 0.004, 0.005, 0.0067, 0.0074], atol=1e-12)
+    np.testing.assert_array_equal(s, [1, 1, 1, -1, -1])
+    assert prog.duration_us == 2000 + 3000 + 1000 + 1400
+    assert prog.net_steps == 1
+    assert prog.commands() == ["CLEAR", "WAIT 2", "SEG 1 3 1000", "WAIT 1", "SEG -1 2 700"]
+    np.testing.assert_array_equal(prog.position_steps([0.0029, 0.003, 0.0051, 0.0075]), [0, 1, 3, 1])
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        lambda: Segment(1, 1.5, 1000),
+        lambda: Segment(1, 5, float("nan")),
+        lambda: Segment(1, 0, 1000),
+        lambda: Segment(0, 5, 1000),
+        lambda: Segment(True, 5, 1000),
+        lambda: Segment(1, 5, -700),
+        lambda: Dwell(-1),
+        lambda: Dwell(2.5),
+        lambda: Dwell(float("nan")),
+        lambda: Programme(("WAIT 5",)),
+    ],
+)
+def test_bad_items_refused(bad):
+    with pytest.raises(ValueError):
+        bad()
+
+
+@pytest.mark.parametrize(
+    ("items", "limit"),
+    [
+        ((Segment(1, 10, LIMITS.min_interval_us - 1),), "interval"),
+        ((Segment(1, 1, LIMITS.max_interval_us + 1),), "interval"),
+        ((Segment(1, LIMITS.max_position_steps + 1, 1000),), "travel"),
+        ((Segment(1, 5, 1000), Segment(-1, 6, 1000)), "travel"),
+        ((Dwell(LIMITS.max_dwell_ms + 1),), "dwell"),
+        (tuple(Dwell(1) for _ in range(LIMITS.max_items + 1)), "programme length"),
+        ((), "programme length"),
+    ],
+)
+def test_limits_refused_with_named_limit(items, limit):
+    with pytest.raises(ValueError, match=limit):
+        Programme(items).check_limits()
+
+
+def test_limits_accept_the_extremes():
+    Programme(
+        (Segment(1, LIMITS.max_position_steps, LIMITS.min_interval_us), Dwell(LIMITS.max_dwell_ms),
+         Segment(-1, LIMITS.max_position_steps, LIMITS.max_interval_us))
+        + tuple(Dwell(0) for _ in range(LIMITS.max_items - 3))
+    ).check_limits()
+    assert MM_PER_STEP / LIMITS.min_interval_us * 1e6 <= LIMITS.max_speed_mm_s
+    assert 1e6 / LIMITS.min_interval_us <= LIMITS.max_step_rate_hz
+    assert LIMITS.max_position_steps * MM_PER_STEP <= 40.0
+
+
+def test_travel_checked_from_start_position():
+    prog = Programme((Segment(1, 10, 1000),))
+    prog.check_limits(start_position=LIMITS.max_position_steps - 10)
+    with pytest.raises(ValueError, match="travel"):
+        prog.check_limits(start_position=LIMITS.max_position_steps - 9)
+
+
+def test_to_dict_round_trip_through_json():
+    prog, _ = profiles.experiment_programme(200.0, 20.0, ZVD)
+    again = Programme.from_dict(json.loads(json.dumps(prog.to_dict())))
+    assert again == prog
+    bad = prog.to_dict()
+    bad["net_steps"] += 1
+    with pytest.raises(ValueError, match="net_steps"):
+        Programme.from_dict(bad)
+    with pytest.raises(ValueError, match="kind"):
+        Programme.from_dict({"items": [{"kind": "GO"}]})
+
+
+# -- the experiment programme ----------------------------------------------------------------------
+COMMAND = re.compile(r"^(CLEAR|SEG (1|-1) [1-9][0-9]* [1-9][0-9]*|WAIT (0|[1-9][0-9]*))$")
+
+
+@pytest.mark.parametrize("system", list(SYSTEMS))
+@pytest.mark.parametrize(("v", "x"), paper.TABLE_I_CONDITIONS)
+def test_experiment_programme_table_i(system, v, x):
+    shaper = SYSTEMS[system]
+    prog, report = profiles.experiment_programme(v, x, shaper)
+    n = round(x / MM_PER_STEP)
+    assert report.n_steps == n
+    t, signs = prog.step_times()
+    # exactly N steps up then N steps down, back to zero
+    assert len(t) == 2 * n
+    assert prog.net_steps == 0
+    assert np.all(signs[:n] == 1) and np.all(signs[n:] == -1)
+    assert np.all(np.diff(t) > 0)
+    # the up move runs from t_up to the end of the shaped move, the down move from t_down
+    dur = x / v + (shaper.duration if shaper else 0.0)
+    assert 1.0 < t[0] and t[n - 1] <= 1.0 + dur + 1e-3
+    starts = prog.item_starts_us()
+    first_down = next(
+        i for i, it in enumerate(prog.items) if isinstance(it, Segment) and it.direction == -1
+    )
+    assert abs(starts[first_down] / 1e6 - 8.0) < 1e-3
+    assert 8.0 < t[n] and t[-1] <= 8.0 + dur + 1e-3
+    assert prog.duration_s == pytest.approx(12.0, abs=1e-3)
+    # the stepper follows the exact shaped displacement (scaled to whole steps) to within about one step
+    exact = profiles.shaped_pulse(v, x, shaper)
+    grid = np.linspace(0.0, 12.0, 24001)
+    err = prog.position_steps(grid) * MM_PER_STEP - exact.displacement(grid) * report.realised_mm / x
+    # (cumulative rounding +-0.5 step, the staircase trails by up to 1 step, plus the rescaling)
+    assert np.max(np.abs(err)) < 2.0 * MM_PER_STEP
+    # commands in the protocol's format, short enough for the board's line buffer
+    cmds = prog.commands()
+    assert cmds[0] == "CLEAR" and "GO" not in cmds
+    assert all(COMMAND.match(c) and len(c) <= 63 for c in cmds)
+    prog.check_limits()
+
+
+def test_quantisation_report_accounts_for_rounding():
+    prog, rep = profiles.experiment_programme(200.0, 30.0, ZVD)
+    assert rep.realised_mm == pytest.approx(118 * MM_PER_STEP)
+    assert rep.displacement_error_mm == pytest.approx(118 * MM_PER_STEP - 30.0)
+    seg = rep.pieces[rep.pieces["item"] == "SEG"]
+    assert seg.loc[seg["move"] == "up", "steps"].sum() == 118
+    assert seg.loc[seg["move"] == "down", "steps"].sum() == -118
+    # piece ends on the realised clock are what the programme does
+    ends = prog.item_starts_us() + np.array([it.duration_us for it in prog.items])
+    seg_ends = [e for e, it in zip(ends, prog.items, strict=True) if isinstance(it, Segment)]
+    np.testing.assert_allclose(seg["realised_end_s"], np.array(seg_ends) / 1e6, atol=1e-9)
+    assert rep.max_timing_error_us < 1000.0
+    assert list(rep.dwells["dwell"]) == ["lead-in", "hold", "trailing"]
+
+
+def test_zero_velocity_pieces_become_dwells():
+    # 10 mm at 200 mm/s lasts 50 ms < T = 125 ms: the ZV-shaped move pauses between its two pieces.
+    prog, rep = profiles.experiment_programme(200.0, 10.0, ZV)
+    kinds = [type(it).__name__ for it in prog.items]
+    assert kinds[:4] == ["Dwell", "Segment", "Dwell", "Segment"]
+    assert prog.items[2].ms == round((ZV.times[1] - 0.05) * 1e3)
+
+
+def test_experiment_refuses_out_of_limits():
+    with pytest.raises(ValueError, match="interval"):
+        profiles.experiment_programme(450.0, 20.0)
+    with pytest.raises(ValueError, match="travel"):
+        profiles.experiment_programme(200.0, 41.0)
+    with pytest.raises(ValueError, match="t_end"):
+        profiles.experiment_programme(200.0, 20.0, ZVD, t_end=8.2)
+
+
+def test_near_limit_speed_stays_within_step_rate():
+    # 12 steps rounded up from 11.6 in 7.6 ms would need 637 us steps: the board's 639 us is used instead
+    prog, rep = profiles.experiment_programme(387.8, 2.96, None)
+    prog.check_limits()
+    assert min(it.interval_us for it in prog.items if isinstance(it, Segment)) >= LIMITS.min_interval_us
+    assert 0 < rep.max_timing_error_us < 100.0
+
+
+def test_long_hold_is_split_into_legal_dwells():
+    prog, _ = profiles.experiment_programme(200.0, 10.0, None, t_up=1.0, t_down=130.0, t_end=131.0)
+    prog.check_limits()
+    assert max(it.ms for it in prog.items if isinstance(it, Dwell)) <= LIMITS.max_dwell_ms
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    v=st.floats(20.0, 380.0),
+    x=st.floats(1.0, 39.5),
+    family=st.sampled_from([None, *shapers.FAMILIES]),
+    omega=st.floats(10.0, 80.0),
+    zeta=st.floats(0.0, 0.2),
+)
+def test_programme_lands_on_whole_steps(v, x, family, omega, zeta):
+    shaper = None if family is None else shapers.FAMILIES[family](omega, zeta)
+    prog, rep = profiles.experiment_programme(v, x, shaper, t_end=12.0)
+    n = round(x / MM_PER_STEP)
+    assert rep.n_steps == n
+    t, signs = prog.step_times()
+    pos = np.cumsum(signs.astype(int))
+    assert pos[np.searchsorted(t, 8.0, side="left") - 1] == n
+    assert prog.net_steps == 0
+    assert pos.min() >= 0 and pos.max() <= LIMITS.max_position_steps
+    prog.check_limits()
