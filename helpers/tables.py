@@ -1,0 +1,75 @@
+"""Saving result tables as CSV (for machines), Markdown (for the README) and LaTeX (for a paper).
+
+Markdown is written here rather than with ``DataFrame.to_markdown`` so that the project does not need the
+``tabulate`` package for one function; LaTeX uses pandas' own ``to_latex`` (jinja2 comes with Jupyter).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pandas as pd
+
+from helpers.paths import figure_path
+
+
+def _cell(value: object, precision: int) -> str:
+    if isinstance(value, float):
+        return "NaN" if math.isnan(value) else f"{value:.{precision}f}"
+    return str(value)
+
+
+def to_markdown(table: pd.DataFrame, precision: int = 1) -> str:
+    """Render ``table`` as a GitHub-flavoured Markdown table with fixed precision.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The table; its index is not written.
+    precision : int
+        Digits after the decimal point of float cells.
+
+    Returns
+    -------
+    str
+        The Markdown text, ending in a newline.
+    """
+    header = "| " + " | ".join(str(c) for c in table.columns) + " |"
+    rule = "|" + "|".join("---" for _ in table.columns) + "|"
+    rows = [
+        "| " + " | ".join(_cell(v, precision) for v in row) + " |"
+        for row in table.itertuples(index=False, name=None)
+    ]
+    return "\n".join([header, rule, *rows]) + "\n"
+
+
+def save_table(table: pd.DataFrame, stem: str, precision: int = 1, caption: str = "") -> list[Path]:
+    """Save ``table`` as ``figures/<stem>.csv``, ``.md`` and ``.tex``.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The table.
+    stem : str
+        File name without extension, e.g. ``"table2_metrics"``.
+    precision : int
+        Digits after the decimal point in the Markdown and LaTeX versions (the CSV keeps full precision).
+    caption : str
+        Caption of the LaTeX table (and a first line of the Markdown file when given).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The three files written.
+    """
+    csv = figure_path(f"{stem}.csv")
+    table.to_csv(csv, index=False, float_format="%.6g")
+    md = figure_path(f"{stem}.md")
+    md.write_text((f"{caption}\n\n" if caption else "") + to_markdown(table, precision))
+    tex = figure_path(f"{stem}.tex")
+    latex = table.to_latex(
+        index=False, float_format=lambda x: _cell(float(x), precision), caption=caption or None
+    )
+    tex.write_text(latex)
+    return [csv, md, tex]
