@@ -1,0 +1,245 @@
+"""Figures of the linear modal model: mode shapes, pole-zero map and the paper's Fig. 12.
+
+Every function returns the figure; :func:`fig12` also saves it as ``figures/fig12_model_shaping.png``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from helpers import model
+from helpers.plotting import SYSTEM_COLOURS, save
+
+FIG12_NAME = "fig12_model_shaping.png"
+"""File name of the paper's Fig. 12 under ``figures/``."""
+
+FIG12_V_IN_MM_S = 200.0
+FIG12_X_F_MM = 20.0
+"""Fig. 12's pulse: the paper does not state it; we use 200 mm/s and 20 mm, the middle row of Table I
+and the case of the paper's Fig. 9, so the model figure sits beside a measured one."""
+
+
+def mode_shapes(n_modes: int = 4, n_points: int = 401) -> plt.Figure:
+    """Plot the tip-normalised mode shapes ``phi_n(x/L)`` of modes 1..n_modes.
+
+    Parameters
+    ----------
+    n_modes : int
+        Number of modes.
+    n_points : int
+        Points along the arm.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes, shape against x/L.
+    """
+    beta = model.cantilever_roots(n_modes)
+    x = np.linspace(0.0, 1.0, n_points)
+    fig, ax = plt.subplots(figsize=(6.0, 3.2))
+    for n in range(1, n_modes + 1):
+        ax.plot(x, model.mode_shape(x, n), label=f"mode {n} (beta = {beta[n - 1]:.4f})")
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.set_xlabel("x / L")
+    ax.set_ylabel("phi_n (tip-normalised)")
+    ax.set_title("Cantilever mode shapes, phi_n(L) = +1")
+    ax.legend(loc="lower left")
+    return fig
+
+
+def pole_zero_map(params: model.ArmParameters, zoom: float = 60.0) -> plt.Figure:
+    """Pole-zero map of the tension transfer function ``Lambda/(sU)``, full and zoomed on the dominant pair.
+
+    Poles are crosses, zeros circles (the zeros are the uncoupled modal poles ``D_n = 0``); the dashed
+    lines mark the first two modal frequencies ``Im s = +-omega_1, +-omega_2`` (the modes are lightly
+    damped, so ``|s|`` and ``Im s`` nearly agree), and the dominant pair is ringed.
+
+    Parameters
+    ----------
+    params : helpers.model.ArmParameters
+        The model (finite ``k``).
+    zoom : float
+        The right panel shows ``-zoom <= Re s <= 0.15 zoom`` (1/s) and ``|Im s| <= 1.1 omega_2``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels.
+    """
+    tension, _ = model.transfer_functions(params)
+    p = model.poles(params)
+    z = np.asarray(tension.zeros(), dtype=complex)
+    w = model.modal_frequencies(params)
+    dom = model.dominant_mode(params)
+    fig, axes = plt.subplots(1, 2, figsize=(7.2, 3.6))
+    for ax in axes:
+        ax.plot(p.real, p.imag, "x", color="C3", ms=7, mew=1.5, label="poles")
+        ax.plot(z.real, z.imag, "o", mfc="none", color="C0", ms=7, label="zeros (uncoupled modes)")
+        for i, (wi, style) in enumerate(zip(w[:2], ("--", ":"), strict=True)):
+            for sign in (1, -1):
+                ax.axhline(
+                    sign * wi,
+                    ls=style,
+                    color="0.4",
+                    lw=0.8,
+                    label=rf"$\pm\omega_{i + 1}$ = {wi:.2f} rad/s" if sign > 0 else None,
+                )
+        ax.plot(dom.pole.real, dom.pole.imag, "o", ms=14, mfc="none", color="C2", mew=1.2, label="dominant")
+        ax.plot(dom.pole.real, -dom.pole.imag, "o", ms=14, mfc="none", color="C2", mew=1.2)
+        ax.axhline(0.0, color="k", lw=0.6)
+        ax.axvline(0.0, color="k", lw=0.6)
+        ax.set_xlabel("Re s (1/s)")
+    axes[0].set_ylabel("Im s (rad/s)")
+    axes[0].set_title(r"$\Lambda/(sU)$: all poles and zeros")
+    axes[1].set_xlim(-zoom, 0.15 * zoom)
+    axes[1].set_ylim(-1.1 * w[1], 1.1 * w[1])
+    axes[1].set_title(rf"zoom: dominant pair, $\omega_d$ = {dom.omega_d:.3f} rad/s")
+    axes[1].legend(loc="lower left", fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+@dataclass(frozen=True)
+class ShapingResponse:
+    """Model responses to one pulse, unshaped and shaped (the data behind Fig. 12).
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        Time, s.
+    commands : dict of str to numpy.ndarray
+        Cable velocity command per system (``"unshaped"``, ``"zv"``, ``"zvd"``), mm/s.
+    tension : dict of str to numpy.ndarray
+        Model tension per system, N.
+    tip : dict of str to numpy.ndarray
+        Model tip displacement per system, m.
+    v_in_mm_s, x_f_mm : float
+        The pulse.
+    """
+
+    v_in_mm_s: float
+    x_f_mm: float
+    t: np.ndarray
+    commands: dict[str, np.ndarray]
+    tension: dict[str, np.ndarray]
+    tip: dict[str, np.ndarray]
+
+
+def shaping_response(
+    params: model.ArmParameters,
+    v_in_mm_s: float = FIG12_V_IN_MM_S,
+    x_f_mm: float = FIG12_X_F_MM,
+    t_end: float = 12.0,
+    rate_hz: int = 2000,
+) -> ShapingResponse:
+    """Simulate the model's response to the paper's velocity pulse, unshaped and with both TDFs.
+
+    The pulse is :func:`helpers.profiles.velocity_pulse` (up at 1 s, down at 8 s); the shaped commands are
+    the pulse convolved with the impulses of :func:`helpers.shapers.paper_tdfs` (designed from the paper's
+    identified zeta = 0.044, omega_d = 25.085 rad/s), via ``Shaper.apply``.
+
+    Parameters
+    ----------
+    params : helpers.model.ArmParameters
+        The model.
+    v_in_mm_s, x_f_mm : float
+        Pulse velocity (mm/s) and cable displacement (mm).
+    t_end : float
+        Simulated span, s.
+    rate_hz : int
+        Samples per second of the uniform grid ``t = i / rate_hz`` (written so that the pulse's
+        breakpoints at whole milliseconds fall exactly on grid points).
+
+    Returns
+    -------
+    ShapingResponse
+        Commands, tensions and tip displacements on one grid.
+    """
+    from helpers.profiles import velocity_pulse
+    from helpers.shapers import paper_tdfs
+
+    if not (int(rate_hz) == rate_hz and rate_hz > 0 and t_end > 8.0 + x_f_mm / v_in_mm_s):
+        raise ValueError(
+            f"need an integer rate_hz > 0 and t_end after the down move, got {rate_hz!r}, t_end={t_end}"
+        )
+    t = np.arange(round(t_end * rate_hz) + 1) / rate_hz
+    pulse = np.asarray(velocity_pulse(t, v_in_mm_s, x_f_mm), dtype=float)
+    zv, zvd = paper_tdfs()
+    commands = {"unshaped": pulse, "zv": zv.apply(t, pulse), "zvd": zvd.apply(t, pulse)}
+    tension: dict[str, np.ndarray] = {}
+    tip: dict[str, np.ndarray] = {}
+    for name, v in commands.items():
+        tension[name], tip[name] = model.simulate(params, t, v * 1e-3)
+    return ShapingResponse(
+        v_in_mm_s=float(v_in_mm_s), x_f_mm=float(x_f_mm), t=t, commands=commands, tension=tension, tip=tip
+    )
+
+
+def fig12(
+    params: model.ArmParameters | None = None,
+    v_in_mm_s: float = FIG12_V_IN_MM_S,
+    x_f_mm: float = FIG12_X_F_MM,
+    response: ShapingResponse | None = None,
+) -> plt.Figure:
+    """The paper's Fig. 12: model tension response to the velocity pulse, without and with input shaping.
+
+    Top: the three cable-velocity commands; middle: the model tension over the whole run; bottom: the
+    up and down transients enlarged. Saved as ``figures/fig12_model_shaping.png``.
+
+    Parameters
+    ----------
+    params : helpers.model.ArmParameters, optional
+        The model; default :func:`helpers.model.calibrated_parameters`.
+    v_in_mm_s, x_f_mm : float
+        The pulse (default 200 mm/s, 20 mm; the paper does not say which it used).
+    response : ShapingResponse, optional
+        A precomputed :func:`shaping_response` (then ``params``, ``v_in_mm_s`` and ``x_f_mm`` are ignored).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (also written to ``figures/``).
+    """
+    from helpers import paper
+
+    if response is None:
+        params = model.calibrated_parameters() if params is None else params
+        response = shaping_response(params, v_in_mm_s, x_f_mm)
+    labels = {"unshaped": "Pulse (unshaped)", "zv": "Non-robust TDF (ZV)", "zvd": "Robust TDF (ZVD)"}
+    t = response.t
+    fig = plt.figure(figsize=(7.2, 6.4))
+    grid = fig.add_gridspec(3, 2, height_ratios=[0.8, 1.2, 1.2])
+    ax_cmd = fig.add_subplot(grid[0, :])
+    ax_all = fig.add_subplot(grid[1, :], sharex=ax_cmd)
+    ax_up = fig.add_subplot(grid[2, 0])
+    ax_down = fig.add_subplot(grid[2, 1], sharey=ax_up)
+    for name in paper.SYSTEMS:
+        colour = SYSTEM_COLOURS[name]
+        ax_cmd.plot(t, response.commands[name], color=colour, label=labels[name])
+        for ax in (ax_all, ax_up, ax_down):
+            ax.plot(t, response.tension[name], color=colour, label=labels[name])
+    ax_cmd.set_ylabel("cable v (mm/s)")
+    ax_cmd.legend(loc="upper right", ncols=3)
+    ax_cmd.tick_params(labelbottom=False)
+    ax_all.set_ylabel("tension (N)")
+    ax_all.set_xlabel("time (s)")
+    ax_all.set_xlim(t[0], t[-1])
+    ax_up.set_xlim(paper.PULSE_T_UP_S - 0.1, paper.PULSE_T_UP_S + 2.4)
+    ax_down.set_xlim(paper.PULSE_T_DOWN_S - 0.1, paper.PULSE_T_DOWN_S + 2.4)
+    ax_up.set_title("Up", fontsize=9)
+    ax_down.set_title("Down", fontsize=9)
+    ax_up.set_ylabel("tension (N)")
+    for ax in (ax_up, ax_down):
+        ax.set_xlabel("time (s)")
+    ax_down.tick_params(labelleft=False)
+    fig.suptitle(
+        f"Fig. 12 (model, eqs. 11-12): velocity pulse {response.v_in_mm_s:.0f} mm/s, "
+        f"{response.x_f_mm:.0f} mm, without and with input shaping",
+        fontsize=10,
+    )
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.98))
+    save(fig, FIG12_NAME)
+    return fig
