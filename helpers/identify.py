@@ -24,13 +24,18 @@ quantisation once the noise dithers it). Coloured residuals (other modes, nonlin
 
 from __future__ import annotations
 
+import json
 import math
+import os
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, signal
+
+from helpers.paths import IDENTIFICATION_RESULT
 
 FloatArray = NDArray[np.float64]
 
@@ -851,3 +856,28 @@ def identify_recording(
         recording=name if isinstance(name, str) else None,
         source=src if isinstance(src, str) else None,
     )
+
+
+def save_identification(
+    result: IdentificationResult, path: str | os.PathLike = IDENTIFICATION_RESULT
+) -> Path:
+    """Write ``result.to_dict()`` as JSON (atomically) where the shaper design reads it.
+
+    Parameters
+    ----------
+    result : IdentificationResult
+        The identified mode, with its provenance (see :func:`identify_recording`).
+    path : path-like
+        Default ``data/identification/result.json``.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
+    os.replace(tmp, path)
+    return path

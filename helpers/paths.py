@@ -16,6 +16,10 @@ FIGURES_DIR: Path = REPO_ROOT / "figures"
 NOTEBOOKS_DIR: Path = REPO_ROOT / "notebooks"
 """The numbered notebooks."""
 
+IDENTIFICATION_RESULT: Path = DATA_DIR / "identification" / "result.json"
+"""The identified dominant mode: written by ``helpers.identify.save_identification`` (notebook 02 and
+``python -m helpers record all``), read by ``helpers.shapers.load_identification`` (notebook 03 onwards)."""
+
 FIRMWARE_DIR: Path = REPO_ROOT / "firmware"
 """Arduino sketches, the Makefile and the simavr harness."""
 

@@ -47,7 +47,7 @@ import pandas as pd
 from scipy.optimize import brentq, root
 
 from helpers import paper
-from helpers.paths import DATA_DIR
+from helpers.paths import IDENTIFICATION_RESULT
 
 SUM_TOLERANCE = 1e-9
 """How far the amplitudes of a :class:`Shaper` may sum from 1."""
@@ -57,9 +57,6 @@ MERGE_TOLERANCE_S = 1e-12
 
 MULTI_HUMP_VTOL = 0.05
 """Singhose's damped two- and three-hump EI fits exist only for a 5 % vibration tolerance."""
-
-IDENTIFICATION_RESULT = DATA_DIR / "identification" / "result.json"
-"""Where notebook 02 writes the identified dominant mode."""
 
 _IDENTIFICATION_KEYS = (
     "zeta", "omega_d", "zeta_std", "omega_d_std", "method", "window_s", "recording", "source",

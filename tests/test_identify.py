@@ -238,8 +238,9 @@ def test_result_json_is_what_the_shaper_design_reads(tmp_path):
 
     r = ident.identify(T, decay(120.0, seed=13), WINDOW)
     r = dataclasses.replace(r, recording="pulse_100mms_10mm", source="virtual-rig")
-    path = tmp_path / "result.json"
-    path.write_text(json.dumps(r.to_dict(), indent=2))
+    path = ident.save_identification(r, tmp_path / "identification" / "result.json")
+    assert json.loads(path.read_text())["method"] == "fit"
+    assert not list(path.parent.glob(".*tmp"))  # the temporary file was renamed away
     zeta, omega_d, provenance = shapers.load_identification(path)
     assert (zeta, omega_d) == (r.zeta, r.omega_d)
     assert provenance["source"] == "virtual-rig" and provenance["window_s"] == [9.0, 10.0]
