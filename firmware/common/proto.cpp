@@ -1,0 +1,128 @@
+// Line framing, checksums, argument parsing and fast integer formatting (see proto.h).
+#include "proto.h"
+
+#include <string.h>
+
+LineEvent LineReader::feed(char c) {
+  if (c == '\r') return LINE_NONE;  // PROTOCOL.md: a '\r' before '\n' is ignored
+  if (c == '\n') {
+    LineEvent ev = overflow ? LINE_TOOLONG : LINE_READY;
+    buf[overflow ? 0 : len] = '\0';
+    if (overflow) len = 0;
+    overflow = 0;
+    return ev;
+  }
+  if (overflow) return LINE_NONE;
+  if (len >= PROTO_MAX_LINE) {
+    overflow = 1;  // discard the rest of the line, answer once at its '\n'
+    len = 0;
+    return LINE_NONE;
+  }
+  buf[len++] = c;
+  return LINE_NONE;
+}
+
+uint8_t proto_xor(const char *s, uint8_t n) {
+  uint8_t x = 0;
+  while (n--) x ^= (uint8_t)*s++;
+  return x;
+}
+
+static int8_t hexval(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  return -1;
+}
+
+// Parses "-?[0-9]+" into a saturated int32; false if the token is not a decimal integer.
+static bool parse_int(const char *s, int32_t *out) {
+  bool neg = false;
+  if (*s == '-') { neg = true; s++; }
+  if (!*s) return false;
+  uint32_t v = 0;
+  bool big = false;
+  for (; *s; s++) {
+    if (*s < '0' || *s > '9') return false;
+    if (v > 214748364UL) big = true;
+    v = v * 10 + (uint8_t)(*s - '0');
+    if (v > 2147483647UL) big = true;
+    if (big) v = 2147483647UL;  // keep scanning: a later non-digit still makes it an ARG error
+  }
+  if (big) { *out = neg ? (int32_t)(-2147483647L - 1) : (int32_t)2147483647L; return true; }
+  *out = neg ? -(int32_t)v : (int32_t)v;
+  return true;
+}
+
+ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd) {
+  cmd->word = line;
+  cmd->nargs = 0;
+  cmd->bad = 0;
+  if (len == 0) return PROTO_EMPTY;
+  char *star = (char *)memchr(line, '*', len);
+  if (star) {
+    uint8_t body = (uint8_t)(star - line);
+    if (len != body + 3) return PROTO_CHECKSUM;  // exactly two hex digits must follow '*'
+    int8_t hi = hexval(star[1]), lo = hexval(star[2]);
+    if (hi < 0 || lo < 0) return PROTO_CHECKSUM;
+    if ((uint8_t)((hi << 4) | lo) != proto_xor(line, body)) return PROTO_CHECKSUM;
+    *star = '\0';
+    len = body;
+    if (len == 0) return PROTO_EMPTY;
+  }
+  // Split on single spaces: an empty token (double, leading or trailing space) is an ARG error.
+  char *p = line;
+  char *tok[1 + PROTO_MAX_ARGS + 1];
+  uint8_t ntok = 0;
+  bool empty_token = false;
+  for (;;) {
+    char *sp = strchr(p, ' ');
+    if (sp) *sp = '\0';
+    if (*p == '\0') empty_token = true;
+    if (ntok < sizeof(tok) / sizeof(tok[0])) tok[ntok] = p;
+    ntok++;
+    if (!sp) break;
+    p = sp + 1;
+  }
+  cmd->word = tok[0];
+  cmd->nargs = (uint8_t)(ntok - 1);
+  cmd->bad = empty_token;
+  uint8_t n = cmd->nargs < PROTO_MAX_ARGS ? cmd->nargs : PROTO_MAX_ARGS;
+  for (uint8_t i = 0; i < n && !cmd->bad; i++) {
+    if (!parse_int(tok[1 + i], &cmd->arg[i])) cmd->bad = 1;
+  }
+  return PROTO_OK;
+}
+
+bool proto_is(const Command *cmd, const char *w) { return strcmp(cmd->word, w) == 0; }
+
+// Decimal conversion by subtracting powers of ten: no 32-bit division (slow on the AVR), at most
+// 9 subtractions per digit.
+static const uint32_t POW10[10] = {1000000000UL, 100000000UL, 10000000UL, 1000000UL, 100000UL,
+                                   10000UL,      1000UL,      100UL,      10UL,      1UL};
+
+void LineWriter::u32(uint32_t v) {
+  bool started = false;
+  for (uint8_t i = 0; i < 10; i++) {
+    uint32_t p = POW10[i];
+    char d = '0';
+    while (v >= p) { v -= p; d++; }
+    if (d != '0' || started || i == 9) { put(d); started = true; }
+  }
+}
+
+void LineWriter::i32(int32_t v) {
+  if (v < 0) { put('-'); u32((uint32_t)0 - (uint32_t)v); }
+  else u32((uint32_t)v);
+}
+
+static const char HEX[] = "0123456789ABCDEF";
+
+uint8_t LineWriter::finish() {
+  uint8_t x = proto_xor(buf, len);
+  buf[len++] = '*';
+  buf[len++] = HEX[x >> 4];
+  buf[len++] = HEX[x & 15];
+  buf[len++] = '\n';
+  return len;
+}

@@ -1,0 +1,70 @@
+// Line framing, checksums, argument parsing and fast integer formatting shared by both boards.
+//
+// Implements the framing of firmware/PROTOCOL.md: ASCII lines ending in '\n' ('\r' ignored), at most
+// PROTO_MAX_LINE characters, an optional NMEA-style "*hh" suffix (XOR of the bytes before '*').
+// Plain C++ with no Arduino dependency, so the same code can be compiled for the host.
+#ifndef FIRMWARE_COMMON_PROTO_H
+#define FIRMWARE_COMMON_PROTO_H
+
+#include <stdint.h>
+
+#define PROTO_MAX_LINE 63   // characters before '\n'
+#define PROTO_MAX_ARGS 3    // the most arguments any command takes (SEG)
+#define PROTO_OUT_MAX 72    // longest line a board sends, "*hh\n" included
+
+// Result of feeding one received byte to the line assembler.
+enum LineEvent : uint8_t { LINE_NONE = 0, LINE_READY, LINE_TOOLONG };
+
+// Accumulates received bytes into lines; a line longer than PROTO_MAX_LINE is discarded up to its '\n'
+// and reported once (LINE_TOOLONG) when that '\n' arrives, so every line gets exactly one reply.
+struct LineReader {
+  char buf[PROTO_MAX_LINE + 1];
+  uint8_t len;
+  uint8_t overflow;
+  void reset() { len = 0; overflow = 0; }
+  LineEvent feed(char c);
+};
+
+// Error codes of PROTOCOL.md, in the order a command is checked.
+enum ProtoStatus : uint8_t {
+  PROTO_OK = 0,
+  PROTO_EMPTY,      // blank line: ignored, no reply
+  PROTO_CHECKSUM,   // "*hh" present but wrong or malformed
+};
+
+// A parsed command: the command word and up to PROTO_MAX_ARGS integer arguments.
+// Integers outside int32 saturate to INT32_MIN/INT32_MAX so that the range checks reject them (ERR RANGE).
+struct Command {
+  const char *word;   // points into the line buffer, NUL-terminated
+  uint8_t nargs;      // number of arguments found (may exceed PROTO_MAX_ARGS: then only the first are parsed)
+  uint8_t bad;        // an argument is not a decimal integer, or an empty token (double/trailing space)
+  int32_t arg[PROTO_MAX_ARGS];
+};
+
+// True when the command has exactly n well-formed integer arguments (otherwise the reply is ERR ARG).
+inline bool proto_args_ok(const Command *cmd, uint8_t n) { return !cmd->bad && cmd->nargs == n; }
+
+// XOR of n bytes.
+uint8_t proto_xor(const char *s, uint8_t n);
+
+// Verifies and strips an optional checksum, splits the words and parses the integer arguments.
+// Modifies `line` in place (NUL-terminates the words). `len` is strlen(line).
+ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd);
+
+// True when the command word equals `w`.
+bool proto_is(const Command *cmd, const char *w);
+
+// Builds one outgoing line and appends "*hh\n".
+struct LineWriter {
+  char buf[PROTO_OUT_MAX];
+  uint8_t len;
+  void begin() { len = 0; }
+  void put(char c) { if (len < PROTO_OUT_MAX - 4) buf[len++] = c; }
+  void str(const char *s) { while (*s) put(*s++); }
+  void u32(uint32_t v);
+  void i32(int32_t v);
+  // Appends "*hh\n"; returns the total length.
+  uint8_t finish();
+};
+
+#endif
