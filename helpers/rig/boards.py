@@ -1,0 +1,297 @@
+"""The link to one board, shared by both drivers: framed commands, replies, timeouts, resets, disconnects.
+
+Every read goes through :meth:`BoardLink.pump`, which feeds the bytes to a
+:class:`helpers.rig.framing.StreamParser`: data lines become samples (kept for the DAQ driver), other lines
+become messages. Replies (``OK``, ``ERR``, ``PONG``, ``ABORTED``) answer the pending command; unsolicited
+``DONE`` is remembered; ``HELLO`` means the board rebooted, which is an error whenever it was not expected.
+
+Timeouts are counted in the port's own read timeouts (a pyserial read that returns early has waited its
+``timeout``), or in wall time, whichever is larger. That is exact on hardware and lets the in-process virtual
+rig, which returns at once but advances its device clock by the timeout, report the same errors instantly.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+
+import serial
+
+from helpers.rig.framing import StreamParser, frame
+
+REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
+
+
+class BoardError(RuntimeError):
+    """A board misbehaved; the message names the board and what happened."""
+
+
+class BoardTimeout(BoardError):
+    """A board stopped answering within its timeout."""
+
+
+class BoardReset(BoardError):
+    """A board sent ``HELLO`` unexpectedly: it rebooted (power glitch, USB reset, watchdog)."""
+
+
+class BoardDisconnected(BoardError):
+    """The serial port vanished (pyserial raised ``SerialException``)."""
+
+
+class CommandRefused(BoardError):
+    """A board answered ``ERR <code> <text>``."""
+
+    def __init__(self, message: str, code: str) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+def _expected_reply(command: str) -> str:
+    """The start of the reply a command gets besides ``ERR``: ``PONG``, ``ABORTED`` or ``OK <WORD>``."""
+    word = command.split(" ", 1)[0]
+    return {"PING": "PONG", "ABORT": "ABORTED"}.get(word, f"OK {word}")
+
+
+class Waiter:
+    """Elapsed waiting time: the larger of wall time and the sum of read timeouts that expired."""
+
+    def __init__(self, timeout: float) -> None:
+        self.timeout = timeout
+        self._t0 = time.monotonic()
+        self._virtual = 0.0
+
+    def idle(self, seconds: float) -> None:
+        """Record a read that returned without data after waiting ``seconds``."""
+        self._virtual += seconds
+
+    @property
+    def elapsed(self) -> float:
+        """Seconds waited so far."""
+        return max(time.monotonic() - self._t0, self._virtual)
+
+    @property
+    def expired(self) -> bool:
+        """True once ``timeout`` has passed."""
+        return self.elapsed >= self.timeout
+
+
+class BoardLink:
+    """One serial port speaking the protocol of ``firmware/PROTOCOL.md``.
+
+    Parameters
+    ----------
+    port : serial.SerialBase
+        An open port (``serial.Serial``, ``serial.serial_for_url("virtual://...")``, or a test double).
+    kind : str
+        ``"daq"`` or ``"stepper"`` (what ``PONG`` and ``HELLO`` must name).
+    timeout : float
+        Seconds a command may wait for its reply.
+    """
+
+    kind = "board"
+    baudrate = 115200
+
+    def __init__(self, port: serial.SerialBase, timeout: float = 2.0) -> None:
+        self.port = port
+        self.timeout = timeout
+        self.parser = StreamParser()
+        self.rows: list[tuple[int, int, int, int]] = []
+        self.replies: deque[str] = deque()
+        self.unexpected: list[str] = []
+        self.done_position: int | None = None
+        self.hello_seen = 0
+        self.version: str | None = None
+        self.sent: list[str] = []
+
+    @classmethod
+    def open(
+        cls,
+        url: str,
+        timeout: float = 2.0,
+        read_timeout: float = 0.05,
+        sync: bool = True,
+        hello_timeout: float = 3.0,
+    ) -> BoardLink:
+        """Open ``url`` (a device path or a pyserial URL) and synchronise with the board.
+
+        Parameters
+        ----------
+        url : str
+            E.g. ``/dev/ttyACM0``, ``/dev/pts/5`` or ``virtual://daq?rig=lab``.
+        timeout : float
+            Command timeout (s).
+        read_timeout : float
+            The port's read timeout (s): how long one poll waits.
+        sync : bool
+            Wait for ``HELLO`` (the board resets when the port opens) or ``PING`` until ``PONG``.
+        hello_timeout : float
+            Seconds to wait for the board to boot.
+
+        Returns
+        -------
+        BoardLink
+        """
+        try:
+            port = serial.serial_for_url(
+                url, baudrate=cls.baudrate, timeout=read_timeout, write_timeout=timeout
+            )
+        except serial.SerialException as exc:
+            raise BoardDisconnected(f"cannot open the {cls.kind} board at {url}: {exc}") from exc
+        link = cls(port, timeout=timeout)
+        if sync:
+            link.sync(hello_timeout)
+        return link
+
+    # --- low level ----------------------------------------------------------------------------------
+    def _fail_disconnected(self, exc: Exception) -> BoardDisconnected:
+        return BoardDisconnected(f"{self.kind} board disconnected ({self.port.port}): {exc}")
+
+    def write_line(self, body: str) -> None:
+        """Send ``body`` with its checksum."""
+        data = frame(body)
+        try:
+            self.port.write(data)
+        except serial.SerialException as exc:
+            raise self._fail_disconnected(exc) from exc
+        self.sent.append(body)
+
+    def pump(self, block: bool = True) -> int:
+        """Read what the port has (waiting up to its read timeout if ``block``); return bytes read."""
+        try:
+            n = self.port.in_waiting
+            if n == 0 and not block:
+                return 0
+            data = self.port.read(max(n, 1))
+            if data:
+                more = self.port.in_waiting
+                if more:
+                    data += self.port.read(more)
+        except serial.SerialException as exc:
+            raise self._fail_disconnected(exc) from exc
+        except OSError as exc:
+            raise self._fail_disconnected(exc) from exc
+        if not data:
+            return 0
+        rows, messages = self.parser.feed(data)
+        if rows:
+            self.rows.extend(rows)
+        for msg in messages:
+            self._message(msg)
+        return len(data)
+
+    def _message(self, msg: str) -> None:
+        if msg.startswith(REPLY_PREFIXES):
+            self.replies.append(msg)
+        elif msg.startswith("DONE"):
+            parts = msg.split()
+            self.done_position = int(parts[1]) if len(parts) == 2 and parts[1].lstrip("-").isdigit() else 0
+        elif msg.startswith("HELLO"):
+            self.hello_seen += 1
+            self.version = msg.split()[-1] if len(msg.split()) == 3 else None
+        else:
+            self.unexpected.append(msg)
+
+    def check_reset(self) -> None:
+        """Raise :class:`BoardReset` if the board sent ``HELLO`` since the last :meth:`sync`."""
+        if self.hello_seen:
+            raise BoardReset(f"the {self.kind} board reset (it sent HELLO): its state is lost")
+
+    def command(self, body: str, timeout: float | None = None) -> str:
+        """Send one command and return its reply; ``ERR`` raises :class:`CommandRefused`.
+
+        Data lines and ``DONE`` arriving meanwhile are kept; ``HELLO`` raises :class:`BoardReset`. A reply
+        that cannot belong to this command (a late answer to an earlier one that timed out) is set aside in
+        ``unexpected``.
+        """
+        self.replies.clear()
+        self.write_line(body)
+        expected = _expected_reply(body)
+        wait = Waiter(self.timeout if timeout is None else timeout)
+        reply = None
+        while reply is None:
+            while self.replies:
+                candidate = self.replies.popleft()
+                if candidate.startswith(("ERR", expected)):
+                    reply = candidate
+                    break
+                self.unexpected.append(candidate)
+            if reply is not None:
+                break
+            self.check_reset()
+            if wait.expired:
+                raise BoardTimeout(
+                    f"the {self.kind} board did not answer {body!r} within {wait.timeout:.1f} s"
+                )
+            if self.pump() == 0:
+                wait.idle(self.port.timeout or 0.0)
+        self.check_reset()
+        if reply.startswith("ERR"):
+            code = reply.split()[1] if len(reply.split()) > 1 else "?"
+            raise CommandRefused(f"the {self.kind} board refused {body!r}: {reply}", code)
+        return reply
+
+    def sync(self, hello_timeout: float = 3.0, ping_every: float = 0.25) -> str:
+        """Wait for the board after opening: ``HELLO`` (reset-on-open) or else ``PING`` until ``PONG``.
+
+        On a USB serial port nothing is sent for ``hello_timeout / 2`` (a bootloader may be listening); then
+        ``PING`` every ``ping_every`` s until a ``PONG`` naming this board's kind arrives or
+        ``hello_timeout`` expires.
+
+        Returns
+        -------
+        str
+            The firmware version.
+        """
+        wait = Waiter(hello_timeout)
+        last_ping = -1.0
+        port_name = str(getattr(self.port, "port", "") or "")
+        # A pseudo-terminal or an emulated board has no bootloader to disturb: ask at once.
+        quiet = 0.0 if port_name.startswith(("/dev/pts/", "virtual://", "loop://")) else hello_timeout / 2
+        while True:
+            if self.hello_seen:
+                break
+            for reply in list(self.replies):
+                if reply.startswith("PONG"):
+                    self.replies.clear()
+                    words = reply.split()
+                    if len(words) != 3 or words[1] != self.kind:
+                        raise BoardError(f"expected a {self.kind} board on {self.port.port}, got {reply!r}")
+                    self.version = words[2]
+                    break
+            else:
+                if wait.expired:
+                    raise BoardTimeout(
+                        f"no {self.kind} board answered on {self.port.port} within {hello_timeout:.1f} s "
+                        "(no HELLO, no PONG)"
+                    )
+                if wait.elapsed >= quiet and (last_ping < 0 or wait.elapsed - last_ping >= ping_every):
+                    self.write_line("PING")
+                    last_ping = wait.elapsed
+                if self.pump() == 0:
+                    wait.idle(self.port.timeout or 0.0)
+                continue
+            break
+        if self.hello_seen:
+            self.hello_seen = 0
+            self.version = self.ping()
+        self.replies.clear()
+        self.rows.clear()
+        return self.version or "?"
+
+    def ping(self) -> str:
+        """``PING`` -> the firmware version from ``PONG <kind> <version>``."""
+        reply = self.command("PING")
+        words = reply.split()
+        if len(words) != 3 or words[0] != "PONG" or words[1] != self.kind:
+            raise BoardError(
+                f"expected 'PONG {self.kind} <version>' from the {self.kind} board, got {reply!r}"
+            )
+        self.version = words[2]
+        return words[2]
+
+    def close(self) -> None:
+        """Close the port."""
+        try:
+            self.port.close()
+        except (serial.SerialException, OSError):
+            pass

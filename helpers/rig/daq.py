@@ -1,0 +1,105 @@
+"""Driver of the DAQ board (Arduino Mega 2560, 500000 baud): rate, zero, start, stop and the sample stream."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
+from helpers.rig.framing import StreamStats
+
+RATE_MIN_HZ, RATE_MAX_HZ = 100, 2000
+"""The board's sample-rate range (PROTOCOL.md)."""
+
+
+class DaqBoard(BoardLink):
+    """The DAQ board: samples (``seq``, ``t_us`` unwrapped, ``adc``, ``steps``) with exact fault counts.
+
+    ``stats`` (a :class:`helpers.rig.framing.StreamStats`) counts, since the last :meth:`start`: ``dropped``
+    sequence numbers (lines lost or destroyed in transport, including any lost after the last one received,
+    known once :meth:`stop` reports how many were sent), ``overruns`` (sample periods the board reports it
+    missed) and ``corrupted`` lines. Nothing here raises on garbage.
+    """
+
+    kind = "daq"
+    baudrate = 500_000
+
+    def __init__(self, port, timeout: float = 2.0) -> None:
+        super().__init__(port, timeout)
+        self.rate_hz = 1000
+        self.streaming = False
+
+    @property
+    def stats(self) -> StreamStats:
+        """Counts of the present (or last) stream."""
+        return self.parser.stats
+
+    def set_rate(self, hz: int) -> int:
+        """``RATE <hz>``; ``hz`` must be an integer in 100-2000 (checked before sending)."""
+        if isinstance(hz, bool) or not isinstance(hz, int) or not RATE_MIN_HZ <= hz <= RATE_MAX_HZ:
+            raise ValueError(f"DAQ rate must be an integer in {RATE_MIN_HZ}-{RATE_MAX_HZ} Hz, got {hz!r}")
+        self.command(f"RATE {hz}")
+        self.rate_hz = hz
+        return hz
+
+    def zero(self) -> None:
+        """``ZERO``: reset the board's step counter."""
+        self.command("ZERO")
+
+    def start(self) -> int:
+        """``START``: begin streaming; ``seq`` restarts at 0 and the counts are reset. Returns the rate."""
+        self.rows.clear()
+        self.parser.restart()
+        self.parser.stats = StreamStats()
+        reply = self.command("START")
+        self.streaming = True
+        words = reply.split()
+        if len(words) == 3 and words[2].isdigit():
+            self.rate_hz = int(words[2])
+        return self.rate_hz
+
+    def stop(self, timeout: float | None = None) -> int:
+        """``STOP``; return how many samples the board sent; count those lost after the last one seen.
+
+        Samples that arrive before the reply are kept (read them with :meth:`take_rows`).
+        """
+        reply = self.command("STOP", timeout=timeout)
+        self.streaming = False
+        words = reply.split()
+        if len(words) != 3 or not words[2].isdigit():
+            raise BoardError(f"malformed reply to STOP from the daq board: {reply!r}")
+        n = int(words[2])
+        last = self.parser.last_seq
+        received_span = 0 if last is None else last + 1
+        if n > received_span:
+            self.parser.stats.dropped += n - received_span
+        return n
+
+    def take_rows(self) -> list[tuple[int, int, int, int]]:
+        """Return and forget the samples received so far."""
+        rows, self.rows = self.rows, []
+        return rows
+
+    def read_rows(self) -> list[tuple[int, int, int, int]]:
+        """Read once (waiting up to the port's read timeout) and return the new samples."""
+        self.pump()
+        self.check_reset()
+        return self.take_rows()
+
+    def samples(self, silence_timeout: float | None = None) -> Iterator[list[tuple[int, int, int, int]]]:
+        """Yield chunks of samples while streaming.
+
+        Raises :class:`BoardTimeout` after ``silence_timeout`` s without a sample and
+        :class:`helpers.rig.boards.BoardReset` if the board reboots.
+        """
+        silence = Waiter(self.timeout if silence_timeout is None else silence_timeout)
+        while True:
+            rows = self.read_rows()
+            if rows:
+                silence = Waiter(silence.timeout)
+                yield rows
+            else:
+                silence.idle(self.port.timeout or 0.0)
+                if silence.expired:
+                    raise BoardTimeout(
+                        f"the daq board sent no sample for {silence.timeout:.1f} s (it stopped answering)"
+                    )

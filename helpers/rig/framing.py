@@ -1,0 +1,315 @@
+"""Line framing of the serial protocol (``firmware/PROTOCOL.md``): checksums, line splitting, parsing.
+
+Every line a board sends ends in ``*hh``, the XOR of all bytes before the ``*`` as two upper-case hex digits.
+This module turns a byte stream into classified lines and never raises on garbage: a line that fails any
+check (non-ASCII, missing or wrong checksum, too long, malformed data fields) is reported as corrupted.
+
+:class:`StreamParser` is the one place where the DAQ stream's bookkeeping happens: it counts exactly
+
+- ``dropped``: sequence numbers missing between consecutive data lines that arrived intact (lines lost in
+  transport or destroyed by corruption; a corrupted data line's ``seq`` is therefore also counted as dropped),
+- ``overruns``: sample periods the board itself reports as missed (``W,OVERRUN,<n>``),
+- ``corrupted``: non-blank lines that failed a check,
+
+and unwraps the board's 32-bit microsecond clock.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+MAX_LINE = 63
+"""Characters a line may hold before its ``\\n`` (PROTOCOL.md)."""
+
+WRAP_US = 1 << 32
+"""The boards' ``micros()`` wraps after 2**32 microseconds."""
+
+MAX_PENDING = 4 * (MAX_LINE + 1)
+"""Bytes of an unterminated line kept before it is declared corrupted (garbage without newlines)."""
+
+_HEX = "0123456789ABCDEF"
+_INT = re.compile(r"-?[0-9]+\Z")
+_UINT = re.compile(r"[0-9]+\Z")
+_FAST_DATA = re.compile(rb"D,([0-9]{1,10}),([0-9]{1,10}),([0-9]{1,4}),(-?[0-9]{1,10})\*([0-9A-F]{2})")
+
+
+class FramingError(ValueError):
+    """A line failed a framing check; the message names the check."""
+
+
+def checksum(body: bytes | str) -> str:
+    """Return the two upper-case hex digits of the XOR of ``body``'s bytes.
+
+    Parameters
+    ----------
+    body : bytes or str
+        The line's bytes before the ``*`` (str is encoded as ASCII).
+
+    Returns
+    -------
+    str
+        E.g. ``"53"`` for ``b"PONG daq 1.0.0"``.
+    """
+    data = body.encode("ascii") if isinstance(body, str) else body
+    x = 0
+    for b in data:
+        x ^= b
+    return _HEX[x >> 4] + _HEX[x & 15]
+
+
+def frame(body: str) -> bytes:
+    r"""Return ``body`` as a complete line with its checksum: ``b"<body>*hh\\n"``.
+
+    Raises
+    ------
+    ValueError
+        If ``body`` is not printable ASCII, contains ``*`` or a newline, or is longer than the protocol
+        allows.
+    """
+    if not body.isascii() or not body.isprintable() or "*" in body:
+        raise ValueError(f"cannot frame {body!r}: only printable ASCII without '*' is allowed")
+    line = f"{body}*{checksum(body)}"
+    if len(line) > MAX_LINE:
+        raise ValueError(f"line {line!r} has {len(line)} characters; the protocol allows {MAX_LINE}")
+    return (line + "\n").encode("ascii")
+
+
+def unframe(line: bytes, require_checksum: bool = True) -> str:
+    r"""Check one line (without its ``\\n``) and return its body.
+
+    Parameters
+    ----------
+    line : bytes
+        The raw line; a trailing ``\\r`` is ignored.
+    require_checksum : bool
+        Boards always send a checksum; commands from a host may omit it.
+
+    Returns
+    -------
+    str
+        The text before ``*hh``.
+
+    Raises
+    ------
+    FramingError
+        Non-ASCII or control bytes, too long, missing or malformed or wrong checksum.
+    """
+    if line.endswith(b"\r"):
+        line = line[:-1]
+    if len(line) > MAX_LINE:
+        raise FramingError(f"line of {len(line)} characters exceeds {MAX_LINE}")
+    try:
+        text = line.decode("ascii")
+    except UnicodeDecodeError:
+        raise FramingError("non-ASCII bytes") from None
+    if not text.isprintable():
+        raise FramingError("control characters")
+    star = text.rfind("*")
+    if star < 0:
+        if require_checksum:
+            raise FramingError("missing checksum")
+        return text
+    body, given = text[:star], text[star + 1 :]
+    if "*" in body:
+        raise FramingError("more than one '*'")
+    if len(given) != 2 or any(c not in _HEX for c in given):
+        raise FramingError(f"malformed checksum {given!r}")
+    if checksum(body) != given:
+        raise FramingError(f"checksum {given} does not match {checksum(body)}")
+    return body
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One data line ``D,<seq>,<t_us>,<adc>,<steps>`` (``t_us`` as sent, before unwrapping)."""
+
+    seq: int
+    t_us: int
+    adc: int
+    steps: int
+
+
+@dataclass(frozen=True)
+class Overrun:
+    """``W,OVERRUN,<n>``: the board missed ``n`` sample periods."""
+
+    n: int
+
+
+def parse_body(body: str) -> Sample | Overrun | str:
+    """Classify a checked line body.
+
+    Returns
+    -------
+    Sample, Overrun or str
+        A data line, an overrun warning, or any other message (replies, ``HELLO``, ``DONE``) as text.
+
+    Raises
+    ------
+    FramingError
+        A body starting with ``D,`` or ``W,`` whose fields are malformed or out of range.
+    """
+    if body.startswith("D,"):
+        parts = body.split(",")
+        if len(parts) != 5:
+            raise FramingError(f"data line with {len(parts)} fields, expected 5")
+        seq_s, t_s, adc_s, steps_s = parts[1:]
+        if not (_UINT.match(seq_s) and _UINT.match(t_s) and _UINT.match(adc_s) and _INT.match(steps_s)):
+            raise FramingError("data line with a non-integer field")
+        seq, t_us, adc = int(seq_s), int(t_s), int(adc_s)
+        if t_us >= WRAP_US or adc > 1023:
+            raise FramingError("data line field out of range")
+        return Sample(seq, t_us, adc, int(steps_s))
+    if body.startswith("W,"):
+        parts = body.split(",")
+        if len(parts) != 3 or parts[1] != "OVERRUN" or not _UINT.match(parts[2]):
+            raise FramingError(f"malformed warning {body!r}")
+        return Overrun(int(parts[2]))
+    return body
+
+
+class LineSplitter:
+    r"""Split a byte stream into lines; a run of bytes without ``\\n`` longer than allowed is cut off.
+
+    ``feed(data)`` returns the complete lines (without ``\\n``); an over-long fragment is returned as one
+    line (so it is flagged corrupted) and the rest of it up to the next ``\\n`` is discarded into a second
+    corrupted line at most.
+    """
+
+    def __init__(self, max_pending: int = MAX_PENDING) -> None:
+        self._buf = bytearray()
+        self._max = max_pending
+
+    def feed(self, data: bytes) -> list[bytes]:
+        """Append ``data`` and return the complete lines it finishes."""
+        self._buf += data
+        if b"\n" not in data and len(self._buf) <= self._max:
+            return []
+        parts = self._buf.split(b"\n")
+        rest = parts.pop()
+        lines = [bytes(p) for p in parts]
+        if len(rest) > self._max:
+            lines.append(bytes(rest))
+            rest = b""
+        self._buf = bytearray(rest)
+        return lines
+
+    @property
+    def pending(self) -> int:
+        """Bytes of an unfinished line held back."""
+        return len(self._buf)
+
+
+@dataclass
+class StreamStats:
+    """Exact counts of what went wrong in a stream."""
+
+    dropped: int = 0
+    overruns: int = 0
+    corrupted: int = 0
+    samples: int = 0
+    corrupted_examples: list[str] = field(default_factory=list)
+
+
+class StreamParser:
+    """Turn DAQ bytes into samples, messages and exact fault counts; never raises on garbage.
+
+    ``feed(data)`` returns ``(samples, messages)``: the new samples as tuples ``(seq, t_us_unwrapped, adc,
+    steps)`` and the other lines' bodies (replies, ``HELLO ...``). ``stats`` holds the counts.
+    A data line whose ``seq`` does not increase is counted as corrupted (it cannot be placed).
+    """
+
+    def __init__(self) -> None:
+        self.splitter = LineSplitter()
+        self.stats = StreamStats()
+        self.last_seq: int | None = None
+        self._last_raw_t: int | None = None
+        self._t_offset = 0
+
+    def restart(self) -> None:
+        """Forget the sequence and clock state (after ``START``, whose ``seq`` restarts at 0)."""
+        self.last_seq = None
+        self._last_raw_t = None
+        self._t_offset = 0
+
+    def _corrupt(self, line: bytes, why: str) -> None:
+        self.stats.corrupted += 1
+        if len(self.stats.corrupted_examples) < 5:
+            self.stats.corrupted_examples.append(f"{line[:40]!r}: {why}")
+
+    def unwrap(self, t_raw: int) -> int:
+        """Return ``t_raw`` with the 32-bit wraps before it added back."""
+        if self._last_raw_t is not None and t_raw < self._last_raw_t:
+            self._t_offset += WRAP_US
+        self._last_raw_t = t_raw
+        return t_raw + self._t_offset
+
+    def feed(self, data: bytes) -> tuple[list[tuple[int, int, int, int]], list[str]]:
+        """Parse ``data`` (any chunking) and return the samples and messages it completes."""
+        samples: list[tuple[int, int, int, int]] = []
+        messages: list[str] = []
+        lines = self.splitter.feed(data)
+        if not lines:
+            return samples, messages
+        xors = _body_xors(lines)
+        stats = self.stats
+        for line, x in zip(lines, xors, strict=True):
+            m = _FAST_DATA.fullmatch(line)
+            if m is not None and int(m[5], 16) == x:  # the common case: a well-formed data line
+                seq, t_raw, adc = int(m[1]), int(m[2]), int(m[3])
+                if adc <= 1023 and t_raw < WRAP_US and (self.last_seq is None or seq > self.last_seq):
+                    stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
+                    self.last_seq = seq
+                    stats.samples += 1
+                    samples.append((seq, self.unwrap(t_raw), adc, int(m[4])))
+                    continue
+            if not line.strip(b"\r"):
+                continue
+            try:
+                item = parse_body(unframe(line))
+            except FramingError as exc:
+                self._corrupt(line, str(exc))
+                continue
+            if isinstance(item, Sample):
+                if self.last_seq is not None and item.seq <= self.last_seq:
+                    self._corrupt(line, f"seq {item.seq} after {self.last_seq}")
+                    continue
+                expected = 0 if self.last_seq is None else self.last_seq + 1
+                stats.dropped += item.seq - expected
+                self.last_seq = item.seq
+                stats.samples += 1
+                samples.append((item.seq, self.unwrap(item.t_us), item.adc, item.steps))
+            elif isinstance(item, Overrun):
+                stats.overruns += item.n
+            else:
+                messages.append(item)
+        return samples, messages
+
+
+def _body_xors(lines: list[bytes]) -> list[int]:
+    """XOR of each line's bytes except its last three (the ``*hh`` of a well-formed line), vectorised.
+
+    Lines shorter than 4 bytes get -1 (they take the slow path).
+    """
+    if len(lines) < 24:  # numpy's call overhead dominates for a few lines
+        out = []
+        for line in lines:
+            x = 0
+            for b in line[:-3]:
+                x ^= b
+            out.append(x if len(line) >= 4 else -1)
+        return out
+    joined = b"\n".join(lines)
+    acc = np.bitwise_xor.accumulate(np.frombuffer(joined, dtype=np.uint8)).astype(np.int64)
+    lens = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
+    starts = np.concatenate([[0], np.cumsum(lens + 1)[:-1]])
+    last_body = starts + lens - 4
+    ok = lens >= 4
+    if not len(acc):
+        return [-1] * len(lines)
+    before = np.where(starts > 0, acc[np.maximum(starts - 1, 0)], 0)
+    x = np.where(ok, acc[np.clip(last_body, 0, len(acc) - 1)] ^ before, -1)
+    return x.tolist()

@@ -1,0 +1,73 @@
+"""Driver of the stepper board (Arduino Uno + TB6600, 115200 baud): programme, go, abort, enable, position."""
+
+from __future__ import annotations
+
+from helpers.profiles import Dwell, Programme, Segment
+from helpers.rig.boards import BoardError, BoardLink
+from helpers.rig.safety import check_programme
+
+
+def _last_int(reply: str, what: str) -> int:
+    words = reply.split()
+    try:
+        return int(words[-1])
+    except (IndexError, ValueError):
+        raise BoardError(f"malformed reply to {what} from the stepper board: {reply!r}") from None
+
+
+class StepperBoard(BoardLink):
+    """The stepper board. ``done_position`` is set when the unsolicited ``DONE <position>`` arrives."""
+
+    kind = "stepper"
+    baudrate = 115_200
+
+    def clear(self) -> None:
+        """``CLEAR`` the programme."""
+        self.command("CLEAR")
+
+    def seg(self, direction: int, n_steps: int, interval_us: int) -> int:
+        """Append ``SEG``; return the number of items."""
+        return _last_int(self.command(Segment(direction, n_steps, interval_us).command()), "SEG")
+
+    def wait(self, ms: int) -> int:
+        """Append ``WAIT``; return the number of items."""
+        return _last_int(self.command(Dwell(ms).command()), "WAIT")
+
+    def load(self, programme: Programme, start_position: int = 0) -> int:
+        """Check ``programme`` against the limits (nothing is sent if it fails), then ``CLEAR`` and load it.
+
+        Returns
+        -------
+        int
+            Items on the board.
+        """
+        check_programme(programme, start_position)
+        n = 0
+        for line in programme.commands():
+            reply = self.command(line)
+            if line != "CLEAR":
+                n = _last_int(reply, line.split()[0])
+        if n != len(programme):
+            raise BoardError(f"the stepper board holds {n} items, the programme has {len(programme)}")
+        return n
+
+    def go(self) -> int:
+        """``GO``: start the loaded programme (``DONE`` arrives when it ends)."""
+        self.done_position = None
+        return _last_int(self.command("GO"), "GO")
+
+    def abort(self, timeout: float | None = None) -> int:
+        """``ABORT``: stop at once and disable the driver; return the position."""
+        return _last_int(self.command("ABORT", timeout=timeout), "ABORT")
+
+    def enable(self, on: bool, timeout: float | None = None) -> None:
+        """``EN 1`` / ``EN 0`` (``EN 0`` while running aborts first)."""
+        self.command(f"EN {1 if on else 0}", timeout=timeout)
+
+    def position(self) -> int:
+        """``POS``: the present position in steps."""
+        return _last_int(self.command("POS"), "POS")
+
+    def poll(self) -> None:
+        """Read whatever has arrived without waiting (picks up ``DONE``, ``HELLO``)."""
+        self.pump(block=False)

@@ -1,0 +1,169 @@
+"""Offline convenience: run a stepper programme on the virtual rig and return the sampled time series.
+
+This is what the emulated boards do over the serial protocol, without the protocol: the plant integrates
+the programme's exact step instants and the load cell samples at the DAQ rate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from helpers.virtual.parameters import MM_PER_STEP, RigParameters
+from helpers.virtual.plant import ArmPlant
+from helpers.virtual.sensor import LoadCell
+from helpers.virtual.statics import node_positions
+
+__all__ = ["SimResult", "simulate", "programme_steps"]
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """A simulated run of the virtual rig (never to be presented as a hardware measurement).
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        Sample times, s (the DAQ clock; GO at ``t_go``).
+    tension : numpy.ndarray
+        True cable tension at the samples, N.
+    adc : numpy.ndarray
+        Load-cell ADC counts at the samples (noise and quantisation included).
+    steps : numpy.ndarray
+        Motor position at the samples, steps (a step at a sample instant counts).
+    angles : numpy.ndarray
+        Segment angles at the samples, rad, shape ``(n_samples, n_segments)``.
+    params : RigParameters
+        The rig.
+    newtons_per_count, offset_counts : float
+        The load cell's true calibration.
+    """
+
+    t: np.ndarray
+    tension: np.ndarray
+    adc: np.ndarray
+    steps: np.ndarray
+    angles: np.ndarray
+    params: RigParameters
+    newtons_per_count: float
+    offset_counts: float
+
+    @property
+    def u_mm(self) -> np.ndarray:
+        """Cable displacement at the samples, mm."""
+        return self.steps * MM_PER_STEP
+
+    def shapes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Backbone node positions ``(x, y)`` at every sample, m, each of shape ``(n_samples, n_nodes)``."""
+        return node_positions(self.params, self.angles)
+
+    def shape_at(self, time_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Node positions ``(x, y)`` at the sample nearest ``time_s``."""
+        i = int(np.argmin(np.abs(self.t - time_s)))
+        return node_positions(self.params, self.angles[i])
+
+    def tip(self) -> tuple[np.ndarray, np.ndarray]:
+        """Tip position ``(x, y)`` over time, m."""
+        x, y = self.shapes()
+        return x[:, -1], y[:, -1]
+
+
+def programme_steps(programme: Any) -> tuple[np.ndarray, np.ndarray, float]:
+    """Step times (s from GO), signs and duration (s) of a programme.
+
+    Accepts a :class:`helpers.profiles.Programme` (``step_times()``, ``duration_s``), the tuple that
+    ``helpers.profiles.experiment_programme`` returns (programme, report), or ``(times_s, signs)`` arrays.
+    """
+    if isinstance(programme, tuple) and len(programme) == 2 and hasattr(programme[0], "step_times"):
+        programme = programme[0]
+    if hasattr(programme, "step_times"):
+        times, signs = programme.step_times()
+        duration = float(programme.duration_s)
+    else:
+        try:
+            times, signs = programme
+        except (TypeError, ValueError) as exc:
+            raise ValueError("programme must be a Programme or a (step_times_s, step_signs) pair") from exc
+        times = np.asarray(times, dtype=float)
+        duration = float(times[-1]) if times.size else 0.0
+    return np.asarray(times, dtype=float), np.asarray(signs, dtype=float), duration
+
+
+def simulate(
+    programme: Any,
+    rate_hz: float = 1000.0,
+    params: RigParameters | None = None,
+    t_go: float = 0.0,
+    t_end: float | None = None,
+    seed: int | None = 0,
+    plant: ArmPlant | None = None,
+) -> SimResult:
+    """Run ``programme`` on the virtual rig and sample it at ``rate_hz``.
+
+    Parameters
+    ----------
+    programme : Programme or (times_s, signs)
+        What the stepper board executes; step times count from GO.
+    rate_hz : float
+        DAQ sample rate; samples at ``k / rate_hz`` for k = 0, 1, ... up to ``t_end``.
+    params : RigParameters, optional
+        Default: :func:`helpers.virtual.calibrated_parameters`.
+    t_go : float
+        Time of GO on the DAQ clock, s (``experiment_programme`` already contains the 1 s lead-in, so 0).
+    t_end : float, optional
+        End of the recording, s (default: the end of the programme).
+    seed : int, optional
+        Seed of the load-cell noise.
+    plant : ArmPlant, optional
+        Reuse a plant (it is reset first), e.g. to avoid rebuilding it in sweeps.
+
+    Returns
+    -------
+    SimResult
+    """
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz must be positive, got {rate_hz!r}")
+    if not (math.isfinite(t_go) and t_go >= 0):
+        raise ValueError(f"t_go must be >= 0, got {t_go!r}")
+    if params is None:
+        from helpers.virtual.calibration import calibrated_parameters
+
+        params = calibrated_parameters() if plant is None else plant.params
+    times, signs, duration = programme_steps(programme)
+    times = times + t_go
+    t_end = t_go + duration if t_end is None else float(t_end)
+    if not (math.isfinite(t_end) and t_end > 0):
+        raise ValueError(f"t_end must be positive, got {t_end!r}")
+    keep = times <= t_end
+    times, signs = times[keep], signs[keep]
+    n = int(math.floor(t_end * rate_hz + 1e-9)) + 1
+    t = np.arange(n) / rate_hz
+    if plant is None:
+        plant = ArmPlant(params)
+    else:
+        plant.reset()
+    tension, angles = plant.advance(t, times, signs, return_angles=True)
+    steps = np.cumsum(np.bincount(np.searchsorted(t, times, side="left"), weights=signs, minlength=n)[:n])
+    sensor = LoadCell(params, seed=seed)
+    adc = sensor.counts(tension)
+    return SimResult(
+        t=t,
+        tension=tension,
+        adc=adc,
+        steps=np.rint(steps).astype(np.int64),
+        angles=angles,
+        params=plant.params,
+        newtons_per_count=sensor.newtons_per_count,
+        offset_counts=sensor.offset_counts,
+    )
+
+
+def run_steps(
+    params: RigParameters, t: npt.ArrayLike, times: npt.ArrayLike, signs: npt.ArrayLike
+) -> np.ndarray:
+    """Tension at ``t`` for steps at ``times`` with ``signs`` (a fresh plant; for sweeps and tests)."""
+    return ArmPlant(params).advance(t, times, signs)

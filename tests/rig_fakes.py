@@ -1,0 +1,93 @@
+"""Test doubles for the rig tests: a tiny deterministic plant and sensor, a spying port, a rig factory."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+import helpers.rig  # noqa: F401  (registers the virtual:// scheme)
+from helpers.profiles import MM_PER_STEP
+from helpers.rig import Rig
+from helpers.virtual.boards import VirtualWorld, forget_world, register_world
+
+K_N_PER_MM = 0.5
+PRETENSION_N = 1.0
+GAIN = 40.0
+OFFSET = 60.0
+
+_names = itertools.count()
+
+
+class SpringPlant:
+    """Quasi-static cable: tension = pretension + k * cable displacement (no dynamics, exact and fast)."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+        self.steps = 0
+        self.calls = 0
+
+    def advance(self, sample_times, step_times=(), step_signs=()):
+        ts = np.asarray(sample_times, dtype=float)
+        st = np.asarray(step_times, dtype=float)
+        sg = np.asarray(step_signs, dtype=np.int64)
+        assert ts.size and np.all(np.diff(ts) > 0) and ts[0] >= self.t - 1e-12
+        assert st.size == 0 or (st[0] > self.t - 1e-12 and st[-1] <= ts[-1] + 1e-12)
+        k = np.searchsorted(st, ts, side="right")
+        pos = self.steps + np.concatenate([[0], np.cumsum(sg)])[k]
+        self.steps += int(sg.sum())
+        self.t = float(ts[-1])
+        self.calls += 1
+        return PRETENSION_N + K_N_PER_MM * MM_PER_STEP * pos
+
+
+class LinearSensor:
+    """counts = round(OFFSET + GAIN * tension), clipped to 0..1023, no noise."""
+
+    def counts(self, tension):
+        return np.clip(np.rint(OFFSET + GAIN * np.asarray(tension, dtype=float)), 0, 1023).astype(np.int64)
+
+
+CALIBRATION = {
+    "newtons_per_count": 1.0 / GAIN,
+    "offset_counts": OFFSET,
+    "mm_per_step": MM_PER_STEP,
+    "origin": "test double",
+}
+
+
+def make_world(**kwargs) -> VirtualWorld:
+    """Register a fresh world with the test doubles and return it."""
+    name = f"test{next(_names)}"
+    forget_world(name)
+    return register_world(VirtualWorld(SpringPlant(), LinearSensor(), name=name, **kwargs))
+
+
+def make_rig(daq_options: str = "", stepper_options: str = "", **world_kwargs) -> tuple[Rig, VirtualWorld]:
+    """A connected Rig on a fresh test-double world; options are URL query strings like '&hang_at=1'."""
+    world = make_world(**world_kwargs)
+    rig = Rig.connect(
+        "virtual",
+        rig_name=world.name,
+        calibration=CALIBRATION,
+        timeout=0.5,
+        hello_timeout=1.0,
+        daq_options=daq_options,
+        stepper_options=stepper_options,
+    )
+    return rig, world
+
+
+class SpyPort:
+    """Wraps a serial port and records every byte written."""
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+        self.written = bytearray()
+
+    def write(self, data):
+        self.written += data
+        return self.inner.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)

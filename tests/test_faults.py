@@ -1,0 +1,91 @@
+"""Injected faults give a clear error within their timeout, leave the driver disabled and the data on disk."""
+
+from __future__ import annotations
+
+import pytest
+from rig_fakes import make_rig
+
+from helpers import recordings
+from helpers.profiles import Dwell, Programme, Segment
+from helpers.rig import BoardDisconnected, BoardReset, BoardTimeout, RunAborted
+
+PROG = Programme((Dwell(100), Segment(1, 40, 1000), Dwell(300), Segment(-1, 40, 1000), Dwell(100)))
+FAULT_AT = 0.3  # device seconds after the ports open: during the hold
+
+CASES = [
+    ("daq", "reset_at", BoardReset, "daq board reset"),
+    ("daq", "hang_at", BoardTimeout, "daq board sent no sample"),
+    ("daq", "disconnect_at", BoardDisconnected, "daq board disconnected"),
+    ("stepper", "reset_at", BoardReset, "stepper board reset"),
+    ("stepper", "hang_at", BoardTimeout, "did not report DONE"),
+    ("stepper", "disconnect_at", BoardDisconnected, "stepper board disconnected"),
+]
+
+
+@pytest.mark.parametrize("board, fault, error, message", CASES)
+def test_board_fault_aborts_cleanly(tmp_path, board, fault, error, message):
+    opts = f"&{fault}={FAULT_AT}"
+    rig, world = make_rig(**({"daq_options": opts} if board == "daq" else {"stepper_options": opts}))
+    path = tmp_path / "aborted"
+    with pytest.raises(error, match=message) as info:
+        rig.run(PROG, path=path, progress=False, silence_timeout=0.5)
+    # every sample received before the fault is on disk, in an aborted recording that loads
+    rec = recordings.load(path)
+    assert rec.status == "aborted" and error.__name__ in rec.meta["abort_reason"]
+    assert info.value.recording.meta["status"] == "aborted"
+    assert len(rec.frame) == rig.daq.stats.samples > 100
+    if board == "daq":
+        assert rec.frame["t_us"].iloc[-1] <= (FAULT_AT + 1e-3) * 1e6 + world.t0_us
+    # the driver is disabled: the stepper heard ABORT and EN 0 ...
+    assert not world.stepper.running
+    if not (board == "stepper" and fault in ("hang_at", "disconnect_at")):
+        assert world.stepper.received[-2:] == ["ABORT", "EN 0"] and not world.stepper.enabled
+    else:  # ... unless it is the board that cannot hear: then the reason says the host could not disable it
+        assert "cleanup: ABORT to the stepper board failed" in rec.meta["abort_reason"]
+        assert "EN 0 to the stepper board failed" in rec.meta["abort_reason"]
+    if not (board == "daq" and fault in ("hang_at", "disconnect_at")):
+        assert not world.daq.streaming and world.daq.received[-1] == "STOP"
+
+
+def test_keyboard_interrupt_mid_run_saves_and_disables(tmp_path):
+    rig, world = make_rig()
+
+    def interrupt(w):
+        if w.t > 0.25:
+            w.listeners.clear()
+            raise KeyboardInterrupt
+
+    world.listeners.append(interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        rig.run(PROG, path=tmp_path / "ki", progress=False)
+    rec = recordings.load(tmp_path / "ki")
+    assert rec.status == "aborted" and "KeyboardInterrupt" in rec.meta["abort_reason"]
+    assert world.stepper.received[-2:] == ["ABORT", "EN 0"] and not world.stepper.enabled
+    assert not world.daq.streaming
+    assert len(rec.frame) == rig.daq.stats.samples > 0
+
+
+def test_transport_faults_are_counted_exactly_and_the_run_completes(tmp_path):
+    rig, world = make_rig(daq_options="&drop=0.01&corrupt=0.01&garbage=0.005&seed=3")
+    rec = rig.run(PROG, path=tmp_path / "noisy", progress=False)
+    inj = world.daq.injected
+    counts = recordings.load(tmp_path / "noisy").meta["counts"]
+    assert rec.status == "complete" and inj["dropped"] > 0 and inj["corrupted"] > 0 and inj["garbage"] > 0
+    assert counts["dropped"] == inj["dropped"] + inj["corrupted"]  # a corrupted data line loses its seq too
+    assert counts["corrupted"] == inj["corrupted"] + inj["garbage"]
+    assert counts["samples"] + counts["dropped"] == world.daq.n_sent
+
+
+def test_overruns_are_counted(tmp_path):
+    rig, world = make_rig(daq_options="&overrun_every=50")
+    rec = rig.run(PROG, path=tmp_path / "late", progress=False)
+    assert rec.meta["counts"]["overruns"] == world.daq.injected["overrun_periods"] > 0
+    assert rec.meta["counts"]["dropped"] == 0
+
+
+def test_a_stream_of_garbage_aborts_with_a_clear_reason(tmp_path):
+    rig, world = make_rig(daq_options="&garbage=1.0&corrupt=0.5")
+    with pytest.raises(RunAborted, match="corrupted lines"):
+        rig.run(PROG, path=tmp_path / "garbage", progress=False)
+    assert recordings.load(tmp_path / "garbage").status == "aborted"
+    assert world.stepper.received[-2:] == ["ABORT", "EN 0"]

@@ -1,0 +1,236 @@
+"""Line framing and the DAQ stream parser: examples from PROTOCOL.md and hypothesis fuzzing.
+
+The fuzz tests generate at least 10,000 streams in total (FUZZ_EXAMPLES x STREAMS_PER_EXAMPLE plus the
+structured strategy) and check that the parser never raises, flags every corrupted line and counts every
+dropped sequence number exactly, whatever the chunking.
+"""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from helpers.rig.framing import (
+    WRAP_US,
+    FramingError,
+    Overrun,
+    Sample,
+    StreamParser,
+    checksum,
+    frame,
+    parse_body,
+    unframe,
+)
+
+STRUCTURED_EXAMPLES = 1000
+FUZZ_EXAMPLES = 750
+STREAMS_PER_EXAMPLE = 12
+
+
+def test_checksums_of_the_protocol_examples():
+    # PROTOCOL.md: "PONG daq 1.0.0*53"; "the host may send PING*10"
+    assert frame("PONG daq 1.0.0") == b"PONG daq 1.0.0*53\n"
+    assert frame("PING") == b"PING*10\n"
+    assert checksum("PING") == "10"
+
+
+def test_unframe_accepts_good_and_rejects_bad():
+    assert unframe(b"PONG daq 1.0.0*53") == "PONG daq 1.0.0"
+    assert unframe(b"PONG daq 1.0.0*53\r") == "PONG daq 1.0.0"
+    for bad in (
+        b"PONG daq 1.0.0*54",
+        b"PONG daq 1.0.0*5",
+        b"PONG daq 1.0.0",
+        b"PONG daq 1.0.0*5G",
+        b"\xffPONG*00",
+        b"A*B*00",
+        b"x" * 64,
+    ):
+        with pytest.raises(FramingError):
+            unframe(bad)
+    assert unframe(b"PING", require_checksum=False) == "PING"
+
+
+def test_frame_refuses_what_cannot_be_sent():
+    for bad in ("A*B", "caf\u00e9", "line\n", "x" * 61):
+        with pytest.raises(ValueError):
+            frame(bad)
+
+
+def test_parse_body_classifies():
+    assert parse_body("D,5,1000,512,-3") == Sample(5, 1000, 512, -3)
+    assert parse_body("W,OVERRUN,2") == Overrun(2)
+    assert parse_body("OK STOP 7") == "OK STOP 7"
+    for bad in (
+        "D,1,2,3",
+        "D,1,2,3,4,5",
+        "D,1,2,1024,0",
+        "D,-1,2,3,4",
+        "D,1,4294967296,3,4",
+        "D,a,2,3,4",
+        "W,OVERRUN",
+        "W,LATE,1",
+        "W,OVERRUN,-1",
+    ):
+        with pytest.raises(FramingError):
+            parse_body(bad)
+
+
+def test_time_unwraps_across_the_32_bit_boundary():
+    p = StreamParser()
+    t0 = WRAP_US - 2500
+    data = b"".join(frame(f"D,{k},{(t0 + 1000 * k) % WRAP_US},1,0") for k in range(6))
+    rows, _ = p.feed(data)
+    assert [r[1] for r in rows] == [t0 + 1000 * k for k in range(6)]
+
+
+def test_long_garbage_without_newline_is_bounded_and_flagged():
+    p = StreamParser()
+    p.feed(b"x" * 10_000)
+    assert p.splitter.pending <= 256
+    rows, _ = p.feed(b"\n" + frame("D,0,10,1,0"))
+    assert len(rows) == 1 and p.stats.corrupted >= 1
+
+
+# --- the fuzzed streams ----------------------------------------------------------------------------------
+_INSERTABLE = [x for x in range(256) if x not in (0x0A, 0x0D)]
+
+
+def _corrupt_line(line: bytes, how: str, r: random.Random) -> bytes:
+    """Damage a framed line (without its newline) so that the damage is detectable."""
+    b = bytearray(line)
+    if how == "flip":
+        i = r.randrange(len(b))
+        new = b[i]
+        while new in (b[i], 0x0A, 0x0D):
+            new = r.randrange(256)
+        b[i] = new
+    elif how == "truncate":
+        del b[len(b) - r.randint(1, len(b) - 1) :]
+    elif how == "insert":
+        i = r.randrange(len(b) + 1)
+        c = r.choice(_INSERTABLE)
+        b[i:i] = bytes([c])
+    return bytes(b)
+
+
+def _build_stream(r: random.Random, n: int, p_fault: float) -> tuple[bytes, dict]:
+    """A DAQ stream with drops, corruptions, merged lines, garbage, overruns and messages, and the truth."""
+    out: list[bytes] = []
+    received: list[int] = []
+    corrupted = 0
+    overruns = 0
+    messages = 0
+    t0 = r.choice([0, WRAP_US - 5000, r.randrange(WRAP_US)])
+    seq = 0
+    merge_next = False
+    while seq < n:
+        if not merge_next and r.random() < p_fault / 4:
+            junk = r.randbytes(r.randint(1, 60)).replace(b"\n", b"")
+            if junk.strip(b"\r"):
+                try:
+                    unframe(junk)
+                    valid = True
+                except FramingError:
+                    valid = False
+                if not valid:
+                    out.append(junk + b"\n")
+                    corrupted += 1
+        if not merge_next and r.random() < p_fault / 4:
+            k = r.randint(1, 3)
+            out.append(frame(f"W,OVERRUN,{k}"))
+            overruns += k
+        if not merge_next and r.random() < p_fault / 8:
+            out.append(frame("OK STOP 0"))
+            messages += 1
+        line = frame(f"D,{seq},{(t0 + 1000 * seq) % WRAP_US},{r.getrandbits(10)},{r.getrandbits(9) - 256}")
+        if merge_next:  # the previous line lost its newline: this one is swallowed into it
+            out.append(line)
+            merge_next = False
+            seq += 1
+            continue
+        fate = r.random()
+        if fate < p_fault:
+            pass  # dropped in transport
+        elif fate < 2 * p_fault:
+            out.append(_corrupt_line(line[:-1], r.choice(["flip", "truncate", "insert"]), r) + b"\n")
+            corrupted += 1
+        elif fate < 2.5 * p_fault and seq + 1 < n:
+            out.append(line[:-1])  # newline lost: merges with the next line
+            corrupted += 1
+            merge_next = True
+        else:
+            out.append(line)
+            received.append(seq)
+        seq += 1
+    truth = {
+        "received": received,
+        "dropped": (received[-1] + 1 - len(received)) if received else 0,
+        "corrupted": corrupted,
+        "overruns": overruns,
+        "messages": messages,
+        "t0": t0,
+    }
+    return b"".join(out), truth
+
+
+def _check(data: bytes, truth: dict, cuts: list[int]) -> None:
+    p = StreamParser()
+    rows, msgs = [], []
+    prev = 0
+    for c in sorted({min(max(c, 0), len(data)) for c in cuts}) + [len(data)]:
+        rr, mm = p.feed(data[prev:c])
+        rows += rr
+        msgs += mm
+        prev = c
+    assert [r[0] for r in rows] == truth["received"]
+    if rows:  # unwrapped from the first sample received: strictly increasing, exact differences
+        first = (truth["t0"] + 1000 * truth["received"][0]) % WRAP_US
+        assert [r[1] for r in rows] == [first + 1000 * (s - truth["received"][0]) for s in truth["received"]]
+    assert p.stats.dropped == truth["dropped"]
+    assert p.stats.corrupted == truth["corrupted"]
+    assert p.stats.overruns == truth["overruns"]
+    assert len(msgs) == truth["messages"]
+    assert p.stats.samples == len(truth["received"])
+
+
+@settings(max_examples=STRUCTURED_EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(0, 40),
+    p_fault=st.sampled_from([0.0, 0.05, 0.2, 0.4]),
+    cuts=st.lists(st.integers(0, 3000), max_size=8),
+)
+def test_fuzz_stream_counts_exactly(seed, n, p_fault, cuts):
+    data, truth = _build_stream(random.Random(seed), n, p_fault)
+    _check(data, truth, cuts)
+
+
+@settings(max_examples=FUZZ_EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), p_fault=st.floats(0.0, 0.3))
+def test_fuzz_many_streams_per_example(seed, p_fault):
+    r = random.Random(seed)
+    for _ in range(STREAMS_PER_EXAMPLE):
+        data, truth = _build_stream(r, r.randint(0, 40), p_fault)
+        cuts = [r.randrange(len(data) + 1) for _ in range(r.randint(0, 10))]
+        _check(data, truth, cuts)
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.binary(max_size=300), st.lists(st.integers(0, 300), max_size=5))
+def test_arbitrary_bytes_never_crash(data, cuts):
+    p = StreamParser()
+    prev = 0
+    for c in sorted(set(cuts)) + [len(data)]:
+        c = min(c, len(data))
+        p.feed(data[prev:c])
+        prev = max(prev, c)
+    assert p.stats.dropped >= 0 and p.stats.corrupted >= 0
+    assume(True)
+
+
+def test_total_fuzzed_streams_is_at_least_ten_thousand():
+    assert STRUCTURED_EXAMPLES + FUZZ_EXAMPLES * STREAMS_PER_EXAMPLE >= 10_000

@@ -1,0 +1,68 @@
+"""The ``record`` command and the calibration path, on a test-double virtual rig."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import pytest
+from rig_fakes import GAIN, OFFSET, make_world
+
+from helpers import recordings
+from helpers.rig import calibration as cal
+from helpers.rig import record
+
+
+def _args(*argv):
+    p = argparse.ArgumentParser()
+    record.add_arguments(p)
+    return p.parse_args(list(argv))
+
+
+def test_record_calibration_recovers_the_sensor_line(tmp_path):
+    world = make_world()
+    assert (
+        record.run(_args("calibration", "--rig-name", world.name, "--group", str(tmp_path), "--quiet")) == 0
+    )
+    data = json.loads((tmp_path / "calibration.json").read_text())
+    assert data["gain_counts_per_n"] == pytest.approx(GAIN, rel=2e-3)  # 0.5-count rounding of each load
+    assert data["offset_counts"] == pytest.approx(OFFSET, abs=0.5)
+    assert data["source"] == {"kind": "virtual-rig"}
+    recs = cal.load_calibration_recordings(tmp_path)
+    assert [r.meta["scenario"]["mass_kg"] for r in recs] == list(cal.CALIBRATION_MASSES_KG)
+    assert all(r.meta["scenario"]["fixture"].startswith("VIRTUAL") for r in recs)
+    assert world.load_n is None  # the fixture is removed afterwards
+
+
+def test_record_pulse_with_a_shaper(tmp_path):
+    world = make_world()
+    argv = [
+        "pulse",
+        "--rig-name",
+        world.name,
+        "--group",
+        str(tmp_path),
+        "--v-in",
+        "200",
+        "--x-f",
+        "10",
+        "--system",
+        "zvd",
+        "--zeta",
+        "0.044",
+        "--omega-d",
+        "25.085",
+        "--t-end",
+        "9",
+        "--quiet",
+    ]
+    assert record.run(_args(*argv)) == 0
+    rec = recordings.load(tmp_path / "zvd_v200_x10.csv")
+    sc = rec.meta["scenario"]
+    assert sc["system"] == "zvd" and sc["design"]["zeta"] == 0.044 and len(sc["shaper"]["amplitudes"]) == 3
+    assert rec.frame["steps"].max() == round(10 / 0.2552544031041707)
+
+
+def test_fit_needs_three_loads():
+    with pytest.raises(ValueError, match="three distinct loads"):
+        cal.fit_calibration([])

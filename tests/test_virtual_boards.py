@@ -1,0 +1,183 @@
+"""The emulated boards answer as PROTOCOL.md says, run programmes in device time, and are reachable by URL."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import serial
+from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
+
+from helpers.profiles import MM_PER_STEP
+from helpers.rig.framing import StreamParser, checksum, frame
+from helpers.virtual.boards import Faults
+
+
+def talk(board, *commands, checksum=True):
+    """Send commands; return every line the board has queued since the last call (checksums verified)."""
+    for c in commands:
+        board.receive(frame(c) if checksum else (c + "\n").encode("latin-1"))
+    p = StreamParser()
+    _, msgs = p.feed(board.take_output())
+    assert p.stats.corrupted == 0
+    return msgs
+
+
+def test_hello_on_reset_and_pong_with_the_documented_checksum():
+    w = make_world()
+    assert w.daq.take_output() == frame("HELLO daq 1.0.0")
+    w.daq.receive(b"PING\n")
+    assert w.daq.take_output() == b"PONG daq 1.0.0*53\n"  # the example of PROTOCOL.md
+    assert talk(w.stepper, "PING") == ["HELLO stepper 1.0.0", "PONG stepper 1.0.0"]
+
+
+def test_daq_errors_and_limits():
+    w = make_world()
+    d = w.daq
+    d.take_output()
+    r = talk(d, "RATE 99", "RATE 2001", "RATE 500")
+    assert r[0].startswith("ERR RANGE") and r[1].startswith("ERR RANGE") and r[2] == "OK RATE 500"
+    assert talk(d, "RATE")[0].startswith("ERR ARG")
+    assert talk(d, "RATE x")[0].startswith("ERR ARG")
+    assert talk(d, "RATE  500")[0].startswith("ERR ARG")  # double space: an empty token
+    assert talk(d, "FOO")[0].startswith("ERR UNKNOWN")
+    assert talk(d, "RATE 200*00", checksum=False)[0].startswith("ERR CHECKSUM")
+    assert d.rate == 500  # the command with the wrong checksum did nothing
+    assert talk(d, f"RATE 200*{checksum('RATE 200').lower()}", checksum=False) == [
+        "OK RATE 200"
+    ]  # lower-case hex accepted, as the firmware
+    assert talk(d, "X" * 64, checksum=False)[0].startswith("ERR TOOLONG")
+    assert talk(d, "X" * 63, checksum=False)[0].startswith("ERR UNKNOWN")  # 63 characters still fit
+    assert talk(d, "", checksum=False) == []  # a blank line gets no reply
+    assert talk(d, "START") == ["OK START 200"]
+    assert talk(d, "RATE 300")[0].startswith("ERR STATE")
+    assert talk(d, "START")[0].startswith("ERR STATE")
+    assert talk(d, "PING") == ["PONG daq 1.0.0"]  # allowed while streaming
+
+
+def test_daq_streams_at_its_rate_and_stop_reports_the_count():
+    w = make_world()
+    talk(w.daq, "RATE 500", "START")
+    w.advance_to(w.t + 0.1)
+    p = StreamParser()
+    rows, _ = p.feed(w.daq.take_output())
+    assert [r[0] for r in rows] == list(range(50))
+    assert np.all(np.diff([r[1] for r in rows]) == 2000)
+    assert set(r[2] for r in rows) == {round(OFFSET + GAIN * PRETENSION_N)}
+    assert talk(w.daq, "STOP") == ["OK STOP 50"]
+    assert talk(w.daq, "STOP") == ["OK STOP 0"]
+
+
+def test_overruns_are_reported_never_skipped_silently():
+    w = make_world(daq_faults=Faults(overrun_every=10))
+    talk(w.daq, "START")
+    w.advance_to(w.t + 0.1055)
+    p = StreamParser()
+    rows, _ = p.feed(w.daq.take_output())
+    assert p.stats.dropped == 0  # seq has no gaps ...
+    assert (
+        p.stats.overruns == w.daq.injected["overrun_periods"] == 10
+    )  # ... and each missed period is reported
+    assert len(rows) + p.stats.overruns == 105
+
+
+def test_stepper_limits():
+    s = make_world().stepper
+    s.take_output()
+    assert talk(s, "SEG 1 10 638")[0].startswith("ERR RANGE")  # faster than 400 mm/s
+    assert talk(s, "SEG 1 10 1000001")[0].startswith("ERR RANGE")
+    assert talk(s, "SEG 2 10 1000")[0].startswith("ERR RANGE")
+    assert talk(s, "SEG 1 0 1000")[0].startswith("ERR RANGE")
+    assert talk(s, "WAIT 60001")[0].startswith("ERR RANGE")
+    assert talk(s, "WAIT -1")[0].startswith("ERR RANGE")
+    assert talk(s, "SEG 1 10")[0].startswith("ERR ARG")
+    assert talk(s, "SEG 1 10 639") == ["OK SEG 1"]
+    assert talk(s, "GO")[0].startswith("ERR STATE")  # driver disabled
+    assert talk(s, "EN 2")[0].startswith("ERR RANGE")
+    assert talk(s, "EN 1", "SEG -1 11 1000", "GO")[-1].startswith("ERR RANGE")  # would leave 0..156
+    talk(s, "CLEAR")
+    for i in range(64):
+        assert talk(s, "WAIT 1") == [f"OK WAIT {i + 1}"]
+    assert talk(s, "WAIT 1")[0].startswith("ERR FULL")
+    assert talk(s, "CLEAR", "SEG 1 157 1000")[-1].startswith("ERR RANGE")
+    assert talk(s, "SEG 1 100 1000", "SEG 1 57 1000", "GO")[-1].startswith("ERR RANGE")  # 157 steps > 40 mm
+
+
+def test_programme_runs_in_device_time_and_the_daq_counts_its_steps():
+    w = make_world()
+    w.daq.take_output(), w.stepper.take_output()
+    talk(w.daq, "RATE 2000", "ZERO", "START")
+    r = talk(w.stepper, "CLEAR", "WAIT 10", "SEG 1 20 1000", "WAIT 5", "SEG -1 8 2000", "EN 1", "GO")
+    assert r[-1] == "OK GO 4"
+    go = w.t
+    w.advance_to(go + 0.0509)  # the programme lasts 10 + 20 + 5 + 16 = 51 ms
+    assert talk(w.stepper) == []
+    w.advance_to(go + 0.2)
+    assert talk(w.stepper) == ["DONE 12"]
+    rows, _ = StreamParser().feed(w.daq.take_output())
+    t = np.array([r[1] for r in rows]) / 1e6 - go
+    steps = np.array([r[3] for r in rows])
+    # protocol timing: step k of a segment at t0 + k*interval
+    step_times = np.concatenate([0.010 + 0.001 * np.arange(1, 21), 0.035 + 0.002 * np.arange(1, 9)])
+    signs = np.concatenate([np.ones(20), -np.ones(8)])
+    expected = np.array([signs[step_times <= ti + 1e-9].sum() for ti in t])
+    np.testing.assert_array_equal(steps, expected)
+    adc = np.array([r[2] for r in rows])
+    np.testing.assert_array_equal(
+        adc, np.rint(OFFSET + GAIN * (PRETENSION_N + K_N_PER_MM * MM_PER_STEP * expected))
+    )
+
+
+def test_done_arrives_at_the_programme_end_and_abort_disables():
+    w = make_world()
+    w.stepper.take_output()
+    talk(w.stepper, "CLEAR", "SEG 1 10 1000", "WAIT 20", "EN 1", "GO")
+    go = w.t
+    w.advance_to(go + 0.0299)
+    assert talk(w.stepper) == []
+    w.advance_to(go + 0.0301)
+    assert talk(w.stepper) == ["DONE 10"]
+    assert talk(w.stepper, "POS") == ["OK POS 10"]
+    talk(w.stepper, "CLEAR", "SEG -1 10 1000", "GO")
+    w.advance_to(w.t + 0.0045)
+    assert talk(w.stepper, "ABORT")[-1] == "ABORTED 6"  # 4 steps of -1 from 10
+    assert not w.stepper.enabled and not w.stepper.running
+    assert talk(w.stepper, "GO")[0].startswith("ERR STATE")
+
+
+def test_reset_sends_hello_and_forgets_state():
+    w = make_world(stepper_faults=Faults(reset_at=0.01))
+    w.stepper.take_output()
+    talk(w.stepper, "CLEAR", "SEG 1 50 1000", "EN 1", "GO")
+    w.advance_to(w.t + 0.02)
+    msgs = talk(w.stepper)
+    assert msgs[-1] == "HELLO stepper 1.0.0"
+    assert not w.stepper.enabled and not w.stepper.running and w.stepper.position == 0
+
+
+def test_url_handler_same_rig_name_same_world():
+    w = make_world()
+    d = serial.serial_for_url(f"virtual://daq?rig={w.name}", timeout=0.01)
+    s = serial.serial_for_url(f"virtual://stepper?rig={w.name}", timeout=0.01)
+    assert d.world is s.world is w
+    assert d.read(100).startswith(b"HELLO daq")
+    s.write(frame("PING"))
+    assert s.read(100) == frame("HELLO stepper 1.0.0") + frame("PONG stepper 1.0.0")  # reset on open, reply
+    t0 = w.t
+    assert s.read(10) == b""  # nothing to come: the read waited its timeout in device time
+    assert w.t == pytest.approx(t0 + 0.01)
+    with pytest.raises(serial.SerialException, match="unknown option"):
+        serial.serial_for_url(f"virtual://daq?rig={w.name}&bogus=1")
+    with pytest.raises(serial.SerialException):
+        serial.serial_for_url("virtual://mega?rig=x")
+
+
+def test_calibration_fixture_is_read_instead_of_the_cable():
+    w = make_world()
+    w.daq.take_output()
+    w.hang_load(4.0)
+    talk(w.daq, "START")
+    w.advance_to(w.t + 0.01)
+    rows, _ = StreamParser().feed(w.daq.take_output())
+    assert {r[2] for r in rows} == {round(OFFSET + GAIN * 4.0)}
+    with pytest.raises(ValueError):
+        w.hang_load(float("nan"))
