@@ -91,6 +91,8 @@ def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
         timeout=timeout,
         kernel_name="python3",
         resources={"metadata": {"path": str(path.parent)}},
+        # the kernel's start-up notice about its local TCP transport is noise on this one-screen job
+        extra_arguments=["--IPKernelApp.log_level=ERROR"],
     )
     start = time.perf_counter()
     try:
