@@ -1,14 +1,16 @@
 """``python -m helpers reproduce``: execute every numbered notebook in place and summarise.
 
 Each notebook runs top to bottom in a fresh kernel (nbclient), from its own folder, with the live cells
-inactive (``LIVE = False`` in every parameters cell). Figures and tables land in ``figures/``. On the first
-error the run stops and names the notebook and the cell.
+inactive (``LIVE = False`` in every parameters cell). Independent notebooks run two at a time (``--jobs``);
+a notebook that reads another's output declares it in its metadata. Figures and tables land in ``figures/``.
+On the first error the run stops and names the notebook and the cell.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass
@@ -100,14 +102,31 @@ def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
     except CellExecutionError as exc:
         nbformat.write(nb, path)
         index, first = _failing_cell(nb)
-        last = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).strip()  # no terminal colour codes in the message
+        last = text.splitlines()[-1] if text else type(exc).__name__
         raise NotebookFailed(f"{path.name}: code cell {index} ({first!r}) failed: {last}") from exc
     nbformat.write(nb, path)
     return NotebookRun(path=path, seconds=time.perf_counter() - start, n_cells=len(nb.cells))
 
 
-def reproduce(notebooks: list[Path] | None = None, timeout: int = 600) -> list[NotebookRun]:
-    """Execute the numbered notebooks in order and print a one-screen summary.
+def dependencies(path: Path) -> list[str]:
+    """Names of the notebooks that must finish before ``path`` starts.
+
+    A notebook declares them in its metadata when it reads a file that another notebook writes; notebook 03
+    (which reads the identification result that notebook 02 saves) has
+    ``{"helpers": {"depends_on": ["02_pulse_identification.ipynb"]}}``. Notebooks that only read ``data/``
+    declare nothing and may run in parallel.
+    """
+    meta = nbformat.read(path, as_version=4).metadata.get("helpers", {})
+    return list(meta.get("depends_on", []))
+
+
+def reproduce(notebooks: list[Path] | None = None, timeout: int = 600, jobs: int = 2) -> list[NotebookRun]:
+    """Execute the numbered notebooks (in parallel where they are independent) and print a summary.
+
+    Notebooks start in numeric order as soon as a worker is free and their declared dependencies (see
+    :func:`dependencies`) have finished. On the first failure no further notebook starts, the running ones
+    finish, and :class:`NotebookFailed` names the notebook and the cell.
 
     Parameters
     ----------
@@ -115,34 +134,68 @@ def reproduce(notebooks: list[Path] | None = None, timeout: int = 600) -> list[N
         Which notebooks; all numbered ones by default.
     timeout : int
         Seconds any one cell may take.
+    jobs : int
+        Notebooks executed at once (each in its own kernel process).
 
     Returns
     -------
     list of NotebookRun
-        One entry per executed notebook.
+        One entry per executed notebook, in numeric order.
     """
-    notebooks = numbered_notebooks() if notebooks is None else notebooks
-    runs: list[NotebookRun] = []
+    from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+
+    notebooks = numbered_notebooks() if notebooks is None else list(notebooks)
+    selected = {p.name for p in notebooks}
+    needs = {p.name: [d for d in dependencies(p) if d in selected] for p in notebooks}
+    pending = list(notebooks)
+    done: dict[str, NotebookRun] = {}
+    failure: NotebookFailed | None = None
     total_start = time.perf_counter()
-    for path in notebooks:
-        print(f"executing {path.name} ...", flush=True)
-        run = execute_notebook(path, timeout=timeout)
-        print(f"  done in {run.seconds:.1f} s", flush=True)
-        runs.append(run)
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        running: dict[Future, Path] = {}
+        while pending or running:
+            if failure is None:
+                for path in list(pending):
+                    if len(running) >= max(1, jobs):
+                        break
+                    if all(d in done for d in needs[path.name]):
+                        print(f"executing {path.name} ...", flush=True)
+                        running[pool.submit(execute_notebook, path, timeout)] = path
+                        pending.remove(path)
+            else:
+                pending.clear()
+            if not running:
+                break
+            finished, _ = wait(running, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                path = running.pop(fut)
+                try:
+                    result = fut.result()
+                except NotebookFailed as exc:
+                    failure = failure or exc
+                    continue
+                done[path.name] = result
+                print(f"  {path.name} done in {result.seconds:.1f} s", flush=True)
+    if failure is not None:
+        raise failure
+    runs = [done[p.name] for p in notebooks]
     total = time.perf_counter() - total_start
     print()
-    print(f"{len(runs)} notebooks executed in {total:.1f} s")
+    print(f"{len(runs)} notebooks executed in {total:.1f} s ({max(1, jobs)} at a time)")
     from helpers.summary import print_summary
 
     print_summary()
     n_figs = len(list(FIGURES_DIR.glob("*"))) if FIGURES_DIR.exists() else 0
-    print(f"{n_figs} files in {FIGURES_DIR}")
+    print(f"{n_figs} files in figures/")
     return runs
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``reproduce`` command's options to ``parser``."""
     parser.add_argument("--timeout", type=int, default=600, help="seconds any one cell may take")
+    parser.add_argument(
+        "--jobs", type=int, default=min(2, os.cpu_count() or 1), help="notebooks executed at once (default 2)"
+    )
     parser.add_argument("notebooks", nargs="*", help="only these notebooks (default: every numbered one)")
 
 
@@ -150,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers reproduce``; exit status 1 names the failing notebook and cell."""
     notebooks = [Path(n).resolve() for n in args.notebooks] or None
     try:
-        reproduce(notebooks, timeout=args.timeout)
+        reproduce(notebooks, timeout=args.timeout, jobs=args.jobs)
     except NotebookFailed as exc:
         print(f"\nERROR: {exc}", file=sys.stderr)
         return 1

@@ -1,0 +1,43 @@
+"""The reproduce job: order, dependencies and the error that names the notebook and the cell."""
+
+import nbformat
+import pytest
+from nbformat.v4 import new_code_cell, new_notebook
+
+from helpers import reproduce
+
+
+def _write(path, sources, depends_on=None):
+    nb = new_notebook(cells=[new_code_cell(s) for s in sources])
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    if depends_on:
+        nb.metadata["helpers"] = {"depends_on": depends_on}
+    nbformat.write(nb, path)
+    return path
+
+
+def test_numbered_notebooks_are_sorted_and_filtered(tmp_path):
+    for name in ["10_b.ipynb", "02_a.ipynb", "scratch.ipynb", "1_x.ipynb"]:
+        _write(tmp_path / name, ["1"])
+    assert [p.name for p in reproduce.numbered_notebooks(tmp_path)] == ["02_a.ipynb", "10_b.ipynb"]
+
+
+def test_dependency_runs_first_and_outputs_are_written(tmp_path):
+    marker = tmp_path / "marker.txt"
+    # the reader comes first in the list and both may run at once: only the declared dependency orders them
+    reader = _write(
+        tmp_path / "02_read.ipynb", [f"print(open({str(marker)!r}).read())"], depends_on=["01_write.ipynb"]
+    )
+    writer = _write(
+        tmp_path / "01_write.ipynb", ["import time; time.sleep(1)", f"open({str(marker)!r}, 'w').write('x')"]
+    )
+    runs = reproduce.reproduce([reader, writer], timeout=60, jobs=2)
+    assert sorted(r.path.name for r in runs) == ["01_write.ipynb", "02_read.ipynb"]
+    out = nbformat.read(reader, as_version=4).cells[0].outputs
+    assert out[0]["text"] == "x\n"
+
+
+def test_failure_names_notebook_and_cell(tmp_path):
+    bad = _write(tmp_path / "03_bad.ipynb", ["x = 1", "raise ValueError('boom')"])
+    with pytest.raises(reproduce.NotebookFailed, match=r"03_bad.ipynb: code cell 2 .*ValueError: boom"):
+        reproduce.execute_notebook(bad, timeout=60)
