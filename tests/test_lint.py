@@ -3,6 +3,7 @@
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -10,7 +11,8 @@ from helpers.paths import REPO_ROOT
 
 
 def test_ruff_clean():
-    ruff = shutil.which("ruff")
+    beside = Path(sys.executable).with_name("ruff")  # the environment's own ruff, even if not on PATH
+    ruff = str(beside) if beside.exists() else shutil.which("ruff")
     if ruff is None:
         pytest.skip("ruff is not installed: pip install -r environment.txt")
     result = subprocess.run(
