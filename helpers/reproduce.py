@@ -95,6 +95,7 @@ def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
         resources={"metadata": {"path": str(path.parent)}},
         # the kernel's start-up notice about its local TCP transport is noise on this one-screen job
         extra_arguments=["--IPKernelApp.log_level=ERROR"],
+        record_timing=False,  # no wall-clock timestamps in the committed notebooks
     )
     start = time.perf_counter()
     try:
