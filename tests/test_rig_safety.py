@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import pytest
 from rig_fakes import SpyPort, make_rig
@@ -82,3 +83,21 @@ def test_negative_or_nan_items_cannot_even_be_built():
     for build in (lambda: Segment(1, -3, 1000), lambda: Dwell(-1), lambda: Segment(1, 10, math.nan)):
         with pytest.raises(ValueError):
             build()
+
+
+def test_hardware_with_a_virtual_rig_calibration_warns():
+    from helpers.rig import Rig
+
+    virtual_cal = {
+        "newtons_per_count": 0.02,
+        "offset_counts": 50.0,
+        "mm_per_step": 0.25525,
+        "origin": "data/calibration/calibration.json",
+        "source": "virtual-rig",
+    }
+    with pytest.warns(UserWarning, match="recorded on the virtual rig"):
+        Rig(None, None, calibration=virtual_cal, source={"kind": "hardware"})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Rig(None, None, calibration=virtual_cal, source={"kind": "virtual-rig"})
+        Rig(None, None, calibration=dict(virtual_cal, source="hardware"), source={"kind": "hardware"})

@@ -19,6 +19,7 @@ import datetime as _dt
 import json
 import os
 import tempfile
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -140,6 +141,15 @@ class Rig:
         self.stepper = stepper
         self.calibration = dict(calibration) if calibration is not None else load_calibration()
         self.source = dict(source) if source is not None else {"kind": "hardware"}
+        if self.source.get("kind") == "hardware" and self.calibration.get("source") == "virtual-rig":
+            # the raw ADC counts are recorded either way, so tension can be recomputed after calibrating
+            warnings.warn(
+                "this is hardware, but the load-cell calibration "
+                f"({self.calibration.get('origin', '?')}) was recorded on the virtual rig: tension_n will be "
+                "wrong; calibrate this load cell first (python -m helpers record calibration --ports auto)",
+                UserWarning,
+                stacklevel=2,
+            )
         self.cleanup_timeout = 0.5
         self.last_cleanup: list[str] = []
 
