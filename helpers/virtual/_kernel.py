@@ -110,8 +110,9 @@ def cable_grad_cs(c, s, P, eye, grad, ws):
         dy = by - ay
         dist = math.sqrt(dx * dx + dy * dy)
         total += dist
-        ux = dx / dist
-        uy = dy / dist
+        inv = 1.0 / dist
+        ux = dx * inv
+        uy = dy * inv
         for i in range(a, b):
             # rotating segment i translates everything distal to node i + 1 by l n_i
             grad[i] += l_ * (-ux * s[i] + uy * c[i])
@@ -249,7 +250,7 @@ def rhs_dense_ws(y, u, P, mu, kap, cj, eye, dy, ws):
 
 @njit(cache=True, fastmath=True, error_model="numpy")
 def rhs_ws(y, u, P, mu, kap, cj, eye, dy, ws):
-    """As :func:`rhs`, with a work array of :func:`workspace_size` floats (no allocation).
+    """As :func:`rhs`, with a work array of :func:`workspace_size` floats.
 
     Solves ``M phi'' = Q - C`` in O(n) by the articulated-body recursion of a planar chain of point masses:
     with ``R_i`` the total inertial force ``sum_{j >= i} m_j a_j`` of the chain distal to link ``i``, the
@@ -257,141 +258,257 @@ def rhs_ws(y, u, P, mu, kap, cj, eye, dy, ws):
     in the acceleration ``a_{i-1}`` of the link's proximal node. An inward pass builds ``K_i`` (2 x 2, the
     articulated mass) and ``r_i``; an outward pass from the clamp (``a = 0``) gives ``phi''``.
     Mass-proportional damping ``alpha M phi'`` contributes exactly ``-alpha phi'`` to ``phi''``.
+    (A thin wrapper of :func:`rhs_rows`, the form the integrator calls.)
+    """
+    m = y.shape[0]
+    S = np.empty((2, m))
+    for i in range(m):
+        S[0, i] = y[i]
+    e = rhs_rows(S, 0, 1, u, P, mu, kap, cj, eye, ws)
+    for i in range(m):
+        dy[i] = S[1, i]
+    return P[I_K] * e if (e > 0.0 or P[I_BILATERAL] != 0.0) else 0.0
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def rhs_rows(S, iy, idy, u, P, mu, kap, cj, eye, ws):
+    """The right-hand side of :func:`rhs_ws` from row ``iy`` of ``S`` into row ``idy``; returns the stretch.
+
+    The stretch ``u + ell - ell_ref`` serves the integrator both for the taut/slack test and for the sampled
+    tension, so the cable geometry is evaluated once per state. Hot path: the state vectors are rows of one
+    2-D array and the work array is indexed by offsets (``ws``: :func:`workspace_size` floats), because
+    every array slice costs an atomic reference count in numba; the cable geometry is that of
+    :func:`cable_grad_cs`, written out here.
     """
     n = mu.shape[0]
     l_ = P[I_L]
     l2 = l_ * l_
+    r = P[I_R]
     g = P[I_G]
     jseg = P[I_JSEG]
-    phi = y[:n]
-    w = y[n:]
-    c = ws[:n]
-    s = ws[n : 2 * n]
-    q = ws[2 * n : 3 * n]
-    grad = ws[3 * n : 4 * n]
-    p00 = ws[4 * n : 5 * n]
-    p01 = ws[5 * n : 6 * n]
-    p11 = ws[6 * n : 7 * n]
-    wx = ws[7 * n : 8 * n]
-    wy = ws[8 * n : 9 * n]
-    dd = ws[9 * n : 10 * n]
-    ws2 = ws[10 * n :]
-    for i in range(n):
-        c[i] = math.cos(phi[i])
-        s[i] = math.sin(phi[i])
-    # generalised forces: joint springs and dashpots, gravity
+    alpha = P[I_ALPHA]
+    # ws layout: c 0, s n, q 2n, grad 3n, p00 4n, p01 5n, p11 6n, wx 7n, wy 8n, 1/d 9n
+    o_s = n
+    o_q = 2 * n
+    o_g = 3 * n
+    o_00 = 4 * n
+    o_01 = 5 * n
+    o_11 = 6 * n
+    o_wx = 7 * n
+    o_wy = 8 * n
+    o_d = 9 * n
+    # sines and cosines; generalised forces of the joint springs and dashpots and of gravity
     prev_phi = P[I_PHI0]
     prev_w = 0.0
+    q_prev = 0.0
     for i in range(n):
-        tau = kap[i] * (phi[i] - prev_phi) + cj[i] * (w[i] - prev_w)
-        q[i] = -tau - g * l_ * mu[i] * c[i]
+        ph = S[iy, i]
+        wi = S[iy, n + i]
+        ci = math.cos(ph)
+        ws[i] = ci
+        ws[o_s + i] = math.sin(ph)
+        tau = kap[i] * (ph - prev_phi) + cj[i] * (wi - prev_w)
         if i > 0:
-            q[i - 1] += tau
-        prev_phi = phi[i]
-        prev_w = w[i]
-    # cable
-    ell = cable_grad_cs(c, s, P, eye, grad, ws2)
+            ws[o_q + i - 1] = q_prev + tau
+        q_prev = -tau - g * l_ * mu[i] * ci
+        prev_phi = ph
+        prev_w = wi
+        ws[o_g + i] = 0.0
+    ws[o_q + n - 1] = q_prev
+    # cable: straight runs between eyelets, the arithmetic of cable_grad_cs with the gradient of each
+    # run's last segment kept in a register until the next run adds its share (eyelet nodes strictly
+    # increasing from 0, as RigParameters.eyelet_nodes makes them)
+    px = 0.0
+    py = 0.0
+    j = 0
+    ell = 0.0
+    ang = P[I_PHI0]
+    ax = -r * math.sin(ang)
+    ay = r * math.cos(ang)
+    pend = 0.0
+    b = 0
+    for qq in range(1, eye.shape[0]):
+        a = eye[qq - 1]
+        b = eye[qq]
+        while j < b:
+            px += l_ * ws[j]
+            py += l_ * ws[o_s + j]
+            j += 1
+        cb = ws[b - 1]
+        sb = ws[o_s + b - 1]
+        bx = px - r * sb
+        by = py + r * cb
+        dx = bx - ax
+        dy = by - ay
+        dist = math.sqrt(dx * dx + dy * dy)
+        ell += dist
+        inv = 1.0 / dist
+        ux = dx * inv
+        uy = dy * inv
+        if a >= 1:
+            ws[o_g + a - 1] = pend + r * (ux * ws[a - 1] + uy * ws[o_s + a - 1])
+        for i in range(a, b - 1):
+            ws[o_g + i] = l_ * (-ux * ws[o_s + i] + uy * ws[i])
+        pend = l_ * (-ux * sb + uy * cb) - r * (ux * cb + uy * sb)
+        ax = bx
+        ay = by
+    if b >= 1:
+        ws[o_g + b - 1] = pend
     e = u + ell - P[I_ELLREF]
     lam = P[I_K] * e if (e > 0.0 or P[I_BILATERAL] != 0.0) else 0.0
     if lam != 0.0:
         for i in range(n):
-            q[i] -= lam * grad[i]
+            ws[o_q + i] -= lam * ws[o_g + i]
     # inward pass
     k00 = 0.0
     k01 = 0.0
     k11 = 0.0
     rx = 0.0
     ry = 0.0
+    m_next = 0.0
     for i in range(n - 1, -1, -1):
-        m_i = mu[i] - (mu[i + 1] if i + 1 < n else 0.0)
+        m_i = mu[i] - m_next
+        m_next = mu[i]
         a00 = m_i + k00
         a01 = k01
         a11 = m_i + k11
-        nx = -s[i]
-        ny = c[i]
-        bx = -l_ * w[i] * w[i] * c[i]
-        by = -l_ * w[i] * w[i] * s[i]
+        nx = -ws[o_s + i]
+        ny = ws[i]
+        wi = S[iy, n + i]
+        lw2 = l_ * wi * wi
+        bx = -lw2 * ny
+        by = lw2 * nx
         pnx = a00 * nx + a01 * ny
         pny = a01 * nx + a11 * ny
-        d = jseg + l2 * (nx * pnx + ny * pny)
+        invd = 1.0 / (jseg + l2 * (nx * pnx + ny * pny))
         vx = a00 * bx + a01 * by + rx
         vy = a01 * bx + a11 * by + ry
-        p00[i] = a00
-        p01[i] = a01
-        p11[i] = a11
-        wx[i] = vx
-        wy[i] = vy
-        dd[i] = d
-        f = l2 / d
-        k00 = a00 - f * pnx * pnx
-        k01 = a01 - f * pnx * pny
-        k11 = a11 - f * pny * pny
-        coef = l_ * (q[i] - l_ * (nx * vx + ny * vy)) / d
+        ws[o_00 + i] = a00
+        ws[o_01 + i] = a01
+        ws[o_11 + i] = a11
+        ws[o_wx + i] = vx
+        ws[o_wy + i] = vy
+        ws[o_d + i] = invd
+        # (products grouped so that they run alongside the division)
+        k00 = a00 - (l2 * pnx * pnx) * invd
+        k01 = a01 - (l2 * pnx * pny) * invd
+        k11 = a11 - (l2 * pny * pny) * invd
+        coef = l_ * (ws[o_q + i] - l_ * (nx * vx + ny * vy)) * invd
         rx = vx + coef * pnx
         ry = vy + coef * pny
     # outward pass
     ax = 0.0
     ay = 0.0
     for i in range(n):
-        nx = -s[i]
-        ny = c[i]
-        fx = p00[i] * ax + p01[i] * ay + wx[i]
-        fy = p01[i] * ax + p11[i] * ay + wy[i]
-        acc = (q[i] - l_ * (nx * fx + ny * fy)) / dd[i]
-        ax += l_ * nx * acc - l_ * w[i] * w[i] * c[i]
-        ay += l_ * ny * acc - l_ * w[i] * w[i] * s[i]
-        dy[i] = w[i]
-        dy[n + i] = acc - P[I_ALPHA] * w[i]
-    return lam
+        nx = -ws[o_s + i]
+        ny = ws[i]
+        wi = S[iy, n + i]
+        fx = ws[o_00 + i] * ax + ws[o_01 + i] * ay + ws[o_wx + i]
+        fy = ws[o_01 + i] * ax + ws[o_11 + i] * ay + ws[o_wy + i]
+        acc = (ws[o_q + i] - l_ * (nx * fx + ny * fy)) * ws[o_d + i]
+        lw2 = l_ * wi * wi
+        ax += l_ * nx * acc - lw2 * ny
+        ay += l_ * ny * acc + lw2 * nx
+        S[idy, i] = wi
+        S[idy, n + i] = acc - alpha * wi
+    return e
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def stretch_row(S, iy, u, P, eye):
+    """Cable stretch ``u + ell - ell_ref`` of the state in row ``iy`` of ``S`` (as :func:`rhs_rows`)."""
+    l_ = P[I_L]
+    r = P[I_R]
+    px = 0.0
+    py = 0.0
+    j = 0
+    ell = 0.0
+    ang = P[I_PHI0]
+    ax = -r * math.sin(ang)
+    ay = r * math.cos(ang)
+    for qq in range(1, eye.shape[0]):
+        b = eye[qq]
+        while j < b:
+            px += l_ * math.cos(S[iy, j])
+            py += l_ * math.sin(S[iy, j])
+            j += 1
+        ang = S[iy, b - 1]
+        bx = px - r * math.sin(ang)
+        by = py + r * math.cos(ang)
+        dx = bx - ax
+        dy = by - ay
+        ell += math.sqrt(dx * dx + dy * dy)
+        ax = bx
+        ay = by
+    return u + ell - P[I_ELLREF]
+
+
+# rows of the integrator's state array (see advance)
+R_K2, R_K3, R_K4, R_TMP = 0, 1, 2, 3
+N_ROWS = 9
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def rk4_rows(S, iy, ik1, h, u, P, mu, kap, cj, eye, iout, ws):
+    """RK4 step of size ``h`` from row ``iy`` of ``S``, given its slope in row ``ik1``, into row ``iout``.
+
+    Rows ``R_K2 .. R_TMP`` hold the other stages.
+    """
+    m = S.shape[1]
+    hh = 0.5 * h
+    for i in range(m):
+        S[R_TMP, i] = S[iy, i] + hh * S[ik1, i]
+    rhs_rows(S, R_TMP, R_K2, u, P, mu, kap, cj, eye, ws)
+    for i in range(m):
+        S[R_TMP, i] = S[iy, i] + hh * S[R_K2, i]
+    rhs_rows(S, R_TMP, R_K3, u, P, mu, kap, cj, eye, ws)
+    for i in range(m):
+        S[R_TMP, i] = S[iy, i] + h * S[R_K3, i]
+    rhs_rows(S, R_TMP, R_K4, u, P, mu, kap, cj, eye, ws)
+    h6 = h / 6.0
+    for i in range(m):
+        S[iout, i] = S[iy, i] + h6 * (S[ik1, i] + 2.0 * S[R_K2, i] + 2.0 * S[R_K3, i] + S[R_K4, i])
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
 def rk4_step(y, h, u, P, mu, kap, cj, eye, out, ws):
-    """One classical Runge-Kutta step of size ``h`` from ``y`` into ``out`` (``ws``: 5 m + workspace)."""
+    """One classical RK4 step of size ``h`` from ``y`` into ``out`` (``ws``: workspace_size floats)."""
     m = y.shape[0]
-    k1 = ws[:m]
-    k2 = ws[m : 2 * m]
-    k3 = ws[2 * m : 3 * m]
-    k4 = ws[3 * m : 4 * m]
-    tmp = ws[4 * m : 5 * m]
-    w2 = ws[5 * m :]
-    rhs_ws(y, u, P, mu, kap, cj, eye, k1, w2)
+    S = np.empty((N_ROWS, m))
     for i in range(m):
-        tmp[i] = y[i] + 0.5 * h * k1[i]
-    rhs_ws(tmp, u, P, mu, kap, cj, eye, k2, w2)
+        S[4, i] = y[i]
+    rhs_rows(S, 4, 5, u, P, mu, kap, cj, eye, ws)
+    rk4_rows(S, 4, 5, h, u, P, mu, kap, cj, eye, 6, ws)
     for i in range(m):
-        tmp[i] = y[i] + 0.5 * h * k2[i]
-    rhs_ws(tmp, u, P, mu, kap, cj, eye, k3, w2)
-    for i in range(m):
-        tmp[i] = y[i] + h * k3[i]
-    rhs_ws(tmp, u, P, mu, kap, cj, eye, k4, w2)
-    for i in range(m):
-        out[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        out[i] = S[6, i]
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def integrate_interval(y, dt, u, h_max, P, mu, kap, cj, eye, stats, ws):
-    """Integrate ``y`` in place over ``dt`` with cable position ``u`` (constant), equal steps <= ``h_max``.
+def integrate_interval(S, rows, e0, dt, u, h_max, P, mu, kap, cj, eye, stats, ws):
+    """Integrate the state over ``dt`` with cable position ``u`` (constant), equal steps <= ``h_max``.
 
-    A step across which the cable changes between taut and slack is split at the transition, located by
-    the Illinois (regula falsi) method on the step size, so that each RK4 step sees a smooth right-hand side.
-    ``stats[0]`` counts steps, ``stats[1]`` counts taut/slack transitions.
+    ``rows`` (int array, updated in place) = row indices in ``S`` of the state, its slope, and three spare
+    rows (the next state, a trial state, the next slope). On entry the slope row holds ``f(y)`` and ``e0``
+    is the cable stretch at ``y``; on return the same holds at the new state, whose stretch is returned
+    (each step's last evaluation is the next step's first stage). A step across which the cable changes
+    between taut and slack is split at the transition, located by the Illinois (regula falsi) method on
+    the step size, so that each RK4 step sees a smooth right-hand side. ``stats[0]`` counts steps,
+    ``stats[1]`` counts taut/slack transitions.
     """
     if dt <= 0.0:
-        return
+        return e0
     n_steps = int(math.ceil(dt / h_max - 1e-9))
     h = dt / n_steps
-    m = y.shape[0]
-    n = mu.shape[0]
-    y1 = ws[:m]
-    ytry = ws[m : 2 * m]
-    wrk = ws[2 * m :]
-    ref = P[I_ELLREF]
-    e0 = u + cable_length_ws(y[:n], P, eye, wrk) - ref
+    m = S.shape[1]
+    iy = rows[0]
+    ik1 = rows[1]
+    iy1 = rows[2]
+    itry = rows[3]
+    ik1n = rows[4]
     for _ in range(n_steps):
-        rk4_step(y, h, u, P, mu, kap, cj, eye, y1, wrk)
+        rk4_rows(S, iy, ik1, h, u, P, mu, kap, cj, eye, iy1, ws)
         stats[0] += 1
-        e1 = u + cable_length_ws(y1[:n], P, eye, wrk) - ref
+        e1 = rhs_rows(S, iy1, ik1n, u, P, mu, kap, cj, eye, ws)
         if (e0 > 0.0) != (e1 > 0.0):
             stats[1] += 1
             # bracket the transition in the step size: f(0) = e0, f(h) = e1
@@ -406,9 +523,9 @@ def integrate_interval(y, dt, u, h_max, P, mu, kap, cj, eye, stats, ws):
                 hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
                 if not (hc > lo and hc < hi):
                     hc = 0.5 * (lo + hi)
-                rk4_step(y, hc, u, P, mu, kap, cj, eye, ytry, wrk)
+                rk4_rows(S, iy, ik1, hc, u, P, mu, kap, cj, eye, itry, ws)
                 stats[0] += 1
-                fc = u + cable_length_ws(ytry[:n], P, eye, wrk) - ref
+                fc = stretch_row(S, itry, u, P, eye)
                 if abs(fc) < 1e-12 or hi - lo < 1e-10:
                     break
                 if (fc > 0.0) == (f_lo > 0.0):
@@ -425,13 +542,19 @@ def integrate_interval(y, dt, u, h_max, P, mu, kap, cj, eye, stats, ws):
                     side = 1
             # advance to the transition, then finish the step on the other branch
             for i in range(m):
-                y[i] = ytry[i]
-            rk4_step(y, h - hc, u, P, mu, kap, cj, eye, y1, wrk)
+                S[iy, i] = S[itry, i]
+            rhs_rows(S, iy, ik1, u, P, mu, kap, cj, eye, ws)
+            rk4_rows(S, iy, ik1, h - hc, u, P, mu, kap, cj, eye, iy1, ws)
             stats[0] += 1
-            e1 = u + cable_length_ws(y1[:n], P, eye, wrk) - ref
-        for i in range(m):
-            y[i] = y1[i]
+            e1 = rhs_rows(S, iy1, ik1n, u, P, mu, kap, cj, eye, ws)
+        iy, iy1 = iy1, iy
+        ik1, ik1n = ik1n, ik1
         e0 = e1
+    rows[0] = iy
+    rows[1] = ik1
+    rows[2] = iy1
+    rows[4] = ik1n
+    return e0
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
@@ -441,28 +564,48 @@ def advance(y, t0, u0, du, sample_times, step_times, step_signs, h_max, P, mu, k
 
     Steps at ``step_times`` move the cable by ``du * step_signs`` instantly; a step at exactly a sample
     time is applied before that sample. Tension (N) and segment angles at the samples are written into
-    ``tension_out`` and ``phi_out``.
+    ``tension_out`` and ``phi_out``. The slope at the current state is kept between intervals and
+    re-evaluated only when the cable moves.
     """
     n = mu.shape[0]
-    ws = np.empty(7 * y.shape[0] + workspace_size(n))
+    m = y.shape[0]
+    S = np.empty((N_ROWS, m))
+    ws = np.empty(workspace_size(n))
+    rows = np.array([4, 5, 6, 7, 8])
+    for i in range(m):
+        S[4, i] = y[i]
     t = t0
     u = u0
     js = 0
     n_steps = step_times.shape[0]
+    e = 0.0
+    valid = False
     for q in range(sample_times.shape[0]):
         ts = sample_times[q]
         while js < n_steps and step_times[js] <= ts:
-            integrate_interval(y, step_times[js] - t, u, h_max, P, mu, kap, cj, eye, stats, ws)
-            if step_times[js] > t:
+            dt = step_times[js] - t
+            if dt > 0.0:
+                if not valid:
+                    e = rhs_rows(S, rows[0], rows[1], u, P, mu, kap, cj, eye, ws)
+                    valid = True
+                e = integrate_interval(S, rows, e, dt, u, h_max, P, mu, kap, cj, eye, stats, ws)
                 t = step_times[js]
             u += du * step_signs[js]
+            valid = False
             js += 1
-        integrate_interval(y, ts - t, u, h_max, P, mu, kap, cj, eye, stats, ws)
+        if not valid:
+            e = rhs_rows(S, rows[0], rows[1], u, P, mu, kap, cj, eye, ws)
+            valid = True
+        e = integrate_interval(S, rows, e, ts - t, u, h_max, P, mu, kap, cj, eye, stats, ws)
         if ts > t:
             t = ts
-        tension_out[q] = tension_of(y[:n], u, P, eye)
+        tension_out[q] = P[I_K] * e if e > 0.0 else 0.0
+        iy = rows[0]
         for i in range(n):
-            phi_out[q, i] = y[i]
+            phi_out[q, i] = S[iy, i]
+    iy = rows[0]
+    for i in range(m):
+        y[i] = S[iy, i]
     return t, u
 
 
