@@ -122,12 +122,21 @@ def dependencies(path: Path) -> list[str]:
     return list(meta.get("depends_on", []))
 
 
+def priority(path: Path) -> int:
+    """Scheduling priority of ``path``: higher starts first among notebooks that are ready.
+
+    A long notebook declares ``{"helpers": {"priority": 1}}`` so that it runs beside the others instead of
+    after them (notebook 06 simulates the virtual rig and, in a fresh environment, compiles it first).
+    """
+    return int(nbformat.read(path, as_version=4).metadata.get("helpers", {}).get("priority", 0))
+
+
 def reproduce(notebooks: list[Path] | None = None, timeout: int = 600, jobs: int = 2) -> list[NotebookRun]:
     """Execute the numbered notebooks (in parallel where they are independent) and print a summary.
 
-    Notebooks start in numeric order as soon as a worker is free and their declared dependencies (see
-    :func:`dependencies`) have finished. On the first failure no further notebook starts, the running ones
-    finish, and :class:`NotebookFailed` names the notebook and the cell.
+    Notebooks start in numeric order (higher :func:`priority` first) as soon as a worker is free and their
+    declared dependencies (see :func:`dependencies`) have finished. On the first failure no further notebook
+    starts, the running ones finish, and :class:`NotebookFailed` names the notebook and the cell.
 
     Parameters
     ----------
@@ -148,7 +157,7 @@ def reproduce(notebooks: list[Path] | None = None, timeout: int = 600, jobs: int
     notebooks = numbered_notebooks() if notebooks is None else list(notebooks)
     selected = {p.name for p in notebooks}
     needs = {p.name: [d for d in dependencies(p) if d in selected] for p in notebooks}
-    pending = list(notebooks)
+    pending = sorted(notebooks, key=lambda p: -priority(p))  # stable: numeric order within a priority
     done: dict[str, NotebookRun] = {}
     failure: NotebookFailed | None = None
     total_start = time.perf_counter()

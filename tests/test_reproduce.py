@@ -41,3 +41,16 @@ def test_failure_names_notebook_and_cell(tmp_path):
     bad = _write(tmp_path / "03_bad.ipynb", ["x = 1", "raise ValueError('boom')"])
     with pytest.raises(reproduce.NotebookFailed, match=r"03_bad.ipynb: code cell 2 .*ValueError: boom"):
         reproduce.execute_notebook(bad, timeout=60)
+
+
+def test_priority_starts_a_long_notebook_first(tmp_path, capsys):
+    a = _write(tmp_path / "01_a.ipynb", ["1"])
+    b = _write(tmp_path / "02_b.ipynb", ["2"])
+    long = _write(tmp_path / "03_long.ipynb", ["3"])
+    nb = nbformat.read(long, as_version=4)
+    nb.metadata["helpers"] = {"priority": 1}
+    nbformat.write(nb, long)
+    reproduce.reproduce([a, b, long], timeout=60, jobs=1)
+    lines = capsys.readouterr().out.splitlines()
+    started = [line.split()[1] for line in lines if line.startswith("executing")]
+    assert started == ["03_long.ipynb", "01_a.ipynb", "02_b.ipynb"]
