@@ -471,19 +471,6 @@ def rk4_rows(S, iy, ik1, h, u, P, mu, kap, cj, eye, iout, ws):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def rk4_step(y, h, u, P, mu, kap, cj, eye, out, ws):
-    """One classical RK4 step of size ``h`` from ``y`` into ``out`` (``ws``: workspace_size floats)."""
-    m = y.shape[0]
-    S = np.empty((N_ROWS, m))
-    for i in range(m):
-        S[4, i] = y[i]
-    rhs_rows(S, 4, 5, u, P, mu, kap, cj, eye, ws)
-    rk4_rows(S, 4, 5, h, u, P, mu, kap, cj, eye, 6, ws)
-    for i in range(m):
-        out[i] = S[6, i]
-
-
-@njit(cache=True, fastmath=True, error_model="numpy")
 def integrate_interval(S, rows, e0, dt, u, h_max, P, mu, kap, cj, eye, stats, ws):
     """Integrate the state over ``dt`` with cable position ``u`` (constant), equal steps <= ``h_max``.
 
