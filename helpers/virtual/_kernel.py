@@ -30,12 +30,12 @@ I_L, I_R, I_PHI0, I_G, I_ALPHA, I_K, I_ELLREF, I_JSEG, I_BILATERAL = range(9)
 N_PACKED = 9
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def cable_length(phi, P, eye):  # noqa: D103 - see module docstring
     return cable_length_ws(phi, P, eye, np.empty(2 * phi.shape[0] + 2))
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def cable_length_ws(phi, P, eye, ws):
     """Cable path length through the eyelets (``ws``: at least 2 n + 2 floats)."""
     l_ = P[I_L]
@@ -63,7 +63,7 @@ def cable_length_ws(phi, P, eye, ws):
     return total
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def cable_length_grad(phi, P, eye, grad):
     """Cable path length through the eyelets and its gradient (written into ``grad``) w.r.t. ``phi``."""
     n = phi.shape[0]
@@ -71,7 +71,7 @@ def cable_length_grad(phi, P, eye, grad):
     return cable_length_grad_ws(phi, P, eye, grad, ws)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def cable_length_grad_ws(phi, P, eye, grad, ws):
     """As :func:`cable_length_grad`, with a work array of at least ``4 n + 2`` floats."""
     n = phi.shape[0]
@@ -83,7 +83,7 @@ def cable_length_grad_ws(phi, P, eye, grad, ws):
     return cable_grad_cs(c, s, P, eye, grad, ws[2 * n :])
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def cable_grad_cs(c, s, P, eye, grad, ws):
     """Cable length and gradient from the segments' cosines ``c`` and sines ``s`` (``ws``: 2 n + 2 floats)."""
     l_ = P[I_L]
@@ -125,18 +125,18 @@ def cable_grad_cs(c, s, P, eye, grad, ws):
     return total
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def tension_of(phi, u, P, eye):  # noqa: D103
     e = u + cable_length(phi, P, eye) - P[I_ELLREF]
     return P[I_K] * e if e > 0.0 else 0.0
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def stretch_of(phi, u, P, eye):  # noqa: D103
     return u + cable_length(phi, P, eye) - P[I_ELLREF]
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def rhs(y, u, P, mu, kap, cj, eye, dy):
     """Write d/dt of the state ``y = [phi, omega]`` into ``dy``; return the cable tension."""
     n = mu.shape[0]
@@ -144,7 +144,7 @@ def rhs(y, u, P, mu, kap, cj, eye, dy):
     return rhs_ws(y, u, P, mu, kap, cj, eye, dy, ws)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def rhs_dense(y, u, P, mu, kap, cj, eye, dy):
     """Allocating wrapper of :func:`rhs_dense_ws`."""
     n = mu.shape[0]
@@ -152,12 +152,12 @@ def rhs_dense(y, u, P, mu, kap, cj, eye, dy):
     return rhs_dense_ws(y, u, P, mu, kap, cj, eye, dy, ws)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def workspace_size(n):  # noqa: D103
     return n * n + 12 * n + 2
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def rhs_dense_ws(y, u, P, mu, kap, cj, eye, dy, ws):
     """The same right-hand side through the dense mass matrix and a Cholesky solve (O(n^3)).
 
@@ -248,7 +248,7 @@ def rhs_dense_ws(y, u, P, mu, kap, cj, eye, dy, ws):
     return lam
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def rhs_ws(y, u, P, mu, kap, cj, eye, dy, ws):
     """As :func:`rhs`, with a work array of :func:`workspace_size` floats.
 
@@ -270,7 +270,7 @@ def rhs_ws(y, u, P, mu, kap, cj, eye, dy, ws):
     return P[I_K] * e if (e > 0.0 or P[I_BILATERAL] != 0.0) else 0.0
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def rhs_rows(S, iy, idy, u, P, mu, kap, cj, eye, ws):
     """The right-hand side of :func:`rhs_ws` from row ``iy`` of ``S`` into row ``idy``; returns the stretch.
 
@@ -414,7 +414,7 @@ def rhs_rows(S, iy, idy, u, P, mu, kap, cj, eye, ws):
     return e
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def stretch_row(S, iy, u, P, eye):
     """Cable stretch ``u + ell - ell_ref`` of the state in row ``iy`` of ``S`` (as :func:`rhs_rows`)."""
     l_ = P[I_L]
@@ -448,7 +448,7 @@ R_K2, R_K3, R_K4, R_TMP = 0, 1, 2, 3
 N_ROWS = 9
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def rk4_rows(S, iy, ik1, h, u, P, mu, kap, cj, eye, iout, ws):
     """RK4 step of size ``h`` from row ``iy`` of ``S``, given its slope in row ``ik1``, into row ``iout``.
 
@@ -470,7 +470,7 @@ def rk4_rows(S, iy, ik1, h, u, P, mu, kap, cj, eye, iout, ws):
         S[iout, i] = S[iy, i] + h6 * (S[ik1, i] + 2.0 * S[R_K2, i] + 2.0 * S[R_K3, i] + S[R_K4, i])
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def integrate_interval(S, rows, e0, dt, u, h_max, P, mu, kap, cj, eye, stats, ws):
     """Integrate the state over ``dt`` with cable position ``u`` (constant), equal steps <= ``h_max``.
 
@@ -544,7 +544,7 @@ def integrate_interval(S, rows, e0, dt, u, h_max, P, mu, kap, cj, eye, stats, ws
     return e0
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def advance(y, t0, u0, du, sample_times, step_times, step_signs, h_max, P, mu, kap, cj, eye,
             tension_out, phi_out, stats):
     """Advance the state ``y`` (in place) from ``t0`` through every sample time; return ``(t, u)``.
@@ -596,7 +596,7 @@ def advance(y, t0, u0, du, sample_times, step_times, step_signs, h_max, P, mu, k
     return t, u
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def energy(y, u, P, mu, m_nodes, kap, eye):
     """Kinetic + elastic + gravitational + cable energy of the state (J), for the energy-balance test."""
     n = mu.shape[0]
@@ -624,7 +624,7 @@ def energy(y, u, P, mu, m_nodes, kap, eye):
     return kin + el + grav + cab
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def static_force(phi, u, lam_fixed, P, mu, kap, eye, out):
     """Generalised static force (springs, gravity, cable) at rest, written into ``out``; returns the tension.
 
