@@ -1,7 +1,64 @@
-"""Root pytest configuration shared by the unit tests and nbval."""
+"""Root pytest configuration shared by the unit tests and nbval.
 
+Running the tests writes nothing into the working tree: figures and tables (which the notebooks save when
+nbval executes them) go to a temporary folder named by ``HELPERS_FIGURES_DIR``, set here before any kernel
+starts, so every kernel nbval launches inherits it. Caches that ``.gitignore`` lists (numba, hypothesis, the
+firmware build) are the only files the tests leave behind.
+"""
+
+import atexit
 import os
+import shutil
+import tempfile
 
 # An inherited backend (e.g. MPLBACKEND=Agg in CI) would stop the kernels nbval starts from producing
 # inline figures, and the stored "<Figure ...>" outputs would then not match.
 os.environ.pop("MPLBACKEND", None)
+
+if not os.environ.get("HELPERS_FIGURES_DIR"):
+    _figures = tempfile.mkdtemp(prefix="helpers-test-figures-")
+    os.environ["HELPERS_FIGURES_DIR"] = _figures
+    atexit.register(shutil.rmtree, _figures, ignore_errors=True)
+
+
+def _git_status() -> list[str] | None:
+    """``git status --porcelain`` of the repository, or None outside a git checkout."""
+    import subprocess
+    from pathlib import Path
+
+    try:
+        proc = subprocess.run(
+            ["git", "status", "--porcelain"],
+            cwd=Path(__file__).resolve().parent,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return proc.stdout.splitlines() if proc.returncode == 0 else None
+
+
+def pytest_sessionstart(session):
+    """Note what ``git status`` shows before the tests run."""
+    session.config.stash_git_status = _git_status()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Fail the run if the tests changed anything ``git status`` can see (they must write only to temp)."""
+    before = getattr(session.config, "stash_git_status", None)
+    after = _git_status()
+    if before is None or after is None:
+        return
+    changed = sorted(set(after) - set(before))
+    if changed:
+        reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+        if reporter is not None:
+            reporter.write_line("")
+            reporter.write_line(
+                "the test run changed the working tree (tests must write to temporary folders only):",
+                red=True,
+            )
+            for line in changed:
+                reporter.write_line(f"  {line}", red=True)
+        session.exitstatus = 1

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 REPO_ROOT: Path = Path(__file__).resolve().parent.parent
@@ -10,8 +11,12 @@ REPO_ROOT: Path = Path(__file__).resolve().parent.parent
 DATA_DIR: Path = REPO_ROOT / "data"
 """Recordings, calibration and identification results."""
 
-FIGURES_DIR: Path = REPO_ROOT / "figures"
-"""Regenerated figures and tables."""
+FIGURES_ENV = "HELPERS_FIGURES_DIR"
+"""Environment variable that sends figures and tables elsewhere (the test suite points it at a temporary
+folder, so that running the tests writes nothing into the working tree)."""
+
+FIGURES_DIR: Path = Path(os.environ.get(FIGURES_ENV) or REPO_ROOT / "figures")
+"""Regenerated figures and tables: ``figures/``, or the folder named by ``HELPERS_FIGURES_DIR``."""
 
 NOTEBOOKS_DIR: Path = REPO_ROOT / "notebooks"
 """The numbered notebooks."""

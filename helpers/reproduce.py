@@ -66,6 +66,29 @@ def _failing_cell(nb: nbformat.NotebookNode) -> tuple[int, str]:
     return -1, ""
 
 
+def coalesce_streams(nb: nbformat.NotebookNode) -> None:
+    """Merge consecutive ``stdout``/``stderr`` outputs of each cell into one (in place).
+
+    How a kernel splits printed text into stream messages depends on timing; merged, the stored notebook is
+    the same on every run (nbval merges them the same way before it compares).
+    """
+    for cell in nb.cells:
+        merged: list = []
+        for out in cell.get("outputs", []):
+            prev = merged[-1] if merged else None
+            if (
+                out.get("output_type") == "stream"
+                and prev is not None
+                and prev.get("output_type") == "stream"
+                and prev.get("name") == out.get("name")
+            ):
+                prev["text"] = prev["text"] + out["text"]
+            else:
+                merged.append(out)
+        if "outputs" in cell:
+            cell["outputs"] = merged
+
+
 def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
     """Execute ``path`` in place in a fresh kernel and write the outputs back.
 
@@ -101,11 +124,13 @@ def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
     try:
         client.execute()
     except CellExecutionError as exc:
+        coalesce_streams(nb)
         nbformat.write(nb, path)
         index, first = _failing_cell(nb)
         text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).strip()  # no terminal colour codes in the message
         last = text.splitlines()[-1] if text else type(exc).__name__
         raise NotebookFailed(f"{path.name}: code cell {index} ({first!r}) failed: {last}") from exc
+    coalesce_streams(nb)
     nbformat.write(nb, path)
     return NotebookRun(path=path, seconds=time.perf_counter() - start, n_cells=len(nb.cells))
 

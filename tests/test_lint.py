@@ -1,4 +1,4 @@
-"""The code style gate: ruff over the package and the tests (part of the README's test command)."""
+"""The code style gate: ruff over the package, the tests and the notebooks (part of the test command)."""
 
 import shutil
 import subprocess
@@ -16,7 +16,7 @@ def test_ruff_clean():
     if ruff is None:
         pytest.skip("ruff is not installed: pip install -r environment.txt")
     result = subprocess.run(
-        [ruff, "check", "helpers", "tests", "conftest.py"], cwd=REPO_ROOT, capture_output=True, text=True
+        [ruff, "check", "."], cwd=REPO_ROOT, capture_output=True, text=True
     )
     assert result.returncode == 0, result.stdout + result.stderr
 

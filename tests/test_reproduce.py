@@ -54,3 +54,12 @@ def test_priority_starts_a_long_notebook_first(tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     started = [line.split()[1] for line in lines if line.startswith("executing")]
     assert started == ["03_long.ipynb", "01_a.ipynb", "02_b.ipynb"]
+
+
+def test_stream_outputs_are_merged_so_reruns_store_the_same_bytes(tmp_path):
+    # a flush and a pause make the kernel send two stream messages for one cell
+    src = "import sys, time\nprint('a'); sys.stdout.flush(); time.sleep(0.3)\nprint('b')"
+    nb_path = _write(tmp_path / "01_streams.ipynb", [src])
+    reproduce.execute_notebook(nb_path, timeout=60)
+    outputs = nbformat.read(nb_path, as_version=4).cells[0].outputs
+    assert [(o["output_type"], o["name"], o["text"]) for o in outputs] == [("stream", "stdout", "a\nb\n")]
