@@ -13,8 +13,8 @@ import sys
 COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("helpers.reproduce", "execute every notebook in order; regenerate figures/ and tables"),
     "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
-    "serve-virtual-rig": ("helpers.virtual.server", "serve the virtual rig's two boards on pseudo-terminals"),
-    "record": ("helpers.rig.record", "record the paper's experiments into data/ (hardware or virtual rig)"),
+    "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
+    "record": ("helpers.record", "record the paper's experiments into data/ (hardware or virtual rig)"),
 }
 """command name -> (module, one-line help)."""
 

@@ -12,10 +12,12 @@ or the raw ADC counts (the mode's frequency and damping do not depend on the sen
   ``y = c + A exp(-zeta omega_n (t - t0)) sin(omega_d (t - t0) + phi)``, started from the other two, with
   standard errors from the Jacobian at the solution.
 
-:func:`identify` runs all three and reports the one chosen by ``method``.
+:func:`identify` runs all three and reports the one chosen by ``method``. The identified mode's file,
+``data/identification/result.json``, is owned here: :func:`save_identification` writes it and
+:func:`load_identification` reads it back as an :class:`IdentifiedMode`.
 
 The half-power bandwidth of the spectrum is deliberately not used for the damping: on a power spectrum with a
-``1/sqrt(2)`` threshold it underestimates zeta by about 35 % at zeta = 0.044 (``../shared/notes``), and the
+``1/sqrt(2)`` threshold it underestimates zeta by about 35 % at zeta = 0.044, and the
 window holds only a few cycles, so the spectral peak is broadened by the window rather than by the damping.
 
 Standard errors assume independent, identically distributed residuals (white noise, including the ADC's
@@ -24,7 +26,6 @@ quantisation once the noise dithers it). Coloured residuals (other modes, nonlin
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, replace
@@ -35,6 +36,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, signal
 
+from helpers.jsonfile import DataFileError, read_json, write_json
+from helpers.modes import check_mode, omega_n_from_damped
 from helpers.paths import IDENTIFICATION_RESULT
 
 FloatArray = NDArray[np.float64]
@@ -374,55 +377,15 @@ def log_decrement(
     period = 2.0 * math.pi / omega
     if prominence is None:
         prominence = max(6.0 * _noise_scale(y), 3.0 * _quantum(y), 0.02 * float(np.ptp(y)))
-    distance = max(1, int(0.6 * period / dt))
-    half = max(2, int(round(period / 8.0 / dt)))
-
-    idx_max, _ = signal.find_peaks(y, prominence=prominence, distance=distance)
-    idx_min, _ = signal.find_peaks(-y, prominence=prominence, distance=distance)
-    if idx_max.size < 2 or idx_max.size + idx_min.size < 3:
-        raise ValueError(
-            f"too few cycles above the noise: found {idx_max.size} peaks and {idx_min.size} troughs with "
-            f"prominence >= {prominence:.4g}; the log decrement needs at least 2 peaks (about 2 cycles)"
-        )
-    refined_max = [_refine_extremum(t, y, int(k), half, 1.0) for k in idx_max]
-    refined_min = [_refine_extremum(t, y, int(k), half, -1.0) for k in idx_min]
-    peaks = np.array([p for p in refined_max if p is not None]).reshape(-1, 2)
-    troughs = np.array([p for p in refined_min if p is not None]).reshape(-1, 2)
-    if len(peaks) < 2 or len(peaks) + len(troughs) < 3:
-        raise ValueError(
-            f"too few cycles: only {len(peaks)} peaks and {len(troughs)} troughs lie a full refinement "
-            f"neighbourhood ({half} samples) inside the window; the log decrement needs at least 2 peaks"
-        )
+    peaks, troughs = _extrema(t, y, dt, period, prominence)
     ext_t = np.concatenate([peaks[:, 0], troughs[:, 0]])
     ext_y = np.concatenate([peaks[:, 1], troughs[:, 1]])
     sign = np.concatenate([np.ones(len(peaks)), -np.ones(len(troughs))])
     order = np.argsort(ext_t)
     ext_t, ext_y, sign = ext_t[order], ext_y[order], sign[order]
     t_ref = float(ext_t[0])
-
-    # damped frequency from the extremum spacing: consecutive extrema are half a period apart (the index
-    # advances by the locally rounded number of half periods, so a dropped extremum or a rough hint
-    # cannot shift the count)
-    steps = np.maximum(1.0, np.round(np.diff(ext_t) / (0.5 * period)))
-    half_index = np.concatenate([[0.0], np.cumsum(steps)])
-    _, slope, slope_std = _weighted_line(half_index, ext_t, np.ones_like(ext_t))
-    omega_d = math.pi / slope
-    omega_d_std = math.pi * slope_std / slope**2
-
-    # baseline
-    if isinstance(baseline, str):
-        if baseline == "final":
-            n_last = max(2, int(round(2.0 * math.pi / omega_d / dt)))
-            c = float(np.median(y[-n_last:]))
-        elif baseline == "envelope":
-            c = _envelope_baseline(ext_t - t_ref, ext_y, sign, omega_d)
-        else:
-            raise ValueError(f"baseline must be 'envelope', 'final' or a number, got {baseline!r}")
-    else:
-        c = float(baseline)
-        if not math.isfinite(c):
-            raise ValueError(f"baseline must be finite, got {baseline!r}")
-
+    omega_d, omega_d_std = _frequency_from_extrema(ext_t, period)
+    c = _baseline(baseline, t, y, dt, ext_t - t_ref, ext_y, sign, omega_d)
     amp = sign * (ext_y - c)
     if np.any(amp <= 0):
         raise ValueError(
@@ -452,6 +415,61 @@ def log_decrement(
         trough_values=troughs[:, 1].copy(),
         n_cycles=n_cycles,
     )
+
+
+def _extrema(
+    t: FloatArray, y: FloatArray, dt: float, period: float, prominence: float
+) -> tuple[FloatArray, FloatArray]:
+    """Peaks and troughs ``(time, value)`` above ``prominence``, refined by parabolas (step 2 above)."""
+    distance = max(1, int(0.6 * period / dt))
+    half = max(2, int(round(period / 8.0 / dt)))
+    idx_max, _ = signal.find_peaks(y, prominence=prominence, distance=distance)
+    idx_min, _ = signal.find_peaks(-y, prominence=prominence, distance=distance)
+    if idx_max.size < 2 or idx_max.size + idx_min.size < 3:
+        raise ValueError(
+            f"too few cycles above the noise: found {idx_max.size} peaks and {idx_min.size} troughs with "
+            f"prominence >= {prominence:.4g}; the log decrement needs at least 2 peaks (about 2 cycles)"
+        )
+    refined_max = [_refine_extremum(t, y, int(k), half, 1.0) for k in idx_max]
+    refined_min = [_refine_extremum(t, y, int(k), half, -1.0) for k in idx_min]
+    peaks = np.array([p for p in refined_max if p is not None]).reshape(-1, 2)
+    troughs = np.array([p for p in refined_min if p is not None]).reshape(-1, 2)
+    if len(peaks) < 2 or len(peaks) + len(troughs) < 3:
+        raise ValueError(
+            f"too few cycles: only {len(peaks)} peaks and {len(troughs)} troughs lie a full refinement "
+            f"neighbourhood ({half} samples) inside the window; the log decrement needs at least 2 peaks"
+        )
+    return peaks, troughs
+
+
+def _frequency_from_extrema(ext_t: FloatArray, period: float) -> tuple[float, float]:
+    """Damped frequency and its standard error from the extremum times, half a period apart.
+
+    The index advances by the locally rounded number of half periods, so a dropped extremum or a rough
+    hint cannot shift the count.
+    """
+    steps = np.maximum(1.0, np.round(np.diff(ext_t) / (0.5 * period)))
+    half_index = np.concatenate([[0.0], np.cumsum(steps)])
+    _, slope, slope_std = _weighted_line(half_index, ext_t, np.ones_like(ext_t))
+    return math.pi / slope, math.pi * slope_std / slope**2
+
+
+def _baseline(
+    baseline: str | float, t: FloatArray, y: FloatArray, dt: float, tau: FloatArray, ext_y: FloatArray,
+    sign: FloatArray, omega_d: float,
+) -> float:  # fmt: skip
+    """The equilibrium the extrema decay towards (step 3 above)."""
+    if not isinstance(baseline, str):
+        c = float(baseline)
+        if not math.isfinite(c):
+            raise ValueError(f"baseline must be finite, got {baseline!r}")
+        return c
+    if baseline == "final":
+        n_last = max(2, int(round(2.0 * math.pi / omega_d / dt)))
+        return float(np.median(y[-n_last:]))
+    if baseline == "envelope":
+        return _envelope_baseline(tau, ext_y, sign, omega_d)
+    raise ValueError(f"baseline must be 'envelope', 'final' or a number, got {baseline!r}")
 
 
 def _envelope_baseline(tau: FloatArray, ext_y: FloatArray, sign: FloatArray, omega_d: float) -> float:
@@ -507,7 +525,7 @@ class DampedSineFit:
     @property
     def omega_n(self) -> float:
         """Undamped natural frequency, rad/s."""
-        return self.omega_d / math.sqrt(1.0 - self.zeta**2)
+        return omega_n_from_damped(self.omega_d, self.zeta)
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         """Evaluate the fitted model at ``t``."""
@@ -795,7 +813,7 @@ def identify(
     return IdentificationResult(
         zeta=zeta,
         omega_d=omega_d,
-        omega_n=omega_d / math.sqrt(1.0 - zeta**2),
+        omega_n=omega_n_from_damped(omega_d, zeta),
         zeta_std=zeta_std,
         omega_d_std=omega_d_std,
         method=method,
@@ -875,9 +893,115 @@ def save_identification(
     pathlib.Path
         The file written.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(result.to_dict(), indent=2) + "\n")
-    os.replace(tmp, path)
-    return path
+    return write_json(path, result.to_dict(), sort_keys=False)
+
+
+MISSING_HINT = (
+    "record and analyse the identification run first: `python -m helpers record all`, or the live cell of "
+    "notebook 02"
+)
+
+
+@dataclass(frozen=True)
+class IdentifiedMode:
+    """The content of ``data/identification/result.json``: the identified mode and where it came from.
+
+    Attributes
+    ----------
+    omega_d, zeta : float
+        Damped frequency (rad/s) and damping ratio of the dominant mode.
+    omega_d_std, zeta_std : float
+        Their standard errors (NaN where the method gives none).
+    method : str
+        ``"fit"``, ``"logdec"`` or ``"fft"``.
+    window_s : tuple of float or None
+        The analysed window.
+    recording, source : str or None
+        The analysed recording's name and its source (``"hardware"`` or ``"virtual-rig"``).
+    """
+
+    omega_d: float
+    zeta: float
+    omega_d_std: float = math.nan
+    zeta_std: float = math.nan
+    method: str = "fit"
+    window_s: tuple[float, float] | None = None
+    recording: str | None = None
+    source: str | None = None
+
+    @property
+    def omega_n(self) -> float:
+        """Undamped natural frequency, rad/s."""
+        return omega_n_from_damped(self.omega_d, self.zeta)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> IdentifiedMode:
+        """Read the file's content; ``ValueError`` names a missing key or a value out of range."""
+        missing = [k for k in ("zeta", "omega_d", "method") if k not in data]
+        if missing:
+            raise ValueError(f"missing key(s) {', '.join(missing)}")
+        omega_d, zeta = data["omega_d"], data["zeta"]
+        check_mode(omega_d, zeta, "omega_d")
+        method = data["method"]
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        window = data.get("window_s")
+        if window is not None:
+            if not (isinstance(window, list | tuple) and len(window) == 2):
+                raise ValueError(f"window_s must be [start, end], got {window!r}")
+            window = (float(window[0]), float(window[1]))
+
+        def std(key: str) -> float:
+            v = data.get(key)
+            return math.nan if v is None else float(v)
+
+        return cls(
+            omega_d=float(omega_d),
+            zeta=float(zeta),
+            omega_d_std=std("omega_d_std"),
+            zeta_std=std("zeta_std"),
+            method=str(method),
+            window_s=window,
+            recording=data.get("recording"),
+            source=data.get("source"),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The keys :meth:`from_dict` reads (NaN as None)."""
+        return {
+            "zeta": self.zeta,
+            "omega_d": self.omega_d,
+            "zeta_std": _json_float(self.zeta_std),
+            "omega_d_std": _json_float(self.omega_d_std),
+            "omega_n": self.omega_n,
+            "method": self.method,
+            "window_s": None if self.window_s is None else list(self.window_s),
+            "recording": self.recording,
+            "source": self.source,
+        }
+
+
+def load_identification(path: str | os.PathLike = IDENTIFICATION_RESULT) -> IdentifiedMode:
+    """Read the identified mode that notebook 02's live cell or ``record all`` saved.
+
+    Parameters
+    ----------
+    path : path-like
+        Default ``data/identification/result.json``.
+
+    Returns
+    -------
+    IdentifiedMode
+
+    Raises
+    ------
+    helpers.jsonfile.MissingDataError
+        If there is none yet (the message says how to make it).
+    helpers.jsonfile.DataFileError
+        If it is malformed (the message names the file and the key or value).
+    """
+    data = read_json(path, "identification result", MISSING_HINT)
+    try:
+        return IdentifiedMode.from_dict(data)
+    except (TypeError, ValueError) as exc:
+        raise DataFileError(f"{path}: identification result: {exc}") from None

@@ -1,6 +1,6 @@
 """Table II metrics of an up-hold-down recording: peak tension, overshoot and settling time per motion.
 
-Definitions (DESIGN section 7). A recording holds an Up motion (from the first step of the up move to the
+Definitions (``docs/metrics.md``). A recording holds an Up motion (from the first step of the up move to the
 first step of the down move) and a Down motion (from the first step of the down move to the end of the
 recording). With the tension ``y(t)``:
 
@@ -262,14 +262,7 @@ def motion_metrics(
     ValueError
         For invalid arguments (not for signals whose metrics are undefined: those give NaN).
     """
-    if motion not in MOTIONS:
-        raise ValueError(f"motion must be 'Up' or 'Down', got {motion!r}")
-    if not (0.0 < band < 1.0):
-        raise ValueError(f"band must lie in (0, 1), got {band!r}")
-    if not (math.isfinite(start) and not math.isnan(end) and end > start):
-        raise ValueError(f"need start < end, got start={start!r}, end={end!r}")
-    if pre_s <= 0 or final_s <= 0 or min_hold_s < 0 or max_missing < 0:
-        raise ValueError("pre_s and final_s must be > 0, min_hold_s and max_missing >= 0")
+    _check_motion_args(motion, band, start, end, pre_s, final_s, min_hold_s, max_missing)
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
     _check_time(t)
@@ -279,38 +272,12 @@ def motion_metrics(
     dt = float(np.median(np.diff(t)))
     valid = np.isfinite(y)
     tv, yv = t[valid], y[valid]
-    lo = start - pre_s
     in_window = (tv >= start) & ((tv < end) | (end >= t[-1]))
     t_w, y_w = tv[in_window], yv[in_window]
-    pre = (tv >= lo) & (tv < start)
-    tol = 0.5 * dt
-
-    # coverage and gaps of the analysed span [start - pre_s, end of the window]
-    if t[0] > lo + tol:
-        return _nan_metrics(
-            motion,
-            start,
-            end,
-            band,
-            f"only {max(start - t[0], 0.0):.3f} s of data before the motion starts, "
-            f"need {pre_s:.3f} s for y0",
-        )
-    if t_w.size < 2 or t_w[-1] - t_w[0] < final_s:
-        return _nan_metrics(motion, start, end, band, f"window shorter than {final_s:.3f} s, the span of yf")
-    span = tv[(tv >= lo) & (tv <= t_w[-1])]
-    # the span's ends are the nominal ones, so that missing samples at either end count as a gap too
-    span = np.concatenate([[lo], span, [min(end, float(t[-1]))]])
-    gaps = np.diff(span)
-    worst = int(np.argmax(gaps))
-    if gaps[worst] > (max_missing + 1.5) * dt:
-        return _nan_metrics(
-            motion,
-            start,
-            end,
-            band,
-            f"gap of {1e3 * gaps[worst]:.1f} ms in the samples at t = {span[worst]:.3f} s (more than "
-            f"{max_missing} consecutive samples missing)",
-        )
+    pre = (tv >= start - pre_s) & (tv < start)
+    problem = _coverage_problem(t, tv, t_w, start, end, dt, pre_s, final_s, max_missing)
+    if problem:
+        return _nan_metrics(motion, start, end, band, problem)
 
     y0 = float(np.median(yv[pre]))
     yf = float(np.median(y_w[t_w >= t_w[-1] - final_s]))
@@ -318,46 +285,11 @@ def motion_metrics(
     step = yf - y0
     if min_step is None:
         min_step = max(10.0 * _noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
-    reasons: list[str] = []
     if abs(step) <= min_step or abs(step) == 0.0:
-        reasons.append(
-            f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
-        )
-        return _nan_metrics(motion, start, end, band, "; ".join(reasons), y0=y0, yf=yf, peak=peak)
-
-    expected = 1.0 if motion == "Up" else -1.0
-    if np.sign(step) != expected:
-        overshoot = math.nan
-        direction = "falls" if motion == "Up" else "rises"
-        reasons.append(
-            f"the signal {direction} across the {motion} motion (yf - y0 = {step:.4g}): overshoot undefined"
-        )
-    elif motion == "Up":
-        overshoot = 100.0 * (peak - yf) / (yf - y0)
-    else:
-        overshoot = 100.0 * (yf - peak) / (y0 - yf)
-
-    settling_ms, settled_s = math.nan, math.nan
-    half_width = band * abs(step)
-    outside = np.abs(y_w - yf) > half_width
-    if not outside.any():
-        settled_s = float(t_w[0])
-    elif outside[-1]:
-        reasons.append(f"never settles: still outside the +-{100 * band:g} % band at the end of the window")
-    else:
-        k = int(np.flatnonzero(outside)[-1])
-        edge = yf + math.copysign(half_width, y_w[k] - yf)
-        frac = (y_w[k] - edge) / (y_w[k] - y_w[k + 1])
-        settled_s = float(t_w[k] + frac * (t_w[k + 1] - t_w[k]))
-    if math.isfinite(settled_s):
-        if t_w[-1] - settled_s < min_hold_s:
-            reasons.append(
-                f"settles only {1e3 * (t_w[-1] - settled_s):.0f} ms before the window ends "
-                f"(< {1e3 * min_hold_s:.0f} ms): cannot confirm it stays in the band"
-            )
-            settled_s = math.nan
-        else:
-            settling_ms = 1e3 * (settled_s - start)
+        reason = f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
+        return _nan_metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak)
+    overshoot, reasons = _overshoot(motion, peak, y0, yf)
+    settling_ms, settled_s, more = _settling(t_w, y_w, yf, step, band, min_hold_s, start)
     return MotionMetrics(
         motion=motion,
         start_s=start,
@@ -369,8 +301,89 @@ def motion_metrics(
         settling_ms=settling_ms,
         settled_s=settled_s,
         band=band,
-        reason="; ".join(reasons),
+        reason="; ".join(reasons + more),
     )
+
+
+def _check_motion_args(
+    motion: str, band: float, start: float, end: float, pre_s: float, final_s: float, min_hold_s: float,
+    max_missing: int,
+) -> None:  # fmt: skip
+    if motion not in MOTIONS:
+        raise ValueError(f"motion must be 'Up' or 'Down', got {motion!r}")
+    if not (0.0 < band < 1.0):
+        raise ValueError(f"band must lie in (0, 1), got {band!r}")
+    if not (math.isfinite(start) and not math.isnan(end) and end > start):
+        raise ValueError(f"need start < end, got start={start!r}, end={end!r}")
+    if pre_s <= 0 or final_s <= 0 or min_hold_s < 0 or max_missing < 0:
+        raise ValueError("pre_s and final_s must be > 0, min_hold_s and max_missing >= 0")
+
+
+def _coverage_problem(
+    t: FloatArray, tv: FloatArray, t_w: FloatArray, start: float, end: float, dt: float, pre_s: float,
+    final_s: float, max_missing: int,
+) -> str:  # fmt: skip
+    """Why the analysed span ``[start - pre_s, end of the window]`` cannot give metrics ("" if it can)."""
+    lo = start - pre_s
+    if t[0] > lo + 0.5 * dt:
+        return (
+            f"only {max(start - t[0], 0.0):.3f} s of data before the motion starts, need {pre_s:.3f} s for y0"
+        )
+    if t_w.size < 2 or t_w[-1] - t_w[0] < final_s:
+        return f"window shorter than {final_s:.3f} s, the span of yf"
+    span = tv[(tv >= lo) & (tv <= t_w[-1])]
+    # the span's ends are the nominal ones, so that missing samples at either end count as a gap too
+    span = np.concatenate([[lo], span, [min(end, float(t[-1]))]])
+    gaps = np.diff(span)
+    worst = int(np.argmax(gaps))
+    if gaps[worst] > (max_missing + 1.5) * dt:
+        return (
+            f"gap of {1e3 * gaps[worst]:.1f} ms in the samples at t = {span[worst]:.3f} s (more than "
+            f"{max_missing} consecutive samples missing)"
+        )
+    return ""
+
+
+def _overshoot(motion: str, peak: float, y0: float, yf: float) -> tuple[float, list[str]]:
+    """Overshoot in % of the step, NaN with the reason when the step has the wrong sign for the motion."""
+    step = yf - y0
+    expected = 1.0 if motion == "Up" else -1.0
+    if np.sign(step) != expected:
+        direction = "falls" if motion == "Up" else "rises"
+        return math.nan, [
+            f"the signal {direction} across the {motion} motion (yf - y0 = {step:.4g}): overshoot undefined"
+        ]
+    if motion == "Up":
+        return 100.0 * (peak - yf) / (yf - y0), []
+    return 100.0 * (yf - peak) / (y0 - yf), []
+
+
+def _settling(
+    t_w: FloatArray, y_w: FloatArray, yf: float, step: float, band: float, min_hold_s: float, start: float
+) -> tuple[float, float, list[str]]:
+    """Settling time (ms) and instant (s): the last exit from the band, interpolated, seen to hold."""
+    reasons: list[str] = []
+    settled_s = math.nan
+    half_width = band * abs(step)
+    outside = np.abs(y_w - yf) > half_width
+    if not outside.any():
+        settled_s = float(t_w[0])
+    elif outside[-1]:
+        reasons.append(f"never settles: still outside the +-{100 * band:g} % band at the end of the window")
+    else:
+        k = int(np.flatnonzero(outside)[-1])
+        edge = yf + math.copysign(half_width, y_w[k] - yf)
+        frac = (y_w[k] - edge) / (y_w[k] - y_w[k + 1])
+        settled_s = float(t_w[k] + frac * (t_w[k + 1] - t_w[k]))
+    if not math.isfinite(settled_s):
+        return math.nan, math.nan, reasons
+    if t_w[-1] - settled_s < min_hold_s:
+        reasons.append(
+            f"settles only {1e3 * (t_w[-1] - settled_s):.0f} ms before the window ends "
+            f"(< {1e3 * min_hold_s:.0f} ms): cannot confirm it stays in the band"
+        )
+        return math.nan, math.nan, reasons
+    return 1e3 * (settled_s - start), settled_s, reasons
 
 
 def recording_metrics(

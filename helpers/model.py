@@ -31,8 +31,9 @@ The paper's mode function (eq. 3) has ``Phi_n(L) = 2 (-1)^(n+1)`` at the exact r
 The masses of the 12 discs are smeared uniformly along the backbone (the paper's "uniform parameter
 distribution" assumption): the mass per length is ``(rod mass + discs) / L``.
 
-Which parameters are known, assumed and calibrated is documented on :class:`ArmParameters` and
-:func:`calibrate`, and in ``docs/model.md``.
+Which parameters are known, assumed and fitted is documented on :class:`ArmParameters` and
+:func:`fit_to_mode`, and in ``docs/model.md``. (The model *fit* is not the virtual rig's *tuning*,
+:mod:`helpers.rig_tuning`, nor the *load-cell calibration*, :mod:`helpers.loadcell`.)
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ import pandas as pd
 from scipy import linalg, optimize
 
 from helpers import paper
+from helpers.backbone import Backbone
 
 __all__ = [
     "ArmParameters",
@@ -77,9 +79,9 @@ __all__ = [
     "static_tension_gain",
     "relative_degree",
     "model_order",
-    "calibrate",
-    "calibrated_parameters",
-    "simulate",
+    "fit_to_mode",
+    "fitted_parameters",
+    "linear_response",
     "PARAMETER_SOURCES",
     "parameter_table",
 ]
@@ -91,7 +93,7 @@ Y_REF: float = 0.5
 """Tip displacement (m) the linear model predicts for ``U_REF`` ("approximately 0.5 m", Results)."""
 
 FIXED_DISC_MASS: float = 1.0e-3
-"""Mass of each cable-support disc (kg), *fixed* (not calibrated); see :func:`calibrate` for the reason."""
+"""Mass of each cable-support disc (kg), *fixed* (not fitted); see :func:`fit_to_mode` for the reason."""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -260,91 +262,54 @@ def coupling_coefficients(n: int, beta: npt.ArrayLike | None = None) -> np.ndarr
 
 
 @dataclass(frozen=True)
-class ArmParameters:
+class ArmParameters(Backbone):
     """Physical parameters of the linear modal model (SI units), the one place they are defined.
 
-    The defaults of ``r``, ``k`` and ``zeta`` are the values :func:`calibrated_parameters` solves for,
-    rounded to 3 significant digits (they are also the calibration's starting point); call
-    :func:`calibrated_parameters` for the exact solution.
+    The backbone (``E``, ``rho``, ``d``, ``L``, ``n_discs``) is :class:`helpers.backbone.Backbone`'s, shared
+    with the virtual rig. The defaults of ``r``, ``k`` and ``zeta`` are the values :func:`fitted_parameters`
+    solves for, rounded to 3 significant digits (they are also the fit's starting point); call
+    :func:`fitted_parameters` for the exact solution.
 
     Attributes
     ----------
-    E : float
-        Young's modulus of the backbone, Pa. 206.8e9 (30e6 psi): the value spring-wire makers tabulate for
-        ASTM A228 music wire (the paper's material); reference values for A228 range from about 190 to
-        210 GPa. Known to a few per cent; not calibrated.
-    rho : float
-        Density of the backbone, kg/m^3. 7850 (carbon steel; 0.284 lb/in^3 tabulated for A228).
-    d : float
-        Backbone diameter, m. 0.82e-3 (paper).
-    L : float
-        Arm length, m. 0.24 (paper).
     r : float
-        Cable offset from the neutral axis, m. Not given by the paper: solved by :func:`calibrate` from the
+        Cable offset from the neutral axis, m. Not given by the paper: solved by :func:`fit_to_mode` from the
         paper's statement that 30 mm of cable gives about 0.5 m of predicted tip displacement.
     disc_mass : float
         Mass of each cable-support disc, kg. Not given by the paper: *fixed* at 1.0 g (a 3D-printed disc of
-        about 18 mm diameter and 3 mm thickness); see :func:`calibrate`.
-    n_discs : int
-        Number of discs. 12 (paper).
+        about 18 mm diameter and 3 mm thickness); see :func:`fit_to_mode`.
     k : float
         Series stiffness of cable, pulleys and load cell, N/m. Not given by the paper: solved by
-        :func:`calibrate`. ``numpy.inf`` gives the paper's inextensible-cable limit.
+        :func:`fit_to_mode`. ``numpy.inf`` gives the paper's inextensible-cable limit.
     zeta : float
         Rayleigh damping ratio of modes 1 and 2 (paper eqs. 8-10), dimensionless. Solved by
-        :func:`calibrate` so that the *dominant* pole has the identified damping 0.044.
+        :func:`fit_to_mode` so that the *dominant* pole has the identified damping 0.044.
     n_modes : int
         Number of modes N retained (paper: 4).
     """
 
-    E: float = 206.8e9
-    rho: float = 7850.0
-    d: float = 0.82e-3
-    L: float = 0.24
     r: float = 5.86e-3
     disc_mass: float = FIXED_DISC_MASS
-    n_discs: int = 12
     k: float = 1740.0
     zeta: float = 0.0583
     n_modes: int = 4
 
     def __post_init__(self) -> None:
-        for name in ("E", "rho", "d", "L", "r"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float | np.floating) and math.isfinite(value) and value > 0):
-                raise ValueError(f"ArmParameters.{name} must be a positive finite number, got {value!r}")
+        super().__post_init__()
+        value = self.r
+        if not (isinstance(value, int | float | np.floating) and math.isfinite(value) and value > 0):
+            raise ValueError(f"ArmParameters.r must be a positive finite number, got {value!r}")
         if not (math.isfinite(self.disc_mass) and self.disc_mass >= 0):
             raise ValueError(f"ArmParameters.disc_mass must be >= 0 and finite, got {self.disc_mass!r}")
         if not (math.isfinite(self.zeta) and 0 <= self.zeta < 1):
             raise ValueError(f"ArmParameters.zeta must be in [0, 1), got {self.zeta!r}")
         if math.isnan(self.k) or self.k <= 0:
             raise ValueError(f"ArmParameters.k must be positive (numpy.inf allowed), got {self.k!r}")
-        _check_n(self.n_discs, "ArmParameters.n_discs")
         _check_n(self.n_modes, "ArmParameters.n_modes")
 
     def replace(self, **changes: float) -> ArmParameters:
         """Return a copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
-
-    @property
-    def area(self) -> float:
-        """Backbone cross-section area, m^2."""
-        return math.pi * self.d**2 / 4.0
-
-    @property
-    def second_moment(self) -> float:
-        """Second moment of area of the backbone, m^4."""
-        return math.pi * self.d**4 / 64.0
-
-    @property
-    def EI(self) -> float:  # noqa: N802 - the conventional symbol
-        """Bending stiffness, N m^2."""
-        return self.E * self.second_moment
-
-    @property
-    def rod_mass(self) -> float:
-        """Mass of the backbone, kg."""
-        return self.rho * self.area * self.L
 
     @property
     def total_mass(self) -> float:
@@ -362,11 +327,11 @@ PARAMETER_SOURCES: dict[str, tuple[str, str]] = {
     "rho": ("kg/m^3", "handbook: carbon steel"),
     "d": ("m", "paper"),
     "L": ("m", "paper"),
-    "r": ("m", "calibrated (k, r, zeta jointly), see calibrate()"),
+    "r": ("m", "fitted (k, r, zeta jointly), see fit_to_mode()"),
     "disc_mass": ("kg", "assumed and fixed: ~1 g printed disc"),
     "n_discs": ("-", "paper"),
-    "k": ("N/m", "calibrated (k, r, zeta jointly), see calibrate()"),
-    "zeta": ("-", "calibrated (k, r, zeta jointly), see calibrate()"),
+    "k": ("N/m", "fitted (k, r, zeta jointly), see fit_to_mode()"),
+    "zeta": ("-", "fitted (k, r, zeta jointly), see fit_to_mode()"),
     "n_modes": ("-", "paper"),
 }
 """Unit and origin of every :class:`ArmParameters` field."""
@@ -652,7 +617,7 @@ def dominant_mode(params: ArmParameters) -> DominantMode:
     ``2 |r_i / p_i| exp(Re(p_i) t)`` (``r_i`` the residue, :func:`tension_residues`), has an amplitude of
     at least :data:`DOMINANCE_THRESHOLD` times the largest. This is the mode that remains in a free
     decay once the faster-decaying terms have died away, which is what the paper identifies (window
-    9-10 s, one second after the release starts at 8 s). For the calibrated arm it is also the pair with
+    9-10 s, one second after the release starts at 8 s). For the fitted arm it is also the pair with
     the largest amplitude; for very stiff cables (k >~ 1e5 N/m) an ideal velocity step rings the fast
     cable mode harder, but that mode decays about 100 times faster. It lies between the first two modal
     frequencies: the cable stiffens mode 1 towards the clamped-guided frequency. For ``k = inf`` (no
@@ -678,7 +643,9 @@ def dominant_mode(params: ArmParameters) -> DominantMode:
     return DominantMode(omega_n=float(omega_n), zeta=float(-best.real / omega_n), omega_d=float(best.imag))
 
 
-def simulate(params: ArmParameters, t: npt.ArrayLike, v: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+def linear_response(
+    params: ArmParameters, t: npt.ArrayLike, v: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
     """Tension and tip displacement of the model driven by a cable-velocity command, from rest.
 
     ``control.forced_response`` of :func:`state_space` (exact discretisation of the linear system with
@@ -733,11 +700,11 @@ def static_tip_gain(params: ArmParameters) -> float:
 
 
 # ----------------------------------------------------------------------------------------------
-# Calibration
+# Fit of the unknown parameters to the identified mode
 # ----------------------------------------------------------------------------------------------
 
 
-def _calibration_residuals(
+def _fit_residuals(
     x: np.ndarray, base: ArmParameters, omega_d: float, zeta: float, u_ref: float, y_ref: float
 ) -> np.ndarray:
     params = base.replace(k=float(np.exp(x[0])), r=float(np.exp(x[1])), zeta=float(x[2]))
@@ -751,7 +718,7 @@ def _calibration_residuals(
     )
 
 
-def calibrate(
+def fit_to_mode(
     base: ArmParameters | None = None,
     omega_d: float = paper.OMEGA_D,
     zeta: float = paper.ZETA,
@@ -805,7 +772,7 @@ def calibrate(
             f"y_ref={y_ref}"
         )
     if not math.isfinite(base.k):
-        raise ValueError("calibrate needs a finite starting k")
+        raise ValueError("fit_to_mode needs a finite starting k")
     w = modal_frequencies(base)
     if not w[0] < omega_d:
         raise ValueError(
@@ -820,7 +787,7 @@ def calibrate(
         )
     x0 = np.array([math.log(base.k), math.log(base.r), base.zeta])
     sol = optimize.least_squares(
-        _calibration_residuals,
+        _fit_residuals,
         x0,
         args=(base, omega_d, zeta, u_ref, y_ref),
         bounds=([math.log(1.0), math.log(1e-4), 1e-4], [math.log(1e7), math.log(0.1), 0.9]),
@@ -831,13 +798,13 @@ def calibrate(
     )
     if not sol.success or np.max(np.abs(sol.fun)) > 1e-9:
         raise ValueError(
-            f"calibration did not converge (residuals {sol.fun}); the disc mass "
+            f"the model fit did not converge (residuals {sol.fun}); the disc mass "
             f"{base.disc_mass * 1e3:.3f} g may be outside the feasible range"
         )
     return base.replace(k=float(np.exp(sol.x[0])), r=float(np.exp(sol.x[1])), zeta=float(sol.x[2]))
 
 
 @functools.cache
-def calibrated_parameters() -> ArmParameters:
-    """The calibrated model: :func:`calibrate` with the paper's targets and the fixed 1.0 g discs (cached)."""
-    return calibrate(ArmParameters())
+def fitted_parameters() -> ArmParameters:
+    """The fitted model: :func:`fit_to_mode` with the paper's targets and the fixed 1.0 g discs (cached)."""
+    return fit_to_mode(ArmParameters())

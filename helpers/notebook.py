@@ -8,6 +8,8 @@ import warnings
 import numpy as np
 import pandas as pd
 
+from helpers.style import apply_style
+
 PRINT_PRECISION = 4
 """Digits after the decimal point in printed arrays and DataFrames."""
 
@@ -49,8 +51,6 @@ def setup(precision: int = PRINT_PRECISION, seed: int = 0) -> np.random.Generato
     pd.set_option("display.width", 120)
     pd.set_option("display.max_columns", 20)
     _use_inline_backend()
-    from helpers.plotting import apply_style
-
     apply_style()
     warnings.simplefilter("once")
     return np.random.default_rng(seed)

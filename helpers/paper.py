@@ -1,7 +1,8 @@
 """The paper's published numbers, as data, so that notebooks and tests can set ours beside them.
 
-Nothing here is computed by the project: these are the values printed in the paper (LaTeX source in
-``../shared/seed``). Our own computations live in the modules that own them and are compared to these.
+Nothing here is computed by the project: these are the values printed in the paper (Ibarra, Baker, Molaei,
+Stein, Gilbert, *Input Shaping for Point-to-Point Motion with a Continuum Robot Arm*, Louisiana State
+University). Our own computations live in the modules that own them and are compared to these.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ OMEGA_D = 25.085
 """Damped natural frequency identified from the same transient, rad/s."""
 
 ZV_A0, ZV_A1, ZV_T = 0.5345, 0.4655, 0.12524
-"""Non-robust TDF amplitudes and delay (s) implied by ZETA and OMEGA_D (DESIGN section 2)."""
+"""Non-robust TDF amplitudes and delay (s) as printed (its eq. 15 evaluated at ZETA and OMEGA_D)."""
 
 ZVD_AMPLITUDES = (0.2857, 0.4976, 0.2167)
 """Robust TDF (the square of the non-robust one) amplitudes at 0, T, 2T."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 REPO_ROOT: Path = Path(__file__).resolve().parent.parent
@@ -22,11 +23,21 @@ NOTEBOOKS_DIR: Path = REPO_ROOT / "notebooks"
 """The numbered notebooks."""
 
 IDENTIFICATION_RESULT: Path = DATA_DIR / "identification" / "result.json"
-"""The identified dominant mode: written by ``helpers.identify.save_identification`` (notebook 02 and
-``python -m helpers record all``), read by ``helpers.shapers.load_identification`` (notebook 03 onwards)."""
+"""The identified dominant mode: written by ``helpers.identify.save_identification`` (notebook 02's live cell
+and ``python -m helpers record all``), read by ``helpers.identify.load_identification`` (notebook 03 onwards,
+``record``)."""
+
+LOADCELL_CALIBRATION: Path = DATA_DIR / "calibration" / "calibration.json"
+"""The load-cell calibration: written by ``helpers.loadcell.save_calibration`` (``python -m helpers record
+calibration``), read by ``helpers.loadcell.load_calibration`` (every recording run)."""
 
 FIRMWARE_DIR: Path = REPO_ROOT / "firmware"
 """Arduino sketches, the Makefile and the simavr harness."""
+
+VIRTUAL_RIG_REGISTRY: Path = Path(tempfile.gettempdir()) / "helpers-virtual-rigs"
+"""Where ``python -m helpers serve-virtual-rig`` announces its pseudo-terminals, so that recordings made
+through them are labelled ``virtual-rig``, never ``hardware`` (read by
+``helpers.rig.discovery.announced_virtual_rigs``)."""
 
 
 def figure_path(name: str) -> Path:

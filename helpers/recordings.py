@@ -1,4 +1,4 @@
-"""The recording format of ``data/`` (DESIGN section 5): one run = ``<name>.csv`` + ``<name>.json``.
+"""The recording format of ``data/`` (``docs/recording_format.md``): ``<name>.csv`` + ``<name>.json``.
 
 The CSV holds the raw columns exactly as the DAQ board reports them: ``seq``, ``t_us`` (device microseconds,
 unwrapped), ``adc`` (0-1023 counts) and ``steps`` (signed motor position counted by the DAQ board). The
@@ -124,11 +124,16 @@ def derive_columns(frame: pd.DataFrame, calibration: dict[str, Any]) -> pd.DataF
     out = frame.loc[:, list(RAW_COLUMNS)].copy()
     t = out["t_us"].to_numpy(dtype=np.int64)
     out["t_s"] = (t - t[0]) * 1e-6 if len(t) else np.zeros(0)
-    out["tension_n"] = (out["adc"].to_numpy(float) - float(calibration["offset_counts"])) * float(
-        calibration["newtons_per_count"]
+    out["tension_n"] = counts_to_newtons(
+        out["adc"].to_numpy(), calibration["newtons_per_count"], calibration["offset_counts"]
     )
     out["cable_mm"] = out["steps"].to_numpy(float) * float(calibration["mm_per_step"])
     return out
+
+
+def counts_to_newtons(adc: np.ndarray, newtons_per_count: float, offset_counts: float) -> np.ndarray:
+    """Tension in N from ADC counts, ``(adc - offset_counts) * newtons_per_count`` (load-cell calibration)."""
+    return (np.asarray(adc, dtype=float) - float(offset_counts)) * float(newtons_per_count)
 
 
 def empty_frame() -> pd.DataFrame:

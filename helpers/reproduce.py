@@ -13,6 +13,7 @@ import os
 import re
 import sys
 import time
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from nbclient import NotebookClient
 from nbclient.exceptions import CellExecutionError
 
 from helpers.paths import FIGURES_DIR, NOTEBOOKS_DIR
+from helpers.summary import print_summary
 
 
 class NotebookFailed(RuntimeError):
@@ -177,8 +179,6 @@ def reproduce(notebooks: list[Path] | None = None, timeout: int = 600, jobs: int
     list of NotebookRun
         One entry per executed notebook, in numeric order.
     """
-    from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
-
     notebooks = numbered_notebooks() if notebooks is None else list(notebooks)
     selected = {p.name for p in notebooks}
     needs = {p.name: [d for d in dependencies(p) if d in selected] for p in notebooks}
@@ -217,8 +217,6 @@ def reproduce(notebooks: list[Path] | None = None, timeout: int = 600, jobs: int
     total = time.perf_counter() - total_start
     print()
     print(f"{len(runs)} notebooks executed in {total:.1f} s ({max(1, jobs)} at a time)")
-    from helpers.summary import print_summary
-
     print_summary()
     n_figs = len(list(FIGURES_DIR.glob("*"))) if FIGURES_DIR.exists() else 0
     print(f"{n_figs} files in figures/")

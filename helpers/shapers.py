@@ -15,7 +15,9 @@ The paper's two time-delay filters (TDFs) are standard shapers:
 - the **robust TDF** ``(A0 + A1 exp(-sT))^2`` is the **ZVD** shaper (:func:`zvd`), impulses at 0, T, 2T.
 
 Every constructor takes the **undamped** natural frequency ``omega_n`` (rad/s) and the damping ratio
-``zeta``; :func:`omega_n_from_damped` converts an identified damped frequency. The families are the ones the
+``zeta``, in that order (the package's convention, :mod:`helpers.modes`, whose ``omega_n_from_damped``
+converts an identified damped frequency). Each family's valid damping range and duration are held as data
+beside its constructor in :data:`FAMILIES`. The families are the ones the
 input-shaping literature and 3D-printer firmware (Klipper's ``klippy/extras/shaper_defs.py``) offer, with
 the same impulses for the same ``(omega_n, zeta)``:
 
@@ -35,11 +37,9 @@ the same impulses for the same ``(omega_n, zeta)``:
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -47,7 +47,7 @@ import pandas as pd
 from scipy.optimize import brentq, root
 
 from helpers import paper
-from helpers.paths import IDENTIFICATION_RESULT
+from helpers.modes import check_mode, omega_n_from_damped
 
 SUM_TOLERANCE = 1e-9
 """How far the amplitudes of a :class:`Shaper` may sum from 1."""
@@ -57,11 +57,6 @@ MERGE_TOLERANCE_S = 1e-12
 
 MULTI_HUMP_VTOL = 0.05
 """Singhose's damped two- and three-hump EI fits exist only for a 5 % vibration tolerance."""
-
-_IDENTIFICATION_KEYS = (
-    "zeta", "omega_d", "zeta_std", "omega_d_std", "method", "window_s", "recording", "source",
-)
-
 
 def _as_1d_float(x: Any, what: str) -> np.ndarray:
     arr = np.array(x, dtype=float, ndmin=1)
@@ -229,7 +224,7 @@ class Shaper:
         numpy.ndarray
             ``V`` at ``omega_n = ratios * omega_model``, same shape as ``ratios``.
         """
-        _check_omega_zeta(omega_model, zeta)
+        check_mode(omega_model, zeta)
         r = _as_1d_float(ratios, "ratios")
         return np.asarray(self.vibration(r * omega_model, zeta))
 
@@ -366,39 +361,9 @@ class Shaper:
 
 
 # -- conversions and checks ----------------------------------------------------------------------------------
-def _check_omega_zeta(omega_n: float, zeta: float) -> None:
-    if not (isinstance(omega_n, int | float | np.floating | np.integer) and math.isfinite(omega_n)):
-        raise ValueError(f"omega_n must be a finite number (rad/s), got {omega_n!r}")
-    if omega_n <= 0:
-        raise ValueError(f"omega_n must be > 0 rad/s, got {omega_n!r}")
-    if not (isinstance(zeta, int | float | np.floating | np.integer) and math.isfinite(zeta)):
-        raise ValueError(f"zeta must be a finite number, got {zeta!r}")
-    if not 0.0 <= zeta < 1.0:
-        raise ValueError(f"zeta must lie in [0, 1), got {zeta!r}")
-
-
-def omega_n_from_damped(omega_d: float, zeta: float) -> float:
-    """Undamped natural frequency from the damped one: ``omega_n = omega_d / sqrt(1 - zeta^2)``.
-
-    Parameters
-    ----------
-    omega_d : float
-        Damped natural frequency (rad/s), e.g. the identified 25.085 rad/s.
-    zeta : float
-        Damping ratio in [0, 1).
-
-    Returns
-    -------
-    float
-        ``omega_n`` in rad/s.
-    """
-    _check_omega_zeta(omega_d, zeta)
-    return float(omega_d) / math.sqrt(1.0 - float(zeta) ** 2)
-
-
 def _damped(omega_n: float, zeta: float) -> tuple[float, float]:
     """Return ``(omega_d, K)`` with ``K = exp(-zeta pi / sqrt(1 - zeta^2))``, the half-period decay."""
-    _check_omega_zeta(omega_n, zeta)
+    check_mode(omega_n, zeta)
     root = math.sqrt(1.0 - zeta**2)
     return omega_n * root, math.exp(-zeta * math.pi / root)
 
@@ -540,7 +505,7 @@ def ei(omega_n: float, zeta: float, vtol: float = 0.05) -> Shaper:
     -------
     Shaper
     """
-    _check_omega_zeta(omega_n, zeta)
+    check_mode(omega_n, zeta)
     _check_vtol(vtol)
     v, z = float(vtol), float(zeta)
     a1 = 0.24968 + 0.24961 * v + (0.80008 + 1.23328 * v) * z + (0.49599 + 3.17316 * v) * z**2
@@ -588,7 +553,7 @@ _THREE_HUMP_A = (
 def _from_fit(
     omega_n: float, zeta: float, t_rows: tuple, a_rows: tuple, vtol: float, name: str
 ) -> Shaper:
-    _check_omega_zeta(omega_n, zeta)
+    check_mode(omega_n, zeta)
     _check_vtol(vtol)
     if abs(vtol - MULTI_HUMP_VTOL) > 1e-12:
         raise ValueError(
@@ -682,17 +647,51 @@ def um_zv(omega_n: float, zeta: float) -> Shaper:
     return Shaper(np.array([1.0, -1.0, 1.0]), np.array([0.0, sol[0], sol[1]]) / omega_d, "UM-ZV")
 
 
-FAMILIES: dict[str, Callable[[float, float], Shaper]] = {
-    "ZV": zv,
-    "ZVD": zvd,
-    "ZVDD": zvdd,
-    "MZV": mzv,
-    "EI": ei,
-    "2-hump EI": two_hump_ei,
-    "3-hump EI": three_hump_ei,
-    "UM-ZV": um_zv,
+@dataclass(frozen=True)
+class Family:
+    """A shaper family as data: its constructor, the damping range its design holds for, and its length.
+
+    Calling a family builds the shaper and refuses a damping ratio outside ``zeta_range``.
+
+    Attributes
+    ----------
+    name : str
+        Display name.
+    make : callable
+        ``make(omega_n, zeta) -> Shaper``.
+    zeta_range : (float, float)
+        Damping ratios the design is valid for (the published fits' range for EI and the multi-hump EI).
+    periods : float
+        Duration in damped periods at ``zeta = 0`` (the literature's figure).
+    """
+
+    name: str
+    make: Callable[[float, float], Shaper]
+    zeta_range: tuple[float, float]
+    periods: float
+
+    def __call__(self, omega_n: float, zeta: float) -> Shaper:
+        """Build the shaper for the mode ``(omega_n, zeta)``."""
+        lo, hi = self.zeta_range
+        if not lo <= zeta <= hi:
+            raise ValueError(f"{self.name}: the design holds for {lo} <= zeta <= {hi}, got zeta = {zeta!r}")
+        return self.make(omega_n, zeta)
+
+
+FAMILIES: dict[str, Family] = {
+    f.name: f
+    for f in (
+        Family("ZV", zv, (0.0, 0.99), 0.5),
+        Family("ZVD", zvd, (0.0, 0.99), 1.0),
+        Family("ZVDD", zvdd, (0.0, 0.99), 1.5),
+        Family("MZV", mzv, (0.0, 0.99), 0.75),
+        Family("EI", ei, (0.0, 0.3), 1.0),
+        Family("2-hump EI", two_hump_ei, (0.0, 0.3), 1.5),
+        Family("3-hump EI", three_hump_ei, (0.0, 0.3), 2.0),
+        Family("UM-ZV", um_zv, (0.0, 0.76), 1.0 / 3.0),
+    )
 }
-"""Every single-mode family, by display name; each takes ``(omega_n, zeta)``."""
+"""Every single-mode family, by display name; each is called as ``family(omega_n, zeta)``."""
 
 
 def multi_mode(
@@ -725,15 +724,15 @@ def multi_mode(
 
 
 # -- the paper's filters ------------------------------------------------------------------------------------
-def design_tdfs(zeta: float, omega_d: float) -> tuple[Shaper, Shaper]:
-    """The paper's two TDFs from an identified ``(zeta, omega_d)``.
+def design_tdfs(omega_d: float, zeta: float) -> tuple[Shaper, Shaper]:
+    """The paper's two TDFs from an identified mode ``(omega_d, zeta)``.
 
     Parameters
     ----------
-    zeta : float
-        Damping ratio.
     omega_d : float
         **Damped** natural frequency (rad/s), as identified from a free decay.
+    zeta : float
+        Damping ratio.
 
     Returns
     -------
@@ -750,62 +749,22 @@ def design_tdfs(zeta: float, omega_d: float) -> tuple[Shaper, Shaper]:
     )
 
 
-def paper_tdfs(zeta: float = paper.ZETA, omega_d: float = paper.OMEGA_D) -> tuple[Shaper, Shaper]:
+def paper_tdfs(omega_d: float = paper.OMEGA_D, zeta: float = paper.ZETA) -> tuple[Shaper, Shaper]:
     """The paper's non-robust TDF (ZV) and robust TDF (ZVD = ZV squared), from its identified mode.
 
-    With the defaults (zeta = 0.044, omega_d = 25.085 rad/s): A0 = 0.5345, A1 = 0.4655, T = 0.12524 s;
+    With the defaults (omega_d = 25.085 rad/s, zeta = 0.044): A0 = 0.5345, A1 = 0.4655, T = 0.12524 s;
     robust 0.2857, 0.4976, 0.2167 at 0, T, 2T.
 
     Parameters
     ----------
-    zeta : float
-        Damping ratio (default the paper's 0.044).
     omega_d : float
         Damped natural frequency in rad/s (default the paper's 25.085).
+    zeta : float
+        Damping ratio (default the paper's 0.044).
 
     Returns
     -------
     (Shaper, Shaper)
         ``(zv, zvd)``.
     """
-    return design_tdfs(zeta, omega_d)
-
-
-def load_identification(path: Path | str = IDENTIFICATION_RESULT) -> tuple[float, float, dict] | None:
-    """Read the identified dominant mode written by notebook 02, if it exists.
-
-    Parameters
-    ----------
-    path : path-like
-        The JSON file (default ``data/identification/result.json``).
-
-    Returns
-    -------
-    (zeta, omega_d, provenance) or None
-        ``provenance`` holds the file's other keys (uncertainties, method, window, recording, source).
-        ``None`` if the file does not exist.
-
-    Raises
-    ------
-    ValueError
-        If the file exists but is not valid JSON, lacks a key, or holds an impossible value.
-    """
-    path = Path(path)
-    if not path.exists():
-        return None
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not valid JSON ({exc})") from exc
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a JSON object")
-    missing = [k for k in _IDENTIFICATION_KEYS if k not in data]
-    if missing:
-        raise ValueError(f"{path}: missing key(s) {', '.join(missing)}")
-    zeta, omega_d = data["zeta"], data["omega_d"]
-    try:
-        _check_omega_zeta(float(omega_d), float(zeta))
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: {exc}") from exc
-    provenance = {k: v for k, v in data.items() if k not in ("zeta", "omega_d")}
-    return float(zeta), float(omega_d), provenance
+    return design_tdfs(omega_d, zeta)

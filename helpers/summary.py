@@ -1,33 +1,34 @@
 """The one-screen summary printed at the end of ``python -m helpers reproduce``.
 
-It reads only files that the notebooks wrote (``data/identification/result.json`` from notebook 02 and
+It reads only files that exist after the notebooks ran (``data/identification/result.json`` and
 ``figures/table2_metrics.csv`` from notebook 05), so it summarises what was actually regenerated. Sections
 whose inputs do not exist say so instead of printing numbers.
 """
 
 from __future__ import annotations
 
-import json
-
 import pandas as pd
 
 from helpers import paper
+from helpers.identify import load_identification
+from helpers.jsonfile import DataFileError
 from helpers.paths import FIGURES_DIR
-from helpers.shapers import IDENTIFICATION_RESULT, design_tdfs
+from helpers.shapers import design_tdfs
 
 TABLE_II_CSV = FIGURES_DIR / "table2_metrics.csv"
 """Where notebook 05 saves our Table II (means and spreads over repetitions)."""
 
 
 def _identification_lines() -> list[str]:
-    if not IDENTIFICATION_RESULT.exists():
-        return [f"identified mode: {IDENTIFICATION_RESULT.name} not found (run notebook 02)"]
-    res = json.loads(IDENTIFICATION_RESULT.read_text())
-    zv, zvd = design_tdfs(res["zeta"], res["omega_d"])
+    try:
+        res = load_identification()
+    except DataFileError as exc:
+        return [f"identified mode: {exc}"]
+    zv, zvd = design_tdfs(res.omega_d, res.zeta)
     return [
-        f"identified mode ({res.get('source', '?')}, {res.get('method', '?')}): "
-        f"zeta = {res['zeta']:.4f} (paper {paper.ZETA:.3f}), "
-        f"omega_d = {res['omega_d']:.3f} rad/s (paper {paper.OMEGA_D:.3f})",
+        f"identified mode ({res.source or '?'}, {res.method}): "
+        f"zeta = {res.zeta:.4f} (paper {paper.ZETA:.3f}), "
+        f"omega_d = {res.omega_d:.3f} rad/s (paper {paper.OMEGA_D:.3f})",
         f"  ZV : A0 = {zv.amplitudes[0]:.4f}, A1 = {zv.amplitudes[1]:.4f}, T = {zv.times[1]:.5f} s "
         f"(paper {paper.ZV_A0:.4f}, {paper.ZV_A1:.4f}, {paper.ZV_T:.5f} s)",
         "  ZVD: " + ", ".join(f"{a:.4f}" for a in zvd.amplitudes)

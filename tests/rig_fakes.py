@@ -6,10 +6,9 @@ import itertools
 
 import numpy as np
 
-import helpers.rig  # noqa: F401  (registers the virtual:// scheme)
-from helpers.profiles import MM_PER_STEP
+from helpers.emulator.world import VirtualWorld, forget_world, register_world
+from helpers.hardware import MM_PER_STEP
 from helpers.rig import Rig
-from helpers.virtual.boards import VirtualWorld, forget_world, register_world
 
 K_N_PER_MM = 0.5
 PRETENSION_N = 1.0

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from helpers.rig.framing import (
+from helpers.protocol import (
     WRAP_US,
     FramingError,
     Overrun,

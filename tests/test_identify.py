@@ -230,20 +230,45 @@ def test_identify_recording_reads_the_frame():
         ident.identify_recording(rec, column="volts")
 
 
-def test_result_json_is_what_the_shaper_design_reads(tmp_path):
-    """Contract with helpers.shapers.load_identification (notebook 03 reads what notebook 02 writes)."""
+def test_result_json_round_trips_through_load_identification(tmp_path):
+    """The file notebook 02's live cell and `record all` write is what the shaper design reads back."""
     import dataclasses
-
-    from helpers import shapers
 
     r = ident.identify(T, decay(120.0, seed=13), WINDOW)
     r = dataclasses.replace(r, recording="pulse_100mms_10mm", source="virtual-rig")
     path = ident.save_identification(r, tmp_path / "identification" / "result.json")
     assert json.loads(path.read_text())["method"] == "fit"
     assert not list(path.parent.glob(".*tmp"))  # the temporary file was renamed away
-    zeta, omega_d, provenance = shapers.load_identification(path)
-    assert (zeta, omega_d) == (r.zeta, r.omega_d)
-    assert provenance["source"] == "virtual-rig" and provenance["window_s"] == [9.0, 10.0]
+    mode = ident.load_identification(path)
+    assert (mode.zeta, mode.omega_d) == (r.zeta, r.omega_d)
+    assert mode.source == "virtual-rig" and mode.window_s == (9.0, 10.0)
+    assert mode.omega_n == pytest.approx(r.omega_d / math.sqrt(1 - r.zeta**2), rel=1e-14)
+
+
+def test_load_identification_names_the_problem(tmp_path):
+    from helpers.jsonfile import DataFileError, MissingDataError
+
+    path = tmp_path / "result.json"
+    with pytest.raises(MissingDataError, match="record all"):
+        ident.load_identification(path)
+    record = {
+        "zeta": 0.045, "omega_d": 25.1, "zeta_std": 0.002, "omega_d_std": 0.05, "method": "fit",
+        "window_s": [9.0, 10.0], "recording": "pulse", "source": "virtual-rig",
+    }  # fmt: skip
+    path.write_text(json.dumps(record))
+    assert ident.load_identification(path).omega_d == 25.1
+    for key, bad, message in (("method", None, "method"), ("zeta", 1.5, "zeta"), ("omega_d", "x", "omega_d")):
+        broken = dict(record)
+        if bad is None:
+            del broken[key]
+        else:
+            broken[key] = bad
+        path.write_text(json.dumps(broken))
+        with pytest.raises(DataFileError, match=message):
+            ident.load_identification(path)
+    path.write_text("{not json")
+    with pytest.raises(DataFileError, match="JSON"):
+        ident.load_identification(path)
 
 
 def test_identification_figures_are_written(tmp_path, monkeypatch):

@@ -11,7 +11,7 @@ from scipy import integrate, linalg
 
 from helpers import model, paper
 
-CAL = model.calibrated_parameters()
+CAL = model.fitted_parameters()
 
 
 def _poly(tf: control.TransferFunction, part: str) -> np.ndarray:
@@ -317,7 +317,7 @@ def test_calibrated_dominant_mode_is_the_identified_one():
 
 
 def test_calibration_hits_other_targets_too():
-    p = model.calibrate(model.ArmParameters(disc_mass=1.2e-3), omega_d=24.0, zeta=0.03)
+    p = model.fit_to_mode(model.ArmParameters(disc_mass=1.2e-3), omega_d=24.0, zeta=0.03)
     dom = model.dominant_mode(p)
     assert dom.omega_d == pytest.approx(24.0, rel=1e-6)
     assert dom.zeta == pytest.approx(0.03, rel=1e-6)
@@ -327,14 +327,14 @@ def test_calibration_hits_other_targets_too():
 @pytest.mark.parametrize("disc_mass", [0.1e-3, 3e-3])
 def test_calibration_refuses_an_infeasible_disc_mass(disc_mass):
     with pytest.raises(ValueError, match="disc mass"):
-        model.calibrate(model.ArmParameters(disc_mass=disc_mass))
+        model.fit_to_mode(model.ArmParameters(disc_mass=disc_mass))
 
 
 # --- simulation
 def test_pulse_response_settles_at_the_static_tension():
     t = np.arange(0.0, 6.0, 1e-3)
     v = np.where((t >= 1.0) & (t < 1.1), 0.2, 0.0)  # 200 mm/s for 0.1 s: 20 mm
-    tension, tip = model.simulate(CAL, t, v)
+    tension, tip = model.linear_response(CAL, t, v)
     assert tension[0] == 0.0
     assert tension[-1] == pytest.approx(model.static_tension_gain(CAL) * 0.02, rel=1e-3)
     assert tip[-1] == pytest.approx(model.static_tip_gain(CAL) * 0.02, rel=1e-3)
@@ -343,7 +343,7 @@ def test_pulse_response_settles_at_the_static_tension():
 
 def test_simulate_rejects_mismatched_input():
     with pytest.raises(ValueError, match="equal length"):
-        model.simulate(CAL, np.arange(3.0), np.zeros(4))
+        model.linear_response(CAL, np.arange(3.0), np.zeros(4))
 
 
 def test_parameter_table_covers_every_field():

@@ -9,11 +9,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import paper, profiles, shapers
-from helpers.profiles import LIMITS, MM_PER_STEP, Dwell, Programme, Segment, VelocityProfile
+from helpers import modes, paper, profiles, programmes, shapers
+from helpers.hardware import LIMITS, MM_PER_STEP
+from helpers.profiles import VelocityProfile
+from helpers.programmes import Dwell, Programme, Segment
 
 ZV, ZVD = shapers.paper_tdfs()
-OMEGA_N = shapers.omega_n_from_damped(paper.OMEGA_D, paper.ZETA)
+OMEGA_N = modes.omega_n_from_damped(paper.OMEGA_D, paper.ZETA)
 SYSTEMS = {"unshaped": None, "zv": ZV, "zvd": ZVD}
 
 
@@ -171,7 +173,7 @@ def test_travel_checked_from_start_position():
 
 
 def test_to_dict_round_trip_through_json():
-    prog, _ = profiles.experiment_programme(200.0, 20.0, ZVD)
+    prog, _ = programmes.experiment_programme(200.0, 20.0, ZVD)
     again = Programme.from_dict(json.loads(json.dumps(prog.to_dict())))
     assert again == prog
     bad = prog.to_dict()
@@ -190,7 +192,7 @@ COMMAND = re.compile(r"^(CLEAR|SEG (1|-1) [1-9][0-9]* [1-9][0-9]*|WAIT (0|[1-9][
 @pytest.mark.parametrize(("v", "x"), paper.TABLE_I_CONDITIONS)
 def test_experiment_programme_table_i(system, v, x):
     shaper = SYSTEMS[system]
-    prog, report = profiles.experiment_programme(v, x, shaper)
+    prog, report = programmes.experiment_programme(v, x, shaper)
     n = round(x / MM_PER_STEP)
     assert report.n_steps == n
     t, signs = prog.step_times()
@@ -223,7 +225,7 @@ def test_experiment_programme_table_i(system, v, x):
 
 
 def test_quantisation_report_accounts_for_rounding():
-    prog, rep = profiles.experiment_programme(200.0, 30.0, ZVD)
+    prog, rep = programmes.experiment_programme(200.0, 30.0, ZVD)
     assert rep.realised_mm == pytest.approx(118 * MM_PER_STEP)
     assert rep.displacement_error_mm == pytest.approx(118 * MM_PER_STEP - 30.0)
     seg = rep.pieces[rep.pieces["item"] == "SEG"]
@@ -239,7 +241,7 @@ def test_quantisation_report_accounts_for_rounding():
 
 def test_zero_velocity_pieces_become_dwells():
     # 10 mm at 200 mm/s lasts 50 ms < T = 125 ms: the ZV-shaped move pauses between its two pieces.
-    prog, rep = profiles.experiment_programme(200.0, 10.0, ZV)
+    prog, rep = programmes.experiment_programme(200.0, 10.0, ZV)
     kinds = [type(it).__name__ for it in prog.items]
     assert kinds[:4] == ["Dwell", "Segment", "Dwell", "Segment"]
     assert prog.items[2].ms == round((ZV.times[1] - 0.05) * 1e3)
@@ -247,23 +249,23 @@ def test_zero_velocity_pieces_become_dwells():
 
 def test_experiment_refuses_out_of_limits():
     with pytest.raises(ValueError, match="interval"):
-        profiles.experiment_programme(450.0, 20.0)
+        programmes.experiment_programme(450.0, 20.0)
     with pytest.raises(ValueError, match="travel"):
-        profiles.experiment_programme(200.0, 41.0)
+        programmes.experiment_programme(200.0, 41.0)
     with pytest.raises(ValueError, match="t_end"):
-        profiles.experiment_programme(200.0, 20.0, ZVD, t_end=8.2)
+        programmes.experiment_programme(200.0, 20.0, ZVD, t_end=8.2)
 
 
 def test_near_limit_speed_stays_within_step_rate():
     # 12 steps rounded up from 11.6 in 7.6 ms would need 637 us steps: the board's 639 us is used instead
-    prog, rep = profiles.experiment_programme(387.8, 2.96, None)
+    prog, rep = programmes.experiment_programme(387.8, 2.96, None)
     prog.check_limits()
     assert min(it.interval_us for it in prog.items if isinstance(it, Segment)) >= LIMITS.min_interval_us
     assert 0 < rep.max_timing_error_us < 100.0
 
 
 def test_long_hold_is_split_into_legal_dwells():
-    prog, _ = profiles.experiment_programme(200.0, 10.0, None, t_up=1.0, t_down=130.0, t_end=131.0)
+    prog, _ = programmes.experiment_programme(200.0, 10.0, None, t_up=1.0, t_down=130.0, t_end=131.0)
     prog.check_limits()
     assert max(it.ms for it in prog.items if isinstance(it, Dwell)) <= LIMITS.max_dwell_ms
 
@@ -278,7 +280,7 @@ def test_long_hold_is_split_into_legal_dwells():
 )
 def test_programme_lands_on_whole_steps(v, x, family, omega, zeta):
     shaper = None if family is None else shapers.FAMILIES[family](omega, zeta)
-    prog, rep = profiles.experiment_programme(v, x, shaper, t_end=12.0)
+    prog, rep = programmes.experiment_programme(v, x, shaper, t_end=12.0)
     n = round(x / MM_PER_STEP)
     assert rep.n_steps == n
     t, signs = prog.step_times()

@@ -28,9 +28,9 @@ import numpy as np
 from helpers import recordings
 from helpers.identify import identify_recording
 from helpers.paths import DATA_DIR
-from helpers.virtual import calibrated_parameters, linearise, statics
+from helpers.virtual import RigParameters, linearise, statics
 
-p = calibrated_parameters()
+p = RigParameters()
 out = {}
 for m in (1, 2, 4, 8):
     lin = linearise(p.replace(segments_per_disc=m), 0.0)

@@ -9,9 +9,9 @@ import time
 from rig_fakes import CALIBRATION, make_world
 
 from helpers import recordings
-from helpers.profiles import Dwell, Programme, Segment
+from helpers.emulator.server import serve
+from helpers.programmes import Dwell, Programme, Segment
 from helpers.rig import Rig
-from helpers.virtual.server import serve
 
 
 def test_record_over_pseudo_terminals(tmp_path):

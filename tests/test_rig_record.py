@@ -8,9 +8,8 @@ import json
 import pytest
 from rig_fakes import GAIN, OFFSET, make_world
 
-from helpers import recordings
-from helpers.rig import calibration as cal
-from helpers.rig import record
+from helpers import loadcell, record, recordings
+from helpers.rig import loadcell as loadcell_recording
 
 
 def _args(*argv):
@@ -28,8 +27,8 @@ def test_record_calibration_recovers_the_sensor_line(tmp_path):
     assert data["gain_counts_per_n"] == pytest.approx(GAIN, rel=2e-3)  # 0.5-count rounding of each load
     assert data["offset_counts"] == pytest.approx(OFFSET, abs=0.5)
     assert data["source"] == {"kind": "virtual-rig"}
-    recs = cal.load_calibration_recordings(tmp_path)
-    assert [r.meta["scenario"]["mass_kg"] for r in recs] == list(cal.CALIBRATION_MASSES_KG)
+    recs = loadcell_recording.load_calibration_recordings(tmp_path)
+    assert [r.meta["scenario"]["mass_kg"] for r in recs] == list(loadcell_recording.CALIBRATION_MASSES_KG)
     assert all(r.meta["scenario"]["fixture"].startswith("VIRTUAL") for r in recs)
     assert world.load_n is None  # the fixture is removed afterwards
 
@@ -65,4 +64,4 @@ def test_record_pulse_with_a_shaper(tmp_path):
 
 def test_fit_needs_three_loads():
     with pytest.raises(ValueError, match="three distinct loads"):
-        cal.fit_calibration([])
+        loadcell.fit_calibration([])

@@ -7,9 +7,10 @@ import pytest
 import serial
 from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
 
-from helpers.profiles import MM_PER_STEP
-from helpers.rig.framing import StreamParser, checksum, frame
-from helpers.virtual.boards import Faults
+from helpers.emulator.boards import Faults
+from helpers.hardware import MM_PER_STEP
+from helpers.protocol import StreamParser, checksum, frame
+from helpers.rig.ports import open_port
 
 
 def talk(board, *commands, checksum=True):
@@ -154,10 +155,14 @@ def test_reset_sends_hello_and_forgets_state():
     assert not w.stepper.enabled and not w.stepper.running and w.stepper.position == 0
 
 
+def _open(url, timeout=None):
+    return open_port(url, baudrate=115200, timeout=timeout, write_timeout=1.0)
+
+
 def test_url_handler_same_rig_name_same_world():
     w = make_world()
-    d = serial.serial_for_url(f"virtual://daq?rig={w.name}", timeout=0.01)
-    s = serial.serial_for_url(f"virtual://stepper?rig={w.name}", timeout=0.01)
+    d = _open(f"virtual://daq?rig={w.name}", timeout=0.01)
+    s = _open(f"virtual://stepper?rig={w.name}", timeout=0.01)
     assert d.world is s.world is w
     assert d.read(100).startswith(b"HELLO daq")
     s.write(frame("PING"))
@@ -166,9 +171,9 @@ def test_url_handler_same_rig_name_same_world():
     assert s.read(10) == b""  # nothing to come: the read waited its timeout in device time
     assert w.t == pytest.approx(t0 + 0.01)
     with pytest.raises(serial.SerialException, match="unknown option"):
-        serial.serial_for_url(f"virtual://daq?rig={w.name}&bogus=1")
+        _open(f"virtual://daq?rig={w.name}&bogus=1")
     with pytest.raises(serial.SerialException):
-        serial.serial_for_url("virtual://mega?rig=x")
+        _open("virtual://mega?rig=x")
 
 
 def test_calibration_fixture_is_read_instead_of_the_cable():

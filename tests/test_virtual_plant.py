@@ -11,13 +11,12 @@ import math
 import numpy as np
 import pytest
 
-from helpers import model, paper
+from helpers import hardware, model, paper
+from helpers.hardware import MM_PER_STEP
 from helpers.virtual import (
-    MM_PER_STEP,
     ArmPlant,
     LoadCell,
     RigParameters,
-    calibrated_parameters,
     equilibrium,
     linearise,
     simulate,
@@ -25,7 +24,7 @@ from helpers.virtual import (
 from helpers.virtual.reference import ReferenceArm
 from helpers.virtual.statics import equilibrium_at_tension
 
-CAL = calibrated_parameters()
+CAL = RigParameters()
 DU = MM_PER_STEP * 1e-3
 
 
@@ -84,7 +83,7 @@ def test_static_tension_rises_with_cable_displacement():
 
 def test_cantilever_frequencies_without_cable():
     """Uniform wire, gravity off, (almost) no cable: omega_n = beta_n^2 sqrt(EI / (rho A L^4))."""
-    p = RigParameters(g=0.0, pretension=0.0, k=1e-9, disc_mass=0.0, segments_per_disc=2)
+    p = RigParameters(g=0.0, pretension=0.0, k=1e-9, disc_mass=0.0, segments_per_disc=2, alpha=0.0, beta=0.0)
     lin = linearise(p, 0.0)
     w = np.sort(np.abs(lin.poles[lin.poles.imag > 0]))
     scale = math.sqrt(p.EI / (p.rho * p.area * p.L**4))
@@ -97,7 +96,7 @@ def test_dominant_mode_agrees_with_linear_model():
     disc_mass, r, k = 1.0e-3, 7.8e-3, 6000.0
     rig = RigParameters(
         g=0.0, pretension=0.0, disc_mass=disc_mass, disc_mass_uniform=True, eyelets_every_node=True,
-        segments_per_disc=4, r=r, k=k,
+        segments_per_disc=4, r=r, k=k, alpha=0.0, beta=0.0,
     )  # fmt: skip
     lin = linearise(rig, 0.0, decay_s=0.0)
     # the modal model needs many modes to converge (the cable couples to all of them): 48, like 48 segments
@@ -113,7 +112,7 @@ def test_dominant_mode_agrees_with_linear_model():
 
 @pytest.mark.parametrize("zeta", [0.02, 0.06])
 def test_rayleigh_damping_gives_the_requested_modal_damping(zeta):
-    from helpers.virtual.calibration import rayleigh_for
+    from helpers.rig_tuning import rayleigh_for
 
     lin = linearise(rayleigh_for(CAL, zeta), 0.0)
     # the cable makes the damping non-proportional: close, not exact
@@ -259,11 +258,10 @@ def test_compiled_integrator_agrees_with_solve_ivp_reference():
 # --- sensor and simulate --------------------------------------------------------------------------
 
 
-def test_cable_travel_per_step_matches_the_command_layer():
-    from helpers import profiles
-
-    assert MM_PER_STEP == pytest.approx(profiles.MM_PER_STEP, rel=1e-12)
-    assert MM_PER_STEP == pytest.approx(math.pi * paper.SPOOL_DIAMETER_M * 1e3 / paper.STEPS_PER_REV)
+def test_cable_travel_per_step_follows_the_papers_spool_and_steps():
+    # 65 mm spool, 800 steps per revolution (paper): 0.25525 mm of cable per step
+    assert hardware.MM_PER_STEP == pytest.approx(math.pi * 65.0 / 800.0, rel=1e-15)
+    assert hardware.MM_PER_STEP == pytest.approx(0.25525, abs=5e-6)
 
 
 def test_load_cell_counts():
@@ -283,7 +281,7 @@ def test_load_cell_counts():
 
 def test_simulate_runs_a_programme_and_identifies_the_paper_mode():
     from helpers.identify import identify
-    from helpers.profiles import experiment_programme
+    from helpers.programmes import experiment_programme
 
     prog, _ = experiment_programme(100.0, 10.0)
     res = simulate(prog, rate_hz=1000.0, params=CAL, seed=0)

@@ -9,15 +9,19 @@
 from __future__ import annotations
 
 import argparse
-import importlib
 import platform
 import time
+from collections.abc import Callable
+from typing import Any
 
-SUITES: dict[str, tuple[str, str]] = {
-    "plant": ("helpers.benchmarks.plant", "run_plant_benchmark"),
-    "serial": ("helpers.benchmarks.serial", "run_serial_benchmark"),
+from helpers.benchmarks.plant import run_plant_benchmark
+from helpers.benchmarks.serial import run_serial_benchmark
+
+SUITES: dict[str, Callable[[], dict[str, Any]]] = {
+    "plant": run_plant_benchmark,
+    "serial": run_serial_benchmark,
 }
-"""suite name -> (module, function); each function prints its figures and returns them as a dict."""
+"""suite name -> function; each prints its figures and returns them as a dict."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -36,7 +40,6 @@ def run(args: argparse.Namespace) -> int:
         return 2
     print(f"python {platform.python_version()} on {platform.machine()}, {time.strftime('%Y-%m-%d')}")
     for name in chosen:
-        module, func = SUITES[name]
         print(f"\n== {name} ==")
-        getattr(importlib.import_module(module), func)()
+        SUITES[name]()
     return 0

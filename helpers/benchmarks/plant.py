@@ -1,6 +1,6 @@
 """Speed of the virtual rig's plant: simulated seconds per wall-clock second, compiled vs solve_ivp.
 
-Scenario: the calibrated 12-disc arm running the Table I condition 200 mm/s, 20 mm, unshaped, for the full
+Scenario: the tuned 12-disc arm running the Table I condition 200 mm/s, 20 mm, unshaped, for the full
 12 s programme, sampled at 1 kHz, on one core. The compiled (numba) fixed-step integrator runs the whole 12 s;
 the straightforward numpy + ``solve_ivp`` implementation of the same equations (``helpers.virtual.reference``)
 runs a window of the same scenario (by default 0.9-3.0 s: the up move and two seconds of its transient; the
@@ -14,6 +14,10 @@ from __future__ import annotations
 import time
 
 import numpy as np
+
+from helpers.programmes import experiment_programme
+from helpers.virtual import ArmPlant, RigParameters
+from helpers.virtual.reference import ReferenceArm
 
 __all__ = ["run_plant_benchmark"]
 
@@ -45,16 +49,12 @@ def run_plant_benchmark(
         ``reference_wall_s``, ``reference_span_s`` (simulated seconds), ``max_step_s``, ``rk4_steps``,
         ``max_abs_diff_n`` (compiled vs reference on the window), ``jit_first_call_s``.
     """
-    from helpers.profiles import experiment_programme
-    from helpers.virtual import ArmPlant, calibrated_parameters
-    from helpers.virtual.reference import ReferenceArm
-
     w0, w1 = (float(w) for w in reference_window_s)
     if not (0 <= w0 < w1 <= 12.0):
         raise ValueError(f"reference_window_s must satisfy 0 <= start < end <= 12, got {reference_window_s}")
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats!r}")
-    params = calibrated_parameters()
+    params = RigParameters()
     prog, _ = experiment_programme(200.0, 20.0)
     st, sg = prog.step_times()
     t = np.arange(1, int(round(prog.duration_s * 1000)) + 1) * 1e-3
@@ -102,7 +102,7 @@ def run_plant_benchmark(
         "jit_first_call_s": float(jit_s),
     }
     if not quiet:
-        print("Virtual rig plant, calibrated 12-disc arm, 200 mm/s 20 mm unshaped, 1 kHz samples, one core")
+        print("Virtual rig plant, tuned 12-disc arm, 200 mm/s 20 mm unshaped, 1 kHz samples, one core")
         print(f"  compiled RK4 (numba), h <= {params.max_step * 1e3:.2f} ms: {t[-1]:.1f} s simulated in "
               f"{best:.3f} s -> {compiled_rate:.1f} x real time ({plant.integrator_steps} RK4 steps)")
         print(f"  solve_ivp RK45 (numpy), rtol {rtol:.0e}: {start.t:.2f}-{t[sel_t][-1]:.2f} s ({span:.2f} s) "

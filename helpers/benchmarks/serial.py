@@ -17,6 +17,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+from helpers.loadcell import UNCALIBRATED
+from helpers.rig import Rig
+from helpers.shapers import paper_tdfs
+
 
 def _start_server(speed: float, timeout: float = 120.0) -> tuple[subprocess.Popen, str, str]:
     proc = subprocess.Popen(
@@ -43,18 +47,11 @@ def _start_server(speed: float, timeout: float = 120.0) -> tuple[subprocess.Pope
 
 def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) -> dict[str, Any]:
     """Stream ``device_s`` of DAQ samples through the pseudo-terminal server; return the figures."""
-    from helpers.rig import Rig
-
     proc, daq, stepper = _start_server(speed)
     try:
         rig = Rig.connect(
             (daq, stepper),
-            calibration={
-                "newtons_per_count": 1.0,
-                "offset_counts": 0.0,
-                "mm_per_step": 0.25525,
-                "origin": "benchmark",
-            },
+            calibration=UNCALIBRATED,
         )
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
@@ -84,9 +81,6 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) 
 
 def in_process_scenario() -> dict[str, Any]:
     """Wall time of one 12 s scenario on the in-process virtual rig (first run and a warm second run)."""
-    from helpers.rig import Rig
-    from helpers.shapers import paper_tdfs
-
     _, zvd = paper_tdfs()
     rig = Rig.connect("virtual", rig_name="bench-inprocess")
     walls = []

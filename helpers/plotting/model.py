@@ -10,8 +10,10 @@ from dataclasses import dataclass
 import matplotlib.pyplot as plt
 import numpy as np
 
-from helpers import model
+from helpers import model, paper
 from helpers.plotting import SYSTEM_COLOURS, save
+from helpers.profiles import velocity_pulse
+from helpers.shapers import paper_tdfs
 
 FIG12_NAME = "fig12_model_shaping.png"
 """File name of the paper's Fig. 12 under ``figures/``."""
@@ -158,9 +160,6 @@ def shaping_response(
     ShapingResponse
         Commands, tensions and tip displacements on one grid.
     """
-    from helpers.profiles import velocity_pulse
-    from helpers.shapers import paper_tdfs
-
     if not (int(rate_hz) == rate_hz and rate_hz > 0 and t_end > 8.0 + x_f_mm / v_in_mm_s):
         raise ValueError(
             f"need an integer rate_hz > 0 and t_end after the down move, got {rate_hz!r}, t_end={t_end}"
@@ -172,7 +171,7 @@ def shaping_response(
     tension: dict[str, np.ndarray] = {}
     tip: dict[str, np.ndarray] = {}
     for name, v in commands.items():
-        tension[name], tip[name] = model.simulate(params, t, v * 1e-3)
+        tension[name], tip[name] = model.linear_response(params, t, v * 1e-3)
     return ShapingResponse(
         v_in_mm_s=float(v_in_mm_s), x_f_mm=float(x_f_mm), t=t, commands=commands, tension=tension, tip=tip
     )
@@ -192,7 +191,7 @@ def fig12(
     Parameters
     ----------
     params : helpers.model.ArmParameters, optional
-        The model; default :func:`helpers.model.calibrated_parameters`.
+        The model; default :func:`helpers.model.fitted_parameters`.
     v_in_mm_s, x_f_mm : float
         The pulse (default 200 mm/s, 20 mm; the paper does not say which it used).
     response : ShapingResponse, optional
@@ -203,10 +202,8 @@ def fig12(
     matplotlib.figure.Figure
         The figure (also written to ``figures/``).
     """
-    from helpers import paper
-
     if response is None:
-        params = model.calibrated_parameters() if params is None else params
+        params = model.fitted_parameters() if params is None else params
         response = shaping_response(params, v_in_mm_s, x_f_mm)
     labels = {"unshaped": "Pulse (unshaped)", "zv": "Non-robust TDF (ZV)", "zvd": "Robust TDF (ZVD)"}
     t = response.t

@@ -11,8 +11,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from helpers import paper
+from helpers.hardware import MM_PER_STEP
 from helpers.plotting import SYSTEM_COLOURS, save
-from helpers.profiles import MM_PER_STEP, Programme, VelocityProfile
+from helpers.profiles import VelocityProfile
+from helpers.programmes import Programme
 from helpers.shapers import Shaper
 
 SENSITIVITY_NAME = "shaper_sensitivity.png"

@@ -1,33 +1,28 @@
 """Serial I/O to the rig's two boards (real hardware or the virtual rig) with pyserial.
 
-- :mod:`helpers.rig.framing`: the line protocol (checksums, parsing, exact fault counting);
+- :mod:`helpers.rig.ports`: opening a port (device path, pyserial URL, or ``virtual://``);
 - :mod:`helpers.rig.boards`: the link shared by both drivers (commands, replies, timeouts, resets);
 - :mod:`helpers.rig.daq`, :mod:`helpers.rig.stepper`: the DAQ and stepper drivers;
 - :mod:`helpers.rig.safety`: the limits checked before any byte is sent;
-- :mod:`helpers.rig.discovery`: finding the boards by USB VID:PID;
+- :mod:`helpers.rig.discovery`: finding the boards by USB VID:PID, and announced virtual rigs;
 - :mod:`helpers.rig.experiment`: :class:`Rig`, one board-timed experiment per call, safe on any error;
-- :mod:`helpers.rig.calibration`: load-cell calibration (recording and the linear fit);
-- :mod:`helpers.rig.record`: the ``python -m helpers record`` command.
+- :mod:`helpers.rig.loadcell`: recording the load-cell calibration under known loads.
 
-Importing this package registers the ``virtual://`` URL scheme with pyserial.
+The line protocol itself is :mod:`helpers.protocol`. Nothing here needs numba or the virtual rig's physics:
+the in-process virtual rig is reached through its ``virtual://`` URL (:mod:`helpers.emulator`).
 """
 
-import serial
-
-if "helpers.virtual" not in serial.protocol_handler_packages:
-    serial.protocol_handler_packages.append("helpers.virtual")
-
-from helpers.rig.boards import (  # noqa: E402
+from helpers.rig.boards import (
     BoardDisconnected,
     BoardError,
     BoardReset,
     BoardTimeout,
     CommandRefused,
 )
-from helpers.rig.daq import DaqBoard  # noqa: E402
-from helpers.rig.experiment import Rig, RunAborted  # noqa: E402
-from helpers.rig.safety import SafetyError, check_programme, check_request  # noqa: E402
-from helpers.rig.stepper import StepperBoard  # noqa: E402
+from helpers.rig.daq import DaqBoard
+from helpers.rig.experiment import Rig, RunAborted
+from helpers.rig.safety import SafetyError, check_programme, check_request
+from helpers.rig.stepper import StepperBoard
 
 __all__ = [
     "BoardDisconnected",

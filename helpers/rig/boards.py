@@ -1,7 +1,7 @@
 """The link to one board, shared by both drivers: framed commands, replies, timeouts, resets, disconnects.
 
 Every read goes through :meth:`BoardLink.pump`, which feeds the bytes to a
-:class:`helpers.rig.framing.StreamParser`: data lines become samples (kept for the DAQ driver), other lines
+:class:`helpers.protocol.StreamParser`: data lines become samples (kept for the DAQ driver), other lines
 become messages. Replies (``OK``, ``ERR``, ``PONG``, ``ABORTED``) answer the pending command; unsolicited
 ``DONE`` is remembered; ``HELLO`` means the board rebooted, which is an error whenever it was not expected.
 
@@ -17,7 +17,8 @@ from collections import deque
 
 import serial
 
-from helpers.rig.framing import StreamParser, frame
+from helpers.protocol import StreamParser, frame
+from helpers.rig.ports import open_port
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
 
@@ -132,9 +133,7 @@ class BoardLink:
         BoardLink
         """
         try:
-            port = serial.serial_for_url(
-                url, baudrate=cls.baudrate, timeout=read_timeout, write_timeout=timeout
-            )
+            port = open_port(url, baudrate=cls.baudrate, timeout=read_timeout, write_timeout=timeout)
         except serial.SerialException as exc:
             raise BoardDisconnected(f"cannot open the {cls.kind} board at {url}: {exc}") from exc
         link = cls(port, timeout=timeout)

@@ -4,24 +4,24 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+from helpers.hardware import DAQ_BAUD, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
+from helpers.protocol import StreamStats
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
-from helpers.rig.framing import StreamStats
 
-RATE_MIN_HZ, RATE_MAX_HZ = 100, 2000
-"""The board's sample-rate range (PROTOCOL.md)."""
+RATE_MIN_HZ, RATE_MAX_HZ = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ
 
 
 class DaqBoard(BoardLink):
     """The DAQ board: samples (``seq``, ``t_us`` unwrapped, ``adc``, ``steps``) with exact fault counts.
 
-    ``stats`` (a :class:`helpers.rig.framing.StreamStats`) counts, since the last :meth:`start`: ``dropped``
+    ``stats`` (a :class:`helpers.protocol.StreamStats`) counts, since the last :meth:`start`: ``dropped``
     sequence numbers (lines lost or destroyed in transport, including any lost after the last one received,
     known once :meth:`stop` reports how many were sent), ``overruns`` (sample periods the board reports it
     missed) and ``corrupted`` lines. Nothing here raises on garbage.
     """
 
     kind = "daq"
-    baudrate = 500_000
+    baudrate = DAQ_BAUD
 
     def __init__(self, port, timeout: float = 2.0) -> None:
         super().__init__(port, timeout)

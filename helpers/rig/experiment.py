@@ -16,36 +16,28 @@ any byte is sent.
 from __future__ import annotations
 
 import datetime as _dt
-import json
+import math
 import os
-import tempfile
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from helpers import __version__ as HELPERS_VERSION
-from helpers import recordings
+from helpers import paper, recordings
+from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_PROGRAMME_S
+from helpers.loadcell import LoadCellCalibration, load_calibration
 from helpers.paths import DATA_DIR
-from helpers.profiles import MM_PER_STEP, Programme, experiment_programme
+from helpers.programmes import Programme, experiment_programme
 from helpers.recordings import Recording
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
 from helpers.rig.daq import DaqBoard
+from helpers.rig.discovery import find_rig_ports, virtual_source_for
 from helpers.rig.safety import SafetyError, check_programme, check_request
 from helpers.rig.stepper import StepperBoard
-
-VIRTUAL_REGISTRY = Path(tempfile.gettempdir()) / "helpers-virtual-rigs"
-"""Where ``python -m helpers serve-virtual-rig`` announces its pseudo-terminals (so recordings made through
-them are labelled ``virtual-rig``, never ``hardware``)."""
-
-UNCALIBRATED = {
-    "newtons_per_count": 1.0,
-    "offset_counts": 0.0,
-    "mm_per_step": MM_PER_STEP,
-    "origin": "uncalibrated: tension_n equals adc counts",
-}
-"""Placeholder calibration when none is available (clearly labelled)."""
 
 
 class RunAborted(BoardError):
@@ -68,50 +60,34 @@ def _is_virtual_url(url: str) -> bool:
     return str(url).startswith("virtual://")
 
 
-def announced_virtual_rigs() -> list[dict[str, Any]]:
-    """Return the announcements of running ``serve-virtual-rig`` processes (dead ones are ignored)."""
-    out = []
-    if not VIRTUAL_REGISTRY.is_dir():
-        return out
-    for f in VIRTUAL_REGISTRY.glob("*.json"):
-        try:
-            info = json.loads(f.read_text())
-            os.kill(int(info["pid"]), 0)
-        except (OSError, ValueError, KeyError, json.JSONDecodeError):
-            continue
-        out.append(info)
-    return out
+def _check_rate(rate_hz: Any) -> None:
+    ok = isinstance(rate_hz, int) and not isinstance(rate_hz, bool)
+    if not (ok and DAQ_RATE_MIN_HZ <= rate_hz <= DAQ_RATE_MAX_HZ):
+        raise SafetyError(
+            f"DAQ rate must be an integer in {DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ} Hz, got {rate_hz!r}"
+        )
 
 
-def _virtual_source_for(paths: tuple[str, str]) -> dict[str, Any] | None:
-    real = {os.path.realpath(p) for p in paths}
-    for info in announced_virtual_rigs():
-        if {os.path.realpath(info["daq"]), os.path.realpath(info["stepper"])} & real:
-            return {"kind": "virtual-rig", "via": "pseudo-terminal server", **info.get("source", {})}
-    return None
+class _DeviceTimeBar:
+    """A tqdm bar of device seconds, updated in 0.1 s increments."""
 
+    def __init__(self, total_s: float, show: bool, desc: str | None = "device time") -> None:
+        self.bar = tqdm(
+            total=round(total_s, 1),
+            unit="s",
+            desc=desc,
+            disable=not show,
+            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s",
+        )
+        self.shown = 0.0
 
-def load_calibration(path: str | os.PathLike | None = None) -> dict[str, Any]:
-    """Read the load-cell calibration (``data/calibration/calibration.json`` by default).
+    def show(self, elapsed_s: float) -> None:
+        if elapsed_s - self.shown >= 0.1:
+            self.bar.update(round(elapsed_s - self.shown, 1))
+            self.shown += round(elapsed_s - self.shown, 1)
 
-    Returns
-    -------
-    dict
-        ``newtons_per_count``, ``offset_counts``, ``mm_per_step`` and ``origin``; :data:`UNCALIBRATED` if the
-        file does not exist.
-    """
-    p = Path(path) if path is not None else DATA_DIR / "calibration" / "calibration.json"
-    if not p.exists():
-        return dict(UNCALIBRATED)
-    data = json.loads(p.read_text())
-    rel = p.relative_to(DATA_DIR).as_posix() if p.is_relative_to(DATA_DIR) else p.name
-    return {
-        "newtons_per_count": float(data["newtons_per_count"]),
-        "offset_counts": float(data["offset_counts"]),
-        "mm_per_step": float(data.get("mm_per_step", MM_PER_STEP)),
-        "origin": f"data/{rel}",
-        "source": data.get("source", {}).get("kind", "unknown"),
-    }
+    def close(self) -> None:
+        self.bar.close()
 
 
 class Rig:
@@ -123,9 +99,9 @@ class Rig:
         The synchronised DAQ driver.
     stepper : StepperBoard
         The synchronised stepper driver.
-    calibration : dict, optional
-        ``newtons_per_count``, ``offset_counts``, ``mm_per_step``, ``origin``; default
-        :func:`load_calibration`.
+    calibration : LoadCellCalibration or dict, optional
+        The load-cell calibration; default :func:`helpers.loadcell.load_calibration` (which raises a clear
+        error if there is none yet: pass :data:`helpers.loadcell.UNCALIBRATED` to record without one).
     source : dict, optional
         Provenance written into every recording; default ``{"kind": "hardware"}``.
     """
@@ -134,18 +110,22 @@ class Rig:
         self,
         daq: DaqBoard,
         stepper: StepperBoard,
-        calibration: dict[str, Any] | None = None,
+        calibration: LoadCellCalibration | dict[str, Any] | None = None,
         source: dict[str, Any] | None = None,
     ) -> None:
         self.daq = daq
         self.stepper = stepper
-        self.calibration = dict(calibration) if calibration is not None else load_calibration()
+        if calibration is None:
+            calibration = load_calibration()
+        elif isinstance(calibration, dict):
+            calibration = LoadCellCalibration.from_dict(calibration)
+        self.calibration: LoadCellCalibration = calibration
         self.source = dict(source) if source is not None else {"kind": "hardware"}
-        if self.source.get("kind") == "hardware" and self.calibration.get("source") == "virtual-rig":
+        if self.source.get("kind") == "hardware" and self.calibration.source == "virtual-rig":
             # the raw ADC counts are recorded either way, so tension can be recomputed after calibrating
             warnings.warn(
                 "this is hardware, but the load-cell calibration "
-                f"({self.calibration.get('origin', '?')}) was recorded on the virtual rig: tension_n will be "
+                f"({self.calibration.origin or '?'}) was recorded on the virtual rig: tension_n will be "
                 "wrong; calibrate this load cell first (python -m helpers record calibration --ports auto)",
                 UserWarning,
                 stacklevel=2,
@@ -159,7 +139,7 @@ class Rig:
         cls,
         ports: str | tuple[str, str] | list[str] = "virtual",
         rig_name: str = "default",
-        calibration: dict[str, Any] | None = None,
+        calibration: LoadCellCalibration | dict[str, Any] | None = None,
         timeout: float = 2.0,
         hello_timeout: float = 3.0,
         daq_options: str = "",
@@ -175,8 +155,8 @@ class Rig:
             URLs.
         rig_name : str
             Name of the in-process virtual rig.
-        calibration : dict, optional
-            Default :func:`load_calibration`.
+        calibration : LoadCellCalibration or dict, optional
+            Default :func:`helpers.loadcell.load_calibration`.
         timeout, hello_timeout : float
             Command timeout and boot timeout (s).
         daq_options, stepper_options : str
@@ -190,8 +170,6 @@ class Rig:
             daq_url = f"virtual://daq?rig={rig_name}{daq_options}"
             stepper_url = f"virtual://stepper?rig={rig_name}{stepper_options}"
         elif ports == "auto":
-            from helpers.rig.discovery import find_rig_ports
-
             daq_url, stepper_url = find_rig_ports()
         else:
             pair = ports.split(",") if isinstance(ports, str) else list(ports)
@@ -208,9 +186,14 @@ class Rig:
             world = daq.port.world
             source = {"kind": "virtual-rig", "via": "in-process", "rig": world.name, **world.info}
         else:
-            source = _virtual_source_for((daq_url, stepper_url)) or {"kind": "hardware"}
+            source = virtual_source_for((daq_url, stepper_url)) or {"kind": "hardware"}
         source["ports"] = {"daq": daq_url.split("?")[0], "stepper": stepper_url.split("?")[0]}
-        return cls(daq, stepper, calibration=calibration, source=source)
+        try:
+            return cls(daq, stepper, calibration=calibration, source=source)
+        except BaseException:
+            daq.close()
+            stepper.close()
+            raise
 
     @property
     def is_virtual(self) -> bool:
@@ -246,7 +229,10 @@ class Rig:
         scenario_extra: dict[str, Any] | None = None,
         **kwargs: Any,
     ) -> Recording:
-        """Check a pulse request, build its programme (:func:`helpers.profiles.experiment_programme`), run it.
+        """Check a pulse request, build its programme (:func:`~helpers.programmes.experiment_programme`), run.
+
+        The up move starts at ``paper.PULSE_T_UP_S`` (1 s) and the down move at ``paper.PULSE_T_DOWN_S``
+        (8 s) after ``GO``, as in the paper.
 
         Parameters
         ----------
@@ -268,8 +254,9 @@ class Rig:
             Passed to :meth:`run`.
         """
         v, x = check_request(v_in_mm_s, x_f_mm)
+        t_up, t_down = paper.PULSE_T_UP_S, paper.PULSE_T_DOWN_S
         try:
-            programme, report = experiment_programme(v, x, shaper, t_end=t_end_s)
+            programme, report = experiment_programme(v, x, shaper, t_up=t_up, t_down=t_down, t_end=t_end_s)
         except ValueError as exc:
             raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
         name = getattr(shaper, "name", None)
@@ -286,8 +273,8 @@ class Rig:
                 "times": [float(t) for t in shaper.times],
             },
             "repetition": int(repetition),
-            "t_up_s": 1.0,
-            "t_down_s": 8.0,
+            "t_up_s": t_up,
+            "t_down_s": t_down,
             "quantisation": report.to_dict(),
             **(scenario_extra or {}),
         }
@@ -307,9 +294,14 @@ class Rig:
     ) -> Recording:
         """Run one programme as one board-timed experiment and return (and save) its recording.
 
+        The steps: check the programme against the limits from the cable's present position
+        (:meth:`_checked_start_position`), load it and start the DAQ (:meth:`_load_and_go`), stream samples
+        until the programme's end has passed and ``DONE`` has arrived (:meth:`_stream_until_done`), then stop
+        the DAQ and disable the driver. All of it inside the guard (:meth:`_guarded`).
+
         Parameters
         ----------
-        programme : helpers.profiles.Programme
+        programme : helpers.programmes.Programme
             Checked against the limits before anything is sent.
         scenario : dict, optional
             Scenario metadata (kind, v_in_mm_s, x_f_mm, system, shaper, repetition, ...); the programme is
@@ -334,92 +326,19 @@ class Rig:
         helpers.recordings.Recording
         """
         check_programme(programme)
-        if not isinstance(rate_hz, int) or isinstance(rate_hz, bool) or not 100 <= rate_hz <= 2000:
-            raise SafetyError(f"DAQ rate must be an integer in 100-2000 Hz, got {rate_hz!r}")
+        _check_rate(rate_hz)
         scenario = dict(scenario or {"kind": "programme"})
         scenario.setdefault("programme", programme.to_dict())
-        duration_us = programme.duration_us
-        total_s = programme.duration_s + margin_s
-
-        from tqdm import tqdm
-
-        # The travel limit depends on where the cable is now: ask (POS moves nothing), refuse before the run.
-        self.stepper.check_reset()
-        self.daq.check_reset()
-        position = self.stepper.position()
-        check_programme(programme, start_position=position)
+        position = self._checked_start_position(programme)
 
         def body(state: _RunState) -> None:
-            self.stepper.abort()  # a programme left running by an earlier session stops; driver off
-            self.daq.stop()  # a stream left running by an earlier session stops (OK STOP 0 when idle)
-            self.stepper.load(programme, start_position=position)
-            self.daq.set_rate(rate_hz)
-            self.daq.zero()
-            self.daq.start()
-            self.stepper.enable(True)
-            state.go_sent = True
-            self.stepper.go()
-            # GO's device time, estimated as the newest DAQ sample at hand once GO is acknowledged (exact
-            # on the in-process virtual rig; a few ms late on hardware). Metrics use `steps` instead.
-            self.daq.pump(block=False)
-            state.rows.extend(self.daq.take_rows())
-            if state.rows:
-                state.t_go_us = state.rows[-1][1]
-            period_us = round(1e6 / rate_hz)
-            bar = tqdm(
-                total=round(total_s, 1),
-                unit="s",
-                desc="device time",
-                disable=not progress,
-                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s",
-            )
-            shown = 0.0
-            silence = Waiter(silence_timeout)
+            self._load_and_go(programme, position, rate_hz, state)
+            bar = _DeviceTimeBar(programme.duration_s + margin_s, progress)
             try:
-                while True:
-                    self.daq.pump()
-                    rows = self.daq.take_rows()
-                    state.rows.extend(rows)  # on disk whatever happens next
-                    self.daq.check_reset()
-                    self.stepper.poll()
-                    self.stepper.check_reset()
-                    if rows:
-                        silence = Waiter(silence_timeout)
-                        if state.t_go_us is None:
-                            state.t_go_us = rows[0][1] - period_us
-                    else:
-                        silence.idle(self.daq.port.timeout or 0.0)
-                        if silence.expired:
-                            raise BoardTimeout(
-                                f"the daq board sent no sample for {silence_timeout:.1f} s "
-                                "(it stopped answering)"
-                            )
-                    stats = self.daq.stats
-                    if stats.corrupted > 50 and stats.corrupted > max_corrupted_fraction * (
-                        stats.samples + 1
-                    ):
-                        raise RunAborted(
-                            f"{stats.corrupted} corrupted lines against {stats.samples} samples "
-                            "(wrong baud rate or a bad cable?)"
-                        )
-                    if state.t_go_us is None or not state.rows:
-                        continue
-                    elapsed_s = (state.rows[-1][1] - state.t_go_us) / 1e6
-                    if elapsed_s - shown >= 0.1:
-                        bar.update(round(elapsed_s - shown, 1))
-                        shown += round(elapsed_s - shown, 1)
-                    past_end = state.rows[-1][1] >= state.t_go_us + duration_us + margin_s * 1e6
-                    if past_end and self.stepper.done_position is not None:
-                        break
-                    if (
-                        self.stepper.done_position is None
-                        and state.rows[-1][1] >= state.t_go_us + duration_us + done_grace_s * 1e6
-                    ):
-                        raise BoardTimeout(
-                            "the stepper board did not report DONE within "
-                            f"{done_grace_s:.1f} s of device time "
-                            "after the programme's end (it stopped answering)"
-                        )
+                self._stream_until_done(
+                    state, programme.duration_us, rate_hz, margin_s, done_grace_s, silence_timeout,
+                    max_corrupted_fraction, bar,
+                )  # fmt: skip
             finally:
                 bar.close()
             self.daq.stop()
@@ -427,6 +346,86 @@ class Rig:
             self.stepper.enable(False)
 
         return self._guarded(body, scenario, path, rate_hz)
+
+    def _checked_start_position(self, programme: Programme) -> int:
+        """Ask the stepper where the cable is (``POS`` moves nothing) and check the programme from there."""
+        self.stepper.check_reset()
+        self.daq.check_reset()
+        position = self.stepper.position()
+        check_programme(programme, start_position=position)
+        return position
+
+    def _load_and_go(self, programme: Programme, position: int, rate_hz: int, state: _RunState) -> None:
+        """Stop what an earlier session left running, load the programme, start the DAQ, enable, ``GO``."""
+        self.stepper.abort()  # a programme left running by an earlier session stops; driver off
+        self.daq.stop()  # a stream left running by an earlier session stops (OK STOP 0 when idle)
+        self.stepper.load(programme, start_position=position)
+        self.daq.set_rate(rate_hz)
+        self.daq.zero()
+        self.daq.start()
+        self.stepper.enable(True)
+        state.go_sent = True
+        self.stepper.go()
+        # GO's device time, estimated as the newest DAQ sample at hand once GO is acknowledged (exact
+        # on the in-process virtual rig; a few ms late on hardware). Metrics use `steps` instead.
+        self.daq.pump(block=False)
+        state.rows.extend(self.daq.take_rows())
+        if state.rows:
+            state.t_go_us = state.rows[-1][1]
+
+    def _check_corruption(self, max_corrupted_fraction: float) -> None:
+        stats = self.daq.stats
+        if stats.corrupted > 50 and stats.corrupted > max_corrupted_fraction * (stats.samples + 1):
+            raise RunAborted(
+                f"{stats.corrupted} corrupted lines against {stats.samples} samples "
+                "(wrong baud rate or a bad cable?)"
+            )
+
+    def _stream_until_done(
+        self,
+        state: _RunState,
+        duration_us: int,
+        rate_hz: int,
+        margin_s: float,
+        done_grace_s: float,
+        silence_timeout: float,
+        max_corrupted_fraction: float,
+        bar: _DeviceTimeBar,
+    ) -> None:
+        """Read samples until the programme's end + ``margin_s`` has passed and ``DONE`` has arrived."""
+        period_us = round(1e6 / rate_hz)
+        silence = Waiter(silence_timeout)
+        while True:
+            self.daq.pump()
+            rows = self.daq.take_rows()
+            state.rows.extend(rows)  # on disk whatever happens next
+            self.daq.check_reset()
+            self.stepper.poll()
+            self.stepper.check_reset()
+            if rows:
+                silence = Waiter(silence_timeout)
+                if state.t_go_us is None:
+                    state.t_go_us = rows[0][1] - period_us
+            else:
+                silence.idle(self.daq.port.timeout or 0.0)
+                if silence.expired:
+                    raise BoardTimeout(
+                        f"the daq board sent no sample for {silence_timeout:.1f} s (it stopped answering)"
+                    )
+            self._check_corruption(max_corrupted_fraction)
+            if state.t_go_us is None or not state.rows:
+                continue
+            last_us = state.rows[-1][1]
+            bar.show((last_us - state.t_go_us) / 1e6)
+            past_end = last_us >= state.t_go_us + duration_us + margin_s * 1e6
+            if past_end and self.stepper.done_position is not None:
+                return
+            overdue = last_us >= state.t_go_us + duration_us + done_grace_s * 1e6
+            if self.stepper.done_position is None and overdue:
+                raise BoardTimeout(
+                    f"the stepper board did not report DONE within {done_grace_s:.1f} s of device time "
+                    "after the programme's end (it stopped answering)"
+                )
 
     def record_static(
         self,
@@ -442,7 +441,7 @@ class Rig:
         Parameters
         ----------
         duration_s : float
-            Device seconds to record (0 < duration <= 600).
+            Device seconds to record (0 < duration <= ``MAX_PROGRAMME_S``).
         scenario : dict
             Scenario metadata (e.g. ``{"kind": "calibration", "load_n": 4.9}``).
         path : path-like, optional
@@ -454,25 +453,20 @@ class Rig:
         progress : bool
             Show a tqdm bar.
         """
-        import math
-
         if (
-            not isinstance(duration_s, (int, float))
+            not isinstance(duration_s, int | float)
             or not math.isfinite(duration_s)
-            or not 0 < duration_s <= 600
+            or not 0 < duration_s <= MAX_PROGRAMME_S
         ):
-            raise SafetyError(f"duration must be within (0, 600] s, got {duration_s!r}")
-        if not isinstance(rate_hz, int) or isinstance(rate_hz, bool) or not 100 <= rate_hz <= 2000:
-            raise SafetyError(f"DAQ rate must be an integer in 100-2000 Hz, got {rate_hz!r}")
-
-        from tqdm import tqdm
+            raise SafetyError(f"duration must be within (0, {MAX_PROGRAMME_S:.0f}] s, got {duration_s!r}")
+        _check_rate(rate_hz)
 
         def body(state: _RunState) -> None:
             self.daq.check_reset()
             self.daq.stop()  # a stream left running by an earlier session stops (OK STOP 0 when idle)
             self.daq.set_rate(rate_hz)
             self.daq.start()
-            bar = tqdm(total=round(duration_s, 1), unit="s", disable=not progress)
+            bar = _DeviceTimeBar(duration_s, progress, desc=None)
             try:
                 for rows in self.daq.samples(silence_timeout):
                     state.rows.extend(rows)
@@ -551,7 +545,7 @@ class Rig:
             "schema_version": recordings.SCHEMA_VERSION,
             "source": self.source,
             "scenario": scenario,
-            "calibration": self.calibration,
+            "calibration": self.calibration.to_dict(),
             "rate_hz": rate_hz,
             "firmware": {"daq": self.daq.version, "stepper": self.stepper.version},
             "host": {"helpers": HELPERS_VERSION},

@@ -1,9 +1,9 @@
-"""Safety limits checked on the host before any byte is sent (DESIGN section 11).
+"""Safety limits checked on the host before any byte is sent (``docs/safety.md``).
 
-The limits are the stepper board's compiled-in ones (:data:`helpers.profiles.LIMITS`, the same numbers as
+The limits are the stepper board's compiled-in ones (:mod:`helpers.hardware`, the same numbers as
 ``firmware/PROTOCOL.md``): cable travel 0-40 mm from zero (156 steps), speed <= 400 mm/s and step rate
 <= 2000 steps/s (minimum step interval 639 us), programme length <= 64 items, dwells <= 60 s. The host adds
-one of its own: a programme may last at most :data:`MAX_PROGRAMME_S` (a recording is held in memory).
+one of its own: a programme may last at most ``MAX_PROGRAMME_S`` (a recording is held in memory).
 """
 
 from __future__ import annotations
@@ -11,19 +11,15 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from helpers.profiles import LIMITS, MM_PER_STEP, Programme
-
-MAX_TRAVEL_MM = 40.0
-"""Cable travel limit from zero (mm)."""
-
-MAX_SPEED_MM_S = LIMITS.max_speed_mm_s
-"""Cable speed limit (mm/s)."""
-
-MAX_STEP_RATE_HZ = LIMITS.max_step_rate_hz
-"""Step-rate limit (steps/s)."""
-
-MAX_PROGRAMME_S = 600.0
-"""Longest programme the host runs (s): 10 minutes of samples at 2 kHz is 1.2 million rows."""
+from helpers.hardware import (
+    LIMITS,
+    MAX_PROGRAMME_S,
+    MAX_SPEED_MM_S,
+    MAX_STEP_RATE_HZ,
+    MAX_TRAVEL_MM,
+    MM_PER_STEP,
+)
+from helpers.programmes import Programme
 
 
 class SafetyError(ValueError):
@@ -81,7 +77,7 @@ def check_programme(programme: Any, start_position: int = 0) -> None:
 
     Parameters
     ----------
-    programme : helpers.profiles.Programme
+    programme : helpers.programmes.Programme
         The programme.
     start_position : int
         Motor position (steps) when ``GO`` is sent.
@@ -93,7 +89,7 @@ def check_programme(programme: Any, start_position: int = 0) -> None:
         dwell too long, travel outside 0-40 mm, or longer than :data:`MAX_PROGRAMME_S`.
     """
     if not isinstance(programme, Programme):
-        raise SafetyError(f"expected a helpers.profiles.Programme, got {type(programme).__name__}")
+        raise SafetyError(f"expected a helpers.programmes.Programme, got {type(programme).__name__}")
     try:
         programme.check_limits(start_position=start_position, limits=LIMITS)
     except ValueError as exc:

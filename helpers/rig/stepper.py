@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from helpers.profiles import Dwell, Programme, Segment
+from helpers.hardware import STEPPER_BAUD
+from helpers.programmes import Dwell, Programme, Segment
 from helpers.rig.boards import BoardError, BoardLink
 from helpers.rig.safety import check_programme
 
@@ -19,7 +20,7 @@ class StepperBoard(BoardLink):
     """The stepper board. ``done_position`` is set when the unsolicited ``DONE <position>`` arrives."""
 
     kind = "stepper"
-    baudrate = 115_200
+    baudrate = STEPPER_BAUD
 
     def clear(self) -> None:
         """``CLEAR`` the programme."""

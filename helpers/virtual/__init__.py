@@ -1,25 +1,25 @@
-"""The virtual rig: a calibrated nonlinear simulation of the arm, its cable and its load cell.
+"""The virtual rig's physics: a tuned nonlinear simulation of the arm, its cable and its load cell.
 
-The physics lives here (parameters, plant, sensor, statics, simulation, reference, calibration); the emulated
-serial boards that speak the firmware's protocol live in sibling modules (``boards``, ``protocol_virtual``,
-``server``). See ``docs/virtual_rig.md`` for every assumption and the validation.
+Physics only (parameters, plant, sensor, statics, simulation, the ``solve_ivp`` reference); it imports
+neither pyserial nor anything of the serial side. The emulated boards that put it behind the firmware's
+protocol live in :mod:`helpers.emulator`, and the procedure that tunes its unknown parameters in
+:mod:`helpers.rig_tuning`. ``RigParameters()`` is the tuned rig. See ``docs/virtual_rig.md`` for every
+assumption and the validation.
 """
 
-from helpers.virtual.calibration import calibrated_parameters
-from helpers.virtual.parameters import MM_PER_STEP, RigParameters
+from helpers.virtual.parameters import RigParameters, parameter_table
 from helpers.virtual.plant import ArmPlant
 from helpers.virtual.sensor import LoadCell
 from helpers.virtual.simulate import SimResult, simulate
 from helpers.virtual.statics import equilibrium, frequency_map, linearise
 
 __all__ = [
-    "MM_PER_STEP",
     "RigParameters",
+    "parameter_table",
     "ArmPlant",
     "LoadCell",
     "SimResult",
     "simulate",
-    "calibrated_parameters",
     "equilibrium",
     "linearise",
     "frequency_map",

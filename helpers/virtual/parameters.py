@@ -1,9 +1,11 @@
-"""Physical parameters of the virtual rig's plant and sensor: the one place they are defined.
+"""Physical parameters of the virtual rig's plant: the one place they are defined, tuned values included.
 
 Every field says its unit, its value and where the value comes from: *paper* (stated in the paper),
-*handbook* (a material constant), *assumed* (a plausible value nobody measured, with the reason) or
-*calibrated* (chosen in :mod:`helpers.virtual.calibration` so that the simulated rig reproduces the paper's
-identified mode and Table II magnitudes). ``docs/virtual_rig.md`` carries the same table with more words.
+*handbook* (a material constant), *assumed* (a plausible value nobody measured, with the reason) or *tuned*
+(chosen by the rig tuning, :mod:`helpers.rig_tuning`, so that the simulated rig reproduces the paper's
+identified mode and Table II magnitudes). ``RigParameters()`` is the tuned rig. The backbone's fields come
+from :class:`helpers.backbone.Backbone`, shared with the linear model. ``docs/virtual_rig.md`` carries the
+same table with more words.
 """
 
 from __future__ import annotations
@@ -13,29 +15,34 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 
-__all__ = ["RigParameters", "MM_PER_STEP"]
+from helpers.backbone import SOURCES as BACKBONE_SOURCES
+from helpers.backbone import Backbone
 
-MM_PER_STEP: float = math.pi * 65.0 / 800.0
-"""Cable travel per stepper step, mm: spool diameter 65 mm, 800 steps/rev (paper). Same as
-``helpers.profiles.MM_PER_STEP``; repeated here so that the physics does not import the command layer."""
+__all__ = ["RigParameters", "TUNED", "parameter_table"]
+
+TUNED: dict[str, float] = {
+    "disc_mass": 1.1333e-3,
+    "r": 7.8e-3,
+    "k": 6000.0,
+    "pretension": 2.3,
+    "base_angle_deg": 0.0,
+    "alpha": 1.8688,
+    "beta": 5.821e-4,
+}
+"""The values the rig tuning chose (the defaults of :class:`RigParameters`; ``docs/virtual_rig.md``)."""
 
 
 @dataclass(frozen=True)
-class RigParameters:
+class RigParameters(Backbone):
     """Parameters of the nonlinear arm, the cable and the load cell (SI units unless a name says otherwise).
+
+    The defaults are the tuned virtual rig. The backbone (``E``, ``rho``, ``d``, ``L``, ``n_discs``) is
+    :class:`helpers.backbone.Backbone`'s.
 
     Attributes
     ----------
-    E : float
-        Young's modulus of the backbone, Pa. 206.8e9 (30e6 psi), the value spring-wire makers tabulate for
-        ASTM A228 music wire (*handbook*; the same value as ``helpers.model``).
-    rho : float
-        Density of the backbone, kg/m^3. 7850 (carbon steel, *handbook*).
-    d : float
-        Backbone diameter, m. 0.82e-3 (*paper*).
-    L : float
-        Length of the arm from the clamp to the last disc, m. 0.24 (*paper*).
     n_discs : int
         Number of cable-support discs, 12 (*paper*). Disc ``k`` (1..n_discs) sits at arc length
         ``k L / n_discs``; the last one is at the tip, where the cable is knotted (*paper*). The cable
@@ -46,7 +53,7 @@ class RigParameters:
         Rigid segments between consecutive discs (1 by default: one segment per disc station). Larger values
         refine the rod for the convergence test while keeping the eyelets at the disc stations.
     disc_mass : float
-        Mass of each disc (with its share of eyelet, glue and knot), kg. *Calibrated* so that the dominant
+        Mass of each disc (with its share of eyelet, glue and knot), kg. *Tuned* so that the dominant
         mode of the simulated identification run has omega_d = 25.085 rad/s.
     disc_mass_uniform : bool
         If True, the total disc mass is spread over *every* node (uniform mass per length, as the paper's
@@ -55,51 +62,46 @@ class RigParameters:
         If True, the cable passes an eyelet at every node (the cable then follows the backbone polygon, as the
         continuum formula assumes); otherwise only at the disc stations (the real rig). Only for validation.
     r : float
-        Offset of the cable eyelets from the backbone's neutral axis, m. *Calibrated* (paper hint: ~7 mm).
+        Offset of the cable eyelets from the backbone's neutral axis, m. *Assumed* (paper hint: ~7 mm).
     k : float
-        Series stiffness of the cable, the pulleys and the load cell, N/m. *Calibrated* to Table II's Up
-        peaks.
+        Series stiffness of the cable, the pulleys and the load cell, N/m. *Tuned* to Table II's Up peaks.
     pretension : float
         Cable tension with the arm at rest at cable position 0 (the "down position"), N. *Calibrated* to the
         Down overshoots of Table II (their peaks read 0 N: the cable goes slack on the way down).
     base_angle_deg : float
         Direction of the backbone's tangent at the clamp, degrees counter-clockwise from the horizontal;
         gravity points along -y and the cable runs on the left (+normal) side, so pulling bends the arm
-        counter-clockwise. 0 = horizontal arm bending up, -90 = hanging arm, 90 = upright arm. *Calibrated*
-        / *assumed*, see ``docs/virtual_rig.md``.
+        counter-clockwise. 0 = horizontal arm bending up, -90 = hanging arm, 90 = upright arm. *Assumed*,
+        see ``docs/virtual_rig.md``.
     g : float
         Gravitational acceleration, m/s^2. 9.81; 0 switches gravity off (validation).
     alpha : float
         Mass-proportional damping, 1/s: a viscous drag ``-alpha m_j v_j`` on every point mass (air drag and
-        support losses). *Calibrated* with ``beta`` to zeta = 0.044 of the dominant mode.
+        support losses). *Tuned* with ``beta`` to zeta = 0.044 of the dominant mode.
     beta : float
         Stiffness-proportional damping, s: a dashpot ``beta * EI/l`` in parallel with every joint spring
-        (material damping of the wire). *Calibrated* with ``alpha``.
+        (material damping of the wire). *Tuned* with ``alpha``.
     max_step : float
         Largest integration step of the fixed-step integrator, s. Chosen by measured convergence against a
         tight solve_ivp reference (``docs/virtual_rig.md``).
     """
 
-    E: float = 206.8e9
-    rho: float = 7850.0
-    d: float = 0.82e-3
-    L: float = 0.24
-    n_discs: int = 12
     segments_per_disc: int = 1
-    disc_mass: float = 2.0e-3
+    disc_mass: float = TUNED["disc_mass"]
     disc_mass_uniform: bool = False
     eyelets_every_node: bool = False
-    r: float = 7.2e-3
-    k: float = 5000.0
-    pretension: float = 1.5
-    base_angle_deg: float = 0.0
+    r: float = TUNED["r"]
+    k: float = TUNED["k"]
+    pretension: float = TUNED["pretension"]
+    base_angle_deg: float = TUNED["base_angle_deg"]
     g: float = 9.81
-    alpha: float = 0.0
-    beta: float = 0.0
+    alpha: float = TUNED["alpha"]
+    beta: float = TUNED["beta"]
     max_step: float = 5.0e-4
 
     def __post_init__(self) -> None:
-        for name in ("E", "rho", "d", "L", "r", "k", "max_step"):
+        super().__post_init__()
+        for name in ("r", "k", "max_step"):
             value = getattr(self, name)
             if not (isinstance(value, int | float | np.floating) and math.isfinite(value) and value > 0):
                 raise ValueError(f"RigParameters.{name} must be a positive finite number, got {value!r}")
@@ -109,10 +111,9 @@ class RigParameters:
                 raise ValueError(f"RigParameters.{name} must be a finite number >= 0, got {value!r}")
         if not math.isfinite(self.base_angle_deg):
             raise ValueError(f"RigParameters.base_angle_deg must be finite, got {self.base_angle_deg!r}")
-        for name in ("n_discs", "segments_per_disc"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-                raise ValueError(f"RigParameters.{name} must be a positive integer, got {value!r}")
+        value = self.segments_per_disc
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            raise ValueError(f"RigParameters.segments_per_disc must be a positive integer, got {value!r}")
 
     def replace(self, **changes: object) -> RigParameters:
         """Return a copy with some fields changed (validated again)."""
@@ -127,21 +128,6 @@ class RigParameters:
     def segment_length(self) -> float:
         """Length of one rigid segment, m."""
         return self.L / self.n_segments
-
-    @property
-    def area(self) -> float:
-        """Backbone cross-section, m^2."""
-        return math.pi * self.d**2 / 4.0
-
-    @property
-    def EI(self) -> float:  # noqa: N802 - the conventional symbol
-        """Bending stiffness of the backbone, N m^2."""
-        return self.E * math.pi * self.d**4 / 64.0
-
-    @property
-    def rod_mass(self) -> float:
-        """Mass of the backbone wire, kg."""
-        return self.rho * self.area * self.L
 
     @property
     def total_mass(self) -> float:
@@ -194,3 +180,38 @@ class RigParameters:
         """Node indices of the eyelets (0 = the guide at the clamp), increasing, last = tip."""
         step = 1 if self.eyelets_every_node else self.segments_per_disc
         return np.arange(0, self.n_segments + 1, step, dtype=np.int64)
+
+
+_SOURCES: dict[str, tuple[str, str, str]] = {
+    # field: (unit, source, reason)
+    **BACKBONE_SOURCES,
+    "segments_per_disc": ("-", "numerical", "one rigid segment per disc interval; convergence checked"),
+    "disc_mass": ("kg", "tuned", "identification run gives omega_d = 25.085 rad/s via helpers.identify"),
+    "disc_mass_uniform": ("-", "numerical", "False: discs are point masses at their stations"),
+    "eyelets_every_node": ("-", "numerical", "False: cable straight between disc eyelets (True: validation)"),
+    "r": ("m", "assumed", "paper hint r ~ 7 mm; 7.8 mm puts the static Up tensions near Table II"),
+    "k": ("N/m", "tuned", "cable + load cell stiffness: sets the Up peaks/overshoots of Table II"),
+    "pretension": ("N", "tuned", "Down overshoots of Table II with a slack cable at the Down peak"),
+    "base_angle_deg": ("deg", "assumed", "clamp horizontal, arm bends up against gravity (Fig. 7 caption)"),
+    "g": ("m/s^2", "handbook", "standard gravity"),
+    "alpha": ("1/s", "tuned", "mass-proportional (air-drag) damping; Rayleigh pair gives zeta = 0.044"),
+    "beta": ("s", "tuned", "stiffness-proportional (wire) damping; Rayleigh pair gives zeta = 0.044"),
+    "max_step": ("s", "numerical", "RK4 step: max 0.01 N error vs 0.05 ms steps over a 12 s scenario"),
+}
+
+
+def parameter_table(params: RigParameters | None = None) -> pd.DataFrame:
+    """Every parameter of the rig with its value, unit, source and reason (for notebooks and docs).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index: field name; columns ``value``, ``unit``, ``source``, ``reason``.
+    """
+    params = RigParameters() if params is None else params
+    rows = []
+    for f in dataclasses.fields(params):
+        unit, source, reason = _SOURCES.get(f.name, ("", "", ""))
+        rows.append({"parameter": f.name, "value": getattr(params, f.name), "unit": unit, "source": source,
+                     "reason": reason})  # fmt: skip
+    return pd.DataFrame(rows).set_index("parameter")

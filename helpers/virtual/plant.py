@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from helpers.hardware import MM_PER_STEP
 from helpers.virtual import _kernel as kern
-from helpers.virtual.parameters import MM_PER_STEP, RigParameters
+from helpers.virtual.parameters import RigParameters
 from helpers.virtual.statics import model_arrays, node_positions
 
 __all__ = ["ArmPlant"]
@@ -26,7 +27,7 @@ class ArmPlant:
     Parameters
     ----------
     params : RigParameters
-        The physical parameters (e.g. :func:`helpers.virtual.calibrated_parameters`).
+        The physical parameters (e.g. the tuned rig, ``RigParameters()``).
     """
 
     def __init__(self, params: RigParameters) -> None:

@@ -12,7 +12,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.integrate import solve_ivp
 
-from helpers.virtual.parameters import MM_PER_STEP, RigParameters
+from helpers.hardware import MM_PER_STEP
+from helpers.virtual.parameters import RigParameters
 from helpers.virtual.statics import model_arrays
 
 __all__ = ["ReferenceArm", "reference_tension"]

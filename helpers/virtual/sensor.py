@@ -17,12 +17,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from helpers.hardware import ADC_MAX
 from helpers.virtual.parameters import RigParameters
 
-__all__ = ["LoadCell", "ADC_MAX", "GAIN_COUNTS_PER_N", "OFFSET_COUNTS", "NOISE_COUNTS_RMS"]
-
-ADC_MAX: int = 1023
-"""Largest 10-bit ADC reading."""
+__all__ = ["LoadCell", "GAIN_COUNTS_PER_N", "OFFSET_COUNTS", "NOISE_COUNTS_RMS"]
 
 GAIN_COUNTS_PER_N: float = 50.0
 """Counts per newton (assumed, see module docstring)."""

@@ -12,8 +12,11 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import pandas as pd
 
-from helpers.virtual.parameters import MM_PER_STEP, RigParameters
+from helpers.hardware import MM_PER_STEP
+from helpers.recordings import counts_to_newtons
+from helpers.virtual.parameters import RigParameters
 from helpers.virtual.plant import ArmPlant
 from helpers.virtual.sensor import LoadCell
 from helpers.virtual.statics import node_positions
@@ -71,12 +74,29 @@ class SimResult:
         x, y = self.shapes()
         return x[:, -1], y[:, -1]
 
+    def frame(self, signal: str = "tension") -> pd.DataFrame:
+        """The run as a recording-like frame: ``t_s``, ``steps`` and ``tension_n`` (for ``helpers.metrics``).
+
+        Parameters
+        ----------
+        signal : {"tension", "adc"}
+            ``tension_n`` is the true, noise-free tension, or the ADC counts converted with the load cell's
+            true calibration (what a calibrated user would compute from a recording).
+        """
+        if signal == "tension":
+            tension = self.tension
+        elif signal == "adc":
+            tension = counts_to_newtons(self.adc, self.newtons_per_count, self.offset_counts)
+        else:
+            raise ValueError(f"signal must be 'tension' or 'adc', got {signal!r}")
+        return pd.DataFrame({"t_s": self.t, "steps": self.steps, "tension_n": tension})
+
 
 def programme_steps(programme: Any) -> tuple[np.ndarray, np.ndarray, float]:
     """Step times (s from GO), signs and duration (s) of a programme.
 
-    Accepts a :class:`helpers.profiles.Programme` (``step_times()``, ``duration_s``), the tuple that
-    ``helpers.profiles.experiment_programme`` returns (programme, report), or ``(times_s, signs)`` arrays.
+    Accepts a :class:`helpers.programmes.Programme` (``step_times()``, ``duration_s``), the tuple that
+    ``helpers.programmes.experiment_programme`` returns (programme, report), or ``(times_s, signs)`` arrays.
     """
     if isinstance(programme, tuple) and len(programme) == 2 and hasattr(programme[0], "step_times"):
         programme = programme[0]
@@ -111,7 +131,7 @@ def simulate(
     rate_hz : float
         DAQ sample rate; samples at ``k / rate_hz`` for k = 0, 1, ... up to ``t_end``.
     params : RigParameters, optional
-        Default: :func:`helpers.virtual.calibrated_parameters`.
+        Default: the tuned rig ``RigParameters()``.
     t_go : float
         Time of GO on the DAQ clock, s (``experiment_programme`` already contains the 1 s lead-in, so 0).
     t_end : float, optional
@@ -130,9 +150,7 @@ def simulate(
     if not (math.isfinite(t_go) and t_go >= 0):
         raise ValueError(f"t_go must be >= 0, got {t_go!r}")
     if params is None:
-        from helpers.virtual.calibration import calibrated_parameters
-
-        params = calibrated_parameters() if plant is None else plant.params
+        params = RigParameters() if plant is None else plant.params
     times, signs, duration = programme_steps(programme)
     times = times + t_go
     t_end = t_go + duration if t_end is None else float(t_end)

@@ -22,10 +22,12 @@ serial = pytest.importorskip("serial")
 
 
 def _boards_module():
-    pytest.importorskip("helpers.rig", reason="helpers.rig (registers virtual://) is not importable")
-    return pytest.importorskip(
-        "helpers.virtual.boards", reason="helpers.virtual's emulated boards are missing"
-    )
+    return pytest.importorskip("helpers.emulator.world", reason="the emulated boards are missing")
+
+
+def _open(url: str, timeout: float):
+    ports = pytest.importorskip("helpers.rig.ports")
+    return ports.open_port(url, baudrate=115200, timeout=timeout, write_timeout=1.0)
 
 
 class _FlatPlant:
@@ -95,7 +97,7 @@ def _virtual(board: str) -> tuple[list[str], list[list[str]]]:
     world = boards.VirtualWorld(_FlatPlant(), _FlatSensor(), name=name)
     boards.register_world(world)
     try:
-        port = serial.serial_for_url(f"virtual://{board}?rig={name}", timeout=0.001)
+        port = _open(f"virtual://{board}?rig={name}", timeout=0.001)
         script = _script(board)
         times = fwsim.schedule(len(script), [p for _, p in script])
 

@@ -16,7 +16,7 @@ import pytest
 pytestmark = pytest.mark.firmware
 
 rig = pytest.importorskip("helpers.rig", reason="helpers.rig (the host drivers) is not importable")
-profiles = pytest.importorskip("helpers.profiles")
+programmes = pytest.importorskip("helpers.programmes")
 
 
 @pytest.fixture(scope="module")
@@ -65,12 +65,12 @@ def test_stepper_driver_runs_a_programme_on_the_firmware(rig_paths):
     stepper = rig.StepperBoard.open(rig_paths[1], timeout=3.0, hello_timeout=5.0)
     try:
         assert stepper.version == "1.0.0"
-        prog = profiles.Programme(
+        prog = programmes.Programme(
             (
-                profiles.Dwell(50),
-                profiles.Segment(1, 40, 1276),
-                profiles.Dwell(100),
-                profiles.Segment(-1, 15, 851),
+                programmes.Dwell(50),
+                programmes.Segment(1, 40, 1276),
+                programmes.Dwell(100),
+                programmes.Segment(-1, 15, 851),
             )
         )
         start = stepper.position()
@@ -109,13 +109,13 @@ def test_rig_records_the_steps_the_stepper_firmware_issues(rig_paths, tmp_path):
     )
     try:
         n_up, iv, hold_ms = 10, 1276, 200
-        prog = profiles.Programme(
+        prog = programmes.Programme(
             (
-                profiles.Dwell(100),
-                profiles.Segment(1, n_up, iv),
-                profiles.Dwell(hold_ms),
-                profiles.Segment(-1, n_up, iv),
-                profiles.Dwell(100),
+                programmes.Dwell(100),
+                programmes.Segment(1, n_up, iv),
+                programmes.Dwell(hold_ms),
+                programmes.Segment(-1, n_up, iv),
+                programmes.Dwell(100),
             )
         )
         rec = the_rig.run(prog, path=tmp_path / "run", rate_hz=1000, progress=False)

@@ -30,14 +30,14 @@ def unshaped_programme(v_mm_s: float, x_mm: float) -> list[tuple]:
 
 
 def zvd_programme(v_mm_s: float, x_mm: float) -> list[tuple]:
-    """The robust-TDF version of the same move, as the project's helpers.profiles builds it."""
-    profiles = pytest.importorskip("helpers.profiles")
+    """The robust-TDF version of the same move, as the project's helpers.programmes builds it."""
+    programmes = pytest.importorskip("helpers.programmes")
     shapers = pytest.importorskip("helpers.shapers")
     _, robust = shapers.paper_tdfs()
-    prog, _ = profiles.experiment_programme(v_mm_s, x_mm, robust, t_end=8.8)
+    prog, _ = programmes.experiment_programme(v_mm_s, x_mm, robust, t_end=8.8)
     out: list[tuple] = []
     for item in prog.items:
-        if isinstance(item, profiles.Segment):
+        if isinstance(item, programmes.Segment):
             out.append(("SEG", item.direction, item.n_steps, item.interval_us))
         else:
             out.append(("WAIT", item.ms))

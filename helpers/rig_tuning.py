@@ -1,4 +1,7 @@
-"""Calibration of the virtual rig's unknown parameters to the paper's identified mode and Table II.
+"""Rig tuning: choosing the virtual rig's unknown parameters so that it reproduces the paper's numbers.
+
+(Not to be confused with the *load-cell calibration*, :mod:`helpers.loadcell`, or the linear model's *fit*,
+:func:`helpers.model.fit_to_mode`.)
 
 The paper states the backbone (A228 wire, d = 0.82 mm, L = 0.24 m, 12 discs) and the stepper, not the disc
 mass, the cable offset r, the cable/load-cell stiffness k, the pretension, the mounting orientation or the
@@ -6,13 +9,13 @@ damping. They are chosen here, in two layers:
 
 1. *assumed* from the paper's hints (reasons in ``docs/virtual_rig.md`` and on
    :class:`~helpers.virtual.parameters.RigParameters`): r, the base orientation;
-2. *calibrated* against simulated experiments analysed by the project's own code: the disc mass and the
+2. *tuned* against simulated experiments analysed by the project's own code: the disc mass and the
    damping so that the identification run (100 mm/s, 10 mm, analysed on 9-10 s by
    :func:`helpers.identify.identify`) gives omega_d = 25.085 rad/s and zeta = 0.044; k and the pretension
    so that the unshaped pulse runs of Table I land near the paper's Up peaks and Down overshoots.
 
-The result is stored as literals in :func:`calibrated_parameters` (so that nothing slow runs on import);
-:func:`calibrate` re-derives them and notebook 06 shows the check.
+The result is stored as literals in :data:`helpers.virtual.parameters.TUNED` (so that nothing slow runs on
+import; ``RigParameters()`` is the tuned rig); :func:`tune` re-derives them and notebook 06 shows the check.
 """
 
 from __future__ import annotations
@@ -25,59 +28,36 @@ import numpy as np
 import pandas as pd
 
 from helpers import paper
-from helpers.virtual.parameters import RigParameters
+from helpers.identify import IdentificationResult, identify
+from helpers.metrics import MOTIONS, recording_metrics
+from helpers.programmes import experiment_programme
+from helpers.shapers import paper_tdfs
+from helpers.virtual import ArmPlant, RigParameters, SimResult, linearise, simulate
 
 __all__ = [
-    "calibrated_parameters",
     "identification_run",
     "identified_mode",
     "pulse_runs",
     "pulse_table",
     "rayleigh_for",
-    "calibrate",
-    "parameter_table",
-    "CALIBRATED",
+    "tune",
 ]
 
-CALIBRATED: dict[str, float] = {
-    "disc_mass": 1.1333e-3,
-    "r": 7.8e-3,
-    "k": 6000.0,
-    "pretension": 2.3,
-    "base_angle_deg": 0.0,
-    "alpha": 1.8688,
-    "beta": 5.821e-4,
-}
-"""The calibrated values (literals written by :func:`calibrate`, see ``docs/virtual_rig.md``)."""
 
-
-def calibrated_parameters() -> RigParameters:
-    """The calibrated virtual rig (12 discs, one segment per disc).
-
-    Returns
-    -------
-    RigParameters
-    """
-    return RigParameters(**CALIBRATED)
-
-
-def identification_run(params: RigParameters, seed: int | None = 0, rate_hz: float = 1000.0) -> Any:
+def identification_run(params: RigParameters, seed: int | None = 0, rate_hz: float = 1000.0) -> SimResult:
     """Simulate the paper's identification experiment (100 mm/s, 10 mm, up at 1 s, down at 8 s, 12 s).
 
     Returns
     -------
     helpers.virtual.SimResult
     """
-    from helpers.profiles import experiment_programme
-    from helpers.virtual.simulate import simulate
-
     prog, _ = experiment_programme(
         paper.IDENTIFICATION_RUN["v_in_mm_s"], paper.IDENTIFICATION_RUN["x_f_mm"]
     )
     return simulate(prog, rate_hz=rate_hz, params=params, seed=seed)
 
 
-def identified_mode(params: RigParameters, seed: int | None = 0, signal: str = "adc") -> Any:
+def identified_mode(params: RigParameters, seed: int | None = 0, signal: str = "adc") -> IdentificationResult:
     """Identify the dominant mode of a simulated identification run with :func:`helpers.identify.identify`.
 
     Parameters
@@ -93,8 +73,6 @@ def identified_mode(params: RigParameters, seed: int | None = 0, signal: str = "
     -------
     helpers.identify.IdentificationResult
     """
-    from helpers.identify import identify
-
     if signal not in ("adc", "tension"):
         raise ValueError(f"signal must be 'adc' or 'tension', got {signal!r}")
     run = identification_run(params, seed=seed)
@@ -110,16 +88,8 @@ def pulse_runs(params: RigParameters, systems: tuple[str, ...] = ("unshaped",), 
     dict
         ``(v_in, x_f, system) -> SimResult``.
     """
-    from helpers.profiles import experiment_programme
-    from helpers.virtual.plant import ArmPlant
-    from helpers.virtual.simulate import simulate
-
-    shapers: dict[str, Any] = {"unshaped": None}
-    if any(s != "unshaped" for s in systems):
-        from helpers.shapers import paper_tdfs
-
-        tdfs = paper_tdfs()
-        shapers.update({"zv": tdfs[0], "zvd": tdfs[1]} if isinstance(tdfs, tuple) else tdfs)
+    zv, zvd = paper_tdfs()
+    shapers: dict[str, Any] = {"unshaped": None, "zv": zv, "zvd": zvd}
     plant = ArmPlant(params)
     out = {}
     for v_in, x_f in paper.TABLE_I_CONDITIONS:
@@ -130,23 +100,27 @@ def pulse_runs(params: RigParameters, systems: tuple[str, ...] = ("unshaped",), 
 
 
 def pulse_table(runs: dict, signal: str = "tension") -> pd.DataFrame:
-    """Table II metrics of simulated runs (via :mod:`helpers.metrics`) beside the paper's values.
+    """Table II metrics of simulated runs (:func:`helpers.metrics.recording_metrics`) beside the paper's.
+
+    Parameters
+    ----------
+    runs : dict
+        ``(v_in, x_f, system) -> SimResult`` (:func:`pulse_runs`).
+    signal : {"tension", "adc"}
+        The noise-free tension, or the ADC counts converted with the load cell's true calibration.
 
     Returns
     -------
     pandas.DataFrame
-        One row per condition, system and motion: ``peak_n``, ``overshoot_pct``, ``settling_ms`` and the
-        paper's ``paper_peak_n``, ``paper_overshoot_pct``, ``paper_settling_ms``.
+        One row per condition, system and motion: ``y0_n``, ``yf_n``, ``peak_n``, ``overshoot_pct``,
+        ``settling_ms`` and the paper's ``paper_peak_n``, ``paper_overshoot_pct``, ``paper_settling_ms``.
     """
-    from helpers.metrics import motion_metrics, segment_motions
-
     ref = paper.table_ii().set_index(["v_in_mm_s", "x_f_mm", "system", "motion"])
     rows = []
     for (v_in, x_f, system), run in runs.items():
-        y = run.tension if signal == "tension" else (run.adc - run.offset_counts) * run.newtons_per_count
-        mot = segment_motions(run.t, run.steps)
-        for motion, start, end in (("Up", mot.up_start, mot.down_start), ("Down", mot.down_start, mot.end)):
-            m = motion_metrics(run.t, y, start, end, motion)
+        metrics = recording_metrics(run.frame(signal)).set_index("motion")
+        for motion in MOTIONS:
+            m = metrics.loc[motion]
             p = ref.loc[(float(v_in), float(x_f), system, motion)]
             rows.append(
                 {
@@ -154,11 +128,11 @@ def pulse_table(runs: dict, signal: str = "tension") -> pd.DataFrame:
                     "x_f_mm": x_f,
                     "system": system,
                     "motion": motion,
-                    "y0_n": m.y0,
-                    "yf_n": m.yf,
-                    "peak_n": m.peak,
-                    "overshoot_pct": m.overshoot_pct,
-                    "settling_ms": m.settling_ms,
+                    "y0_n": m["y0_n"],
+                    "yf_n": m["yf_n"],
+                    "peak_n": m["peak_n"],
+                    "overshoot_pct": m["overshoot_pct"],
+                    "settling_ms": m["settling_ms"],
                     "paper_peak_n": p["peak_n"],
                     "paper_overshoot_pct": p["overshoot_pct"],
                     "paper_settling_ms": p["settling_ms"],
@@ -173,10 +147,8 @@ def rayleigh_for(params: RigParameters, zeta: float) -> RigParameters:
     As the paper does for its modal model (eqs. 8-10): ``alpha = 2 zeta w1 w2 / (w1 + w2)``,
     ``beta = 2 zeta / (w1 + w2)`` with w1, w2 the two lowest undamped frequencies of the rig linearised about
     its rest state (the cable makes the damping non-proportional, so the realised ratios differ slightly;
-    :func:`calibrate` corrects ``zeta`` against the identification).
+    :func:`tune` corrects ``zeta`` against the identification).
     """
-    from helpers.virtual.statics import linearise
-
     if not (math.isfinite(zeta) and 0 <= zeta < 1):
         raise ValueError(f"zeta must be in [0, 1), got {zeta!r}")
     lin = linearise(params.replace(alpha=0.0, beta=0.0), 0.0)
@@ -185,14 +157,14 @@ def rayleigh_for(params: RigParameters, zeta: float) -> RigParameters:
     return params.replace(alpha=2 * zeta * w1 * w2 / (w1 + w2), beta=2 * zeta / (w1 + w2))
 
 
-def calibrate(
+def tune(
     base: RigParameters | None = None,
     omega_d: float = paper.OMEGA_D,
     zeta: float = paper.ZETA,
     n_iter: int = 6,
     verbose: bool = False,
 ) -> tuple[RigParameters, pd.DataFrame]:
-    """Re-derive the disc mass and the damping from simulated identification runs.
+    """Re-derive the disc mass and the damping from simulated identification runs (the rig tuning).
 
     Holds ``r``, ``k``, the pretension and the orientation of ``base`` fixed and iterates: disc mass by a
     secant step on ``log omega_d`` against ``log disc_mass`` (omega ~ m^-1/2), damping by scaling the Rayleigh
@@ -201,9 +173,9 @@ def calibrate(
     Returns
     -------
     (RigParameters, pandas.DataFrame)
-        The calibrated parameters and the iteration history.
+        The tuned parameters and the iteration history.
     """
-    base = calibrated_parameters() if base is None else base
+    base = RigParameters() if base is None else base
     z_target = zeta
     p = rayleigh_for(base, z_target)
     history = []
@@ -223,42 +195,3 @@ def calibrate(
         z_target *= zeta / res.zeta
         p = rayleigh_for(dataclasses.replace(p, disc_mass=mass), z_target)
     return p, pd.DataFrame(history)
-
-
-_SOURCES: dict[str, tuple[str, str, str]] = {
-    # field: (unit, source, reason)
-    "E": ("Pa", "handbook", "ASTM A228 music wire, 30e6 psi (same value as helpers.model)"),
-    "rho": ("kg/m^3", "handbook", "carbon steel"),
-    "d": ("m", "paper", "backbone diameter 0.82 mm"),
-    "L": ("m", "paper", "arm length 0.24 m"),
-    "n_discs": ("-", "paper", "12 cable-support discs, the last at the tip where the cable is knotted"),
-    "segments_per_disc": ("-", "numerical", "one rigid segment per disc interval; convergence checked"),
-    "disc_mass": ("kg", "calibrated", "identification run gives omega_d = 25.085 rad/s via helpers.identify"),
-    "disc_mass_uniform": ("-", "numerical", "False: discs are point masses at their stations"),
-    "eyelets_every_node": ("-", "numerical", "False: cable straight between disc eyelets (True: validation)"),
-    "r": ("m", "assumed", "paper hint r ~ 7 mm; 7.8 mm puts the static Up tensions near Table II"),
-    "k": ("N/m", "calibrated", "cable + load cell stiffness: sets the Up peaks/overshoots of Table II"),
-    "pretension": ("N", "calibrated", "Down overshoots of Table II with a slack cable at the Down peak"),
-    "base_angle_deg": ("deg", "assumed", "clamp horizontal, arm bends up against gravity (Fig. 7 caption)"),
-    "g": ("m/s^2", "handbook", "standard gravity"),
-    "alpha": ("1/s", "calibrated", "mass-proportional (air-drag) damping; Rayleigh pair gives zeta = 0.044"),
-    "beta": ("s", "calibrated", "stiffness-proportional (wire) damping; Rayleigh pair gives zeta = 0.044"),
-    "max_step": ("s", "numerical", "RK4 step: max 0.01 N error vs 0.05 ms steps over a 12 s scenario"),
-}
-
-
-def parameter_table(params: RigParameters | None = None) -> pd.DataFrame:
-    """Every parameter of the rig with its value, unit, source and reason (for notebooks and docs).
-
-    Returns
-    -------
-    pandas.DataFrame
-        Index: field name; columns ``value``, ``unit``, ``source``, ``reason``.
-    """
-    params = calibrated_parameters() if params is None else params
-    rows = []
-    for f in dataclasses.fields(params):
-        unit, source, reason = _SOURCES.get(f.name, ("", "", ""))
-        rows.append({"parameter": f.name, "value": getattr(params, f.name), "unit": unit, "source": source,
-                     "reason": reason})  # fmt: skip
-    return pd.DataFrame(rows).set_index("parameter")

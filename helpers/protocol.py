@@ -1,8 +1,9 @@
-"""Line framing of the serial protocol (``firmware/PROTOCOL.md``): checksums, line splitting, parsing.
+"""The serial protocol of both boards (``firmware/PROTOCOL.md``): framing, checksums, line splitting, parsing.
 
-Every line a board sends ends in ``*hh``, the XOR of all bytes before the ``*`` as two upper-case hex digits.
-This module turns a byte stream into classified lines and never raises on garbage: a line that fails any
-check (non-ASCII, missing or wrong checksum, too long, malformed data fields) is reported as corrupted.
+The host drivers (``helpers.rig``) and the emulated boards (``helpers.emulator``) both speak it through this
+module. Every line a board sends ends in ``*hh``, the XOR of all bytes before the ``*`` as two upper-case hex
+digits. This module turns a byte stream into classified lines and never raises on garbage: a line that fails
+any check (non-ASCII, missing or wrong checksum, too long, malformed data fields) is reported as corrupted.
 
 :class:`StreamParser` is the one place where the DAQ stream's bookkeeping happens: it counts exactly
 
@@ -20,6 +21,11 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from helpers.hardware import ADC_MAX
+
+FW_VERSION = "1.0.0"
+"""The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
 
 MAX_LINE = 63
 """Characters a line may hold before its ``\\n`` (PROTOCOL.md)."""
@@ -75,6 +81,21 @@ def frame(body: str) -> bytes:
     if len(line) > MAX_LINE:
         raise ValueError(f"line {line!r} has {len(line)} characters; the protocol allows {MAX_LINE}")
     return (line + "\n").encode("ascii")
+
+
+_HEX2 = [f"{x:02X}" for x in range(256)]
+
+
+def frame_many(bodies: list[str]) -> bytes:
+    """Return every body framed as by :func:`frame`, joined (checksums vectorised with numpy; no checks)."""
+    blob = "\n".join(bodies).encode("ascii")
+    acc = np.bitwise_xor.accumulate(np.frombuffer(blob, dtype=np.uint8))
+    lens = np.fromiter(map(len, bodies), dtype=np.int64, count=len(bodies))
+    ends = np.cumsum(lens + 1) - 2  # index of each body's last byte
+    starts = ends - lens + 1
+    before = np.where(starts > 0, acc[np.maximum(starts - 1, 0)], 0)
+    xors = (acc[ends] ^ before).tolist()
+    return "".join(f"{b}*{_HEX2[x]}\n" for b, x in zip(bodies, xors, strict=True)).encode("ascii")
 
 
 def unframe(line: bytes, require_checksum: bool = True) -> str:
@@ -160,7 +181,7 @@ def parse_body(body: str) -> Sample | Overrun | str:
         if not (_UINT.match(seq_s) and _UINT.match(t_s) and _UINT.match(adc_s) and _INT.match(steps_s)):
             raise FramingError("data line with a non-integer field")
         seq, t_us, adc = int(seq_s), int(t_s), int(adc_s)
-        if t_us >= WRAP_US or adc > 1023:
+        if t_us >= WRAP_US or adc > ADC_MAX:
             raise FramingError("data line field out of range")
         return Sample(seq, t_us, adc, int(steps_s))
     if body.startswith("W,"):
@@ -260,7 +281,7 @@ class StreamParser:
             m = _FAST_DATA.fullmatch(line)
             if m is not None and int(m[5], 16) == x:  # the common case: a well-formed data line
                 seq, t_raw, adc = int(m[1]), int(m[2]), int(m[3])
-                if adc <= 1023 and t_raw < WRAP_US and (self.last_seq is None or seq > self.last_seq):
+                if adc <= ADC_MAX and t_raw < WRAP_US and (self.last_seq is None or seq > self.last_seq):
                     stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
                     self.last_seq = seq
                     stats.samples += 1

@@ -5,8 +5,8 @@ Creates two pseudo-terminals (``os.openpty``, raw mode), prints their device pat
     daq /dev/pts/5
     stepper /dev/pts/6
 
-and serves the emulated boards (:mod:`helpers.virtual.boards`) on them until interrupted, so that any program,
-including a notebook's live cells, can connect by device path exactly as to the hardware
+and serves the emulated boards (:mod:`helpers.emulator.boards`) on them until interrupted, so that any
+program, including a notebook's live cells, can connect by device path exactly as to the hardware
 (``Rig.connect(("/dev/pts/5", "/dev/pts/6"))``).
 
 A reader on a pseudo-terminal cannot pull device time forward, so the server paces it to the wall clock:
@@ -15,7 +15,7 @@ faster; ``--speed 0`` advances only as fast as the reader drains the DAQ's outpu
 not collect pile up in the server; beyond ``--buffer`` bytes the oldest are dropped, as a real USB-serial link
 would lose them (the host then sees gaps in ``seq``).
 
-While it runs, the server announces itself in :data:`helpers.rig.experiment.VIRTUAL_REGISTRY` so that
+While it runs, the server announces itself in :data:`helpers.paths.VIRTUAL_RIG_REGISTRY` so that
 recordings made through its ports are labelled ``virtual-rig``, never ``hardware``.
 """
 
@@ -30,11 +30,14 @@ import sys
 import threading
 import time
 import tty
+import urllib.parse
 from collections import deque
 from pathlib import Path
 from typing import Any
 
-from helpers.virtual.boards import EmulatedBoard, Faults, VirtualWorld, default_world
+from helpers.emulator.boards import EmulatedBoard, Faults
+from helpers.emulator.world import VirtualWorld, default_world
+from helpers.paths import VIRTUAL_RIG_REGISTRY
 
 
 class _PtyPort:
@@ -100,10 +103,8 @@ class _PtyPort:
 
 def announce(world: VirtualWorld, ports: dict[str, str], speed: float) -> Path:
     """Write this server's announcement (pid, device paths, provenance) and return its path."""
-    from helpers.rig.experiment import VIRTUAL_REGISTRY
-
-    VIRTUAL_REGISTRY.mkdir(parents=True, exist_ok=True)
-    path = VIRTUAL_REGISTRY / f"{os.getpid()}.json"
+    VIRTUAL_RIG_REGISTRY.mkdir(parents=True, exist_ok=True)
+    path = VIRTUAL_RIG_REGISTRY / f"{os.getpid()}.json"
     info: dict[str, Any] = {
         "pid": os.getpid(),
         "rig": world.name,
@@ -211,8 +212,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _faults(text: str) -> Faults:
-    import urllib.parse
-
     return Faults.from_options(dict(urllib.parse.parse_qsl(text.replace(",", "&"))))
 
 

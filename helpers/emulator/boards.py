@@ -1,16 +1,9 @@
-"""Emulated DAQ and stepper boards of the virtual rig, sharing one world and one device clock.
+"""Emulated DAQ and stepper boards: Python objects that behave exactly as the firmware does on the protocol.
 
-The boards behave as the firmware must on ``firmware/PROTOCOL.md``: the same replies, error codes, limits,
-``HELLO`` on reset, ``W,OVERRUN`` reporting and version ``1.0.0``. They drive a plant given to them
-(dependency injection: the virtual rig's :class:`helpers.virtual.ArmPlant`, or a test double with the same
-``advance`` signature) and read the tension through a sensor model (``LoadCell.counts``).
-
-Time model: :class:`VirtualWorld` owns the device clock ``t`` (seconds, shared by both boards). Nothing
-happens between calls; time moves only when :meth:`VirtualWorld.advance_to` is called, which integrates the
-plant over the interval with the stepper's steps at their exact programme times, takes the DAQ samples that
-fall in it and queues every line the boards send, each stamped with its device time. A reader (the pyserial
-URL handler or the pseudo-terminal server) decides how far to advance: in-process, as far as the reader needs
-(so the virtual rig runs faster than real time); on a pseudo-terminal, paced to the wall clock.
+The boards follow ``firmware/PROTOCOL.md``: the same replies, error codes, limits (:mod:`helpers.hardware`),
+``HELLO`` on reset, ``W,OVERRUN`` reporting and version (:data:`helpers.protocol.FW_VERSION`). They live in a
+:class:`helpers.emulator.world.VirtualWorld`, which owns the device clock and the plant; a board sees the
+world only through the attributes it reads (``t``, ``seed``, ``t0_us``, ``go_times``).
 
 Fault injection (per board, for tests): ``drop`` / ``corrupt`` / ``garbage`` probabilities per data line,
 ``reset_at`` (the board reboots and sends ``HELLO``), ``hang_at`` (the board stops answering),
@@ -22,31 +15,21 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 
-from helpers.profiles import LIMITS
+from helpers.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
+from helpers.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, frame, frame_many
 
-FW_VERSION = "1.0.0"
-"""The firmware version the emulated boards report (the same as the firmware they emulate)."""
-
-MAX_LINE = 63
-WRAP_US = 1 << 32
-
-# Compiled-in limits of the firmware (PROTOCOL.md); the stepper's come from helpers.profiles.LIMITS.
-DAQ_RATE_MIN, DAQ_RATE_MAX, DAQ_RATE_DEFAULT = 100, 2000, 1000
+DAQ_RATE_MIN, DAQ_RATE_MAX, DAQ_RATE_DEFAULT = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_DEFAULT_HZ
 MIN_INTERVAL_US = LIMITS.min_interval_us
 MAX_INTERVAL_US = LIMITS.max_interval_us
 MAX_TRAVEL_STEPS = LIMITS.max_position_steps
 MAX_ITEMS = LIMITS.max_items
 MAX_DWELL_MS = LIMITS.max_dwell_ms
 INT32_MAX = 2**31 - 1
-
-_HEX = "0123456789ABCDEF"
-
 
 class Plant(Protocol):
     """What the boards need from a plant (``helpers.virtual.ArmPlant`` or a test double)."""
@@ -64,33 +47,6 @@ class Sensor(Protocol):
     def counts(self, tension: np.ndarray) -> np.ndarray:
         """Return 10-bit ADC counts for tensions in N."""
         ...
-
-
-def _checksum(body: str) -> str:
-    x = 0
-    for b in body.encode("ascii"):
-        x ^= b
-    return _HEX[x >> 4] + _HEX[x & 15]
-
-
-def framed(body: str) -> bytes:
-    r"""Return ``b"<body>*hh\\n"``."""
-    return f"{body}*{_checksum(body)}\n".encode("ascii")
-
-
-_HEX2 = [f"{x:02X}" for x in range(256)]
-
-
-def framed_many(bodies: list[str]) -> bytes:
-    """Return every body framed as by :func:`framed`, joined (checksums computed with numpy)."""
-    blob = "\n".join(bodies).encode("ascii")
-    acc = np.bitwise_xor.accumulate(np.frombuffer(blob, dtype=np.uint8))
-    lens = np.fromiter(map(len, bodies), dtype=np.int64, count=len(bodies))
-    ends = np.cumsum(lens + 1) - 2  # index of each body's last byte
-    starts = ends - lens + 1
-    before = np.where(starts > 0, acc[np.maximum(starts - 1, 0)], 0)
-    xors = (acc[ends] ^ before).tolist()
-    return "".join(f"{b}*{_HEX2[x]}\n" for b, x in zip(bodies, xors, strict=True)).encode("ascii")
 
 
 @dataclass
@@ -149,7 +105,7 @@ class EmulatedBoard:
 
     kind = "board"
 
-    def __init__(self, world: VirtualWorld, faults: Faults | None = None) -> None:
+    def __init__(self, world: Any, faults: Faults | None = None) -> None:
         self.world = world
         self.faults = faults or Faults()
         self.out: deque[bytes] = deque()
@@ -166,7 +122,7 @@ class EmulatedBoard:
     def send(self, body: str) -> None:
         """Queue one line (silently lost if the board hangs or is disconnected)."""
         if not (self.hung or self.disconnected):
-            self.out.append(framed(body))
+            self.out.append(frame(body))
 
     def take_output(self, max_bytes: int | None = None) -> bytes:
         """Remove and return queued bytes (whole lines, at least one line if any is queued)."""
@@ -229,10 +185,7 @@ class EmulatedBoard:
             body = text[:star]
             if len(given) != 2 or any(c not in "0123456789ABCDEFabcdef" for c in given):
                 return "ERR CHECKSUM bad checksum"
-            x = 0
-            for b in line[:star]:
-                x ^= b
-            if int(given, 16) != x:
+            if int(given, 16) != int(checksum(line[:star]), 16):
                 return "ERR CHECKSUM bad checksum"
             text = body
             if not text:
@@ -295,7 +248,7 @@ class DaqEmulator(EmulatedBoard):
 
     kind = "daq"
 
-    def __init__(self, world: VirtualWorld, faults: Faults | None = None) -> None:
+    def __init__(self, world: Any, faults: Faults | None = None) -> None:
         super().__init__(world, faults)
         self.rate = DAQ_RATE_DEFAULT
         self.streaming = False
@@ -380,7 +333,7 @@ class DaqEmulator(EmulatedBoard):
             bodies = [f"D,{a},{b},{c},{d}" for a, b, c, d in columns]
             self.n_sent = seq0 + len(slots)
             if not (self.hung or self.disconnected):
-                self.out.append(framed_many(bodies))
+                self.out.append(frame_many(bodies))
             return
         lines = []
         seq = self.n_sent
@@ -390,7 +343,7 @@ class DaqEmulator(EmulatedBoard):
                 self.injected["overrun_periods"] += 1
                 continue
             if self._pending_overrun:
-                lines.append(framed(f"W,OVERRUN,{self._pending_overrun}"))
+                lines.append(frame(f"W,OVERRUN,{self._pending_overrun}"))
                 self._pending_overrun = 0
             body = f"D,{seq},{t_us[i]},{counts[i]},{steps[i]}"
             seq += 1
@@ -402,7 +355,7 @@ class DaqEmulator(EmulatedBoard):
                 if f.drop and rng.random() < f.drop:
                     self.injected["dropped"] += 1
                     continue
-                line = framed(body)
+                line = frame(body)
                 if f.corrupt and rng.random() < f.corrupt:
                     pos = int(rng.integers(0, len(line) - 1))
                     b = bytearray(line)
@@ -414,7 +367,7 @@ class DaqEmulator(EmulatedBoard):
                     self.injected["corrupted"] += 1
                 lines.append(line)
             else:
-                lines.append(framed(body))
+                lines.append(frame(body))
         self.n_sent = seq
         if not (self.hung or self.disconnected):
             self.out.extend(lines)
@@ -437,7 +390,7 @@ class StepperEmulator(EmulatedBoard):
 
     kind = "stepper"
 
-    def __init__(self, world: VirtualWorld, faults: Faults | None = None) -> None:
+    def __init__(self, world: Any, faults: Faults | None = None) -> None:
         super().__init__(world, faults)
         self.items: list[_Item] = []
         self.enabled = False
@@ -571,193 +524,3 @@ class StepperEmulator(EmulatedBoard):
         if self.running and self._end_t <= t1 + 1e-12:
             self.running = False
             self.send(f"DONE {self.position}")
-
-
-@dataclass
-class VirtualWorld:
-    """One virtual rig: the plant, the sensor, both boards and their shared device clock.
-
-    Parameters
-    ----------
-    plant : Plant
-        Integrates the arm; ``advance(sample_times, step_times, step_signs)`` returns tension (N).
-    sensor : Sensor
-        ``counts(tension)`` gives ADC counts (noise and quantisation included).
-    name : str
-        The rig's name in ``virtual://...?rig=<name>`` URLs.
-    seed : int
-        Seed of the fault generators.
-    t0_us : int
-        Offset of the boards' ``micros()`` (to exercise the 32-bit wrap).
-    info : dict
-        Provenance written into recordings: the virtual rig's version and parameters.
-    """
-
-    plant: Any
-    sensor: Any
-    name: str = "default"
-    seed: int = 0
-    t0_us: int = 0
-    info: dict[str, Any] = field(default_factory=dict)
-    daq_faults: Faults = field(default_factory=Faults)
-    stepper_faults: Faults = field(default_factory=Faults)
-    chunk_s: float = 0.05
-    """Device time generated per step when a reader pulls DAQ data."""
-
-    def __post_init__(self) -> None:
-        self.t = float(getattr(self.plant, "t", 0.0))
-        self.load_n: float | None = None
-        self.go_times: list[float] = []
-        self.daq = DaqEmulator(self, self.daq_faults)
-        self.stepper = StepperEmulator(self, self.stepper_faults)
-        self.daq.reset()
-        self.stepper.reset()
-        self.listeners: list[Callable[[VirtualWorld], None]] = []
-
-    # --- calibration fixture ----------------------------------------------------------------------------
-    def hang_load(self, load_n: float | None) -> None:
-        """VIRTUAL calibration fixture: hang a known load (N) on the load cell (``None``: the arm again).
-
-        While a load hangs, the DAQ reads the sensor at that tension instead of the cable's.
-        """
-        if load_n is not None and (not math.isfinite(load_n) or load_n < 0):
-            raise ValueError(f"calibration load must be a finite non-negative force in N, got {load_n}")
-        self.load_n = None if load_n is None else float(load_n)
-
-    # --- time ---------------------------------------------------------------------------------------
-    def _fault_times(self) -> list[tuple[float, EmulatedBoard, str]]:
-        out = []
-        for board in (self.daq, self.stepper):
-            for what in ("reset_at", "hang_at", "disconnect_at"):
-                at = getattr(board.faults, what)
-                if at is not None and at > self.t:
-                    out.append((at, board, what))
-        return sorted(out, key=lambda x: x[0])
-
-    def next_event(self) -> float:
-        """Device time of the next unsolicited non-data line or fault, or inf."""
-        cands = [self.stepper.next_event()] + [t for t, _, _ in self._fault_times()]
-        return min(cands)
-
-    def advance_to(self, t_end: float) -> None:
-        """Move the device clock to ``t_end`` (s): steps, plant, samples, DONE and faults in order."""
-        while t_end > self.t + 1e-12:
-            faults = self._fault_times()
-            t1 = min([t_end] + [t for t, _, _ in faults if t <= t_end])
-            self._advance_plain(t1)
-            for at, board, what in faults:
-                if at <= t1 + 1e-12:
-                    setattr(board.faults, what, None)
-                    if what == "reset_at":
-                        board.reset()
-                    elif what == "hang_at":
-                        board.hung = True
-                        if isinstance(board, StepperEmulator):
-                            board._stop()
-                    else:
-                        board.disconnected = True
-                        if isinstance(board, StepperEmulator):
-                            board._stop()
-
-    def _advance_plain(self, t1: float) -> None:
-        t0 = self.t
-        step_t, step_s = self.stepper.steps_until(t1)
-        slots = self.daq.sample_slots(t0, t1)
-        times = self.daq._t_start + slots / self.daq.rate
-        plant_times = times if len(times) and times[-1] >= t1 - 1e-12 else np.append(times, t1)
-        tension = np.asarray(self.plant.advance(plant_times, step_t, step_s), dtype=float)
-        if len(slots):
-            tension = tension[: len(times)]
-            if self.load_n is not None:
-                tension = np.full(len(times), self.load_n)
-            counts = np.asarray(self.sensor.counts(tension), dtype=np.int64)
-            k = np.searchsorted(step_t, times, side="right")
-            csum = np.concatenate([[0], np.cumsum(step_s)])
-            steps = self.daq.step_count + csum[k]
-            self.daq.emit_samples(slots, times, counts, steps)
-        self.daq.step_count += int(step_s.sum())
-        self.t = t1
-        self.stepper.finish_if_due(t1)
-        for fn in self.listeners:
-            fn(self)
-
-
-# --- registry of named worlds (the URL handler and the server share it) ---------------------------------
-_WORLDS: dict[str, VirtualWorld] = {}
-
-
-def register_world(world: VirtualWorld) -> VirtualWorld:
-    """Make ``world`` reachable as ``virtual://daq?rig=<world.name>`` (replacing any world of that name)."""
-    _WORLDS[world.name] = world
-    return world
-
-
-def forget_world(name: str) -> None:
-    """Remove a named world (the next URL with that name builds a fresh one)."""
-    _WORLDS.pop(name, None)
-
-
-def get_world(name: str, options: dict[str, str] | None = None) -> VirtualWorld:
-    """Return the named world, building it from the virtual rig's calibrated parameters if it is new.
-
-    Parameters
-    ----------
-    name : str
-        The rig name.
-    options : dict, optional
-        URL query options used only when the world is created: ``seed``, ``t0_us``, ``load_n``.
-    """
-    if name not in _WORLDS:
-        register_world(default_world(name, options or {}))
-    return _WORLDS[name]
-
-
-def default_world(name: str = "default", options: dict[str, str] | None = None) -> VirtualWorld:
-    """Build a world around the calibrated virtual rig (``helpers.virtual`` physics).
-
-    Parameters
-    ----------
-    name : str
-        The rig name.
-    options : dict, optional
-        ``seed`` (sensor noise and faults, default 0), ``t0_us`` (clock offset), ``load_n`` (VIRTUAL
-        calibration fixture: a known load hung on the load cell).
-    """
-    options = options or {}
-    import helpers.virtual as hv
-
-    seed = int(options.get("seed", 0))
-    params = hv.calibrated_parameters()
-    plant = hv.ArmPlant(params)
-    sensor = hv.LoadCell(params, seed=seed)
-    from helpers import __version__
-
-    info = {
-        "version": getattr(hv, "__version__", __version__),
-        "parameters": _params_dict(params),
-        "seed": seed,
-    }
-    world = VirtualWorld(plant, sensor, name=name, seed=seed, t0_us=int(options.get("t0_us", 0)), info=info)
-    if "load_n" in options:
-        world.hang_load(float(options["load_n"]))
-    return world
-
-
-def _params_dict(params: Any) -> dict[str, Any]:
-    import dataclasses
-
-    if dataclasses.is_dataclass(params):
-        raw = dataclasses.asdict(params)
-    elif isinstance(params, dict):
-        raw = dict(params)
-    else:
-        raw = {k: v for k, v in vars(params).items() if not k.startswith("_")}
-    out = {}
-    for k, v in raw.items():
-        if isinstance(v, np.ndarray):
-            v = v.tolist()
-        elif isinstance(v, np.generic):
-            v = v.item()
-        if isinstance(v, (int, float, str, bool, list, tuple, dict)) or v is None:
-            out[k] = v
-    return out

@@ -1,5 +1,9 @@
 """``python -m helpers record``: record experiments into ``data/`` through :class:`helpers.rig.Rig`.
 
+A procedure on top of the rig: it combines the drivers (:mod:`helpers.rig`), the identification
+(:mod:`helpers.identify`), the shaper design (:mod:`helpers.shapers`) and the load-cell calibration
+(:mod:`helpers.loadcell`).
+
 The same code path serves the hardware (``--ports auto`` or ``--ports DAQ,STEPPER``) and the virtual rig
 (``--ports virtual``, the default: in-process; or the device paths printed by ``serve-virtual-rig``).
 
@@ -11,25 +15,39 @@ Commands::
     python -m helpers record table-i --repetitions 3         # 12 scenarios x 3
     python -m helpers record all                             # identification + result.json + Table I x 3
 
-``table-i`` and shaped pulses design the shapers from ``data/identification/result.json`` (written by notebook
-02) unless ``--zeta`` and ``--omega-d`` are given.
+``table-i`` and shaped pulses design the shapers from ``data/identification/result.json`` (written by
+``record all`` or notebook 02's live cell) unless ``--zeta`` and ``--omega-d`` are given.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from helpers import paper
+from helpers.identify import identify_recording, load_identification, save_identification
+from helpers.jsonfile import MissingDataError
+from helpers.loadcell import (
+    UNCALIBRATED,
+    LoadCellCalibration,
+    fit_calibration,
+    load_calibration,
+    save_calibration,
+)
 from helpers.paths import DATA_DIR
+from helpers.rig import Rig
+from helpers.rig.loadcell import record_calibration
+from helpers.shapers import design_tdfs
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``record`` options."""
     parser.add_argument(
         "what",
-        choices=["calibration", "pulse", "table-i", "all"],
+        choices=["calibration", "pulse", "table-i", "all"],  # the keys of RECORDERS
         help="what to record ('all': identification run, its analysis, then Table I)",
     )
     parser.add_argument(
@@ -58,21 +76,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
-def _shapers(args: argparse.Namespace):
-    from helpers.shapers import design_tdfs, load_identification
-
+def _shapers(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
     if args.zeta is not None and args.omega_d is not None:
         zeta, omega_d, origin = args.zeta, args.omega_d, "command line"
     else:
-        found = load_identification(args.identification) if args.identification else load_identification()
-        if found is None:
-            raise SystemExit(
-                "no identification result: pass --zeta and --omega-d, or record and analyse the "
-                "identification run first (notebook 02)"
-            )
-        zeta, omega_d, _ = found
+        try:
+            found = load_identification(args.identification) if args.identification else load_identification()
+        except MissingDataError as exc:
+            raise SystemExit(f"{exc} (or pass --zeta and --omega-d)") from None
+        zeta, omega_d = found.zeta, found.omega_d
         origin = args.identification or "data/identification/result.json"
-    zv, zvd = design_tdfs(zeta, omega_d)
+    zv, zvd = design_tdfs(omega_d, zeta)
     print(f"shapers designed from zeta = {zeta:.4f}, omega_d = {omega_d:.3f} rad/s ({origin})")
     return {"unshaped": None, "zv": zv, "zvd": zvd}, {"zeta": zeta, "omega_d": omega_d, "origin": origin}
 
@@ -122,8 +136,6 @@ def record_table_i(
     list of pathlib.Path
         The CSV files written, in recording order.
     """
-    from helpers import paper
-
     paths = []
     for system in paper.SYSTEMS:
         for v, x in paper.TABLE_I_CONDITIONS:
@@ -162,10 +174,6 @@ def record_all(rig: Any, repetitions: int = 3, t_end_s: float = 12.0, rate_hz: i
     repetitions, t_end_s, rate_hz
         As :func:`record_table_i`.
     """
-    from helpers import paper
-    from helpers.identify import identify_recording, save_identification
-    from helpers.shapers import design_tdfs
-
     run = paper.IDENTIFICATION_RUN
     rec = rig.run_pulse(
         run["v_in_mm_s"],
@@ -181,7 +189,7 @@ def record_all(rig: Any, repetitions: int = 3, t_end_s: float = 12.0, rate_hz: i
     result = identify_recording(rec, window=run["window_s"], column="adc")
     path = save_identification(result)
     print(f"identified zeta = {result.zeta:.4f}, omega_d = {result.omega_d:.3f} rad/s -> {_shown(path)}")
-    zv, zvd = design_tdfs(result.zeta, result.omega_d)
+    zv, zvd = design_tdfs(result.omega_d, result.zeta)
     design = {"zeta": result.zeta, "omega_d": result.omega_d, "origin": _shown(path)}
     record_table_i(
         rig,
@@ -193,64 +201,87 @@ def record_all(rig: Any, repetitions: int = 3, t_end_s: float = 12.0, rate_hz: i
     )
 
 
+def _record_calibration(rig: Rig, args: argparse.Namespace) -> None:
+    folder = DATA_DIR / (args.group or "calibration")
+    recs = record_calibration(rig, duration_s=args.duration, folder=folder, rate_hz=args.rate)
+    fit = fit_calibration(recs)
+    path = save_calibration(fit, recs, folder / "calibration.json")
+    print(
+        f"{len(recs)} loads recorded; gain {fit.gain_counts_per_n:.4f} +- {fit.gain_stderr:.4f} "
+        f"counts/N, offset {fit.offset_counts:.3f} +- {fit.offset_stderr:.3f} counts -> {path}"
+    )
+
+
+def _record_pulse(rig: Rig, args: argparse.Namespace) -> None:
+    if args.v_in is None or args.x_f is None:
+        raise SystemExit("record pulse needs --v-in and --x-f")
+    shapers, design = _shapers(args) if args.system != "unshaped" else ({"unshaped": None}, None)
+    name = args.name or scenario_name(args.system, args.v_in, args.x_f)
+    path = DATA_DIR / (args.group or "runs") / name
+    rec = rig.run_pulse(
+        args.v_in,
+        args.x_f,
+        shapers[args.system],
+        system=args.system,
+        path=path,
+        t_end_s=args.t_end,
+        rate_hz=args.rate,
+        progress=not args.quiet,
+        scenario_extra=None if design is None else {"design": design},
+    )
+    print(f"{rec.status}: {len(rec.frame)} samples -> {_shown(rec.path)}")
+
+
+def _record_table_i(rig: Rig, args: argparse.Namespace) -> None:
+    shapers, design = _shapers(args)
+    record_table_i(
+        rig,
+        shapers,
+        design,
+        repetitions=args.repetitions,
+        group=DATA_DIR / (args.group or "experiments"),
+        t_end_s=args.t_end,
+        rate_hz=args.rate,
+    )
+
+
+def _record_all(rig: Rig, args: argparse.Namespace) -> None:
+    record_all(rig, repetitions=args.repetitions, t_end_s=args.t_end, rate_hz=args.rate)
+
+
+RECORDERS: dict[str, Callable[[Rig, argparse.Namespace], None]] = {
+    "calibration": _record_calibration,
+    "pulse": _record_pulse,
+    "table-i": _record_table_i,
+    "all": _record_all,
+}
+"""What ``record`` can record -> the function that does it."""
+
+
+def _calibration_for(what: str) -> LoadCellCalibration | None:
+    """The load-cell calibration a run uses: the saved one; recording a new one may start without any."""
+    if what != "calibration":
+        return None  # Rig loads it, or says clearly that there is none yet
+    try:
+        return load_calibration()
+    except MissingDataError:
+        return UNCALIBRATED
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers record``."""
-    import helpers.rig as rig_mod
-    from helpers.rig import calibration as cal
-
-    rig = rig_mod.Rig.connect(
+    rig = Rig.connect(
         args.ports,
         rig_name=args.rig_name,
+        calibration=_calibration_for(args.what),
         daq_options=f"&seed={args.seed}" if args.ports == "virtual" else "",
     )
-    progress = not args.quiet
     try:
         print(
             f"connected: daq firmware {rig.daq.version}, stepper firmware {rig.stepper.version}, "
             f"source {rig.source['kind']}"
         )
-        if args.what == "calibration":
-            folder = DATA_DIR / (args.group or "calibration")
-            recs = cal.record_calibration(rig, duration_s=args.duration, folder=folder, rate_hz=args.rate)
-            fit = cal.fit_calibration(recs)
-            path = cal.save_calibration(fit, recs, folder / "calibration.json")
-            print(
-                f"{len(recs)} loads recorded; gain {fit.gain_counts_per_n:.4f} +- {fit.gain_stderr:.4f} "
-                f"counts/N, offset {fit.offset_counts:.3f} +- {fit.offset_stderr:.3f} counts -> {path}"
-            )
-            return 0
-        if args.what == "pulse":
-            if args.v_in is None or args.x_f is None:
-                raise SystemExit("record pulse needs --v-in and --x-f")
-            shapers, design = _shapers(args) if args.system != "unshaped" else ({"unshaped": None}, None)
-            name = args.name or scenario_name(args.system, args.v_in, args.x_f)
-            path = DATA_DIR / (args.group or "runs") / name
-            rec = rig.run_pulse(
-                args.v_in,
-                args.x_f,
-                shapers[args.system],
-                system=args.system,
-                path=path,
-                t_end_s=args.t_end,
-                rate_hz=args.rate,
-                progress=progress,
-                scenario_extra=None if design is None else {"design": design},
-            )
-            print(f"{rec.status}: {len(rec.frame)} samples -> {_shown(rec.path)}")
-            return 0
-        if args.what == "all":
-            record_all(rig, repetitions=args.repetitions, t_end_s=args.t_end, rate_hz=args.rate)
-            return 0
-        shapers, design = _shapers(args)
-        record_table_i(
-            rig,
-            shapers,
-            design,
-            repetitions=args.repetitions,
-            group=DATA_DIR / (args.group or "experiments"),
-            t_end_s=args.t_end,
-            rate_hz=args.rate,
-        )
+        RECORDERS[args.what](rig, args)
         return 0
     except KeyboardInterrupt:
         print("interrupted: the driver was disabled and the partial recording saved", file=sys.stderr)

@@ -1,7 +1,7 @@
 """pyserial URL handler ``virtual://``: the emulated boards of the virtual rig, in-process.
 
 URLs: ``virtual://daq?rig=<name>`` and ``virtual://stepper?rig=<name>``; the same rig name gives the same
-:class:`helpers.virtual.boards.VirtualWorld` (one plant, one device clock). Query options:
+:class:`helpers.emulator.world.VirtualWorld` (one plant, one device clock). Query options:
 
 - ``seed`` (sensor noise and fault generators), ``t0_us`` (clock offset), ``load_n`` (VIRTUAL calibration
   fixture: a known load in N hung on the load cell) -- used when the world is created;
@@ -10,8 +10,9 @@ URLs: ``virtual://daq?rig=<name>`` and ``virtual://stepper?rig=<name>``; the sam
 - faults of this board: ``drop``, ``corrupt``, ``garbage`` (probabilities per data line), ``reset_at``,
   ``hang_at``, ``disconnect_at`` (device seconds after the port is opened), ``overrun_every`` (samples).
 
-Registered by ``serial.protocol_handler_packages.append("helpers.virtual")`` (done on import of
-``helpers.rig``). Device time runs as fast as the reader consumes it: a read waits, in device time, at most
+pyserial finds this handler when ``"helpers.emulator"`` is in ``serial.protocol_handler_packages``;
+:func:`helpers.rig.ports.open_port` adds it when it opens a ``virtual://`` URL (not as an import side
+effect). Device time runs as fast as the reader consumes it: a read waits, in device time, at most
 the port's timeout, so a read that finds nothing advances the clock by the timeout (or to the next event such
 as ``DONE``); a read of a streaming DAQ generates samples chunk by chunk until it has the bytes it asked for.
 """
@@ -23,7 +24,8 @@ import urllib.parse
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from helpers.virtual.boards import Disconnected, Faults, VirtualWorld, get_world
+from helpers.emulator.boards import Disconnected, Faults
+from helpers.emulator.world import VirtualWorld, get_world
 
 _WORLD_OPTIONS = ("seed", "t0_us", "load_n")
 _PORT_OPTIONS = ("rig", "reset_on_open")
@@ -64,10 +66,7 @@ class Serial(SerialBase):
         self.is_open = True
         if options.get("reset_on_open", "1") != "0":
             self.board.out.clear()
-            if kind == "stepper":
-                self.board.reset()
-            else:
-                self.board.reset()
+            self.board.reset()
 
     def from_url(self, url: str) -> tuple[str, dict[str, str]]:
         """Parse ``virtual://daq|stepper?option=value&...``."""

@@ -1,0 +1,119 @@
+"""Writing files so that a crash never leaves half a file, and reading JSON files with one clear error.
+
+The one atomic writer of the package: every JSON result, calibration and recording goes through
+:func:`atomic_write` (a unique temporary file in the same folder, flushed and fsynced, then ``os.replace``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+class DataFileError(ValueError):
+    """A data file is missing, unreadable or malformed; the message names the file and the problem."""
+
+
+class MissingDataError(DataFileError, FileNotFoundError):
+    """A data file that an analysis needs does not exist yet; the message says how to make it."""
+
+
+def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically: readers see the old file or the new one, never a part.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination; its folder is created if needed.
+    data : bytes
+        The whole content.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def json_safe(value: Any) -> Any:
+    """Make ``value`` JSON-safe: numpy to Python, tuples to lists, paths to text, NaN to None."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [json_safe(v) for v in value.tolist()]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def dumps(data: dict[str, Any], sort_keys: bool = True) -> str:
+    """The project's JSON text: indented, keys sorted, NaN refused, a final newline."""
+    return json.dumps(json_safe(data), indent=2, sort_keys=sort_keys, allow_nan=False) + "\n"
+
+
+def write_json(path: str | os.PathLike, data: dict[str, Any], sort_keys: bool = True) -> Path:
+    """Write ``data`` as JSON atomically (see :func:`dumps`) and return the path."""
+    return atomic_write(path, dumps(data, sort_keys).encode("utf-8"))
+
+
+def read_json(path: str | os.PathLike, what: str, missing_hint: str = "") -> dict[str, Any]:
+    """Read a JSON object, raising one clear error for a missing or malformed file.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    what : str
+        What the file holds, for the messages (e.g. ``"identification result"``).
+    missing_hint : str
+        How to make the file, appended to the message when it is missing.
+
+    Returns
+    -------
+    dict
+        The JSON object.
+
+    Raises
+    ------
+    MissingDataError
+        If the file does not exist.
+    DataFileError
+        If it is not valid JSON or not an object.
+    """
+    path = Path(path)
+    if not path.exists():
+        hint = f": {missing_hint}" if missing_hint else ""
+        raise MissingDataError(f"{path}: no {what} yet{hint}")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise DataFileError(f"{path}: the {what} is not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise DataFileError(f"{path}: the {what} is not a JSON object")
+    return data

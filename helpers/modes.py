@@ -1,0 +1,107 @@
+"""A vibration mode as a frequency and a damping ratio: the package's one argument convention.
+
+Every function of the package that takes a mode takes the **frequency first, then the damping ratio**:
+``f(omega, zeta)``. The argument's name says which frequency it is: ``omega_n`` is the undamped natural
+frequency, ``omega_d = omega_n sqrt(1 - zeta^2)`` the damped one (what a free decay shows, and what the paper
+identifies). Both are in rad/s. This module holds the conversion, computed nowhere else.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+
+def check_mode(omega: Any, zeta: Any, name: str = "omega_n") -> None:
+    """Raise ``ValueError`` unless ``omega`` is a finite frequency > 0 and ``0 <= zeta < 1``.
+
+    Parameters
+    ----------
+    omega : float
+        A frequency in rad/s.
+    zeta : float
+        A damping ratio.
+    name : str
+        How the frequency is called in the message.
+    """
+    number = (int, float)
+    if isinstance(omega, bool) or not (isinstance(omega, number) or hasattr(omega, "__float__")):
+        raise ValueError(f"{name} must be a finite number (rad/s), got {omega!r}")
+    if not math.isfinite(float(omega)):
+        raise ValueError(f"{name} must be a finite number (rad/s), got {omega!r}")
+    if float(omega) <= 0:
+        raise ValueError(f"{name} must be > 0 rad/s, got {omega!r}")
+    if isinstance(zeta, bool) or not (isinstance(zeta, number) or hasattr(zeta, "__float__")):
+        raise ValueError(f"zeta must be a finite number, got {zeta!r}")
+    if not math.isfinite(float(zeta)):
+        raise ValueError(f"zeta must be a finite number, got {zeta!r}")
+    if not 0.0 <= float(zeta) < 1.0:
+        raise ValueError(f"zeta must lie in [0, 1), got {zeta!r}")
+
+
+def omega_n_from_damped(omega_d: float, zeta: float) -> float:
+    """Undamped natural frequency from the damped one: ``omega_n = omega_d / sqrt(1 - zeta^2)``.
+
+    Parameters
+    ----------
+    omega_d : float
+        Damped natural frequency (rad/s), e.g. the identified 25.085 rad/s.
+    zeta : float
+        Damping ratio in [0, 1).
+
+    Returns
+    -------
+    float
+        ``omega_n`` in rad/s.
+    """
+    check_mode(omega_d, zeta, "omega_d")
+    return float(omega_d) / math.sqrt(1.0 - float(zeta) ** 2)
+
+
+def omega_d_from_natural(omega_n: float, zeta: float) -> float:
+    """Damped natural frequency from the undamped one: ``omega_d = omega_n sqrt(1 - zeta^2)``.
+
+    Parameters
+    ----------
+    omega_n : float
+        Undamped natural frequency (rad/s).
+    zeta : float
+        Damping ratio in [0, 1).
+
+    Returns
+    -------
+    float
+        ``omega_d`` in rad/s.
+    """
+    check_mode(omega_n, zeta)
+    return float(omega_n) * math.sqrt(1.0 - float(zeta) ** 2)
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One lightly damped mode: undamped natural frequency ``omega_n`` (rad/s) and damping ratio ``zeta``.
+
+    Build it from an identified damped frequency with :meth:`from_damped`.
+    """
+
+    omega_n: float
+    zeta: float
+
+    def __post_init__(self) -> None:
+        check_mode(self.omega_n, self.zeta)
+
+    @classmethod
+    def from_damped(cls, omega_d: float, zeta: float) -> Mode:
+        """The mode whose damped frequency is ``omega_d`` (rad/s)."""
+        return cls(omega_n_from_damped(omega_d, zeta), float(zeta))
+
+    @property
+    def omega_d(self) -> float:
+        """Damped natural frequency, rad/s."""
+        return omega_d_from_natural(self.omega_n, self.zeta)
+
+    @property
+    def sigma(self) -> float:
+        """Decay rate ``zeta omega_n``, 1/s."""
+        return self.zeta * self.omega_n

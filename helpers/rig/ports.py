@@ -1,0 +1,37 @@
+"""Opening a serial port: a device path, a pyserial URL, or the in-process virtual rig (``virtual://``).
+
+The ``virtual://`` scheme is served by :mod:`helpers.emulator.protocol_virtual`. pyserial finds URL handlers
+by package name in ``serial.protocol_handler_packages``; :func:`open_port` adds ``"helpers.emulator"`` there
+when, and only when, it is asked to open a ``virtual://`` URL (importing :mod:`helpers.rig` registers
+nothing).
+"""
+
+from __future__ import annotations
+
+import serial
+
+VIRTUAL_SCHEME = "virtual://"
+EMULATOR_PACKAGE = "helpers.emulator"
+"""The package holding ``protocol_virtual`` (pyserial imports ``<package>.protocol_<scheme>`` by name)."""
+
+
+def open_port(url: str, baudrate: int, timeout: float, write_timeout: float) -> serial.SerialBase:
+    """Open ``url`` with pyserial and return the port.
+
+    Parameters
+    ----------
+    url : str
+        ``/dev/ttyACM0``, ``/dev/pts/5``, ``virtual://daq?rig=lab`` or any pyserial URL.
+    baudrate : int
+        Line rate.
+    timeout, write_timeout : float
+        pyserial's read and write timeouts (s).
+
+    Raises
+    ------
+    serial.SerialException
+        If the port cannot be opened.
+    """
+    if str(url).startswith(VIRTUAL_SCHEME) and EMULATOR_PACKAGE not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append(EMULATOR_PACKAGE)
+    return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout)

@@ -1,0 +1,74 @@
+"""The recording format as a public contract (docs/recording_format.md), checked on every file in data/.
+
+The reader here is written independently of ``helpers.recordings`` (plain csv, json and hashlib), as a tool
+outside the project would read the files.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from helpers import recordings
+from helpers.paths import DATA_DIR
+
+NOT_RECORDINGS = {"calibration.json", "result.json"}
+RECORDINGS = sorted(p for p in DATA_DIR.rglob("*.json") if p.name not in NOT_RECORDINGS)
+VIRTUAL_PARAMETER_KEYS = (
+    "E", "rho", "d", "L", "n_discs", "disc_mass", "r", "k", "pretension", "g", "base_angle_deg",
+)  # fmt: skip
+NAME = re.compile(r"[A-Za-z0-9_.-]+\Z")
+
+
+def _number(x: object) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def test_there_are_recordings_to_check():
+    assert len(RECORDINGS) >= 40
+
+
+@pytest.mark.parametrize("path", RECORDINGS, ids=lambda p: str(p.relative_to(DATA_DIR)))
+def test_recording_follows_the_contract(path: Path):
+    meta = json.loads(path.read_text())
+    group = path.parent.relative_to(DATA_DIR)
+    assert all(NAME.match(part) for part in (*group.parts, path.stem))
+    data = path.with_suffix(".csv").read_bytes()
+    assert meta["schema_version"] == 1
+    assert meta["status"] in ("complete", "aborted")
+    assert meta["csv_sha256"] == hashlib.sha256(data).hexdigest()
+    cal = meta["calibration"]
+    assert _number(cal["newtons_per_count"]) and cal["newtons_per_count"] > 0
+    assert _number(cal["offset_counts"])
+    assert _number(cal["mm_per_step"]) and cal["mm_per_step"] > 0
+    assert isinstance(cal["origin"], str)
+    source = meta["source"]
+    assert source["kind"] in ("hardware", "virtual-rig")
+    if source["kind"] == "virtual-rig":
+        params = source["parameters"]
+        for key in VIRTUAL_PARAMETER_KEYS:
+            assert _number(params[key]), key
+        assert all(not isinstance(v, dict | list) for v in params.values())  # flat values
+    scenario = meta["scenario"]
+    assert isinstance(scenario["kind"], str)
+    if scenario["kind"] == "pulse":
+        assert isinstance(scenario["system"], str)
+        assert _number(scenario["v_in_mm_s"]) and _number(scenario["x_f_mm"])
+    rows = list(csv.reader(io.StringIO(data.decode("ascii"))))
+    assert rows[0] == ["seq", "t_us", "adc", "steps"]
+    body = np.array(rows[1:], dtype=np.int64)
+    assert len(body) == meta["counts"]["samples"]
+    assert np.all(np.diff(body[:, 0]) > 0) and np.all(np.diff(body[:, 1]) > 0)
+    assert body[:, 2].min() >= 0 and body[:, 2].max() <= 1023
+    # the package's loader derives the same tension from the same two keys
+    rec = recordings.load(path)
+    expected = (body[:, 2] - cal["offset_counts"]) * cal["newtons_per_count"]
+    np.testing.assert_allclose(rec.frame["tension_n"].to_numpy(), expected, rtol=0, atol=1e-12)
