@@ -20,7 +20,7 @@
 #include "proto.h"
 #include "reply.h"
 
-#define FW_VERSION "1.0.0"
+#define FW_VERSION "2.0.0"
 
 // Compiled-in limits (PROTOCOL.md table).
 static const int32_t INTERVAL_MIN_US = 639;       // 400 mm/s at 0.25525 mm/step

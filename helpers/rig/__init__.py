@@ -1,6 +1,6 @@
 """Serial I/O to the rig's two boards (real hardware or the virtual rig) with pyserial.
 
-- :mod:`helpers.rig.framing`: the line protocol (checksums, parsing, exact fault counting);
+- :mod:`helpers.rig.framing`: the line protocol (CRC-8 checksums, parsing, exact fault counting);
 - :mod:`helpers.rig.boards`: the link shared by both drivers (commands, replies, timeouts, resets);
 - :mod:`helpers.rig.daq`, :mod:`helpers.rig.stepper`: the DAQ and stepper drivers;
 - :mod:`helpers.rig.safety`: the limits checked before any byte is sent;
@@ -23,6 +23,7 @@ from helpers.rig.boards import (  # noqa: E402
     BoardReset,
     BoardTimeout,
     CommandRefused,
+    OldFirmware,
 )
 from helpers.rig.daq import DaqBoard  # noqa: E402
 from helpers.rig.experiment import Rig, RunAborted  # noqa: E402
@@ -36,6 +37,7 @@ __all__ = [
     "BoardTimeout",
     "CommandRefused",
     "DaqBoard",
+    "OldFirmware",
     "Rig",
     "RunAborted",
     "SafetyError",

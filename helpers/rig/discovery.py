@@ -72,13 +72,15 @@ def identify(device: str, hello_timeout: float = 3.0) -> str | None:
     hello_timeout : float
         Seconds to wait for each attempt (the board resets when the port opens).
     """
-    from helpers.rig.boards import BoardError
+    from helpers.rig.boards import BoardError, OldFirmware
     from helpers.rig.daq import DaqBoard
     from helpers.rig.stepper import StepperBoard
 
     for cls in (DaqBoard, StepperBoard):
         try:
             link = cls.open(device, hello_timeout=hello_timeout)
+        except OldFirmware:
+            raise  # a board of ours with old firmware: say so rather than "not found"
         except BoardError:
             continue
         link.close()

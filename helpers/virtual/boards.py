@@ -1,9 +1,10 @@
 """Emulated DAQ and stepper boards of the virtual rig, sharing one world and one device clock.
 
 The boards behave as the firmware must on ``firmware/PROTOCOL.md``: the same replies, error codes, limits,
-``HELLO`` on reset, ``W,OVERRUN`` reporting and version ``1.0.0``. They drive a plant given to them
-(dependency injection: the virtual rig's :class:`helpers.virtual.ArmPlant`, or a test double with the same
-``advance`` signature) and read the tension through a sensor model (``LoadCell.counts``).
+``HELLO`` on reset, ``W,OVERRUN`` reporting, CRC-8 checksums (:mod:`helpers.crc8`) and version ``2.0.0``.
+They drive a plant given to them (dependency injection: the virtual rig's :class:`helpers.virtual.ArmPlant`,
+or a test double with the same ``advance`` signature) and read the tension through a sensor model
+(``LoadCell.counts``).
 
 Time model: :class:`VirtualWorld` owns the device clock ``t`` (seconds, shared by both boards). Nothing
 happens between calls; time moves only when :meth:`VirtualWorld.advance_to` is called, which integrates the
@@ -28,9 +29,12 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from helpers.crc8 import INIT as _CRC_INIT
+from helpers.crc8 import TABLE as _CRC_TABLE
+from helpers.crc8 import crc8, crc8_hex
 from helpers.profiles import LIMITS
 
-FW_VERSION = "1.0.0"
+FW_VERSION = "2.0.0"
 """The firmware version the emulated boards report (the same as the firmware they emulate)."""
 
 MAX_LINE = 63
@@ -67,10 +71,7 @@ class Sensor(Protocol):
 
 
 def _checksum(body: str) -> str:
-    x = 0
-    for b in body.encode("ascii"):
-        x ^= b
-    return _HEX[x >> 4] + _HEX[x & 15]
+    return crc8_hex(body)
 
 
 def framed(body: str) -> bytes:
@@ -83,14 +84,19 @@ _HEX2 = [f"{x:02X}" for x in range(256)]
 
 def framed_many(bodies: list[str]) -> bytes:
     """Return every body framed as by :func:`framed`, joined (checksums computed with numpy)."""
-    blob = "\n".join(bodies).encode("ascii")
-    acc = np.bitwise_xor.accumulate(np.frombuffer(blob, dtype=np.uint8))
+    if not bodies:
+        return b""
     lens = np.fromiter(map(len, bodies), dtype=np.int64, count=len(bodies))
-    ends = np.cumsum(lens + 1) - 2  # index of each body's last byte
-    starts = ends - lens + 1
-    before = np.where(starts > 0, acc[np.maximum(starts - 1, 0)], 0)
-    xors = (acc[ends] ^ before).tolist()
-    return "".join(f"{b}*{_HEX2[x]}\n" for b, x in zip(bodies, xors, strict=True)).encode("ascii")
+    flat = np.frombuffer("".join(bodies).encode("ascii") + b"\0", dtype=np.uint8)
+    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
+    cols = np.arange(int(lens.max()))
+    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
+    live = cols[None, :] < lens[:, None]
+    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
+    crc = np.full(len(bodies), _CRC_INIT, dtype=np.uint8)
+    for j in range(len(cols)):  # the CRC-8 of every body at once, one byte column at a time
+        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
+    return "".join(f"{b}*{_HEX2[x]}\n" for b, x in zip(bodies, crc.tolist(), strict=True)).encode("ascii")
 
 
 @dataclass
@@ -157,6 +163,7 @@ class EmulatedBoard:
         """Every command line the board accepted (checksum stripped), for tests and diagnostics."""
         self._inbuf = bytearray()
         self._overflow = False
+        self._cr = False
         self.hung = False
         self.disconnected = False
         self.resets = 0
@@ -198,7 +205,12 @@ class EmulatedBoard:
         if self.hung:
             return
         for c in data:
+            if self._cr:  # a held '\r' not followed by '\n' is part of the line (as the firmware)
+                self._cr = False
+                if c != 0x0A:
+                    self._place(0x0D)
             if c == 0x0D:
+                self._cr = True
                 continue
             if c == 0x0A:
                 if self._overflow:
@@ -210,13 +222,16 @@ class EmulatedBoard:
                     self._inbuf.clear()
                     self._line(line)
                 continue
-            if self._overflow:
-                continue
-            if len(self._inbuf) >= MAX_LINE:
-                self._overflow = True
-                self._inbuf.clear()
-                continue
-            self._inbuf.append(c)
+            self._place(c)
+
+    def _place(self, c: int) -> None:
+        if self._overflow:
+            return
+        if len(self._inbuf) >= MAX_LINE:
+            self._overflow = True
+            self._inbuf.clear()
+            return
+        self._inbuf.append(c)
 
     def _parse(self, line: bytes) -> _Command | str | None:
         """Return a command, an error reply body, or None for a blank line (as ``proto_parse``)."""
@@ -229,10 +244,7 @@ class EmulatedBoard:
             body = text[:star]
             if len(given) != 2 or any(c not in "0123456789ABCDEFabcdef" for c in given):
                 return "ERR CHECKSUM bad checksum"
-            x = 0
-            for b in line[:star]:
-                x ^= b
-            if int(given, 16) != x:
+            if int(given, 16) != crc8(line[:star]):
                 return "ERR CHECKSUM bad checksum"
             text = body
             if not text:
@@ -286,6 +298,7 @@ class EmulatedBoard:
         self.resets += 1
         self._inbuf.clear()
         self._overflow = False
+        self._cr = False
         self.hung = False
         self.send(f"HELLO {self.kind} {FW_VERSION}")
 
