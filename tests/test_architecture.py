@@ -28,6 +28,7 @@ LAYERS: dict[str, int] = {
     "helpers.modes": 0,
     "helpers.jsonfile": 0,
     "helpers.style": 0,
+    "helpers.crc8": 0,
     "helpers.hardware": 1,
     "helpers.backbone": 1,
     "helpers.notebook": 1,

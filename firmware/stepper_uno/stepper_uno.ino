@@ -18,8 +18,9 @@
 #include <avr/io.h>
 
 #include "proto.h"
+#include "reply.h"
 
-#define FW_VERSION "1.0.0"
+#define FW_VERSION "2.0.0"
 
 // Compiled-in limits (PROTOCOL.md table).
 static const int32_t INTERVAL_MIN_US = 639;       // 400 mm/s at 0.25525 mm/step
@@ -178,29 +179,9 @@ static void run_go() {
 // ---------------------------------------------------------------------------------------------------------
 // Output
 
-static LineWriter out;
+static void serial_write(const uint8_t *buf, uint8_t n) { Serial.write(buf, n); }
 
-static void send_line() {
-  uint8_t n = out.finish();
-  Serial.write((const uint8_t *)out.buf, n);
-}
-
-static void reply_err(const char *code, const char *text) {
-  out.begin();
-  out.str("ERR ");
-  out.str(code);
-  out.put(' ');
-  out.str(text);
-  send_line();
-}
-
-static void reply_word_int(const char *word, int32_t v) {
-  out.begin();
-  out.str(word);
-  out.put(' ');
-  out.i32(v);
-  send_line();
-}
+static Reply out = {{}, serial_write};
 
 // ---------------------------------------------------------------------------------------------------------
 // Commands
@@ -217,71 +198,67 @@ static bool programme_within_travel(int16_t pos) {
 
 static void handle(Command *cmd) {
   if (proto_is(cmd, "PING")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "PING takes no argument");
-    out.begin();
-    out.str("PONG stepper " FW_VERSION);
-    send_line();
+    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "PING takes no argument");
+    out.text("PONG stepper " FW_VERSION);
   } else if (proto_is(cmd, "CLEAR")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "CLEAR takes no argument");
-    if (running) return reply_err("STATE", "running");
+    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "CLEAR takes no argument");
+    if (running) return out.err("STATE", "running");
     prog_len = 0;
-    out.begin();
-    out.str("OK CLEAR");
-    send_line();
+    out.text("OK CLEAR");
   } else if (proto_is(cmd, "SEG")) {
-    if (!proto_args_ok(cmd, 3)) return reply_err("ARG", "SEG needs 3 integers");
-    if (running) return reply_err("STATE", "running");
+    if (!proto_args_ok(cmd, 3)) return out.err("ARG", "SEG needs 3 integers");
+    if (running) return out.err("STATE", "running");
     int32_t dir = cmd->arg[0], n = cmd->arg[1], iv = cmd->arg[2];
-    if (dir != 1 && dir != -1) return reply_err("RANGE", "dir must be 1 or -1");
-    if (n < 1 || n > TRAVEL_MAX_STEPS) return reply_err("RANGE", "n_steps 1-156");
-    if (iv < INTERVAL_MIN_US || iv > INTERVAL_MAX_US) return reply_err("RANGE", "interval 639-1000000 us");
-    if (prog_len >= PROGRAMME_MAX) return reply_err("FULL", "64 items");
+    if (dir != 1 && dir != -1) return out.err("RANGE", "dir must be 1 or -1");
+    if (n < 1 || n > TRAVEL_MAX_STEPS) return out.err("RANGE", "n_steps 1-156");
+    if (iv < INTERVAL_MIN_US || iv > INTERVAL_MAX_US) return out.err("RANGE", "interval 639-1000000 us");
+    if (prog_len >= PROGRAMME_MAX) return out.err("FULL", "64 items");
     Item &it = prog[prog_len++];
     it.kind = ITEM_SEG;
     it.dir = (int8_t)dir;
     it.n_steps = (uint8_t)n;
     it.ticks = (uint32_t)iv * 2;
-    reply_word_int("OK SEG", prog_len);
+    out.word_i32("OK SEG", prog_len);
   } else if (proto_is(cmd, "WAIT")) {
-    if (!proto_args_ok(cmd, 1)) return reply_err("ARG", "WAIT needs 1 integer");
-    if (running) return reply_err("STATE", "running");
+    if (!proto_args_ok(cmd, 1)) return out.err("ARG", "WAIT needs 1 integer");
+    if (running) return out.err("STATE", "running");
     int32_t ms = cmd->arg[0];
-    if (ms < 0 || ms > DWELL_MAX_MS) return reply_err("RANGE", "dwell 0-60000 ms");
-    if (prog_len >= PROGRAMME_MAX) return reply_err("FULL", "64 items");
+    if (ms < 0 || ms > DWELL_MAX_MS) return out.err("RANGE", "dwell 0-60000 ms");
+    if (prog_len >= PROGRAMME_MAX) return out.err("FULL", "64 items");
     Item &it = prog[prog_len++];
     it.kind = ITEM_WAIT;
     it.dir = 0;
     it.n_steps = 0;
     it.ticks = (uint32_t)ms * 2000UL;
-    reply_word_int("OK WAIT", prog_len);
+    out.word_i32("OK WAIT", prog_len);
   } else if (proto_is(cmd, "GO")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "GO takes no argument");
-    if (running) return reply_err("STATE", "running");
-    if (prog_len == 0) return reply_err("STATE", "programme empty");
-    if (!enabled) return reply_err("STATE", "driver disabled");
-    if (!programme_within_travel(read_position())) return reply_err("RANGE", "travel 0-156 steps");
-    reply_word_int("OK GO", prog_len);  // queued before DONE can be
+    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "GO takes no argument");
+    if (running) return out.err("STATE", "running");
+    if (prog_len == 0) return out.err("STATE", "programme empty");
+    if (!enabled) return out.err("STATE", "driver disabled");
+    if (!programme_within_travel(read_position())) return out.err("RANGE", "travel 0-156 steps");
+    out.word_i32("OK GO", prog_len);  // queued before DONE can be
     run_go();
   } else if (proto_is(cmd, "ABORT")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "ABORT takes no argument");
+    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "ABORT takes no argument");
     run_abort();
-    reply_word_int("ABORTED", read_position());
+    out.word_i32("ABORTED", read_position());
   } else if (proto_is(cmd, "EN")) {
-    if (!proto_args_ok(cmd, 1)) return reply_err("ARG", "EN needs 1 integer");
+    if (!proto_args_ok(cmd, 1)) return out.err("ARG", "EN needs 1 integer");
     int32_t on = cmd->arg[0];
-    if (on != 0 && on != 1) return reply_err("RANGE", "EN 0 or 1");
+    if (on != 0 && on != 1) return out.err("RANGE", "EN 0 or 1");
     if (on) {
       PORTD &= ~ENA_BIT;
       enabled = 1;
     } else {
       run_abort();  // stops a running programme first, then disables
     }
-    reply_word_int("OK EN", on);
+    out.word_i32("OK EN", on);
   } else if (proto_is(cmd, "POS")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "POS takes no argument");
-    reply_word_int("OK POS", read_position());
+    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "POS takes no argument");
+    out.word_i32("OK POS", read_position());
   } else {
-    reply_err("UNKNOWN", "command");
+    out.err("UNKNOWN", "command");
   }
 }
 
@@ -290,7 +267,7 @@ static LineReader reader;
 static void service_done() {
   if (done_flag) {
     done_flag = 0;
-    reply_word_int("DONE", read_position());
+    out.word_i32("DONE", read_position());
   }
 }
 
@@ -302,9 +279,7 @@ void setup() {
   // Timer0's overflow interrupt (millis/micros, unused here) would delay step edges by up to ~5 us.
   TIMSK0 = 0;
   reader.reset();
-  out.begin();
-  out.str("HELLO stepper " FW_VERSION);
-  send_line();
+  out.text("HELLO stepper " FW_VERSION);
 }
 
 void loop() {
@@ -314,11 +289,11 @@ void loop() {
     if (ev == LINE_NONE) continue;
     service_done();  // an unsolicited DONE goes out before the reply to a later command
     if (ev == LINE_TOOLONG) {
-      reply_err("TOOLONG", "line over 63 characters");
+      out.err("TOOLONG", "line over 63 characters");
     } else {
       Command cmd;
       ProtoStatus st = proto_parse(reader.buf, reader.len, &cmd);
-      if (st == PROTO_CHECKSUM) reply_err("CHECKSUM", "bad checksum");
+      if (st == PROTO_CHECKSUM) out.err("CHECKSUM", "bad checksum");
       else if (st == PROTO_OK) handle(&cmd);
     }
     reader.reset();

@@ -18,6 +18,7 @@ from helpers.rig.boards import (
     BoardReset,
     BoardTimeout,
     CommandRefused,
+    OldFirmware,
 )
 from helpers.rig.daq import DaqBoard
 from helpers.rig.experiment import Rig, RunAborted
@@ -31,6 +32,7 @@ __all__ = [
     "BoardTimeout",
     "CommandRefused",
     "DaqBoard",
+    "OldFirmware",
     "Rig",
     "RunAborted",
     "SafetyError",

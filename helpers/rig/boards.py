@@ -17,7 +17,7 @@ from collections import deque
 
 import serial
 
-from helpers.protocol import StreamParser, frame
+from helpers.protocol import PROTOCOL_MAJOR, StreamParser, frame
 from helpers.rig.ports import open_port
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
@@ -35,6 +35,10 @@ class BoardReset(BoardError):
     """A board sent ``HELLO`` unexpectedly: it rebooted (power glitch, USB reset, watchdog)."""
 
 
+class OldFirmware(BoardError):
+    """The board runs firmware of another protocol MAJOR version (1.x: XOR checksums): flash this one."""
+
+
 class BoardDisconnected(BoardError):
     """The serial port vanished (pyserial raised ``SerialException``)."""
 
@@ -45,6 +49,15 @@ class CommandRefused(BoardError):
     def __init__(self, message: str, code: str) -> None:
         super().__init__(message)
         self.code = code
+
+
+def _check_major(kind: str, version: str) -> None:
+    """Raise :class:`OldFirmware` unless ``version`` is of the protocol MAJOR this host speaks."""
+    if version.split(".")[0] != str(PROTOCOL_MAJOR):
+        raise OldFirmware(
+            f"the {kind} board runs firmware {version}; this host speaks protocol {PROTOCOL_MAJOR} "
+            f"(firmware {PROTOCOL_MAJOR}.x, CRC-8 checksums): flash the firmware of this repository"
+        )
 
 
 def _expected_reply(command: str) -> str:
@@ -172,6 +185,12 @@ class BoardLink:
         if not data:
             return 0
         rows, messages = self.parser.feed(data)
+        if self.parser.legacy is not None:
+            raise OldFirmware(
+                f"the board on {self.port.port} runs firmware 1.x (protocol 1, XOR checksums; it sent "
+                f"{self.parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
+                f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
+            )
         if rows:
             self.rows.extend(rows)
         for msg in messages:
@@ -256,6 +275,7 @@ class BoardLink:
                     if len(words) != 3 or words[1] != self.kind:
                         raise BoardError(f"expected a {self.kind} board on {self.port.port}, got {reply!r}")
                     self.version = words[2]
+                    _check_major(self.kind, words[2])
                     break
             else:
                 if wait.expired:
@@ -286,6 +306,7 @@ class BoardLink:
                 f"expected 'PONG {self.kind} <version>' from the {self.kind} board, got {reply!r}"
             )
         self.version = words[2]
+        _check_major(self.kind, words[2])
         return words[2]
 
     def close(self) -> None:
