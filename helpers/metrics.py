@@ -45,6 +45,7 @@ import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
 from helpers import paper
+from helpers.noise import white_noise_std
 
 FloatArray = NDArray[np.float64]
 
@@ -185,19 +186,6 @@ def segment_motions(t: ArrayLike, steps: ArrayLike) -> Motions:
     )
 
 
-def _noise_std(y: FloatArray) -> float:
-    """Robust standard deviation of white noise on ``y``, from its second difference.
-
-    The second difference of white noise has 6 times its variance, while a smooth signal (a slow drift or the
-    ringing of a motion that has not settled) contributes almost nothing to it, so this measures the sensor's
-    noise, not the signal.
-    """
-    if y.size < 3:
-        return 0.0
-    d2 = np.diff(y, 2)
-    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-
-
 def _nan_metrics(
     motion: str, start: float, end: float, band: float, reason: str, **known: float
 ) -> MotionMetrics:
@@ -284,7 +272,7 @@ def motion_metrics(
     peak = float(np.max(y_w)) if motion == "Up" else float(np.min(y_w))
     step = yf - y0
     if min_step is None:
-        min_step = max(10.0 * _noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
+        min_step = max(10.0 * white_noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
     if abs(step) <= min_step or abs(step) == 0.0:
         reason = f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
         return _nan_metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak)

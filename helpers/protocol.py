@@ -15,6 +15,9 @@ XOR).
   transport or destroyed by corruption; a corrupted data line's ``seq`` is therefore also counted as dropped),
 - ``overruns``: sample periods the board itself reports as missed (``W,OVERRUN,<n>``),
 - ``corrupted``: non-blank lines that failed a check,
+- ``implausible``: data lines that passed every check but describe the impossible: a step count that changed
+  faster than the step-rate limit allows, or left the range the running programme can reach
+  (:attr:`StreamParser.steps_range`); they are rejected (their ``seq`` then counts as dropped too),
 
 and unwraps the board's 32-bit microsecond clock.
 """
@@ -257,6 +260,7 @@ class StreamStats:
     dropped: int = 0
     overruns: int = 0
     corrupted: int = 0
+    implausible: int = 0
     samples: int = 0
     corrupted_examples: list[str] = field(default_factory=list)
 
@@ -269,25 +273,64 @@ class StreamParser:
     A data line whose ``seq`` does not increase is counted as corrupted (it cannot be placed).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, max_step_rate_hz: float | None = None) -> None:
         self.splitter = LineSplitter()
         self.stats = StreamStats()
         self.legacy: str | None = None
         """The first line from a protocol-1 board (XOR-framed ``HELLO``/``PONG`` 1.x or ``ERR CHECKSUM``)."""
+        self.max_step_rate_hz = max_step_rate_hz
+        """Step-rate limit used to reject impossible step counts (None: no check)."""
+        self.steps_range: tuple[int, int] | None = None
+        """The step counts the running programme can reach (from ``ZERO``), or None (no check)."""
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
         self._t_offset = 0
+        self._last_sample: tuple[int, int] | None = None  # (t_us unwrapped, steps) of the last accepted one
 
     def restart(self) -> None:
         """Forget the sequence and clock state (after ``START``, whose ``seq`` restarts at 0)."""
         self.last_seq = None
         self._last_raw_t = None
         self._t_offset = 0
+        self._last_sample = None
+
+    def _plausible(self, t_us: int, steps: int) -> bool:
+        """A step count the motor can have reached: within the programme's range, no faster than allowed."""
+        rng = self.steps_range
+        if rng is not None and not rng[0] <= steps <= rng[1]:
+            return False
+        last = self._last_sample
+        if last is not None and self.max_step_rate_hz is not None:
+            dt = max(t_us - last[0], 0)
+            if abs(steps - last[1]) > self.max_step_rate_hz * dt * 1e-6 + 1:
+                return False
+        return True
+
+    def _accept(self, seq: int, t_raw: int, adc: int, steps: int, line: bytes, out: list) -> None:
+        """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
+        t_us = self._unwrapped(t_raw)
+        if not self._plausible(t_us, steps):
+            self.stats.implausible += 1
+            if len(self.stats.corrupted_examples) < 5:
+                self.stats.corrupted_examples.append(f"{line[:40]!r}: implausible step count {steps}")
+            return
+        self.unwrap(t_raw)
+        stats = self.stats
+        stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
+        self.last_seq = seq
+        stats.samples += 1
+        self._last_sample = (t_us, steps)
+        out.append((seq, t_us, adc, steps))
 
     def _corrupt(self, line: bytes, why: str) -> None:
         self.stats.corrupted += 1
         if len(self.stats.corrupted_examples) < 5:
             self.stats.corrupted_examples.append(f"{line[:40]!r}: {why}")
+
+    def _unwrapped(self, t_raw: int) -> int:
+        """``t_raw`` unwrapped as :meth:`unwrap` would, without moving the clock state."""
+        wrapped = self._last_raw_t is not None and t_raw < self._last_raw_t
+        return t_raw + self._t_offset + (WRAP_US if wrapped else 0)
 
     def unwrap(self, t_raw: int) -> int:
         """Return ``t_raw`` with the 32-bit wraps before it added back."""
@@ -310,10 +353,7 @@ class StreamParser:
             if m is not None and int(m[5], 16) == x:  # the common case: a well-formed data line
                 seq, t_raw, adc = int(m[1]), int(m[2]), int(m[3])
                 if adc <= ADC_MAX and t_raw < WRAP_US and (self.last_seq is None or seq > self.last_seq):
-                    stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
-                    self.last_seq = seq
-                    stats.samples += 1
-                    samples.append((seq, self.unwrap(t_raw), adc, int(m[4])))
+                    self._accept(seq, t_raw, adc, int(m[4]), line, samples)
                     continue
             if not line.strip(b"\r"):
                 continue
@@ -330,11 +370,7 @@ class StreamParser:
                 if self.last_seq is not None and item.seq <= self.last_seq:
                     self._corrupt(line, f"seq {item.seq} after {self.last_seq}")
                     continue
-                expected = 0 if self.last_seq is None else self.last_seq + 1
-                stats.dropped += item.seq - expected
-                self.last_seq = item.seq
-                stats.samples += 1
-                samples.append((item.seq, self.unwrap(item.t_us), item.adc, item.steps))
+                self._accept(item.seq, item.t_us, item.adc, item.steps, line, samples)
             elif isinstance(item, Overrun):
                 stats.overruns += item.n
             else:

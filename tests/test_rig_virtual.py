@@ -22,7 +22,9 @@ def test_run_records_the_whole_programme(tmp_path):
     back = recordings.load(tmp_path / "g" / "r1")
     f = back.frame
     assert back.meta["source"]["kind"] == "virtual-rig"
-    assert back.meta["counts"] == {"samples": len(f), "dropped": 0, "corrupted": 0, "overruns": 0}
+    assert back.meta["counts"] == {
+        "samples": len(f), "dropped": 0, "corrupted": 0, "overruns": 0, "implausible": 0,
+    }  # fmt: skip
     assert back.meta["firmware"] == {"daq": "2.0.0", "stepper": "2.0.0"}
     assert back.meta["scenario"]["programme"]["items"][1] == {
         "kind": "SEG",

@@ -119,6 +119,8 @@ class EmulatedBoard:
         self.disconnected = False
         self.resets = 0
         self._rng = np.random.default_rng(world.seed + (1 if self.kind == "daq" else 2))
+        self.port: Any = None
+        """The pyserial port that has this board open (one at a time), or None."""
 
     # --- output -------------------------------------------------------------------------------------
     def send(self, body: str) -> None:

@@ -19,6 +19,7 @@ from helpers.rig.boards import (
     BoardTimeout,
     CommandRefused,
     OldFirmware,
+    PortBusy,
 )
 from helpers.rig.daq import DaqBoard
 from helpers.rig.experiment import Rig, RunAborted
@@ -33,6 +34,7 @@ __all__ = [
     "CommandRefused",
     "DaqBoard",
     "OldFirmware",
+    "PortBusy",
     "Rig",
     "RunAborted",
     "SafetyError",

@@ -43,6 +43,10 @@ class BoardDisconnected(BoardError):
     """The serial port vanished (pyserial raised ``SerialException``)."""
 
 
+class PortBusy(BoardError):
+    """The port is open in another program (ports are opened exclusively)."""
+
+
 class CommandRefused(BoardError):
     """A board answered ``ERR <code> <text>``."""
 
@@ -148,6 +152,11 @@ class BoardLink:
         try:
             port = open_port(url, baudrate=cls.baudrate, timeout=read_timeout, write_timeout=timeout)
         except serial.SerialException as exc:
+            if "exclusive" in str(exc) or "busy" in str(exc):
+                raise PortBusy(
+                    f"port busy: the {cls.kind} board at {url} is open in another program (another recorder, "
+                    "notebook or serve-virtual-rig client); close it first"
+                ) from exc
             raise BoardDisconnected(f"cannot open the {cls.kind} board at {url}: {exc}") from exc
         link = cls(port, timeout=timeout)
         if sync:

@@ -65,6 +65,10 @@ class LoadCell:
         self.noise_rms = float(noise_rms)
         self._rng = np.random.default_rng(seed)
 
+    def reseed(self, seed: int | None) -> None:
+        """Restart the noise generator from ``seed`` (one seed per recorded run)."""
+        self._rng = np.random.default_rng(seed)
+
     @property
     def newtons_per_count(self) -> float:
         """The true calibration slope, N per count."""
