@@ -30,7 +30,9 @@ def _holder(path: Path) -> str:
 
 
 @contextmanager
-def folder_lock(folder: str | os.PathLike, wait_s: float = 0.0, what: str = "writing") -> Iterator[Path]:
+def folder_lock(
+    folder: str | os.PathLike, wait_s: float = 0.0, what: str = "writing", name: str = LOCK_NAME
+) -> Iterator[Path]:
     """Hold ``folder``'s lock for the ``with`` block (created if missing).
 
     Parameters
@@ -41,6 +43,8 @@ def folder_lock(folder: str | os.PathLike, wait_s: float = 0.0, what: str = "wri
         How long to wait for another holder to finish (0: refuse at once).
     what : str
         What the holder is doing, for the message.
+    name : str
+        The lock file's name (one folder may carry independent locks for different purposes).
 
     Raises
     ------
@@ -49,7 +53,7 @@ def folder_lock(folder: str | os.PathLike, wait_s: float = 0.0, what: str = "wri
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / LOCK_NAME
+    path = folder / name
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     try:
         deadline = time.monotonic() + max(0.0, wait_s)

@@ -454,7 +454,9 @@ def _scenario_of(rec: Any, i: int) -> dict[str, Any]:
         ) from err
 
 
-def metrics_by_run(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any) -> pd.DataFrame:
+def metrics_by_run(
+    recordings: Iterable[Any], band: float = 0.05, *, include_aborted: bool = False, **kwargs: Any
+) -> pd.DataFrame:
     """Metrics of every recording and motion, one row each (the long form behind :func:`scenario_table`).
 
     Parameters
@@ -464,6 +466,9 @@ def metrics_by_run(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
         ``"scenario"`` holds ``v_in_mm_s``, ``x_f_mm``, ``system`` and optionally ``repetition``).
     band : float
         Settling band.
+    include_aborted : bool
+        Also analyse recordings whose ``status`` is not ``complete`` (by default they are left out, and
+        listed in ``table.attrs["skipped"]`` with the reason).
     **kwargs
         Passed to :func:`motion_metrics`.
 
@@ -473,17 +478,25 @@ def metrics_by_run(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
         ``v_in_mm_s``, ``x_f_mm``, ``system``, ``repetition`` and the columns of :func:`recording_metrics`.
     """
     parts = []
+    skipped: list[str] = []
     for i, rec in enumerate(recordings):
+        status = (getattr(rec, "meta", None) or {}).get("status", "complete")
+        if status != "complete" and not include_aborted:
+            skipped.append(f"{getattr(rec, 'name', i)}: {status}")
+            continue
         sc = _scenario_of(rec, i)
         df = recording_metrics(rec.frame, band, **kwargs)
         for key, value in sc.items():
             df[key] = value
         parts.append(df)
     if not parts:
-        raise ValueError("no recordings given")
+        note = f" (skipped: {'; '.join(skipped)})" if skipped else ""
+        raise ValueError(f"no complete recordings given{note}")
     out = pd.concat(parts, ignore_index=True)
     front = ["v_in_mm_s", "x_f_mm", "system", "repetition"]
-    return _sorted(out[front + [c for c in out.columns if c not in front]])
+    table = _sorted(out[front + [c for c in out.columns if c not in front]])
+    table.attrs["skipped"] = skipped
+    return table
 
 
 def _sorted(df: pd.DataFrame) -> pd.DataFrame:
@@ -517,7 +530,7 @@ def scenario_table(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
     band : float
         Settling band (fraction of the step), reported in the ``band`` column and ``table.attrs["band"]``.
     **kwargs
-        Passed to :func:`motion_metrics`.
+        Passed to :func:`metrics_by_run` (``include_aborted``) and :func:`motion_metrics`.
 
     Returns
     -------
@@ -529,6 +542,7 @@ def scenario_table(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
         why values are missing.
     """
     runs = metrics_by_run(recordings, band, **kwargs)
+    skipped = runs.attrs.get("skipped", [])
     rows = []
     for keys, g in runs.groupby(_KEYS, sort=False):
         row: dict[str, Any] = dict(zip(_KEYS, keys, strict=True))
@@ -546,6 +560,7 @@ def scenario_table(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
         rows.append(row)
     table = _sorted(pd.DataFrame(rows))
     table.attrs["band"] = band
+    table.attrs["skipped"] = skipped
     return table
 
 

@@ -56,6 +56,7 @@ LAYERS: dict[str, int] = {
     # 10: procedures that combine the rooms, and the command line
     "helpers.rig_tuning": 10,
     "helpers.record": 10,
+    "helpers.home": 10,
     "helpers.summary": 10,
     "helpers.reproduce": 11,
     "helpers.benchmarks": 11,

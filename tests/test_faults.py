@@ -107,3 +107,28 @@ def test_a_stream_of_garbage_aborts_with_a_clear_reason(tmp_path):
         rig.run(PROG, path=tmp_path / "garbage", progress=False)
     assert recordings.load(info.value.saved_path).status == "aborted"
     assert world.stepper.received[-2:] == ["ABORT", "EN 0"]
+
+
+def test_a_run_that_fails_before_any_sample_saves_an_empty_loadable_recording(tmp_path):
+    rig, world = make_rig(daq_options="&disconnect_at=0.01")
+    with pytest.raises(BoardDisconnected) as info:
+        rig.run(PROG, path=tmp_path / "early", progress=False, silence_timeout=0.5)
+    rec = recordings.load(info.value.saved_path)
+    assert rec.status == "aborted" and len(rec.frame) == 0
+
+
+def test_a_save_that_fails_during_an_abort_is_reported_not_hidden(tmp_path, monkeypatch):
+    from helpers.__main__ import error_line
+    from helpers.recordings import RecordingError
+
+    rig, world = make_rig(stepper_options="&reset_at=0.8")
+
+    def full_disk(*args, **kwargs):
+        raise RecordingError("data/x.csv: could not save (no space left on device)")
+
+    monkeypatch.setattr(recordings, "save", full_disk)
+    with pytest.raises(BoardReset) as info:
+        rig.run(PROG, path=tmp_path / "lost", progress=False)
+    assert info.value.saved_path is None and "no space left" in info.value.save_error
+    line, status = error_line(info.value)
+    assert status == 4 and "could NOT be saved" in line and "no space left" in line and "\n" not in line

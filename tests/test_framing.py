@@ -277,3 +277,23 @@ def test_arbitrary_bytes_never_crash(data, cuts):
 
 def test_total_fuzzed_streams_is_at_least_ten_thousand():
     assert STRUCTURED_EXAMPLES + FUZZ_EXAMPLES * STREAMS_PER_EXAMPLE >= 10_000
+
+
+def test_impossible_step_counts_are_rejected_and_counted():
+    """A bit error that survives the checksum can still describe the impossible: reject and count it."""
+    p = StreamParser(max_step_rate_hz=2000.0)
+    p.steps_range = (0, 78)
+    lines = [
+        frame("D,0,1000,600,10"),
+        frame("D,1,2000,600,11"),  # 1 step in 1 ms: fine
+        frame("D,2,3000,600,58"),  # 47 steps in 1 ms: faster than 2000 steps/s allows
+        frame("D,3,4000,600,12"),
+        frame("D,4,5000,600,99"),  # outside what the programme can reach
+        frame("D,5,6000,600,12"),
+    ]
+    rows, _ = p.feed(b"".join(lines))
+    assert [r[0] for r in rows] == [0, 1, 3, 5]
+    assert p.stats.implausible == 2 and p.stats.dropped == 2 and p.stats.corrupted == 0
+    plain = StreamParser()  # no limits given: nothing is judged
+    rows, _ = plain.feed(b"".join(lines))
+    assert len(rows) == 6 and plain.stats.implausible == 0

@@ -49,6 +49,10 @@ class Sensor(Protocol):
         """Return 10-bit ADC counts for tensions in N."""
         ...
 
+    def reseed(self, seed: int) -> None:
+        """Restart the noise from ``seed``."""
+        ...
+
 
 @dataclass
 class Faults:

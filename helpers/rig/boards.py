@@ -19,6 +19,7 @@ import serial
 
 from helpers.protocol import PROTOCOL_MAJOR, StreamParser, frame
 from helpers.rig.ports import open_port
+from helpers.signals import signals_held
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
 
@@ -120,6 +121,8 @@ class BoardLink:
         self.hello_seen = 0
         self.version: str | None = None
         self.sent: list[str] = []
+        self.booted_on_open = False
+        """True when the board rebooted as its port opened (``HELLO``): its state (position too) is new."""
 
     @classmethod
     def open(
@@ -193,15 +196,16 @@ class BoardLink:
             raise self._fail_disconnected(exc) from exc
         if not data:
             return 0
-        rows, messages = self.parser.feed(data)
+        with signals_held():  # the parser's counts and the kept rows change together, or not at all
+            rows, messages = self.parser.feed(data)
+            if rows:
+                self.rows.extend(rows)
         if self.parser.legacy is not None:
             raise OldFirmware(
                 f"the board on {self.port.port} runs firmware 1.x (protocol 1, XOR checksums; it sent "
                 f"{self.parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
                 f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
             )
-        if rows:
-            self.rows.extend(rows)
         for msg in messages:
             self._message(msg)
         return len(data)
@@ -301,6 +305,7 @@ class BoardLink:
             break
         if self.hello_seen:
             self.hello_seen = 0
+            self.booted_on_open = True
             self.version = self.ping()
         self.replies.clear()
         self.rows.clear()

@@ -26,9 +26,10 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
+import re
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -75,7 +76,12 @@ REST_TIMEOUT_S = 30.0
 
 @dataclass
 class _RunState:
-    rows: list[tuple[int, int, int, int]] = field(default_factory=list)
+    """What a run knows about itself besides its samples.
+
+    The samples are the DAQ driver's ``rows`` since the run's ``START``, kept there and never moved, so that
+    an interrupt cannot lose a chunk on its way from one list to another.
+    """
+
     t_go_us: int | None = None
     go_sent: bool = False
     started_utc: str = ""
@@ -202,6 +208,10 @@ class Rig:
         Rig
         """
         if ports == "virtual":
+            if not (isinstance(rig_name, str) and re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", rig_name)):
+                raise ValueError(
+                    f"invalid virtual rig name {rig_name!r}: letters, digits, '_', '-', '.' (at most 64)"
+                )
             daq_url = f"virtual://daq?rig={rig_name}{daq_options}"
             stepper_url = f"virtual://stepper?rig={rig_name}{stepper_options}"
         elif ports == "auto":
@@ -410,7 +420,6 @@ class Rig:
             finally:
                 bar.close()
             self.daq.stop()
-            state.rows.extend(self.daq.take_rows())
             self.stepper.enable(False)
 
         return self._guarded(body, scenario, target, rate_hz, replace=replace)
@@ -510,9 +519,8 @@ class Rig:
         # GO's device time, estimated as the newest DAQ sample at hand once GO is acknowledged (exact
         # on the in-process virtual rig; a few ms late on hardware). Metrics use `steps` instead.
         self.daq.pump(block=False)
-        state.rows.extend(self.daq.take_rows())
-        if state.rows:
-            state.t_go_us = state.rows[-1][1]
+        if self.daq.rows:
+            state.t_go_us = self.daq.rows[-1][1]
 
     def _check_corruption(self, max_corrupted_fraction: float) -> None:
         stats = self.daq.stats
@@ -537,16 +545,16 @@ class Rig:
         period_us = round(1e6 / rate_hz)
         silence = Waiter(silence_timeout)
         while True:
+            before = len(self.daq.rows)
             self.daq.pump()
-            rows = self.daq.take_rows()
-            state.rows.extend(rows)  # on disk whatever happens next
+            rows = self.daq.rows
             self.daq.check_reset()
             self.stepper.poll()
             self.stepper.check_reset()
-            if rows:
+            if len(rows) > before:
                 silence = Waiter(silence_timeout)
                 if state.t_go_us is None:
-                    state.t_go_us = rows[0][1] - period_us
+                    state.t_go_us = rows[before][1] - period_us
             else:
                 silence.idle(self.daq.port.timeout or 0.0)
                 if silence.expired:
@@ -554,9 +562,9 @@ class Rig:
                         f"the daq board sent no sample for {silence_timeout:.1f} s (it stopped answering)"
                     )
             self._check_corruption(max_corrupted_fraction)
-            if state.t_go_us is None or not state.rows:
+            if state.t_go_us is None or not rows:
                 continue
-            last_us = state.rows[-1][1]
+            last_us = rows[-1][1]
             bar.show((last_us - state.t_go_us) / 1e6)
             past_end = last_us >= state.t_go_us + duration_us + margin_s * 1e6
             if past_end and self.stepper.done_position is not None:
@@ -614,17 +622,30 @@ class Rig:
             self.daq.start()
             self.daq.expect_steps(0, 0)  # the motor is idle
             bar = _DeviceTimeBar(duration_s, progress, desc=None)
+            silence = Waiter(silence_timeout)
             try:
-                for rows in self.daq.samples(silence_timeout):
-                    state.rows.extend(rows)
+                while True:
+                    before = len(self.daq.rows)
+                    self.daq.pump()
+                    self.daq.check_reset()
+                    rows = self.daq.rows
+                    if len(rows) == before:
+                        silence.idle(self.daq.port.timeout or 0.0)
+                        if silence.expired:
+                            raise BoardTimeout(
+                                f"the daq board sent no sample for {silence_timeout:.1f} s (it stopped "
+                                "answering)"
+                            )
+                        continue
+                    silence = Waiter(silence_timeout)
                     if state.t_go_us is None:
                         state.t_go_us = rows[0][1] - round(1e6 / rate_hz)
-                    if state.rows[-1][1] - state.t_go_us >= duration_s * 1e6:
+                    bar.show((rows[-1][1] - state.t_go_us) / 1e6)
+                    if rows[-1][1] - state.t_go_us >= duration_s * 1e6:
                         break
             finally:
                 bar.close()
             self.daq.stop()
-            state.rows.extend(self.daq.take_rows())
 
         return self._guarded(body, dict(scenario), target, rate_hz, stepper_used=False, replace=replace)
 
@@ -657,12 +678,12 @@ class Rig:
         replace: bool = False,
     ) -> Recording:
         state = _RunState(started_utc=_utc_now())
+        self.daq.take_rows()  # nothing of an earlier run is this run's
         try:
             body(state)
         except BaseException as exc:
             with signals_held():  # a second Ctrl-C or a SIGTERM now cannot cut the cleanup or the save short
                 self.last_cleanup = self._cleanup(stepper_used)
-                state.rows.extend(self.daq.take_rows())
                 reason = f"{type(exc).__name__}: {exc}"
                 if self.last_cleanup:
                     reason += " | cleanup: " + "; ".join(self.last_cleanup)
@@ -688,8 +709,9 @@ class Rig:
     def _recording(
         self, state: _RunState, scenario: dict[str, Any], rate_hz: int, status: str, reason: str | None
     ) -> Recording:
-        # Keep only rows that can be placed (a reset board restarts seq); the parser already refused those.
-        frame = recordings.frame_from_rows(state.rows) if state.rows else recordings.empty_frame()
+        # The run's samples since its START (a reset board restarts seq: the parser refused those already).
+        rows = list(self.daq.rows)
+        frame = recordings.frame_from_rows(rows) if rows else recordings.empty_frame()
         stats = self.daq.stats
         first_t = int(frame["t_us"].iloc[0]) if len(frame) else None
         meta = {
