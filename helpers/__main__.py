@@ -28,6 +28,7 @@ from helpers.signals import Interrupted, interrupts_from_signals
 COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("helpers.reproduce", "execute every notebook in order; regenerate figures/ and tables"),
     "record": ("helpers.record", "record experiments into data/ (hardware or virtual rig)"),
+    "metrics": ("helpers.table2", "Table II metrics (peak, overshoot, settling) of any recordings"),
     "home": ("helpers.home", "bring the cable back to position 0 safely"),
     "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
     "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),

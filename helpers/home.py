@@ -22,7 +22,7 @@ from helpers.rig.boards import BoardError, BoardTimeout, Waiter
 from helpers.rig.discovery import find_rig_ports
 from helpers.rig.safety import SafetyError, check_programme
 from helpers.rig.stepper import StepperBoard
-from helpers.validate import arg_number
+from helpers.validate import DefaultsHelp, arg_number
 
 HOME_SPEED_MM_S = 50.0
 """Cable speed of the way home, mm/s (gentle: a quarter of the experiments' slowest move)."""
@@ -89,7 +89,7 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``home`` options."""
-    parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
+    parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "--ports",
         default="virtual",

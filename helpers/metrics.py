@@ -494,13 +494,16 @@ def metrics_by_run(
         raise ValueError(f"no complete recordings given{note}")
     out = pd.concat(parts, ignore_index=True)
     front = ["v_in_mm_s", "x_f_mm", "system", "repetition"]
-    table = _sorted(out[front + [c for c in out.columns if c not in front]])
+    table = paper_order(out[front + [c for c in out.columns if c not in front]])
     table.attrs["skipped"] = skipped
     return table
 
 
-def _sorted(df: pd.DataFrame) -> pd.DataFrame:
-    """Sort rows as the paper does: Table I conditions, then pulse/non-robust/robust, then Up/Down."""
+def paper_order(df: pd.DataFrame) -> pd.DataFrame:
+    """Sort rows as the paper does: Table I conditions, then pulse/non-robust/robust, then Up/Down.
+
+    Conditions, systems and motions the paper does not have follow, sorted by value.
+    """
     cond = {c: i for i, c in enumerate(paper.TABLE_I_CONDITIONS)}
     sys_ = {s: i for i, s in enumerate(paper.SYSTEMS)}
     mot = {m: i for i, m in enumerate(MOTIONS)}
@@ -535,14 +538,30 @@ def scenario_table(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
     Returns
     -------
     pandas.DataFrame
+        :func:`summarise` of :func:`metrics_by_run`.
+    """
+    return summarise(metrics_by_run(recordings, band, **kwargs), band)
+
+
+def summarise(runs: pd.DataFrame, band: float) -> pd.DataFrame:
+    """Means and spreads over repetitions of a per-run table (the aggregation behind :func:`scenario_table`).
+
+    Parameters
+    ----------
+    runs : pandas.DataFrame
+        Output of :func:`metrics_by_run` (``attrs["skipped"]`` is carried over).
+    band : float
+        The settling band the runs were analysed with.
+
+    Returns
+    -------
+    pandas.DataFrame
         One row per (``v_in_mm_s``, ``x_f_mm``, ``system``, ``motion``) in the paper's order, with
         ``n_runs`` and, for each metric ``m`` of ``peak_n``, ``overshoot_pct``, ``settling_ms``: ``m_mean``
         and ``m_std`` (sample standard deviation, ddof = 1; NaN with fewer than two values) over the runs
         where ``m`` is not NaN, and ``m_n``, the number of such runs. ``reason`` lists, per repetition,
         why values are missing.
     """
-    runs = metrics_by_run(recordings, band, **kwargs)
-    skipped = runs.attrs.get("skipped", [])
     rows = []
     for keys, g in runs.groupby(_KEYS, sort=False):
         row: dict[str, Any] = dict(zip(_KEYS, keys, strict=True))
@@ -558,9 +577,9 @@ def scenario_table(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
             f"rep {r}: {why}" for r, why in zip(g["repetition"], g["reason"], strict=True) if why
         )
         rows.append(row)
-    table = _sorted(pd.DataFrame(rows))
+    table = paper_order(pd.DataFrame(rows))
     table.attrs["band"] = band
-    table.attrs["skipped"] = skipped
+    table.attrs["skipped"] = runs.attrs.get("skipped", [])
     return table
 
 
@@ -587,7 +606,7 @@ def paper_comparison(table: pd.DataFrame) -> pd.DataFrame:
     theirs = paper.table_ii().rename(columns={m: f"{m}_paper" for m in METRIC_COLUMNS})
     merged = ours.merge(theirs, on=_KEYS, how="outer")
     cols = _KEYS + [c for m in METRIC_COLUMNS for c in (m, f"{m}_paper")]
-    return _sorted(merged[cols])
+    return paper_order(merged[cols])
 
 
 def band_sweep(recordings: Sequence[Any], bands: Iterable[float], **kwargs: Any) -> pd.DataFrame:

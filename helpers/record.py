@@ -51,7 +51,7 @@ from helpers.recordings import check_group, check_name
 from helpers.rig import Rig
 from helpers.rig.loadcell import record_calibration
 from helpers.shapers import design_tdfs
-from helpers.validate import arg_number
+from helpers.validate import DefaultsHelp, arg_number
 
 SYSTEM_HELP = (
     "unshaped = the paper's pulse; zv = the paper's non-robust TDF (ZV shaper); "
@@ -80,7 +80,7 @@ def _group(text: str) -> str:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``record`` options (every default and accepted range is shown by ``--help``)."""
-    parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
+    parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "what",
         choices=["calibration", "pulse", "table-i", "all"],  # the keys of RECORDERS
@@ -101,17 +101,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="in-process virtual rig: noise seed of the first run; run k gets seed + k (recorded)",
     )
     parser.add_argument(
-        "--v-in", type=arg_number(0, MAX_SPEED_MM_S, lo_open=True), help="pulse speed, mm/s, in (0, 400]"
+        "--v-in", type=arg_number(0, MAX_SPEED_MM_S, lo_open=True),
+        help="pulse speed, mm/s, in (0, 400]; required for pulse",  # fmt: skip
     )
     parser.add_argument(
-        "--x-f", type=arg_number(0, MAX_TRAVEL_MM, lo_open=True), help="pulse displacement, mm, in (0, 40]"
+        "--x-f", type=arg_number(0, MAX_TRAVEL_MM, lo_open=True),
+        help="pulse displacement, mm, in (0, 40]; required for pulse",  # fmt: skip
     )
     parser.add_argument("--system", choices=["unshaped", "zv", "zvd"], default="unshaped", help=SYSTEM_HELP)
     parser.add_argument(
-        "--zeta", type=arg_number(0, 1, lo_open=True), help="design the shapers from this damping ratio"
+        "--zeta", type=arg_number(0, 1, lo_open=True),
+        help="design the shapers from this damping ratio (default: the identification result's)",
     )
     parser.add_argument(
-        "--omega-d", type=arg_number(0, 1e4, lo_open=True), help="... and this damped frequency, rad/s"
+        "--omega-d", type=arg_number(0, 1e4, lo_open=True),
+        help="... and this damped frequency, rad/s (default: the identification result's)",
     )
     parser.add_argument(
         "--identification",
@@ -143,7 +147,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="folder under the data folder (default: calibration, runs for pulse, experiments)",
     )
     parser.add_argument(
-        "--name", type=_name, default=None, help="pulse: file name (repetitions add _r<k>)"
+        "--name", type=_name, default=None,
+        help="pulse: file name; repetitions add _r<k> (default: <system>_v<v-in>_x<x-f>)",
     )
     parser.add_argument(
         "--replace",

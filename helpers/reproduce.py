@@ -23,7 +23,7 @@ from nbclient.exceptions import CellExecutionError
 
 from helpers.paths import FIGURES_DIR, NOTEBOOKS_DIR, REPO_ROOT
 from helpers.summary import print_summary
-from helpers.validate import arg_number
+from helpers.validate import DefaultsHelp, arg_number
 
 
 class NotebookFailed(RuntimeError):
@@ -226,7 +226,7 @@ def reproduce(notebooks: list[Path] | None = None, timeout: int = 600, jobs: int
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``reproduce`` command's options to ``parser``."""
-    parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
+    parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "--timeout", type=arg_number(1, 86_400, int), default=600, help="seconds any one cell may take"
     )

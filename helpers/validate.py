@@ -58,3 +58,14 @@ def arg_number(lo: float, hi: float, kind: type = float, lo_open: bool = False) 
 
     parse.__name__ = kind.__name__  # argparse shows it in "invalid <name> value"
     return parse
+
+
+class DefaultsHelp(argparse.HelpFormatter):
+    """Help that shows every option's default once: appended unless the help text already states it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        shown = "default" in text.lower()
+        unset = any(action.default is x for x in (None, False, argparse.SUPPRESS))
+        trivial = unset or not action.option_strings
+        return text if shown or trivial else f"{text} (default: %(default)s)"

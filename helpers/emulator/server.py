@@ -38,7 +38,7 @@ from typing import Any
 from helpers.emulator.boards import EmulatedBoard, Faults
 from helpers.emulator.world import VirtualWorld, default_world
 from helpers.paths import VIRTUAL_RIG_REGISTRY
-from helpers.validate import arg_number
+from helpers.validate import DefaultsHelp, arg_number
 
 
 class _PtyPort:
@@ -193,7 +193,7 @@ def serve(
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``serve-virtual-rig`` options (every range refused up front)."""
-    parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
+    parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "--speed",
         type=arg_number(0, 1000),
