@@ -58,6 +58,8 @@ MAX_DELAY_US = 1_000_000
 WATCHDOG_PERIODS = 10
 """Control periods without a set-point (100 ms) after which the board feeds zero and then stops."""
 FIFO_DEPTH = 8
+HISTORY = 128
+"""Set-points the board remembers (the longest delay needs 102)."""
 STEPS_PER_S_PER_UNIT = (1.0 / (1 << 16)) / (DELTA * TICK_S)
 """Steps per second of one set-point unit (0.95367431640625)."""
 
@@ -263,6 +265,7 @@ class Planner:
         self.ticks: list[int] = []
         self.dirs: list[int] = []
         self.notices: list[Notice] = []
+        self._speed_this = False  # this period was clamped
         self._speed_clamped = False  # the previous period was clamped (a notice starts an episode)
         self._travel_clamped = False
         self._period = 0
@@ -273,6 +276,7 @@ class Planner:
     def plan_period(self, k: int, v: int) -> None:
         """Take set-point ``v`` for period ``k`` and plan the period's steps."""
         self.hist[k] = v
+        self.hist.pop(k - HISTORY, None)  # the board keeps the last 128 set-points
         self._period = k
         self._speed_this = False
         base = (k + 1) * PERIOD
