@@ -282,7 +282,7 @@ static void stream_step_isr() {
   i = (uint8_t)((i + 1) & (STEP_QUEUE - 1));
   sq_head = i;
   if (--sq_count) {
-    set_dir_for(i);  // at least 639 us before its step
+    set_dir_for(i);  // at least 600 us before its step (steps are 639 us apart or more)
     OCR1A = st.step_time[i];
   } else {
     TIMSK1 &= ~_BV(OCIE1A);

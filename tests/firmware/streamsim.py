@@ -95,6 +95,7 @@ class StreamOutcome:
     commands: hs.PeriodCommands
     start_position: int
     tick_rises: np.ndarray  # control-tick test point (B0) rising edges
+    dir_setup: np.ndarray  # cycles from the last DIR change to each STEP rising edge
 
 
 def run(specs: list[StreamSpec], timeout: float = 900.0) -> tuple[fwsim.SimRun, list[StreamOutcome]]:
@@ -130,8 +131,21 @@ def run(specs: list[StreamSpec], timeout: float = 900.0) -> tuple[fwsim.SimRun, 
         cycles = rises[in_window]
         dirs = np.array([1 if _level_at(dir_edges, c) else -1 for c in cycles], dtype=np.int64)
         ticks = tick_rises_all[(tick_rises_all >= stream_lo) & (tick_rises_all < hi)]
+        dir_times = np.array([c for c, _ in dir_edges] or [-(10**12)], dtype=np.int64)
+        last_change = dir_times[np.maximum(np.searchsorted(dir_times, cycles, side="right") - 1, 0)]
         outcomes.append(
-            StreamOutcome(replies, notices, done, cycles, dirs, reference, commands, position, ticks)
+            StreamOutcome(
+                replies,
+                notices,
+                done,
+                cycles,
+                dirs,
+                reference,
+                commands,
+                position,
+                ticks,
+                cycles - last_change,
+            )
         )
         position = reference.position
     return result, outcomes

@@ -195,8 +195,9 @@ def random_spec(r: random.Random) -> streamsim.StreamSpec:
     d_max = r.choice([0.0, 0.01, 0.05, 0.15, 0.3, 0.3, 0.6, 1.0]) if n > 1 else 0.0
     delays = sorted({0.0, *(r.uniform(0.0, d_max) for _ in range(n - 1))})
     amps = [r.uniform(0.2, 1.0) for _ in delays]
-    if negative and len(amps) > 1:
-        amps[r.randrange(1, len(amps))] *= -0.6
+    if negative and len(amps) > 1:  # one negative impulse, small enough that the sum stays well above 0
+        i = r.randrange(1, len(amps))
+        amps[i] = -r.uniform(0.1, 0.5) * (sum(amps) - amps[i])
     shaper = hs.StreamShaper.quantise(amps, delays, allow_negative=negative)
     setpoints = []
     t, v = r.uniform(0.002, 0.02), 0
@@ -232,6 +233,8 @@ def check_outcome(out: streamsim.StreamOutcome) -> list[str]:
         return problems
     if not np.array_equal(out.step_dirs, ref.directions):
         problems.append("directions differ")
+    if len(out.dir_setup) and out.dir_setup.min() < 5 * 16:
+        problems.append(f"DIR changed {out.dir_setup.min() / 16:.1f} us before a step (TB6600: >= 5 us)")
     res = streamsim.residuals(out)
     if len(res) and res.max() - res.min() > streamsim.CYCLES_PER_TICK:
         problems.append(f"step times spread {res.max() - res.min()} cycles (> 1 tick)")
@@ -251,7 +254,7 @@ def check_outcome(out: streamsim.StreamOutcome) -> list[str]:
 def _run_random(n_streams: int, seed: int, per_session: int = 25):
     r = random.Random(seed)
     specs = [random_spec(r) for _ in range(n_streams)]
-    failures, spreads, loads, free = [], [], [], []
+    failures, spreads, loads, free, setup = [], [], [], [], []
     n_steps = n_clamped = n_watchdog = 0
     for i in range(0, n_streams, per_session):
         result, outcomes = streamsim.run(specs[i : i + per_session])
@@ -262,6 +265,7 @@ def _run_random(n_streams: int, seed: int, per_session: int = 25):
             res = streamsim.residuals(out)
             if len(res):
                 spreads.append(int(res.max() - res.min()))
+                setup.append(int(out.dir_setup.min()))
             n_steps += len(out.step_cycles)
             n_clamped += any(n.startswith("N,LIMIT") for n in out.notices)
             n_watchdog += any(n.startswith("N,WATCHDOG") for n in out.notices)
@@ -271,7 +275,8 @@ def _run_random(n_streams: int, seed: int, per_session: int = 25):
     figures = (
         f"{n_streams} random streams, {n_steps} steps ({n_clamped} streams clamped at a limit, {n_watchdog} "
         f"ended by the watchdog): step edges match the reference's ticks with a spread of at most "
-        f"{max(spreads)} cycles ({max(spreads) / 16:.3f} us; median {int(np.median(spreads))}); "
+        f"{max(spreads)} cycles ({max(spreads) / 16:.3f} us; median {int(np.median(spreads))}); DIR set at "
+        f"least {min(setup) / 16:.0f} us before each step edge; "
         f"control tick + step interrupt per 10 ms period: "
         f"worst {loads_all.max()} cycles ({loads_all.max() / T_CYCLES * 100:.1f} %), median "
         f"{int(np.median(loads_all))}; least free stack {min(free)} bytes"
