@@ -20,8 +20,9 @@ def random_stream(r: random.Random) -> tuple[hs.StreamShaper, hs.PeriodCommands,
     d_max = r.choice([0.0, 0.005, 0.05, 0.3, 1.0]) if n > 1 else 0.0
     delays = sorted({0.0, *(r.uniform(0.0, d_max) for _ in range(n - 1))})
     amps = [r.uniform(0.1, 1.0) for _ in delays]
-    if negative and len(amps) > 1:
-        amps[r.randrange(1, len(amps))] *= -0.7
+    if negative and len(amps) > 1:  # one negative impulse, small enough that the sum stays well above 0
+        i = r.randrange(1, len(amps))
+        amps[i] = -r.uniform(0.1, 0.5) * (sum(amps) - amps[i])
     shaper = hs.StreamShaper.quantise(amps, delays, allow_negative=negative)
     top = r.choice([30, 300, hs.V_MAX])
     assigned, v, k = {}, 0, 1
