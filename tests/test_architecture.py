@@ -43,6 +43,7 @@ LAYERS: dict[str, int] = {
     "helpers.loadcell": 3,
     "helpers.identify": 3,
     "helpers.shapers": 3,
+    "helpers.streaming": 3,
     "helpers.profiles": 4,
     "helpers.programmes": 5,
     # 6: the rig and the virtual rig side by side; the emulated boards above the physics

@@ -1,12 +1,7 @@
 // The CRC-8 of firmware/PROTOCOL.md (see crc8.h).
 #include "crc8.h"
 
-#ifdef __AVR__
-#include <avr/pgmspace.h>
-#else
-#define PROGMEM
-#define pgm_read_byte(p) (*(const uint8_t *)(p))
-#endif
+#include "flash.h"
 
 // One table entry, computed by the compiler: the byte shifted bit by bit through the reflected register.
 static constexpr uint8_t shift8(uint8_t c, uint8_t k) {

@@ -61,6 +61,7 @@ ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd) {
   cmd->word = line;
   cmd->nargs = 0;
   cmd->bad = 0;
+  cmd->checked = 0;
   if (len == 0) return PROTO_EMPTY;
   char *star = (char *)memchr(line, '*', len);
   if (star) {
@@ -71,6 +72,7 @@ ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd) {
     if ((uint8_t)((hi << 4) | lo) != crc8(line, body)) return PROTO_CHECKSUM;
     *star = '\0';
     len = body;
+    cmd->checked = 1;
     if (len == 0) return PROTO_EMPTY;
   }
   // Split on single spaces: an empty token (double, leading or trailing space) is an ARG error.
@@ -97,7 +99,7 @@ ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd) {
   return PROTO_OK;
 }
 
-bool proto_is(const Command *cmd, const char *w) { return strcmp(cmd->word, w) == 0; }
+bool proto_is(const Command *cmd, const char *w) { return strcmp_P(cmd->word, w) == 0; }
 
 // Decimal conversion by subtracting powers of ten: no 32-bit division (slow on the AVR), at most
 // 9 subtractions per digit.

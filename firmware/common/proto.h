@@ -10,6 +10,7 @@
 #include <stdint.h>
 
 #include "crc8.h"
+#include "flash.h"
 
 #define PROTO_MAX_LINE 63   // characters before '\n'
 #define PROTO_MAX_ARGS 3    // the most arguments any command takes (SEG)
@@ -45,18 +46,23 @@ struct Command {
   const char *word;   // points into the line buffer, NUL-terminated
   uint8_t nargs;      // number of arguments found (may exceed PROTO_MAX_ARGS: then only the first are parsed)
   uint8_t bad;        // an argument is not a decimal integer, or an empty token (double/trailing space)
+  uint8_t checked;    // the line carried a "*hh" checksum, and it was right
   int32_t arg[PROTO_MAX_ARGS];
 };
 
 // True when the command has exactly n well-formed integer arguments (otherwise the reply is ERR ARG).
 inline bool proto_args_ok(const Command *cmd, uint8_t n) { return !cmd->bad && cmd->nargs == n; }
 
+// PROTOCOL.md's order of errors puts CHECKSUM first: a command that must carry "*hh" and does not is refused
+// before anything else is looked at.
+inline bool proto_checksum_missing(const Command *cmd) { return !cmd->checked; }
+
 
 // Verifies and strips an optional checksum, splits the words and parses the integer arguments.
 // Modifies `line` in place (NUL-terminates the words). `len` is strlen(line).
 ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd);
 
-// True when the command word equals `w`.
+// True when the command word equals `w`, a string in flash (PSTR("...")).
 bool proto_is(const Command *cmd, const char *w);
 
 // Builds one outgoing line and appends "*hh\n" (the CRC-8 of the line, upper-case hex).
@@ -66,6 +72,10 @@ struct LineWriter {
   void begin() { len = 0; }
   void put(char c) { if (len < PROTO_OUT_MAX - 4) buf[len++] = c; }
   void str(const char *s) { while (*s) put(*s++); }
+  // Appends a string kept in flash (PSTR("...")).
+  void str_P(const char *s) {
+    for (char c; (c = (char)pgm_read_byte(s)) != 0; s++) put(c);
+  }
   void u32(uint32_t v);
   void i32(int32_t v);
   // Appends "*hh\n"; returns the total length.

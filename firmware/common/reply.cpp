@@ -8,22 +8,22 @@ void Reply::send() {
 
 void Reply::text(const char *s) {
   line.begin();
-  line.str(s);
+  line.str_P(s);
   send();
 }
 
 void Reply::err(const char *code, const char *text) {
   line.begin();
-  line.str("ERR ");
-  line.str(code);
+  line.str_P(PSTR("ERR "));
+  line.str_P(code);
   line.put(' ');
-  line.str(text);
+  line.str_P(text);
   send();
 }
 
 void Reply::word_u32(const char *word, uint32_t v) {
   line.begin();
-  line.str(word);
+  line.str_P(word);
   line.put(' ');
   line.u32(v);
   send();
@@ -31,7 +31,7 @@ void Reply::word_u32(const char *word, uint32_t v) {
 
 void Reply::word_i32(const char *word, int32_t v) {
   line.begin();
-  line.str(word);
+  line.str_P(word);
   line.put(' ');
   line.i32(v);
   send();

@@ -2,7 +2,7 @@
 //
 // A Reply builds one outgoing line in its LineWriter and hands the finished bytes ("<body>*hh\n") to the
 // write function the board supplies (Serial.write on the boards; anything on the host). Plain C++ with no
-// Arduino dependency, like proto.h.
+// Arduino dependency, like proto.h. Every string argument is a string in flash: PSTR("...").
 #ifndef FIRMWARE_COMMON_REPLY_H
 #define FIRMWARE_COMMON_REPLY_H
 
@@ -25,7 +25,7 @@ struct Reply {
   void text(const char *s);
   // "ERR <code> <text>"
   void err(const char *code, const char *text);
-  // "<word> <v>", e.g. word_u32("OK RATE", 500) -> "OK RATE 500"
+  // "<word> <v>", e.g. word_u32(PSTR("OK RATE"), 500) -> "OK RATE 500"
   void word_u32(const char *word, uint32_t v);
   // "<word> <v>", signed
   void word_i32(const char *word, int32_t v);

@@ -103,11 +103,11 @@ static void service_stream() {
     volatile Sample &s = ring[ring_tail];
     pending.begin();
     if (s.missed_before) {
-      pending.str("W,OVERRUN,");
+      pending.str_P(PSTR("W,OVERRUN,"));
       pending.u32(s.missed_before);
       pending_is_data = 0;
     } else {
-      pending.str("D,");
+      pending.str_P(PSTR("D,"));
       pending.u32(n_sent);
       pending.put(',');
       pending.u32(s.t_us);
@@ -169,7 +169,7 @@ static void sampler_stop() {
   sei();
   if (m) {  // periods missed after the last sample taken: still reported, never dropped
     out.begin();
-    out.line.str("W,OVERRUN,");
+    out.line.str_P(PSTR("W,OVERRUN,"));
     out.line.u32(m);
     out.send();
   }
@@ -180,37 +180,37 @@ static void sampler_stop() {
 // Commands
 
 static void handle(Command *cmd) {
-  if (proto_is(cmd, "PING")) {
-    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "PING takes no argument");
-    out.text("PONG daq " FW_VERSION);
-  } else if (proto_is(cmd, "RATE")) {
-    if (!proto_args_ok(cmd, 1)) return out.err("ARG", "RATE needs 1 integer");
-    if (streaming) return out.err("STATE", "streaming");
+  if (proto_is(cmd, PSTR("PING"))) {
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("PING takes no argument"));
+    out.text(PSTR("PONG daq " FW_VERSION));
+  } else if (proto_is(cmd, PSTR("RATE"))) {
+    if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("RATE needs 1 integer"));
+    if (streaming) return out.err(PSTR("STATE"), PSTR("streaming"));
     int32_t hz = cmd->arg[0];
-    if (hz < RATE_MIN_HZ || hz > RATE_MAX_HZ) return out.err("RANGE", "rate 100-2000 Hz");
+    if (hz < RATE_MIN_HZ || hz > RATE_MAX_HZ) return out.err(PSTR("RANGE"), PSTR("rate 100-2000 Hz"));
     rate_hz = (uint16_t)hz;
-    out.word_u32("OK RATE", rate_hz);
-  } else if (proto_is(cmd, "ZERO")) {
-    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "ZERO takes no argument");
+    out.word_u32(PSTR("OK RATE"), rate_hz);
+  } else if (proto_is(cmd, PSTR("ZERO"))) {
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("ZERO takes no argument"));
     cli();
     step_count = 0;
     sei();
-    out.text("OK ZERO");
-  } else if (proto_is(cmd, "START")) {
-    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "START takes no argument");
-    if (streaming) return out.err("STATE", "streaming");
-    out.word_u32("OK START", rate_hz);  // queued before the first data line
+    out.text(PSTR("OK ZERO"));
+  } else if (proto_is(cmd, PSTR("START"))) {
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("START takes no argument"));
+    if (streaming) return out.err(PSTR("STATE"), PSTR("streaming"));
+    out.word_u32(PSTR("OK START"), rate_hz);  // queued before the first data line
     sampler_start();
-  } else if (proto_is(cmd, "STOP")) {
-    if (!proto_args_ok(cmd, 0)) return out.err("ARG", "STOP takes no argument");
+  } else if (proto_is(cmd, PSTR("STOP"))) {
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("STOP takes no argument"));
     uint32_t n = 0;
     if (streaming) {
       sampler_stop();
       n = n_sent;
     }
-    out.word_u32("OK STOP", n);
+    out.word_u32(PSTR("OK STOP"), n);
   } else {
-    out.err("UNKNOWN", "command");
+    out.err(PSTR("UNKNOWN"), PSTR("command"));
   }
 }
 
@@ -222,11 +222,11 @@ static void service_rx() {
     LineEvent ev = reader.feed((char)Serial.read());
     if (ev == LINE_NONE) continue;
     if (ev == LINE_TOOLONG) {
-      out.err("TOOLONG", "line over 63 characters");
+      out.err(PSTR("TOOLONG"), PSTR("line over 63 characters"));
     } else {
       Command cmd;
       ProtoStatus st = proto_parse(reader.buf, reader.len, &cmd);
-      if (st == PROTO_CHECKSUM) out.err("CHECKSUM", "bad checksum");
+      if (st == PROTO_CHECKSUM) out.err(PSTR("CHECKSUM"), PSTR("bad checksum"));
       else if (st == PROTO_OK) handle(&cmd);
     }
     reader.reset();
@@ -247,7 +247,7 @@ void setup() {
   EICRB = (EICRB & ~(_BV(ISC41) | _BV(ISC40))) | _BV(ISC41) | _BV(ISC40);
   EIFR = _BV(INTF4);
   EIMSK |= _BV(INT4);
-  out.text("HELLO daq " FW_VERSION);
+  out.text(PSTR("HELLO daq " FW_VERSION));
 }
 
 void loop() {
