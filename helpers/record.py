@@ -47,9 +47,10 @@ from helpers.loadcell import (
 )
 from helpers.locks import folder_lock
 from helpers.paths import DATA_DIR
-from helpers.recordings import check_group, check_name
-from helpers.rig import Rig
-from helpers.rig.loadcell import record_calibration
+from helpers.programmes import experiment_programme
+from helpers.recordings import check_group, check_name, recording_path, refuse_existing
+from helpers.rig import Rig, SafetyError, check_programme, check_request
+from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
 from helpers.shapers import design_tdfs
 from helpers.validate import DefaultsHelp, arg_number
 
@@ -163,6 +164,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--data-dir", type=Path, default=DATA_DIR, help="the data folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check everything and print the recordings that would be made, without opening a port",
+    )
 
 
 def _shapers(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -419,9 +425,84 @@ def _calibration_for(what: str, data_dir: Path) -> LoadCellCalibration | None:
         raise
 
 
+def _planned_pulses(args: argparse.Namespace) -> list[tuple[str, str, float, float, Any]]:
+    """(group, name, v_in, x_f, shaper) of every pulse ``args`` asks for, in recording order."""
+    if args.what == "pulse":
+        if args.v_in is None or args.x_f is None:
+            raise SystemExit("record pulse needs --v-in and --x-f")
+        shapers, _ = _shapers(args) if args.system != "unshaped" else ({"unshaped": None}, None)
+        base = args.name or scenario_name(args.system, args.v_in, args.x_f)
+        reps = args.repetitions or 1
+        return [
+            (args.group, base if reps == 1 else f"{base}_r{rep}", args.v_in, args.x_f, shapers[args.system])
+            for rep in range(1, reps + 1)
+        ]
+    planned = []
+    if args.what == "all":
+        run = paper.IDENTIFICATION_RUN
+        planned.append(("identification", "pulse_v100_x10", run["v_in_mm_s"], run["x_f_mm"], None))
+        print("dry run: the shapers of Table I are designed from the identification run once it is recorded;")
+        print("         the plan below checks them with the current identification result")
+    shapers, _ = _shapers(args)
+    reps = args.repetitions or 3
+    for system in paper.SYSTEMS:
+        for v, x in paper.TABLE_I_CONDITIONS:
+            for rep in range(1, reps + 1):
+                planned.append((args.group, scenario_name(system, v, x, rep), v, x, shapers[system]))
+    return planned
+
+
+def dry_run(args: argparse.Namespace) -> int:
+    """Check a ``record`` request completely and print what it would record; no port is opened.
+
+    Every pulse is quantised into its stepper programme and checked against the safety limits, every target
+    file against existing recordings (unless ``--replace``), and the load-cell calibration is looked up, as
+    the real run does before it moves anything.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed ``record`` arguments (``args.group`` already resolved).
+
+    Returns
+    -------
+    int
+        0 when the run would start; otherwise an exception names the first problem.
+    """
+    _calibration_for(args.what, args.data_dir)
+    rows = []
+    if args.what == "calibration":
+        for grams in (round(1000 * m) for m in CALIBRATION_MASSES_KG):
+            target = recording_path(args.group, f"load_{grams:04d}g", args.data_dir)
+            if not args.replace:
+                refuse_existing(target)
+            rows.append(f"  {_shown(target)}: {grams} g hung for {args.duration:g} s at {args.rate} Hz")
+    else:
+        for group, name, v, x, shaper in _planned_pulses(args):
+            target = recording_path(group, name, args.data_dir)
+            if not args.replace:
+                refuse_existing(target)
+            v, x = check_request(v, x)
+            try:
+                programme, report = experiment_programme(v, x, shaper, t_end=args.t_end)
+            except ValueError as exc:
+                raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
+            check_programme(programme)
+            what = "unshaped" if shaper is None else f"{shaper.name} ({len(shaper.amplitudes)} impulses)"
+            rows.append(
+                f"  {_shown(target)}: {x:g} mm at {v:g} mm/s, {what}, {report.n_steps} steps per move, "
+                f"{programme.duration_s:.1f} s at {args.rate} Hz"
+            )
+    print(f"dry run: {len(rows)} recording(s) would be made on --ports {args.ports}; nothing was sent:")
+    print("\n".join(rows))
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers record`` (errors are turned into one line by ``python -m helpers``)."""
     args.group = args.group or DEFAULT_GROUPS[args.what]
+    if args.dry_run:
+        return dry_run(args)
     groups = {args.group, "identification"} if args.what == "all" else {args.group}
     calibration = _calibration_for(args.what, args.data_dir)
     with contextlib.ExitStack() as stack:

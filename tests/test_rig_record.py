@@ -70,3 +70,36 @@ def test_record_pulse_with_a_shaper(tmp_path):
 def test_fit_needs_three_loads():
     with pytest.raises(ValueError, match="three distinct loads"):
         loadcell.fit_calibration([])
+
+
+def _with_calibration(tmp_path):
+    (tmp_path / "calibration").mkdir()
+    shutil.copy(DATA_DIR / "calibration" / "calibration.json", tmp_path / "calibration" / "calibration.json")
+
+
+def test_dry_run_checks_everything_and_opens_no_port(tmp_path, capsys):
+    _with_calibration(tmp_path)
+    argv = ["pulse", "--v-in", "250", "--x-f", "25", "--system", "zvd", "--repetitions", "3",
+            "--group", "mine", "--ports", "/dev/nonexistent-daq,/dev/nonexistent-stepper",
+            "--data-dir", str(tmp_path), "--dry-run"]  # fmt: skip
+    assert record.run(_args(*argv)) == 0
+    out = capsys.readouterr().out
+    assert "3 recording(s) would be made" in out and "nothing was sent" in out
+    for k in (1, 2, 3):
+        assert f"mine/zvd_v250_x25_r{k}.csv: 25 mm at 250 mm/s, zvd (3 impulses), 98 steps per move" in out
+    assert not (tmp_path / "mine").exists()  # nothing written, not even the group folder
+
+
+def test_dry_run_refuses_what_the_real_run_would_refuse(tmp_path):
+    _with_calibration(tmp_path)
+    common = ["--data-dir", str(tmp_path), "--dry-run", "--group", "mine"]
+    with pytest.raises(record.SafetyError, match="travel limit"):
+        record.run(_args("pulse", "--v-in", "400", "--x-f", "40", *common))
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "unshaped_v200_x10.json").write_text("{}")
+    with pytest.raises(recordings.RecordingExists, match="exists"):
+        record.run(_args("pulse", "--v-in", "200", "--x-f", "10", *common))
+    assert record.run(_args("pulse", "--v-in", "200", "--x-f", "10", "--replace", *common)) == 0
+    shutil.rmtree(tmp_path / "calibration")
+    with pytest.raises(record.MissingDataError):
+        record.run(_args("pulse", "--v-in", "200", "--x-f", "10", *common))

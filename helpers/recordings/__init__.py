@@ -31,6 +31,7 @@ from helpers.recordings.store import (
     check_name,
     load,
     recording_path,
+    refuse_existing,
     save,
 )
 
@@ -54,6 +55,7 @@ __all__ = [
     "frame_from_rows",
     "load",
     "recording_path",
+    "refuse_existing",
     "save",
     "validate",
     "validate_meta",

@@ -91,6 +91,19 @@ def recording_path(group: str, name: str, root: str | os.PathLike = DATA_DIR) ->
     return Path(root) / check_group(group) / f"{check_name(name)}.csv"
 
 
+def refuse_existing(target: str | os.PathLike, replace: bool = False) -> None:
+    """Refuse, before anything moves, a run whose recording would overwrite one (unless replacing).
+
+    Raises
+    ------
+    RecordingExists
+        The CSV or the JSON of ``target`` exists and ``replace`` is False.
+    """
+    csv = _csv_path(target)
+    if not replace and (csv.exists() or csv.with_suffix(".json").exists()):
+        raise RecordingExists(f"{csv}: a recording of that name exists; choose another name or replace it")
+
+
 def aborted_path(path: str | os.PathLike, started_utc: str) -> Path:
     """The name an aborted run is saved under: ``<name>_aborted_<UTC start>.csv`` beside ``path``."""
     p = _csv_path(path)

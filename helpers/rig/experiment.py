@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
+from tqdm.auto import tqdm
 
 from helpers import __version__ as HELPERS_VERSION
 from helpers import paper, recordings
@@ -43,7 +43,7 @@ from helpers.loadcell import LoadCellCalibration, load_calibration
 from helpers.noise import white_noise_std
 from helpers.paths import DATA_DIR
 from helpers.programmes import Programme, experiment_programme
-from helpers.recordings import Recording, RecordingError, RecordingExists
+from helpers.recordings import Recording, RecordingError, refuse_existing
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
 from helpers.rig.daq import DaqBoard
 from helpers.rig.discovery import find_rig_ports, virtual_source_for
@@ -89,12 +89,6 @@ class _RunState:
 
 def _utc_now() -> str:
     return _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
-
-
-def _refuse_existing(target: Path, replace: bool) -> None:
-    """Refuse, before anything moves, a run whose recording would overwrite one (unless replacing)."""
-    if not replace and (target.exists() or target.with_suffix(".json").exists()):
-        raise RecordingExists(f"{target}: a recording of that name exists; choose another name or replace it")
 
 
 def _is_virtual_url(url: str) -> bool:
@@ -396,7 +390,7 @@ class Rig:
         scenario = dict(scenario or {"kind": "programme"})
         scenario.setdefault("programme", programme.to_dict())
         target = self._target(path)
-        _refuse_existing(target, replace)
+        refuse_existing(target, replace)
         position = self._checked_start_position(programme)
         if require_zero and position != 0:
             raise NotAtZero(
@@ -613,7 +607,7 @@ class Rig:
             raise SafetyError(f"duration must be within (0, {MAX_PROGRAMME_S:.0f}] s, got {duration_s!r}")
         _check_rate(rate_hz)
         target = self._target(path)
-        _refuse_existing(target, replace)
+        refuse_existing(target, replace)
 
         def body(state: _RunState) -> None:
             self.daq.check_reset()
