@@ -59,6 +59,7 @@ LAYERS: dict[str, int] = {
     "helpers.record": 10,
     "helpers.home": 10,
     "helpers.summary": 10,
+    "helpers.playground": 10,
     "helpers.table2": 10,
     "helpers.reproduce": 11,
     "helpers.benchmarks": 11,
