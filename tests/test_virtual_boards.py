@@ -26,7 +26,7 @@ def talk(board, *commands, checksum=True):
 def test_hello_on_reset_and_pong_with_the_documented_checksum():
     w = make_world()
     assert w.daq.take_output() == frame("HELLO daq 2.0.0")
-    w.daq.receive(b"PING\n")
+    w.daq.receive(b"PING*79\n")
     assert w.daq.take_output() == b"PONG daq 2.0.0*FD\n"  # the example of PROTOCOL.md
     assert talk(w.stepper, "PING") == ["HELLO stepper 2.0.0", "PONG stepper 2.0.0"]
 
@@ -47,7 +47,9 @@ def test_daq_errors_and_limits():
         "OK RATE 200"
     ]  # lower-case hex accepted, as the firmware
     assert talk(d, "X" * 64, checksum=False)[0].startswith("ERR TOOLONG")
-    assert talk(d, "X" * 63, checksum=False)[0].startswith("ERR UNKNOWN")  # 63 characters still fit
+    assert talk(d, "X" * 60)[0].startswith("ERR UNKNOWN")  # 63 characters with "*hh" still fit
+    assert talk(d, "RATE 300", checksum=False)[0].startswith("ERR NOCRC")  # a command needs its *hh ...
+    assert d.rate == 200  # ... and one without it did nothing
     assert talk(d, "", checksum=False) == []  # a blank line gets no reply
     assert talk(d, "START") == ["OK START 200"]
     assert talk(d, "RATE 300")[0].startswith("ERR STATE")

@@ -196,16 +196,16 @@ class EmulatedBoard:
         if not text:
             return None
         star = text.find("*")
-        if star >= 0:
-            given = text[star + 1 :]
-            body = text[:star]
-            if len(given) != 2 or any(c not in "0123456789ABCDEFabcdef" for c in given):
-                return "ERR CHECKSUM bad checksum"
-            if int(given, 16) != int(checksum(line[:star]), 16):
-                return "ERR CHECKSUM bad checksum"
-            text = body
-            if not text:
-                return None
+        if star < 0:
+            return "ERR NOCRC every command needs its CRC-8 suffix"
+        given = text[star + 1 :]
+        if len(given) != 2 or any(c not in "0123456789ABCDEFabcdef" for c in given):
+            return "ERR CHECKSUM bad checksum"
+        if int(given, 16) != int(checksum(line[:star]), 16):
+            return "ERR CHECKSUM bad checksum"
+        text = text[:star]
+        if not text:
+            return None
         tokens = text.split(" ")
         bad = any(t == "" for t in tokens)
         args: list[int] = []

@@ -2,8 +2,8 @@
 
 Each case is ``(command bytes, expected reply)``: the expected reply is a regular expression for the reply
 body (the checksum is checked separately), or ``None`` when the line must get no reply. Expectations are
-written from firmware/PROTOCOL.md. ``ERR`` texts are free; only the code is part of the protocol.
-``long_wait`` marks a command after which the script pauses (a programme runs to its end).
+written from firmware/PROTOCOL.md. ``ERR`` texts are free; only the code is part of the protocol. Commands
+carry their ``*hh`` (protocol 2.0.0 requires it) unless a case is about a command without it.
 """
 
 from __future__ import annotations
@@ -14,13 +14,17 @@ from fwsim import with_checksum
 V = r"2\.0\.0"
 
 
-def _c(text: str) -> bytes:
+def _c(body: str) -> bytes:
+    """A command with its correct checksum (as the host drivers send every command)."""
+    return with_checksum(body).encode("ascii") + b"\n"
+
+
+def _bare(text: str) -> bytes:
+    """A command without ``*hh`` (as a person might type it): refused with ``ERR NOCRC``."""
     return text.encode("ascii") + b"\n"
 
 
-def _k(body: str) -> bytes:
-    """A command with a correct checksum."""
-    return with_checksum(body).encode("ascii") + b"\n"
+NOCRC = r"ERR NOCRC( .*)?"
 
 
 def _bad(body: str) -> bytes:
@@ -35,8 +39,11 @@ def framing_cases(board: str) -> list[tuple[bytes, str | None]]:
     pong = rf"PONG {board} {V}"
     return [
         (_c("PING"), pong),
-        (_k("PING"), pong),
-        (b"PING\r\n", pong),  # \r before \n ignored
+        (_bare("PING"), NOCRC),  # every command must carry its *hh ...
+        (_bare("FOO"), NOCRC),  # ... which is looked at before the word
+        (_bare("PING 1"), NOCRC),
+        (b"PING\r\n", NOCRC),
+        (_c("PING")[:-1] + b"\r\n", pong),  # \r before \n ignored
         (_bad("PING"), r"ERR CHECKSUM( .*)?"),
         (b"PING*1\n", r"ERR CHECKSUM( .*)?"),  # one hex digit
         (b"PING*XY\n", r"ERR CHECKSUM( .*)?"),  # not hex
@@ -50,19 +57,21 @@ def framing_cases(board: str) -> list[tuple[bytes, str | None]]:
         (f"123456789*{LINK_CHECK:02X}\n".encode(), r"ERR UNKNOWN( .*)?"),
         (f"123456789*{LINK_CHECK ^ 1:02X}\n".encode(), r"ERR CHECKSUM( .*)?"),
         # a '\r' is dropped only just before '\n'; elsewhere it is part of the line (and of the CRC)
-        (b"PI\rNG\n", r"ERR UNKNOWN( .*)?"),
-        (b"PING\r\r\n", r"ERR UNKNOWN( .*)?"),
+        (b"PI\rNG\n", NOCRC),
+        (_c("PING")[:-1] + b"\r\r\n", r"ERR CHECKSUM( .*)?"),  # "*hh\r": a malformed checksum
         (f"PI\rNG*{with_checksum('PING')[-2:]}\n".encode(), r"ERR CHECKSUM( .*)?"),
         (f"PI\rNG*{with_checksum('PI' + chr(13) + 'NG')[-2:]}\r\n".encode(), r"ERR UNKNOWN( .*)?"),
         (b"\n", None),  # blank line: no reply
         (b"\r\n", None),
+        (b"*FF\n", None),  # an empty body with its CRC (the initial value 0xFF): blank too
         (_c("FOO"), r"ERR UNKNOWN( .*)?"),
         (_c("ping"), r"ERR UNKNOWN( .*)?"),  # command words are upper case
         (_c("PING 1"), r"ERR ARG( .*)?"),
         (_c("PING "), r"ERR ARG( .*)?"),  # trailing space = empty argument
         (b"X" * 64 + b"\n", r"ERR TOOLONG( .*)?"),
         (b"P" * 200 + b"\n", r"ERR TOOLONG( .*)?"),  # one reply however long
-        (b"PING" + b" " * 59 + b"\n", r"ERR ARG( .*)?"),  # 63 characters: not too long
+        (_c("PING" + " " * 56), r"ERR ARG( .*)?"),  # 63 characters with "*hh": not too long
+        (_c("PING" + " " * 57), r"ERR TOOLONG( .*)?"),  # 64
         (_c("PING"), pong),  # and the board still answers
     ]
 
@@ -83,9 +92,9 @@ def daq_cases() -> list[tuple[bytes, str | None]]:
         (_c("RATE 99999999999999999999"), r"ERR RANGE( .*)?"),
         (_c("RATE 100"), r"OK RATE 100"),
         (_c("RATE 2000"), r"OK RATE 2000"),
-        (_k("RATE 500"), r"OK RATE 500"),
-        (_c("RATE " + "0" * 54 + "1000"), r"OK RATE 1000"),  # exactly 63 characters
-        (_c("RATE " + "0" * 55 + "1000"), r"ERR TOOLONG( .*)?"),  # 64
+        (_c("RATE 500"), r"OK RATE 500"),
+        (_c("RATE " + "0" * 51 + "1000"), r"OK RATE 1000"),  # exactly 63 characters with "*hh"
+        (_c("RATE " + "0" * 52 + "1000"), r"ERR TOOLONG( .*)?"),  # 64
         (_c("ZERO 0"), r"ERR ARG( .*)?"),
         (_c("ZERO"), r"OK ZERO"),
         (b"ZERO*DE\n", r"OK ZERO"),  # CRC-8 values from the reference implementation
@@ -93,6 +102,8 @@ def daq_cases() -> list[tuple[bytes, str | None]]:
         (b"RATE 1000*67\n", r"OK RATE 1000"),
         (_c("START 1"), r"ERR ARG( .*)?"),
         (_c("STOP 1"), r"ERR ARG( .*)?"),
+        (_bare("START"), NOCRC),  # executes nothing ...
+        (_c("STOP"), r"OK STOP 0"),  # ... so the board is not streaming
         (_c("START"), r"OK START 1000"),
         (_c("PING"), rf"PONG daq {V}"),
         (_c("START"), r"ERR STATE( .*)?"),
@@ -145,7 +156,8 @@ def stepper_cases() -> list[tuple[bytes, str | None, float, str | None]]:
         (_c("EN 0"), r"OK EN 0", 0, n),
         (_c("SEG 1 10 639"), r"OK SEG 1", 0, n),
         (_c("WAIT 0"), r"OK WAIT 2", 0, n),
-        (_k("SEG -1 10 1000"), r"OK SEG 3", 0, n),
+        (_c("SEG -1 10 1000"), r"OK SEG 3", 0, n),
+        (_bare("EN 1"), NOCRC, 0, n),  # executes nothing: the driver stays disabled
         (_c("GO"), r"ERR STATE( .*)?", 0, n),  # driver disabled
         (_c("EN"), r"ERR ARG( .*)?", 0, n),
         (_c("EN 2"), r"ERR RANGE( .*)?", 0, n),

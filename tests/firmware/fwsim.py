@@ -63,6 +63,11 @@ def with_checksum(body: str) -> str:
     return f"{body}*{checksum(body.encode('ascii'))}"
 
 
+def command(body: str) -> bytes:
+    """A command line as a host sends it: ``body*hh\\n`` (every command must carry its checksum)."""
+    return (with_checksum(body) + "\n").encode("ascii")
+
+
 def _escape(data: bytes) -> str:
     out = []
     for b in data:
