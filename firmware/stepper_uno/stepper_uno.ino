@@ -527,7 +527,7 @@ static void handle(Command *cmd) {
     if (bad) {
       shaper_expect = 0;  // the shaper is discarded: start again with SHAPER
       if (bad == 1) return out.err(PSTR("RANGE"), PSTR("amplitude -16384..16384 (>= 0 unless allowed)"));
-      return out.err(PSTR("RANGE"), PSTR("delay: 0 first, increasing, multiple of 16, <= 1000000 us"));
+      return out.err(PSTR("RANGE"), PSTR("delay: 0 first, rising, 16 us units, <= 1 s"));
     }
     pl.a[i] = (int16_t)cmd->arg[1];
     pl.d[i] = (uint16_t)(cmd->arg[2] / SP_DELAY_UNIT_US);
