@@ -190,6 +190,41 @@ UNIT_SHAPER = StreamShaper((AMP_ONE,), (0,))
 """The identity: the stream is passed through unshaped (load it when the host shapes the stream itself)."""
 
 
+def board_shaper(shaper: object | None, tolerance: float = 1e-6) -> StreamShaper:
+    """The shaper to load on the board for ``shaper``.
+
+    Parameters
+    ----------
+    shaper : StreamShaper, object with ``amplitudes`` and ``times`` (s), or None
+        A board shaper as it is; a real one (e.g. :class:`helpers.shapers.Shaper`) rounded by
+        :meth:`StreamShaper.quantise` (negative amplitudes allowed when it has any); None: the unit shaper
+        (no shaping).
+    tolerance : float
+        How far a real shaper's amplitudes may sum from 1.
+
+    Raises
+    ------
+    ValueError
+        Naming the problem: amplitudes that do not sum to 1, an impulse beyond 1 s, more than 8 impulses, ...
+    """
+    if shaper is None:
+        return UNIT_SHAPER
+    if isinstance(shaper, StreamShaper):
+        return shaper
+    try:
+        amplitudes = np.asarray(shaper.amplitudes, dtype=float)  # type: ignore[attr-defined]
+        times = np.asarray(shaper.times, dtype=float)  # type: ignore[attr-defined]
+    except (AttributeError, TypeError, ValueError):
+        raise ValueError(f"a shaper needs amplitudes and times, got {type(shaper).__name__}") from None
+    name = getattr(shaper, "name", "shaper")
+    if amplitudes.size and np.all(np.isfinite(amplitudes)) and abs(amplitudes.sum() - 1.0) > tolerance:
+        raise ValueError(f"shaper {name!r}: the amplitudes sum to {amplitudes.sum():.6g}, not 1")
+    try:
+        return StreamShaper.quantise(amplitudes, times, allow_negative=bool(np.any(amplitudes < 0)))
+    except ValueError as exc:
+        raise ValueError(f"shaper {name!r} cannot be loaded on the board: {exc}") from None
+
+
 def velocity_units(mm_per_s: float, mm_per_step: float) -> int:
     """The set-point (units of 2^-16 step per 16 us) nearest to a cable speed."""
     return int(round(mm_per_s / mm_per_step / STEPS_PER_S_PER_UNIT))
