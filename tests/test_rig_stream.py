@@ -240,3 +240,15 @@ def test_the_pacer_keeps_its_lead_when_the_boards_clocks_differ():
                 events += period > pacer.next_period  # periods went by without a set-point
                 pacer.accepted(period, now)
         assert sent > 5900 and events <= 20, (drift, events)
+
+
+@pytest.mark.slow
+def test_the_example_of_docs_streaming_prints_what_the_page_says(capsys):
+    """docs/streaming.md's example, run as it stands on the tuned virtual rig."""
+    from helpers.paths import REPO_ROOT
+
+    page = (REPO_ROOT / "docs" / "streaming.md").read_text()
+    code = page.split("```python\n")[2].split("```")[0]
+    printed = page.split("prints (simulated, on the tuned virtual rig):\n\n```\n")[1].split("```")[0]
+    exec(compile(code, "docs/streaming.md", "exec"), {})  # noqa: S102 - the page's own example
+    assert capsys.readouterr().out == printed
