@@ -633,3 +633,54 @@ def band_sweep(recordings: Sequence[Any], bands: Iterable[float], **kwargs: Any)
         for b in bands
     ]
     return pd.concat(parts, ignore_index=True)
+
+
+RESIDUAL_START_S = 0.1
+"""The residual-vibration window opens this long after the last step of the move, s."""
+RESIDUAL_LENGTH_S = 1.0
+"""... and lasts this long, s."""
+
+
+def residual_vibration(
+    t: ArrayLike,
+    y: ArrayLike,
+    move_end_s: float,
+    y0: float,
+    yf: float,
+    start_s: float = RESIDUAL_START_S,
+    length_s: float = RESIDUAL_LENGTH_S,
+) -> float:
+    """Residual vibration of a move: half the peak-to-peak of ``y`` in a window after it, in % of the step.
+
+    The window runs from ``move_end_s + start_s`` to ``move_end_s + start_s + length_s`` (default 0.1 s to
+    1.1 s after the last step of the, possibly shaped, move), and the step is ``yf - y0`` as defined for
+    Table II (``docs/metrics.md``).
+
+    Parameters
+    ----------
+    t, y : array_like
+        Sample times (s) and the signal (e.g. tension, N).
+    move_end_s : float
+        Time of the move's last step, s.
+    y0, yf : float
+        The signal before the move and its final value.
+    start_s, length_s : float
+        Where the window starts after the move, and its length, s.
+
+    Returns
+    -------
+    float
+        ``100 * (max - min) / 2 / |yf - y0|`` over the window; NaN if the step is zero or the window holds
+        fewer than two finite samples.
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if t.shape != y.shape:
+        raise ValueError(f"t and y must have the same length, got {t.size} and {y.size}")
+    lo = move_end_s + start_s
+    window = (t >= lo) & (t <= lo + length_s) & np.isfinite(y)
+    step = abs(yf - y0)
+    if np.count_nonzero(window) < 2 or step == 0.0 or not math.isfinite(step):
+        return math.nan
+    w = y[window]
+    return float(100.0 * (w.max() - w.min()) / 2.0 / step)

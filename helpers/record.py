@@ -121,7 +121,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--identification",
         default=None,
-        help="identification result JSON (default data/identification/result.json)",
+        help="identification result JSON (default: identification/result.json in the data folder)",
     )
     parser.add_argument(
         "--repetitions",
@@ -177,12 +177,13 @@ def _shapers(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
     if args.zeta is not None:
         zeta, omega_d, origin = args.zeta, args.omega_d, "command line"
     else:
+        path = Path(args.identification or args.data_dir / "identification" / "result.json")
         try:
-            found = load_identification(args.identification) if args.identification else load_identification()
+            found = load_identification(path)
         except MissingDataError as exc:
             raise SystemExit(f"{exc} (or pass --zeta and --omega-d)") from None
         zeta, omega_d = found.zeta, found.omega_d
-        origin = args.identification or "data/identification/result.json"
+        origin = _shown(path)
     zv, zvd = design_tdfs(omega_d, zeta)
     print(f"shapers designed from zeta = {zeta:.4f}, omega_d = {omega_d:.3f} rad/s ({origin})")
     return {"unshaped": None, "zv": zv, "zvd": zvd}, {"zeta": zeta, "omega_d": omega_d, "origin": origin}

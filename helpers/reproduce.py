@@ -21,6 +21,7 @@ import nbformat
 from nbclient import NotebookClient
 from nbclient.exceptions import CellExecutionError
 
+from helpers.notebook import BATCH_ENV
 from helpers.paths import FIGURES_DIR, NOTEBOOKS_DIR, REPO_ROOT
 from helpers.summary import print_summary
 from helpers.validate import DefaultsHelp, arg_number
@@ -114,6 +115,7 @@ def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
     """
     nb = nbformat.read(path, as_version=4)
     os.environ.pop("MPLBACKEND", None)  # an inherited backend would hide inline figures
+    os.environ[BATCH_ENV] = "1"  # unattended: interactive cells show their static figure, store no widgets
     client = NotebookClient(
         nb,
         timeout=timeout,

@@ -60,6 +60,7 @@ LAYERS: dict[str, int] = {
     "helpers.home": 10,
     "helpers.frame_command": 10,
     "helpers.summary": 10,
+    "helpers.playground": 10,
     "helpers.table2": 10,
     "helpers.reproduce": 11,
     "helpers.benchmarks": 11,
