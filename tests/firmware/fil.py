@@ -67,14 +67,12 @@ SIMAVR_MV_PER_COUNT = 5000 / 1023
 _names = itertools.count()
 
 
-# --- residual vibration (until helpers.metrics has its own) ---------------------------------------------
-def residual_vibration(
-    frame: pd.DataFrame, table: pd.DataFrame, after_s: float = 0.1, span_s: float = 1.0
-) -> dict:
-    """Half the peak-to-peak tension from ``after_s`` to ``after_s + span_s`` after the last step of each
-    move, in percent of the move's tension change ``yf - y0`` (of :func:`helpers.metrics.recording_metrics`).
+# --- residual vibration ----------------------------------------------------------------------------------
+def residual_vibration(frame: pd.DataFrame, table: pd.DataFrame) -> dict:
+    """Residual vibration of each move (:func:`helpers.metrics.residual_vibration`: half the peak-to-peak
+    tension from 0.1 s to 1.1 s after the move's last step, in percent of ``yf - y0``).
 
-    The last step of a move is the first sample showing the move's last step count change.
+    The last step of a move is the first sample showing the move's last change of the step count.
     Returns ``{"Up": pct, "Down": pct}``.
     """
     t = frame["t_s"].to_numpy(float)
@@ -82,13 +80,10 @@ def residual_vibration(
     y = frame["tension_n"].to_numpy(float)
     out = {}
     for _, row in table.iterrows():
-        window = (t >= row["start_s"]) & (t < row["end_s"])
-        idx = np.flatnonzero(window)
+        idx = np.flatnonzero((t >= row["start_s"]) & (t < row["end_s"]))
         changes = idx[1:][np.diff(steps[idx]) != 0]
         t_last = t[changes[-1]] if len(changes) else row["start_s"]
-        span = (t >= t_last + after_s) & (t <= t_last + after_s + span_s)
-        half_pp = 0.5 * (y[span].max() - y[span].min())
-        out[row["motion"]] = 100.0 * half_pp / abs(row["yf_n"] - row["y0_n"])
+        out[row["motion"]] = metrics.residual_vibration(t, y, t_last, row["y0_n"], row["yf_n"])
     return out
 
 
