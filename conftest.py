@@ -41,9 +41,15 @@ def _git_status() -> list[str] | None:
     return proc.stdout.splitlines() if proc.returncode == 0 else None
 
 
+def _is_worker(config) -> bool:
+    """True in a pytest-xdist worker (the controller alone checks the working tree)."""
+    return hasattr(config, "workerinput")
+
+
 def pytest_sessionstart(session):
     """Note what ``git status`` shows before the tests run."""
-    session.config.stash_git_status = _git_status()
+    if not _is_worker(session.config):
+        session.config.stash_git_status = _git_status()
 
 
 def pytest_sessionfinish(session, exitstatus):
