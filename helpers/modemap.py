@@ -101,7 +101,7 @@ def _column(values: Any, name: str, n: int | None) -> np.ndarray:
         raise ValueError(f"mode map: {name} has {arr.size} values, positions_mm has {n}")
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
-        raise ValueError(f"mode map: {name}[{bad[0]}] = {arr[bad[0]]!r} is not a finite number")
+        raise ValueError(f"mode map: {name}[{bad[0]}] = {float(arr[bad[0]])!r} is not a finite number")
     arr.flags.writeable = False
     return arr
 
@@ -115,7 +115,8 @@ def _check_range(
     if bad.size:
         left = "(" if lo_open else "["
         right = "inf)" if hi is None else (f"{hi:g})" if hi_open else f"{hi:g}]")
-        raise ValueError(f"mode map: {name}[{bad[0]}] = {arr[bad[0]]!r} is outside {left}{lo:g}, {right}")
+        value = float(arr[bad[0]])
+        raise ValueError(f"mode map: {name}[{bad[0]}] = {value!r} is outside {left}{lo:g}, {right}")
 
 
 @dataclass(frozen=True)
@@ -206,7 +207,8 @@ class ModeMap:
         steps = np.diff(x)
         if np.any(steps <= 0):
             i = int(np.flatnonzero(steps <= 0)[0])
-            raise ValueError(f"mode map: positions_mm must increase strictly, got {x[i]!r} then {x[i + 1]!r}")
+            a, b = float(x[i]), float(x[i + 1])
+            raise ValueError(f"mode map: positions_mm must increase strictly, got {a!r} then {b!r}")
         set_ = object.__setattr__
         set_(self, "positions_mm", x)
         set_(self, "omega_d", _column(self.omega_d, "omega_d", n))
@@ -398,9 +400,12 @@ class ModeMap:
                 "(pass extrapolate=True to hold the end values)"
             )
         xc = np.clip(x, lo, hi)
+        # at a measured position, the measurement itself (the interpolant agrees only to round-off)
+        k = np.clip(np.searchsorted(self.positions_mm, xc), 0, len(self) - 1)
+        on_knot = self.positions_mm[k] == xc
         values: dict[str, Any] = {}
         for name, f in self._interp.items():  # type: ignore[attr-defined]
-            v = f(xc)
+            v = np.where(on_knot, getattr(self, name)[k], f(xc))
             values[name] = float(v) if v.ndim == 0 else v
         pos = float(x) if x.ndim == 0 else x
         return MapPoint(position_mm=pos, **values)

@@ -347,9 +347,10 @@ class Design:
         if not isinstance(provenance, dict):
             raise ValueError(f"{where}: provenance: expected an object")
         expected = {"shaper": ("shaper",), "pair": ("up", "down"), "schedule": ("schedule",)}[kind]
-        for key in ("shaper", "up", "down", "schedule"):
-            if key in expected and key not in doc:
+        for key in expected:
+            if key not in doc:
                 raise ValueError(f"{where}: {key}: missing (kind {kind!r})")
+        for key in ("shaper", "up", "down", "schedule"):
             if key not in expected and key in doc:
                 raise ValueError(f"{where}: {key}: not allowed for kind {kind!r}")
         if kind == "shaper":
