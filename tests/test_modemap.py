@@ -173,3 +173,22 @@ def test_a_map_from_the_virtual_rigs_predicted_table(columns):
             ModeMap.from_table(table, source, share2=0.2)
     with pytest.raises(ValueError, match="position 7 mm is not in the table"):
         ModeMap.from_table(table, source, positions_mm=[7.0])
+
+
+@pytest.mark.slow
+def test_the_virtual_rigs_predicted_map_makes_a_map_and_designs():
+    """On the real predicted table (several seconds: the virtual rig compiles and linearises)."""
+    from helpers.design import map_following, scheduled_pair
+    from helpers.programmes import experiment_programme
+    from helpers.virtual.parameters import RigParameters
+    from helpers.virtual.statics import frequency_map
+
+    table = frequency_map(RigParameters(), np.arange(0.0, 40.1, 5.0))
+    m = ModeMap.from_table(table, {"kind": "virtual-rig", "method": "predicted by frequency_map"})
+    np.testing.assert_array_equal(m.positions_mm, np.arange(0.0, 40.1, 5.0))
+    column = "omega_d_rad_s" if "omega_d_rad_s" in table.columns else "omega_d"
+    np.testing.assert_array_equal(m.at(m.positions_mm).omega_d, table[column].to_numpy())
+    assert m.omega_d[0] < m.omega_d[4] < m.omega_d[6]  # the arm stiffens as it bends
+    for design in (scheduled_pair(m, 30.0, "ZVD"), map_following(m, 30.0, 200.0, "ZVD")):
+        programme, _ = experiment_programme(200.0, 30.0, design)
+        assert programme.net_steps == 0
