@@ -79,6 +79,9 @@ def _with_calibration(tmp_path):
 
 def test_dry_run_checks_everything_and_opens_no_port(tmp_path, capsys):
     _with_calibration(tmp_path)
+    # record designs zvd from the identification result of its --data-dir
+    (tmp_path / "identification").mkdir()
+    shutil.copy(DATA_DIR / "identification" / "result.json", tmp_path / "identification")
     argv = ["pulse", "--v-in", "250", "--x-f", "25", "--system", "zvd", "--repetitions", "3",
             "--group", "mine", "--ports", "/dev/nonexistent-daq,/dev/nonexistent-stepper",
             "--data-dir", str(tmp_path), "--dry-run"]  # fmt: skip
