@@ -429,7 +429,8 @@ def _record_calibration(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> No
 
 
 def _record_pulse(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> None:
-    system, shaping, design, v_in, x_f = _pulse_request(args)
+    request = getattr(args, "pulse_request", None)
+    system, shaping, design, v_in, x_f = request if request is not None else _pulse_request(args)
     base = args.name or scenario_name(system, v_in, x_f)
     reps = args.repetitions or 1
     for rep in range(1, reps + 1):
@@ -578,6 +579,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
     if args.dry_run:
         return dry_run(args)
+    if args.what == "pulse":  # refuse a bad request before any port is opened
+        args.pulse_request = _pulse_request(args)
     groups = {args.group, "identification"} if args.what == "all" else {args.group}
     calibration = _calibration_for(args.what, args.data_dir)
     with contextlib.ExitStack() as stack:

@@ -150,3 +150,11 @@ def test_the_time_of_a_schedule_follows_the_map():
     starts = [s.start_s for s in d.shaping.up.sub_moves]
     stops = [s.end_s for s in d.shaping.up.sub_moves]
     assert stops[1] - stops[0] < starts[1] - starts[0] < math.pi / 25.1 + 1e-12
+
+
+def test_a_bad_request_is_refused_before_any_port_is_opened(tmp_path):
+    _with_calibration(tmp_path)
+    argv = ["pulse", "--v-in", "200", "--x-f", "10", "--system", "map-following", "--data-dir", str(tmp_path),
+            "--ports", "/dev/nonexistent-daq,/dev/nonexistent-stepper"]  # fmt: skip
+    with pytest.raises(ValueError, match="needs --design FILE"):  # not a BoardError from opening the port
+        record.run(_args(*argv))
