@@ -150,6 +150,20 @@ def test_multi_mode_v_is_the_product_of_the_single_mode_v():
     assert d.provenance["predicted_worst_pct"] < 1e-9
 
 
+def test_multi_mode_scheduled_designs_each_move_at_its_configuration():
+    n = POS.size
+    m = ModeMap(POS, WD, np.full(n, 0.04), omega_d2=3 * WD, zeta2=np.full(n, 0.02), share2=np.full(n, 0.2),
+                source=SOURCE)  # fmt: skip
+    d = multi_mode_design(m, 30.0, "ZV", "ZV", placement="scheduled")
+    # ZV * ZV: impulses at 0, pi/w2, pi/w1, pi/w1 + pi/w2 with the modes at 30 mm (up) and at rest (down)
+    for shaper, w in ((d.shaping.up, 37.7), (d.shaping.down, 25.1)):
+        np.testing.assert_allclose(shaper.times, [0, math.pi / (3 * w), math.pi / w, math.pi / w * 4 / 3])
+    with pytest.raises(ValueError, match="placement must be"):
+        multi_mode_design(m, 30.0, placement="middle")
+    with pytest.raises(ValueError, match="needs a mode map with a second mode"):
+        multi_mode_design(varying_map(), 30.0)
+
+
 def test_ei_is_centred_on_the_band():
     m = ModeMap(POS, WD, np.full(POS.size, 0.04), source=SOURCE)
     d = band_centred(m, 30.0, "EI", coverage=0.0)

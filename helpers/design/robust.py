@@ -166,7 +166,8 @@ def multi_mode_design(
         info["predicted_worst_pct"] = worst_residual_pct(shaping, b)  # type: ignore[arg-type]
     elif placement == "scheduled":
         parts = {}
-        for name, x in (("up", b.high_mm if start_mm <= b.low_mm else b.low_mm), ("down", float(start_mm))):
+        end = float(start_mm) + float(x_f_mm)
+        for name, x in (("up", end), ("down", float(start_mm))):
             p = mode_map.at(x)
             m1 = mode_at(mode_map, x)
             m2 = (float(p.omega_n2), float(p.zeta2))
