@@ -93,7 +93,7 @@ def _position(move: MoveSchedule, v, x0, direction, t):
     return x0 + direction * v * done
 
 
-@pytest.mark.parametrize(("v", "x_f"), [(200.0, 30.0), (300.0, 20.0), (50.0, 30.0)])
+@pytest.mark.parametrize(("v", "x_f"), [(200.0, 30.0), (50.0, 30.0)])
 def test_map_following_spaces_starts_and_stops_by_the_phase_the_mode_turns(v, x_f):
     """The rule itself, checked by quadrature of omega_d along the commanded position."""
     m = varying_map()
