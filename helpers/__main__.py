@@ -31,6 +31,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "metrics": ("helpers.table2", "Table II metrics (peak, overshoot, settling) of any recordings"),
     "home": ("helpers.home", "bring the cable back to position 0 safely"),
     "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
+    "frame": ("helpers.frame_command", "append the CRC-8 to commands typed by hand (PING -> PING*79)"),
     "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
 }
 """command name -> (module, one-line help)."""

@@ -131,7 +131,7 @@ def unframe(line: bytes, require_checksum: bool = True) -> str:
     line : bytes
         The raw line; a trailing ``\\r`` is ignored.
     require_checksum : bool
-        Boards always send a checksum; commands from a host may omit it.
+        Every line of protocol 2.0.0 carries one, commands included; False accepts a line without it.
 
     Returns
     -------

@@ -28,6 +28,7 @@ tick k (``k * 10 ms`` after ``STREAM``) and drives the velocity over ``[(k + 1) 
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
@@ -137,6 +138,36 @@ class StreamShaper:
         return cls(tuple(amps), tuple(k * DELAY_UNIT_US for k in keys), allow_negative)
 
 
+def impulse_problem(
+    index: int, amplitude: int, delay_us: int, previous_us: int, allow_negative: bool
+) -> str | None:
+    """The board's check of one impulse as ``IMP`` receives it (the firmware's ``sp_check_impulse``).
+
+    Parameters
+    ----------
+    index : int
+        The impulse's index (0 first).
+    amplitude, delay_us : int
+        As sent: units of 1/4096, microseconds.
+    previous_us : int
+        The previous impulse's delay (-1 before the first).
+    allow_negative : bool
+        ``SHAPER <n> 1``.
+
+    Returns
+    -------
+    str or None
+        ``"amplitude"`` or ``"delay"`` (the board's two ``ERR RANGE`` cases), or None when acceptable.
+    """
+    if not -AMP_MAX <= amplitude <= AMP_MAX or (amplitude < 0 and not allow_negative):
+        return "amplitude"
+    if delay_us % DELAY_UNIT_US or not 0 <= delay_us <= MAX_DELAY_US:
+        return "delay"
+    if (delay_us != 0) if index == 0 else (delay_us <= previous_us):
+        return "delay"
+    return None
+
+
 def shaper_error(amplitudes: Sequence[int], delays_us: Sequence[int], allow_negative: bool) -> str | None:
     """The board's checks of a shaper, in its order; the reason it refuses the shaper, or None."""
     n = len(amplitudes)
@@ -144,9 +175,10 @@ def shaper_error(amplitudes: Sequence[int], delays_us: Sequence[int], allow_nega
         return f"1 to {MAX_IMPULSES} impulses, one delay each"
     previous = -1
     for i, (a, d) in enumerate(zip(amplitudes, delays_us, strict=True)):
-        if not -AMP_MAX <= a <= AMP_MAX or (a < 0 and not allow_negative):
-            return f"impulse {i}: amplitude {a} outside {'-' if allow_negative else ''}{AMP_MAX}..{AMP_MAX}"
-        if d % DELAY_UNIT_US or not 0 <= d <= MAX_DELAY_US or (i == 0 and d != 0) or d <= previous:
+        problem = impulse_problem(i, a, d, previous, allow_negative)
+        if problem == "amplitude":
+            return f"impulse {i}: amplitude {a} outside {-AMP_MAX if allow_negative else 0}..{AMP_MAX}"
+        if problem == "delay":
             return f"impulse {i}: delay {d} us (0 first, then increasing, multiples of 16, <= 1 s)"
         previous = d
     if sum(amplitudes) != AMP_ONE:
@@ -158,12 +190,81 @@ UNIT_SHAPER = StreamShaper((AMP_ONE,), (0,))
 """The identity: the stream is passed through unshaped (load it when the host shapes the stream itself)."""
 
 
+def board_shaper(shaper: object | None, tolerance: float = 1e-6) -> StreamShaper:
+    """The shaper to load on the board for ``shaper``.
+
+    Parameters
+    ----------
+    shaper : StreamShaper, object with ``amplitudes`` and ``times`` (s), or None
+        A board shaper as it is; a real one (e.g. :class:`helpers.shapers.Shaper`) rounded by
+        :meth:`StreamShaper.quantise` (negative amplitudes allowed when it has any); None: the unit shaper
+        (no shaping).
+    tolerance : float
+        How far a real shaper's amplitudes may sum from 1.
+
+    Raises
+    ------
+    ValueError
+        Naming the problem: amplitudes that do not sum to 1, an impulse beyond 1 s, more than 8 impulses, ...
+    """
+    if shaper is None:
+        return UNIT_SHAPER
+    if isinstance(shaper, StreamShaper):
+        return shaper
+    try:
+        amplitudes = np.asarray(shaper.amplitudes, dtype=float)  # type: ignore[attr-defined]
+        times = np.asarray(shaper.times, dtype=float)  # type: ignore[attr-defined]
+    except (AttributeError, TypeError, ValueError):
+        raise ValueError(f"a shaper needs amplitudes and times, got {type(shaper).__name__}") from None
+    name = getattr(shaper, "name", "shaper")
+    if amplitudes.size and np.all(np.isfinite(amplitudes)) and abs(amplitudes.sum() - 1.0) > tolerance:
+        raise ValueError(f"shaper {name!r}: the amplitudes sum to {amplitudes.sum():.6g}, not 1")
+    try:
+        return StreamShaper.quantise(amplitudes, times, allow_negative=bool(np.any(amplitudes < 0)))
+    except ValueError as exc:
+        raise ValueError(f"shaper {name!r} cannot be loaded on the board: {exc}") from None
+
+
 def velocity_units(mm_per_s: float, mm_per_step: float) -> int:
     """The set-point (units of 2^-16 step per 16 us) nearest to a cable speed."""
     return int(round(mm_per_s / mm_per_step / STEPS_PER_S_PER_UNIT))
 
 
 # --- the set-point of every period ------------------------------------------------------------------------
+class SetpointRules:
+    """The board's rule for the set-point of each control period (the first half of its control tick).
+
+    ``take(k, arrived)`` gives period ``k``'s set-point: the one that arrived for it (``OK V <k>``), else, in
+    an active stream, the previous one (an underrun); after ``WATCHDOG_PERIODS`` underruns in a row the
+    watchdog fires and that period and every later one is zero; from ``end_period`` on (``OK END``) every
+    period without a set-point is zero. ``state`` is ``active``, ``end`` or ``watchdog``.
+    """
+
+    def __init__(self, end_period: int | None = None) -> None:
+        self.end_period = end_period
+        self.state = "active"
+        self.underruns = 0
+        self.previous = 0
+        self.watchdog_period: int | None = None
+
+    def take(self, k: int, arrived: int | None) -> int:
+        """The set-point of period ``k`` (periods are taken in order: 1, 2, ...)."""
+        if self.state == "active" and self.end_period is not None and k >= self.end_period:
+            self.state = "end"
+        if arrived is not None:
+            v, self.underruns = arrived, 0
+        elif self.state != "active":
+            v = 0
+        else:
+            self.underruns += 1
+            if self.underruns > WATCHDOG_PERIODS:
+                self.state, self.watchdog_period, v = "watchdog", k, 0
+            else:
+                v = self.previous
+        self.previous = v
+        return v
+
+
 @dataclass
 class PeriodCommands:
     """The set-points the board uses, from what it told the host.
@@ -175,9 +276,7 @@ class PeriodCommands:
     end_period : int or None
         From ``OK END <period>``: the first period fed with zero.
 
-    The board's rules: a period without a set-point holds the previous one (an underrun); after
-    ``WATCHDOG_PERIODS`` such periods in a row the watchdog fires and that period and every later one is zero;
-    from ``end_period`` on every period is zero.
+    The board's rules are :class:`SetpointRules`'.
     """
 
     assigned: dict[int, int]
@@ -185,24 +284,12 @@ class PeriodCommands:
 
     def __iter__(self) -> Iterator[tuple[int, int, str]]:
         """Yield ``(period, v, state)`` for periods 1, 2, ...; ``state``: active, end or watchdog."""
-        previous, underruns, state = 0, 0, "active"
+        rules = SetpointRules(self.end_period)
         k = 0
         while True:
             k += 1
-            if state == "active" and self.end_period is not None and k >= self.end_period:
-                state = "end"
-            if k in self.assigned:
-                v, underruns = self.assigned[k], 0
-            elif state != "active":
-                v = 0
-            else:
-                underruns += 1
-                if underruns > WATCHDOG_PERIODS:
-                    state, v = "watchdog", 0
-                else:
-                    v = previous
-            previous = v
-            yield k, v, state
+            v = rules.take(k, self.assigned.get(k))
+            yield k, v, rules.state
 
 
 # --- the planner -----------------------------------------------------------------------------------------
@@ -348,6 +435,142 @@ class Planner:
         self.r = rr if up else -rr
 
 
+class StreamRun:
+    """A stream planned control tick by control tick, and when it stops (the second half of the board's tick).
+
+    Parameters
+    ----------
+    shaper : StreamShaper
+    position : int
+        The step count when ``STREAM`` starts.
+
+    :meth:`tick` takes period ``k``'s set-point and the stream's state (from :class:`SetpointRules`),
+    records a ``WATCHDOG`` notice when the watchdog has just fired, and plans the period, unless the stream
+    has already stopped: ``finish_tick`` is ``k + 3`` for the first control tick ``k`` of a winding-down
+    stream (after ``END`` or the watchdog) at which the set-points of periods ``k - q_max - 1 .. k`` are all
+    zero (no step can follow period ``k``'s); at that tick the board stops (``DONE``).
+    """
+
+    def __init__(self, shaper: StreamShaper, position: int = 0) -> None:
+        self.shaper = shaper
+        self.planner = Planner(shaper, position)
+        self.finish_tick: int | None = None
+        self.last_nonzero = 0
+        self.v_by_period = [0]
+        self.watchdog_seen = False
+
+    @property
+    def notices(self) -> list[Notice]:
+        """Every notice so far, in the order the board sends them."""
+        return self.planner.notices
+
+    def tick(self, k: int, v: int, state: str) -> bool:
+        """Control tick ``k`` with set-point ``v``; False (nothing planned) once the board has stopped."""
+        if state == "watchdog" and not self.watchdog_seen:
+            self.watchdog_seen = True
+            self.planner.notices.append(Notice("WATCHDOG", k, k))
+        if self.finish_tick is not None and k >= self.finish_tick:
+            return False
+        self.planner.plan_period(k, v)
+        self.v_by_period.append(v)
+        if v != 0:
+            self.last_nonzero = k
+        if self.finish_tick is None and state != "active" and k - self.last_nonzero >= self.planner.q_max + 2:
+            self.finish_tick = k + 3
+        return True
+
+    def result(self) -> StreamResult:
+        """What the board has done so far (all of it once the stream has stopped)."""
+        p = self.planner
+        return StreamResult(
+            np.array(p.ticks, dtype=np.int64),
+            np.array(p.dirs, dtype=np.int64),
+            p.notices,
+            self.finish_tick,
+            p.c,
+            p.r,
+            self.v_by_period,
+        )
+
+
+class StreamRefused(Exception):
+    """The board refuses a streaming command: ``code`` (``STATE``, ``RANGE``, ``FULL``) and its text."""
+
+    def __init__(self, code: str, text: str) -> None:
+        super().__init__(f"ERR {code} {text}")
+        self.code = code
+        self.text = text
+
+
+class StreamSession:
+    """The board's streaming mode as it runs: the set-point FIFO, ``V``, ``END`` and the control tick.
+
+    The firmware's ``V`` and ``END`` handlers and its control tick, composed of :class:`SetpointRules` (which
+    set-point each period takes) and :class:`StreamRun` (planning, stopping). The emulated stepper board
+    (``helpers.emulator``) runs a stream with it; :func:`simulate` runs the same rules and planner from the
+    periods the board reported.
+
+    Parameters
+    ----------
+    shaper : StreamShaper
+    position : int
+        The step count at ``STREAM``.
+    """
+
+    def __init__(self, shaper: StreamShaper, position: int = 0) -> None:
+        self.run = StreamRun(shaper, position)
+        self.rules = SetpointRules()
+        self.fifo: deque[int] = deque()
+        self.next_period = 1
+        self.ended = False
+        self.stopped = False
+
+    @property
+    def accepting(self) -> bool:
+        """True while ``V`` and ``END`` are accepted (an active stream: no ``END`` yet, no watchdog)."""
+        return not (self.ended or self.stopped) and self.rules.state == "active"
+
+    @property
+    def watchdog(self) -> bool:
+        """True once the watchdog has fired (the board then disables the driver when it stops)."""
+        return self.rules.state == "watchdog"
+
+    def setpoint(self, v: int) -> int:
+        """``V <v>``: queue a set-point and return the period it drives.
+
+        Raises
+        ------
+        StreamRefused
+            ``STATE`` (not streaming, or ending), ``RANGE`` (|v| > ``V_MAX``), ``FULL`` (8 queued), in the
+            board's order.
+        """
+        if not self.accepting:
+            raise StreamRefused("STATE", "not streaming")
+        if not -V_MAX <= v <= V_MAX:
+            raise StreamRefused("RANGE", f"set-point -{V_MAX}..{V_MAX}")
+        if len(self.fifo) >= FIFO_DEPTH:
+            raise StreamRefused("FULL", f"{FIFO_DEPTH} set-points queued")
+        self.fifo.append(v)
+        return self.next_period + len(self.fifo) - 1
+
+    def end(self) -> int:
+        """``END``: the stream ends after the queued set-points; returns the first period fed with zero."""
+        if not self.accepting:
+            raise StreamRefused("STATE", "not streaming")
+        self.ended = True
+        self.rules.end_period = self.next_period + len(self.fifo)
+        return self.rules.end_period
+
+    def tick(self) -> bool:
+        """The next control tick (period ``next_period``); False once the board has stopped (``DONE``)."""
+        k = self.next_period
+        v = self.rules.take(k, self.fifo.popleft() if self.fifo else None)
+        self.next_period = k + 1
+        if not self.run.tick(k, v, self.rules.state):
+            self.stopped = True
+        return not self.stopped
+
+
 def simulate(
     shaper: StreamShaper,
     commands: PeriodCommands,
@@ -360,35 +583,15 @@ def simulate(
     -------
     StreamResult
         Step ticks counted from ``STREAM`` (the instant Timer1 restarts), directions, notices, the
-        set-point of every period planned, and the control tick at which the board stops: ``k + 3`` where
-        ``k`` is the first control tick of a winding-down stream at which the set-points of periods
-        ``k - q_max - 1 .. k`` are all zero (no step can follow period ``k``'s).
+        set-point of every period planned, and the control tick at which the board stops (see
+        :class:`StreamRun`).
     """
-    planner = Planner(shaper, position)
-    finish, last_nonzero, watchdog_seen = None, 0, False
-    v_by_period = [0]
+    run = StreamRun(shaper, position)
     for k, v, state in commands:
-        if state == "watchdog" and not watchdog_seen:
-            watchdog_seen = True
-            planner.notices.append(Notice("WATCHDOG", k, k))
-        planner.plan_period(k, v)
-        v_by_period.append(v)
-        if v != 0:
-            last_nonzero = k
-        if state != "active" and k - last_nonzero >= planner.q_max + 2:
-            finish = k + 3
+        run.tick(k, v, state)
+        if run.finish_tick is not None or k >= max_periods:
             break
-        if k >= max_periods:
-            break
-    return StreamResult(
-        np.array(planner.ticks, dtype=np.int64),
-        np.array(planner.dirs, dtype=np.int64),
-        planner.notices,
-        finish,
-        planner.c,
-        planner.r,
-        v_by_period,
-    )
+    return run.result()
 
 
 # --- the exact trajectory -------------------------------------------------------------------------------

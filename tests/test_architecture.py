@@ -60,6 +60,7 @@ LAYERS: dict[str, int] = {
     "helpers.rig_tuning": 10,
     "helpers.record": 10,
     "helpers.home": 10,
+    "helpers.frame_command": 10,
     "helpers.summary": 10,
     "helpers.playground": 10,
     "helpers.table2": 10,

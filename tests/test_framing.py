@@ -297,3 +297,12 @@ def test_impossible_step_counts_are_rejected_and_counted():
     plain = StreamParser()  # no limits given: nothing is judged
     rows, _ = plain.feed(b"".join(lines))
     assert len(rows) == 6 and plain.stats.implausible == 0
+
+
+def test_frame_command_prints_what_to_type(capsys):
+    from helpers.__main__ import main
+
+    assert main(["frame", "PING", "RATE 500"]) == 0
+    assert capsys.readouterr().out == "PING*79\nRATE 500*7A\n"  # PROTOCOL.md's examples
+    assert main(["frame", "A*B"]) == 2
+    assert "cannot frame" in capsys.readouterr().err

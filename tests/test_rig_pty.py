@@ -1,4 +1,5 @@
-"""The pseudo-terminal server: a Rig connects by device path, records, and the data say virtual-rig."""
+"""The pseudo-terminal server: a Rig connects by device path, records a programme and a stream, and the data
+say virtual-rig."""
 
 from __future__ import annotations
 
@@ -6,19 +7,22 @@ import io
 import threading
 import time
 
+import pytest
 from rig_fakes import CALIBRATION, make_world
 
 from helpers import recordings
+from helpers import streaming as hs
 from helpers.emulator.server import serve
 from helpers.programmes import Dwell, Programme, Segment
 from helpers.rig import Rig
 
 
-def test_record_over_pseudo_terminals(tmp_path):
+def _serve(speed: float):
+    """Serve a fresh test-double world on pseudo-terminals in a thread: its ports, the world, a stop."""
     world = make_world()
     out = io.StringIO()
     stop = threading.Event()
-    kwargs = {"speed": 4.0, "duration": 30.0, "out": out, "stop": stop}
+    kwargs = {"speed": speed, "duration": 30.0, "out": out, "stop": stop}
     thread = threading.Thread(target=serve, args=(world,), kwargs=kwargs, daemon=True)
     thread.start()
     for _ in range(200):
@@ -27,7 +31,18 @@ def test_record_over_pseudo_terminals(tmp_path):
         time.sleep(0.01)
     paths = dict(line.split() for line in out.getvalue().splitlines())
     assert paths["daq"].startswith("/dev/pts/") and paths["stepper"].startswith("/dev/pts/")
-    rig = Rig.connect((paths["daq"], paths["stepper"]), calibration=CALIBRATION, hello_timeout=2.0)
+
+    def finish() -> None:
+        stop.set()
+        thread.join(timeout=10)
+        assert not thread.is_alive()
+
+    return (paths["daq"], paths["stepper"]), world, finish
+
+
+def test_record_over_pseudo_terminals(tmp_path):
+    ports, world, finish = _serve(speed=4.0)
+    rig = Rig.connect(ports, calibration=CALIBRATION, hello_timeout=2.0)
     prog = Programme((Dwell(100), Segment(1, 20, 1000), Dwell(100), Segment(-1, 20, 1000), Dwell(50)))
     rec = rig.run(prog, path=tmp_path / "pty", progress=False)
     rig.close()
@@ -37,6 +52,25 @@ def test_record_over_pseudo_terminals(tmp_path):
     assert rec.status == "complete" and back.meta["counts"]["dropped"] == 0
     assert back.frame["steps"].max() == 20 and back.frame["steps"].iloc[-1] == 0
     assert back.meta["done_position"] == 0
-    stop.set()
-    thread.join(timeout=10)
-    assert not thread.is_alive()
+    finish()
+
+
+@pytest.mark.streaming
+def test_stream_over_pseudo_terminals_in_real_time(tmp_path):
+    """The same Rig.stream as in-process, paced by the server's real-time device clock through the ports."""
+    ports, world, finish = _serve(speed=1.0)
+    rig = Rig.connect(ports, calibration=CALIBRATION, hello_timeout=2.0)
+    shaper = hs.StreamShaper((1024, 2048, 1024), (0, 40_000, 80_000))
+    setpoints = [150.0] * 8 + [0.0] * 10 + [-150.0] * 8 + [0.0] * 4
+    # a lead of 7 periods: the host may stall 70 ms (a busy shared machine) before the board runs short
+    rec = rig.stream(setpoints, shaper, path=tmp_path / "s", progress=False, lead_in_s=0.3, tail_s=0.3,
+                     lead_periods=7)  # fmt: skip
+    rig.close()
+    finish()
+    back = recordings.load(tmp_path / "s")
+    st = back.meta["scenario"]["stream"]
+    assert rec.status == "complete" and back.meta["source"]["via"] == "pseudo-terminal server"
+    assert st["periods"] == list(range(1, 31)) and st["fifo_full"] == st["underruns"] == 0
+    ref = hs.simulate(shaper, hs.PeriodCommands(dict(enumerate(st["setpoints"], start=1)), 31))
+    assert back.frame["steps"].max() == ref.directions.cumsum().max() > 0
+    assert back.meta["done_position"] == ref.position == back.frame["steps"].iloc[-1] == 0

@@ -73,15 +73,14 @@ def test_fit_needs_three_loads():
 
 
 def _with_calibration(tmp_path):
-    (tmp_path / "calibration").mkdir()
-    shutil.copy(DATA_DIR / "calibration" / "calibration.json", tmp_path / "calibration" / "calibration.json")
+    """A data folder as a fresh clone has it: the load-cell calibration and the identified mode."""
+    for group, name in (("calibration", "calibration.json"), ("identification", "result.json")):
+        (tmp_path / group).mkdir()
+        shutil.copy(DATA_DIR / group / name, tmp_path / group / name)
 
 
 def test_dry_run_checks_everything_and_opens_no_port(tmp_path, capsys):
     _with_calibration(tmp_path)
-    # record designs zvd from the identification result of its --data-dir
-    (tmp_path / "identification").mkdir()
-    shutil.copy(DATA_DIR / "identification" / "result.json", tmp_path / "identification")
     argv = ["pulse", "--v-in", "250", "--x-f", "25", "--system", "zvd", "--repetitions", "3",
             "--group", "mine", "--ports", "/dev/nonexistent-daq,/dev/nonexistent-stepper",
             "--data-dir", str(tmp_path), "--dry-run"]  # fmt: skip

@@ -9,6 +9,7 @@ from rig_fakes import CALIBRATION, GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_
 from helpers import recordings
 from helpers.hardware import MM_PER_STEP
 from helpers.programmes import Dwell, Programme, Segment, experiment_programme
+from helpers.protocol import frame
 from helpers.rig import Rig
 from helpers.rig.discovery import KNOWN_BOARDS, candidate_ports, find_rig_ports
 
@@ -120,6 +121,6 @@ def test_discovery_by_vid_pid(monkeypatch):
 
 def test_a_late_reply_is_not_taken_for_the_next_command():
     rig, world = make_rig()
-    world.stepper.receive(b"ABORT\n")  # a reply the host never read (its command timed out earlier)
+    world.stepper.receive(frame("ABORT"))  # a reply the host never read (its command timed out earlier)
     assert rig.stepper.command("POS") == "OK POS 0"
     assert rig.stepper.unexpected == ["ABORTED 0"]

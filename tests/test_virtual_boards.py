@@ -7,6 +7,7 @@ import pytest
 import serial
 from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
 
+from helpers import streaming as hs
 from helpers.emulator.boards import Faults
 from helpers.hardware import MM_PER_STEP
 from helpers.protocol import StreamParser, checksum, frame
@@ -26,7 +27,7 @@ def talk(board, *commands, checksum=True):
 def test_hello_on_reset_and_pong_with_the_documented_checksum():
     w = make_world()
     assert w.daq.take_output() == frame("HELLO daq 2.0.0")
-    w.daq.receive(b"PING\n")
+    w.daq.receive(b"PING*79\n")
     assert w.daq.take_output() == b"PONG daq 2.0.0*FD\n"  # the example of PROTOCOL.md
     assert talk(w.stepper, "PING") == ["HELLO stepper 2.0.0", "PONG stepper 2.0.0"]
 
@@ -47,7 +48,9 @@ def test_daq_errors_and_limits():
         "OK RATE 200"
     ]  # lower-case hex accepted, as the firmware
     assert talk(d, "X" * 64, checksum=False)[0].startswith("ERR TOOLONG")
-    assert talk(d, "X" * 63, checksum=False)[0].startswith("ERR UNKNOWN")  # 63 characters still fit
+    assert talk(d, "X" * 60)[0].startswith("ERR UNKNOWN")  # 63 characters with "*hh" still fit
+    assert talk(d, "RATE 300", checksum=False)[0].startswith("ERR NOCRC")  # a command needs its *hh ...
+    assert d.rate == 200  # ... and one without it did nothing
     assert talk(d, "", checksum=False) == []  # a blank line gets no reply
     assert talk(d, "START") == ["OK START 200"]
     assert talk(d, "RATE 300")[0].startswith("ERR STATE")
@@ -186,3 +189,70 @@ def test_calibration_fixture_is_read_instead_of_the_cable():
     assert {r[2] for r in rows} == {round(OFFSET + GAIN * 4.0)}
     with pytest.raises(ValueError):
         w.hang_load(float("nan"))
+
+
+# --- the stepper's streaming mode (helpers.streaming is the oracle) --------------------------------------
+def _stream_world():
+    w = make_world()
+    w.daq.take_output(), w.stepper.take_output()
+    talk(w.daq, "RATE 2000", "ZERO", "START")
+    return w
+
+
+def test_a_stream_steps_where_the_reference_says():
+    w = _stream_world()
+    shaper = hs.StreamShaper.quantise([0.25, 0.5, 0.25], [0.0, 0.02, 0.04])
+    assert talk(w.stepper, *shaper.commands()) == ["OK SHAPER 3", "OK IMP 0", "OK IMP 1", "OK IMP 2"]
+    assert talk(w.stepper, "EN 1", "STREAM") == ["OK EN 1", "OK STREAM 0"]
+    t0 = w.t
+    setpoints = [400, 800, 800, -300, 0, 1200]
+    periods = []
+    for i, v in enumerate(setpoints):
+        w.advance_to(t0 + 0.004 + 0.01 * i)  # one set-point per period, 4 ms after each tick
+        (reply,) = talk(w.stepper, f"V {v}")
+        periods.append(int(reply.split()[2]))
+    assert periods == [1, 2, 3, 4, 5, 6]
+    assert talk(w.stepper, "END") == ["OK END 7"]
+    w.advance_to(t0 + 0.3)
+    ref = hs.simulate(shaper, hs.PeriodCommands(dict(zip(periods, setpoints, strict=True)), 7))
+    assert talk(w.stepper) == [f"DONE {ref.position}"] and w.stepper.enabled  # END keeps the driver on
+    rows, _ = StreamParser().feed(w.daq.take_output())
+    t = np.array([r[1] for r in rows]) / 1e6
+    steps = np.array([r[3] for r in rows])
+    edges = t0 + ref.ticks * 0.5e-6 + 16e-6  # the firmware's STEP edge is 16 us after its tick
+    expected = np.array([ref.directions[edges <= ti + 1e-9].sum() for ti in t])
+    np.testing.assert_array_equal(steps, expected)
+    assert steps.max() > 0 and w.stepper.position == ref.position
+
+
+def test_the_stream_watchdog_and_clamps_as_notices():
+    w = _stream_world()
+    talk(w.stepper, *hs.UNIT_SHAPER.commands(), "EN 1", "STREAM")
+    t0 = w.t
+    for i in range(3):
+        w.advance_to(t0 + 0.004 + 0.01 * i)
+        talk(w.stepper, f"V {hs.V_MAX}")
+    w.advance_to(t0 + 0.5)  # the host falls silent: the set-point is held for 10 periods, then zero
+    ref = hs.simulate(hs.UNIT_SHAPER, hs.PeriodCommands({1: hs.V_MAX, 2: hs.V_MAX, 3: hs.V_MAX}))
+    expected = [f"N,{n.kind},{n.value}" for n in ref.notices] + [f"DONE {ref.position}"]
+    assert talk(w.stepper) == expected
+    # 13 periods at full speed (3 set-points, then 10 held) would be 203 steps: clamped at 156; period 14 has
+    # no set-point and is the 11th in a row without one: the watchdog fires there and disables the driver
+    assert expected == ["N,LIMIT,TRAVEL,156", "N,WATCHDOG,14", "DONE 156"] and not w.stepper.enabled
+    assert talk(w.stepper, "V 0")[0].startswith("ERR STATE")
+
+
+def test_stream_commands_refused_as_the_firmware_refuses_them():
+    w = _stream_world()
+    s = w.stepper
+    assert talk(s, "STREAM") == ["ERR STATE no shaper"]
+    assert talk(s, "SHAPER 2 0", "IMP 0 2048 0", "IMP 1 2047 160")[-1].startswith("ERR RANGE")  # sum 4095
+    assert talk(s, "IMP 0 4096 0")[0].startswith("ERR STATE")  # the shaper was discarded
+    assert talk(s, "SHAPER 1 0", "IMP 0 4096 0", "STREAM")[-1] == "ERR STATE driver disabled"
+    assert talk(s, "EN 1", "STREAM", "GO", "SHAPER 1 0", "V 1641") == [
+        "OK EN 1", "OK STREAM 0", "ERR STATE streaming", "ERR STATE streaming",
+        "ERR RANGE set-point -1640..1640",
+    ]  # fmt: skip
+    assert talk(s, *["V 0"] * 9)[-1] == "ERR FULL 8 set-points queued"
+    assert talk(s, "MEM") == ["OK MEM 560"] and talk(s, "ABORT") == ["ABORTED 0"]
+    assert talk(s, "V 0") == ["ERR STATE not streaming"] and not s.enabled

@@ -61,20 +61,17 @@ ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd) {
   cmd->word = line;
   cmd->nargs = 0;
   cmd->bad = 0;
-  cmd->checked = 0;
   if (len == 0) return PROTO_EMPTY;
   char *star = (char *)memchr(line, '*', len);
-  if (star) {
-    uint8_t body = (uint8_t)(star - line);
-    if (len != body + 3) return PROTO_CHECKSUM;  // exactly two hex digits must follow '*'
-    int8_t hi = hexval(star[1]), lo = hexval(star[2]);
-    if (hi < 0 || lo < 0) return PROTO_CHECKSUM;
-    if ((uint8_t)((hi << 4) | lo) != crc8(line, body)) return PROTO_CHECKSUM;
-    *star = '\0';
-    len = body;
-    cmd->checked = 1;
-    if (len == 0) return PROTO_EMPTY;
-  }
+  if (!star) return PROTO_NOCRC;
+  uint8_t body = (uint8_t)(star - line);
+  if (len != body + 3) return PROTO_CHECKSUM;  // exactly two hex digits must follow '*'
+  int8_t hi = hexval(star[1]), lo = hexval(star[2]);
+  if (hi < 0 || lo < 0) return PROTO_CHECKSUM;
+  if ((uint8_t)((hi << 4) | lo) != crc8(line, body)) return PROTO_CHECKSUM;
+  *star = '\0';
+  len = body;
+  if (len == 0) return PROTO_EMPTY;
   // Split on single spaces: an empty token (double, leading or trailing space) is an ARG error.
   char *p = line;
   char *tok[1 + PROTO_MAX_ARGS + 1];

@@ -1,7 +1,7 @@
 // Line framing, checksums, argument parsing and fast integer formatting shared by both boards.
 //
 // Implements the framing of firmware/PROTOCOL.md: ASCII lines ending in '\n' (a '\r' just before it is
-// ignored), at most PROTO_MAX_LINE characters, an optional "*hh" suffix (the CRC-8 of crc8.h over the bytes
+// ignored), at most PROTO_MAX_LINE characters, a mandatory "*hh" suffix (the CRC-8 of crc8.h over the bytes
 // before '*', two hex digits).
 // Plain C++ with no Arduino dependency, so the same code can be compiled for the host.
 #ifndef FIRMWARE_COMMON_PROTO_H
@@ -33,11 +33,12 @@ struct LineReader {
   void place(char c);
 };
 
-// Error codes of PROTOCOL.md, in the order a command is checked.
+// Outcome of parsing a line, in the order a command is checked (PROTOCOL.md).
 enum ProtoStatus : uint8_t {
   PROTO_OK = 0,
   PROTO_EMPTY,      // blank line: ignored, no reply
   PROTO_CHECKSUM,   // "*hh" present but wrong (CRC-8 mismatch) or malformed
+  PROTO_NOCRC,      // no "*hh" at all: refused (every command must carry its checksum)
 };
 
 // A parsed command: the command word and up to PROTO_MAX_ARGS integer arguments.
@@ -46,19 +47,13 @@ struct Command {
   const char *word;   // points into the line buffer, NUL-terminated
   uint8_t nargs;      // number of arguments found (may exceed PROTO_MAX_ARGS: then only the first are parsed)
   uint8_t bad;        // an argument is not a decimal integer, or an empty token (double/trailing space)
-  uint8_t checked;    // the line carried a "*hh" checksum, and it was right
   int32_t arg[PROTO_MAX_ARGS];
 };
 
 // True when the command has exactly n well-formed integer arguments (otherwise the reply is ERR ARG).
 inline bool proto_args_ok(const Command *cmd, uint8_t n) { return !cmd->bad && cmd->nargs == n; }
 
-// PROTOCOL.md's order of errors puts CHECKSUM first: a command that must carry "*hh" and does not is refused
-// before anything else is looked at.
-inline bool proto_checksum_missing(const Command *cmd) { return !cmd->checked; }
-
-
-// Verifies and strips an optional checksum, splits the words and parses the integer arguments.
+// Verifies and strips the checksum (PROTO_NOCRC without one), splits the words and parses the integer arguments.
 // Modifies `line` in place (NUL-terminates the words). `len` is strlen(line).
 ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd);
 

@@ -49,7 +49,7 @@ int main() {
       buf[n] = 0;
       Command cmd;
       ProtoStatus st = proto_parse(buf, (uint8_t)n, &cmd);
-      const char *names[] = {"OK", "EMPTY", "CHECKSUM"};
+      const char *names[] = {"OK", "EMPTY", "CHECKSUM", "NOCRC"};
       printf("%s ", names[st]);
       for (const char *w = cmd.word; *w; w++) printf("%02x", (unsigned char)*w);
       printf(" %u %u", cmd.nargs, cmd.bad);

@@ -36,3 +36,9 @@ void Reply::word_i32(const char *word, int32_t v) {
   line.i32(v);
   send();
 }
+
+bool Reply::refused(ProtoStatus st) {
+  if (st == PROTO_CHECKSUM) err(PSTR("CHECKSUM"), PSTR("bad checksum"));
+  else if (st == PROTO_NOCRC) err(PSTR("NOCRC"), PSTR("every command needs its CRC-8 suffix"));
+  return st != PROTO_OK;
+}

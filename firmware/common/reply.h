@@ -29,6 +29,9 @@ struct Reply {
   void word_u32(const char *word, uint32_t v);
   // "<word> <v>", signed
   void word_i32(const char *word, int32_t v);
+  // Answers a line that proto_parse did not accept: "ERR CHECKSUM ..." (damaged), "ERR NOCRC ..." (sent
+  // without its "*hh"), nothing for a blank line. True when the line is refused (not to be handled).
+  bool refused(ProtoStatus st);
 };
 
 #endif

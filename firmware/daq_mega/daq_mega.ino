@@ -225,9 +225,7 @@ static void service_rx() {
       out.err(PSTR("TOOLONG"), PSTR("line over 63 characters"));
     } else {
       Command cmd;
-      ProtoStatus st = proto_parse(reader.buf, reader.len, &cmd);
-      if (st == PROTO_CHECKSUM) out.err(PSTR("CHECKSUM"), PSTR("bad checksum"));
-      else if (st == PROTO_OK) handle(&cmd);
+      if (!out.refused(proto_parse(reader.buf, reader.len, &cmd))) handle(&cmd);
     }
     reader.reset();
   }

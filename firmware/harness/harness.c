@@ -12,7 +12,11 @@
  *   -T            stdio mode: prefix every UART output line with the cycle count at its '\n'
  *   -a FILE       ADC0 waveform: lines "<t_s> <mV>", linear in between, held before/after; it is sampled
  *                 at each conversion start (ADC_IRQ_OUT_TRIGGER)
- *   -A FILE       log of each conversion: "<cycle> <mV>"
+ *   -A FILE       log of each conversion: "<cycle> <mV>" (and "# trigger <cycle>" when -t fires)
+ *   -t PIN        the waveform's time 0 is the first rising edge of the first board's pin PIN (e.g. E4, the
+ *                 Mega's STEP input); until then ADC0 reads the waveform's first value. For recordings whose
+ *                 input depends on when a motion starts (firmware in the loop: tension computed from the
+ *                 stepper's steps)
  *   -e FILE       input pin edges: lines "<t_s> <port><bit> <0|1>", e.g. "0.25 E4 1"
  *   -w LIST       output pins to log, e.g. D5,D6,D7
  *   -l FILE       pin log: "<cycle> <port><bit> <level>" for every change of a -w pin (initial levels at 0)
@@ -230,6 +234,16 @@ static double *wave_t, *wave_mv;
 static size_t wave_n;
 static FILE *adc_log;
 static avr_irq_t *adc0_irq;
+static int wave_triggered = 1;          /* 0 while -t waits for its edge */
+static avr_cycle_count_t wave_origin;   /* cycle of the waveform's time 0 */
+
+static void on_trigger(struct avr_irq_t *irq, uint32_t value, void *param) {
+  (void)irq; (void)param;
+  if (wave_triggered || !value) return;
+  wave_triggered = 1;
+  wave_origin = avr->cycle;
+  if (adc_log) fprintf(adc_log, "# trigger %llu\n", (unsigned long long)wave_origin);
+}
 
 static void load_wave(const char *path) {
   FILE *f = fopen(path, "r");
@@ -266,7 +280,7 @@ static double wave_at(double t) {
 
 static void on_adc_trigger(struct avr_irq_t *irq, uint32_t value, void *param) {
   (void)irq; (void)value; (void)param;
-  double mv = wave_at((double)avr->cycle / (double)avr->frequency);
+  double mv = wave_triggered ? wave_at((double)(avr->cycle - wave_origin) / (double)avr->frequency) : wave_mv[0];
   if (mv < 0) mv = 0;
   uint32_t imv = (uint32_t)llround(mv);
   if (adc_log) fprintf(adc_log, "%llu %u\n", (unsigned long long)avr->cycle, imv);
@@ -383,7 +397,7 @@ static void open_pty(board_t *bd, const char *label) {
 static void usage(void) {
   fprintf(stderr,
           "usage: simavr_harness -m atmega2560|atmega328p [-f HZ] [-d SECONDS] [-i SCRIPT | -p [-s FACTOR]] [-T]\n"
-          "                      [-a WAVE] [-A ADCLOG] [-e EDGES] [-w D5,D6 -l PINLOG]\n"
+          "                      [-a WAVE [-t PIN]] [-A ADCLOG] [-e EDGES] [-w D5,D6 -l PINLOG]\n"
           "                      [-2 ELF2 [-M MCU2] [-c D5:E4,D6:G5]] firmware.elf\n");
   exit(2);
 }
@@ -427,11 +441,11 @@ static void connect_pins(const char *list) {
 
 int main(int argc, char **argv) {
   const char *mcu = NULL, *script_path = NULL, *wave_path = NULL, *adc_log_path = NULL;
-  const char *edge_path = NULL, *watch = NULL, *pin_log_path = NULL;
+  const char *edge_path = NULL, *watch = NULL, *pin_log_path = NULL, *trigger = NULL;
   const char *elf2 = NULL, *mcu2 = "atmega328p", *wires = NULL;
   double duration = -1, freq = 16e6;
   int use_pty = 0, opt;
-  while ((opt = getopt(argc, argv, "m:f:d:i:ps:Ta:A:e:w:l:2:M:c:")) != -1) {
+  while ((opt = getopt(argc, argv, "m:f:d:i:ps:Ta:A:t:e:w:l:2:M:c:")) != -1) {
     switch (opt) {
       case 'm': mcu = optarg; break;
       case 'f': freq = atof(optarg); break;
@@ -442,6 +456,7 @@ int main(int argc, char **argv) {
       case 'T': timestamps = 1; break;
       case 'a': wave_path = optarg; break;
       case 'A': adc_log_path = optarg; break;
+      case 't': trigger = optarg; break;
       case 'e': edge_path = optarg; break;
       case 'w': watch = optarg; break;
       case 'l': pin_log_path = optarg; break;
@@ -453,6 +468,7 @@ int main(int argc, char **argv) {
   }
   if (!mcu || optind != argc - 1) usage();
   if (watch && !pin_log_path) die("-w needs -l");
+  if (trigger && !wave_path) die("-t needs -a");
   if (elf2 && !use_pty) die("-2 needs -p (the second board's UART is on a pseudo-terminal)");
   if (wires && !elf2) die("-c needs -2");
   if (duration < 0 && !use_pty) duration = 1.0;
@@ -477,6 +493,13 @@ int main(int argc, char **argv) {
     adc0_irq = avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_OUT_TRIGGER), on_adc_trigger, NULL);
     if (adc_log_path && !(adc_log = fopen(adc_log_path, "w"))) die("cannot write the ADC log");
+    if (trigger) {
+      if (strlen(trigger) != 2 || trigger[1] < '0' || trigger[1] > '7') die("-t expects a pin like E4");
+      avr_irq_t *irq = avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ(trigger[0]), trigger[1] - '0');
+      if (!irq) die("no such port");
+      avr_irq_register_notify(irq, on_trigger, NULL);
+      wave_triggered = 0;
+    }
   }
   if (edge_path) {
     load_edges(edge_path);

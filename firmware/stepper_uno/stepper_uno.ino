@@ -505,7 +505,6 @@ static void handle(Command *cmd) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("MEM takes no argument"));
     out.word_u32(PSTR("OK MEM"), free_stack_min());
   } else if (proto_is(cmd, PSTR("SHAPER"))) {
-    if (proto_checksum_missing(cmd)) return out.err(PSTR("CHECKSUM"), PSTR("checksum required"));
     if (!proto_args_ok(cmd, 2)) return out.err(PSTR("ARG"), PSTR("SHAPER needs 2 integers"));
     if (stream_state) return out.err(PSTR("STATE"), PSTR("streaming"));
     int32_t n = cmd->arg[0], neg = cmd->arg[1];
@@ -518,7 +517,6 @@ static void handle(Command *cmd) {
     shaper_sum = 0;
     out.word_i32(PSTR("OK SHAPER"), n);
   } else if (proto_is(cmd, PSTR("IMP"))) {
-    if (proto_checksum_missing(cmd)) return out.err(PSTR("CHECKSUM"), PSTR("checksum required"));
     if (!proto_args_ok(cmd, 3)) return out.err(PSTR("ARG"), PSTR("IMP needs 3 integers"));
     if (stream_state) return out.err(PSTR("STATE"), PSTR("streaming"));
     if (!shaper_expect || cmd->arg[0] != shaper_next) return out.err(PSTR("STATE"), PSTR("SHAPER first, impulses in order"));
@@ -529,7 +527,7 @@ static void handle(Command *cmd) {
     if (bad) {
       shaper_expect = 0;  // the shaper is discarded: start again with SHAPER
       if (bad == 1) return out.err(PSTR("RANGE"), PSTR("amplitude -16384..16384 (>= 0 unless allowed)"));
-      return out.err(PSTR("RANGE"), PSTR("delay: 0 first, increasing, multiple of 16, <= 1000000 us"));
+      return out.err(PSTR("RANGE"), PSTR("delay: 0 first, rising, 16 us units, <= 1 s"));
     }
     pl.a[i] = (int16_t)cmd->arg[1];
     pl.d[i] = (uint16_t)(cmd->arg[2] / SP_DELAY_UNIT_US);
@@ -543,7 +541,6 @@ static void handle(Command *cmd) {
     }
     out.word_i32(PSTR("OK IMP"), i);
   } else if (proto_is(cmd, PSTR("STREAM"))) {
-    if (proto_checksum_missing(cmd)) return out.err(PSTR("CHECKSUM"), PSTR("checksum required"));
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("STREAM takes no argument"));
     if (running) return out.err(PSTR("STATE"), PSTR("running"));
     if (stream_state) return out.err(PSTR("STATE"), PSTR("streaming"));
@@ -552,7 +549,6 @@ static void handle(Command *cmd) {
     out.word_i32(PSTR("OK STREAM"), read_position());  // queued before the stream's first line
     stream_start();
   } else if (proto_is(cmd, PSTR("V"))) {
-    if (proto_checksum_missing(cmd)) return out.err(PSTR("CHECKSUM"), PSTR("checksum required"));
     if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("V needs 1 integer"));
     if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
     int32_t v = cmd->arg[0];
@@ -568,7 +564,6 @@ static void handle(Command *cmd) {
     sei();
     out.word_u32(PSTR("OK V"), period);
   } else if (proto_is(cmd, PSTR("END"))) {
-    if (proto_checksum_missing(cmd)) return out.err(PSTR("CHECKSUM"), PSTR("checksum required"));
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("END takes no argument"));
     if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
     cli();
@@ -629,9 +624,7 @@ void loop() {
       out.err(PSTR("TOOLONG"), PSTR("line over 63 characters"));
     } else {
       Command cmd;
-      ProtoStatus st = proto_parse(reader.buf, reader.len, &cmd);
-      if (st == PROTO_CHECKSUM) out.err(PSTR("CHECKSUM"), PSTR("bad checksum"));
-      else if (st == PROTO_OK) handle(&cmd);
+      if (!out.refused(proto_parse(reader.buf, reader.len, &cmd))) handle(&cmd);
     }
     reader.reset();
   }

@@ -21,6 +21,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from helpers.emulator.stream_mode import ShaperLoader, StreamMode
 from helpers.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
 from helpers.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, frame, frame_many
 
@@ -31,6 +32,9 @@ MAX_TRAVEL_STEPS = LIMITS.max_position_steps
 MAX_ITEMS = LIMITS.max_items
 MAX_DWELL_MS = LIMITS.max_dwell_ms
 INT32_MAX = 2**31 - 1
+MEM_FREE_BYTES = 560
+"""What the emulated stepper answers to ``MEM``: the least free stack measured for the firmware in simavr
+(``firmware/README.md``); the emulated board has no stack of its own."""
 
 class Plant(Protocol):
     """What the boards need from a plant (``helpers.virtual.ArmPlant`` or a test double)."""
@@ -196,16 +200,16 @@ class EmulatedBoard:
         if not text:
             return None
         star = text.find("*")
-        if star >= 0:
-            given = text[star + 1 :]
-            body = text[:star]
-            if len(given) != 2 or any(c not in "0123456789ABCDEFabcdef" for c in given):
-                return "ERR CHECKSUM bad checksum"
-            if int(given, 16) != int(checksum(line[:star]), 16):
-                return "ERR CHECKSUM bad checksum"
-            text = body
-            if not text:
-                return None
+        if star < 0:
+            return "ERR NOCRC every command needs its CRC-8 suffix"
+        given = text[star + 1 :]
+        if len(given) != 2 or any(c not in "0123456789ABCDEFabcdef" for c in given):
+            return "ERR CHECKSUM bad checksum"
+        if int(given, 16) != int(checksum(line[:star]), 16):
+            return "ERR CHECKSUM bad checksum"
+        text = text[:star]
+        if not text:
+            return None
         tokens = text.split(" ")
         bad = any(t == "" for t in tokens)
         args: list[int] = []
@@ -403,7 +407,11 @@ class _Item:
 
 
 class StepperEmulator(EmulatedBoard):
-    """The stepper board (Arduino Uno + TB6600): a programme of up to 64 items run in device time."""
+    """The stepper board (Arduino Uno + TB6600), in device time.
+
+    It runs a programme of up to 64 items, or a stream of set-points shaped by a loaded shaper
+    (:mod:`helpers.emulator.stream_mode`).
+    """
 
     kind = "stepper"
 
@@ -417,12 +425,16 @@ class StepperEmulator(EmulatedBoard):
         self._step_signs = np.zeros(0, dtype=np.int64)
         self._next = 0
         self._end_t = 0.0
+        self.shaper = ShaperLoader()
+        self.stream: StreamMode | None = None
+        """The stream in progress (None when not streaming)."""
 
     def reset(self) -> None:  # noqa: D102
         self._stop()
         self.items = []
         self.enabled = False
         self.position = 0
+        self.shaper = ShaperLoader()
         super().reset()
 
     def _stop(self) -> None:
@@ -430,6 +442,7 @@ class StepperEmulator(EmulatedBoard):
         self._step_times = np.zeros(0)
         self._step_signs = np.zeros(0, dtype=np.int64)
         self._next = 0
+        self.stream = None
 
     def cmd_CLEAR(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 0):
@@ -473,6 +486,8 @@ class StepperEmulator(EmulatedBoard):
             return err
         if self.running:
             return "ERR STATE running"
+        if self.stream is not None:
+            return "ERR STATE streaming"
         if not self.items:
             return "ERR STATE programme empty"
         if not self.enabled:
@@ -521,9 +536,73 @@ class StepperEmulator(EmulatedBoard):
             return err
         return f"OK POS {self.position}"
 
+    def cmd_MEM(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 0):
+            return err
+        return f"OK MEM {MEM_FREE_BYTES}"
+
+    # --- streaming (PROTOCOL.md "Stepper board: streaming mode") -----------------------------------
+    def cmd_SHAPER(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 2):
+            return err
+        if self.stream is not None:
+            return "ERR STATE streaming"
+        return self.shaper.begin(*cmd.args)
+
+    def cmd_IMP(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 3):
+            return err
+        if self.stream is not None:
+            return "ERR STATE streaming"
+        return self.shaper.impulse(*cmd.args)
+
+    def cmd_STREAM(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 0):
+            return err
+        if self.running:
+            return "ERR STATE running"
+        if self.stream is not None:
+            return "ERR STATE streaming"
+        if self.shaper.ready is None:
+            return "ERR STATE no shaper"
+        if not self.enabled:
+            return "ERR STATE driver disabled"
+        self.stream = StreamMode(self.shaper.ready, self.position, self.world.t, self.send)
+        return f"OK STREAM {self.position}"
+
+    def cmd_V(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 1):
+            return err
+        if self.stream is None:
+            return "ERR STATE not streaming"
+        return self.stream.setpoint(cmd.args[0])
+
+    def cmd_END(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 0):
+            return err
+        if self.stream is None:
+            return "ERR STATE not streaming"
+        return self.stream.end()
+
+    # --- device time --------------------------------------------------------------------------------
     def steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
-        """Take the steps due at or before ``t1`` (updating the position); DONE is queued by the world."""
-        if not self.running or self.hung or self.disconnected:
+        """Take the steps due at or before ``t1`` (updating the position).
+
+        A programme's ``DONE`` is queued by the world (:meth:`finish_if_due`); a stream's control ticks run
+        here, and its notices and ``DONE`` are queued at the tick that produces them.
+        """
+        if self.hung or self.disconnected:
+            return np.zeros(0), np.zeros(0, dtype=np.int64)
+        if self.stream is not None:
+            times, signs = self.stream.steps_until(t1)
+            self.position += int(signs.sum())
+            if self.stream.finished:
+                if self.stream.session.watchdog:  # the watchdog's stream ends with the driver disabled
+                    self.enabled = False
+                self.stream = None
+                self.send(f"DONE {self.position}")
+            return times, signs
+        if not self.running:
             return np.zeros(0), np.zeros(0, dtype=np.int64)
         j = int(np.searchsorted(self._step_times, t1 + 1e-12, side="right"))
         times = self._step_times[self._next : j]
@@ -533,7 +612,9 @@ class StepperEmulator(EmulatedBoard):
         return times, signs
 
     def next_event(self) -> float:
-        """Device time of the next unsolicited line (``DONE``), or inf."""
+        """Device time of the next event (a programme's ``DONE``, a stream's control tick), or inf."""
+        if self.stream is not None:
+            return self.stream.next_tick
         return self._end_t if self.running else math.inf
 
     def finish_if_due(self, t1: float) -> None:

@@ -54,6 +54,9 @@ REQUIRED_META = (
 
 COUNT_KEYS = ("samples", "dropped", "corrupted", "overruns")
 
+STREAM_AMP_ONE = 4096
+"""A streamed run's impulse amplitudes are in units of 1/4096 and sum to exactly this (the board's 1.0)."""
+
 _SHA256 = re.compile(r"[0-9a-f]{64}\Z")
 
 
@@ -234,6 +237,56 @@ def validate_meta(meta: Any, path: Path) -> None:
         _number(scenario, "x_f_mm", "scenario", path, positive=True)
     if "repetition" in scenario and not _is_int(scenario["repetition"]):
         raise _fail(path, f"scenario.repetition: expected an integer, got {scenario['repetition']!r}")
+    if scenario["kind"] == "stream":
+        _validate_stream(scenario, path)
+
+
+def _int_list(section: dict[str, Any], key: str, where: str, path: Path) -> list[int]:
+    value = section.get(key)
+    if not isinstance(value, list) or not all(_is_int(x) for x in value):
+        raise _fail(path, f"{where}.{key}: expected a list of integers")
+    return value
+
+
+def _validate_stream(scenario: dict[str, Any], path: Path) -> None:
+    """``scenario.stream`` of a streamed run (``docs/recording_format.md``)."""
+    stream = _section(scenario, "stream", path)
+    _number(stream, "rate_hz", "scenario.stream", path, positive=True)
+    impulses = stream.get("impulses")
+    if not isinstance(impulses, dict):
+        raise _fail(path, "scenario.stream.impulses: expected an object")
+    amps = _int_list(impulses, "amplitudes", "scenario.stream.impulses", path)
+    delays = _int_list(impulses, "delays_us", "scenario.stream.impulses", path)
+    if not amps or len(amps) != len(delays):
+        raise _fail(path, "scenario.stream.impulses: amplitudes and delays_us must pair up (at least one)")
+    if sum(amps) != STREAM_AMP_ONE:
+        raise _fail(path, f"scenario.stream.impulses.amplitudes: sum to {sum(amps)}, not {STREAM_AMP_ONE}")
+    if delays[0] != 0 or any(b <= a for a, b in zip(delays, delays[1:], strict=False)):
+        raise _fail(path, "scenario.stream.impulses.delays_us: expected 0 first, then increasing")
+    setpoints = _int_list(stream, "setpoints", "scenario.stream", path)
+    periods = _int_list(stream, "periods", "scenario.stream", path)
+    n = stream.get("n_setpoints")
+    if not (_is_int(n) and n == len(setpoints) == len(periods)):
+        raise _fail(
+            path, f"scenario.stream.n_setpoints: {n!r} does not match the set-points and periods listed"
+        )
+    if any(b <= a for a, b in zip(periods, periods[1:], strict=False)):
+        raise _fail(path, "scenario.stream.periods: expected increasing periods")
+    sha = stream.get("setpoints_sha256")
+    if not (isinstance(sha, str) and _SHA256.match(sha)):
+        raise _fail(path, "scenario.stream.setpoints_sha256: expected 64 lower-case hex digits")
+    for key in ("fifo_full", "underruns"):
+        if not (_is_int(stream.get(key)) and stream[key] >= 0):
+            raise _fail(path, f"scenario.stream.{key}: expected an integer >= 0, got {stream.get(key)!r}")
+    clamps = stream.get("clamps")
+    if not (
+        isinstance(clamps, dict)
+        and all(_is_int(clamps.get(k)) and clamps[k] >= 0 for k in ("speed", "travel"))
+    ):
+        raise _fail(path, "scenario.stream.clamps: expected integers >= 0 for speed and travel")
+    notices = stream.get("notices")
+    if not (isinstance(notices, list) and all(isinstance(x, str) for x in notices)):
+        raise _fail(path, "scenario.stream.notices: expected a list of notice lines")
 
 
 def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:

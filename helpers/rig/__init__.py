@@ -5,7 +5,9 @@
 - :mod:`helpers.rig.daq`, :mod:`helpers.rig.stepper`: the DAQ and stepper drivers;
 - :mod:`helpers.rig.safety`: the limits checked before any byte is sent;
 - :mod:`helpers.rig.discovery`: finding the boards by USB VID:PID, and announced virtual rigs;
-- :mod:`helpers.rig.experiment`: :class:`Rig`, one board-timed experiment per call, safe on any error;
+- :mod:`helpers.rig.experiment`: :class:`Rig`, one board-timed experiment per call (a programme, or a stream
+  of set-points through the board's shaper), safe on any error;
+- :mod:`helpers.rig.stream`: a stream's set-points, their checks, the pacing and what the recording says;
 - :mod:`helpers.rig.loadcell`: recording the load-cell calibration under known loads.
 
 The line protocol itself is :mod:`helpers.protocol`. Nothing here needs numba or the virtual rig's physics:
@@ -25,6 +27,7 @@ from helpers.rig.daq import DaqBoard
 from helpers.rig.experiment import Rig, RunAborted
 from helpers.rig.safety import SafetyError, check_programme, check_request
 from helpers.rig.stepper import StepperBoard
+from helpers.rig.stream import StreamLimit, StreamStarved
 
 __all__ = [
     "BoardDisconnected",
@@ -39,6 +42,8 @@ __all__ = [
     "RunAborted",
     "SafetyError",
     "StepperBoard",
+    "StreamLimit",
+    "StreamStarved",
     "check_programme",
     "check_request",
 ]

@@ -1,4 +1,4 @@
-"""The coordinated experiment: :class:`Rig` runs one board-timed programme per call and returns a recording.
+"""The coordinated experiment: :class:`Rig` runs one board-timed programme or stream per call -> a recording.
 
 A whole Up-hold-Down experiment is one stepper programme (lead-in dwell, up segments, hold, down segments,
 trailing dwell), so its timing is the stepper board's, not the host's. :meth:`Rig.run` loads the programme,
@@ -19,6 +19,11 @@ reason; signals are held while that cleanup and save run. The exception is then 
 ``exc.cleanup`` (the problems the cleanup met; empty when it reached both boards). A complete run never
 overwrites a recording unless asked (``replace=True``). Requests outside the safety limits raise
 :class:`helpers.rig.safety.SafetyError` before any byte is sent.
+
+:meth:`Rig.stream` streams velocity set-points through the stepper board's shaper (its parts, which touch no
+port, are :mod:`helpers.rig.stream`) with the same guarantees: it starts at rest, checks what it can before
+sending, runs in the same guard and reads the device time the same way (its pacing follows the DAQ's clock,
+so the in-process virtual rig streams faster than real time, deterministically).
 """
 
 from __future__ import annotations
@@ -40,18 +45,28 @@ from helpers import __version__ as HELPERS_VERSION
 from helpers import paper, recordings
 from helpers.design import SYSTEMS, Design, as_design, up_down
 from helpers.design.formats import shaper_to_dict
-from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_PROGRAMME_S
+from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, MAX_PROGRAMME_S
 from helpers.loadcell import LoadCellCalibration, load_calibration
 from helpers.noise import white_noise_std
 from helpers.paths import DATA_DIR
 from helpers.programmes import Programme, experiment_programme
 from helpers.recordings import Recording, RecordingError, refuse_existing
-from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
+from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.daq import DaqBoard
 from helpers.rig.discovery import find_rig_ports, virtual_source_for
 from helpers.rig.safety import SafetyError, check_programme, check_request
 from helpers.rig.stepper import StepperBoard
+from helpers.rig.stream import (
+    STREAM_RATE_HZ,
+    Pacer,
+    SetpointSource,
+    ShapedCheck,
+    StreamLimit,
+    StreamRecord,
+    StreamStarved,
+)
 from helpers.signals import signals_held
+from helpers.streaming import board_shaper
 
 
 class RunAborted(BoardError):
@@ -110,16 +125,36 @@ def _check_rate(rate_hz: Any) -> None:
         )
 
 
+_FEED_READ_S = 0.005
+"""During a stream the DAQ is read with this timeout (s): device time advances in steps under a control period
+(on the in-process virtual rig a read that finds nothing moves the device clock by its timeout)."""
+
+
+def _shaper_meta(shaper: Any) -> dict[str, Any]:
+    """A shaper as the recording's ``scenario.shaper`` states it: ``name``, ``amplitudes``, ``times`` (s)."""
+    if hasattr(shaper, "delays_us"):  # a board shaper given as it is
+        return {
+            "name": "board",
+            "amplitudes": [a / 4096 for a in shaper.amplitudes],
+            "times": [d * 1e-6 for d in shaper.delays_us],
+        }
+    return {
+        "name": getattr(shaper, "name", None),
+        "amplitudes": [float(a) for a in shaper.amplitudes],
+        "times": [float(t) for t in shaper.times],
+    }
+
+
 class _DeviceTimeBar:
     """A tqdm bar of device seconds, updated in 0.1 s increments."""
 
-    def __init__(self, total_s: float, show: bool, desc: str | None = "device time") -> None:
+    def __init__(self, total_s: float | None, show: bool, desc: str | None = "device time") -> None:
         self.bar = tqdm(
-            total=round(total_s, 1),
+            total=None if total_s is None else round(total_s, 1),
             unit="s",
             desc=desc,
             disable=not show,
-            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s",
+            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s" if total_s is not None else "{desc}: {n:.1f} s",
         )
         self.shown = 0.0
 
@@ -427,6 +462,241 @@ class Rig:
 
         return self._guarded(body, scenario, target, rate_hz, replace=replace)
 
+    def stream(
+        self,
+        setpoints: Any,
+        shaper: Any = None,
+        *,
+        path: str | os.PathLike | None = None,
+        scenario: dict[str, Any] | None = None,
+        source_name: str | None = None,
+        stream_rate_hz: float = STREAM_RATE_HZ,
+        rate_hz: int = 1000,
+        lead_periods: int = 4,
+        lead_in_s: float = 1.0,
+        tail_s: float = 1.0,
+        allow_clamps: bool = False,
+        done_grace_s: float = 1.0,
+        silence_timeout: float = 2.0,
+        progress: bool = True,
+        max_corrupted_fraction: float = 0.05,
+        replace: bool = False,
+        noise_seed: int | None = None,
+        rest_timeout_s: float = REST_TIMEOUT_S,
+    ) -> Recording:
+        """Stream cable speeds through the stepper board's shaper; return (and save) the recording.
+
+        The board shapes the set-points with ``shaper`` and enforces its limits on the shaped motion
+        (``firmware/PROTOCOL.md``, streaming mode). The run: check everything that can be checked before a
+        byte is sent (the set-points, the shaper; for an array, the whole shaped motion from the cable's
+        present position, with the board's own planner, :class:`~helpers.rig.stream.ShapedCheck`), wait
+        until the tension is at rest, load the shaper, start the DAQ, record ``lead_in_s``, enable the
+        driver and ``STREAM``, feed the set-points at 100 Hz of device time
+        (:class:`~helpers.rig.stream.Pacer`), ``END``, wait for ``DONE``, record ``tail_s`` more, stop the
+        DAQ and disable the driver. It runs in the same guard as :meth:`run`: any exception, Ctrl-C or
+        SIGTERM, a board reset or silence, the stream's watchdog (:class:`~helpers.rig.stream.StreamStarved`)
+        and, unless ``allow_clamps``, a clamp the board reports (:class:`~helpers.rig.stream.StreamLimit`)
+        abort the stepper, disable the driver, stop the DAQ and save what was recorded under an aborted name.
+
+        Parameters
+        ----------
+        setpoints : array_like or iterable of float
+            Cable speeds (mm/s, + = pull), one per 10 ms period. An array is checked whole before the run; a
+            generator or a live source (which must return its present value at once) one value at a time.
+        shaper : helpers.shapers.Shaper, helpers.streaming.StreamShaper or None
+            Loaded on the board (a real shaper is rounded to the board's 16 us and 1/4096); None streams
+            unshaped (the unit shaper).
+        path : path-like, optional
+            ``data/<group>/<name>``; default ``data/runs/run_<UTC time>``.
+        scenario : dict, optional
+            More scenario metadata; ``kind`` is ``"stream"``.
+        source_name : str, optional
+            Where the set-points come from, for the recording (default: ``array`` or the iterable's type).
+        stream_rate_hz : float
+            The set-points' rate: the board takes one per 10 ms control period, so only 100 is accepted.
+        rate_hz : int
+            DAQ sample rate.
+        lead_periods : int
+            Periods a set-point waits in the board's FIFO (1-7): latency against tolerance of host jitter.
+        lead_in_s, tail_s : float
+            Device time recorded before ``STREAM`` and after ``DONE`` (0-60 s).
+        allow_clamps : bool
+            Go on when the board clamps the shaped motion (the notices are counted in the recording).
+        done_grace_s : float
+            Device time after the stream's expected end by which ``DONE`` must have arrived.
+        silence_timeout : float
+            Seconds without a sample after which the DAQ counts as not answering.
+        progress : bool
+            Show a tqdm bar of device time.
+        max_corrupted_fraction : float
+            Abort when more than this fraction of lines (and more than 50) are corrupted.
+        replace : bool
+            Replace a recording of the same name.
+        noise_seed : int, optional
+            In-process virtual rig: re-seed the sensor noise for this run.
+        rest_timeout_s : float
+            Longest wait for the tension to come to rest before the run (device s).
+
+        Returns
+        -------
+        helpers.recordings.Recording
+            Its ``scenario.stream`` describes the stream (``docs/recording_format.md``).
+
+        Raises
+        ------
+        SafetyError
+            Before anything moves: a set-point that is not finite or beyond the speed limit, an array whose
+            shaped motion would clamp at the travel or speed limit, a stream over 600 s.
+        ValueError
+            A shaper that cannot be loaded (amplitudes not summing to 1, delays beyond 1 s, ...), a rate
+            other than 100 Hz, an out-of-range ``lead_periods``, ``lead_in_s`` or ``tail_s``.
+        """
+        if stream_rate_hz != STREAM_RATE_HZ:
+            raise ValueError(
+                f"the stepper board takes one set-point per 10 ms control period: stream_rate_hz must be "
+                f"{STREAM_RATE_HZ}, got {stream_rate_hz!r} (resample the trajectory)"
+            )
+        for name, value in (("lead_in_s", lead_in_s), ("tail_s", tail_s)):
+            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 60:
+                raise ValueError(f"{name} must be a number of seconds in 0-60, got {value!r}")
+        _check_rate(rate_hz)
+        board = board_shaper(shaper)
+        Pacer(0, lead_periods)  # refuses a bad lead before anything is sent
+        source = SetpointSource(setpoints, source_name)
+        units = source.check_all() if source.sized else None
+        target = self._target(path)
+        refuse_existing(target, replace)
+        self.stepper.check_reset()
+        self.daq.check_reset()
+        position = self.stepper.position()
+        check: ShapedCheck | None = ShapedCheck(board, position, refuse=not allow_clamps)
+        if units is not None:
+            for u in units.tolist():
+                check.setpoint(u)
+            check.end()
+            reach = check.reach()
+            check = None  # checked whole: nothing more to predict
+        else:
+            reach = (0, LIMITS.max_position_steps)
+            check = None if allow_clamps else check
+        record = StreamRecord(board, source.name, lead_periods)
+        record.data.update({"lead_in_s": float(lead_in_s), "tail_s": float(tail_s)})
+        scenario = {**(scenario or {}), "kind": "stream"}
+        scenario["shaper"] = None if shaper is None else _shaper_meta(shaper)
+        scenario["start_position_steps"] = position
+        scenario["stream"] = record.data
+        self._seed_noise(noise_seed, scenario)
+        feed = iter(units.tolist()) if units is not None else source
+        expected_s = None if units is None else len(units) / STREAM_RATE_HZ + board.duration_s + tail_s + 0.05
+
+        def body(state: _RunState) -> None:
+            scenario["rest"] = self.wait_for_rest(rate_hz, rest_timeout_s)
+            self.stepper.abort()  # whatever an earlier session left running stops; driver off
+            self.daq.stop()
+            self.stepper.load_shaper(board)
+            self.daq.set_rate(rate_hz)
+            self.daq.zero()
+            self.daq.start()
+            self.daq.expect_steps(reach[0] - position, reach[1] - position)
+            timeout = self.daq.port.timeout
+            self.daq.port.timeout = min(timeout or _FEED_READ_S, _FEED_READ_S)  # device time in small steps
+            bar = _DeviceTimeBar(expected_s, progress)
+            try:
+                self._feed(state, feed, check, record, lead_periods, lead_in_s, tail_s, allow_clamps,
+                           done_grace_s, silence_timeout, max_corrupted_fraction, bar)  # fmt: skip
+            finally:
+                self.daq.port.timeout = timeout
+                bar.close()
+            self.daq.stop()
+            self.stepper.enable(False)
+
+        return self._guarded(body, scenario, target, rate_hz, replace=replace)
+
+    def _feed(
+        self,
+        state: _RunState,
+        feed: Any,
+        check: ShapedCheck | None,
+        record: StreamRecord,
+        lead_periods: int,
+        lead_in_s: float,
+        tail_s: float,
+        allow_clamps: bool,
+        done_grace_s: float,
+        silence_timeout: float,
+        max_corrupted_fraction: float,
+        bar: _DeviceTimeBar,
+    ) -> None:
+        """The lead-in, ``STREAM``, the set-points as they fall due, ``END``, ``DONE``, the tail."""
+        silence = Waiter(silence_timeout)
+        while not self.daq.rows or self.daq.rows[-1][1] - self.daq.rows[0][1] < lead_in_s * 1e6:
+            _, silence = self._read_both(silence, max_corrupted_fraction)
+        self.stepper.enable(True)
+        state.go_sent = True
+        self.stepper.start_stream()
+        self.daq.pump(block=False)
+        state.t_go_us = now = self.daq.rows[-1][1]  # STREAM's device time, as GO's in run()
+        pacer = Pacer(now, lead_periods)
+        pending: int | None = None  # a set-point the board refused with ERR FULL, to send again
+        exhausted = False
+        end_period = finish_due = done_at = None
+        noticed = 0
+
+        def take_notices() -> None:
+            nonlocal noticed
+            for line in self.stepper.notices[noticed:]:
+                noticed += 1
+                record.notice(line)
+                if line.startswith("N,WATCHDOG"):
+                    raise StreamStarved(
+                        f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a "
+                        "set-point (the host fell behind)"
+                    )
+                if not allow_clamps:
+                    raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
+
+        while True:
+            take_notices()
+            while end_period is None and not exhausted and pacer.due(now):
+                if pending is None:
+                    try:
+                        pending = next(feed)
+                    except StopIteration:
+                        exhausted = True
+                        break
+                    if check is not None:
+                        check.setpoint(pending)
+                try:
+                    period = self.stepper.set_point(pending)
+                except CommandRefused:
+                    take_notices()  # a stream the board has ended (the watchdog) refuses V: say why
+                    raise
+                if period is None:
+                    pacer.refused_full(now)
+                else:
+                    pacer.accepted(period, now)
+                    record.sent(pending, period)
+                    pending = None
+                record.counts(pacer)
+            if exhausted and end_period is None:
+                end_period = self.stepper.end_stream()
+                record.data["end_period"] = end_period
+                finish_due = pacer.finish_due_us(end_period, record.shaper_q_max, done_grace_s * 1e6)
+            if self.stepper.done_position is not None:
+                if end_period is None:
+                    raise BoardError(f"the stepper board ended the stream before END (DONE at {now} us)")
+                done_at = now if done_at is None else done_at
+                if now - done_at >= tail_s * 1e6:
+                    return
+            elif finish_due is not None and now > finish_due:
+                raise BoardTimeout(
+                    f"the stepper board did not report DONE within {done_grace_s:.1f} s of device time after "
+                    "the stream's end (it stopped answering)"
+                )
+            _, silence = self._read_both(silence, max_corrupted_fraction)
+            now = self.daq.rows[-1][1]
+            bar.show((now - state.t_go_us) / 1e6)
+
     def _target(self, path: str | os.PathLike | None) -> Path:
         """Where a run is saved: ``path`` (its name checked) or ``data/runs/run_<UTC time>``."""
         if path is None:
@@ -533,6 +803,29 @@ class Rig:
                 "(wrong baud rate or a bad cable?)"
             )
 
+    def _read_both(self, silence: Waiter, max_corrupted_fraction: float) -> tuple[int, Waiter]:
+        """Read once from both boards during a run; return the number of new samples and the silence timer.
+
+        Raises :class:`~helpers.rig.BoardReset` if a board rebooted, :class:`~helpers.rig.BoardTimeout` after
+        ``silence.timeout`` s without a sample, :class:`RunAborted` if corrupted lines dominate.
+        """
+        before = len(self.daq.rows)
+        self.daq.pump()
+        self.daq.check_reset()
+        self.stepper.poll()
+        self.stepper.check_reset()
+        new = len(self.daq.rows) - before
+        if new:
+            silence = Waiter(silence.timeout)
+        else:
+            silence.idle(self.daq.port.timeout or 0.0)
+            if silence.expired:
+                raise BoardTimeout(
+                    f"the daq board sent no sample for {silence.timeout:.1f} s (it stopped answering)"
+                )
+        self._check_corruption(max_corrupted_fraction)
+        return new, silence
+
     def _stream_until_done(
         self,
         state: _RunState,
@@ -548,23 +841,10 @@ class Rig:
         period_us = round(1e6 / rate_hz)
         silence = Waiter(silence_timeout)
         while True:
-            before = len(self.daq.rows)
-            self.daq.pump()
+            new, silence = self._read_both(silence, max_corrupted_fraction)
             rows = self.daq.rows
-            self.daq.check_reset()
-            self.stepper.poll()
-            self.stepper.check_reset()
-            if len(rows) > before:
-                silence = Waiter(silence_timeout)
-                if state.t_go_us is None:
-                    state.t_go_us = rows[before][1] - period_us
-            else:
-                silence.idle(self.daq.port.timeout or 0.0)
-                if silence.expired:
-                    raise BoardTimeout(
-                        f"the daq board sent no sample for {silence_timeout:.1f} s (it stopped answering)"
-                    )
-            self._check_corruption(max_corrupted_fraction)
+            if new and state.t_go_us is None:
+                state.t_go_us = rows[len(rows) - new][1] - period_us
             if state.t_go_us is None or not rows:
                 continue
             last_us = rows[-1][1]

@@ -1,11 +1,16 @@
-"""Driver of the stepper board (Arduino Uno + TB6600, 115200 baud): programme, go, abort, enable, position."""
+"""Driver of the stepper board (Arduino Uno + TB6600, 115200 baud): programmes and streams.
+
+Programme mode: clear, segments, dwells, go, abort, enable, position. Streaming mode: load a shaper, start a
+stream, send set-points, end it; its notices are collected.
+"""
 
 from __future__ import annotations
 
 from helpers.hardware import STEPPER_BAUD
 from helpers.programmes import Dwell, Programme, Segment
-from helpers.rig.boards import BoardError, BoardLink
+from helpers.rig.boards import BoardError, BoardLink, CommandRefused
 from helpers.rig.safety import check_programme
+from helpers.streaming import StreamShaper
 
 
 def _last_int(reply: str, what: str) -> int:
@@ -17,10 +22,24 @@ def _last_int(reply: str, what: str) -> int:
 
 
 class StepperBoard(BoardLink):
-    """The stepper board. ``done_position`` is set when the unsolicited ``DONE <position>`` arrives."""
+    """The stepper board. ``done_position`` is set when the unsolicited ``DONE <position>`` arrives.
+
+    The streaming mode's unsolicited notices (``N,LIMIT,SPEED,<period>``, ``N,LIMIT,TRAVEL,<position>``,
+    ``N,WATCHDOG,<period>``) are appended to ``notices`` as they arrive.
+    """
 
     kind = "stepper"
     baudrate = STEPPER_BAUD
+
+    def __init__(self, port, timeout: float = 2.0) -> None:
+        super().__init__(port, timeout)
+        self.notices: list[str] = []
+
+    def _message(self, msg: str) -> None:
+        if msg.startswith("N,"):
+            self.notices.append(msg)
+        else:
+            super()._message(msg)
 
     def clear(self) -> None:
         """``CLEAR`` the programme."""
@@ -72,3 +91,32 @@ class StepperBoard(BoardLink):
     def poll(self) -> None:
         """Read whatever has arrived without waiting (picks up ``DONE``, ``HELLO``)."""
         self.pump(block=False)
+
+    # --- streaming mode (PROTOCOL.md "Stepper board: streaming mode") --------------------------------
+    def load_shaper(self, shaper: StreamShaper) -> None:
+        """``SHAPER`` and one ``IMP`` per impulse: load the shaper the next streams use."""
+        for line in shaper.commands():
+            self.command(line)
+
+    def start_stream(self) -> int:
+        """``STREAM``: start streaming from the present position (returned); the notices list is emptied."""
+        self.done_position = None
+        self.notices.clear()
+        return _last_int(self.command("STREAM"), "STREAM")
+
+    def set_point(self, units: int) -> int | None:
+        """``V <units>``: queue a set-point; return the period it drives, or None if the FIFO was full.
+
+        A full FIFO (``ERR FULL``) drops the set-point: send it again later. Any other refusal raises
+        :class:`helpers.rig.CommandRefused`.
+        """
+        try:
+            return _last_int(self.command(f"V {units}"), "V")
+        except CommandRefused as exc:
+            if exc.code == "FULL":
+                return None
+            raise
+
+    def end_stream(self) -> int:
+        """``END``: the stream ends after the queued set-points; return the first period fed with zero."""
+        return _last_int(self.command("END"), "END")

@@ -2,8 +2,8 @@
 
 Each case is ``(command bytes, expected reply)``: the expected reply is a regular expression for the reply
 body (the checksum is checked separately), or ``None`` when the line must get no reply. Expectations are
-written from firmware/PROTOCOL.md. ``ERR`` texts are free; only the code is part of the protocol.
-``long_wait`` marks a command after which the script pauses (a programme runs to its end).
+written from firmware/PROTOCOL.md. ``ERR`` texts are free; only the code is part of the protocol. Commands
+carry their ``*hh`` (protocol 2.0.0 requires it) unless a case is about a command without it.
 """
 
 from __future__ import annotations
@@ -14,13 +14,17 @@ from fwsim import with_checksum
 V = r"2\.0\.0"
 
 
-def _c(text: str) -> bytes:
+def _c(body: str) -> bytes:
+    """A command with its correct checksum (as the host drivers send every command)."""
+    return with_checksum(body).encode("ascii") + b"\n"
+
+
+def _bare(text: str) -> bytes:
+    """A command without ``*hh`` (as a person might type it): refused with ``ERR NOCRC``."""
     return text.encode("ascii") + b"\n"
 
 
-def _k(body: str) -> bytes:
-    """A command with a correct checksum."""
-    return with_checksum(body).encode("ascii") + b"\n"
+NOCRC = r"ERR NOCRC( .*)?"
 
 
 def _bad(body: str) -> bytes:
@@ -35,8 +39,11 @@ def framing_cases(board: str) -> list[tuple[bytes, str | None]]:
     pong = rf"PONG {board} {V}"
     return [
         (_c("PING"), pong),
-        (_k("PING"), pong),
-        (b"PING\r\n", pong),  # \r before \n ignored
+        (_bare("PING"), NOCRC),  # every command must carry its *hh ...
+        (_bare("FOO"), NOCRC),  # ... which is looked at before the word
+        (_bare("PING 1"), NOCRC),
+        (b"PING\r\n", NOCRC),
+        (_c("PING")[:-1] + b"\r\n", pong),  # \r before \n ignored
         (_bad("PING"), r"ERR CHECKSUM( .*)?"),
         (b"PING*1\n", r"ERR CHECKSUM( .*)?"),  # one hex digit
         (b"PING*XY\n", r"ERR CHECKSUM( .*)?"),  # not hex
@@ -50,19 +57,21 @@ def framing_cases(board: str) -> list[tuple[bytes, str | None]]:
         (f"123456789*{LINK_CHECK:02X}\n".encode(), r"ERR UNKNOWN( .*)?"),
         (f"123456789*{LINK_CHECK ^ 1:02X}\n".encode(), r"ERR CHECKSUM( .*)?"),
         # a '\r' is dropped only just before '\n'; elsewhere it is part of the line (and of the CRC)
-        (b"PI\rNG\n", r"ERR UNKNOWN( .*)?"),
-        (b"PING\r\r\n", r"ERR UNKNOWN( .*)?"),
+        (b"PI\rNG\n", NOCRC),
+        (_c("PING")[:-1] + b"\r\r\n", r"ERR CHECKSUM( .*)?"),  # "*hh\r": a malformed checksum
         (f"PI\rNG*{with_checksum('PING')[-2:]}\n".encode(), r"ERR CHECKSUM( .*)?"),
         (f"PI\rNG*{with_checksum('PI' + chr(13) + 'NG')[-2:]}\r\n".encode(), r"ERR UNKNOWN( .*)?"),
         (b"\n", None),  # blank line: no reply
         (b"\r\n", None),
+        (b"*FF\n", None),  # an empty body with its CRC (the initial value 0xFF): blank too
         (_c("FOO"), r"ERR UNKNOWN( .*)?"),
         (_c("ping"), r"ERR UNKNOWN( .*)?"),  # command words are upper case
         (_c("PING 1"), r"ERR ARG( .*)?"),
         (_c("PING "), r"ERR ARG( .*)?"),  # trailing space = empty argument
         (b"X" * 64 + b"\n", r"ERR TOOLONG( .*)?"),
         (b"P" * 200 + b"\n", r"ERR TOOLONG( .*)?"),  # one reply however long
-        (b"PING" + b" " * 59 + b"\n", r"ERR ARG( .*)?"),  # 63 characters: not too long
+        (_c("PING" + " " * 56), r"ERR ARG( .*)?"),  # 63 characters with "*hh": not too long
+        (_c("PING" + " " * 57), r"ERR TOOLONG( .*)?"),  # 64
         (_c("PING"), pong),  # and the board still answers
     ]
 
@@ -83,9 +92,9 @@ def daq_cases() -> list[tuple[bytes, str | None]]:
         (_c("RATE 99999999999999999999"), r"ERR RANGE( .*)?"),
         (_c("RATE 100"), r"OK RATE 100"),
         (_c("RATE 2000"), r"OK RATE 2000"),
-        (_k("RATE 500"), r"OK RATE 500"),
-        (_c("RATE " + "0" * 54 + "1000"), r"OK RATE 1000"),  # exactly 63 characters
-        (_c("RATE " + "0" * 55 + "1000"), r"ERR TOOLONG( .*)?"),  # 64
+        (_c("RATE 500"), r"OK RATE 500"),
+        (_c("RATE " + "0" * 51 + "1000"), r"OK RATE 1000"),  # exactly 63 characters with "*hh"
+        (_c("RATE " + "0" * 52 + "1000"), r"ERR TOOLONG( .*)?"),  # 64
         (_c("ZERO 0"), r"ERR ARG( .*)?"),
         (_c("ZERO"), r"OK ZERO"),
         (b"ZERO*DE\n", r"OK ZERO"),  # CRC-8 values from the reference implementation
@@ -93,6 +102,8 @@ def daq_cases() -> list[tuple[bytes, str | None]]:
         (b"RATE 1000*67\n", r"OK RATE 1000"),
         (_c("START 1"), r"ERR ARG( .*)?"),
         (_c("STOP 1"), r"ERR ARG( .*)?"),
+        (_bare("START"), NOCRC),  # executes nothing ...
+        (_c("STOP"), r"OK STOP 0"),  # ... so the board is not streaming
         (_c("START"), r"OK START 1000"),
         (_c("PING"), rf"PONG daq {V}"),
         (_c("START"), r"ERR STATE( .*)?"),
@@ -145,7 +156,8 @@ def stepper_cases() -> list[tuple[bytes, str | None, float, str | None]]:
         (_c("EN 0"), r"OK EN 0", 0, n),
         (_c("SEG 1 10 639"), r"OK SEG 1", 0, n),
         (_c("WAIT 0"), r"OK WAIT 2", 0, n),
-        (_k("SEG -1 10 1000"), r"OK SEG 3", 0, n),
+        (_c("SEG -1 10 1000"), r"OK SEG 3", 0, n),
+        (_bare("EN 1"), NOCRC, 0, n),  # executes nothing: the driver stays disabled
         (_c("GO"), r"ERR STATE( .*)?", 0, n),  # driver disabled
         (_c("EN"), r"ERR ARG( .*)?", 0, n),
         (_c("EN 2"), r"ERR RANGE( .*)?", 0, n),
@@ -192,3 +204,109 @@ def stepper_cases() -> list[tuple[bytes, str | None, float, str | None]]:
         (_c("POS"), r"OK POS \d+", 0, n),
     ]
     return cases
+
+
+OFF_TICK = 0.005
+"""Pause after ``STREAM``: with the 20 ms spacing and pauses of whole 10 ms periods, every later command is
+sent 4 ms after a control tick and executed about 5 ms after it, far from any tick, so that the periods it is
+assigned do not depend on the fraction of a millisecond its bytes spend on the wire, and the lines a tick
+sends (notices, ``DONE``: at most 2 ms on the wire) arrive before it."""
+
+
+def stream_cases() -> list[tuple[bytes, str | None, float]]:
+    """The stepper's streaming commands and every error reply, from the reset state.
+
+    Fields: command, expected reply, pause (s) after the command (whole control periods, or ``OFF_TICK``
+    after ``STREAM``).
+    """
+    cases: list[tuple[bytes, str | None, float]] = [
+        (_bare("SHAPER 2 0"), r"ERR NOCRC( .*)?", 0),  # every command must carry *hh
+        (_bare("V 0"), r"ERR NOCRC( .*)?", 0),
+        (_bare("STREAM"), r"ERR NOCRC( .*)?", 0),
+        (_c("SHAPER"), r"ERR ARG( .*)?", 0),
+        (_c("SHAPER 0 0"), r"ERR RANGE( .*)?", 0),
+        (_c("SHAPER 9 0"), r"ERR RANGE( .*)?", 0),
+        (_c("SHAPER 2 2"), r"ERR RANGE( .*)?", 0),
+        (_c("IMP 0 4096 0"), r"ERR STATE( .*)?", 0),  # no SHAPER yet
+        (_c("STREAM"), r"ERR STATE( .*)?", 0),  # no shaper
+        (_c("V 0"), r"ERR STATE( .*)?", 0),  # not streaming
+        (_c("END"), r"ERR STATE( .*)?", 0),
+        (_c("SHAPER 2 0"), r"OK SHAPER 2", 0),
+        (_c("IMP 1 2048 160"), r"ERR STATE( .*)?", 0),  # impulses in order
+        (_c("IMP 0 2048 16"), r"ERR RANGE( .*)?", 0),  # the first delay is 0; the shaper is discarded
+        (_c("IMP 0 2048 0"), r"ERR STATE( .*)?", 0),
+        (_c("SHAPER 2 0"), r"OK SHAPER 2", 0),
+        (_c("IMP 0 -1 0"), r"ERR RANGE( .*)?", 0),  # negative amplitudes not allowed
+        (_c("SHAPER 3 1"), r"OK SHAPER 3", 0),
+        (_c("IMP 0 -1 0"), r"OK IMP 0", 0),  # ... unless SHAPER allowed them
+        (_c("IMP 1 16385 160"), r"ERR RANGE( .*)?", 0),  # |a| <= 16384
+        (_c("SHAPER 3 0"), r"OK SHAPER 3", 0),
+        (_c("IMP 0 1000 0"), r"OK IMP 0", 0),
+        (_c("IMP 1 1000 0"), r"ERR RANGE( .*)?", 0),  # delays strictly increasing
+        (_c("SHAPER 2 0"), r"OK SHAPER 2", 0),
+        (_c("IMP 0 2048 0"), r"OK IMP 0", 0),
+        (_c("IMP 1 2048 100"), r"ERR RANGE( .*)?", 0),  # not a multiple of 16 us
+        (_c("SHAPER 2 0"), r"OK SHAPER 2", 0),
+        (_c("IMP 0 2048 0"), r"OK IMP 0", 0),
+        (_c("IMP 1 2048 1000016"), r"ERR RANGE( .*)?", 0),  # over 1 s
+        (_c("SHAPER 2 0"), r"OK SHAPER 2", 0),
+        (_c("IMP 0 2048 0"), r"OK IMP 0", 0),
+        (_c("IMP 1 2047 1000000"), r"ERR RANGE( .*)?", 0),  # amplitudes sum to 4095, not 4096
+        (_c("STREAM"), r"ERR STATE( .*)?", 0),  # so there is no shaper
+        (_c("SHAPER 2 1"), r"OK SHAPER 2", 0),
+        (_c("IMP 0 6144 0"), r"OK IMP 0", 0),
+        (_c("IMP 1 -2048 1000000"), r"OK IMP 1", 0),  # 1.5 - 0.5: a valid negative shaper, 1 s long
+        (_c("STREAM"), r"ERR STATE( .*)?", 0),  # driver disabled
+        (_c("EN 1"), r"OK EN 1", 0),
+        (_c("STREAM 1"), r"ERR ARG( .*)?", 0),
+        (_c("STREAM"), r"OK STREAM 0", OFF_TICK),
+        # (a valid set-point at least every 100 ms, or the watchdog would end the stream)
+        (_c("V 0"), r"OK V \d+", 0),
+        (_c("STREAM"), r"ERR STATE( .*)?", 0),  # already streaming
+        (_c("SHAPER 1 0"), r"ERR STATE( .*)?", 0),
+        (_c("GO"), r"ERR STATE( .*)?", 0),
+        (_c("V 0"), r"OK V \d+", 0),
+        (_c("V"), r"ERR ARG( .*)?", 0),
+        (_c("V 1 2"), r"ERR ARG( .*)?", 0),
+        (_c("V 1641"), r"ERR RANGE( .*)?", 0),
+        (_c("V 0"), r"OK V \d+", 0),
+        (_c("V -1641"), r"ERR RANGE( .*)?", 0),
+        (_c("V 99999999999"), r"ERR RANGE( .*)?", 0),
+        (_c("SEG 1 10 1000"), r"OK SEG 1", 0),  # the programme may be edited meanwhile
+        (_c("V 0"), r"OK V \d+", 0),
+        (_c("POS"), r"OK POS 0", 0),
+        (_c("END"), r"OK END \d+", 0),
+        (_c("END"), r"ERR STATE( .*)?", 0),  # already ending
+        (_c("V 5"), r"ERR STATE( .*)?", 1.2),  # and then DONE, after the 1 s shaper has run out
+        (_c("POS"), r"OK POS 0", 0),
+        (_c("STREAM"), r"OK STREAM 0", OFF_TICK),  # the shaper stays loaded
+        (_c("V 1640"), r"OK V \d+", 0.0504),  # ABORT then falls 0.3 ms from the nearest steps
+        (_c("ABORT"), r"ABORTED \d+", 0),  # stops at once and disables the driver
+        (_c("V 1"), r"ERR STATE( .*)?", 0),
+        (_c("STREAM"), r"ERR STATE( .*)?", 0),  # driver disabled
+        (_c("MEM 1"), r"ERR ARG( .*)?", 0),
+        (_c("MEM"), r"OK MEM \d+", 0),
+    ]
+    return cases
+
+
+def stream_conformance_cases() -> list[tuple[bytes, float]]:
+    """More streaming for the conformance test (replies compared with the emulated board, not with patterns):
+    the speed clamp's notice, ``ERR FULL`` from a burst, ``END`` and ``DONE``, the travel clamp at both ends,
+    the watchdog (its notice, ``DONE``, the driver disabled), ``MEM``. Fields: command bytes, pause (s)."""
+    overshoot = ["SHAPER 2 1", "IMP 0 6144 0", "IMP 1 -2048 50000"]  # 1.5 v, then -0.5 v after 50 ms
+    unit = ["SHAPER 1 0", "IMP 0 4096 0"]
+    burst = b"".join(_c("V 1500") for _ in range(9))  # nine within 7.8 ms, in one period: the FIFO holds 8
+    script: list[tuple[bytes, float]] = [(_c(c), 0.0) for c in ["EN 1", *overshoot]]
+    script += [(_c("STREAM"), OFF_TICK)]
+    script += [(_c("V 1500"), 0.0) for _ in range(4)]  # 1.5 x 1500 > 1640: N,LIMIT,SPEED
+    script += [(_c("V 1500"), 0.006)]  # the burst is sent 0.1 ms after a tick ...
+    script += [(burst, 0.004), (_c("END"), 0.3), (_c("POS"), 0.0)]  # ... and DONE follows the shaped stop
+    script += [(_c(c), 0.0) for c in unit]
+    script += [(_c("STREAM"), OFF_TICK)]
+    script += [(_c("V 1640"), 0.0) for _ in range(8)]  # to the top: N,LIMIT,TRAVEL,156
+    script += [(_c("POS"), 0.2)]  # no set-point for 200 ms: N,WATCHDOG, DONE, driver disabled
+    script += [(_c("STREAM"), 0.0), (_c("V 0"), 0.0), (_c("EN 1"), 0.0), (_c("STREAM"), OFF_TICK)]
+    script += [(_c("V -1640"), 0.0) for _ in range(8)]  # to the bottom: N,LIMIT,TRAVEL,0
+    script += [(_c("END"), 0.1), (_c("POS"), 0.0), (_c("MEM"), 0.0)]
+    return script

@@ -63,6 +63,11 @@ def with_checksum(body: str) -> str:
     return f"{body}*{checksum(body.encode('ascii'))}"
 
 
+def command(body: str) -> bytes:
+    """A command line as a host sends it: ``body*hh\\n`` (every command must carry its checksum)."""
+    return (with_checksum(body) + "\n").encode("ascii")
+
+
 def _escape(data: bytes) -> str:
     out = []
     for b in data:
@@ -241,10 +246,11 @@ def pty_process(board: str, pace: float = 0.0) -> tuple[subprocess.Popen, str]:
     return proc, first[4:]
 
 
-def rig_process(pace: float = 1.0) -> tuple[subprocess.Popen, str, str]:
+def rig_process(pace: float = 1.0, extra: Sequence[str] = ()) -> tuple[subprocess.Popen, str, str]:
     """Start both boards in one harness, wired as on the bench (Uno STEP D5 -> Mega D2, DIR D6 -> Mega D4).
 
-    Returns the process and the DAQ's and the stepper's pseudo-terminal paths.
+    ``extra``: more harness options for the DAQ board (e.g. ``-a WAVE -t E4 -A ADCLOG``). Returns the process
+    and the DAQ's and the stepper's pseudo-terminal paths.
     """
     proc = subprocess.Popen(
         [
@@ -260,6 +266,7 @@ def rig_process(pace: float = 1.0) -> tuple[subprocess.Popen, str, str]:
             MCU["stepper"],
             "-c",
             "D5:E4,D6:G5",
+            *extra,
             str(ELF["daq"]),
         ],
         stdout=subprocess.PIPE,

@@ -74,7 +74,7 @@ def build(specs: list[StreamSpec], t0: float = 0.05, gap: float = 0.004) -> Sess
         t = t_stream + spec.duration()
         entry["t_last"] = t
         session.streams.append(entry)
-    session.script.append((t, b"MEM\n"))  # the least free stack after everything
+    session.script.append((t, _framed("MEM")))  # the least free stack after everything
     session.end = t + 0.02
     return session
 

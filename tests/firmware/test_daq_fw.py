@@ -48,7 +48,11 @@ def stream_1khz(firmware_build):
     edges, pulses = step_edges()
     run = fwsim.run(
         "daq",
-        [(0.02, b"PING\n"), (T_START, b"START\n"), (T_STOP, b"STOP\n")],
+        [
+            (0.02, fwsim.command("PING")),
+            (T_START, fwsim.command("START")),
+            (T_STOP, fwsim.command("STOP")),
+        ],
         T_END,
         wave=list(zip(wave_t, triangle_mv(wave_t), strict=True)),
         edges=edges,
@@ -125,7 +129,11 @@ def test_step_pulses_counted_exactly_with_direction(stream_1khz):
 def stream_2khz(firmware_build):
     run = fwsim.run(
         "daq",
-        [(0.02, b"RATE 2000\n"), (T_START, b"START\n"), (3.05, b"STOP\n")],
+        [
+            (0.02, fwsim.command("RATE 2000")),
+            (T_START, fwsim.command("START")),
+            (3.05, fwsim.command("STOP")),
+        ],
         3.2,
         wave=[(0.0, 1000.0), (4.0, 1000.0)],
     )

@@ -68,8 +68,8 @@ def run_programme(items: list[tuple]):
     t_go = t[-1]
     _, _, dur_us = expected_steps(items)
     t_after = t_go + dur_us * 1e-6 + 0.05
-    script = [(ti, (c + "\n").encode()) for ti, c in zip(t, cmds, strict=True)]
-    script += [(t_after, b"POS\n"), (t_after + 0.02, b"ABORT\n")]
+    script = [(ti, fwsim.command(c)) for ti, c in zip(t, cmds, strict=True)]
+    script += [(t_after, fwsim.command("POS")), (t_after + 0.02, fwsim.command("ABORT"))]
     return fwsim.run("stepper", script, t_after + 0.05, watch=(STEP, DIR, ENA))
 
 
@@ -173,7 +173,7 @@ def test_limits_refused_whatever_the_host_asks(firmware_build):
         "WAIT 60001",
         "SEG 1 1 1000001",
     ]
-    script = [(0.05 + 0.02 * i, (c + "\n").encode()) for i, c in enumerate(cmds)]
+    script = [(0.05 + 0.02 * i, fwsim.command(c)) for i, c in enumerate(cmds)]
     run = fwsim.run("stepper", script, 0.05 + 0.02 * len(cmds) + 0.1, watch=(STEP, DIR, ENA))
     replies = [ln.body for ln in run.lines][1:]
     assert [r.split()[0:2] for r in replies] == [

@@ -6,6 +6,7 @@ from __future__ import annotations
 import random
 import re
 
+import fw_cases
 import fwsim
 import numpy as np
 import pytest
@@ -24,80 +25,8 @@ def _k(body: str) -> bytes:
     return f"{body}*{link_hex(body)}\n".encode()
 
 
-def _c(body: str) -> bytes:
-    return f"{body}\n".encode()
-
-
 # --- commands and errors ---------------------------------------------------------------------------------
-N = None
-STREAM_CASES: list[tuple[bytes, str | None, float]] = [
-    (_c("SHAPER 2 0"), r"ERR CHECKSUM( .*)?", 0),  # the streaming commands must carry *hh
-    (_c("V 0"), r"ERR CHECKSUM( .*)?", 0),
-    (_c("STREAM"), r"ERR CHECKSUM( .*)?", 0),
-    (_k("SHAPER"), r"ERR ARG( .*)?", 0),
-    (_k("SHAPER 0 0"), r"ERR RANGE( .*)?", 0),
-    (_k("SHAPER 9 0"), r"ERR RANGE( .*)?", 0),
-    (_k("SHAPER 2 2"), r"ERR RANGE( .*)?", 0),
-    (_k("IMP 0 4096 0"), r"ERR STATE( .*)?", 0),  # no SHAPER yet
-    (_k("STREAM"), r"ERR STATE( .*)?", 0),  # no shaper
-    (_k("V 0"), r"ERR STATE( .*)?", 0),  # not streaming
-    (_k("END"), r"ERR STATE( .*)?", 0),
-    (_k("SHAPER 2 0"), r"OK SHAPER 2", 0),
-    (_k("IMP 1 2048 160"), r"ERR STATE( .*)?", 0),  # impulses in order
-    (_k("IMP 0 2048 16"), r"ERR RANGE( .*)?", 0),  # the first delay is 0; the shaper is discarded
-    (_k("IMP 0 2048 0"), r"ERR STATE( .*)?", 0),
-    (_k("SHAPER 2 0"), r"OK SHAPER 2", 0),
-    (_k("IMP 0 -1 0"), r"ERR RANGE( .*)?", 0),  # negative amplitudes not allowed
-    (_k("SHAPER 3 1"), r"OK SHAPER 3", 0),
-    (_k("IMP 0 -1 0"), r"OK IMP 0", 0),  # ... unless SHAPER allowed them
-    (_k("IMP 1 16385 160"), r"ERR RANGE( .*)?", 0),  # |a| <= 16384
-    (_k("SHAPER 3 0"), r"OK SHAPER 3", 0),
-    (_k("IMP 0 1000 0"), r"OK IMP 0", 0),
-    (_k("IMP 1 1000 0"), r"ERR RANGE( .*)?", 0),  # delays strictly increasing
-    (_k("SHAPER 2 0"), r"OK SHAPER 2", 0),
-    (_k("IMP 0 2048 0"), r"OK IMP 0", 0),
-    (_k("IMP 1 2048 100"), r"ERR RANGE( .*)?", 0),  # not a multiple of 16 us
-    (_k("SHAPER 2 0"), r"OK SHAPER 2", 0),
-    (_k("IMP 0 2048 0"), r"OK IMP 0", 0),
-    (_k("IMP 1 2048 1000016"), r"ERR RANGE( .*)?", 0),  # over 1 s
-    (_k("SHAPER 2 0"), r"OK SHAPER 2", 0),
-    (_k("IMP 0 2048 0"), r"OK IMP 0", 0),
-    (_k("IMP 1 2047 1000000"), r"ERR RANGE( .*)?", 0),  # amplitudes sum to 4095, not 4096
-    (_k("STREAM"), r"ERR STATE( .*)?", 0),  # so there is no shaper
-    (_k("SHAPER 2 1"), r"OK SHAPER 2", 0),
-    (_k("IMP 0 6144 0"), r"OK IMP 0", 0),
-    (_k("IMP 1 -2048 1000000"), r"OK IMP 1", 0),  # 1.5 - 0.5: a valid negative shaper, 1 s long
-    (_k("STREAM"), r"ERR STATE( .*)?", 0),  # driver disabled
-    (_k("EN 1"), r"OK EN 1", 0),
-    (_k("STREAM 1"), r"ERR ARG( .*)?", 0),
-    (_k("STREAM"), r"OK STREAM 0", 0),
-    # (a valid set-point at least every 100 ms, or the watchdog would end the stream)
-    (_k("V 0"), r"OK V \d+", 0),
-    (_k("STREAM"), r"ERR STATE( .*)?", 0),  # already streaming
-    (_k("SHAPER 1 0"), r"ERR STATE( .*)?", 0),
-    (_k("GO"), r"ERR STATE( .*)?", 0),
-    (_k("V 0"), r"OK V \d+", 0),
-    (_k("V"), r"ERR ARG( .*)?", 0),
-    (_k("V 1 2"), r"ERR ARG( .*)?", 0),
-    (_k("V 1641"), r"ERR RANGE( .*)?", 0),
-    (_k("V 0"), r"OK V \d+", 0),
-    (_k("V -1641"), r"ERR RANGE( .*)?", 0),
-    (_k("V 99999999999"), r"ERR RANGE( .*)?", 0),
-    (_k("SEG 1 10 1000"), r"OK SEG 1", 0),  # the programme may be edited meanwhile
-    (_k("V 0"), r"OK V \d+", 0),
-    (_k("POS"), r"OK POS 0", 0),
-    (_k("END"), r"OK END \d+", 0),
-    (_k("END"), r"ERR STATE( .*)?", 0),  # already ending
-    (_k("V 5"), r"ERR STATE( .*)?", 1.2),  # and then DONE, after the 1 s shaper has run out
-    (_k("POS"), r"OK POS 0", 0),
-    (_k("STREAM"), r"OK STREAM 0", 0),  # the shaper stays loaded
-    (_k("V 1640"), r"OK V \d+", 0.05),
-    (_k("ABORT"), r"ABORTED \d+", 0),  # stops at once and disables the driver
-    (_k("V 1"), r"ERR STATE( .*)?", 0),
-    (_k("STREAM"), r"ERR STATE( .*)?", 0),  # driver disabled
-    (_k("MEM 1"), r"ERR ARG( .*)?", 0),
-    (_k("MEM"), r"OK MEM \d+", 0),
-]
+STREAM_CASES = fw_cases.stream_cases()
 
 
 @pytest.fixture(scope="module")
@@ -119,6 +48,7 @@ def test_streaming_commands_and_error_replies(command_session):
     assert dones == ["DONE 0"]  # END's stream ran out; ABORT's sends ABORTED, no DONE
     assert all(ln.checksum_ok for ln in run.lines)
     assert not [ln for ln in run.lines if "J" in ln.body]
+    assert not [ln.raw for ln in run.lines if len(ln.raw) > 63], "a line longer than the protocol allows"
 
 
 def test_setpoints_faster_than_the_board_fill_the_fifo(firmware_build):
