@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from helpers import paper
+from helpers.design import Design, Schedule, ShaperPair, up_down
 from helpers.hardware import LIMITS, MM_PER_STEP, Limits
 from helpers.profiles import VelocityProfile, pulse_time, single_pulse
 from helpers.shapers import Shaper
@@ -30,6 +31,7 @@ __all__ = [
     "QuantisationReport",
     "MIN_PIECE_S",
     "experiment_programme",
+    "shaped_moves",
     "table_i_programmes",
     "programmes_table",
 ]
@@ -472,7 +474,7 @@ class _Builder:
 def experiment_programme(
     v_in_mm_s: float,
     x_f_mm: float,
-    shaper: Shaper | None = None,
+    shaper: Shaper | ShaperPair | Schedule | Design | None = None,
     t_up: float = paper.PULSE_T_UP_S,
     t_down: float = paper.PULSE_T_DOWN_S,
     t_end: float = 12.0,
@@ -481,8 +483,9 @@ def experiment_programme(
     """The whole Up-hold-Down experiment as one board-timed programme, quantised to whole steps.
 
     Lead-in dwell to ``t_up``; the up move (each constant piece of the shaped velocity becomes a segment,
-    a piece with no step a dwell); a hold dwell to ``t_down``; the down move (the mirror image, direction
-    -1); a trailing dwell to ``t_end``. Each move lands exactly on ``N = round(x_f / MM_PER_STEP)`` steps:
+    a piece with no step a dwell); a hold dwell to ``t_down``; the down move (direction -1: the mirror image
+    for one shaper, the Down shaper of a pair, the Down sub-moves of a schedule); a trailing dwell to
+    ``t_end``. Each move lands exactly on ``N = round(x_f / MM_PER_STEP)`` steps:
     the steps of each piece are the differences of the cumulative displacement at the piece boundaries,
     rounded to whole steps. Each piece's integer interval is chosen so that it ends as close as possible to
     its nominal end on the realised clock, so rounding never accumulates (dwells are whole ms; the next
@@ -499,8 +502,11 @@ def experiment_programme(
     ----------
     v_in_mm_s, x_f_mm : float
         Cable speed (mm/s) and displacement (mm) of the pulse.
-    shaper : Shaper, optional
-        None for the unshaped pulse.
+    shaper : Shaper, ShaperPair, Schedule or Design, optional
+        None for the unshaped pulse; a :class:`~helpers.shapers.Shaper` shapes both moves; a
+        :class:`~helpers.design.ShaperPair` shapes the Up move with ``up`` and the Down move with ``down``;
+        a map-following :class:`~helpers.design.Schedule` gives each move's sub-moves (it must have been
+        computed for this ``v_in_mm_s`` and ``x_f_mm``); a :class:`~helpers.design.Design` is unwrapped.
     t_up, t_down, t_end : float
         Start of the up move, start of the down move, end of the programme (s from ``GO``).
     limits : Limits
@@ -551,18 +557,54 @@ def experiment_programme(
     return programme, report
 
 
+def shaped_moves(
+    v_in_mm_s: float,
+    x_f_mm: float,
+    shaping: Shaper | ShaperPair | Schedule | Design | None,
+    t_up: float = paper.PULSE_T_UP_S,
+    t_down: float = paper.PULSE_T_DOWN_S,
+) -> tuple[VelocityProfile, VelocityProfile]:
+    """The exact shaped Up and Down moves of a pulse experiment, before quantisation.
+
+    Parameters
+    ----------
+    v_in_mm_s, x_f_mm : float
+        The move.
+    shaping : Shaper, ShaperPair, Schedule, Design or None
+        As :func:`experiment_programme`'s ``shaper``.
+    t_up, t_down : float
+        When the moves start (s).
+
+    Returns
+    -------
+    (VelocityProfile, VelocityProfile)
+        The Up move (positive velocities) and the Down move (negative).
+    """
+    inner = shaping.shaping if isinstance(shaping, Design) else shaping
+    if isinstance(inner, Schedule):
+        inner.check_move(float(v_in_mm_s), float(x_f_mm))
+        up = VelocityProfile(*inner.up.pieces(v_in_mm_s, +1, t_up))
+        down = VelocityProfile(*inner.down.pieces(v_in_mm_s, -1, t_down))
+        return up.simplified(), down.simplified()
+    if inner is not None and not isinstance(inner, Shaper | ShaperPair):
+        raise ValueError(f"shaper must be a Shaper, ShaperPair, Schedule, Design or None, got {inner!r}")
+    up_shaper, down_shaper = up_down(inner)
+    up = single_pulse(v_in_mm_s, x_f_mm, t_up, +1).shaped(up_shaper)
+    down = single_pulse(v_in_mm_s, x_f_mm, t_down, -1).shaped(down_shaper)
+    return up, down
+
+
 def _shaped_moves(
-    v_in_mm_s: float, x_f_mm: float, shaper: Shaper | None, t_up: float, t_down: float, t_end: float,
-    limits: Limits,
+    v_in_mm_s: float, x_f_mm: float, shaper: Shaper | ShaperPair | Schedule | Design | None, t_up: float,
+    t_down: float, t_end: float, limits: Limits,
 ) -> tuple[VelocityProfile, VelocityProfile, int]:  # fmt: skip
     """The shaped up and down moves and their whole number of steps, checked against the limits and times."""
     pulse_time(v_in_mm_s, x_f_mm)
     n_total = int(round(x_f_mm / MM_PER_STEP))
     if n_total < 1:
         raise ValueError(f"x_f_mm = {x_f_mm} mm is less than half a step ({MM_PER_STEP:.5f} mm)")
-    up = single_pulse(v_in_mm_s, x_f_mm, t_up, +1).shaped(shaper)
-    down = single_pulse(v_in_mm_s, x_f_mm, t_down, -1).shaped(shaper)
-    peak = float(np.max(np.abs(up.velocities)))
+    up, down = shaped_moves(v_in_mm_s, x_f_mm, shaper, t_up, t_down)
+    peak = max(float(np.max(np.abs(up.velocities))), float(np.max(np.abs(down.velocities))))
     if peak > limits.max_speed_mm_s:
         raise ValueError(
             f"interval limit: the command's peak speed {peak:.1f} mm/s needs steps faster than the minimum "

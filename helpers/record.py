@@ -11,12 +11,16 @@ Commands::
 
     python -m helpers record calibration                     # known loads -> data/calibration/, fit, save
     python -m helpers record pulse --v-in 250 --x-f 25 --system zvd --repetitions 3 --group mine
+    python -m helpers record pulse --v-in 200 --x-f 20 --design my_design.json   # a saved design
     python -m helpers record table-i --repetitions 3         # 12 scenarios x 3
     python -m helpers record all                             # identification + result.json + Table I x 3
 
-``table-i`` and shaped pulses design the shapers from ``data/identification/result.json`` (written by
-``record all`` or notebook 02's live cell) unless ``--zeta`` and ``--omega-d`` are given. A recording that
-exists is never overwritten unless ``--replace`` is given; two recorders cannot write into one group at once.
+``table-i`` and pulses with ``--system zv``, ``zvd`` or ``ei`` design the shapers from
+``data/identification/result.json`` (written by ``record all`` or notebook 02's live cell) unless ``--zeta``
+and ``--omega-d`` are given. A pulse with ``--design FILE`` runs a design saved by
+:func:`helpers.design.save_design` (a shaper, an Up/Down pair or a map-following schedule; the designs of a
+mode map, ``docs/shaper_design.md``) under the design's system. A recording that exists is never
+overwritten unless ``--replace`` is given; two recorders cannot write into one group at once.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from helpers import paper
+from helpers.design import SYSTEMS, Design, Schedule, load_design, up_down
 from helpers.hardware import (
     DAQ_RATE_DEFAULT_HZ,
     DAQ_RATE_MAX_HZ,
@@ -46,17 +51,26 @@ from helpers.loadcell import (
     save_calibration,
 )
 from helpers.locks import folder_lock
+from helpers.modes import omega_n_from_damped
 from helpers.paths import DATA_DIR
 from helpers.programmes import experiment_programme
 from helpers.recordings import check_group, check_name, recording_path, refuse_existing
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
-from helpers.shapers import design_tdfs
+from helpers.shapers import Shaper, design_tdfs, ei
 from helpers.validate import DefaultsHelp, arg_number
+
+IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
+"""Systems ``record`` designs itself from one identified mode (the others come from a --design file)."""
+
+DESIGN_SYSTEMS = tuple(s for s in SYSTEMS if s not in ("unshaped", *IDENTIFIED_SYSTEMS))
+"""Systems that need a saved design (``--design FILE``)."""
 
 SYSTEM_HELP = (
     "unshaped = the paper's pulse; zv = the paper's non-robust TDF (ZV shaper); "
-    "zvd = the paper's robust TDF (ZVD shaper)"
+    "zvd = the paper's robust TDF (ZVD shaper); ei = an EI shaper (these three are designed from the "
+    "identified mode, or taken from --design); " + ", ".join(DESIGN_SYSTEMS) + " = designs from a mode map, "
+    "run with --design FILE (docs/shaper_design.md). Default: unshaped, or the design file's system"
 )
 DEFAULT_GROUPS = {
     "calibration": "calibration", "pulse": "runs", "table-i": "experiments", "all": "experiments",
@@ -109,7 +123,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--x-f", type=arg_number(0, MAX_TRAVEL_MM, lo_open=True),
         help="pulse displacement, mm, in (0, 40]; required for pulse",  # fmt: skip
     )
-    parser.add_argument("--system", choices=["unshaped", "zv", "zvd"], default="unshaped", help=SYSTEM_HELP)
+    parser.add_argument("--system", choices=list(SYSTEMS), default=None, help=SYSTEM_HELP)
+    parser.add_argument(
+        "--design",
+        type=Path,
+        default=None,
+        help="pulse: run this saved design (JSON of helpers.design.save_design: a shaper, an Up/Down pair "
+        "or a map-following schedule, which also sets --v-in and --x-f); default: none, design from --system",
+    )
     parser.add_argument(
         "--zeta", type=arg_number(0, 1, lo_open=True),
         help="design the shapers from this damping ratio (default: the identification result's)",
@@ -185,8 +206,62 @@ def _shapers(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
         zeta, omega_d = found.zeta, found.omega_d
         origin = _shown(path)
     zv, zvd = design_tdfs(omega_d, zeta)
+    extra = ei(omega_n_from_damped(omega_d, zeta), zeta)
     print(f"shapers designed from zeta = {zeta:.4f}, omega_d = {omega_d:.3f} rad/s ({origin})")
-    return {"unshaped": None, "zv": zv, "zvd": zvd}, {"zeta": zeta, "omega_d": omega_d, "origin": origin}
+    shapers = {"unshaped": None, "zv": zv, "zvd": zvd, "ei": Shaper(extra.amplitudes, extra.times, "ei")}
+    return shapers, {"zeta": zeta, "omega_d": omega_d, "origin": origin}
+
+
+def _pulse_request(args: argparse.Namespace) -> tuple[str, Any, dict[str, Any] | None, float, float]:
+    """What ``record pulse`` runs: ``(system, shaping, design info, v_in, x_f)``.
+
+    The shaping is None (unshaped), a shaper designed from the identified mode (zv, zvd, ei), or the design
+    of ``--design``; a map-following schedule supplies the move if ``--v-in``/``--x-f`` are not given.
+    """
+    if args.design is not None:
+        if args.zeta is not None or args.omega_d is not None:
+            raise ValueError("--design and --zeta/--omega-d exclude each other: a design file is complete")
+        design = load_design(args.design)
+        if args.system is not None and args.system != design.system:
+            raise ValueError(
+                f"--system {args.system}, but {_shown(args.design)} holds a {design.system!r} design "
+                "(drop --system, or give the design's own)"
+            )
+        v, x = args.v_in, args.x_f
+        if isinstance(design.shaping, Schedule):
+            v = design.shaping.v_in_mm_s if v is None else v
+            x = design.shaping.x_f_mm if x is None else x
+        if v is None or x is None:
+            raise SystemExit("record pulse needs --v-in and --x-f")
+        if isinstance(design.shaping, Schedule):
+            design.shaping.check_move(v, x)
+        info = {"origin": _shown(args.design), "system": design.system, "kind": design.kind}
+        return design.system, design, info, v, x
+    if args.v_in is None or args.x_f is None:
+        raise SystemExit("record pulse needs --v-in and --x-f")
+    system = args.system or "unshaped"
+    if system == "unshaped":
+        return system, None, None, args.v_in, args.x_f
+    if system in DESIGN_SYSTEMS:
+        raise ValueError(
+            f"--system {system} needs --design FILE: a design saved with helpers.design.save_design from a "
+            "mode map (docs/shaper_design.md)"
+        )
+    shapers, design_info = _shapers(args)
+    return system, shapers[system], design_info, args.v_in, args.x_f
+
+
+def _describe(system: str, shaping: Any) -> str:
+    """A short description of a pulse's shaping for the dry run."""
+    if shaping is None:
+        return "unshaped"
+    inner = shaping.shaping if isinstance(shaping, Design) else shaping
+    if isinstance(inner, Schedule):
+        return f"{system} (schedule: {len(inner.up.sub_moves)} + {len(inner.down.sub_moves)} sub-moves)"
+    up, down = up_down(inner)
+    if up is down:
+        return f"{up.name} ({len(up.amplitudes)} impulses)"
+    return f"{system} (Up {up.name}: {len(up)} impulses; Down {down.name}: {len(down)} impulses)"
 
 
 def _shown(path: Path) -> str:
@@ -354,18 +429,17 @@ def _record_calibration(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> No
 
 
 def _record_pulse(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> None:
-    if args.v_in is None or args.x_f is None:
-        raise SystemExit("record pulse needs --v-in and --x-f")
-    shapers, design = _shapers(args) if args.system != "unshaped" else ({"unshaped": None}, None)
-    base = args.name or scenario_name(args.system, args.v_in, args.x_f)
+    request = getattr(args, "pulse_request", None)
+    system, shaping, design, v_in, x_f = request if request is not None else _pulse_request(args)
+    base = args.name or scenario_name(system, v_in, x_f)
     reps = args.repetitions or 1
     for rep in range(1, reps + 1):
         name = base if reps == 1 else f"{base}_r{rep}"
         rec = rig.run_pulse(
-            args.v_in,
-            args.x_f,
-            shapers[args.system],
-            system=args.system,
+            v_in,
+            x_f,
+            shaping,
+            system=system,
             path=args.data_dir / args.group / name,
             repetition=rep,
             t_end_s=args.t_end,
@@ -426,22 +500,21 @@ def _calibration_for(what: str, data_dir: Path) -> LoadCellCalibration | None:
         raise
 
 
-def _planned_pulses(args: argparse.Namespace) -> list[tuple[str, str, float, float, Any]]:
-    """(group, name, v_in, x_f, shaper) of every pulse ``args`` asks for, in recording order."""
+def _planned_pulses(args: argparse.Namespace) -> list[tuple[str, str, float, float, str, Any]]:
+    """(group, name, v_in, x_f, system, shaping) of every pulse ``args`` asks for, in recording order."""
     if args.what == "pulse":
-        if args.v_in is None or args.x_f is None:
-            raise SystemExit("record pulse needs --v-in and --x-f")
-        shapers, _ = _shapers(args) if args.system != "unshaped" else ({"unshaped": None}, None)
-        base = args.name or scenario_name(args.system, args.v_in, args.x_f)
+        system, shaping, _, v_in, x_f = _pulse_request(args)
+        base = args.name or scenario_name(system, v_in, x_f)
         reps = args.repetitions or 1
         return [
-            (args.group, base if reps == 1 else f"{base}_r{rep}", args.v_in, args.x_f, shapers[args.system])
+            (args.group, base if reps == 1 else f"{base}_r{rep}", v_in, x_f, system, shaping)
             for rep in range(1, reps + 1)
         ]
     planned = []
     if args.what == "all":
         run = paper.IDENTIFICATION_RUN
-        planned.append(("identification", "pulse_v100_x10", run["v_in_mm_s"], run["x_f_mm"], None))
+        v, x = run["v_in_mm_s"], run["x_f_mm"]
+        planned.append(("identification", "pulse_v100_x10", v, x, "unshaped", None))
         print("dry run: the shapers of Table I are designed from the identification run once it is recorded;")
         print("         the plan below checks them with the current identification result")
     shapers, _ = _shapers(args)
@@ -449,7 +522,7 @@ def _planned_pulses(args: argparse.Namespace) -> list[tuple[str, str, float, flo
     for system in paper.SYSTEMS:
         for v, x in paper.TABLE_I_CONDITIONS:
             for rep in range(1, reps + 1):
-                planned.append((args.group, scenario_name(system, v, x, rep), v, x, shapers[system]))
+                planned.append((args.group, scenario_name(system, v, x, rep), v, x, system, shapers[system]))
     return planned
 
 
@@ -479,7 +552,7 @@ def dry_run(args: argparse.Namespace) -> int:
                 refuse_existing(target)
             rows.append(f"  {_shown(target)}: {grams} g hung for {args.duration:g} s at {args.rate} Hz")
     else:
-        for group, name, v, x, shaper in _planned_pulses(args):
+        for group, name, v, x, system, shaper in _planned_pulses(args):
             target = recording_path(group, name, args.data_dir)
             if not args.replace:
                 refuse_existing(target)
@@ -489,7 +562,7 @@ def dry_run(args: argparse.Namespace) -> int:
             except ValueError as exc:
                 raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
             check_programme(programme)
-            what = "unshaped" if shaper is None else f"{shaper.name} ({len(shaper.amplitudes)} impulses)"
+            what = _describe(system, shaper)
             rows.append(
                 f"  {_shown(target)}: {x:g} mm at {v:g} mm/s, {what}, {report.n_steps} steps per move, "
                 f"{programme.duration_s:.1f} s at {args.rate} Hz"
@@ -502,8 +575,12 @@ def dry_run(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers record`` (errors are turned into one line by ``python -m helpers``)."""
     args.group = args.group or DEFAULT_GROUPS[args.what]
+    if args.what != "pulse" and args.design is not None:
+        raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
     if args.dry_run:
         return dry_run(args)
+    if args.what == "pulse":  # refuse a bad request before any port is opened
+        args.pulse_request = _pulse_request(args)
     groups = {args.group, "identification"} if args.what == "all" else {args.group}
     calibration = _calibration_for(args.what, args.data_dir)
     with contextlib.ExitStack() as stack:

@@ -33,6 +33,7 @@ LAYERS: dict[str, int] = {
     "helpers.noise": 0,
     "helpers.locks": 0,
     "helpers.hardware": 1,
+    "helpers.modemap": 1,
     "helpers.backbone": 1,
     "helpers.notebook": 1,
     # 2: the linear model, the recording format, the serial protocol
@@ -45,6 +46,7 @@ LAYERS: dict[str, int] = {
     "helpers.shapers": 3,
     "helpers.streaming": 3,
     "helpers.profiles": 4,
+    "helpers.design": 4,
     "helpers.programmes": 5,
     # 6: the rig and the virtual rig side by side; the emulated boards above the physics
     "helpers.rig": 6,

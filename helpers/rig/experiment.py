@@ -43,6 +43,8 @@ from tqdm.auto import tqdm
 
 from helpers import __version__ as HELPERS_VERSION
 from helpers import paper, recordings
+from helpers.design import SYSTEMS, Design, as_design, up_down
+from helpers.design.formats import shaper_to_dict
 from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, MAX_PROGRAMME_S
 from helpers.loadcell import LoadCellCalibration, load_calibration
 from helpers.noise import white_noise_std
@@ -100,6 +102,11 @@ class _RunState:
     t_go_us: int | None = None
     go_sent: bool = False
     started_utc: str = ""
+
+
+def _design_system(system: str | None) -> str | None:
+    """``system`` if it can name a design (:data:`helpers.design.SYSTEMS` other than unshaped), else None."""
+    return system if system in SYSTEMS and system != "unshaped" else None
 
 
 def _utc_now() -> str:
@@ -313,10 +320,13 @@ class Rig:
         ----------
         v_in_mm_s, x_f_mm : float
             Speed (mm/s) and displacement (mm); refused with :class:`SafetyError` outside the limits.
-        shaper : helpers.shapers.Shaper, optional
-            None for the unshaped pulse.
+        shaper : Shaper, ShaperPair, Schedule or Design, optional
+            None for the unshaped pulse; otherwise anything
+            :func:`~helpers.programmes.experiment_programme` accepts (a design of :mod:`helpers.design`: a
+            shaper for both moves, an Up/Down pair, or a map-following schedule computed for this move).
         system : str, optional
-            ``"unshaped"``, ``"zv"`` or ``"zvd"`` (default from the shaper's name).
+            A name of :data:`helpers.design.SYSTEMS` (``"unshaped"``, ``"zv"``, ``"zvd"``, ``"ei"``,
+            ``"scheduled"``, ...). Default: a design's own system; for a bare shaper its name.
         path : path-like, optional
             Where to save.
         repetition : int
@@ -341,18 +351,17 @@ class Rig:
         except ValueError as exc:
             raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
         name = getattr(shaper, "name", None)
+        if system is None:
+            system = shaper.system if isinstance(shaper, Design) else None
+        up_shaper, down_shaper = up_down(shaper)
         scenario = {
             "kind": "pulse",
             "v_in_mm_s": v,
             "x_f_mm": x,
             "system": system or ("unshaped" if shaper is None else str(name or "shaped")),
-            "shaper": None
-            if shaper is None
-            else {
-                "name": name,
-                "amplitudes": [float(a) for a in shaper.amplitudes],
-                "times": [float(t) for t in shaper.times],
-            },
+            "shaper": None if up_shaper is None else shaper_to_dict(up_shaper),
+            "shaper_down": None if down_shaper is None else shaper_to_dict(down_shaper),
+            "shaping": None if shaper is None else as_design(shaper, _design_system(system)).to_dict(),
             "repetition": int(repetition),
             "t_up_s": t_up,
             "t_down_s": t_down,
