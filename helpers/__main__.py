@@ -15,6 +15,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
     "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
     "record": ("helpers.record", "record the paper's experiments into data/ (hardware or virtual rig)"),
+    "virtual-rig": ("helpers.rig_studies", "check or re-tune the virtual rig; rewrite its evidence tables"),
 }
 """command name -> (module, one-line help)."""
 

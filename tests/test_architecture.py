@@ -55,6 +55,7 @@ LAYERS: dict[str, int] = {
     "helpers.summary": 10,
     "helpers.reproduce": 11,
     "helpers.benchmarks": 11,
+    "helpers.rig_studies": 11,
     "helpers.__main__": 12,
 }
 """Layer of each module or room (a room's submodules share its layer)."""
