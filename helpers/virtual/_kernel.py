@@ -22,9 +22,9 @@ rates, clamp = 0); optional dashpots on the relative rotation of consecutive dis
 damping-layout comparison); a constant full-rank damping ``-sum_k c_k W_k (W_k . theta')`` (the high-mode
 floor); the cable through the clamp guide and the disc eyelets (force on eyelet ``q``:
 ``-T_q u_q + T_{q+1} u_{q+1}``, moment ``r n x F``). The run tensions ``T_q`` all equal the arm-side tension
-``lambda_2`` unless eyelet friction is on: capstan law ``T_{q+1} = T_q exp(-mu beta_q tanh(v / v0))`` at
-the guide and each eyelet (wrap angle ``beta_q`` between the incoming and outgoing runs, ``v = -d ell / dt``
-the sliding speed at the entrance, used as the sliding direction for every eyelet).
+``lambda_2`` unless eyelet friction is on: capstan law ``T_{q+1} = T_q exp(-mu beta_q tanh(v_q / v0))`` at
+the guide and each eyelet (wrap angle ``beta_q`` between the incoming and outgoing runs, ``v_q`` the speed at
+which the cable slides through that eyelet towards the guide: the rate at which the runs beyond it shorten).
 
 Actuator modes (``P[I_MODE]``):
 
@@ -263,9 +263,9 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
             base = o_e + 12 * qq
             ws[base + 6] = ws[o_vx + b] - r * ws[o_c + b] * w
             ws[base + 7] = ws[o_vy + b] - r * ws[o_s + b] * w
-        # rate of the in-arm path length; the cable slides through every eyelet in the direction of the
-        # entrance sliding speed -d ell / dt (one global direction: per-eyelet directions would make the
-        # regularised law act on the light disc-rocking modes and the explicit integrator stiff)
+        # the cable slides out through the eyelet before run qq (towards the guide) at the rate at which the
+        # runs from qq to the knot shorten: v = -sum_{j >= qq} dL_j/dt (each eyelet's own sliding speed, so
+        # the friction only dissipates: sum (T_before - T_after) v >= 0)
         ldot = 0.0
         for qq in range(ne - 1, 0, -1):
             base = o_e + 12 * qq
@@ -275,7 +275,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
                 evx -= ws[base - 12 + 6]
                 evy -= ws[base - 12 + 7]
             ldot += ws[base + 2] * evx + ws[base + 3] * evy
-        sdir = math.tanh(-ldot / P[I_V0])
+            ws[base + 8] = ldot
         tx = math.cos(th0)
         ty = math.sin(th0)
         for qq in range(1, ne):
@@ -289,7 +289,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
                 cosb = -1.0
             sinb = abs(tx * uy - ty * ux)
             wrap = math.atan2(sinb, cosb)
-            T = T * math.exp(-mu * wrap * sdir)
+            T = T * math.exp(-mu * wrap * math.tanh(-ws[base + 8] / P[I_V0]))
             ws[base + 5] = T
             tx = ux
             ty = uy
