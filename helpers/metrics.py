@@ -33,11 +33,11 @@ A metric that cannot be computed is NaN and the row's ``reason`` says why; no nu
   before the window ends (it cannot be confirmed that it stays): the settling time is NaN.
 
 Range check (hardware and virtual recordings alike): a sample whose ADC reading is *clipped*
-(:func:`clipped_samples`: at the ADC's rails or at the amplifier loop's saturation) does not show the
-tension. A clipped sample inside a motion's window makes its peak a *bound* (a lower bound of an Up peak, an
-upper bound of a Down minimum) and its overshoot a lower bound: both are kept, ``peak_is_bound`` is True and
-the row's ``reason`` says so. A clipped sample in the spans of ``y0`` or ``yf`` makes the overshoot and the
-settling time NaN (the step itself is unknown).
+(:func:`clipped_samples`: at the ADC's rails or at the amplifier loop's saturation, :func:`clip_limits`)
+does not show the tension. A clipped sample inside a motion's window makes its peak a *bound* (a lower bound
+of an Up peak, an upper bound of a Down minimum) and its overshoot a lower bound: both are kept,
+``peak_is_bound`` is True and the row's ``reason`` says so. A clipped sample in the spans of ``y0`` or ``yf``
+makes the overshoot and the settling time NaN (the step itself is unknown).
 """
 
 from __future__ import annotations
@@ -138,25 +138,47 @@ class MotionMetrics:
     n_clipped: int = 0
 
 
-def clipped_samples(adc: ArrayLike) -> NDArray[np.bool_]:
-    """Which ADC readings are clipped: at or beyond the signal chain's range.
+LOOP_OFFSET_TOLERANCE_COUNTS = 10.0
+"""A calibration whose zero reading is this close to the 4 mA loop's (122.88 counts) is taken to come from the
+paper's current-loop chain; otherwise only the ADC's own rails bound the range."""
 
-    A reading is clipped when it is at or below :data:`helpers.hardware.CLIP_LOW_COUNTS` (the loop's lower
-    saturation, 3.8 mA, and the ADC's 0) or at or above :data:`helpers.hardware.CLIP_HIGH_COUNTS` (within the
-    noise margin of the loop's upper saturation, 20.5 mA, or the ADC's 1023). The chain is the paper's
-    (current loop, 150 ohm, 10-bit ADC), so the check applies to hardware recordings as to virtual ones.
+
+def clip_limits(calibration: dict[str, Any] | None = None) -> tuple[float, float]:
+    """ADC counts at or beyond which a reading is clipped, for a recording's load-cell calibration.
+
+    The paper's chain (current loop, 150 ohm, 10-bit ADC): at or below
+    :data:`helpers.hardware.CLIP_LOW_COUNTS` (the loop's lower saturation, 3.8 mA, and the ADC's 0) or at or
+    above :data:`helpers.hardware.CLIP_HIGH_COUNTS` (within the noise margin of its upper saturation, 20.5 mA,
+    or the ADC's 1023). A calibration whose zero reading (``offset_counts``) is not the loop's 4 mA (within
+    :data:`LOOP_OFFSET_TOLERANCE_COUNTS`) comes from another chain, whose saturation is unknown: then only the
+    ADC's rails, 0 and 1023, bound the range.
+    """
+    offset = None if calibration is None else calibration.get("offset_counts")
+    loop_zero = hardware.loop_counts(hardware.LOOP_ZERO_A)
+    if offset is not None and abs(float(offset) - loop_zero) > LOOP_OFFSET_TOLERANCE_COUNTS:
+        return 0.0, float(hardware.ADC_MAX)
+    return float(hardware.CLIP_LOW_COUNTS), float(hardware.CLIP_HIGH_COUNTS)
+
+
+def clipped_samples(adc: ArrayLike, calibration: dict[str, Any] | None = None) -> NDArray[np.bool_]:
+    """Which ADC readings are clipped: at or beyond the signal chain's range (:func:`clip_limits`).
+
+    The check applies to hardware recordings as to virtual ones.
 
     Parameters
     ----------
     adc : array_like
         ADC counts.
+    calibration : dict, optional
+        The recording's ``calibration`` metadata (``offset_counts`` decides which chain; default the paper's).
 
     Returns
     -------
     numpy.ndarray of bool
     """
     a = np.asarray(adc, dtype=float)
-    return (a <= hardware.CLIP_LOW_COUNTS) | (a >= hardware.CLIP_HIGH_COUNTS)
+    low, high = clip_limits(calibration)
+    return (a <= low) | (a >= high)
 
 
 def _check_time(t: FloatArray, name: str = "t") -> None:
@@ -334,8 +356,7 @@ def motion_metrics(
         which = "lower" if motion == "Up" else "upper"
         bound_reasons.append(
             f"peak is a {which} bound: {n_clipped} sample(s) of the window are clipped at the sensor's range "
-            f"(ADC <= {hardware.CLIP_LOW_COUNTS} or >= {hardware.CLIP_HIGH_COUNTS} counts); "
-            "the overshoot is a lower bound"
+            "(the ADC's rails or the amplifier loop's saturation); the overshoot is a lower bound"
         )
     flags = {"peak_is_bound": bound, "n_clipped": n_clipped}
     if np.any(cv[pre]) or np.any(c_w[final]):
@@ -449,7 +470,12 @@ def _settling(
 
 
 def recording_metrics(
-    frame: pd.DataFrame, band: float = 0.05, *, column: str = "tension_n", **kwargs: Any
+    frame: pd.DataFrame,
+    band: float = 0.05,
+    *,
+    column: str = "tension_n",
+    calibration: dict[str, Any] | None = None,
+    **kwargs: Any,
 ) -> pd.DataFrame:
     """Table II metrics of one recording: one row per motion (Up, Down).
 
@@ -462,6 +488,8 @@ def recording_metrics(
         Settling band (fraction of the step).
     column : str
         The analysed signal (default the tension in N).
+    calibration : dict, optional
+        The recording's ``calibration`` metadata, for the range check's limits (:func:`clip_limits`).
     **kwargs
         Passed to :func:`motion_metrics`.
 
@@ -484,7 +512,7 @@ def recording_metrics(
     t = frame["t_s"].to_numpy(dtype=float)
     y = frame[column].to_numpy(dtype=float)
     if "clipped" not in kwargs and "adc" in frame.columns:
-        kwargs = {**kwargs, "clipped": clipped_samples(frame["adc"].to_numpy())}
+        kwargs = {**kwargs, "clipped": clipped_samples(frame["adc"].to_numpy(), calibration)}
     try:
         m = segment_motions(t, frame["steps"].to_numpy(dtype=float))
     except ValueError as err:
@@ -555,7 +583,8 @@ def metrics_by_run(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
     parts = []
     for i, rec in enumerate(recordings):
         sc = _scenario_of(rec, i)
-        df = recording_metrics(rec.frame, band, **kwargs)
+        meta = getattr(rec, "meta", None) or {}
+        df = recording_metrics(rec.frame, band, calibration=meta.get("calibration"), **kwargs)
         for key, value in sc.items():
             df[key] = value
         parts.append(df)

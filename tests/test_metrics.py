@@ -531,3 +531,21 @@ def test_ordering_agreement_of_the_paper_with_itself_and_with_a_reversed_table()
     np.testing.assert_array_equal(flipped["agrees"].to_numpy(), np.array(ties))
     with pytest.raises(ValueError, match="metric"):
         metrics.ordering_agreement(_as_scenario_table(paper), "peak_n")
+
+
+def test_another_chain_is_bounded_by_the_adc_rails_only():
+    """A calibration whose zero is not the 4 mA loop's (e.g. 50 counts) comes from another chain: only 0 and
+    1023 count as clipped, so its ordinary readings above 628 counts are not flagged."""
+    other = {"offset_counts": 50.0, "newtons_per_count": 0.02}
+    adc = np.array([0, 50, 117, 700, 1022, 1023])
+    expected = [True, False, False, False, False, True]
+    np.testing.assert_array_equal(metrics.clipped_samples(adc, other), expected)
+    paper_chain = {"offset_counts": 123.4, "newtons_per_count": 1 / 24.576}
+    expected = [True, True, False, True, True, True]
+    np.testing.assert_array_equal(metrics.clipped_samples(adc, paper_chain), expected)
+    y = np.maximum(tension(T, zeta=0.05, low=2.0, high=13.0), 0.0)
+    adc = np.rint(50 + 50 * y).astype(int)  # 50 counts/N: ~22 N reads ~1150 -> the ADC's top clips
+    frame = frame_of(T, (np.minimum(adc, 1023) - 50) / 50, steps_profile())
+    frame["adc"] = np.minimum(adc, 1023)
+    df = metrics.recording_metrics(frame, calibration=other).set_index("motion")
+    assert df.loc["Up", "peak_is_bound"] and not df.loc["Down", "peak_is_bound"]

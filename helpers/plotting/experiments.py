@@ -122,7 +122,7 @@ def fig_scenario(
             kw = {"color": colour, "lw": 1.0 if i == 0 else 0.7, "alpha": 1.0 if i == 0 else 0.4}
             ax_t.plot(f["t_s"], f["tension_n"], label=label if i == 0 else None, **kw)
             if "adc" in f.columns:
-                clip = clipped_samples(f["adc"].to_numpy())
+                clip = clipped_samples(f["adc"].to_numpy(), (rec.meta or {}).get("calibration"))
                 if clip.any():
                     ax_t.plot(f["t_s"][clip], f["tension_n"][clip], "x", color="k", ms=4, label=clipped_label)
                     clipped_label = None
