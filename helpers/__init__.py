@@ -16,8 +16,8 @@ room per job (``docs/architecture.md``). Imports flow one way, from base facts u
 damped), both in rad/s. ``helpers.modes`` holds the conversion ``omega_n = omega_d / sqrt(1 - zeta^2)``.
 """
 
-from helpers.notebook import setup
+from helpers.notebook import interactive, setup
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "setup"]
+__all__ = ["__version__", "interactive", "setup"]

@@ -1,38 +1,140 @@
-"""Command line: ``python -m helpers <command>``.
+"""Command line: ``python -m helpers <command>`` (or ``continuum-helpers <command>``).
 
 Each command lives in the module that owns the job; that module provides ``add_arguments(parser)`` and
-``run(args) -> int``. Modules are imported only when their command runs.
+``run(args) -> int``. The command modules are imported by name only when their command runs, so that
+``--help`` stays quick (the virtual rig compiles with numba, the notebooks need Jupyter).
+
+Every error ends in **one line** on stderr and an exit status from :data:`EXIT_CODES` (``--debug`` shows the
+traceback instead). SIGTERM and SIGHUP are handled like Ctrl-C: a running experiment aborts the stepper,
+disables the driver, stops the DAQ and saves what it recorded, and the line says where.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import traceback
+from pathlib import Path
+
+from helpers.jsonfile import DataFileError
+from helpers.locks import FolderBusy
+from helpers.recordings import RecordingError
+from helpers.rig.boards import BoardError
+from helpers.rig.safety import SafetyError
+from helpers.signals import Interrupted, interrupts_from_signals
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("helpers.reproduce", "execute every notebook in order; regenerate figures/ and tables"),
-    "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
+    "record": ("helpers.record", "record experiments into data/ (hardware or virtual rig)"),
+    "metrics": ("helpers.table2", "Table II metrics (peak, overshoot, settling) of any recordings"),
+    "home": ("helpers.home", "bring the cable back to position 0 safely"),
     "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
-    "record": ("helpers.record", "record the paper's experiments into data/ (hardware or virtual rig)"),
+    "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
     "virtual-rig": ("helpers.rig_studies", "check or re-tune the virtual rig; rewrite its evidence tables"),
 }
 """command name -> (module, one-line help)."""
+
+EXIT_CODES: dict[int, str] = {
+    0: "success",
+    1: "the command failed (e.g. a notebook raised)",
+    2: "usage: an invalid or out-of-range argument, refused before anything was sent",
+    3: "refused by the safety limits (travel, speed, step rate, programme length, position unknown)",
+    4: "board fault: a board did not answer, reset, disconnected, is busy, runs other firmware, sent garbage",
+    5: "data error: a recording or result file is missing, malformed, exists already, or the disk is full",
+    130: "interrupted by Ctrl-C (SIGINT)",
+    129: "interrupted by SIGHUP",
+    143: "interrupted by SIGTERM",
+}
+"""Exit status -> meaning (also in docs/faults.md)."""
+
+
+def _shown(path: Path | None) -> str:
+    if path is None:
+        return "?"
+    p = Path(path)
+    try:
+        return os.path.relpath(p)
+    except ValueError:
+        return str(p)
+
+
+def _run_outcome(exc: BaseException) -> str:
+    """For an aborted run: where its data went, and whether the cleanup reached the boards."""
+    if not hasattr(exc, "cleanup"):
+        return ""
+    if getattr(exc, "saved_path", None) is not None:
+        n = len(exc.recording.frame) if getattr(exc, "recording", None) is not None else 0
+        saved = f"partial recording saved to {_shown(exc.saved_path)} ({n} samples)"
+    else:
+        saved = f"the partial recording could NOT be saved ({getattr(exc, 'save_error', '?')})"
+    cleanup = exc.cleanup
+    if cleanup:
+        boards = "cleanup failed: " + "; ".join(cleanup) + ": the driver may be on, switch its power off"
+    else:
+        boards = "the stepper was stopped and disabled and the DAQ stopped"
+    return f"; {saved}; {boards}"
+
+
+def error_line(exc: BaseException) -> tuple[str, int]:
+    """The one line the user sees for ``exc``, and the exit status."""
+    if isinstance(exc, KeyboardInterrupt):
+        signum = exc.signum if isinstance(exc, Interrupted) else 2
+        what = str(exc) if isinstance(exc, Interrupted) else "interrupted by Ctrl-C"
+        return f"{what}{_run_outcome(exc)}", 128 + signum
+    first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    if isinstance(exc, SafetyError):
+        status = 3
+    elif isinstance(exc, BoardError):
+        status = 4
+    elif isinstance(exc, RecordingError | DataFileError | FolderBusy):
+        status = 5
+    elif isinstance(exc, ValueError):
+        status = 2
+    else:
+        status = 1
+    return f"error: {first}{_run_outcome(exc)}", status
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (the full usage is one ``--help`` away)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line and return its exit status."""
     argv = sys.argv[1:] if argv is None else argv
-    parser = argparse.ArgumentParser(prog="python -m helpers", description=__doc__.splitlines()[0])
+    parser = _Parser(
+        prog="python -m helpers",
+        description=__doc__.splitlines()[0].replace("``", ""),
+        epilog="exit status: " + "; ".join(f"{k} {v}" for k, v in EXIT_CODES.items()),
+    )
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")
-    chosen = argv[0] if argv else None
+    chosen = next((a for a in argv if not a.startswith("-")), None)
     for name, (module, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(module=module)
         if name == chosen:
             importlib.import_module(module).add_arguments(p)
     args = parser.parse_args(argv)
-    return int(importlib.import_module(args.module).run(args))
+    try:
+        with interrupts_from_signals():
+            return int(importlib.import_module(args.module).run(args))
+    except SystemExit as exc:
+        if isinstance(exc.code, str):  # a command's usage refusal: one line, status 2
+            print(f"error: {exc.code}", file=sys.stderr)
+            return 2
+        raise
+    except BaseException as exc:  # noqa: BLE001 - every error ends in one line and a documented status
+        if args.debug:
+            traceback.print_exc()
+        line, status = error_line(exc)
+        print(line, file=sys.stderr)
+        return status
 
 
 if __name__ == "__main__":

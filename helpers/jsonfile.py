@@ -1,7 +1,8 @@
 """Writing files so that a crash never leaves half a file, and reading JSON files with one clear error.
 
 The one atomic writer of the package: every JSON result, calibration and recording goes through
-:func:`atomic_write` (a unique temporary file in the same folder, flushed and fsynced, then ``os.replace``).
+:func:`write_temp` (a unique temporary file in the same folder, flushed and fsynced) and then a rename
+(:func:`atomic_write`: ``os.replace``; the recordings' store adds no-clobber and replace-safely).
 """
 
 from __future__ import annotations
@@ -24,6 +25,30 @@ class MissingDataError(DataFileError, FileNotFoundError):
     """A data file that an analysis needs does not exist yet; the message says how to make it."""
 
 
+def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
+    """Write ``data`` to a new hidden temporary file in ``folder`` (flushed and fsynced) and return its path.
+
+    The file gets the mode an ordinary new file would (0666 minus the umask), not ``mkstemp``'s 0600. On any
+    error (a full disk, a signal) the temporary file is removed and the error re-raised: nothing else changed.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=".tmp")
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return Path(tmp)
+
+
 def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically: readers see the old file or the new one, never a part.
 
@@ -40,17 +65,11 @@ def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
         ``path``.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    tmp = write_temp(path.parent, path.name, data)
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        tmp.unlink(missing_ok=True)
         raise
     return path
 

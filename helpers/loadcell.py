@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from helpers.hardware import ADC_MAX, MM_PER_STEP
 from helpers.jsonfile import DataFileError, read_json, write_json
@@ -185,8 +184,9 @@ def fit_calibration(recs: Sequence[Recording]) -> CalibrationFit:
         slope, intercept = float(coef[0]), float(coef[1])
         slope_se, intercept_se = (float(v) for v in np.sqrt(np.diag(cov)))
     else:  # noiseless readings: fall back to the residual scatter
-        lr = stats.linregress(x, y)
-        slope, intercept, slope_se, intercept_se = lr.slope, lr.intercept, lr.stderr, lr.intercept_stderr
+        coef, cov = np.polyfit(x, y, 1, cov=True)
+        slope, intercept = float(coef[0]), float(coef[1])
+        slope_se, intercept_se = (float(v) for v in np.sqrt(np.clip(np.diag(cov), 0.0, None)))
     table["fitted_counts"] = intercept + slope * x
     table["residual_counts"] = y - table["fitted_counts"]
     r2 = 1.0 - float(np.sum(table["residual_counts"] ** 2)) / float(np.sum((y - y.mean()) ** 2))

@@ -52,6 +52,7 @@ import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
 from helpers import hardware, paper
+from helpers.noise import white_noise_std
 
 FloatArray = NDArray[np.float64]
 
@@ -241,19 +242,6 @@ def segment_motions(t: ArrayLike, steps: ArrayLike) -> Motions:
     )
 
 
-def _noise_std(y: FloatArray) -> float:
-    """Robust standard deviation of white noise on ``y``, from its second difference.
-
-    The second difference of white noise has 6 times its variance, while a smooth signal (a slow drift or the
-    ringing of a motion that has not settled) contributes almost nothing to it, so this measures the sensor's
-    noise, not the signal.
-    """
-    if y.size < 3:
-        return 0.0
-    d2 = np.diff(y, 2)
-    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-
-
 def _nan_metrics(
     motion: str, start: float, end: float, band: float, reason: str, **known: Any
 ) -> MotionMetrics:
@@ -365,7 +353,7 @@ def motion_metrics(
         return _nan_metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak, **flags)
     step = yf - y0
     if min_step is None:
-        min_step = max(10.0 * _noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
+        min_step = max(10.0 * white_noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
     if abs(step) <= min_step or abs(step) == 0.0:
         reason = f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
         return _nan_metrics(motion, start, end, band, "; ".join(bound_reasons + [reason]), y0=y0, yf=yf,
@@ -562,7 +550,9 @@ def _scenario_of(rec: Any, i: int) -> dict[str, Any]:
         ) from err
 
 
-def metrics_by_run(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any) -> pd.DataFrame:
+def metrics_by_run(
+    recordings: Iterable[Any], band: float = 0.05, *, include_aborted: bool = False, **kwargs: Any
+) -> pd.DataFrame:
     """Metrics of every recording and motion, one row each (the long form behind :func:`scenario_table`).
 
     Parameters
@@ -572,6 +562,9 @@ def metrics_by_run(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
         ``"scenario"`` holds ``v_in_mm_s``, ``x_f_mm``, ``system`` and optionally ``repetition``).
     band : float
         Settling band.
+    include_aborted : bool
+        Also analyse recordings whose ``status`` is not ``complete`` (by default they are left out, and
+        listed in ``table.attrs["skipped"]`` with the reason).
     **kwargs
         Passed to :func:`motion_metrics`.
 
@@ -581,7 +574,12 @@ def metrics_by_run(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
         ``v_in_mm_s``, ``x_f_mm``, ``system``, ``repetition`` and the columns of :func:`recording_metrics`.
     """
     parts = []
+    skipped: list[str] = []
     for i, rec in enumerate(recordings):
+        status = (getattr(rec, "meta", None) or {}).get("status", "complete")
+        if status != "complete" and not include_aborted:
+            skipped.append(f"{getattr(rec, 'name', i)}: {status}")
+            continue
         sc = _scenario_of(rec, i)
         meta = getattr(rec, "meta", None) or {}
         df = recording_metrics(rec.frame, band, calibration=meta.get("calibration"), **kwargs)
@@ -589,14 +587,20 @@ def metrics_by_run(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
             df[key] = value
         parts.append(df)
     if not parts:
-        raise ValueError("no recordings given")
+        note = f" (skipped: {'; '.join(skipped)})" if skipped else ""
+        raise ValueError(f"no complete recordings given{note}")
     out = pd.concat(parts, ignore_index=True)
     front = ["v_in_mm_s", "x_f_mm", "system", "repetition"]
-    return _sorted(out[front + [c for c in out.columns if c not in front]])
+    table = paper_order(out[front + [c for c in out.columns if c not in front]])
+    table.attrs["skipped"] = skipped
+    return table
 
 
-def _sorted(df: pd.DataFrame) -> pd.DataFrame:
-    """Sort rows as the paper does: Table I conditions, then pulse/non-robust/robust, then Up/Down."""
+def paper_order(df: pd.DataFrame) -> pd.DataFrame:
+    """Sort rows as the paper does: Table I conditions, then pulse/non-robust/robust, then Up/Down.
+
+    Conditions, systems and motions the paper does not have follow, sorted by value.
+    """
     cond = {c: i for i, c in enumerate(paper.TABLE_I_CONDITIONS)}
     sys_ = {s: i for i, s in enumerate(paper.SYSTEMS)}
     mot = {m: i for i, m in enumerate(MOTIONS)}
@@ -626,7 +630,25 @@ def scenario_table(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
     band : float
         Settling band (fraction of the step), reported in the ``band`` column and ``table.attrs["band"]``.
     **kwargs
-        Passed to :func:`motion_metrics`.
+        Passed to :func:`metrics_by_run` (``include_aborted``) and :func:`motion_metrics`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`summarise` of :func:`metrics_by_run`.
+    """
+    return summarise(metrics_by_run(recordings, band, **kwargs), band)
+
+
+def summarise(runs: pd.DataFrame, band: float) -> pd.DataFrame:
+    """Means and spreads over repetitions of a per-run table (the aggregation behind :func:`scenario_table`).
+
+    Parameters
+    ----------
+    runs : pandas.DataFrame
+        Output of :func:`metrics_by_run` (``attrs["skipped"]`` is carried over).
+    band : float
+        The settling band the runs were analysed with.
 
     Returns
     -------
@@ -634,10 +656,11 @@ def scenario_table(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
         One row per (``v_in_mm_s``, ``x_f_mm``, ``system``, ``motion``) in the paper's order, with
         ``n_runs`` and, for each metric ``m`` of ``peak_n``, ``overshoot_pct``, ``settling_ms``: ``m_mean``
         and ``m_std`` (sample standard deviation, ddof = 1; NaN with fewer than two values) over the runs
-        where ``m`` is not NaN, and ``m_n``, the number of such runs. ``reason`` lists, per repetition,
-        why values are missing.
+        where ``m`` is not NaN, and ``m_n``, the number of such runs. ``peak_is_bound`` is True if any
+        repetition's peak is a bound (a clipped sample in its window; the mean is then a bound too) and
+        ``n_clipped`` counts the clipped samples. ``reason`` lists, per repetition, why values are missing or
+        bounds.
     """
-    runs = metrics_by_run(recordings, band, **kwargs)
     rows = []
     for keys, g in runs.groupby(_KEYS, sort=False):
         row: dict[str, Any] = dict(zip(_KEYS, keys, strict=True))
@@ -655,8 +678,9 @@ def scenario_table(recordings: Iterable[Any], band: float = 0.05, **kwargs: Any)
             f"rep {r}: {why}" for r, why in zip(g["repetition"], g["reason"], strict=True) if why
         )
         rows.append(row)
-    table = _sorted(pd.DataFrame(rows))
+    table = paper_order(pd.DataFrame(rows))
     table.attrs["band"] = band
+    table.attrs["skipped"] = runs.attrs.get("skipped", [])
     return table
 
 
@@ -685,7 +709,7 @@ def paper_comparison(table: pd.DataFrame) -> pd.DataFrame:
     theirs = paper.table_ii().rename(columns={m: f"{m}_paper" for m in METRIC_COLUMNS})
     merged = ours.merge(theirs, on=_KEYS, how="outer")
     cols = _KEYS + [c for m in METRIC_COLUMNS for c in (m, f"{m}_paper")] + extra
-    return _sorted(merged[cols])
+    return paper_order(merged[cols])
 
 
 def band_sweep(recordings: Sequence[Any], bands: Iterable[float], **kwargs: Any) -> pd.DataFrame:
@@ -712,6 +736,57 @@ def band_sweep(recordings: Sequence[Any], bands: Iterable[float], **kwargs: Any)
         for b in bands
     ]
     return pd.concat(parts, ignore_index=True)
+
+
+RESIDUAL_START_S = 0.1
+"""The residual-vibration window opens this long after the last step of the move, s."""
+RESIDUAL_LENGTH_S = 1.0
+"""... and lasts this long, s."""
+
+
+def residual_vibration(
+    t: ArrayLike,
+    y: ArrayLike,
+    move_end_s: float,
+    y0: float,
+    yf: float,
+    start_s: float = RESIDUAL_START_S,
+    length_s: float = RESIDUAL_LENGTH_S,
+) -> float:
+    """Residual vibration of a move: half the peak-to-peak of ``y`` in a window after it, in % of the step.
+
+    The window runs from ``move_end_s + start_s`` to ``move_end_s + start_s + length_s`` (default 0.1 s to
+    1.1 s after the last step of the, possibly shaped, move), and the step is ``yf - y0`` as defined for
+    Table II (``docs/metrics.md``).
+
+    Parameters
+    ----------
+    t, y : array_like
+        Sample times (s) and the signal (e.g. tension, N).
+    move_end_s : float
+        Time of the move's last step, s.
+    y0, yf : float
+        The signal before the move and its final value.
+    start_s, length_s : float
+        Where the window starts after the move, and its length, s.
+
+    Returns
+    -------
+    float
+        ``100 * (max - min) / 2 / |yf - y0|`` over the window; NaN if the step is zero or the window holds
+        fewer than two finite samples.
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if t.shape != y.shape:
+        raise ValueError(f"t and y must have the same length, got {t.size} and {y.size}")
+    lo = move_end_s + start_s
+    window = (t >= lo) & (t <= lo + length_s) & np.isfinite(y)
+    step = abs(yf - y0)
+    if np.count_nonzero(window) < 2 or step == 0.0 or not math.isfinite(step):
+        return math.nan
+    w = y[window]
+    return float(100.0 * (w.max() - w.min()) / 2.0 / step)
 
 
 ORDERINGS = (("zv", "unshaped"), ("zvd", "zv"), ("zvd", "unshaped"))

@@ -13,6 +13,18 @@ from helpers.style import apply_style
 PRINT_PRECISION = 4
 """Digits after the decimal point in printed arrays and DataFrames."""
 
+BATCH_ENV = "HELPERS_BATCH"
+"""Set to ``1`` by ``python -m helpers reproduce`` and by the tests (nbval): notebooks run unattended."""
+
+
+def interactive() -> bool:
+    """Whether a person is at the notebook (JupyterLab), rather than ``reproduce`` or nbval running it.
+
+    Interactive cells (sliders) show widgets only then; unattended runs show a static figure of the same
+    function instead, so that no widget state is stored and reruns store the same bytes.
+    """
+    return os.environ.get(BATCH_ENV) != "1"
+
 
 def _use_inline_backend() -> None:
     """Show figures inline even if the caller inherited ``MPLBACKEND`` (it would hide them from nbval)."""

@@ -1,9 +1,13 @@
 """The serial protocol of both boards (``firmware/PROTOCOL.md``): framing, checksums, line splitting, parsing.
 
 The host drivers (``helpers.rig``) and the emulated boards (``helpers.emulator``) both speak it through this
-module. Every line a board sends ends in ``*hh``, the XOR of all bytes before the ``*`` as two upper-case hex
-digits. This module turns a byte stream into classified lines and never raises on garbage: a line that fails
-any check (non-ASCII, missing or wrong checksum, too long, malformed data fields) is reported as corrupted.
+module. Every line a board sends ends in ``*hh``, the CRC-8 of all bytes before the ``*``
+(:mod:`helpers.crc8`) as two upper-case hex digits. This module turns a byte stream into classified lines and
+never raises on garbage: a line that fails any check (non-ASCII, missing or wrong checksum, too long,
+malformed data fields) is reported as corrupted. A line whose checksum is the XOR of protocol 1 (firmware 1.x)
+is also corrupted, and when it is such a board's ``HELLO``, ``PONG`` or ``ERR CHECKSUM``,
+:attr:`StreamParser.legacy` keeps it so that the driver can stop with one clear error (there is no fallback to
+XOR).
 
 :class:`StreamParser` is the one place where the DAQ stream's bookkeeping happens: it counts exactly
 
@@ -11,6 +15,9 @@ any check (non-ASCII, missing or wrong checksum, too long, malformed data fields
   transport or destroyed by corruption; a corrupted data line's ``seq`` is therefore also counted as dropped),
 - ``overruns``: sample periods the board itself reports as missed (``W,OVERRUN,<n>``),
 - ``corrupted``: non-blank lines that failed a check,
+- ``implausible``: data lines that passed every check but describe the impossible: a step count that changed
+  faster than the step-rate limit allows, or left the range the running programme can reach
+  (:attr:`StreamParser.steps_range`); they are rejected (their ``seq`` then counts as dropped too),
 
 and unwraps the board's 32-bit microsecond clock.
 """
@@ -22,9 +29,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from helpers.crc8 import INIT, crc8, crc8_hex
+from helpers.crc8 import TABLE as _CRC_TABLE
 from helpers.hardware import ADC_MAX
 
-FW_VERSION = "1.0.0"
+FW_VERSION = "2.0.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
 
 MAX_LINE = 63
@@ -33,6 +42,9 @@ MAX_LINE = 63
 WRAP_US = 1 << 32
 """The boards' ``micros()`` wraps after 2**32 microseconds."""
 
+PROTOCOL_MAJOR = int(FW_VERSION.split(".")[0])
+"""The MAJOR firmware version this host speaks (CRC-8 framing); a board reporting another is refused."""
+
 MAX_PENDING = 4 * (MAX_LINE + 1)
 """Bytes of an unterminated line kept before it is declared corrupted (garbage without newlines)."""
 
@@ -40,14 +52,26 @@ _HEX = "0123456789ABCDEF"
 _INT = re.compile(r"-?[0-9]+\Z")
 _UINT = re.compile(r"[0-9]+\Z")
 _FAST_DATA = re.compile(rb"D,([0-9]{1,10}),([0-9]{1,10}),([0-9]{1,4}),(-?[0-9]{1,10})\*([0-9A-F]{2})")
+_LEGACY_BODY = re.compile(r"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
 
 
 class FramingError(ValueError):
     """A line failed a framing check; the message names the check."""
 
 
+class LegacyChecksum(FramingError):
+    """The line's CRC-8 is wrong but its ``*hh`` is the XOR checksum of protocol 1 (firmware 1.x)."""
+
+
+def _xor(data: bytes) -> int:
+    x = 0
+    for b in data:
+        x ^= b
+    return x
+
+
 def checksum(body: bytes | str) -> str:
-    """Return the two upper-case hex digits of the XOR of ``body``'s bytes.
+    """Return the two upper-case hex digits of the CRC-8 of ``body``'s bytes (:func:`helpers.crc8.crc8`).
 
     Parameters
     ----------
@@ -57,13 +81,9 @@ def checksum(body: bytes | str) -> str:
     Returns
     -------
     str
-        E.g. ``"53"`` for ``b"PONG daq 1.0.0"``.
+        E.g. ``"FD"`` for ``b"PONG daq 2.0.0"``.
     """
-    data = body.encode("ascii") if isinstance(body, str) else body
-    x = 0
-    for b in data:
-        x ^= b
-    return _HEX[x >> 4] + _HEX[x & 15]
+    return crc8_hex(body)
 
 
 def frame(body: str) -> bytes:
@@ -87,15 +107,20 @@ _HEX2 = [f"{x:02X}" for x in range(256)]
 
 
 def frame_many(bodies: list[str]) -> bytes:
-    """Return every body framed as by :func:`frame`, joined (checksums vectorised with numpy; no checks)."""
-    blob = "\n".join(bodies).encode("ascii")
-    acc = np.bitwise_xor.accumulate(np.frombuffer(blob, dtype=np.uint8))
+    """Return every body framed as by :func:`frame`, joined (the CRC-8s of all bodies at once; no checks)."""
+    if not bodies:
+        return b""
     lens = np.fromiter(map(len, bodies), dtype=np.int64, count=len(bodies))
-    ends = np.cumsum(lens + 1) - 2  # index of each body's last byte
-    starts = ends - lens + 1
-    before = np.where(starts > 0, acc[np.maximum(starts - 1, 0)], 0)
-    xors = (acc[ends] ^ before).tolist()
-    return "".join(f"{b}*{_HEX2[x]}\n" for b, x in zip(bodies, xors, strict=True)).encode("ascii")
+    flat = np.frombuffer("".join(bodies).encode("ascii") + b"\0", dtype=np.uint8)
+    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
+    cols = np.arange(int(lens.max()))
+    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
+    live = cols[None, :] < lens[:, None]
+    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
+    crc = np.full(len(bodies), INIT, dtype=np.uint8)
+    for j in range(len(cols)):  # one byte column at a time
+        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
+    return "".join(f"{b}*{_HEX2[x]}\n" for b, x in zip(bodies, crc.tolist(), strict=True)).encode("ascii")
 
 
 def unframe(line: bytes, require_checksum: bool = True) -> str:
@@ -116,7 +141,8 @@ def unframe(line: bytes, require_checksum: bool = True) -> str:
     Raises
     ------
     FramingError
-        Non-ASCII or control bytes, too long, missing or malformed or wrong checksum.
+        Non-ASCII or control bytes, too long, missing or malformed or wrong checksum
+        (:class:`LegacyChecksum` when the wrong checksum is the XOR of protocol 1).
     """
     if line.endswith(b"\r"):
         line = line[:-1]
@@ -138,8 +164,11 @@ def unframe(line: bytes, require_checksum: bool = True) -> str:
         raise FramingError("more than one '*'")
     if len(given) != 2 or any(c not in _HEX for c in given):
         raise FramingError(f"malformed checksum {given!r}")
-    if checksum(body) != given:
-        raise FramingError(f"checksum {given} does not match {checksum(body)}")
+    x = crc8(body)
+    if x != int(given, 16):
+        if _xor(body.encode("ascii")) == int(given, 16):
+            raise LegacyChecksum(f"checksum {given} is the XOR of protocol 1 (firmware 1.x), not the CRC-8")
+        raise FramingError(f"checksum {given} does not match {_HEX[x >> 4] + _HEX[x & 15]}")
     return body
 
 
@@ -231,6 +260,7 @@ class StreamStats:
     dropped: int = 0
     overruns: int = 0
     corrupted: int = 0
+    implausible: int = 0
     samples: int = 0
     corrupted_examples: list[str] = field(default_factory=list)
 
@@ -243,23 +273,64 @@ class StreamParser:
     A data line whose ``seq`` does not increase is counted as corrupted (it cannot be placed).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, max_step_rate_hz: float | None = None) -> None:
         self.splitter = LineSplitter()
         self.stats = StreamStats()
+        self.legacy: str | None = None
+        """The first line from a protocol-1 board (XOR-framed ``HELLO``/``PONG`` 1.x or ``ERR CHECKSUM``)."""
+        self.max_step_rate_hz = max_step_rate_hz
+        """Step-rate limit used to reject impossible step counts (None: no check)."""
+        self.steps_range: tuple[int, int] | None = None
+        """The step counts the running programme can reach (from ``ZERO``), or None (no check)."""
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
         self._t_offset = 0
+        self._last_sample: tuple[int, int] | None = None  # (t_us unwrapped, steps) of the last accepted one
 
     def restart(self) -> None:
         """Forget the sequence and clock state (after ``START``, whose ``seq`` restarts at 0)."""
         self.last_seq = None
         self._last_raw_t = None
         self._t_offset = 0
+        self._last_sample = None
+
+    def _plausible(self, t_us: int, steps: int) -> bool:
+        """A step count the motor can have reached: within the programme's range, no faster than allowed."""
+        rng = self.steps_range
+        if rng is not None and not rng[0] <= steps <= rng[1]:
+            return False
+        last = self._last_sample
+        if last is not None and self.max_step_rate_hz is not None:
+            dt = max(t_us - last[0], 0)
+            if abs(steps - last[1]) > self.max_step_rate_hz * dt * 1e-6 + 1:
+                return False
+        return True
+
+    def _accept(self, seq: int, t_raw: int, adc: int, steps: int, line: bytes, out: list) -> None:
+        """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
+        t_us = self._unwrapped(t_raw)
+        if not self._plausible(t_us, steps):
+            self.stats.implausible += 1
+            if len(self.stats.corrupted_examples) < 5:
+                self.stats.corrupted_examples.append(f"{line[:40]!r}: implausible step count {steps}")
+            return
+        self.unwrap(t_raw)
+        stats = self.stats
+        stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
+        self.last_seq = seq
+        stats.samples += 1
+        self._last_sample = (t_us, steps)
+        out.append((seq, t_us, adc, steps))
 
     def _corrupt(self, line: bytes, why: str) -> None:
         self.stats.corrupted += 1
         if len(self.stats.corrupted_examples) < 5:
             self.stats.corrupted_examples.append(f"{line[:40]!r}: {why}")
+
+    def _unwrapped(self, t_raw: int) -> int:
+        """``t_raw`` unwrapped as :meth:`unwrap` would, without moving the clock state."""
+        wrapped = self._last_raw_t is not None and t_raw < self._last_raw_t
+        return t_raw + self._t_offset + (WRAP_US if wrapped else 0)
 
     def unwrap(self, t_raw: int) -> int:
         """Return ``t_raw`` with the 32-bit wraps before it added back."""
@@ -275,17 +346,14 @@ class StreamParser:
         lines = self.splitter.feed(data)
         if not lines:
             return samples, messages
-        xors = _body_xors(lines)
+        crcs = _body_crcs(lines)
         stats = self.stats
-        for line, x in zip(lines, xors, strict=True):
+        for line, x in zip(lines, crcs, strict=True):
             m = _FAST_DATA.fullmatch(line)
             if m is not None and int(m[5], 16) == x:  # the common case: a well-formed data line
                 seq, t_raw, adc = int(m[1]), int(m[2]), int(m[3])
                 if adc <= ADC_MAX and t_raw < WRAP_US and (self.last_seq is None or seq > self.last_seq):
-                    stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
-                    self.last_seq = seq
-                    stats.samples += 1
-                    samples.append((seq, self.unwrap(t_raw), adc, int(m[4])))
+                    self._accept(seq, t_raw, adc, int(m[4]), line, samples)
                     continue
             if not line.strip(b"\r"):
                 continue
@@ -293,16 +361,16 @@ class StreamParser:
                 item = parse_body(unframe(line))
             except FramingError as exc:
                 self._corrupt(line, str(exc))
+                if isinstance(exc, LegacyChecksum) and self.legacy is None:
+                    body = line.rstrip(b"\r").rpartition(b"*")[0].decode("ascii")
+                    if _LEGACY_BODY.fullmatch(body):
+                        self.legacy = body
                 continue
             if isinstance(item, Sample):
                 if self.last_seq is not None and item.seq <= self.last_seq:
                     self._corrupt(line, f"seq {item.seq} after {self.last_seq}")
                     continue
-                expected = 0 if self.last_seq is None else self.last_seq + 1
-                stats.dropped += item.seq - expected
-                self.last_seq = item.seq
-                stats.samples += 1
-                samples.append((item.seq, self.unwrap(item.t_us), item.adc, item.steps))
+                self._accept(item.seq, item.t_us, item.adc, item.steps, line, samples)
             elif isinstance(item, Overrun):
                 stats.overruns += item.n
             else:
@@ -310,27 +378,26 @@ class StreamParser:
         return samples, messages
 
 
-def _body_xors(lines: list[bytes]) -> list[int]:
-    """XOR of each line's bytes except its last three (the ``*hh`` of a well-formed line), vectorised.
+def _body_crcs(lines: list[bytes]) -> list[int]:
+    """CRC-8 of each line's bytes except its last three (the ``*hh`` of a well-formed line), vectorised.
 
     Lines shorter than 4 bytes get -1 (they take the slow path).
     """
     if len(lines) < 24:  # numpy's call overhead dominates for a few lines
-        out = []
-        for line in lines:
-            x = 0
-            for b in line[:-3]:
-                x ^= b
-            out.append(x if len(line) >= 4 else -1)
-        return out
-    joined = b"\n".join(lines)
-    acc = np.bitwise_xor.accumulate(np.frombuffer(joined, dtype=np.uint8)).astype(np.int64)
+        return [crc8(line[:-3]) if len(line) >= 4 else -1 for line in lines]
     lens = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
-    starts = np.concatenate([[0], np.cumsum(lens + 1)[:-1]])
-    last_body = starts + lens - 4
-    ok = lens >= 4
-    if not len(acc):
+    body_lens = lens - 3
+    width = int(body_lens.max())
+    if width < 1:
         return [-1] * len(lines)
-    before = np.where(starts > 0, acc[np.maximum(starts - 1, 0)], 0)
-    x = np.where(ok, acc[np.clip(last_body, 0, len(acc) - 1)] ^ before, -1)
-    return x.tolist()
+    # One row per line, its body left-aligned; the register advances only while a row has bytes left.
+    flat = np.frombuffer(b"".join(lines), dtype=np.uint8)
+    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
+    cols = np.arange(width)
+    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
+    live = cols[None, :] < body_lens[:, None]
+    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
+    crc = np.full(len(lines), INIT, dtype=np.uint8)
+    for j in range(width):
+        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
+    return np.where(body_lens >= 1, crc.astype(np.int64), -1).tolist()

@@ -10,24 +10,32 @@ The same code path serves the hardware (``--ports auto`` or ``--ports DAQ,STEPPE
 Commands::
 
     python -m helpers record calibration                     # known loads -> data/calibration/, fit, save
-    python -m helpers record pulse --v-in 100 --x-f 10 --group identification --name pulse_v100_x10
-    python -m helpers record pulse --v-in 200 --x-f 20 --system zvd --zeta 0.044 --omega-d 25.085
+    python -m helpers record pulse --v-in 250 --x-f 25 --system zvd --repetitions 3 --group mine
     python -m helpers record table-i --repetitions 3         # 12 scenarios x 3
     python -m helpers record all                             # identification + result.json + Table I x 3
 
 ``table-i`` and shaped pulses design the shapers from ``data/identification/result.json`` (written by
-``record all`` or notebook 02's live cell) unless ``--zeta`` and ``--omega-d`` are given.
+``record all`` or notebook 02's live cell) unless ``--zeta`` and ``--omega-d`` are given. A recording that
+exists is never overwritten unless ``--replace`` is given; two recorders cannot write into one group at once.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
+import contextlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from helpers import paper
+from helpers.hardware import (
+    DAQ_RATE_DEFAULT_HZ,
+    DAQ_RATE_MAX_HZ,
+    DAQ_RATE_MIN_HZ,
+    MAX_PROGRAMME_S,
+    MAX_SPEED_MM_S,
+    MAX_TRAVEL_MM,
+)
 from helpers.identify import identify_recording, load_identification, save_identification
 from helpers.jsonfile import MissingDataError
 from helpers.loadcell import (
@@ -37,55 +45,145 @@ from helpers.loadcell import (
     load_calibration,
     save_calibration,
 )
+from helpers.locks import folder_lock
 from helpers.paths import DATA_DIR
-from helpers.rig import Rig
-from helpers.rig.loadcell import record_calibration
+from helpers.programmes import experiment_programme
+from helpers.recordings import check_group, check_name, recording_path, refuse_existing
+from helpers.rig import Rig, SafetyError, check_programme, check_request
+from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
 from helpers.shapers import design_tdfs
+from helpers.validate import DefaultsHelp, arg_number
+
+SYSTEM_HELP = (
+    "unshaped = the paper's pulse; zv = the paper's non-robust TDF (ZV shaper); "
+    "zvd = the paper's robust TDF (ZVD shaper)"
+)
+DEFAULT_GROUPS = {
+    "calibration": "calibration", "pulse": "runs", "table-i": "experiments", "all": "experiments",
+}  # fmt: skip
+SESSION_LOCK = ".recording.lock"
+"""The lock a recorder holds on its group for the whole session (another recorder is refused)."""
+
+
+def _name(text: str) -> str:
+    try:
+        return check_name(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _group(text: str) -> str:
+    try:
+        return check_group(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the ``record`` options."""
+    """Add the ``record`` options (every default and accepted range is shown by ``--help``)."""
+    parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "what",
         choices=["calibration", "pulse", "table-i", "all"],  # the keys of RECORDERS
-        help="what to record ('all': identification run, its analysis, then Table I)",
+        help="calibration: known loads; pulse: one up-hold-down move; table-i: the paper's 12 scenarios; "
+        "all: the identification run, its analysis, then Table I",
     )
     parser.add_argument(
         "--ports",
         default="virtual",
-        help="'virtual' (in-process virtual rig), 'auto' (find boards by USB id) or 'DAQ,STEPPER'",
+        help="'virtual' (in-process virtual rig), 'auto' (find the boards by USB id) or 'DAQ,STEPPER' "
+        "(device paths, e.g. those serve-virtual-rig prints)",
     )
-    parser.add_argument("--rig-name", default="record", help="name of the in-process virtual rig")
-    parser.add_argument("--seed", type=int, default=0, help="virtual rig: sensor-noise seed")
-    parser.add_argument("--v-in", type=float, help="pulse speed, mm/s")
-    parser.add_argument("--x-f", type=float, help="pulse displacement, mm")
-    parser.add_argument("--system", choices=["unshaped", "zv", "zvd"], default="unshaped")
-    parser.add_argument("--zeta", type=float, help="identified damping ratio (shaper design)")
-    parser.add_argument("--omega-d", type=float, help="identified damped frequency, rad/s (shaper design)")
+    parser.add_argument("--rig-name", default="record", type=_name, help="name of the in-process virtual rig")
+    parser.add_argument(
+        "--seed",
+        type=arg_number(0, 2**32 - 1 - 10_000, int),
+        default=0,
+        help="in-process virtual rig: noise seed of the first run; run k gets seed + k (recorded)",
+    )
+    parser.add_argument(
+        "--v-in", type=arg_number(0, MAX_SPEED_MM_S, lo_open=True),
+        help="pulse speed, mm/s, in (0, 400]; required for pulse",  # fmt: skip
+    )
+    parser.add_argument(
+        "--x-f", type=arg_number(0, MAX_TRAVEL_MM, lo_open=True),
+        help="pulse displacement, mm, in (0, 40]; required for pulse",  # fmt: skip
+    )
+    parser.add_argument("--system", choices=["unshaped", "zv", "zvd"], default="unshaped", help=SYSTEM_HELP)
+    parser.add_argument(
+        "--zeta", type=arg_number(0, 1, lo_open=True),
+        help="design the shapers from this damping ratio (default: the identification result's)",
+    )
+    parser.add_argument(
+        "--omega-d", type=arg_number(0, 1e4, lo_open=True),
+        help="... and this damped frequency, rad/s (default: the identification result's)",
+    )
     parser.add_argument(
         "--identification",
         default=None,
-        help="identification result JSON (default data/identification/result.json)",
+        help="identification result JSON (default: identification/result.json in the data folder)",
     )
-    parser.add_argument("--repetitions", type=int, default=3)
-    parser.add_argument("--t-end", type=float, default=12.0, help="programme (and recording) length, s")
-    parser.add_argument("--rate", type=int, default=1000, help="DAQ sample rate, Hz")
-    parser.add_argument("--group", default=None, help="folder under data/")
-    parser.add_argument("--name", default=None, help="file name (pulse only)")
-    parser.add_argument("--duration", type=float, default=1.0, help="calibration: seconds per load")
+    parser.add_argument(
+        "--repetitions",
+        type=arg_number(1, 100, int),
+        default=None,
+        help="runs per scenario, 1-100 (default: 1 for pulse, 3 for table-i and all)",
+    )
+    parser.add_argument(
+        "--t-end",
+        type=arg_number(0, MAX_PROGRAMME_S, lo_open=True),
+        default=12.0,
+        help=f"programme (and recording) length, s, in (0, {MAX_PROGRAMME_S:.0f}]",
+    )
+    parser.add_argument(
+        "--rate",
+        type=arg_number(DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, int),
+        default=DAQ_RATE_DEFAULT_HZ,
+        help=f"DAQ sample rate, Hz, {DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ}",
+    )
+    parser.add_argument(
+        "--group",
+        type=_group,
+        default=None,
+        help="folder under the data folder (default: calibration, runs for pulse, experiments)",
+    )
+    parser.add_argument(
+        "--name", type=_name, default=None,
+        help="pulse: file name; repetitions add _r<k> (default: <system>_v<v-in>_x<x-f>)",
+    )
+    parser.add_argument(
+        "--replace",
+        action="store_true",
+        help="replace recordings of the same names (each kept until the new one is whole)",
+    )
+    parser.add_argument(
+        "--duration",
+        type=arg_number(0, MAX_PROGRAMME_S, lo_open=True),
+        default=1.0,
+        help="calibration: seconds per load",
+    )
+    parser.add_argument("--data-dir", type=Path, default=DATA_DIR, help="the data folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check everything and print the recordings that would be made, without opening a port",
+    )
 
 
 def _shapers(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
-    if args.zeta is not None and args.omega_d is not None:
+    if (args.zeta is None) != (args.omega_d is None):
+        raise SystemExit("give both --zeta and --omega-d, or neither (then result.json is used)")
+    if args.zeta is not None:
         zeta, omega_d, origin = args.zeta, args.omega_d, "command line"
     else:
+        path = Path(args.identification or args.data_dir / "identification" / "result.json")
         try:
-            found = load_identification(args.identification) if args.identification else load_identification()
+            found = load_identification(path)
         except MissingDataError as exc:
             raise SystemExit(f"{exc} (or pass --zeta and --omega-d)") from None
         zeta, omega_d = found.zeta, found.omega_d
-        origin = args.identification or "data/identification/result.json"
+        origin = _shown(path)
     zv, zvd = design_tdfs(omega_d, zeta)
     print(f"shapers designed from zeta = {zeta:.4f}, omega_d = {omega_d:.3f} rad/s ({origin})")
     return {"unshaped": None, "zv": zv, "zvd": zvd}, {"zeta": zeta, "omega_d": omega_d, "origin": origin}
@@ -103,6 +201,19 @@ def scenario_name(system: str, v_in: float, x_f: float, repetition: int | None =
     return base if repetition is None else f"{base}_r{repetition}"
 
 
+class _Seeds:
+    """Noise seeds for successive runs: ``base``, ``base + 1``, ... (None on hardware)."""
+
+    def __init__(self, base: int | None) -> None:
+        self.next = base
+
+    def take(self) -> int | None:
+        if self.next is None:
+            return None
+        seed, self.next = self.next, self.next + 1
+        return seed
+
+
 def record_table_i(
     rig: Any,
     shapers: dict[str, Any],
@@ -111,6 +222,8 @@ def record_table_i(
     group: Path = DATA_DIR / "experiments",
     t_end_s: float = 12.0,
     rate_hz: int = 1000,
+    replace: bool = False,
+    seeds: _Seeds | None = None,
 ) -> list[Path]:
     """Record the twelve scenarios of Table I, ``repetitions`` times each, into ``group``.
 
@@ -130,12 +243,17 @@ def record_table_i(
         Programme (and recording) length, s.
     rate_hz : int
         DAQ sample rate.
+    replace : bool
+        Replace existing recordings of the same names.
+    seeds : optional
+        The noise seeds of successive runs (in-process virtual rig).
 
     Returns
     -------
     list of pathlib.Path
         The CSV files written, in recording order.
     """
+    seeds = seeds or _Seeds(None)
     paths = []
     for system in paper.SYSTEMS:
         for v, x in paper.TABLE_I_CONDITIONS:
@@ -152,42 +270,60 @@ def record_table_i(
                     rate_hz=rate_hz,
                     progress=False,
                     scenario_extra={"design": design},
+                    replace=replace,
+                    noise_seed=seeds.take(),
                 )
                 print(f"{path.name}: {rec.status}, {len(rec.frame)} samples", flush=True)
                 paths.append(rec.path)
     return paths
 
 
-def record_all(rig: Any, repetitions: int = 3, t_end_s: float = 12.0, rate_hz: int = 1000) -> None:
+def record_all(
+    rig: Any,
+    repetitions: int = 3,
+    t_end_s: float = 12.0,
+    rate_hz: int = 1000,
+    data_dir: Path = DATA_DIR,
+    group: str = "experiments",
+    replace: bool = False,
+    seeds: _Seeds | None = None,
+) -> None:
     """Regenerate every recording of the paper's experiment, in the order the analysis needs them.
 
-    1. the identification run (100 mm/s, 10 mm) into ``data/identification/pulse_v100_x10``;
+    1. the identification run (100 mm/s, 10 mm) into ``identification/pulse_v100_x10``;
     2. its identification on the 9-10 s window with :func:`helpers.identify.identify_recording`, saved to
-       ``data/identification/result.json`` (what notebook 02 computes and saves too);
+       ``identification/result.json`` (what notebook 02's live cell does too);
     3. the twelve Table I scenarios x ``repetitions``, with the TDFs designed from that result, into
-       ``data/experiments/``.
+       ``group``.
 
     Parameters
     ----------
     rig : helpers.rig.Rig
         A connected rig.
-    repetitions, t_end_s, rate_hz
+    repetitions, t_end_s, rate_hz, replace, seeds
         As :func:`record_table_i`.
+    data_dir : pathlib.Path
+        The data folder.
+    group : str
+        Folder of the Table I recordings under ``data_dir``.
     """
+    seeds = seeds or _Seeds(None)
     run = paper.IDENTIFICATION_RUN
     rec = rig.run_pulse(
         run["v_in_mm_s"],
         run["x_f_mm"],
         None,
         system="unshaped",
-        path=DATA_DIR / "identification" / "pulse_v100_x10",
+        path=Path(data_dir) / "identification" / "pulse_v100_x10",
         t_end_s=t_end_s,
         rate_hz=rate_hz,
         progress=False,
+        replace=replace,
+        noise_seed=seeds.take(),
     )
     print(f"identification run: {rec.status}, {len(rec.frame)} samples -> {_shown(rec.path)}")
     result = identify_recording(rec, window=run["window_s"], column="adc")
-    path = save_identification(result)
+    path = save_identification(result, Path(data_dir) / "identification" / "result.json")
     print(f"identified zeta = {result.zeta:.4f}, omega_d = {result.omega_d:.3f} rad/s -> {_shown(path)}")
     zv, zvd = design_tdfs(result.omega_d, result.zeta)
     design = {"zeta": result.zeta, "omega_d": result.omega_d, "origin": _shown(path)}
@@ -196,60 +332,81 @@ def record_all(rig: Any, repetitions: int = 3, t_end_s: float = 12.0, rate_hz: i
         {"unshaped": None, "zv": zv, "zvd": zvd},
         design,
         repetitions=repetitions,
+        group=Path(data_dir) / group,
         t_end_s=t_end_s,
         rate_hz=rate_hz,
+        replace=replace,
+        seeds=seeds,
     )
 
 
-def _record_calibration(rig: Rig, args: argparse.Namespace) -> None:
-    folder = DATA_DIR / (args.group or "calibration")
-    recs = record_calibration(rig, duration_s=args.duration, folder=folder, rate_hz=args.rate)
+def _record_calibration(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> None:
+    folder = args.data_dir / args.group
+    recs = record_calibration(
+        rig, duration_s=args.duration, folder=folder, rate_hz=args.rate, replace=args.replace
+    )
     fit = fit_calibration(recs)
     path = save_calibration(fit, recs, folder / "calibration.json")
     print(
         f"{len(recs)} loads recorded; gain {fit.gain_counts_per_n:.4f} +- {fit.gain_stderr:.4f} "
-        f"counts/N, offset {fit.offset_counts:.3f} +- {fit.offset_stderr:.3f} counts -> {path}"
+        f"counts/N, offset {fit.offset_counts:.3f} +- {fit.offset_stderr:.3f} counts -> {_shown(path)}"
     )
 
 
-def _record_pulse(rig: Rig, args: argparse.Namespace) -> None:
+def _record_pulse(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> None:
     if args.v_in is None or args.x_f is None:
         raise SystemExit("record pulse needs --v-in and --x-f")
     shapers, design = _shapers(args) if args.system != "unshaped" else ({"unshaped": None}, None)
-    name = args.name or scenario_name(args.system, args.v_in, args.x_f)
-    path = DATA_DIR / (args.group or "runs") / name
-    rec = rig.run_pulse(
-        args.v_in,
-        args.x_f,
-        shapers[args.system],
-        system=args.system,
-        path=path,
-        t_end_s=args.t_end,
-        rate_hz=args.rate,
-        progress=not args.quiet,
-        scenario_extra=None if design is None else {"design": design},
-    )
-    print(f"{rec.status}: {len(rec.frame)} samples -> {_shown(rec.path)}")
+    base = args.name or scenario_name(args.system, args.v_in, args.x_f)
+    reps = args.repetitions or 1
+    for rep in range(1, reps + 1):
+        name = base if reps == 1 else f"{base}_r{rep}"
+        rec = rig.run_pulse(
+            args.v_in,
+            args.x_f,
+            shapers[args.system],
+            system=args.system,
+            path=args.data_dir / args.group / name,
+            repetition=rep,
+            t_end_s=args.t_end,
+            rate_hz=args.rate,
+            progress=not args.quiet,
+            scenario_extra=None if design is None else {"design": design},
+            replace=args.replace,
+            noise_seed=seeds.take(),
+        )
+        print(f"{rec.status}: {len(rec.frame)} samples -> {_shown(rec.path)}")
 
 
-def _record_table_i(rig: Rig, args: argparse.Namespace) -> None:
+def _record_table_i(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> None:
     shapers, design = _shapers(args)
     record_table_i(
         rig,
         shapers,
         design,
-        repetitions=args.repetitions,
-        group=DATA_DIR / (args.group or "experiments"),
+        repetitions=args.repetitions or 3,
+        group=args.data_dir / args.group,
         t_end_s=args.t_end,
         rate_hz=args.rate,
+        replace=args.replace,
+        seeds=seeds,
     )
 
 
-def _record_all(rig: Rig, args: argparse.Namespace) -> None:
-    record_all(rig, repetitions=args.repetitions, t_end_s=args.t_end, rate_hz=args.rate)
+def _record_all(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> None:
+    record_all(
+        rig,
+        repetitions=args.repetitions or 3,
+        t_end_s=args.t_end,
+        rate_hz=args.rate,
+        data_dir=args.data_dir,
+        group=args.group,
+        replace=args.replace,
+        seeds=seeds,
+    )
 
 
-RECORDERS: dict[str, Callable[[Rig, argparse.Namespace], None]] = {
+RECORDERS: dict[str, Callable[[Rig, argparse.Namespace, _Seeds], None]] = {
     "calibration": _record_calibration,
     "pulse": _record_pulse,
     "table-i": _record_table_i,
@@ -258,33 +415,107 @@ RECORDERS: dict[str, Callable[[Rig, argparse.Namespace], None]] = {
 """What ``record`` can record -> the function that does it."""
 
 
-def _calibration_for(what: str) -> LoadCellCalibration | None:
+def _calibration_for(what: str, data_dir: Path) -> LoadCellCalibration | None:
     """The load-cell calibration a run uses: the saved one; recording a new one may start without any."""
-    if what != "calibration":
-        return None  # Rig loads it, or says clearly that there is none yet
+    path = data_dir / "calibration" / "calibration.json"
     try:
-        return load_calibration()
+        return load_calibration(path)
     except MissingDataError:
-        return UNCALIBRATED
+        if what == "calibration":
+            return UNCALIBRATED
+        raise
+
+
+def _planned_pulses(args: argparse.Namespace) -> list[tuple[str, str, float, float, Any]]:
+    """(group, name, v_in, x_f, shaper) of every pulse ``args`` asks for, in recording order."""
+    if args.what == "pulse":
+        if args.v_in is None or args.x_f is None:
+            raise SystemExit("record pulse needs --v-in and --x-f")
+        shapers, _ = _shapers(args) if args.system != "unshaped" else ({"unshaped": None}, None)
+        base = args.name or scenario_name(args.system, args.v_in, args.x_f)
+        reps = args.repetitions or 1
+        return [
+            (args.group, base if reps == 1 else f"{base}_r{rep}", args.v_in, args.x_f, shapers[args.system])
+            for rep in range(1, reps + 1)
+        ]
+    planned = []
+    if args.what == "all":
+        run = paper.IDENTIFICATION_RUN
+        planned.append(("identification", "pulse_v100_x10", run["v_in_mm_s"], run["x_f_mm"], None))
+        print("dry run: the shapers of Table I are designed from the identification run once it is recorded;")
+        print("         the plan below checks them with the current identification result")
+    shapers, _ = _shapers(args)
+    reps = args.repetitions or 3
+    for system in paper.SYSTEMS:
+        for v, x in paper.TABLE_I_CONDITIONS:
+            for rep in range(1, reps + 1):
+                planned.append((args.group, scenario_name(system, v, x, rep), v, x, shapers[system]))
+    return planned
+
+
+def dry_run(args: argparse.Namespace) -> int:
+    """Check a ``record`` request completely and print what it would record; no port is opened.
+
+    Every pulse is quantised into its stepper programme and checked against the safety limits, every target
+    file against existing recordings (unless ``--replace``), and the load-cell calibration is looked up, as
+    the real run does before it moves anything.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed ``record`` arguments (``args.group`` already resolved).
+
+    Returns
+    -------
+    int
+        0 when the run would start; otherwise an exception names the first problem.
+    """
+    _calibration_for(args.what, args.data_dir)
+    rows = []
+    if args.what == "calibration":
+        for grams in (round(1000 * m) for m in CALIBRATION_MASSES_KG):
+            target = recording_path(args.group, f"load_{grams:04d}g", args.data_dir)
+            if not args.replace:
+                refuse_existing(target)
+            rows.append(f"  {_shown(target)}: {grams} g hung for {args.duration:g} s at {args.rate} Hz")
+    else:
+        for group, name, v, x, shaper in _planned_pulses(args):
+            target = recording_path(group, name, args.data_dir)
+            if not args.replace:
+                refuse_existing(target)
+            v, x = check_request(v, x)
+            try:
+                programme, report = experiment_programme(v, x, shaper, t_end=args.t_end)
+            except ValueError as exc:
+                raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
+            check_programme(programme)
+            what = "unshaped" if shaper is None else f"{shaper.name} ({len(shaper.amplitudes)} impulses)"
+            rows.append(
+                f"  {_shown(target)}: {x:g} mm at {v:g} mm/s, {what}, {report.n_steps} steps per move, "
+                f"{programme.duration_s:.1f} s at {args.rate} Hz"
+            )
+    print(f"dry run: {len(rows)} recording(s) would be made on --ports {args.ports}; nothing was sent:")
+    print("\n".join(rows))
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``python -m helpers record``."""
-    rig = Rig.connect(
-        args.ports,
-        rig_name=args.rig_name,
-        calibration=_calibration_for(args.what),
-        daq_options=f"&seed={args.seed}" if args.ports == "virtual" else "",
-    )
-    try:
+    """Run ``python -m helpers record`` (errors are turned into one line by ``python -m helpers``)."""
+    args.group = args.group or DEFAULT_GROUPS[args.what]
+    if args.dry_run:
+        return dry_run(args)
+    groups = {args.group, "identification"} if args.what == "all" else {args.group}
+    calibration = _calibration_for(args.what, args.data_dir)
+    with contextlib.ExitStack() as stack:
+        for g in sorted(groups):  # one recorder per group at a time
+            stack.enter_context(folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK))
+        rig = Rig.connect(args.ports, rig_name=args.rig_name, calibration=calibration)
+        stack.callback(rig.close)
         print(
             f"connected: daq firmware {rig.daq.version}, stepper firmware {rig.stepper.version}, "
             f"source {rig.source['kind']}"
         )
-        RECORDERS[args.what](rig, args)
-        return 0
-    except KeyboardInterrupt:
-        print("interrupted: the driver was disabled and the partial recording saved", file=sys.stderr)
-        return 130
-    finally:
-        rig.close()
+        seeds = _Seeds(args.seed if rig.virtual_world is not None else None)
+        RECORDERS[args.what](rig, args, seeds)
+    return 0
+

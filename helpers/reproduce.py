@@ -21,8 +21,10 @@ import nbformat
 from nbclient import NotebookClient
 from nbclient.exceptions import CellExecutionError
 
-from helpers.paths import FIGURES_DIR, NOTEBOOKS_DIR
+from helpers.notebook import BATCH_ENV
+from helpers.paths import FIGURES_DIR, NOTEBOOKS_DIR, REPO_ROOT
 from helpers.summary import print_summary
+from helpers.validate import DefaultsHelp, arg_number
 
 
 class NotebookFailed(RuntimeError):
@@ -113,6 +115,7 @@ def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
     """
     nb = nbformat.read(path, as_version=4)
     os.environ.pop("MPLBACKEND", None)  # an inherited backend would hide inline figures
+    os.environ[BATCH_ENV] = "1"  # unattended: interactive cells show their static figure, store no widgets
     client = NotebookClient(
         nb,
         timeout=timeout,
@@ -225,16 +228,35 @@ def reproduce(notebooks: list[Path] | None = None, timeout: int = 600, jobs: int
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``reproduce`` command's options to ``parser``."""
-    parser.add_argument("--timeout", type=int, default=600, help="seconds any one cell may take")
+    parser.formatter_class = DefaultsHelp
     parser.add_argument(
-        "--jobs", type=int, default=min(2, os.cpu_count() or 1), help="notebooks executed at once (default 2)"
+        "--timeout", type=arg_number(1, 86_400, int), default=600, help="seconds any one cell may take"
     )
-    parser.add_argument("notebooks", nargs="*", help="only these notebooks (default: every numbered one)")
+    parser.add_argument(
+        "--jobs", type=arg_number(1, 64, int), default=min(2, os.cpu_count() or 1), help="notebooks at once"
+    )
+    parser.add_argument(
+        "notebooks",
+        nargs="*",
+        help="only these notebooks: paths, or names such as 05_metric_tables.ipynb or 05 (default: all)",
+    )
+
+
+def resolve_notebook(name: str) -> Path:
+    """A notebook given on the command line: a path (from here), a name in ``notebooks/``, or its number."""
+    for candidate in (Path(name), NOTEBOOKS_DIR / name, REPO_ROOT / name):
+        if candidate.is_file():
+            return candidate.resolve()
+    matches = sorted(NOTEBOOKS_DIR.glob(f"{name}*.ipynb")) if name else []
+    if len(matches) == 1:
+        return matches[0].resolve()
+    choices = ", ".join(p.name for p in numbered_notebooks())
+    raise SystemExit(f"no notebook {name!r} (here, in notebooks/ or by number); the notebooks are: {choices}")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers reproduce``; exit status 1 names the failing notebook and cell."""
-    notebooks = [Path(n).resolve() for n in args.notebooks] or None
+    notebooks = [resolve_notebook(n) for n in args.notebooks] or None
     try:
         reproduce(notebooks, timeout=args.timeout, jobs=args.jobs)
     except NotebookFailed as exc:

@@ -44,27 +44,45 @@ def to_markdown(table: pd.DataFrame, precision: int = 1) -> str:
     return "\n".join([header, rule, *rows]) + "\n"
 
 
-def save_table(table: pd.DataFrame, stem: str, precision: int = 1, caption: str = "") -> list[Path]:
+def save_table(
+    table: pd.DataFrame,
+    stem: str,
+    precision: int = 1,
+    caption: str = "",
+    *,
+    source: str | None = None,
+    round_csv: bool = False,
+) -> list[Path]:
     """Save ``table`` as ``figures/<stem>.csv``, ``.md`` and ``.tex``.
+
+    Every number is rounded once, from full precision, to the digits shown (never a rounded value rounded
+    again).
 
     Parameters
     ----------
     table : pandas.DataFrame
-        The table.
+        The table, at full precision.
     stem : str
         File name without extension, e.g. ``"table2_metrics"``.
     precision : int
-        Digits after the decimal point in the Markdown and LaTeX versions (the CSV keeps full precision).
+        Digits after the decimal point in the Markdown and LaTeX versions (and in the CSV if ``round_csv``).
     caption : str
         Caption of the LaTeX table (and a first line of the Markdown file when given).
+    source : str, optional
+        Where the numbers come from (e.g. ``"virtual-rig"``): written as the CSV's first column ``source``,
+        so that the file carries its provenance wherever it is copied.
+    round_csv : bool
+        Write the CSV with ``precision`` digits too (a display table); by default it keeps six significant
+        digits.
 
     Returns
     -------
     list of pathlib.Path
         The three files written.
     """
+    csv_table = table if source is None else table.assign(source=source)[["source", *table.columns]]
     csv = figure_path(f"{stem}.csv")
-    table.to_csv(csv, index=False, float_format="%.6g")
+    csv_table.to_csv(csv, index=False, float_format=f"%.{precision}f" if round_csv else "%.6g")
     md = figure_path(f"{stem}.md")
     md.write_text((f"{caption}\n\n" if caption else "") + to_markdown(table, precision))
     tex = figure_path(f"{stem}.tex")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import math
 from typing import Any
 
@@ -36,3 +37,35 @@ def check_time(value: Any, name: str) -> float:
     if not math.isfinite(value) or value < 0:
         raise ValueError(f"{name} must be finite and >= 0 s, got {value!r}")
     return value
+
+
+def arg_number(lo: float, hi: float, kind: type = float, lo_open: bool = False) -> Any:
+    """An argparse ``type`` accepting a finite ``kind`` in ``[lo, hi]`` (``(lo, hi]`` if ``lo_open``).
+
+    The refusal names the accepted range (argparse prints it as a one-line usage error, exit status 2).
+    """
+    def parse(text: str) -> float | int:
+        try:
+            value = kind(text)
+        except ValueError:
+            what = "an integer" if kind is int else "a number"
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        inside = (lo < value if lo_open else lo <= value) and value <= hi
+        if not (math.isfinite(value) and inside):
+            bracket = "(" if lo_open else "["
+            raise argparse.ArgumentTypeError(f"{text} is outside {bracket}{lo:g}, {hi:g}]")
+        return value
+
+    parse.__name__ = kind.__name__  # argparse shows it in "invalid <name> value"
+    return parse
+
+
+class DefaultsHelp(argparse.HelpFormatter):
+    """Help that shows every option's default once: appended unless the help text already states it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        shown = "default" in text.lower()
+        unset = any(action.default is x for x in (None, False, argparse.SUPPRESS))
+        trivial = unset or not action.option_strings
+        return text if shown or trivial else f"{text} (default: %(default)s)"

@@ -46,6 +46,9 @@ class LinearSensor:
     def counts(self, tension):
         return np.clip(np.rint(OFFSET + GAIN * np.asarray(tension, dtype=float)), 0, 1023).astype(np.int64)
 
+    def reseed(self, seed):
+        self.seed = seed  # no noise to seed; remembered so that tests can see it was asked
+
 
 CALIBRATION = {
     "newtons_per_count": 1.0 / GAIN,

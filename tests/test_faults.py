@@ -10,7 +10,7 @@ from helpers.programmes import Dwell, Programme, Segment
 from helpers.rig import BoardDisconnected, BoardReset, BoardTimeout, RunAborted
 
 PROG = Programme((Dwell(100), Segment(1, 40, 1000), Dwell(300), Segment(-1, 40, 1000), Dwell(100)))
-FAULT_AT = 0.3  # device seconds after the ports open: during the hold
+FAULT_AT = 0.8  # device seconds after the ports open: during the hold (after the 0.5 s wait for rest)
 
 CASES = [
     ("daq", "reset_at", BoardReset, "daq board reset"),
@@ -30,7 +30,9 @@ def test_board_fault_aborts_cleanly(tmp_path, board, fault, error, message):
     with pytest.raises(error, match=message) as info:
         rig.run(PROG, path=path, progress=False, silence_timeout=0.5)
     # every sample received before the fault is on disk, in an aborted recording that loads
-    rec = recordings.load(path)
+    assert not path.with_suffix(".csv").exists()  # an aborted run never takes the run's own name
+    assert info.value.saved_path.name.startswith("aborted_aborted_")
+    rec = recordings.load(info.value.saved_path)
     assert rec.status == "aborted" and error.__name__ in rec.meta["abort_reason"]
     assert info.value.recording.meta["status"] == "aborted"
     assert len(rec.frame) == rig.daq.stats.samples > 100
@@ -51,24 +53,39 @@ def test_keyboard_interrupt_mid_run_saves_and_disables(tmp_path):
     rig, world = make_rig()
 
     def interrupt(w):
-        if w.t > 0.25:
+        if w.t > 0.75:
             w.listeners.clear()
             raise KeyboardInterrupt
 
     world.listeners.append(interrupt)
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt) as info:
         rig.run(PROG, path=tmp_path / "ki", progress=False)
-    rec = recordings.load(tmp_path / "ki")
+    rec = recordings.load(info.value.saved_path)
     assert rec.status == "aborted" and "KeyboardInterrupt" in rec.meta["abort_reason"]
     assert world.stepper.received[-2:] == ["ABORT", "EN 0"] and not world.stepper.enabled
     assert not world.daq.streaming
     assert len(rec.frame) == rig.daq.stats.samples > 0
 
 
+def _injected_during_the_run(world):
+    """The DAQ's injected-fault counts from the run's own START on (the wait for rest streams before it)."""
+    before = {}
+    start = world.daq.cmd_START
+
+    def snapshot_start(cmd):
+        before.clear()
+        before.update(world.daq.injected)
+        return start(cmd)
+
+    world.daq.cmd_START = snapshot_start
+    return lambda: {k: v - before.get(k, 0) for k, v in world.daq.injected.items()}
+
+
 def test_transport_faults_are_counted_exactly_and_the_run_completes(tmp_path):
     rig, world = make_rig(daq_options="&drop=0.01&corrupt=0.01&garbage=0.005&seed=3")
+    injected = _injected_during_the_run(world)
     rec = rig.run(PROG, path=tmp_path / "noisy", progress=False)
-    inj = world.daq.injected
+    inj = injected()
     counts = recordings.load(tmp_path / "noisy").meta["counts"]
     assert rec.status == "complete" and inj["dropped"] > 0 and inj["corrupted"] > 0 and inj["garbage"] > 0
     assert counts["dropped"] == inj["dropped"] + inj["corrupted"]  # a corrupted data line loses its seq too
@@ -78,14 +95,40 @@ def test_transport_faults_are_counted_exactly_and_the_run_completes(tmp_path):
 
 def test_overruns_are_counted(tmp_path):
     rig, world = make_rig(daq_options="&overrun_every=50")
+    injected = _injected_during_the_run(world)
     rec = rig.run(PROG, path=tmp_path / "late", progress=False)
-    assert rec.meta["counts"]["overruns"] == world.daq.injected["overrun_periods"] > 0
+    assert rec.meta["counts"]["overruns"] == injected()["overrun_periods"] > 0
     assert rec.meta["counts"]["dropped"] == 0
 
 
 def test_a_stream_of_garbage_aborts_with_a_clear_reason(tmp_path):
     rig, world = make_rig(daq_options="&garbage=1.0&corrupt=0.5")
-    with pytest.raises(RunAborted, match="corrupted lines"):
+    with pytest.raises(RunAborted, match="corrupted lines") as info:
         rig.run(PROG, path=tmp_path / "garbage", progress=False)
-    assert recordings.load(tmp_path / "garbage").status == "aborted"
+    assert recordings.load(info.value.saved_path).status == "aborted"
     assert world.stepper.received[-2:] == ["ABORT", "EN 0"]
+
+
+def test_a_run_that_fails_before_any_sample_saves_an_empty_loadable_recording(tmp_path):
+    rig, world = make_rig(daq_options="&disconnect_at=0.01")
+    with pytest.raises(BoardDisconnected) as info:
+        rig.run(PROG, path=tmp_path / "early", progress=False, silence_timeout=0.5)
+    rec = recordings.load(info.value.saved_path)
+    assert rec.status == "aborted" and len(rec.frame) == 0
+
+
+def test_a_save_that_fails_during_an_abort_is_reported_not_hidden(tmp_path, monkeypatch):
+    from helpers.__main__ import error_line
+    from helpers.recordings import RecordingError
+
+    rig, world = make_rig(stepper_options="&reset_at=0.8")
+
+    def full_disk(*args, **kwargs):
+        raise RecordingError("data/x.csv: could not save (no space left on device)")
+
+    monkeypatch.setattr(recordings, "save", full_disk)
+    with pytest.raises(BoardReset) as info:
+        rig.run(PROG, path=tmp_path / "lost", progress=False)
+    assert info.value.saved_path is None and "no space left" in info.value.save_error
+    line, status = error_line(info.value)
+    assert status == 4 and "could NOT be saved" in line and "no space left" in line and "\n" not in line

@@ -10,12 +10,14 @@ from __future__ import annotations
 import random
 
 import pytest
+from crc_reference import link_hex, xor_hex
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from helpers.protocol import (
     WRAP_US,
     FramingError,
+    LegacyChecksum,
     Overrun,
     Sample,
     StreamParser,
@@ -31,27 +33,53 @@ STREAMS_PER_EXAMPLE = 12
 
 
 def test_checksums_of_the_protocol_examples():
-    # PROTOCOL.md: "PONG daq 1.0.0*53"; "the host may send PING*10"
-    assert frame("PONG daq 1.0.0") == b"PONG daq 1.0.0*53\n"
-    assert frame("PING") == b"PING*10\n"
-    assert checksum("PING") == "10"
+    # PROTOCOL.md: "PONG daq 2.0.0*FD"; "the host may send PING*79"; check value 0x20
+    assert frame("PONG daq 2.0.0") == b"PONG daq 2.0.0*FD\n"
+    assert frame("PING") == b"PING*79\n"
+    assert checksum("PING") == "79" == link_hex("PING")
+    assert checksum(b"123456789") == "20"
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=63))
+def test_checksum_matches_the_bitwise_reference(body):
+    assert checksum(body) == link_hex(body)
 
 
 def test_unframe_accepts_good_and_rejects_bad():
-    assert unframe(b"PONG daq 1.0.0*53") == "PONG daq 1.0.0"
-    assert unframe(b"PONG daq 1.0.0*53\r") == "PONG daq 1.0.0"
+    assert unframe(b"PONG daq 2.0.0*FD") == "PONG daq 2.0.0"
+    assert unframe(b"PONG daq 2.0.0*FD\r") == "PONG daq 2.0.0"
     for bad in (
-        b"PONG daq 1.0.0*54",
-        b"PONG daq 1.0.0*5",
-        b"PONG daq 1.0.0",
-        b"PONG daq 1.0.0*5G",
+        b"PONG daq 2.0.0*FC",
+        b"PONG daq 2.0.0*fd",  # a board sends upper case
+        b"PONG daq 2.0.0*F",
+        b"PONG daq 2.0.0",
+        b"PONG daq 2.0.0*FG",
         b"\xffPONG*00",
         b"A*B*00",
         b"x" * 64,
+        b"D,5002,344403000,620,58*" + link_hex("D,5002,344403000,600,78").encode(),  # 2-bit error XOR misses
     ):
         with pytest.raises(FramingError):
             unframe(bad)
     assert unframe(b"PING", require_checksum=False) == "PING"
+
+
+def test_a_protocol_1_line_is_named_as_such_and_kept_by_the_parser():
+    old = f"PONG daq 1.0.0*{xor_hex('PONG daq 1.0.0')}".encode()
+    assert xor_hex("PONG daq 1.0.0") == "53"  # protocol 1's own example
+    with pytest.raises(LegacyChecksum, match="XOR"):
+        unframe(old)
+    p = StreamParser()
+    rows, msgs = p.feed(frame("D,0,10,1,0") + old + b"\n")
+    assert len(rows) == 1 and msgs == [] and p.stats.corrupted == 1
+    assert p.legacy == "PONG daq 1.0.0"
+    p = StreamParser()  # a 1.x board's answer to a CRC-framed command
+    p.feed(f"ERR CHECKSUM bad checksum*{xor_hex('ERR CHECKSUM bad checksum')}\n".encode())
+    assert p.legacy == "ERR CHECKSUM bad checksum"
+    p = StreamParser()  # an XOR-valid data line is merely corrupted (noise can do that), not a 1.x board
+    p.feed(f"D,0,10,1,0*{xor_hex('D,0,10,1,0')}\n".encode())
+    assert p.legacy is None and p.stats.corrupted == 1
 
 
 def test_frame_refuses_what_cannot_be_sent():
@@ -100,7 +128,22 @@ _INSERTABLE = [x for x in range(256) if x not in (0x0A, 0x0D)]
 
 
 def _corrupt_line(line: bytes, how: str, r: random.Random) -> bytes:
-    """Damage a framed line (without its newline) so that the damage is detectable."""
+    """Damage a framed line (without its newline) so that the damage is detectable.
+
+    A changed byte is a burst of at most 8 bits, which the CRC-8 always detects, and a truncation loses the
+    ``*hh``; an inserted byte is not a burst, and the CRC-8 misses about 1 in 256 of those: such an insertion
+    (judged by the reference CRC, not by the code under test) is drawn again.
+    """
+    if how == "insert":
+        while True:
+            damaged = _corrupt_line_once(line, how, r)
+            body, star, given = damaged.rpartition(b"*")
+            if not (star and given == link_hex(body).encode()):
+                return damaged
+    return _corrupt_line_once(line, how, r)
+
+
+def _corrupt_line_once(line: bytes, how: str, r: random.Random) -> bytes:
     b = bytearray(line)
     if how == "flip":
         i = r.randrange(len(b))
@@ -234,3 +277,23 @@ def test_arbitrary_bytes_never_crash(data, cuts):
 
 def test_total_fuzzed_streams_is_at_least_ten_thousand():
     assert STRUCTURED_EXAMPLES + FUZZ_EXAMPLES * STREAMS_PER_EXAMPLE >= 10_000
+
+
+def test_impossible_step_counts_are_rejected_and_counted():
+    """A bit error that survives the checksum can still describe the impossible: reject and count it."""
+    p = StreamParser(max_step_rate_hz=2000.0)
+    p.steps_range = (0, 78)
+    lines = [
+        frame("D,0,1000,600,10"),
+        frame("D,1,2000,600,11"),  # 1 step in 1 ms: fine
+        frame("D,2,3000,600,58"),  # 47 steps in 1 ms: faster than 2000 steps/s allows
+        frame("D,3,4000,600,12"),
+        frame("D,4,5000,600,99"),  # outside what the programme can reach
+        frame("D,5,6000,600,12"),
+    ]
+    rows, _ = p.feed(b"".join(lines))
+    assert [r[0] for r in rows] == [0, 1, 3, 5]
+    assert p.stats.implausible == 2 and p.stats.dropped == 2 and p.stats.corrupted == 0
+    plain = StreamParser()  # no limits given: nothing is judged
+    rows, _ = plain.feed(b"".join(lines))
+    assert len(rows) == 6 and plain.stats.implausible == 0

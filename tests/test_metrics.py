@@ -344,7 +344,7 @@ def test_scenario_table_needs_scenario_metadata():
     del rec.meta["scenario"]["system"]
     with pytest.raises(ValueError, match="scenario"):
         metrics.scenario_table([rec])
-    with pytest.raises(ValueError, match="no recordings"):
+    with pytest.raises(ValueError, match="no complete recordings"):
         metrics.scenario_table([])
 
 
@@ -404,6 +404,23 @@ def test_scenario_figure_is_written(tmp_path, monkeypatch):
     hw = [fake_recording(200, 20, "zv", 1, 0.3, source="hardware")]
     assert "virtual" not in plots.fig_scenario(hw, (200, 20), 9).axes[0].get_title()
     plt.close("all")
+
+
+def test_aborted_runs_stay_out_of_table_ii_unless_asked():
+    import types
+
+    t = np.arange(0, 12, 1e-3)
+    steps = np.where((t >= 1) & (t < 8), 10, 0)
+    y = 2.0 + 0.5 * steps
+    frame = pd.DataFrame({"t_s": t, "steps": steps, "tension_n": y})
+    sc = {"v_in_mm_s": 200.0, "x_f_mm": 10.0, "system": "unshaped"}
+    good = types.SimpleNamespace(name="good", frame=frame, meta={"status": "complete", "scenario": sc})
+    cut = types.SimpleNamespace(name="cut", frame=frame, meta={"status": "aborted", "scenario": sc})
+    table = metrics.scenario_table([good, cut])
+    assert set(table["n_runs"]) == {1} and table.attrs["skipped"] == ["cut: aborted"]
+    assert set(metrics.scenario_table([good, cut], include_aborted=True)["n_runs"]) == {2}
+    with pytest.raises(ValueError, match="no complete recordings"):
+        metrics.scenario_table([cut])
 
 
 # ---------------------------------------------------------------------------------------------------------

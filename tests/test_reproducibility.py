@@ -104,6 +104,41 @@ def _reproduce_into(folder: Path, names: list[str], monkeypatch) -> Path:
 
 
 def test_figure_writers_produce_identical_bytes_twice(tmp_path, monkeypatch):
+    """The figure writers of the notebooks, called twice into two folders: the same PNG bytes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import helpers.paths
+    from helpers import recordings
+    from helpers.identify import identify_recording
+    from helpers.paths import DATA_DIR
+    from helpers.plotting import identification
+    from helpers.plotting import shapers as shaper_plots
+    from helpers.shapers import paper_tdfs
+
+    rec = recordings.load(DATA_DIR / "identification" / "pulse_v100_x10")
+    result = identify_recording(rec, window=(9.0, 10.0), column="adc")
+    out = {}
+    for run in ("a", "b"):
+        folder = tmp_path / run
+        folder.mkdir()
+        monkeypatch.setattr(helpers.paths, "FIGURES_DIR", folder)
+        identification.fig5_force_response(rec.frame["t_s"], rec.frame["adc"], (9.0, 10.0), save=True)
+        identification.fig6_logdec_fft(result, rec.frame["t_s"], rec.frame["adc"], save=True)
+        zv, zvd = paper_tdfs()
+        shaper_plots.sensitivity_curves([zv, zvd], 25.1, 0.044)
+        plt.close("all")
+        out[run] = {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+    assert len(out["a"]) == 3 and out["a"].keys() == out["b"].keys()
+    for name, data in out["a"].items():
+        assert data[:8] == b"\x89PNG\r\n\x1a\n"
+        assert data == out["b"][name], f"{name} differs between two runs"
+
+
+@pytest.mark.slow
+def test_reproduce_writes_identical_figures_and_notebooks_twice(tmp_path, monkeypatch):
     """Notebook 03 (three figures) executed twice: the same figure bytes and the same notebook bytes."""
     names = ["03_shaper_design.ipynb"]
     first = _reproduce_into(tmp_path / "a", names, monkeypatch)

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 
 import pytest
 from rig_fakes import GAIN, OFFSET, make_world
 
 from helpers import loadcell, record, recordings
+from helpers.paths import DATA_DIR
 from helpers.rig import loadcell as loadcell_recording
 
 
@@ -20,14 +22,13 @@ def _args(*argv):
 
 def test_record_calibration_recovers_the_sensor_line(tmp_path):
     world = make_world()
-    assert (
-        record.run(_args("calibration", "--rig-name", world.name, "--group", str(tmp_path), "--quiet")) == 0
-    )
-    data = json.loads((tmp_path / "calibration.json").read_text())
+    argv = ("calibration", "--rig-name", world.name, "--data-dir", str(tmp_path), "--quiet")
+    assert record.run(_args(*argv)) == 0
+    data = json.loads((tmp_path / "calibration" / "calibration.json").read_text())
     assert data["gain_counts_per_n"] == pytest.approx(GAIN, rel=2e-3)  # 0.5-count rounding of each load
     assert data["offset_counts"] == pytest.approx(OFFSET, abs=0.5)
     assert data["source"] == {"kind": "virtual-rig"}
-    recs = loadcell_recording.load_calibration_recordings(tmp_path)
+    recs = loadcell_recording.load_calibration_recordings(tmp_path / "calibration")
     assert [r.meta["scenario"]["mass_kg"] for r in recs] == list(loadcell_recording.CALIBRATION_MASSES_KG)
     assert all(r.meta["scenario"]["fixture"].startswith("VIRTUAL") for r in recs)
     assert world.load_n is None  # the fixture is removed afterwards
@@ -39,8 +40,10 @@ def test_record_pulse_with_a_shaper(tmp_path):
         "pulse",
         "--rig-name",
         world.name,
-        "--group",
+        "--data-dir",
         str(tmp_path),
+        "--group",
+        "runs",
         "--v-in",
         "200",
         "--x-f",
@@ -55,8 +58,10 @@ def test_record_pulse_with_a_shaper(tmp_path):
         "9",
         "--quiet",
     ]
+    (tmp_path / "calibration").mkdir()
+    shutil.copy(DATA_DIR / "calibration" / "calibration.json", tmp_path / "calibration")
     assert record.run(_args(*argv)) == 0
-    rec = recordings.load(tmp_path / "zvd_v200_x10.csv")
+    rec = recordings.load(tmp_path / "runs" / "zvd_v200_x10.csv")
     sc = rec.meta["scenario"]
     assert sc["system"] == "zvd" and sc["design"]["zeta"] == 0.044 and len(sc["shaper"]["amplitudes"]) == 3
     assert rec.frame["steps"].max() == round(10 / 0.2552544031041707)
@@ -65,3 +70,36 @@ def test_record_pulse_with_a_shaper(tmp_path):
 def test_fit_needs_three_loads():
     with pytest.raises(ValueError, match="three distinct loads"):
         loadcell.fit_calibration([])
+
+
+def _with_calibration(tmp_path):
+    (tmp_path / "calibration").mkdir()
+    shutil.copy(DATA_DIR / "calibration" / "calibration.json", tmp_path / "calibration" / "calibration.json")
+
+
+def test_dry_run_checks_everything_and_opens_no_port(tmp_path, capsys):
+    _with_calibration(tmp_path)
+    argv = ["pulse", "--v-in", "250", "--x-f", "25", "--system", "zvd", "--repetitions", "3",
+            "--group", "mine", "--ports", "/dev/nonexistent-daq,/dev/nonexistent-stepper",
+            "--data-dir", str(tmp_path), "--dry-run"]  # fmt: skip
+    assert record.run(_args(*argv)) == 0
+    out = capsys.readouterr().out
+    assert "3 recording(s) would be made" in out and "nothing was sent" in out
+    for k in (1, 2, 3):
+        assert f"mine/zvd_v250_x25_r{k}.csv: 25 mm at 250 mm/s, zvd (3 impulses), 98 steps per move" in out
+    assert not (tmp_path / "mine").exists()  # nothing written, not even the group folder
+
+
+def test_dry_run_refuses_what_the_real_run_would_refuse(tmp_path):
+    _with_calibration(tmp_path)
+    common = ["--data-dir", str(tmp_path), "--dry-run", "--group", "mine"]
+    with pytest.raises(record.SafetyError, match="travel limit"):
+        record.run(_args("pulse", "--v-in", "400", "--x-f", "40", *common))
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "unshaped_v200_x10.json").write_text("{}")
+    with pytest.raises(recordings.RecordingExists, match="exists"):
+        record.run(_args("pulse", "--v-in", "200", "--x-f", "10", *common))
+    assert record.run(_args("pulse", "--v-in", "200", "--x-f", "10", "--replace", *common)) == 0
+    shutil.rmtree(tmp_path / "calibration")
+    with pytest.raises(record.MissingDataError):
+        record.run(_args("pulse", "--v-in", "200", "--x-f", "10", *common))

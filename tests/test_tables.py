@@ -26,3 +26,14 @@ def test_save_table_writes_three_formats(tmp_path, monkeypatch):
     assert "153.1" in (tmp_path / "t2.md").read_text()
     tex = (tmp_path / "t2.tex").read_text()
     assert "\\caption{Table II}" in tex and "153.1" in tex
+
+
+def test_display_tables_round_once_and_carry_their_source(tmp_path, monkeypatch):
+    monkeypatch.setattr(tables, "figure_path", lambda name: tmp_path / name)
+    # 35.449 rounds to 35.4 (35.45 -> 35.5 only if it were rounded to two digits first); -0.049 to -0.0
+    df = pd.DataFrame({"overshoot_pct": [35.449, 82.25], "peak_n": [-0.049, 9.96]})
+    tables.save_table(df, "d", precision=1, source="virtual-rig", round_csv=True)
+    csv_lines = (tmp_path / "d.csv").read_text().splitlines()
+    assert csv_lines == ["source,overshoot_pct,peak_n", "virtual-rig,35.4,-0.0", "virtual-rig,82.2,10.0"]
+    md = (tmp_path / "d.md").read_text()
+    assert "| 35.4 | -0.0 |" in md and "source" not in md

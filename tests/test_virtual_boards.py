@@ -25,10 +25,10 @@ def talk(board, *commands, checksum=True):
 
 def test_hello_on_reset_and_pong_with_the_documented_checksum():
     w = make_world()
-    assert w.daq.take_output() == frame("HELLO daq 1.0.0")
+    assert w.daq.take_output() == frame("HELLO daq 2.0.0")
     w.daq.receive(b"PING\n")
-    assert w.daq.take_output() == b"PONG daq 1.0.0*53\n"  # the example of PROTOCOL.md
-    assert talk(w.stepper, "PING") == ["HELLO stepper 1.0.0", "PONG stepper 1.0.0"]
+    assert w.daq.take_output() == b"PONG daq 2.0.0*FD\n"  # the example of PROTOCOL.md
+    assert talk(w.stepper, "PING") == ["HELLO stepper 2.0.0", "PONG stepper 2.0.0"]
 
 
 def test_daq_errors_and_limits():
@@ -52,7 +52,7 @@ def test_daq_errors_and_limits():
     assert talk(d, "START") == ["OK START 200"]
     assert talk(d, "RATE 300")[0].startswith("ERR STATE")
     assert talk(d, "START")[0].startswith("ERR STATE")
-    assert talk(d, "PING") == ["PONG daq 1.0.0"]  # allowed while streaming
+    assert talk(d, "PING") == ["PONG daq 2.0.0"]  # allowed while streaming
 
 
 def test_daq_streams_at_its_rate_and_stop_reports_the_count():
@@ -151,7 +151,7 @@ def test_reset_sends_hello_and_forgets_state():
     talk(w.stepper, "CLEAR", "SEG 1 50 1000", "EN 1", "GO")
     w.advance_to(w.t + 0.02)
     msgs = talk(w.stepper)
-    assert msgs[-1] == "HELLO stepper 1.0.0"
+    assert msgs[-1] == "HELLO stepper 2.0.0"
     assert not w.stepper.enabled and not w.stepper.running and w.stepper.position == 0
 
 
@@ -166,7 +166,7 @@ def test_url_handler_same_rig_name_same_world():
     assert d.world is s.world is w
     assert d.read(100).startswith(b"HELLO daq")
     s.write(frame("PING"))
-    assert s.read(100) == frame("HELLO stepper 1.0.0") + frame("PONG stepper 1.0.0")  # reset on open, reply
+    assert s.read(100) == frame("HELLO stepper 2.0.0") + frame("PONG stepper 2.0.0")  # reset on open, reply
     t0 = w.t
     assert s.read(10) == b""  # nothing to come: the read waited its timeout in device time
     assert w.t == pytest.approx(t0 + 0.01)

@@ -1,31 +1,34 @@
-// Line framing, checksums, argument parsing and fast integer formatting (see proto.h).
+// Line framing, CRC-8 checksums, argument parsing and fast integer formatting (see proto.h).
 #include "proto.h"
 
 #include <string.h>
 
 LineEvent LineReader::feed(char c) {
-  if (c == '\r') return LINE_NONE;  // PROTOCOL.md: a '\r' before '\n' is ignored
   if (c == '\n') {
     LineEvent ev = overflow ? LINE_TOOLONG : LINE_READY;
     buf[overflow ? 0 : len] = '\0';
     if (overflow) len = 0;
     overflow = 0;
+    cr = 0;  // PROTOCOL.md: a '\r' just before '\n' is ignored
     return ev;
   }
-  if (overflow) return LINE_NONE;
-  if (len >= PROTO_MAX_LINE) {
-    overflow = 1;  // discard the rest of the line, answer once at its '\n'
-    len = 0;
-    return LINE_NONE;
+  if (cr) {  // the held '\r' was not followed by '\n': it belongs to the line
+    cr = 0;
+    place('\r');
   }
-  buf[len++] = c;
+  if (c == '\r') cr = 1;
+  else place(c);
   return LINE_NONE;
 }
 
-uint8_t proto_xor(const char *s, uint8_t n) {
-  uint8_t x = 0;
-  while (n--) x ^= (uint8_t)*s++;
-  return x;
+void LineReader::place(char c) {
+  if (overflow) return;
+  if (len >= PROTO_MAX_LINE) {
+    overflow = 1;  // discard the rest of the line, answer once at its '\n'
+    len = 0;
+    return;
+  }
+  buf[len++] = c;
 }
 
 static int8_t hexval(char c) {
@@ -58,6 +61,7 @@ ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd) {
   cmd->word = line;
   cmd->nargs = 0;
   cmd->bad = 0;
+  cmd->checked = 0;
   if (len == 0) return PROTO_EMPTY;
   char *star = (char *)memchr(line, '*', len);
   if (star) {
@@ -65,9 +69,10 @@ ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd) {
     if (len != body + 3) return PROTO_CHECKSUM;  // exactly two hex digits must follow '*'
     int8_t hi = hexval(star[1]), lo = hexval(star[2]);
     if (hi < 0 || lo < 0) return PROTO_CHECKSUM;
-    if ((uint8_t)((hi << 4) | lo) != proto_xor(line, body)) return PROTO_CHECKSUM;
+    if ((uint8_t)((hi << 4) | lo) != crc8(line, body)) return PROTO_CHECKSUM;
     *star = '\0';
     len = body;
+    cmd->checked = 1;
     if (len == 0) return PROTO_EMPTY;
   }
   // Split on single spaces: an empty token (double, leading or trailing space) is an ARG error.
@@ -94,7 +99,7 @@ ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd) {
   return PROTO_OK;
 }
 
-bool proto_is(const Command *cmd, const char *w) { return strcmp(cmd->word, w) == 0; }
+bool proto_is(const Command *cmd, const char *w) { return strcmp_P(cmd->word, w) == 0; }
 
 // Decimal conversion by subtracting powers of ten: no 32-bit division (slow on the AVR), at most
 // 9 subtractions per digit.
@@ -119,7 +124,7 @@ void LineWriter::i32(int32_t v) {
 static const char HEX[] = "0123456789ABCDEF";
 
 uint8_t LineWriter::finish() {
-  uint8_t x = proto_xor(buf, len);
+  uint8_t x = crc8(buf, len);
   buf[len++] = '*';
   buf[len++] = HEX[x >> 4];
   buf[len++] = HEX[x & 15];

@@ -1,12 +1,16 @@
 // Line framing, checksums, argument parsing and fast integer formatting shared by both boards.
 //
-// Implements the framing of firmware/PROTOCOL.md: ASCII lines ending in '\n' ('\r' ignored), at most
-// PROTO_MAX_LINE characters, an optional NMEA-style "*hh" suffix (XOR of the bytes before '*').
+// Implements the framing of firmware/PROTOCOL.md: ASCII lines ending in '\n' (a '\r' just before it is
+// ignored), at most PROTO_MAX_LINE characters, an optional "*hh" suffix (the CRC-8 of crc8.h over the bytes
+// before '*', two hex digits).
 // Plain C++ with no Arduino dependency, so the same code can be compiled for the host.
 #ifndef FIRMWARE_COMMON_PROTO_H
 #define FIRMWARE_COMMON_PROTO_H
 
 #include <stdint.h>
+
+#include "crc8.h"
+#include "flash.h"
 
 #define PROTO_MAX_LINE 63   // characters before '\n'
 #define PROTO_MAX_ARGS 3    // the most arguments any command takes (SEG)
@@ -17,19 +21,23 @@ enum LineEvent : uint8_t { LINE_NONE = 0, LINE_READY, LINE_TOOLONG };
 
 // Accumulates received bytes into lines; a line longer than PROTO_MAX_LINE is discarded up to its '\n'
 // and reported once (LINE_TOOLONG) when that '\n' arrives, so every line gets exactly one reply.
+// A '\r' directly before the '\n' is dropped; any other '\r' is part of the line (so a byte corrupted into
+// '\r' is caught by the checksum instead of silently deleting itself).
 struct LineReader {
   char buf[PROTO_MAX_LINE + 1];
   uint8_t len;
   uint8_t overflow;
-  void reset() { len = 0; overflow = 0; }
+  uint8_t cr;  // a '\r' arrived and is held back: dropped if '\n' follows, placed in the line otherwise
+  void reset() { len = 0; overflow = 0; cr = 0; }
   LineEvent feed(char c);
+  void place(char c);
 };
 
 // Error codes of PROTOCOL.md, in the order a command is checked.
 enum ProtoStatus : uint8_t {
   PROTO_OK = 0,
   PROTO_EMPTY,      // blank line: ignored, no reply
-  PROTO_CHECKSUM,   // "*hh" present but wrong or malformed
+  PROTO_CHECKSUM,   // "*hh" present but wrong (CRC-8 mismatch) or malformed
 };
 
 // A parsed command: the command word and up to PROTO_MAX_ARGS integer arguments.
@@ -38,29 +46,36 @@ struct Command {
   const char *word;   // points into the line buffer, NUL-terminated
   uint8_t nargs;      // number of arguments found (may exceed PROTO_MAX_ARGS: then only the first are parsed)
   uint8_t bad;        // an argument is not a decimal integer, or an empty token (double/trailing space)
+  uint8_t checked;    // the line carried a "*hh" checksum, and it was right
   int32_t arg[PROTO_MAX_ARGS];
 };
 
 // True when the command has exactly n well-formed integer arguments (otherwise the reply is ERR ARG).
 inline bool proto_args_ok(const Command *cmd, uint8_t n) { return !cmd->bad && cmd->nargs == n; }
 
-// XOR of n bytes.
-uint8_t proto_xor(const char *s, uint8_t n);
+// PROTOCOL.md's order of errors puts CHECKSUM first: a command that must carry "*hh" and does not is refused
+// before anything else is looked at.
+inline bool proto_checksum_missing(const Command *cmd) { return !cmd->checked; }
+
 
 // Verifies and strips an optional checksum, splits the words and parses the integer arguments.
 // Modifies `line` in place (NUL-terminates the words). `len` is strlen(line).
 ProtoStatus proto_parse(char *line, uint8_t len, Command *cmd);
 
-// True when the command word equals `w`.
+// True when the command word equals `w`, a string in flash (PSTR("...")).
 bool proto_is(const Command *cmd, const char *w);
 
-// Builds one outgoing line and appends "*hh\n".
+// Builds one outgoing line and appends "*hh\n" (the CRC-8 of the line, upper-case hex).
 struct LineWriter {
   char buf[PROTO_OUT_MAX];
   uint8_t len;
   void begin() { len = 0; }
   void put(char c) { if (len < PROTO_OUT_MAX - 4) buf[len++] = c; }
   void str(const char *s) { while (*s) put(*s++); }
+  // Appends a string kept in flash (PSTR("...")).
+  void str_P(const char *s) {
+    for (char c; (c = (char)pgm_read_byte(s)) != 0; s++) put(c);
+  }
   void u32(uint32_t v);
   void i32(int32_t v);
   // Appends "*hh\n"; returns the total length.

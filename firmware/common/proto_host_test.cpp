@@ -4,6 +4,7 @@
 //   P <hex bytes>   proto_parse of the line: "<status> <word> <nargs> <bad> <arg0> <arg1> <arg2>"
 //   U <decimal>     LineWriter u32 + finish: the line without its '\n'
 //   I <decimal>     LineWriter i32 + finish
+//   C <hex bytes>   crc8 of the bytes: two upper-case hex digits
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -54,6 +55,9 @@ int main() {
       printf(" %u %u", cmd.nargs, cmd.bad);
       for (int i = 0; i < PROTO_MAX_ARGS; i++) printf(" %ld", (long)(i < cmd.nargs && !cmd.bad ? cmd.arg[i] : 0));
       printf("\n");
+    } else if (line[0] == 'C') {
+      size_t n = unhex(line + 2, bytes, 255);
+      printf("%02X\n", crc8(bytes, (uint8_t)n));
     } else if (line[0] == 'U' || line[0] == 'I') {
       LineWriter w;
       w.begin();

@@ -17,8 +17,9 @@
 #include <avr/io.h>
 
 #include "proto.h"
+#include "reply.h"
 
-#define FW_VERSION "1.0.0"
+#define FW_VERSION "2.0.0"
 
 static const uint16_t RATE_MIN_HZ = 100;
 static const uint16_t RATE_MAX_HZ = 2000;
@@ -83,31 +84,10 @@ ISR(ADC_vect) {
 // ---------------------------------------------------------------------------------------------------------
 // Output
 
-static LineWriter out;
-
 // Blocking send, for replies (the sampler keeps running in its ISRs meanwhile).
-static void send_line() {
-  uint8_t n = out.finish();
-  Serial.write((const uint8_t *)out.buf, n);
-}
+static void serial_write(const uint8_t *buf, uint8_t n) { Serial.write(buf, n); }
 
-static void reply_err(const char *code, const char *text) {
-  out.begin();
-  out.str("ERR ");
-  out.str(code);
-  out.put(' ');
-  out.str(text);
-  send_line();
-}
-
-static void reply_ok_u32(const char *what, uint32_t v) {
-  out.begin();
-  out.str("OK ");
-  out.str(what);
-  out.put(' ');
-  out.u32(v);
-  send_line();
-}
+static Reply out = {{}, serial_write};
 
 // The next stream line, formatted once and kept until the TX buffer has room for all of it.
 static LineWriter pending;
@@ -123,11 +103,11 @@ static void service_stream() {
     volatile Sample &s = ring[ring_tail];
     pending.begin();
     if (s.missed_before) {
-      pending.str("W,OVERRUN,");
+      pending.str_P(PSTR("W,OVERRUN,"));
       pending.u32(s.missed_before);
       pending_is_data = 0;
     } else {
-      pending.str("D,");
+      pending.str_P(PSTR("D,"));
       pending.u32(n_sent);
       pending.put(',');
       pending.u32(s.t_us);
@@ -189,9 +169,9 @@ static void sampler_stop() {
   sei();
   if (m) {  // periods missed after the last sample taken: still reported, never dropped
     out.begin();
-    out.str("W,OVERRUN,");
-    out.u32(m);
-    send_line();
+    out.line.str_P(PSTR("W,OVERRUN,"));
+    out.line.u32(m);
+    out.send();
   }
   streaming = 0;
 }
@@ -200,41 +180,37 @@ static void sampler_stop() {
 // Commands
 
 static void handle(Command *cmd) {
-  if (proto_is(cmd, "PING")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "PING takes no argument");
-    out.begin();
-    out.str("PONG daq " FW_VERSION);
-    send_line();
-  } else if (proto_is(cmd, "RATE")) {
-    if (!proto_args_ok(cmd, 1)) return reply_err("ARG", "RATE needs 1 integer");
-    if (streaming) return reply_err("STATE", "streaming");
+  if (proto_is(cmd, PSTR("PING"))) {
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("PING takes no argument"));
+    out.text(PSTR("PONG daq " FW_VERSION));
+  } else if (proto_is(cmd, PSTR("RATE"))) {
+    if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("RATE needs 1 integer"));
+    if (streaming) return out.err(PSTR("STATE"), PSTR("streaming"));
     int32_t hz = cmd->arg[0];
-    if (hz < RATE_MIN_HZ || hz > RATE_MAX_HZ) return reply_err("RANGE", "rate 100-2000 Hz");
+    if (hz < RATE_MIN_HZ || hz > RATE_MAX_HZ) return out.err(PSTR("RANGE"), PSTR("rate 100-2000 Hz"));
     rate_hz = (uint16_t)hz;
-    reply_ok_u32("RATE", rate_hz);
-  } else if (proto_is(cmd, "ZERO")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "ZERO takes no argument");
+    out.word_u32(PSTR("OK RATE"), rate_hz);
+  } else if (proto_is(cmd, PSTR("ZERO"))) {
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("ZERO takes no argument"));
     cli();
     step_count = 0;
     sei();
-    out.begin();
-    out.str("OK ZERO");
-    send_line();
-  } else if (proto_is(cmd, "START")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "START takes no argument");
-    if (streaming) return reply_err("STATE", "streaming");
-    reply_ok_u32("START", rate_hz);  // queued before the first data line
+    out.text(PSTR("OK ZERO"));
+  } else if (proto_is(cmd, PSTR("START"))) {
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("START takes no argument"));
+    if (streaming) return out.err(PSTR("STATE"), PSTR("streaming"));
+    out.word_u32(PSTR("OK START"), rate_hz);  // queued before the first data line
     sampler_start();
-  } else if (proto_is(cmd, "STOP")) {
-    if (!proto_args_ok(cmd, 0)) return reply_err("ARG", "STOP takes no argument");
+  } else if (proto_is(cmd, PSTR("STOP"))) {
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("STOP takes no argument"));
     uint32_t n = 0;
     if (streaming) {
       sampler_stop();
       n = n_sent;
     }
-    reply_ok_u32("STOP", n);
+    out.word_u32(PSTR("OK STOP"), n);
   } else {
-    reply_err("UNKNOWN", "command");
+    out.err(PSTR("UNKNOWN"), PSTR("command"));
   }
 }
 
@@ -246,11 +222,11 @@ static void service_rx() {
     LineEvent ev = reader.feed((char)Serial.read());
     if (ev == LINE_NONE) continue;
     if (ev == LINE_TOOLONG) {
-      reply_err("TOOLONG", "line over 63 characters");
+      out.err(PSTR("TOOLONG"), PSTR("line over 63 characters"));
     } else {
       Command cmd;
       ProtoStatus st = proto_parse(reader.buf, reader.len, &cmd);
-      if (st == PROTO_CHECKSUM) reply_err("CHECKSUM", "bad checksum");
+      if (st == PROTO_CHECKSUM) out.err(PSTR("CHECKSUM"), PSTR("bad checksum"));
       else if (st == PROTO_OK) handle(&cmd);
     }
     reader.reset();
@@ -271,9 +247,7 @@ void setup() {
   EICRB = (EICRB & ~(_BV(ISC41) | _BV(ISC40))) | _BV(ISC41) | _BV(ISC40);
   EIFR = _BV(INTF4);
   EIMSK |= _BV(INT4);
-  out.begin();
-  out.str("HELLO daq " FW_VERSION);
-  send_line();
+  out.text(PSTR("HELLO daq " FW_VERSION));
 }
 
 void loop() {

@@ -1,9 +1,10 @@
 """Emulated DAQ and stepper boards: Python objects that behave exactly as the firmware does on the protocol.
 
 The boards follow ``firmware/PROTOCOL.md``: the same replies, error codes, limits (:mod:`helpers.hardware`),
-``HELLO`` on reset, ``W,OVERRUN`` reporting and version (:data:`helpers.protocol.FW_VERSION`). They live in a
-:class:`helpers.emulator.world.VirtualWorld`, which owns the device clock and the plant; a board sees the
-world only through the attributes it reads (``t``, ``seed``, ``t0_us``, ``go_times``).
+``HELLO`` on reset, ``W,OVERRUN`` reporting, CRC-8 checksums and version
+(:data:`helpers.protocol.FW_VERSION`). They live in a :class:`helpers.emulator.world.VirtualWorld`, which owns
+the device clock and the plant; a board sees the world only through the attributes it reads (``t``, ``seed``,
+``t0_us``, ``go_times``).
 
 Fault injection (per board, for tests): ``drop`` / ``corrupt`` / ``garbage`` probabilities per data line,
 ``reset_at`` (the board reboots and sends ``HELLO``), ``hang_at`` (the board stops answering),
@@ -46,6 +47,10 @@ class Sensor(Protocol):
 
     def counts(self, tension: np.ndarray) -> np.ndarray:
         """Return 10-bit ADC counts for tensions in N."""
+        ...
+
+    def reseed(self, seed: int) -> None:
+        """Restart the noise from ``seed``."""
         ...
 
 
@@ -113,10 +118,13 @@ class EmulatedBoard:
         """Every command line the board accepted (checksum stripped), for tests and diagnostics."""
         self._inbuf = bytearray()
         self._overflow = False
+        self._cr = False
         self.hung = False
         self.disconnected = False
         self.resets = 0
         self._rng = np.random.default_rng(world.seed + (1 if self.kind == "daq" else 2))
+        self.port: Any = None
+        """The pyserial port that has this board open (one at a time), or None."""
 
     # --- output -------------------------------------------------------------------------------------
     def send(self, body: str) -> None:
@@ -154,7 +162,12 @@ class EmulatedBoard:
         if self.hung:
             return
         for c in data:
+            if self._cr:  # a held '\r' not followed by '\n' is part of the line (as the firmware)
+                self._cr = False
+                if c != 0x0A:
+                    self._place(0x0D)
             if c == 0x0D:
+                self._cr = True
                 continue
             if c == 0x0A:
                 if self._overflow:
@@ -166,13 +179,16 @@ class EmulatedBoard:
                     self._inbuf.clear()
                     self._line(line)
                 continue
-            if self._overflow:
-                continue
-            if len(self._inbuf) >= MAX_LINE:
-                self._overflow = True
-                self._inbuf.clear()
-                continue
-            self._inbuf.append(c)
+            self._place(c)
+
+    def _place(self, c: int) -> None:
+        if self._overflow:
+            return
+        if len(self._inbuf) >= MAX_LINE:
+            self._overflow = True
+            self._inbuf.clear()
+            return
+        self._inbuf.append(c)
 
     def _parse(self, line: bytes) -> _Command | str | None:
         """Return a command, an error reply body, or None for a blank line (as ``proto_parse``)."""
@@ -239,6 +255,7 @@ class EmulatedBoard:
         self.resets += 1
         self._inbuf.clear()
         self._overflow = False
+        self._cr = False
         self.hung = False
         self.send(f"HELLO {self.kind} {FW_VERSION}")
 

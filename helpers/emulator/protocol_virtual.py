@@ -53,7 +53,12 @@ class Serial(SerialBase):
         self.world = get_world(
             options.get("rig", "default"), {k: options[k] for k in _WORLD_OPTIONS if k in options}
         )
-        self.board = self.world.daq if kind == "daq" else self.world.stepper
+        board = self.world.daq if kind == "daq" else self.world.stepper
+        holder = getattr(board, "port", None)
+        if holder is not None and holder is not self and holder.is_open:
+            raise SerialException(f"port busy: virtual://{kind}?rig={self.world.name} is open elsewhere")
+        board.port = self
+        self.board = board
         faults = {k: options[k] for k in _FAULT_OPTIONS if k in options}
         if faults:
             self.board.faults = Faults.from_options(faults)
@@ -86,6 +91,8 @@ class Serial(SerialBase):
         """Close the port (the world and the board keep running)."""
         self.is_open = False
         self._rx.clear()
+        if self.board is not None and getattr(self.board, "port", None) is self:
+            self.board.port = None
 
     def _reconfigure_port(self) -> None:
         pass

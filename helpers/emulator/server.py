@@ -24,8 +24,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import select
-import signal
 import sys
 import threading
 import time
@@ -38,6 +38,7 @@ from typing import Any
 from helpers.emulator.boards import EmulatedBoard, Faults
 from helpers.emulator.world import VirtualWorld, default_world
 from helpers.paths import VIRTUAL_RIG_REGISTRY
+from helpers.validate import DefaultsHelp, arg_number
 
 
 class _PtyPort:
@@ -191,43 +192,50 @@ def serve(
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the ``serve-virtual-rig`` options."""
+    """Add the ``serve-virtual-rig`` options (every range refused up front)."""
+    parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "--speed",
-        type=float,
+        type=arg_number(0, 1000),
         default=1.0,
-        help="device seconds per wall second (1 = real time; 0 = as fast as the reader reads)",
+        help="device seconds per wall second, 0-1000 (1 = real time; 0 = as fast as the reader reads)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
-    parser.add_argument("--rig-name", default="pty", help="name of the virtual rig (provenance)")
+    parser.add_argument("--seed", type=arg_number(0, 2**32 - 1, int), default=0, help="sensor noise seed")
+    parser.add_argument("--rig-name", default="pty", type=_rig_name, help="virtual rig's name (provenance)")
     parser.add_argument(
         "--load-n",
-        type=float,
+        type=arg_number(0, 1000),
         default=None,
         help="VIRTUAL calibration fixture: a known load (N) hung on the load cell",
     )
     parser.add_argument("--daq-faults", default="", help="fault options for the DAQ board, e.g. 'drop=0.01'")
     parser.add_argument("--stepper-faults", default="", help="fault options for the stepper board")
-    parser.add_argument("--duration", type=float, default=None, help="stop after this many wall seconds")
+    parser.add_argument(
+        "--duration", type=arg_number(0, 1e7, lo_open=True), default=None, help="stop after so many wall s"
+    )
+
+
+def _rig_name(text: str) -> str:
+    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", text):
+        raise argparse.ArgumentTypeError(f"invalid rig name {text!r}: letters, digits, '_', '-', '.'")
+    return text
 
 
 def _faults(text: str) -> Faults:
-    return Faults.from_options(dict(urllib.parse.parse_qsl(text.replace(",", "&"))))
+    try:
+        return Faults.from_options(dict(urllib.parse.parse_qsl(text.replace(",", "&"))))
+    except (TypeError, ValueError) as exc:
+        raise SystemExit(f"invalid fault options {text!r}: {exc}") from None
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the server until Ctrl-C / SIGTERM."""
+    """Run the server until Ctrl-C, SIGTERM or SIGHUP (``python -m helpers`` turns them into an interrupt)."""
     options = {"seed": str(args.seed)}
     if args.load_n is not None:
         options["load_n"] = str(args.load_n)
     world = default_world(args.rig_name, options)
     world.daq.faults = _faults(args.daq_faults)
     world.stepper.faults = _faults(args.stepper_faults)
-
-    def _term(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGTERM, _term)
     try:
         dropped = serve(world, speed=args.speed, duration=args.duration)
     except KeyboardInterrupt:

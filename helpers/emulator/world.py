@@ -83,6 +83,10 @@ class VirtualWorld:
             raise ValueError(f"calibration load must be a finite non-negative force in N, got {load_n}")
         self.load_n = None if load_n is None else float(load_n)
 
+    def reseed(self, seed: int) -> None:
+        """Restart the sensor's noise from ``seed`` (the rig does so before each run given a seed)."""
+        self.sensor.reseed(seed)
+
     # --- time ---------------------------------------------------------------------------------------
     def _fault_times(self) -> list[tuple[float, EmulatedBoard, str]]:
         out = []

@@ -232,6 +232,14 @@ def fig12(
     for ax in (ax_up, ax_down):
         ax.set_xlabel("time (s)")
     ax_down.tick_params(labelleft=False)
+    lowest = min(float(np.min(response.tension[name])) for name in paper.SYSTEMS)
+    if lowest < 0.0:  # the linear model has no slack: say where it stops being physical
+        for ax in (ax_all, ax_up, ax_down):
+            ax.axhspan(lowest * 1.1, 0.0, color="0.85", zorder=0)
+        ax_all.text(
+            0.99, 0.04, f"below 0 N (to {lowest:.1f} N): the linear model pushes; a real cable goes slack",
+            transform=ax_all.transAxes, ha="right", va="bottom", fontsize=7.5, color="0.25",
+        )  # fmt: skip
     fig.suptitle(
         f"Fig. 12 (model, eqs. 11-12): velocity pulse {response.v_in_mm_s:.0f} mm/s, "
         f"{response.x_f_mm:.0f} mm, without and with input shaping",

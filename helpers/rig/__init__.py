@@ -18,6 +18,8 @@ from helpers.rig.boards import (
     BoardReset,
     BoardTimeout,
     CommandRefused,
+    OldFirmware,
+    PortBusy,
 )
 from helpers.rig.daq import DaqBoard
 from helpers.rig.experiment import Rig, RunAborted
@@ -31,6 +33,8 @@ __all__ = [
     "BoardTimeout",
     "CommandRefused",
     "DaqBoard",
+    "OldFirmware",
+    "PortBusy",
     "Rig",
     "RunAborted",
     "SafetyError",

@@ -17,8 +17,9 @@ from collections import deque
 
 import serial
 
-from helpers.protocol import StreamParser, frame
+from helpers.protocol import PROTOCOL_MAJOR, StreamParser, frame
 from helpers.rig.ports import open_port
+from helpers.signals import signals_held
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
 
@@ -35,8 +36,16 @@ class BoardReset(BoardError):
     """A board sent ``HELLO`` unexpectedly: it rebooted (power glitch, USB reset, watchdog)."""
 
 
+class OldFirmware(BoardError):
+    """The board runs firmware of another protocol MAJOR version (1.x: XOR checksums): flash this one."""
+
+
 class BoardDisconnected(BoardError):
     """The serial port vanished (pyserial raised ``SerialException``)."""
+
+
+class PortBusy(BoardError):
+    """The port is open in another program (ports are opened exclusively)."""
 
 
 class CommandRefused(BoardError):
@@ -45,6 +54,15 @@ class CommandRefused(BoardError):
     def __init__(self, message: str, code: str) -> None:
         super().__init__(message)
         self.code = code
+
+
+def _check_major(kind: str, version: str) -> None:
+    """Raise :class:`OldFirmware` unless ``version`` is of the protocol MAJOR this host speaks."""
+    if version.split(".")[0] != str(PROTOCOL_MAJOR):
+        raise OldFirmware(
+            f"the {kind} board runs firmware {version}; this host speaks protocol {PROTOCOL_MAJOR} "
+            f"(firmware {PROTOCOL_MAJOR}.x, CRC-8 checksums): flash the firmware of this repository"
+        )
 
 
 def _expected_reply(command: str) -> str:
@@ -103,6 +121,8 @@ class BoardLink:
         self.hello_seen = 0
         self.version: str | None = None
         self.sent: list[str] = []
+        self.booted_on_open = False
+        """True when the board rebooted as its port opened (``HELLO``): its state (position too) is new."""
 
     @classmethod
     def open(
@@ -135,6 +155,11 @@ class BoardLink:
         try:
             port = open_port(url, baudrate=cls.baudrate, timeout=read_timeout, write_timeout=timeout)
         except serial.SerialException as exc:
+            if "exclusive" in str(exc) or "busy" in str(exc):
+                raise PortBusy(
+                    f"port busy: the {cls.kind} board at {url} is open in another program (another recorder, "
+                    "notebook or serve-virtual-rig client); close it first"
+                ) from exc
             raise BoardDisconnected(f"cannot open the {cls.kind} board at {url}: {exc}") from exc
         link = cls(port, timeout=timeout)
         if sync:
@@ -171,9 +196,16 @@ class BoardLink:
             raise self._fail_disconnected(exc) from exc
         if not data:
             return 0
-        rows, messages = self.parser.feed(data)
-        if rows:
-            self.rows.extend(rows)
+        with signals_held():  # the parser's counts and the kept rows change together, or not at all
+            rows, messages = self.parser.feed(data)
+            if rows:
+                self.rows.extend(rows)
+        if self.parser.legacy is not None:
+            raise OldFirmware(
+                f"the board on {self.port.port} runs firmware 1.x (protocol 1, XOR checksums; it sent "
+                f"{self.parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
+                f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
+            )
         for msg in messages:
             self._message(msg)
         return len(data)
@@ -256,6 +288,7 @@ class BoardLink:
                     if len(words) != 3 or words[1] != self.kind:
                         raise BoardError(f"expected a {self.kind} board on {self.port.port}, got {reply!r}")
                     self.version = words[2]
+                    _check_major(self.kind, words[2])
                     break
             else:
                 if wait.expired:
@@ -272,6 +305,7 @@ class BoardLink:
             break
         if self.hello_seen:
             self.hello_seen = 0
+            self.booted_on_open = True
             self.version = self.ping()
         self.replies.clear()
         self.rows.clear()
@@ -286,6 +320,7 @@ class BoardLink:
                 f"expected 'PONG {self.kind} <version>' from the {self.kind} board, got {reply!r}"
             )
         self.version = words[2]
+        _check_major(self.kind, words[2])
         return words[2]
 
     def close(self) -> None:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from helpers.hardware import DAQ_BAUD, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
-from helpers.protocol import StreamStats
+from helpers.hardware import DAQ_BAUD, DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_STEP_RATE_HZ
+from helpers.protocol import StreamParser, StreamStats
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
 
 RATE_MIN_HZ, RATE_MAX_HZ = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ
@@ -25,8 +25,13 @@ class DaqBoard(BoardLink):
 
     def __init__(self, port, timeout: float = 2.0) -> None:
         super().__init__(port, timeout)
-        self.rate_hz = 1000
+        self.parser = StreamParser(max_step_rate_hz=MAX_STEP_RATE_HZ)
+        self.rate_hz = DAQ_RATE_DEFAULT_HZ
         self.streaming = False
+
+    def expect_steps(self, lo: int, hi: int) -> None:
+        """Reject (and count as implausible) step counts outside ``lo..hi`` until the next :meth:`start`."""
+        self.parser.steps_range = (int(lo), int(hi))
 
     @property
     def stats(self) -> StreamStats:
@@ -50,6 +55,7 @@ class DaqBoard(BoardLink):
         self.rows.clear()
         self.parser.restart()
         self.parser.stats = StreamStats()
+        self.parser.steps_range = None
         reply = self.command("START")
         self.streaming = True
         words = reply.split()

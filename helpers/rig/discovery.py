@@ -30,7 +30,7 @@ from typing import Any
 from serial.tools import list_ports
 
 from helpers.paths import VIRTUAL_RIG_REGISTRY
-from helpers.rig.boards import BoardError
+from helpers.rig.boards import BoardError, OldFirmware
 from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard
 
@@ -86,6 +86,8 @@ def identify(device: str, hello_timeout: float = 3.0) -> str | None:
     for cls in (DaqBoard, StepperBoard):
         try:
             link = cls.open(device, hello_timeout=hello_timeout)
+        except OldFirmware:
+            raise  # a board of ours with old firmware: say so rather than "not found"
         except BoardError:
             continue
         link.close()

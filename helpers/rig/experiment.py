@@ -6,11 +6,19 @@ zeroes and starts the DAQ, enables the driver and sends ``GO``; then it reads DA
 has passed the programme's end (``GO``'s device time + duration + a margin) and ``DONE`` has arrived. It never
 times anything with sleeps, which is also what lets the in-process virtual rig run faster than real time.
 
-Every run sits in a guard: on any exception (``KeyboardInterrupt`` included) the stepper is sent ``ABORT`` and
-``EN 0`` and the DAQ ``STOP``, and what was recorded is saved marked ``aborted`` with the reason; the
-exception is then re-raised with the saved :class:`helpers.recordings.Recording` attached as
-``exc.recording``. Requests outside the safety limits raise :class:`helpers.rig.safety.SafetyError` before
-any byte is sent.
+Every run starts at rest: before ``GO`` the host streams the tension until its standard deviation over
+``REST_WINDOW_S`` is within ``REST_FACTOR`` times the sensor's white noise (or refuses after a timeout), on
+hardware and on the virtual rig alike, and the start position is recorded. A pulse experiment must start
+at cable position 0 (``python -m helpers home`` brings it there).
+
+Every run sits in a guard: on any exception (``KeyboardInterrupt``, and SIGTERM/SIGHUP turned into one by
+:mod:`helpers.signals`, included) the stepper is sent ``ABORT`` and ``EN 0`` and the DAQ ``STOP``, and what
+was recorded is saved marked ``aborted``, under a name of its own (``<name>_aborted_<UTC>``), with the
+reason; signals are held while that cleanup and save run. The exception is then re-raised carrying
+``exc.recording`` (the saved recording, or None if it could not be saved), ``exc.saved_path`` and
+``exc.cleanup`` (the problems the cleanup met; empty when it reached both boards). A complete run never
+overwrites a recording unless asked (``replace=True``). Requests outside the safety limits raise
+:class:`helpers.rig.safety.SafetyError` before any byte is sent.
 """
 
 from __future__ import annotations
@@ -18,35 +26,62 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
+import re
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tqdm import tqdm
+import numpy as np
+from tqdm.auto import tqdm
 
 from helpers import __version__ as HELPERS_VERSION
 from helpers import paper, recordings
 from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_PROGRAMME_S
 from helpers.loadcell import LoadCellCalibration, load_calibration
+from helpers.noise import white_noise_std
 from helpers.paths import DATA_DIR
 from helpers.programmes import Programme, experiment_programme
-from helpers.recordings import Recording
+from helpers.recordings import Recording, RecordingError, refuse_existing
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
 from helpers.rig.daq import DaqBoard
 from helpers.rig.discovery import find_rig_ports, virtual_source_for
 from helpers.rig.safety import SafetyError, check_programme, check_request
 from helpers.rig.stepper import StepperBoard
+from helpers.signals import signals_held
 
 
 class RunAborted(BoardError):
     """The run was stopped because its data were unusable (e.g. mostly corrupted lines)."""
 
 
+class NotAtRest(BoardError):
+    """The tension did not settle before a run (the arm still moves, or the sensor drifts)."""
+
+
+class NotAtZero(SafetyError):
+    """A pulse experiment was asked for while the cable is not at position 0."""
+
+
+REST_WINDOW_S = 0.5
+"""Span (s) over which the tension must be steady before a run."""
+
+REST_FACTOR = 2.0
+"""Steady: standard deviation over the window <= this factor x the white-noise level (and >= 0.5 count)."""
+
+REST_TIMEOUT_S = 30.0
+"""Longest wait (device s) for the tension to become steady."""
+
+
 @dataclass
 class _RunState:
-    rows: list[tuple[int, int, int, int]] = field(default_factory=list)
+    """What a run knows about itself besides its samples.
+
+    The samples are the DAQ driver's ``rows`` since the run's ``START``, kept there and never moved, so that
+    an interrupt cannot lose a chunk on its way from one list to another.
+    """
+
     t_go_us: int | None = None
     go_sent: bool = False
     started_utc: str = ""
@@ -167,6 +202,10 @@ class Rig:
         Rig
         """
         if ports == "virtual":
+            if not (isinstance(rig_name, str) and re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", rig_name)):
+                raise ValueError(
+                    f"invalid virtual rig name {rig_name!r}: letters, digits, '_', '-', '.' (at most 64)"
+                )
             daq_url = f"virtual://daq?rig={rig_name}{daq_options}"
             stepper_url = f"virtual://stepper?rig={rig_name}{stepper_options}"
         elif ports == "auto":
@@ -227,6 +266,7 @@ class Rig:
         repetition: int = 1,
         t_end_s: float = 12.0,
         scenario_extra: dict[str, Any] | None = None,
+        allow_offset: bool = False,
         **kwargs: Any,
     ) -> Recording:
         """Check a pulse request, build its programme (:func:`~helpers.programmes.experiment_programme`), run.
@@ -250,10 +290,16 @@ class Rig:
             Programme end (s from ``GO``); the recording lasts that long.
         scenario_extra : dict, optional
             More scenario metadata (e.g. the identified mode the shaper was designed from).
+        allow_offset : bool
+            Run even if the cable is not at position 0 (the paper's experiments start from the down position).
         **kwargs
-            Passed to :meth:`run`.
+            Passed to :meth:`run` (``path``, ``replace``, ``noise_seed``, ``rate_hz``, ...).
         """
         v, x = check_request(v_in_mm_s, x_f_mm)
+        ok = isinstance(t_end_s, int | float) and math.isfinite(t_end_s) and 0 < t_end_s <= MAX_PROGRAMME_S
+        if not ok:
+            limit = f"(0, {MAX_PROGRAMME_S:.0f}] s"
+            raise SafetyError(f"programme length: t_end {t_end_s!r} s is outside {limit}")
         t_up, t_down = paper.PULSE_T_UP_S, paper.PULSE_T_DOWN_S
         try:
             programme, report = experiment_programme(v, x, shaper, t_up=t_up, t_down=t_down, t_end=t_end_s)
@@ -278,7 +324,7 @@ class Rig:
             "quantisation": report.to_dict(),
             **(scenario_extra or {}),
         }
-        return self.run(programme, scenario=scenario, path=path, **kwargs)
+        return self.run(programme, scenario=scenario, path=path, require_zero=not allow_offset, **kwargs)
 
     def run(
         self,
@@ -291,13 +337,18 @@ class Rig:
         silence_timeout: float = 2.0,
         progress: bool = True,
         max_corrupted_fraction: float = 0.05,
+        replace: bool = False,
+        noise_seed: int | None = None,
+        rest_timeout_s: float = REST_TIMEOUT_S,
+        require_zero: bool = False,
     ) -> Recording:
         """Run one programme as one board-timed experiment and return (and save) its recording.
 
         The steps: check the programme against the limits from the cable's present position
-        (:meth:`_checked_start_position`), load it and start the DAQ (:meth:`_load_and_go`), stream samples
-        until the programme's end has passed and ``DONE`` has arrived (:meth:`_stream_until_done`), then stop
-        the DAQ and disable the driver. All of it inside the guard (:meth:`_guarded`).
+        (:meth:`_checked_start_position`), wait until the tension is at rest (:meth:`wait_for_rest`), load
+        the programme and start the DAQ (:meth:`_load_and_go`), stream samples until the programme's end has
+        passed and ``DONE`` has arrived (:meth:`_stream_until_done`), then stop the DAQ and disable the
+        driver. All of it inside the guard (:meth:`_guarded`).
 
         Parameters
         ----------
@@ -320,6 +371,15 @@ class Rig:
             Show a tqdm bar of device time.
         max_corrupted_fraction : float
             Abort when more than this fraction of lines (and more than 50) are corrupted.
+        replace : bool
+            Replace a recording of the same name (kept until the new one is complete); otherwise an
+            existing name is refused before anything moves.
+        noise_seed : int, optional
+            In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
+        rest_timeout_s : float
+            Longest wait for the tension to come to rest before the run (device s).
+        require_zero : bool
+            Refuse unless the cable is at position 0.
 
         Returns
         -------
@@ -329,10 +389,22 @@ class Rig:
         _check_rate(rate_hz)
         scenario = dict(scenario or {"kind": "programme"})
         scenario.setdefault("programme", programme.to_dict())
+        target = self._target(path)
+        refuse_existing(target, replace)
         position = self._checked_start_position(programme)
+        if require_zero and position != 0:
+            raise NotAtZero(
+                f"the cable is at {position} steps, not at 0 (the paper's experiments start from the down "
+                "position): run `python -m helpers home` first"
+            )
+        scenario["start_position_steps"] = position
+        self._seed_noise(noise_seed, scenario)
+        positions = np.concatenate([[0], np.cumsum(programme.step_times()[1].astype(np.int64))])
 
         def body(state: _RunState) -> None:
-            self._load_and_go(programme, position, rate_hz, state)
+            scenario["rest"] = self.wait_for_rest(rate_hz, rest_timeout_s)
+            reach = (int(positions.min()), int(positions.max()))
+            self._load_and_go(programme, position, rate_hz, state, reach)
             bar = _DeviceTimeBar(programme.duration_s + margin_s, progress)
             try:
                 self._stream_until_done(
@@ -342,10 +414,75 @@ class Rig:
             finally:
                 bar.close()
             self.daq.stop()
-            state.rows.extend(self.daq.take_rows())
             self.stepper.enable(False)
 
-        return self._guarded(body, scenario, path, rate_hz)
+        return self._guarded(body, scenario, target, rate_hz, replace=replace)
+
+    def _target(self, path: str | os.PathLike | None) -> Path:
+        """Where a run is saved: ``path`` (its name checked) or ``data/runs/run_<UTC time>``."""
+        if path is None:
+            return DATA_DIR / "runs" / ("run_" + _utc_now().replace(":", "").replace("-", "") + ".csv")
+        target = Path(path)
+        target = target.with_suffix(".csv") if target.suffix in ("", ".json") else target
+        recordings.check_name(target.stem)
+        return target
+
+    def _seed_noise(self, noise_seed: int | None, scenario: dict[str, Any]) -> None:
+        """In-process virtual rig: re-seed the sensor noise for this run and record the seed."""
+        if noise_seed is None:
+            return
+        if not (isinstance(noise_seed, int) and not isinstance(noise_seed, bool) and 0 <= noise_seed < 2**32):
+            raise SafetyError(f"noise seed must be an integer in 0..2**32-1, got {noise_seed!r}")
+        world = self.virtual_world
+        if world is not None:
+            world.reseed(noise_seed)
+            scenario["noise_seed"] = noise_seed
+
+    def wait_for_rest(self, rate_hz: int = 1000, timeout_s: float = REST_TIMEOUT_S) -> dict[str, Any]:
+        """Stream the tension until it is steady: std over ``REST_WINDOW_S`` <= ``REST_FACTOR`` x noise.
+
+        The noise is the white-noise level of the same window (:func:`helpers.noise.white_noise_std`), so a
+        ringing arm or a drifting amplifier keeps the wait going while sensor noise alone does not.
+
+        Returns
+        -------
+        dict
+            ``waited_s`` (device s), ``std_counts``, ``noise_counts`` of the last window.
+
+        Raises
+        ------
+        NotAtRest
+            If it does not settle within ``timeout_s``.
+        """
+        self.daq.check_reset()
+        self.daq.stop()
+        self.daq.set_rate(rate_hz)
+        self.daq.start()
+        n = max(3, round(REST_WINDOW_S * rate_hz))
+        adc: list[int] = []
+        t0: int | None = None
+        std = noise = float("nan")
+        try:
+            for rows in self.daq.samples():
+                adc.extend(r[2] for r in rows)
+                t0 = rows[0][1] if t0 is None else t0
+                waited = (rows[-1][1] - t0) / 1e6
+                if len(adc) >= n:
+                    window = np.asarray(adc[-n:], dtype=float)
+                    std, noise = float(np.std(window)), white_noise_std(window)
+                    if std <= max(REST_FACTOR * noise, 0.5):
+                        return {"waited_s": round(waited, 3), "std_counts": std, "noise_counts": noise}
+                if waited > timeout_s:
+                    raise NotAtRest(
+                        f"the tension did not come to rest within {timeout_s:.0f} s (std {std:.2f} counts "
+                        f"over {REST_WINDOW_S} s against a noise of {noise:.2f} counts): is the arm still "
+                        "moving?"
+                    )
+                adc = adc[-n:]
+        finally:
+            self.daq.stop()
+            self.daq.take_rows()
+        raise NotAtRest("the DAQ stream ended while waiting for rest")  # pragma: no cover
 
     def _checked_start_position(self, programme: Programme) -> int:
         """Ask the stepper where the cable is (``POS`` moves nothing) and check the programme from there."""
@@ -355,23 +492,29 @@ class Rig:
         check_programme(programme, start_position=position)
         return position
 
-    def _load_and_go(self, programme: Programme, position: int, rate_hz: int, state: _RunState) -> None:
-        """Stop what an earlier session left running, load the programme, start the DAQ, enable, ``GO``."""
+    def _load_and_go(
+        self, programme: Programme, position: int, rate_hz: int, state: _RunState, reach: tuple[int, int]
+    ) -> None:
+        """Stop what an earlier session left running, load the programme, start the DAQ, enable, ``GO``.
+
+        ``reach`` is the range of step counts (from ``ZERO``) the programme can produce: the DAQ driver
+        rejects and counts any sample outside it, or one whose count changes faster than the step rate allows.
+        """
         self.stepper.abort()  # a programme left running by an earlier session stops; driver off
         self.daq.stop()  # a stream left running by an earlier session stops (OK STOP 0 when idle)
         self.stepper.load(programme, start_position=position)
         self.daq.set_rate(rate_hz)
         self.daq.zero()
         self.daq.start()
+        self.daq.expect_steps(*reach)
         self.stepper.enable(True)
         state.go_sent = True
         self.stepper.go()
         # GO's device time, estimated as the newest DAQ sample at hand once GO is acknowledged (exact
         # on the in-process virtual rig; a few ms late on hardware). Metrics use `steps` instead.
         self.daq.pump(block=False)
-        state.rows.extend(self.daq.take_rows())
-        if state.rows:
-            state.t_go_us = state.rows[-1][1]
+        if self.daq.rows:
+            state.t_go_us = self.daq.rows[-1][1]
 
     def _check_corruption(self, max_corrupted_fraction: float) -> None:
         stats = self.daq.stats
@@ -396,16 +539,16 @@ class Rig:
         period_us = round(1e6 / rate_hz)
         silence = Waiter(silence_timeout)
         while True:
+            before = len(self.daq.rows)
             self.daq.pump()
-            rows = self.daq.take_rows()
-            state.rows.extend(rows)  # on disk whatever happens next
+            rows = self.daq.rows
             self.daq.check_reset()
             self.stepper.poll()
             self.stepper.check_reset()
-            if rows:
+            if len(rows) > before:
                 silence = Waiter(silence_timeout)
                 if state.t_go_us is None:
-                    state.t_go_us = rows[0][1] - period_us
+                    state.t_go_us = rows[before][1] - period_us
             else:
                 silence.idle(self.daq.port.timeout or 0.0)
                 if silence.expired:
@@ -413,9 +556,9 @@ class Rig:
                         f"the daq board sent no sample for {silence_timeout:.1f} s (it stopped answering)"
                     )
             self._check_corruption(max_corrupted_fraction)
-            if state.t_go_us is None or not state.rows:
+            if state.t_go_us is None or not rows:
                 continue
-            last_us = state.rows[-1][1]
+            last_us = rows[-1][1]
             bar.show((last_us - state.t_go_us) / 1e6)
             past_end = last_us >= state.t_go_us + duration_us + margin_s * 1e6
             if past_end and self.stepper.done_position is not None:
@@ -435,6 +578,7 @@ class Rig:
         rate_hz: int = 1000,
         silence_timeout: float = 2.0,
         progress: bool = False,
+        replace: bool = False,
     ) -> Recording:
         """Record ``duration_s`` of device time with the motor idle (load-cell calibration, noise floor).
 
@@ -452,6 +596,8 @@ class Rig:
             Seconds without a sample after which the DAQ counts as not answering.
         progress : bool
             Show a tqdm bar.
+        replace : bool
+            Replace a recording of the same name.
         """
         if (
             not isinstance(duration_s, int | float)
@@ -460,26 +606,42 @@ class Rig:
         ):
             raise SafetyError(f"duration must be within (0, {MAX_PROGRAMME_S:.0f}] s, got {duration_s!r}")
         _check_rate(rate_hz)
+        target = self._target(path)
+        refuse_existing(target, replace)
 
         def body(state: _RunState) -> None:
             self.daq.check_reset()
             self.daq.stop()  # a stream left running by an earlier session stops (OK STOP 0 when idle)
             self.daq.set_rate(rate_hz)
             self.daq.start()
+            self.daq.expect_steps(0, 0)  # the motor is idle
             bar = _DeviceTimeBar(duration_s, progress, desc=None)
+            silence = Waiter(silence_timeout)
             try:
-                for rows in self.daq.samples(silence_timeout):
-                    state.rows.extend(rows)
+                while True:
+                    before = len(self.daq.rows)
+                    self.daq.pump()
+                    self.daq.check_reset()
+                    rows = self.daq.rows
+                    if len(rows) == before:
+                        silence.idle(self.daq.port.timeout or 0.0)
+                        if silence.expired:
+                            raise BoardTimeout(
+                                f"the daq board sent no sample for {silence_timeout:.1f} s (it stopped "
+                                "answering)"
+                            )
+                        continue
+                    silence = Waiter(silence_timeout)
                     if state.t_go_us is None:
                         state.t_go_us = rows[0][1] - round(1e6 / rate_hz)
-                    if state.rows[-1][1] - state.t_go_us >= duration_s * 1e6:
+                    bar.show((rows[-1][1] - state.t_go_us) / 1e6)
+                    if rows[-1][1] - state.t_go_us >= duration_s * 1e6:
                         break
             finally:
                 bar.close()
             self.daq.stop()
-            state.rows.extend(self.daq.take_rows())
 
-        return self._guarded(body, dict(scenario), path, rate_hz, stepper_used=False)
+        return self._guarded(body, dict(scenario), target, rate_hz, stepper_used=False, replace=replace)
 
     # --- the guard -------------------------------------------------------------------------------------
     def _cleanup(self, stepper_used: bool) -> list[str]:
@@ -504,41 +666,46 @@ class Rig:
         self,
         body: Callable[[_RunState], None],
         scenario: dict[str, Any],
-        path: str | os.PathLike | None,
+        target: Path,
         rate_hz: int,
         stepper_used: bool = True,
+        replace: bool = False,
     ) -> Recording:
         state = _RunState(started_utc=_utc_now())
-        target = (
-            Path(path)
-            if path is not None
-            else DATA_DIR / "runs" / ("run_" + state.started_utc.replace(":", "").replace("-", ""))
-        )
+        self.daq.take_rows()  # nothing of an earlier run is this run's
         try:
             body(state)
         except BaseException as exc:
-            self.last_cleanup = self._cleanup(stepper_used)
-            state.rows.extend(self.daq.take_rows())
-            reason = f"{type(exc).__name__}: {exc}"
-            if self.last_cleanup:
-                reason += " | cleanup: " + "; ".join(self.last_cleanup)
-            rec = self._recording(state, scenario, rate_hz, "aborted", reason)
-            try:
-                recordings.save(rec, target)
-            except Exception as save_exc:  # noqa: BLE001 - keep the original error
-                reason += f" | could not save: {save_exc}"
-            exc.recording = rec.derive()  # type: ignore[attr-defined]
+            with signals_held():  # a second Ctrl-C or a SIGTERM now cannot cut the cleanup or the save short
+                self.last_cleanup = self._cleanup(stepper_used)
+                reason = f"{type(exc).__name__}: {exc}"
+                if self.last_cleanup:
+                    reason += " | cleanup: " + "; ".join(self.last_cleanup)
+                rec = self._recording(state, scenario, rate_hz, "aborted", reason)
+                exc.cleanup = list(self.last_cleanup)  # type: ignore[attr-defined]
+                try:
+                    recordings.save(rec, recordings.aborted_path(target, state.started_utc))
+                except (RecordingError, OSError) as save_exc:
+                    exc.recording = None  # type: ignore[attr-defined]
+                    exc.saved_path = None  # type: ignore[attr-defined]
+                    exc.save_error = str(save_exc)  # type: ignore[attr-defined]
+                else:
+                    exc.recording = rec.derive()  # type: ignore[attr-defined]
+                    exc.saved_path = rec.path  # type: ignore[attr-defined]
+                    exc.save_error = None  # type: ignore[attr-defined]
             raise
         self.last_cleanup = []
         rec = self._recording(state, scenario, rate_hz, "complete", None)
-        recordings.save(rec, target)
+        with signals_held():
+            recordings.save(rec, target, replace=replace)
         return rec.derive()
 
     def _recording(
         self, state: _RunState, scenario: dict[str, Any], rate_hz: int, status: str, reason: str | None
     ) -> Recording:
-        # Keep only rows that can be placed (a reset board restarts seq); the parser already refused those.
-        frame = recordings.frame_from_rows(state.rows) if state.rows else recordings.empty_frame()
+        # The run's samples since its START (a reset board restarts seq: the parser refused those already).
+        rows = list(self.daq.rows)
+        frame = recordings.frame_from_rows(rows) if rows else recordings.empty_frame()
         stats = self.daq.stats
         first_t = int(frame["t_us"].iloc[0]) if len(frame) else None
         meta = {
@@ -557,6 +724,7 @@ class Rig:
                 "dropped": int(stats.dropped),
                 "corrupted": int(stats.corrupted),
                 "overruns": int(stats.overruns),
+                "implausible": int(stats.implausible),
             },
             "t_go_us": state.t_go_us,
             "t_go_s": None if (state.t_go_us is None or first_t is None) else (state.t_go_us - first_t) / 1e6,

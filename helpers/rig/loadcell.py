@@ -36,6 +36,7 @@ def record_calibration(
     folder: str | os.PathLike = CALIBRATION_DIR,
     prompt: Callable[[str], object] | None = input,
     rate_hz: int = 1000,
+    replace: bool = False,
 ) -> list[Recording]:
     """Record ``duration_s`` of counts under each known mass.
 
@@ -54,6 +55,8 @@ def record_calibration(
         in-process virtual rig, whose fixture hangs the load itself.
     rate_hz : int
         DAQ sample rate.
+    replace : bool
+        Replace earlier calibration recordings of the same loads.
 
     Returns
     -------
@@ -78,7 +81,7 @@ def record_calibration(
                 "fixture": "VIRTUAL known load (simulated)" if rig.is_virtual else "hung mass",
             }
             path = Path(folder) / f"load_{round(m * 1000):04d}g"
-            out.append(rig.record_static(duration_s, scenario, path=path, rate_hz=rate_hz))
+            out.append(rig.record_static(duration_s, scenario, path=path, rate_hz=rate_hz, replace=replace))
     finally:
         if world is not None:
             world.hang_load(None)

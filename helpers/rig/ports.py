@@ -16,7 +16,11 @@ EMULATOR_PACKAGE = "helpers.emulator"
 
 
 def open_port(url: str, baudrate: int, timeout: float, write_timeout: float) -> serial.SerialBase:
-    """Open ``url`` with pyserial and return the port.
+    """Open ``url`` with pyserial, exclusively, and return the port.
+
+    Exclusive: a second program (or a second notebook) opening the same port gets an error instead of
+    stealing samples from the first (a ``flock`` on the device for real ports and pseudo-terminals; the
+    emulated boards refuse a second open themselves).
 
     Parameters
     ----------
@@ -34,4 +38,6 @@ def open_port(url: str, baudrate: int, timeout: float, write_timeout: float) -> 
     """
     if str(url).startswith(VIRTUAL_SCHEME) and EMULATOR_PACKAGE not in serial.protocol_handler_packages:
         serial.protocol_handler_packages.append(EMULATOR_PACKAGE)
-    return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout)
+    return serial.serial_for_url(
+        url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout, exclusive=True
+    )

@@ -66,6 +66,10 @@ class LoadCell:
         self.span_n = span
         self._rng = np.random.default_rng(seed)
 
+    def reseed(self, seed: int | None) -> None:
+        """Restart the noise generator from ``seed`` (one seed per recorded run)."""
+        self._rng = np.random.default_rng(seed)
+
     @property
     def gain(self) -> float:
         """Counts per newton."""

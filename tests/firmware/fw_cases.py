@@ -8,9 +8,10 @@ written from firmware/PROTOCOL.md. ``ERR`` texts are free; only the code is part
 
 from __future__ import annotations
 
+from crc_reference import LINK_CHECK, xor_hex
 from fwsim import with_checksum
 
-V = r"1\.0\.0"
+V = r"2\.0\.0"
 
 
 def _c(text: str) -> bytes:
@@ -23,7 +24,7 @@ def _k(body: str) -> bytes:
 
 
 def _bad(body: str) -> bytes:
-    """A command with a wrong checksum (the right one XOR 1)."""
+    """A command with a wrong checksum (the right one with its lowest bit flipped)."""
     good = with_checksum(body)
     wrong = f"{int(good[-2:], 16) ^ 1:02X}"
     return f"{body}*{wrong}\n".encode("ascii")
@@ -41,6 +42,18 @@ def framing_cases(board: str) -> list[tuple[bytes, str | None]]:
         (b"PING*XY\n", r"ERR CHECKSUM( .*)?"),  # not hex
         (b"PING*123\n", r"ERR CHECKSUM( .*)?"),  # three digits
         (_bad("FOO"), r"ERR CHECKSUM( .*)?"),  # checksum is checked before the word
+        # CRC-8, not XOR: protocol 1's checksum is refused (here it differs from the CRC) ...
+        (f"PING*{xor_hex('PING')}\n".encode(), r"ERR CHECKSUM( .*)?"),
+        # ... and so is a 2-bit error the XOR misses: bit 1 flipped in two bytes ("RATE 500" -> "RATE 722")
+        (f"RATE 722*{with_checksum('RATE 500')[-2:]}\n".encode(), r"ERR CHECKSUM( .*)?"),
+        # the check value: the board's CRC of "123456789" is PROTOCOL.md's (the word itself is unknown)
+        (f"123456789*{LINK_CHECK:02X}\n".encode(), r"ERR UNKNOWN( .*)?"),
+        (f"123456789*{LINK_CHECK ^ 1:02X}\n".encode(), r"ERR CHECKSUM( .*)?"),
+        # a '\r' is dropped only just before '\n'; elsewhere it is part of the line (and of the CRC)
+        (b"PI\rNG\n", r"ERR UNKNOWN( .*)?"),
+        (b"PING\r\r\n", r"ERR UNKNOWN( .*)?"),
+        (f"PI\rNG*{with_checksum('PING')[-2:]}\n".encode(), r"ERR CHECKSUM( .*)?"),
+        (f"PI\rNG*{with_checksum('PI' + chr(13) + 'NG')[-2:]}\r\n".encode(), r"ERR UNKNOWN( .*)?"),
         (b"\n", None),  # blank line: no reply
         (b"\r\n", None),
         (_c("FOO"), r"ERR UNKNOWN( .*)?"),
@@ -75,9 +88,9 @@ def daq_cases() -> list[tuple[bytes, str | None]]:
         (_c("RATE " + "0" * 55 + "1000"), r"ERR TOOLONG( .*)?"),  # 64
         (_c("ZERO 0"), r"ERR ARG( .*)?"),
         (_c("ZERO"), r"OK ZERO"),
-        (b"ZERO*02\n", r"OK ZERO"),
-        (b"RATE 500*17\n", r"OK RATE 500"),
-        (b"RATE 1000*23\n", r"OK RATE 1000"),
+        (b"ZERO*DE\n", r"OK ZERO"),  # CRC-8 values from the reference implementation
+        (b"RATE 500*7A\n", r"OK RATE 500"),
+        (b"RATE 1000*67\n", r"OK RATE 1000"),
         (_c("START 1"), r"ERR ARG( .*)?"),
         (_c("STOP 1"), r"ERR ARG( .*)?"),
         (_c("START"), r"OK START 1000"),
@@ -104,8 +117,8 @@ def stepper_cases() -> list[tuple[bytes, str | None, float, str | None]]:
     n: str | None = None
     cases: list[tuple[bytes, str | None, float, str | None]] = [
         (_c("POS"), r"OK POS 0", 0, n),
-        (b"POS*4c\n", r"OK POS 0", 0, n),  # hex digits of either case
-        (b"POS*4C\n", r"OK POS 0", 0, n),
+        (b"POS*8e\n", r"OK POS 0", 0, n),  # hex digits of either case
+        (b"POS*8E\n", r"OK POS 0", 0, n),
         (_c("GO"), r"ERR STATE( .*)?", 0, n),  # empty programme
         (_c("ABORT"), r"ABORTED 0", 0, n),  # also when idle
         (_c("CLEAR 1"), r"ERR ARG( .*)?", 0, n),

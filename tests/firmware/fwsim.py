@@ -1,7 +1,8 @@
 """Run the firmware ELF files in simavr through ``firmware/build/simavr_harness`` (see firmware/README.md).
 
 Everything here is test support: it writes the harness's input files, runs it, and parses what it logged.
-The checksum and escaping are written out here from PROTOCOL.md, independently of ``helpers.rig``.
+The checksum is the table-free reference CRC of ``tests/crc_reference.py`` (anchored to published catalogue
+check values), independent of ``helpers.rig`` and of the firmware's table-driven CRC.
 """
 
 from __future__ import annotations
@@ -10,12 +11,17 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "tests"))  # for crc_reference, shared with the host-side tests
+
+from crc_reference import link_hex  # noqa: E402
+
 FIRMWARE = REPO / "firmware"
 BUILD = FIRMWARE / "build"
 HARNESS = BUILD / "simavr_harness"
@@ -48,11 +54,8 @@ def missing_toolchain() -> list[str]:
 
 
 def checksum(body: bytes) -> str:
-    """XOR of the bytes, two upper-case hex digits (PROTOCOL.md)."""
-    x = 0
-    for b in body:
-        x ^= b
-    return f"{x:02X}"
+    """The CRC-8 of PROTOCOL.md of the bytes, two upper-case hex digits (the reference implementation)."""
+    return link_hex(body)
 
 
 def with_checksum(body: str) -> str:

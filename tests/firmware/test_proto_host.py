@@ -1,5 +1,5 @@
-"""The firmware's shared framing code (firmware/common/proto.cpp), compiled for the host with g++ and checked
-against a reference written here from PROTOCOL.md, on generated inputs (hypothesis)."""
+"""The firmware's shared framing code (firmware/common/proto.cpp, crc8.cpp), compiled for the host with g++
+and checked against a reference written here from PROTOCOL.md, on generated inputs (hypothesis)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import subprocess
 
 import fwsim
 import pytest
+from crc_reference import LINK_CHECK
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -37,6 +38,7 @@ def proto(tmp_path_factory):
             str(exe),
             str(common / "proto_host_test.cpp"),
             str(common / "proto.cpp"),
+            str(common / "crc8.cpp"),
         ],
         check=True,
         capture_output=True,
@@ -56,25 +58,17 @@ def proto(tmp_path_factory):
 
 
 def ref_reader(data: bytes) -> str:
-    """PROTOCOL.md framing: '\\r' ignored, lines end in '\\n', more than 63 characters = one TOOLONG."""
-    out, buf, overflow = [], b"", False
-    for c in data:
-        if c == 0x0D:
-            continue
-        if c == 0x0A:
-            out.append(" T" if overflow else " R:" + buf.hex())
-            buf, overflow = b"", False
-        elif overflow:
-            continue
-        elif len(buf) >= 63:
-            buf, overflow = b"", True
-        else:
-            buf += bytes([c])
+    """PROTOCOL.md framing: lines end in '\\n', a '\\r' just before it is dropped (any other '\\r' is part of
+    the line), more than 63 characters = one TOOLONG."""
+    out = []
+    for raw in data.split(b"\n")[:-1]:
+        line = raw[:-1] if raw.endswith(b"\r") else raw
+        out.append(" T" if len(line) > 63 else " R:" + line.hex())
     return "".join(out)
 
 
 def ref_parse(line: bytes) -> str:
-    """Checksum check, then words split on single spaces; arguments are -?[0-9]+ saturated to int32."""
+    """CRC-8 check, then words split on single spaces; arguments are -?[0-9]+ saturated to int32."""
     if not line:
         return "EMPTY"
     star = line.find(b"*")
@@ -82,10 +76,7 @@ def ref_parse(line: bytes) -> str:
         given_hex = line[star + 1 :]
         if not re.fullmatch(rb"[0-9A-Fa-f]{2}", given_hex):
             return "CHECKSUM"
-        x = 0
-        for b in line[:star]:
-            x ^= b
-        if int(given_hex, 16) != x:
+        if given_hex.decode().upper() != fwsim.checksum(line[:star]):
             return "CHECKSUM"
         line = line[:star]
         if not line:
@@ -145,7 +136,21 @@ def test_line_reader_matches_the_protocol(proto, data):
 def test_line_reader_edges(proto):
     assert proto("F " + (b"A" * 63 + b"\n").hex()) == " R:" + (b"A" * 63).hex()
     assert proto("F " + (b"A" * 64 + b"\nB\n").hex()) == " T R:42"
-    assert proto("F " + (b"A" * 62 + b"\r\r\n").hex()) == " R:" + (b"A" * 62).hex()
+    assert proto("F " + (b"A" * 62 + b"\r\r\n").hex()) == " R:" + (b"A" * 62 + b"\r").hex()
+    assert proto("F " + (b"A" * 63 + b"\r\n").hex()) == " R:" + (b"A" * 63).hex()
+    assert proto("F " + (b"A" * 63 + b"\r\r\n").hex()) == " T"  # the first '\r' is the 64th character
+    assert proto("F " + b"P\rI\rNG\r\n".hex()) == " R:" + b"P\rI\rNG".hex()
+
+
+def test_crc8_check_value_and_reference(proto):
+    assert proto("C " + b"123456789".hex()) == f"{LINK_CHECK:02X}" == "20"
+    assert proto("C ") == "FF"  # the initial value, nothing shifted in
+
+
+@SETTINGS
+@given(data=st.binary(min_size=1, max_size=255))
+def test_crc8_matches_the_reference(proto, data):
+    assert proto("C " + data.hex()) == fwsim.checksum(data)
 
 
 @SETTINGS

@@ -1,0 +1,75 @@
+"""Advisory folder locks (``fcntl.flock``): one writer at a time, and never stuck after a crash.
+
+The kernel releases a ``flock`` when its process ends, however it ends, so a crashed recorder leaves no stale
+lock behind. The lock file (``.lock`` in the folder, ignored by git) holds the owner's pid for the message a
+second process sees.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+LOCK_NAME = ".lock"
+
+
+class FolderBusy(RuntimeError):
+    """Another process holds the folder's lock; the message names the folder and that process."""
+
+
+def _holder(path: Path) -> str:
+    try:
+        pid = path.read_text().strip()
+    except OSError:
+        return "another process"
+    return f"process {pid}" if pid.isdigit() else "another process"
+
+
+@contextmanager
+def folder_lock(
+    folder: str | os.PathLike, wait_s: float = 0.0, what: str = "writing", name: str = LOCK_NAME
+) -> Iterator[Path]:
+    """Hold ``folder``'s lock for the ``with`` block (created if missing).
+
+    Parameters
+    ----------
+    folder : path-like
+        The folder to lock.
+    wait_s : float
+        How long to wait for another holder to finish (0: refuse at once).
+    what : str
+        What the holder is doing, for the message.
+    name : str
+        The lock file's name (one folder may carry independent locks for different purposes).
+
+    Raises
+    ------
+    FolderBusy
+        If another process still holds the lock after ``wait_s``.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / name
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        deadline = time.monotonic() + max(0.0, wait_s)
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    raise FolderBusy(
+                        f"{folder} is busy: {_holder(path)} is {what} there; wait for it or use another "
+                        "folder"
+                    ) from None
+                time.sleep(0.02)
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        yield path
+    finally:
+        os.close(fd)  # releases the lock

@@ -1,0 +1,62 @@
+"""The recordings of ``data/``: one run = ``<group>/<name>.csv`` + ``.json`` (``docs/recording_format.md``).
+
+- :mod:`helpers.recordings.format`: what a recording is: the columns, the metadata and its validation field by
+  field, :class:`Recording` and the derived columns;
+- :mod:`helpers.recordings.store`: where recordings live and how they are written and read without ever
+  losing one: validated names, no silent overwrite, pairs that cannot be torn (the JSON, holding the CSV's
+  sha256, is written last), one writer per folder at a time, :func:`load` and :func:`catalogue`.
+"""
+
+from helpers.recordings.format import (
+    DERIVED_COLUMNS,
+    RAW_COLUMNS,
+    SCHEMA_VERSION,
+    SOURCES,
+    STATUSES,
+    Recording,
+    RecordingError,
+    counts_to_newtons,
+    derive_columns,
+    empty_frame,
+    frame_from_rows,
+    validate,
+    validate_meta,
+)
+from helpers.recordings.store import (
+    RESERVED_NAMES,
+    RecordingExists,
+    aborted_path,
+    catalogue,
+    check_group,
+    check_name,
+    load,
+    recording_path,
+    refuse_existing,
+    save,
+)
+
+__all__ = [
+    "DERIVED_COLUMNS",
+    "RAW_COLUMNS",
+    "RESERVED_NAMES",
+    "SCHEMA_VERSION",
+    "SOURCES",
+    "STATUSES",
+    "Recording",
+    "RecordingError",
+    "RecordingExists",
+    "aborted_path",
+    "catalogue",
+    "check_group",
+    "check_name",
+    "counts_to_newtons",
+    "derive_columns",
+    "empty_frame",
+    "frame_from_rows",
+    "load",
+    "recording_path",
+    "refuse_existing",
+    "save",
+    "validate",
+    "validate_meta",
+]

@@ -1,0 +1,273 @@
+"""What a recording is: the raw columns, the metadata (checked field by field), the derived columns.
+
+The CSV holds the raw columns exactly as the DAQ board reports them: ``seq``, ``t_us`` (device microseconds,
+unwrapped), ``adc`` (0-1023 counts) and ``steps`` (signed motor position counted by the DAQ board). The
+derived columns are computed on load from the metadata and never stored:
+
+- ``t_s``: seconds from the first sample;
+- ``tension_n``: ``(adc - offset_counts) * newtons_per_count`` (calibration in the metadata);
+- ``cable_mm``: ``steps * mm_per_step``.
+
+The JSON metadata (``SCHEMA_VERSION`` 1) is described key by key in ``docs/recording_format.md``;
+:func:`validate_meta` checks each key's type and range and :func:`validate` the samples against it, raising
+one :class:`RecordingError` that names the file, the field and the problem.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from helpers.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
+
+SCHEMA_VERSION = 1
+"""Version of the metadata layout; :func:`helpers.recordings.load` refuses any other."""
+
+RAW_COLUMNS = ("seq", "t_us", "adc", "steps")
+"""The CSV's columns, in order."""
+
+DERIVED_COLUMNS = ("t_s", "tension_n", "cable_mm")
+"""Columns computed on load."""
+
+SOURCES = ("hardware", "virtual-rig")
+"""The vocabulary of ``source.kind``."""
+
+STATUSES = ("complete", "aborted")
+"""The vocabulary of ``status``."""
+
+REQUIRED_META = (
+    "schema_version",
+    "source",
+    "scenario",
+    "calibration",
+    "rate_hz",
+    "status",
+    "counts",
+    "csv_sha256",
+)
+
+COUNT_KEYS = ("samples", "dropped", "corrupted", "overruns")
+
+_SHA256 = re.compile(r"[0-9a-f]{64}\Z")
+
+
+class RecordingError(ValueError):
+    """A recording could not be loaded or saved; the message names the file, the field and the problem."""
+
+
+@dataclass
+class Recording:
+    """One run: the samples (raw + derived columns) and the metadata.
+
+    Attributes
+    ----------
+    frame : pandas.DataFrame
+        Columns ``seq``, ``t_us``, ``adc``, ``steps`` (int64) and, after :meth:`derive`, ``t_s``,
+        ``tension_n``, ``cable_mm``.
+    meta : dict
+        The JSON metadata (see the module docstring).
+    path : pathlib.Path or None
+        The CSV's path once saved or loaded.
+    """
+
+    frame: pd.DataFrame
+    meta: dict[str, Any]
+    path: Path | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        """The file stem, or ``"<unsaved>"``."""
+        return self.path.stem if self.path is not None else "<unsaved>"
+
+    @property
+    def status(self) -> str:
+        """``"complete"`` or ``"aborted"``."""
+        return str(self.meta.get("status"))
+
+    @property
+    def is_virtual(self) -> bool:
+        """True when the data come from the virtual rig (simulation, not a measurement)."""
+        return self.meta.get("source", {}).get("kind") == "virtual-rig"
+
+    def derive(self) -> Recording:
+        """Add the derived columns from the metadata's calibration; return ``self``."""
+        self.frame = derive_columns(self.frame, self.meta["calibration"])
+        return self
+
+    def __repr__(self) -> str:
+        return f"Recording({self.name!r}, {len(self.frame)} samples, {self.status})"
+
+
+def derive_columns(frame: pd.DataFrame, calibration: dict[str, Any]) -> pd.DataFrame:
+    """Return ``frame`` with ``t_s``, ``tension_n`` and ``cable_mm`` computed from ``calibration``.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        The raw columns.
+    calibration : dict
+        ``newtons_per_count``, ``offset_counts``, ``mm_per_step``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        A copy with the derived columns.
+    """
+    out = frame.loc[:, list(RAW_COLUMNS)].copy()
+    t = out["t_us"].to_numpy(dtype=np.int64)
+    out["t_s"] = (t - t[0]) * 1e-6 if len(t) else np.zeros(0)
+    out["tension_n"] = counts_to_newtons(
+        out["adc"].to_numpy(), calibration["newtons_per_count"], calibration["offset_counts"]
+    )
+    out["cable_mm"] = out["steps"].to_numpy(float) * float(calibration["mm_per_step"])
+    return out
+
+
+def counts_to_newtons(adc: np.ndarray, newtons_per_count: float, offset_counts: float) -> np.ndarray:
+    """Tension in N from ADC counts, ``(adc - offset_counts) * newtons_per_count`` (load-cell calibration)."""
+    return (np.asarray(adc, dtype=float) - float(offset_counts)) * float(newtons_per_count)
+
+
+def empty_frame() -> pd.DataFrame:
+    """Return a frame with the raw columns and no rows."""
+    return pd.DataFrame({c: np.zeros(0, dtype=np.int64) for c in RAW_COLUMNS})
+
+
+def frame_from_rows(rows: list[tuple[int, int, int, int]] | np.ndarray) -> pd.DataFrame:
+    """Return the raw frame of ``(seq, t_us, adc, steps)`` rows."""
+    arr = np.asarray(rows, dtype=np.int64).reshape(-1, 4)
+    return pd.DataFrame({c: arr[:, i] for i, c in enumerate(RAW_COLUMNS)})
+
+
+# -- metadata, field by field ------------------------------------------------------------------------------
+def _fail(path: Path, problem: str) -> RecordingError:
+    return RecordingError(f"{path}: {problem}")
+
+
+def _is_int(x: Any) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _section(meta: dict[str, Any], key: str, path: Path) -> dict[str, Any]:
+    value = meta[key]
+    if not isinstance(value, dict):
+        raise _fail(path, f"{key}: expected an object, got {type(value).__name__}")
+    return value
+
+
+def _number(section: dict[str, Any], key: str, where: str, path: Path, positive: bool = False) -> float:
+    if key not in section:
+        raise _fail(path, f"{where}.{key}: missing")
+    value = section[key]
+    if not _is_number(value):
+        raise _fail(path, f"{where}.{key}: expected a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise _fail(path, f"{where}.{key}: must be > 0, got {value!r}")
+    return float(value)
+
+
+def validate_meta(meta: Any, path: Path) -> None:
+    """Check every key of the contract for its type and range; raise :class:`RecordingError` naming it.
+
+    Parameters
+    ----------
+    meta : object
+        The parsed JSON.
+    path : pathlib.Path
+        For the messages.
+    """
+    if not isinstance(meta, dict):
+        raise _fail(path, f"metadata is not a JSON object (got {type(meta).__name__})")
+    version = meta.get("schema_version")
+    if version != SCHEMA_VERSION or not _is_int(version):
+        raise _fail(path, f"schema_version: unknown {version!r} (this code reads {SCHEMA_VERSION})")
+    missing = [k for k in REQUIRED_META if k not in meta]
+    if missing:
+        raise _fail(path, f"metadata lacks {', '.join(missing)}")
+    if meta["status"] not in STATUSES:
+        raise _fail(path, f"status: {meta['status']!r} is not one of {', '.join(STATUSES)}")
+    reason = meta.get("abort_reason")
+    if reason is not None and not isinstance(reason, str):
+        raise _fail(path, f"abort_reason: expected text or null, got {type(reason).__name__}")
+    sha = meta["csv_sha256"]
+    if not (isinstance(sha, str) and _SHA256.match(sha)):
+        raise _fail(path, f"csv_sha256: expected 64 lower-case hex digits, got {str(sha)[:20]!r}")
+    cal = _section(meta, "calibration", path)
+    _number(cal, "newtons_per_count", "calibration", path, positive=True)
+    _number(cal, "offset_counts", "calibration", path)
+    _number(cal, "mm_per_step", "calibration", path, positive=True)
+    rate = meta["rate_hz"]
+    if not (_is_int(rate) and DAQ_RATE_MIN_HZ <= rate <= DAQ_RATE_MAX_HZ):
+        span = f"{DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ}"
+        raise _fail(path, f"rate_hz: expected an integer in {span}, got {rate!r}")
+    counts = _section(meta, "counts", path)
+    for key in COUNT_KEYS:
+        if key in counts and not (_is_int(counts[key]) and counts[key] >= 0):
+            raise _fail(path, f"counts.{key}: expected an integer >= 0, got {counts[key]!r}")
+    if "samples" not in counts:
+        raise _fail(path, "counts.samples: missing")
+    source = _section(meta, "source", path)
+    if source.get("kind") not in SOURCES:
+        raise _fail(path, f"source.kind: {source.get('kind')!r} is not one of {', '.join(SOURCES)}")
+    if "parameters" in source:
+        params = source["parameters"]
+        if not isinstance(params, dict) or any(isinstance(v, dict | list) for v in params.values()):
+            raise _fail(path, "source.parameters: expected an object of flat values")
+    scenario = _section(meta, "scenario", path)
+    if not isinstance(scenario.get("kind"), str):
+        raise _fail(path, f"scenario.kind: expected text, got {scenario.get('kind')!r}")
+    if scenario["kind"] == "pulse":
+        if not isinstance(scenario.get("system"), str):
+            raise _fail(path, f"scenario.system: expected text, got {scenario.get('system')!r}")
+        _number(scenario, "v_in_mm_s", "scenario", path, positive=True)
+        _number(scenario, "x_f_mm", "scenario", path, positive=True)
+    if "repetition" in scenario and not _is_int(scenario["repetition"]):
+        raise _fail(path, f"scenario.repetition: expected an integer, got {scenario['repetition']!r}")
+
+
+def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
+    """Check the samples against the metadata; raise :class:`RecordingError` naming the problem.
+
+    Checks: the raw columns are present and integer; ``counts.samples`` rows; ``seq`` strictly increases and
+    its gaps add up to no more than the metadata's ``counts.dropped``; ``t_us`` strictly increases; ``adc`` is
+    within 0-1023.
+    """
+    for col in RAW_COLUMNS:
+        if col not in frame.columns:
+            raise _fail(path, f"missing column {col!r}")
+        if len(frame) and not pd.api.types.is_integer_dtype(frame[col]):
+            raise _fail(path, f"column {col!r} is not integer")
+    expected = meta.get("counts", {}).get("samples")
+    if expected is not None and expected != len(frame):
+        raise _fail(path, f"counts.samples says {expected} rows, the CSV has {len(frame)}")
+    seq = frame["seq"].to_numpy(np.int64)
+    t_us = frame["t_us"].to_numpy(np.int64)
+    if len(seq) > 1:
+        dseq = np.diff(seq)
+        if np.any(dseq <= 0):
+            i = int(np.argmax(dseq <= 0))
+            raise _fail(path, f"seq does not increase at row {i + 1} ({seq[i]} then {seq[i + 1]})")
+        gaps = int(np.sum(dseq - 1))
+        admitted = int(meta.get("counts", {}).get("dropped", 0))
+        if gaps > admitted:
+            raise _fail(
+                path, f"gap in seq: {gaps} samples missing but the metadata admits {admitted} dropped"
+            )
+        dt = np.diff(t_us)
+        if np.any(dt <= 0):
+            i = int(np.argmax(dt <= 0))
+            raise _fail(path, f"non-monotonic time at row {i + 1} (t_us {t_us[i]} then {t_us[i + 1]})")
+    adc = frame["adc"].to_numpy(np.int64)
+    if len(adc) and (adc.min() < 0 or adc.max() > ADC_MAX):
+        raise _fail(path, f"adc outside 0-{ADC_MAX}")

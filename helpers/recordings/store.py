@@ -1,0 +1,401 @@
+"""Where recordings live, and how they are written and read without ever losing one.
+
+- **Names** are validated (:func:`check_name`, :func:`check_group`): letters, digits, ``_``, ``-``, ``.``; no
+  path separators in a name, no ``..``, nothing that could reach outside ``data/``; the stems of the
+  project's own files (``calibration``, ``result``) are reserved.
+- **No silent overwrite**: :func:`save` refuses a name that exists unless asked to replace it, and then keeps
+  the old pair until the new one is complete.
+- **Pairs are never torn**: the CSV goes first, the JSON (holding the CSV's sha256) last, each written to a
+  temporary file and renamed into place. A CSV without its JSON is an incomplete run; :func:`load` and
+  :func:`catalogue` call it that.
+- **One writer per folder**: saving holds the folder's lock (:mod:`helpers.locks`); a reader holds it shared,
+  so it never sees a pair in the middle of a replacement. The kernel releases the lock when a process dies.
+- **Aborted runs never take a complete run's name**: :func:`aborted_path` gives them their own.
+- **A full disk** (or any error while writing) removes the temporary files and raises one
+  :class:`RecordingError`; nothing already on disk changes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import hashlib
+import io
+import json
+import os
+import re
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from helpers.jsonfile import dumps, write_temp
+from helpers.locks import LOCK_NAME, FolderBusy, folder_lock
+from helpers.paths import DATA_DIR
+from helpers.recordings.format import (
+    RAW_COLUMNS,
+    REQUIRED_META,
+    SCHEMA_VERSION,
+    Recording,
+    RecordingError,
+    validate,
+    validate_meta,
+)
+
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}\Z")
+"""A recording's name, or one component of a group."""
+
+RESERVED_NAMES = frozenset({"calibration", "result"})
+"""Stems of the project's own JSON files (``calibration.json``, ``result.json``): never a recording's name."""
+
+HEADER = ",".join(RAW_COLUMNS).encode("ascii")
+
+SAVE_WAIT_S = 10.0
+"""How long a save waits for another process's save in the same folder."""
+
+
+class RecordingExists(RecordingError):
+    """A recording of that name exists and replacing it was not asked for."""
+
+
+# -- names -------------------------------------------------------------------------------------------------
+def check_name(name: str) -> str:
+    """Return ``name`` if it is a valid recording name, else raise :class:`RecordingError` saying why."""
+    if not isinstance(name, str) or not NAME_PATTERN.match(name) or ".." in name:
+        raise RecordingError(
+            f"invalid recording name {name!r}: use letters, digits, '_', '-', '.' (no '/', no '..', "
+            "at most 100 characters)"
+        )
+    if name.lower() in RESERVED_NAMES or name.lower().endswith(".tmp"):
+        raise RecordingError(f"invalid recording name {name!r}: reserved for the project's own files")
+    return name
+
+
+def check_group(group: str) -> str:
+    """Return ``group`` (a folder under ``data/``, ``a`` or ``a/b``) if valid, else raise saying why."""
+    parts = str(group).split("/")
+    if not group or any(not NAME_PATTERN.match(p) or ".." in p for p in parts):
+        raise RecordingError(
+            f"invalid group {group!r}: a folder under data/ named with letters, digits, '_', '-', '.' "
+            "(sub-folders with '/'; no '..', not an absolute path)"
+        )
+    return str(group)
+
+
+def recording_path(group: str, name: str, root: str | os.PathLike = DATA_DIR) -> Path:
+    """``<root>/<group>/<name>.csv`` after checking both names."""
+    return Path(root) / check_group(group) / f"{check_name(name)}.csv"
+
+
+def refuse_existing(target: str | os.PathLike, replace: bool = False) -> None:
+    """Refuse, before anything moves, a run whose recording would overwrite one (unless replacing).
+
+    Raises
+    ------
+    RecordingExists
+        The CSV or the JSON of ``target`` exists and ``replace`` is False.
+    """
+    csv = _csv_path(target)
+    if not replace and (csv.exists() or csv.with_suffix(".json").exists()):
+        raise RecordingExists(f"{csv}: a recording of that name exists; choose another name or replace it")
+
+
+def aborted_path(path: str | os.PathLike, started_utc: str) -> Path:
+    """The name an aborted run is saved under: ``<name>_aborted_<UTC start>.csv`` beside ``path``."""
+    p = _csv_path(path)
+    stamp = re.sub(r"[^0-9TZ]", "", started_utc) or time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    return p.with_name(f"{p.stem}_aborted_{stamp}.csv")
+
+
+def _csv_path(path: str | os.PathLike) -> Path:
+    p = Path(path)
+    return p.with_suffix(".csv") if p.suffix in ("", ".json") else p
+
+
+# -- writing -----------------------------------------------------------------------------------------------
+def _csv_bytes(frame: pd.DataFrame) -> bytes:
+    buf = io.StringIO()
+    frame.loc[:, list(RAW_COLUMNS)].astype(np.int64).to_csv(buf, index=False, lineterminator="\n")
+    return buf.getvalue().encode("ascii")
+
+
+def _write_error(target: Path, exc: OSError) -> RecordingError:
+    why = "no space left on device" if exc.errno == errno.ENOSPC else (exc.strerror or str(exc))
+    return RecordingError(f"{target}: could not save ({why}); nothing already on disk was changed")
+
+
+def save(recording: Recording, path: str | os.PathLike | None = None, *, replace: bool = False) -> Path:
+    """Write ``recording`` as ``<path>.csv`` and ``<path>.json`` (the JSON last); return the CSV path.
+
+    Parameters
+    ----------
+    recording : Recording
+        Its ``meta`` must hold the keys of the contract except ``csv_sha256`` (filled in here).
+    path : path-like, optional
+        ``data/<group>/<name>.csv`` (the suffix may be omitted); defaults to ``recording.path``.
+    replace : bool
+        Replace an existing recording of that name (the old pair stays until the new one is complete).
+
+    Returns
+    -------
+    pathlib.Path
+        The CSV's path; ``recording.path`` is set to it.
+
+    Raises
+    ------
+    RecordingExists
+        The name exists and ``replace`` is False.
+    RecordingError
+        An invalid name, incomplete metadata, or the files could not be written (e.g. a full disk).
+    helpers.locks.FolderBusy
+        Another process kept saving into the folder for longer than :data:`SAVE_WAIT_S`.
+    """
+    target = _csv_path(path if path is not None else recording.path or "")
+    if target.name in ("", ".csv"):
+        raise RecordingError("save: no path given for the recording")
+    check_name(target.stem)
+    meta = dict(recording.meta)
+    meta.setdefault("schema_version", SCHEMA_VERSION)
+    missing = [k for k in REQUIRED_META if k not in meta and k != "csv_sha256"]
+    if missing:
+        raise RecordingError(f"{target}: metadata lacks {', '.join(missing)}")
+    data = _csv_bytes(recording.frame)
+    meta["csv_sha256"] = hashlib.sha256(data).hexdigest()
+    meta["counts"] = dict(meta["counts"], samples=int(len(recording.frame)))
+    text = dumps(meta)
+    json_target = target.with_suffix(".json")
+    try:
+        with folder_lock(target.parent, wait_s=SAVE_WAIT_S, what="saving a recording"):
+            exists = target.exists() or json_target.exists()
+            if exists and not replace:
+                raise RecordingExists(
+                    f"{target}: a recording of that name exists; choose another name or ask to replace it"
+                )
+            _write_pair(target, json_target, data, text.encode("utf-8"), exists)
+    except OSError as exc:
+        raise _write_error(target, exc) from None
+    recording.meta = json.loads(text)
+    recording.path = target
+    return target
+
+
+def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exists: bool) -> None:
+    """Temporary files first; then (old JSON and CSV aside), the new CSV, then the new JSON; then tidy up."""
+    tmp_csv = write_temp(csv_path.parent, csv_path.name, data)
+    try:
+        tmp_json = write_temp(json_path.parent, json_path.name, text)
+    except BaseException:
+        tmp_csv.unlink(missing_ok=True)
+        raise
+    backups: list[tuple[Path, Path]] = []
+    placed: list[Path] = []
+    try:
+        if exists:  # the JSON goes aside first: meanwhile the pair reads as incomplete, never as torn
+            for p in (json_path, csv_path):
+                if p.exists():
+                    aside = p.with_name(f".{p.name}.replaced-{os.getpid()}.tmp")
+                    os.replace(p, aside)
+                    backups.append((aside, p))
+        os.link(tmp_csv, csv_path)  # a hard link fails rather than overwrite
+        placed.append(csv_path)
+        os.link(tmp_json, json_path)
+        placed.append(json_path)
+    except BaseException:
+        for p in placed:  # the new files that made it
+            p.unlink(missing_ok=True)
+        for aside, dest in reversed(backups):  # the old pair back
+            os.replace(aside, dest)
+        raise
+    finally:
+        tmp_csv.unlink(missing_ok=True)
+        tmp_json.unlink(missing_ok=True)
+    for aside, _ in backups:
+        aside.unlink(missing_ok=True)
+
+
+# -- reading -----------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _shared_lock(folder: Path) -> Iterator[None]:
+    """Hold the folder's lock shared (readers do not block each other; a writer waits for them)."""
+    try:
+        fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError:  # a read-only folder: nobody can be writing into it
+        yield
+        return
+    try:
+        deadline = time.monotonic() + SAVE_WAIT_S
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    raise FolderBusy(f"{folder} is busy: a recording is being saved there") from None
+                time.sleep(0.02)
+        yield
+    finally:
+        os.close(fd)
+
+
+def _read_pair(csv_path: Path) -> tuple[bytes, Any]:
+    json_path = csv_path.with_suffix(".json")
+    with _shared_lock(csv_path.parent):
+        has_json, has_csv = json_path.exists(), csv_path.exists()
+        if has_csv and not has_json:
+            raise RecordingError(
+                f"{csv_path}: incomplete run: the CSV has no metadata (the save did not finish)"
+            )
+        if not has_json:
+            raise RecordingError(f"{json_path}: missing JSON metadata file")
+        if not has_csv:
+            raise RecordingError(f"{csv_path}: missing CSV file")
+        raw_meta = json_path.read_bytes()
+        data = csv_path.read_bytes()
+    try:
+        meta = json.loads(raw_meta.decode("utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        why = f"{type(exc).__name__}: {str(exc)[:80]}"
+        raise RecordingError(f"{json_path}: unreadable JSON ({why})") from None
+    return data, meta
+
+
+def _parse_csv(data: bytes, csv_path: Path) -> pd.DataFrame:
+    first, _, _ = data.partition(b"\n")
+    if first.rstrip(b"\r") != HEADER:
+        raise RecordingError(
+            f"{csv_path}: header {first[:60]!r} is not {HEADER.decode()!r} (columns and their order)"
+        )
+    unreadable = (
+        pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError, OverflowError,
+    )  # fmt: skip
+    try:
+        frame = pd.read_csv(io.BytesIO(data), dtype=np.int64)
+    except unreadable as e:
+        raise RecordingError(f"{csv_path}: unreadable CSV ({str(e).splitlines()[0][:100]})") from None
+    return frame
+
+
+def load(path: str | os.PathLike, derive: bool = True) -> Recording:
+    """Load and validate one recording.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV or JSON file, or the path without suffix.
+    derive : bool
+        Add ``t_s``, ``tension_n``, ``cable_mm``.
+
+    Returns
+    -------
+    Recording
+
+    Raises
+    ------
+    RecordingError
+        One error naming the file, the field and the problem, for any malformed input: an incomplete run
+        (CSV without JSON), a missing file, unreadable JSON, an unknown schema version, a missing or wrongly
+        typed key, a checksum mismatch, a wrong header, a row count that contradicts ``counts.samples``, a
+        gap in ``seq`` beyond the dropped count, non-monotonic time, ADC counts out of range.
+    """
+    csv_path = _csv_path(path)
+    data, meta = _read_pair(csv_path)
+    json_path = csv_path.with_suffix(".json")
+    validate_meta(meta, json_path)
+    digest = hashlib.sha256(data).hexdigest()
+    if digest != meta["csv_sha256"]:
+        raise RecordingError(
+            f"{csv_path}: checksum mismatch: sha256 {digest[:12]}... but the metadata says "
+            f"{str(meta['csv_sha256'])[:12]}..."
+        )
+    frame = _parse_csv(data, csv_path)
+    validate(frame, meta, csv_path)
+    frame = frame.loc[:, list(RAW_COLUMNS)].astype(np.int64)
+    rec = Recording(frame=frame, meta=meta, path=csv_path)
+    return rec.derive() if derive else rec
+
+
+CATALOGUE_COLUMNS = [
+    "group", "name", "source", "kind", "system", "v_in_mm_s", "x_f_mm", "repetition", "status", "samples",
+    "dropped", "corrupted", "overruns", "rate_hz", "started_utc", "path", "problem",
+]  # fmt: skip
+
+
+def _catalogue_row(root: Path, csv_path: Path) -> dict[str, Any]:
+    row: dict[str, Any] = dict.fromkeys(CATALOGUE_COLUMNS)
+    row.update(
+        group=csv_path.parent.relative_to(root).as_posix(),
+        name=csv_path.stem,
+        path=csv_path.relative_to(root).as_posix(),
+        problem="",
+    )
+    json_path = csv_path.with_suffix(".json")
+    if not json_path.exists():
+        row.update(status="incomplete", problem="incomplete run: the CSV has no metadata")
+        return row
+    meta: Any = {}
+    try:
+        meta = json.loads(json_path.read_text(encoding="utf-8"))
+        validate_meta(meta, json_path)
+        if not csv_path.exists():
+            row["problem"] = "missing CSV file"
+    except RecordingError as exc:
+        row["problem"] = str(exc).removeprefix(f"{json_path}: ")[:200]
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        row["problem"] = f"unreadable JSON ({type(exc).__name__}: {str(exc)[:120]})"
+    meta = meta if isinstance(meta, dict) else {}
+
+    def section(key: str) -> dict[str, Any]:
+        value = meta.get(key)
+        return value if isinstance(value, dict) else {}
+
+    sc, counts, source = section("scenario"), section("counts"), section("source")
+    row.update(
+        source=source.get("kind"),
+        kind=sc.get("kind"),
+        system=sc.get("system"),
+        v_in_mm_s=sc.get("v_in_mm_s"),
+        x_f_mm=sc.get("x_f_mm"),
+        repetition=sc.get("repetition"),
+        status=meta.get("status"),
+        samples=counts.get("samples"),
+        dropped=counts.get("dropped"),
+        corrupted=counts.get("corrupted"),
+        overruns=counts.get("overruns"),
+        rate_hz=meta.get("rate_hz"),
+        started_utc=meta.get("started_utc"),
+    )
+    return row
+
+
+def catalogue(root: str | os.PathLike = DATA_DIR) -> pd.DataFrame:
+    """List every recording under ``root`` with its key metadata (without loading the samples).
+
+    Files that are not sound are listed too, never skipped: ``problem`` says what is wrong (malformed
+    metadata, an incomplete run whose CSV has no JSON, a missing CSV); it is ``""`` for sound metadata (the
+    samples and their checksum are checked by :func:`load`).
+
+    Parameters
+    ----------
+    root : path-like
+        Folder searched recursively.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per recording: ``group``, ``name``, ``source``, ``kind``, ``system``, ``v_in_mm_s``,
+        ``x_f_mm``, ``repetition``, ``status`` (``complete``, ``aborted`` or ``incomplete``), ``samples``,
+        ``dropped``, ``corrupted``, ``overruns``, ``rate_hz``, ``started_utc``, ``path`` (relative to
+        ``root``), ``problem``; sorted by group and name.
+    """
+    root = Path(root)
+    stems = set()
+    for p in root.rglob("*"):
+        ours = p.suffix in (".csv", ".json") and not p.name.startswith(".")
+        if ours and p.stem.lower() not in RESERVED_NAMES:
+            stems.add(p.with_suffix(".csv"))
+    rows = [_catalogue_row(root, p) for p in sorted(stems)]
+    return pd.DataFrame(rows, columns=CATALOGUE_COLUMNS).sort_values(["group", "name"], ignore_index=True)

@@ -1,0 +1,363 @@
+"""Every way a run can end, tried as a user would: through the command line and the pseudo-terminal server.
+
+A ``serve-virtual-rig`` process (paced at 10x real time) stands in for the two boards; ``python -m helpers
+record`` runs against its device paths in another process. The tests send signals, kill the server, open the
+ports twice, and check what the user sees (one line, an exit status from docs/faults.md) and what is on disk.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from helpers import recordings
+from helpers.home import home
+from helpers.paths import DATA_DIR, REPO_ROOT
+from helpers.programmes import Programme, Segment
+from helpers.rig import PortBusy, Rig
+from helpers.rig.stepper import StepperBoard
+
+PY = sys.executable
+
+
+class Server:
+    """``python -m helpers serve-virtual-rig`` in a subprocess, with its two device paths."""
+
+    def __init__(self, speed: float = 10.0, *extra: str) -> None:
+        self.proc = subprocess.Popen(
+            [
+                PY,
+                "-m",
+                "helpers",
+                "serve-virtual-rig",
+                "--speed",
+                str(speed),
+                "--rig-name",
+                "failures",
+                *extra,
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=REPO_ROOT,
+        )
+        paths: dict[str, str] = {}
+        deadline = time.monotonic() + 120
+        while len(paths) < 2 and time.monotonic() < deadline:
+            line = self.proc.stdout.readline()
+            if not line:
+                break
+            kind, _, path = line.strip().partition(" ")
+            paths[kind] = path
+        assert set(paths) == {"daq", "stepper"}, self.proc.stderr.read()[-500:]
+        self.daq, self.stepper = paths["daq"], paths["stepper"]
+
+    @property
+    def ports(self) -> str:
+        return f"{self.daq},{self.stepper}"
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            self.proc.wait(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def server():
+    """One server for the tests that leave the boards idle and the cable at 0 (it takes 2 s to start)."""
+    s = Server()
+    yield s
+    s.stop()
+
+
+@pytest.fixture
+def own_server():
+    """A server a test may kill or leave in any state."""
+    s = Server()
+    yield s
+    s.stop()
+
+
+@pytest.fixture
+def data_dir(tmp_path):
+    """A data folder with the load-cell calibration every run needs."""
+    (tmp_path / "calibration").mkdir()
+    shutil.copy(DATA_DIR / "calibration" / "calibration.json", tmp_path / "calibration" / "calibration.json")
+    return tmp_path
+
+
+def _record(data_dir: Path, ports: str, *extra: str) -> subprocess.Popen:
+    cmd = [PY, "-m", "helpers", "record", "pulse", "--ports", ports, "--v-in", "200", "--x-f", "20",
+           "--data-dir", str(data_dir), "--group", "g", "--name", "p", "--quiet", *extra]  # fmt: skip
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO_ROOT)
+
+
+def _wait_for_samples(proc: subprocess.Popen, seconds: float) -> None:
+    """Let the recorder run a while (it prints 'connected' once both boards answer)."""
+    line = proc.stdout.readline()
+    assert line.startswith("connected"), line + proc.stderr.read()
+    time.sleep(seconds)
+
+
+def _boards_idle(server: Server) -> tuple[str, str]:
+    """Ask both boards, as a new client, whether anything is still running: (CLEAR reply, RATE reply)."""
+    rig = Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=5.0)
+    try:
+        return rig.stepper.command("CLEAR"), rig.daq.command("RATE 1000")
+    finally:
+        rig.close()
+
+
+def recordings_calibration() -> dict:
+    return {"newtons_per_count": 0.02, "offset_counts": 50.0, "mm_per_step": 0.25525, "origin": "test"}
+
+
+@pytest.mark.parametrize(
+    "sig, status",
+    [
+        (signal.SIGTERM, 143),
+        pytest.param(signal.SIGHUP, 129, marks=pytest.mark.slow),
+        pytest.param(signal.SIGINT, 130, marks=pytest.mark.slow),
+    ],
+)
+def test_a_signal_mid_run_stops_the_boards_and_saves_a_loadable_partial_recording(
+    server, data_dir, sig, status
+):
+    proc = _record(data_dir, server.ports)
+    _wait_for_samples(proc, 0.6)  # at 10x: the run is under way
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == status, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err  # one line, no traceback
+    assert "partial recording saved to" in lines[0] and "stepper was stopped and disabled" in lines[0]
+    saved = list((data_dir / "g").glob("p_aborted_*.csv"))
+    assert len(saved) == 1 and not (data_dir / "g" / "p.csv").exists()
+    rec = recordings.load(saved[0])
+    assert rec.status == "aborted" and len(rec.frame) > 0
+    # the boards are idle: no programme running (CLEAR is accepted), no stream running (RATE is accepted)
+    assert _boards_idle(server) == ("OK CLEAR", "OK RATE 1000")
+    # the cable stopped part-way: home brings it back from where the board says it is
+    stepper = StepperBoard.open(server.stepper, hello_timeout=5.0)
+    try:
+        assert stepper.position() > 0
+        assert "back to position 0" in home(stepper)
+        assert stepper.position() == 0
+    finally:
+        stepper.close()
+
+
+def test_a_second_client_on_the_same_ports_gets_port_busy(server, data_dir):
+    first = Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=5.0)
+    try:
+        with pytest.raises(PortBusy, match="port busy"):
+            Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=5.0)
+        proc = _record(data_dir, server.ports)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 4 and err.count("\n") == 1 and "port busy" in err
+    finally:
+        first.close()
+
+
+def test_a_server_killed_mid_run_is_reported_and_the_data_kept(own_server, data_dir):
+    server = own_server
+    proc = _record(data_dir, server.ports)
+    _wait_for_samples(proc, 0.6)
+    server.proc.kill()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 4, err
+    assert err.count("\n") == 1 and "partial recording saved to" in err
+    assert "cleanup failed" in err and "driver may be on" in err  # the host could not reach the boards
+    saved = list((data_dir / "g").glob("p_aborted_*.csv"))
+    assert len(saved) == 1 and recordings.load(saved[0]).status == "aborted"
+
+
+def test_home_returns_the_cable_from_where_the_board_says_it_is(server):
+    stepper = StepperBoard.open(server.stepper, hello_timeout=5.0)
+    try:  # another client leaves the cable pulled in by 40 steps
+        stepper.load(Programme((Segment(1, 40, 2000),)))
+        stepper.enable(True)
+        stepper.go()
+        while stepper.done_position is None:
+            stepper.pump()
+        assert stepper.position() == 40
+    finally:
+        stepper.close()
+    # a pulse refuses to start from there ...
+    cmd = [PY, "-m", "helpers", "home", "--ports", server.ports]
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert "moved 40 steps" in done.stdout
+    stepper = StepperBoard.open(server.stepper, hello_timeout=5.0)
+    try:
+        assert stepper.position() == 0
+    finally:
+        stepper.close()
+
+
+@pytest.mark.slow
+def test_a_pulse_refuses_to_start_away_from_zero(own_server, data_dir):
+    server = own_server
+    stepper = StepperBoard.open(server.stepper, hello_timeout=5.0)
+    try:
+        stepper.load(Programme((Segment(1, 10, 2000),)))
+        stepper.enable(True)
+        stepper.go()
+        while stepper.done_position is None:
+            stepper.pump()
+    finally:
+        stepper.close()
+    proc = _record(data_dir, server.ports)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 3 and "not at 0" in err and "helpers home" in err
+    assert not (data_dir / "g").exists() or not list((data_dir / "g").glob("*.csv"))
+
+
+@pytest.mark.slow
+def test_home_after_a_board_reset_asks_for_confirmation():
+    cmd = [PY, "-m", "helpers", "home", "--ports", "virtual"]
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=60)
+    assert done.returncode == 3 and "position is unknown" in done.stderr and "--confirm-slack" in done.stderr
+    done = subprocess.run(
+        [*cmd, "--confirm-slack"], capture_output=True, text=True, cwd=REPO_ROOT, timeout=60
+    )
+    assert done.returncode == 0 and "confirmed slack" in done.stdout
+
+
+@pytest.mark.slow
+def test_two_recorders_into_one_group_the_second_is_refused(data_dir):
+    first = subprocess.Popen(
+        [PY, "-m", "helpers", "record", "table-i", "--data-dir", str(data_dir), "--group", "g", "--quiet",
+         "--zeta", "0.044", "--omega-d", "25.085", "--repetitions", "1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO_ROOT,
+    )  # fmt: skip
+    try:
+        assert first.stdout.readline().startswith("connected")
+        proc = _record(data_dir, "virtual")
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 5 and "busy" in err and err.count("\n") == 1
+    finally:
+        first.terminate()
+        first.communicate(timeout=60)
+
+
+REFUSALS = [
+    (["record", "pulse", "--v-in", "500", "--x-f", "10"], 2, "outside (0, 400]"),
+    (["record", "pulse", "--v-in", "nan", "--x-f", "10"], 2, "outside"),
+    (["record", "pulse", "--v-in", "200", "--x-f", "10", "--group", "../../x"], 2, "invalid group"),
+    (
+        ["record", "pulse", "--v-in", "200", "--x-f", "10", "--name", "../../../x"],
+        2,
+        "invalid recording name",
+    ),
+    (["record", "pulse", "--v-in", "200", "--x-f", "10", "--name", "calibration"], 2, "reserved"),
+    (
+        ["record", "pulse", "--v-in", "200", "--x-f", "10", "--rig-name", "x&disconnect_at=0.5"],
+        2,
+        "invalid",
+    ),
+    (["record", "pulse", "--v-in", "200", "--x-f", "10", "--t-end", "1e10"], 2, "outside"),
+    (["record", "pulse", "--v-in", "200", "--x-f", "10", "--repetitions", "-1"], 2, "outside"),
+    (["record", "pulse", "--v-in", "200"], 2, "needs --v-in and --x-f"),
+    (["serve-virtual-rig", "--speed", "inf"], 2, "outside"),
+    (["serve-virtual-rig", "--speed", "nan"], 2, "outside"),
+    (["reproduce", "--jobs", "0"], 2, "outside"),
+    (
+        [
+            "record",
+            "pulse",
+            "--v-in",
+            "200",
+            "--x-f",
+            "20",
+            "--system",
+            "zvd",
+            "--zeta",
+            "0.044",
+            "--omega-d",
+            "25.085",
+            "--t-end",
+            "8.1",
+        ],
+        3,
+        "refused",
+    ),  # fmt: skip
+]
+
+
+@pytest.mark.parametrize(("argv", "status", "message"), REFUSALS)
+def test_every_refusal_is_one_line_with_its_exit_status(data_dir, capsys, argv, status, message):
+    """In-process (quick); two of the cases run again below as real processes."""
+    from helpers.__main__ import main
+
+    if argv[0] == "record":
+        argv = [*argv, "--data-dir", str(data_dir)]
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own refusals
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == status, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert message in err
+    assert not list(Path(data_dir).rglob("*.csv"))
+
+
+@pytest.mark.parametrize(("argv", "status"), [(REFUSALS[-1][0], 3)])
+def test_refusals_end_to_end(data_dir, argv, status):
+    cmd = [PY, "-m", "helpers", *argv, "--data-dir", str(data_dir)]
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=120)
+    assert done.returncode == status and done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
+
+
+def test_debug_shows_the_traceback(data_dir, capsys):
+    from helpers.__main__ import main
+
+    argv = ["--debug", *REFUSALS[-1][0], "--data-dir", str(data_dir)]
+    assert main(argv) == 3
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.strip().splitlines()[-1].startswith("error:")
+
+
+@pytest.mark.slow
+def test_garbage_and_floods_through_the_server(data_dir):
+    noisy = Server(10.0, "--daq-faults", "garbage=0.02,corrupt=0.02,drop=0.01")
+    try:
+        proc = _record(data_dir, noisy.ports)
+        out, err = proc.communicate(timeout=120)
+        assert proc.returncode == 0, err
+        rec = recordings.load(data_dir / "g" / "p")
+        c = rec.meta["counts"]
+        assert c["corrupted"] > 0 and c["dropped"] > 0 and rec.status == "complete"
+    finally:
+        noisy.stop()
+    flood = Server(10.0, "--daq-faults", "garbage=1.0,corrupt=0.9")
+    try:
+        proc = _record(data_dir, flood.ports, "--name", "q")
+        _, err = proc.communicate(timeout=120)
+        assert proc.returncode == 4 and err.count("\n") == 1, err
+        assert "corrupted lines" in err or "did not come to rest" in err or "no sample" in err
+    finally:
+        flood.stop()
+
+
+@pytest.mark.slow
+def test_no_stale_lock_after_a_killed_recorder(data_dir):
+    proc = subprocess.Popen(
+        [PY, "-m", "helpers", "record", "table-i", "--data-dir", str(data_dir), "--group", "g", "--quiet",
+         "--zeta", "0.044", "--omega-d", "25.085", "--repetitions", "1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO_ROOT,
+    )  # fmt: skip
+    assert proc.stdout.readline().startswith("connected")
+    os.kill(proc.pid, signal.SIGKILL)  # no cleanup at all: the kernel still releases the lock
+    proc.communicate(timeout=60)
+    done = _record(data_dir, "virtual", "--t-end", "9")
+    _, err = done.communicate(timeout=120)
+    assert done.returncode == 0, err

@@ -1,0 +1,225 @@
+"""The README's commands, run as a newcomer would (into temporary folders, never into data/).
+
+Every command the README shows (in a ``bash`` block, or inline as ``python -m helpers ...``) must appear in
+:data:`HOW`, which says how it is tested here: quick ones are run in the default suite, long ones under the
+``slow`` marker, hardware-only ones by ``--help`` and a ``--dry-run``, and the set-up and test commands by CI
+itself (``.ci/run`` runs exactly them). A README edit that adds a command without a test fails
+:func:`test_every_readme_command_is_tested`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from helpers.__main__ import COMMANDS, main
+from helpers.paths import DATA_DIR
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+README = (REPO_ROOT / "README.md").read_text()
+BIN = Path(sys.executable).parent
+
+MINE = "--v-in 250 --x-f 25 --system zvd --repetitions 3 --group mine"
+HOW: dict[str, str] = {
+    # set-up and tests: what .ci/run executes on a clean clone
+    "python3.11 -m venv .venv": "ci",
+    ". .venv/bin/activate": "ci",
+    "python -m pip install -r environment.txt": "ci",
+    "python -m pytest": "ci",
+    "python -m pytest -m slow": "ci",
+    "sudo apt-get install -y --no-install-recommends gcc-avr avr-libc arduino-core-avr simavr libsimavr-dev "
+    "make gcc g++": "ci",
+    # the walkthrough
+    "jupyter lab notebooks/": "quick",
+    f"python -m helpers record pulse {MINE} --dry-run": "quick",
+    f"python -m helpers record pulse {MINE}": "quick",
+    "python -m helpers metrics data/mine": "quick",
+    "python -m helpers metrics data/mine --band 0.02 --csv results/mine --markdown results/mine.md": "quick",
+    "python -m helpers record calibration": "quick",
+    "python -m helpers record all": "slow",
+    "time python -m helpers record all": "slow",
+    "python -m helpers reproduce": "slow",
+    "python -m helpers bench": "slow",
+    "python -m helpers bench plant": "slow",
+    "python -m helpers bench serial": "slow",
+    # hardware only: --help and a dry run
+    "python -m helpers record calibration --ports auto": "dry-run",
+    "python -m helpers record all --ports auto": "dry-run",
+    f"python -m helpers record pulse {MINE} --ports auto --dry-run": "dry-run",
+    f"python -m helpers record pulse {MINE} --ports auto": "dry-run",
+    "python -m helpers home": "help",
+    "python -m helpers home --confirm-slack": "help",
+    "python -m helpers serve-virtual-rig": "help",
+    "python -m helpers virtual-rig studies": "help",
+    # the command line itself
+    "python -m helpers": "help",
+    "python -m helpers --help": "help",
+    "python -m helpers <command> --help": "help",
+    "continuum-helpers": "help",
+}
+"""README command -> how this file tests it."""
+
+
+def readme_commands(text: str = README) -> list[str]:
+    """Every command the README shows: lines of ``bash`` blocks (split at ``&&``) and inline commands."""
+    found: list[str] = []
+    for block in re.findall(r"```bash\n(.*?)```", text, re.S):
+        for line in block.splitlines():
+            line = line.split("  #")[0].strip()
+            found += [part.strip() for part in line.split("&&") if part.strip()]
+    inline = r"`((?:time )?(?:python -m helpers|continuum-helpers)[^`]*)`"
+    found += re.findall(inline, text)
+    return list(dict.fromkeys(found))
+
+
+def test_every_readme_command_is_tested():
+    commands = readme_commands()
+    assert len(commands) >= 20  # the extraction itself works
+    untested = [c for c in commands if c not in HOW]
+    assert not untested, f"README commands with no test (add them to HOW): {untested}"
+
+
+def _argv(command: str) -> list[str]:
+    """The arguments after ``python -m helpers``."""
+    words = shlex.split(command)
+    assert words[:3] == ["python", "-m", "helpers"], command
+    return words[3:]
+
+
+@pytest.fixture
+def newcomer(tmp_path, monkeypatch):
+    """A temporary working folder whose data/ holds what a fresh clone has (calibration, identification)."""
+    data = tmp_path / "data"
+    for group, name in (("calibration", "calibration.json"), ("identification", "result.json")):
+        (data / group).mkdir(parents=True)
+        shutil.copy(DATA_DIR / group / name, data / group / name)
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def _run_in(folder: Path, command: str, *extra: str) -> int:
+    """Run a README command with its data folder redirected into ``folder``."""
+    argv = _argv(command)
+    if argv[0] == "record":
+        argv += ["--data-dir", str(folder / "data"), *extra]
+    return main(argv)
+
+
+def test_the_walkthrough_records_and_analyses_an_own_scenario(newcomer, capsys):
+    shown = readme_commands()
+    dry, rec = f"python -m helpers record pulse {MINE} --dry-run", f"python -m helpers record pulse {MINE}"
+    metrics = "python -m helpers metrics data/mine"
+    metrics_files = f"{metrics} --band 0.02 --csv results/mine --markdown results/mine.md"
+    calibration = "python -m helpers record calibration"
+    assert {dry, rec, metrics, metrics_files, calibration} <= set(shown)
+    assert _run_in(newcomer, dry) == 0
+    assert "3 recording(s) would be made" in capsys.readouterr().out
+    assert not (newcomer / "data" / "mine").exists()
+    assert _run_in(newcomer, rec) == 0
+    folder = newcomer / "data" / "mine"
+    assert sorted(p.name for p in folder.glob("*.json")) == [f"zvd_v250_x25_r{k}.json" for k in (1, 2, 3)]
+    assert main(_argv(metrics)) == 0
+    out = capsys.readouterr().out
+    assert "zvd (Robust)" in out and "Skipped: none." in out and "virtual-rig" in out
+    assert main(_argv(metrics_files)) == 0
+    assert (newcomer / "results" / "mine_runs.csv").exists() and (newcomer / "results" / "mine.md").exists()
+    assert _run_in(newcomer, calibration) == 0
+    assert (newcomer / "data" / "calibration" / "load_1900g.json").exists()
+
+
+@pytest.mark.parametrize("command", [c for c, how in HOW.items() if how == "dry-run"])
+def test_hardware_commands_pass_a_dry_run(command, newcomer, capsys):
+    extra = [] if "--dry-run" in command else ["--dry-run"]
+    assert _run_in(newcomer, command, *extra) == 0
+    out = capsys.readouterr().out
+    assert "would be made on --ports auto; nothing was sent" in out
+
+
+@pytest.mark.parametrize("command", sorted({c.split(" --")[0] for c, how in HOW.items() if how == "help"}))
+def test_commands_shown_without_a_run_have_help(command, capsys):
+    if command == "continuum-helpers":
+        script = BIN / "continuum-helpers"
+        assert script.exists(), "the console script is not installed (pip install -e .)"
+        proc = subprocess.run([str(script), "--help"], capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 0 and "reproduce" in proc.stdout
+        return
+    names = list(COMMANDS) if "<command>" in command else [w for w in _argv(command) if not w.startswith("-")]
+    for argv in [[*names[:1], "--help"]] if names else [["--help"]]:
+        with pytest.raises(SystemExit) as done:
+            main(argv)
+        assert done.value.code == 0
+    if "<command>" in command:
+        for name in COMMANDS:
+            with pytest.raises(SystemExit) as done:
+                main([name, "--help"])
+            assert done.value.code == 0, name
+    assert "usage: python -m helpers" in capsys.readouterr().out
+
+
+def test_jupyter_lab_is_installed_with_the_widget_extension():
+    """``jupyter lab`` is in the environment, and so is the extension that draws notebook 03's sliders."""
+    import jupyterlab
+
+    assert (BIN / "jupyter-lab").exists() and (BIN / "jupyter").exists()
+    assert jupyterlab.__version__.startswith("4.")
+    extensions = Path(sys.prefix) / "share" / "jupyter" / "labextensions"
+    manager = extensions / "@jupyter-widgets" / "jupyterlab-manager" / "package.json"
+    assert manager.exists(), "ipywidgets' JupyterLab extension is missing (pip install -r environment.txt)"
+    assert sorted(p.name for p in (REPO_ROOT / "notebooks").glob("0*.ipynb"))[0].startswith("00_")
+
+
+def test_the_python_example_runs(newcomer, capsys):
+    code = re.search(r"```python\n(.*?)```", README, re.S).group(1)
+    exec(compile(code, "README.md", "exec"), {})  # noqa: S102 - the README's own example
+    out = capsys.readouterr().out
+    assert "overshoot_pct" in out and "Up" in out and "Down" in out
+    assert (newcomer / "data" / "mine" / "zvd_v250_x25_py.json").exists()
+
+
+@pytest.mark.slow
+def test_record_all_regenerates_the_paper_experiment(newcomer):
+    assert _run_in(newcomer, "python -m helpers record all", "--quiet") == 0
+    assert len(list((newcomer / "data" / "experiments").glob("*.json"))) == 36
+    assert (newcomer / "data" / "identification" / "pulse_v100_x10.json").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("suite", ["plant", "serial"])
+def test_bench_prints_its_figures(suite):
+    proc = subprocess.run(
+        [sys.executable, "-m", "helpers", "bench", suite], capture_output=True, text=True, timeout=600,
+        cwd=REPO_ROOT,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "x real time" in proc.stdout or "samples" in proc.stdout
+
+
+@pytest.mark.slow
+def test_reproduce_on_a_copy_of_the_repository_changes_no_tracked_file(tmp_path):
+    """The README's main command, run twice on a copy of the tracked files: every tracked byte unchanged."""
+    files = subprocess.run(
+        ["git", "ls-files", "-z"], cwd=REPO_ROOT, capture_output=True, check=True
+    ).stdout.decode().split("\0")
+    copy = tmp_path / "repo"
+    for name in filter(None, files):
+        target = copy / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(REPO_ROOT / name, target)
+    before = {n: (copy / n).read_bytes() for n in filter(None, files)}
+    env = {k: v for k, v in os.environ.items() if k != "HELPERS_FIGURES_DIR"}
+    env["PYTHONPATH"] = str(copy)
+    for _ in range(2):
+        proc = subprocess.run(
+            [sys.executable, "-m", "helpers", "reproduce"], cwd=copy, env=env, capture_output=True, text=True,
+            timeout=900,
+        )  # fmt: skip
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    changed = [n for n, data in before.items() if (copy / n).read_bytes() != data]
+    assert not changed, f"reproduce changed tracked files: {changed}"

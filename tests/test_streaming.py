@@ -1,0 +1,149 @@
+"""``helpers.streaming``, the reference of the stepper board's streaming shaper: its steps follow the exact
+shaped trajectory within one step at every instant, each step at the first tick after its exact crossing;
+the fixed-point representation and the board's rules for set-points, the watchdog and END."""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+
+from helpers import streaming as hs
+
+pytestmark = pytest.mark.streaming
+
+
+def random_stream(r: random.Random) -> tuple[hs.StreamShaper, hs.PeriodCommands, int]:
+    n = r.randint(1, 8)
+    negative = r.random() < 0.3
+    d_max = r.choice([0.0, 0.005, 0.05, 0.3, 1.0]) if n > 1 else 0.0
+    delays = sorted({0.0, *(r.uniform(0.0, d_max) for _ in range(n - 1))})
+    amps = [r.uniform(0.1, 1.0) for _ in delays]
+    if negative and len(amps) > 1:  # one negative impulse, small enough that the sum stays well above 0
+        i = r.randrange(1, len(amps))
+        amps[i] = -r.uniform(0.1, 0.5) * (sum(amps) - amps[i])
+    shaper = hs.StreamShaper.quantise(amps, delays, allow_negative=negative)
+    top = r.choice([30, 300, hs.V_MAX])
+    assigned, v, k = {}, 0, 1
+    for _ in range(r.randint(1, 80)):
+        v = int(np.clip(v + r.gauss(0, top / 4), -top, top)) if r.random() < 0.8 else r.randint(-top, top)
+        assigned[k] = v
+        k += 1 if r.random() < 0.9 else r.randint(2, 14)  # gaps: underruns, now and then the watchdog
+    end = None if r.random() < 0.2 else k + r.randint(0, 3)
+    return shaper, hs.PeriodCommands(assigned, end), r.randint(0, hs.TRAVEL_MAX)
+
+
+def count_at(result: hs.StreamResult, start: int, t: np.ndarray) -> np.ndarray:
+    """The step count at times ``t`` (ticks): steps issued at or before ``t``."""
+    csum = np.concatenate([[start], start + np.cumsum(result.directions)])
+    return csum[np.searchsorted(result.ticks, t, side="right")]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_steps_follow_the_exact_shaped_trajectory_within_one_step(seed):
+    r = random.Random(seed)
+    shaper, commands, start = random_stream(r)
+    result = hs.simulate(shaper, commands, position=start)
+    assert result.finish_tick is not None
+    t_end = result.finish_tick * hs.PERIOD_TICKS
+    # every instant: a dense grid, every breakpoint of the shaped velocity, and both sides of every step
+    grid = np.arange(0, t_end, 97.0)
+    breaks = np.array(
+        [
+            (k + 1) * hs.PERIOD_TICKS + d * hs.DELTA // 16
+            for k in range(result.finish_tick)
+            for d in shaper.delays_us
+        ],
+        dtype=float,
+    )
+    t = np.unique(np.concatenate([grid, breaks, result.ticks - 1.0, result.ticks, result.ticks + 1.0]))
+    t = t[(t >= 0) & (t <= t_end)]
+    x = hs.exact_position(shaper, result.v_by_period, t, position=start)
+    c = count_at(result, start, t)
+    v_tick = hs.S_MAX / hs.ONE / hs.DELTA  # the fastest motion in one tick (steps)
+    assert np.max(np.abs(x - c)) < 1.0 + v_tick + 1e-9
+    # each step is issued at the first tick at or after the exact crossing of c +- 1
+    before = count_at(result, start, result.ticks.astype(float) - 1)
+    xs = hs.exact_position(shaper, result.v_by_period, result.ticks.astype(float), position=start)
+    xs_prev = hs.exact_position(shaper, result.v_by_period, result.ticks - 1.0, position=start)
+    up = result.directions > 0
+    eps = 1e-9
+    assert np.all(np.where(up, xs >= before + 1 - eps, xs <= before - 1 + eps))
+    assert np.all(np.where(up, xs_prev < before + 1 + eps, xs_prev > before - 1 - eps))
+    # where the stream ends, the count is within one step of where the exact trajectory rests
+    x_end = hs.exact_position(shaper, result.v_by_period, np.array([float(t_end)]), position=start)[0]
+    assert abs(x_end - result.position) < 1.0
+    assert 0 <= result.position <= hs.TRAVEL_MAX
+
+
+def test_the_residual_is_exact():
+    """Integer arithmetic loses nothing: after a stream with no clamp, c + r / 2^28 is the exact position."""
+    shaper = hs.StreamShaper.quantise([0.3, 0.4, 0.3], [0.0, 0.013, 0.137])
+    v = {k: (37 * k) % 201 - 100 for k in range(1, 200)}
+    result = hs.simulate(shaper, hs.PeriodCommands(v, 200), position=78)
+    assert not result.notices
+    total = sum(v.values()) * hs.PERIOD  # set-point units times DELTA: 2^-16 step each
+    assert result.position * hs.ONE + result.residual == 78 * hs.ONE + total * (hs.ONE >> 16)
+
+
+def test_speed_and_travel_clamps():
+    fast = hs.StreamShaper((6144, -2048), (0, 50_000), allow_negative=True)
+    result = hs.simulate(fast, hs.PeriodCommands({k: 1500 for k in range(1, 11)}, 11), position=0)
+    assert np.diff(result.ticks).min() >= 1278  # 639 us: the shaped 1.5 x 1500 is clamped to 1640
+    assert [n.kind for n in result.notices] == ["LIMIT,SPEED"]
+    push = hs.simulate(
+        hs.UNIT_SHAPER, hs.PeriodCommands({k: hs.V_MAX for k in range(1, 40)}, 40), position=150
+    )
+    assert push.position == hs.TRAVEL_MAX and len(push.ticks) == 6
+    assert [(n.kind, n.value) for n in push.notices] == [("LIMIT,TRAVEL", 156)]
+
+
+def test_setpoint_rules():
+    c = hs.PeriodCommands({1: 5, 2: 6, 5: 7}, end_period=9)
+    got = [(k, v, s) for k, v, s in _take(c, 11)]
+    assert [v for _, v, _ in got] == [5, 6, 6, 6, 7, 7, 7, 7, 0, 0, 0]  # underruns hold, END zeros
+    assert [s for _, _, s in got][-3:] == ["end"] * 3
+    w = hs.PeriodCommands({1: 9})
+    got = list(_take(w, 14))
+    assert [v for _, v, _ in got[:11]] == [9] * 11  # 10 underruns hold ...
+    assert got[11] == (12, 0, "watchdog")  # ... the 11th fires the watchdog
+
+
+def _take(commands: hs.PeriodCommands, n: int):
+    for item, _ in zip(commands, range(n), strict=False):
+        yield item
+
+
+def test_quantised_shaper():
+    s = hs.StreamShaper.quantise([0.25, 0.5, 0.25], [0.1, 0.3, 0.5])
+    assert s.amplitudes == (1024, 2048, 1024) and s.delays_us == (0, 200_000, 400_000)
+    s = hs.StreamShaper.quantise([1 / 3, 1 / 3, 1 / 3], [0.0, 0.123456, 0.123460])  # the last two merge
+    assert sum(s.amplitudes) == hs.AMP_ONE and len(s.amplitudes) == 2 and s.delays_us == (0, 123456)
+    assert s.commands() == ["SHAPER 2 0", f"IMP 0 {s.amplitudes[0]} 0", f"IMP 1 {s.amplitudes[1]} 123456"]
+    assert hs.velocity_units(400.0, 0.25525) == 1643  # 400 mm/s needs more than the board's 1640
+    assert hs.STEPS_PER_S_PER_UNIT == 0.95367431640625
+
+
+@pytest.mark.parametrize(
+    "amps, delays, negative, message",
+    [
+        ((4096,) * 9, tuple(range(0, 144, 16)), False, "1 to 8"),
+        ((4097, -1), (0, 16), True, None),
+        ((4097, -1), (0, 16), False, "amplitude"),
+        ((16385, -12289), (0, 16), True, "amplitude"),
+        ((2048, 2048), (16, 32), False, "delay"),
+        ((2048, 2048), (0, 0), False, "delay"),
+        ((2048, 2048), (0, 8), False, "delay"),
+        ((2048, 2048), (0, 1_000_016), False, "delay"),
+        ((2048, 2047), (0, 16), False, "sum"),
+    ],
+)
+def test_shaper_checks(amps, delays, negative, message):
+    error = hs.shaper_error(amps, delays, negative)
+    if message is None:
+        assert error is None
+    else:
+        assert message in error
+        with pytest.raises(ValueError):
+            hs.StreamShaper(amps, delays, negative)
