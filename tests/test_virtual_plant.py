@@ -423,8 +423,9 @@ def test_load_cell_counts_follow_the_current_loop():
     np.testing.assert_array_equal(c[:4], np.rint(offset + gain * lam[:4]))
     assert c[-1] == round(20.5e-3 * 150.0 * 1024 / 5.0)  # the loop saturates at 20.5 mA, below 1023
     assert cell.full_scale_newtons > 17.7  # the paper's largest tension fits
-    noisy = cell.counts(np.full(20000, 3.0))
-    assert np.std(noisy) == pytest.approx(1.0, rel=0.1)
+    noisy = LoadCell(CAL, seed=1, noise_rms=2.0).counts(np.full(20000, 3.0))
+    assert np.std(noisy) == pytest.approx(2.0, rel=0.1)  # (quantisation adds 1/12 count^2)
+    assert cell.noise_rms == CAL.adc_noise_counts
     with pytest.raises(ValueError):
         cell.counts([np.nan])
 

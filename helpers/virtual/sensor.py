@@ -8,7 +8,7 @@ that output into ADC counts::
     counts = clip(round(1024 * I * 150 ohm / 5 V + noise), 0, 1023)
 
 The loop, the shunt (paper) and the ADC reference are in :mod:`helpers.hardware`; ``span_n`` (20 N) and the
-noise (1 count rms) are :class:`~helpers.virtual.parameters.RigParameters` fields. With the defaults: 24.58
+noise (0.5 count rms) are :class:`~helpers.virtual.parameters.RigParameters` fields. With the defaults: 24.58
 counts per N (0.041 N per count), 122.9 counts at 0 N, saturation at 20.6 N (629.8 counts): the paper's
 largest tension, 17.7 N, reads 558 counts. A reading at or beyond the loop's saturation (or the ADC's rails)
 is *clipped*; :func:`helpers.metrics.clipped_samples` flags it, for hardware recordings too.
