@@ -217,9 +217,9 @@ def test_compiled_integrator_converges_to_the_solve_ivp_reference():
     """A 4-disc arm with stepper and carriage through the start of a pull: the fixed-step kernel converges to
     the solve_ivp reference at fourth order as the step shrinks (equations and integrator agree)."""
     p = CAL.replace(n_discs=4, disc_mass=CAL.disc_mass * 3)
-    times, signs = pulse_steps(200.0, 2.0, 0.005, 1.0)
+    times, signs = pulse_steps(200.0, 2.0, 0.002, 1.0)
     up = signs > 0
-    t = np.arange(1, 26) * 1e-3
+    t = np.arange(1, 16) * 1e-3
     ref = ReferenceArm(p).run(t, times[up], signs[up], rtol=1e-8, atol=1e-11, method="RK45", raw=True)
     errors = []
     for h in (2e-4, 5e-5):
