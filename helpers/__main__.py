@@ -33,6 +33,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
     "frame": ("helpers.frame_command", "append the CRC-8 to commands typed by hand (PING -> PING*79)"),
     "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
+    "virtual-rig": ("helpers.rig_studies", "check or re-tune the virtual rig; rewrite its evidence tables"),
 }
 """command name -> (module, one-line help)."""
 

@@ -59,6 +59,40 @@ DAQ_RATE_DEFAULT_HZ: int = 1000
 ADC_MAX: int = 1023
 """Largest reading of the DAQ board's 10-bit ADC."""
 
+# --- the load-cell signal chain: amplifier current loop -> shunt -> 10-bit ADC -----------------------------
+LOOP_ZERO_A: float = 4.0e-3
+LOOP_FULL_A: float = 20.0e-3
+"""The amplifier's current-loop output at zero and at full-scale load, A. The paper says the LCA-RTC's
+"current-loop output signal of 0.6 mA" is turned into a voltage by a 150 ohm resistor; we read it as a
+standard 4-20 mA loop (4 mA through 150 ohm is 0.6 V, the smallest reading), an assumption."""
+
+LOOP_SATURATION_A: tuple[float, float] = (3.8e-3, 20.5e-3)
+"""The loop's linear range, A: the NAMUR NE 43 measuring range of 4-20 mA transmitters (3.8-20.5 mA); beyond
+it the output saturates. Assumed for the LCA-RTC (its datasheet figure is not known to us)."""
+
+SHUNT_OHM: float = paper.SHUNT_OHM
+"""Loop resistor, ohm (paper)."""
+
+ADC_VREF_V: float = 5.0
+"""ADC reference voltage, V: the Arduino Mega's default reference (its 5 V supply); assumed."""
+
+CLIP_MARGIN_COUNTS: int = 2
+"""A reading this close to the loop's upper saturation level (or beyond it) counts as clipped: the ADC's
+noise (about 1 count rms) spreads a saturated reading by a few counts."""
+
+
+def loop_counts(current_a: float) -> float:
+    """ADC reading (counts, not rounded) of a loop current through the shunt: ``1024 I R / V_ref``."""
+    return 1024.0 * current_a * SHUNT_OHM / ADC_VREF_V
+
+
+CLIP_LOW_COUNTS: int = math.floor(loop_counts(LOOP_SATURATION_A[0]))
+"""Readings at or below this are clipped: the loop's lower saturation (3.8 mA = 116.7 counts, floored)."""
+
+CLIP_HIGH_COUNTS: int = min(ADC_MAX, round(loop_counts(LOOP_SATURATION_A[1])) - CLIP_MARGIN_COUNTS)
+"""Readings at or above this are clipped: the loop's upper saturation (20.5 mA = 629.8 counts) less the
+noise margin, or the ADC's own top (whichever is lower)."""
+
 DAQ_BAUD: int = 500_000
 STEPPER_BAUD: int = 115_200
 """Serial line rates of the two boards (8N1)."""

@@ -31,6 +31,13 @@ A metric that cannot be computed is NaN and the row's ``reason`` says why; no nu
   one): the overshoot is NaN (its formula assumes the expected direction);
 - never settles (the last sample of the window is outside the band) or settles less than ``min_hold_s``
   before the window ends (it cannot be confirmed that it stays): the settling time is NaN.
+
+Range check (hardware and virtual recordings alike): a sample whose ADC reading is *clipped*
+(:func:`clipped_samples`: at the ADC's rails or at the amplifier loop's saturation, :func:`clip_limits`)
+does not show the tension. A clipped sample inside a motion's window makes its peak a *bound* (a lower bound
+of an Up peak, an upper bound of a Down minimum) and its overshoot a lower bound: both are kept,
+``peak_is_bound`` is True and the row's ``reason`` says so. A clipped sample in the spans of ``y0`` or ``yf``
+makes the overshoot and the settling time NaN (the step itself is unknown).
 """
 
 from __future__ import annotations
@@ -44,7 +51,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from helpers import paper
+from helpers import hardware, paper
 from helpers.noise import white_noise_std
 
 FloatArray = NDArray[np.float64]
@@ -110,7 +117,11 @@ class MotionMetrics:
     band : float
         Half-width of the settling band as a fraction of ``|yf - y0|``.
     reason : str
-        Why some metric is NaN (``""`` when all are computed).
+        Why some metric is NaN or a bound (``""`` when all are computed exactly).
+    peak_is_bound : bool
+        True when a clipped sample lies in the window: the peak (and the overshoot) is then only a bound.
+    n_clipped : int
+        Clipped samples in the window.
     """
 
     motion: str
@@ -124,6 +135,51 @@ class MotionMetrics:
     settled_s: float
     band: float
     reason: str = ""
+    peak_is_bound: bool = False
+    n_clipped: int = 0
+
+
+LOOP_OFFSET_TOLERANCE_COUNTS = 10.0
+"""A calibration whose zero reading is this close to the 4 mA loop's (122.88 counts) is taken to come from the
+paper's current-loop chain; otherwise only the ADC's own rails bound the range."""
+
+
+def clip_limits(calibration: dict[str, Any] | None = None) -> tuple[float, float]:
+    """ADC counts at or beyond which a reading is clipped, for a recording's load-cell calibration.
+
+    The paper's chain (current loop, 150 ohm, 10-bit ADC): at or below
+    :data:`helpers.hardware.CLIP_LOW_COUNTS` (the loop's lower saturation, 3.8 mA, and the ADC's 0) or at or
+    above :data:`helpers.hardware.CLIP_HIGH_COUNTS` (within the noise margin of its upper saturation, 20.5 mA,
+    or the ADC's 1023). A calibration whose zero reading (``offset_counts``) is not the loop's 4 mA (within
+    :data:`LOOP_OFFSET_TOLERANCE_COUNTS`) comes from another chain, whose saturation is unknown: then only the
+    ADC's rails, 0 and 1023, bound the range.
+    """
+    offset = None if calibration is None else calibration.get("offset_counts")
+    loop_zero = hardware.loop_counts(hardware.LOOP_ZERO_A)
+    if offset is not None and abs(float(offset) - loop_zero) > LOOP_OFFSET_TOLERANCE_COUNTS:
+        return 0.0, float(hardware.ADC_MAX)
+    return float(hardware.CLIP_LOW_COUNTS), float(hardware.CLIP_HIGH_COUNTS)
+
+
+def clipped_samples(adc: ArrayLike, calibration: dict[str, Any] | None = None) -> NDArray[np.bool_]:
+    """Which ADC readings are clipped: at or beyond the signal chain's range (:func:`clip_limits`).
+
+    The check applies to hardware recordings as to virtual ones.
+
+    Parameters
+    ----------
+    adc : array_like
+        ADC counts.
+    calibration : dict, optional
+        The recording's ``calibration`` metadata (``offset_counts`` decides which chain; default the paper's).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+    """
+    a = np.asarray(adc, dtype=float)
+    low, high = clip_limits(calibration)
+    return (a <= low) | (a >= high)
 
 
 def _check_time(t: FloatArray, name: str = "t") -> None:
@@ -187,7 +243,7 @@ def segment_motions(t: ArrayLike, steps: ArrayLike) -> Motions:
 
 
 def _nan_metrics(
-    motion: str, start: float, end: float, band: float, reason: str, **known: float
+    motion: str, start: float, end: float, band: float, reason: str, **known: Any
 ) -> MotionMetrics:
     values = {"y0": math.nan, "yf": math.nan, "peak": math.nan} | known
     return MotionMetrics(
@@ -216,6 +272,7 @@ def motion_metrics(
     min_hold_s: float = MIN_HOLD_S,
     max_missing: int = MAX_MISSING,
     min_step: float | None = None,
+    clipped: ArrayLike | None = None,
 ) -> MotionMetrics:
     """Peak, overshoot and settling time of one motion (definitions in the module docstring).
 
@@ -239,11 +296,13 @@ def motion_metrics(
     min_step : float, optional
         Smallest ``|yf - y0|`` that counts as a step; default 10 times the white-noise standard deviation
         of the pre-motion samples (robust, from the second difference; at least ``1e-9 * max(|y0|, |yf|)``).
+    clipped : array_like of bool, optional
+        Per sample, whether the sensor clipped it (:func:`clipped_samples`); default none.
 
     Returns
     -------
     MotionMetrics
-        The metrics, NaN with a reason where they cannot be computed.
+        The metrics, NaN with a reason where they cannot be computed, flagged where they are bounds.
 
     Raises
     ------
@@ -257,25 +316,48 @@ def motion_metrics(
     if y.shape != t.shape:
         raise ValueError(f"t and y must have the same length, got {t.size} and {y.size}")
 
+    if clipped is None:
+        clip = np.zeros(t.shape, dtype=bool)
+    else:
+        clip = np.asarray(clipped, dtype=bool)
+        if clip.shape != t.shape:
+            raise ValueError(f"clipped must have one flag per sample, got {clip.size} for {t.size}")
+
     dt = float(np.median(np.diff(t)))
     valid = np.isfinite(y)
-    tv, yv = t[valid], y[valid]
+    tv, yv, cv = t[valid], y[valid], clip[valid]
     in_window = (tv >= start) & ((tv < end) | (end >= t[-1]))
-    t_w, y_w = tv[in_window], yv[in_window]
+    t_w, y_w, c_w = tv[in_window], yv[in_window], cv[in_window]
     pre = (tv >= start - pre_s) & (tv < start)
     problem = _coverage_problem(t, tv, t_w, start, end, dt, pre_s, final_s, max_missing)
     if problem:
         return _nan_metrics(motion, start, end, band, problem)
 
+    final = t_w >= t_w[-1] - final_s
     y0 = float(np.median(yv[pre]))
-    yf = float(np.median(y_w[t_w >= t_w[-1] - final_s]))
+    yf = float(np.median(y_w[final]))
     peak = float(np.max(y_w)) if motion == "Up" else float(np.min(y_w))
+    n_clipped = int(np.count_nonzero(c_w))
+    bound = n_clipped > 0
+    bound_reasons = []
+    if bound:
+        which = "lower" if motion == "Up" else "upper"
+        bound_reasons.append(
+            f"peak is a {which} bound: {n_clipped} sample(s) of the window are clipped at the sensor's range "
+            "(the ADC's rails or the amplifier loop's saturation); the overshoot is a lower bound"
+        )
+    flags = {"peak_is_bound": bound, "n_clipped": n_clipped}
+    if np.any(cv[pre]) or np.any(c_w[final]):
+        why = "y0 or yf read from clipped samples: overshoot and settling undefined"
+        reason = "; ".join(bound_reasons + [why])
+        return _nan_metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak, **flags)
     step = yf - y0
     if min_step is None:
         min_step = max(10.0 * white_noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
     if abs(step) <= min_step or abs(step) == 0.0:
         reason = f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
-        return _nan_metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak)
+        return _nan_metrics(motion, start, end, band, "; ".join(bound_reasons + [reason]), y0=y0, yf=yf,
+                            peak=peak, **flags)  # fmt: skip
     overshoot, reasons = _overshoot(motion, peak, y0, yf)
     settling_ms, settled_s, more = _settling(t_w, y_w, yf, step, band, min_hold_s, start)
     return MotionMetrics(
@@ -289,7 +371,8 @@ def motion_metrics(
         settling_ms=settling_ms,
         settled_s=settled_s,
         band=band,
-        reason="; ".join(reasons + more),
+        reason="; ".join(bound_reasons + reasons + more),
+        **flags,
     )
 
 
@@ -375,18 +458,26 @@ def _settling(
 
 
 def recording_metrics(
-    frame: pd.DataFrame, band: float = 0.05, *, column: str = "tension_n", **kwargs: Any
+    frame: pd.DataFrame,
+    band: float = 0.05,
+    *,
+    column: str = "tension_n",
+    calibration: dict[str, Any] | None = None,
+    **kwargs: Any,
 ) -> pd.DataFrame:
     """Table II metrics of one recording: one row per motion (Up, Down).
 
     Parameters
     ----------
     frame : pandas.DataFrame
-        A loaded recording's frame with columns ``t_s``, ``steps`` and ``column``.
+        A loaded recording's frame with columns ``t_s``, ``steps`` and ``column``; with an ``adc`` column the
+        range check (:func:`clipped_samples`) flags clipped samples.
     band : float
         Settling band (fraction of the step).
     column : str
         The analysed signal (default the tension in N).
+    calibration : dict, optional
+        The recording's ``calibration`` metadata, for the range check's limits (:func:`clip_limits`).
     **kwargs
         Passed to :func:`motion_metrics`.
 
@@ -394,8 +485,9 @@ def recording_metrics(
     -------
     pandas.DataFrame
         Columns ``motion``, ``start_s``, ``end_s``, ``y0_n``, ``yf_n``, ``peak_n``, ``overshoot_pct``,
-        ``settling_ms``, ``settled_s``, ``band``, ``reason`` (``_n`` columns are in the units of
-        ``column``). If the motions cannot be segmented, both rows are NaN with the reason.
+        ``settling_ms``, ``settled_s``, ``band``, ``reason``, ``peak_is_bound``, ``n_clipped`` (``_n``
+        columns are in the units of ``column``). If the motions cannot be segmented, both rows are NaN with
+        the reason.
 
     Raises
     ------
@@ -407,6 +499,8 @@ def recording_metrics(
         raise ValueError(f"recording frame lacks column(s) {missing}; has {list(frame.columns)}")
     t = frame["t_s"].to_numpy(dtype=float)
     y = frame[column].to_numpy(dtype=float)
+    if "clipped" not in kwargs and "adc" in frame.columns:
+        kwargs = {**kwargs, "clipped": clipped_samples(frame["adc"].to_numpy(), calibration)}
     try:
         m = segment_motions(t, frame["steps"].to_numpy(dtype=float))
     except ValueError as err:
@@ -432,6 +526,8 @@ def recording_metrics(
             "settled_s",
             "band",
             "reason",
+            "peak_is_bound",
+            "n_clipped",
         ]
     ]
 
@@ -485,7 +581,8 @@ def metrics_by_run(
             skipped.append(f"{getattr(rec, 'name', i)}: {status}")
             continue
         sc = _scenario_of(rec, i)
-        df = recording_metrics(rec.frame, band, **kwargs)
+        meta = getattr(rec, "meta", None) or {}
+        df = recording_metrics(rec.frame, band, calibration=meta.get("calibration"), **kwargs)
         for key, value in sc.items():
             df[key] = value
         parts.append(df)
@@ -559,8 +656,10 @@ def summarise(runs: pd.DataFrame, band: float) -> pd.DataFrame:
         One row per (``v_in_mm_s``, ``x_f_mm``, ``system``, ``motion``) in the paper's order, with
         ``n_runs`` and, for each metric ``m`` of ``peak_n``, ``overshoot_pct``, ``settling_ms``: ``m_mean``
         and ``m_std`` (sample standard deviation, ddof = 1; NaN with fewer than two values) over the runs
-        where ``m`` is not NaN, and ``m_n``, the number of such runs. ``reason`` lists, per repetition,
-        why values are missing.
+        where ``m`` is not NaN, and ``m_n``, the number of such runs. ``peak_is_bound`` is True if any
+        repetition's peak is a bound (a clipped sample in its window; the mean is then a bound too) and
+        ``n_clipped`` counts the clipped samples. ``reason`` lists, per repetition, why values are missing or
+        bounds.
     """
     rows = []
     for keys, g in runs.groupby(_KEYS, sort=False):
@@ -573,6 +672,8 @@ def summarise(runs: pd.DataFrame, band: float) -> pd.DataFrame:
             row[f"{m}_std"] = float(vals.std(ddof=1)) if vals.size >= 2 else math.nan
             row[f"{m}_n"] = int(vals.size)
         row["band"] = band
+        row["peak_is_bound"] = bool(g["peak_is_bound"].any())
+        row["n_clipped"] = int(g["n_clipped"].sum())
         row["reason"] = "; ".join(
             f"rep {r}: {why}" for r, why in zip(g["repetition"], g["reason"], strict=True) if why
         )
@@ -595,17 +696,19 @@ def paper_comparison(table: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         ``v_in_mm_s``, ``x_f_mm``, ``system``, ``motion``, then for each metric our mean (``peak_n``,
-        ``overshoot_pct``, ``settling_ms``) and the paper's (``..._paper``); rows of either table without a
-        partner have NaN in the other's columns.
+        ``overshoot_pct``, ``settling_ms``) and the paper's (``..._paper``), then ``peak_is_bound`` and
+        ``reason`` if the table has them (a clipped peak stays flagged beside the paper's); rows of either
+        table without a partner have NaN in the other's columns.
     """
     need = _KEYS + [f"{m}_mean" for m in METRIC_COLUMNS]
     missing = [c for c in need if c not in table.columns]
     if missing:
         raise ValueError(f"table lacks column(s) {missing}: pass the output of scenario_table()")
-    ours = table[need].rename(columns={f"{m}_mean": m for m in METRIC_COLUMNS})
+    extra = [c for c in ("peak_is_bound", "reason") if c in table.columns]
+    ours = table[need + extra].rename(columns={f"{m}_mean": m for m in METRIC_COLUMNS})
     theirs = paper.table_ii().rename(columns={m: f"{m}_paper" for m in METRIC_COLUMNS})
     merged = ours.merge(theirs, on=_KEYS, how="outer")
-    cols = _KEYS + [c for m in METRIC_COLUMNS for c in (m, f"{m}_paper")]
+    cols = _KEYS + [c for m in METRIC_COLUMNS for c in (m, f"{m}_paper")] + extra
     return paper_order(merged[cols])
 
 
@@ -684,3 +787,70 @@ def residual_vibration(
         return math.nan
     w = y[window]
     return float(100.0 * (w.max() - w.min()) / 2.0 / step)
+
+
+ORDERINGS = (("zv", "unshaped"), ("zvd", "zv"), ("zvd", "unshaped"))
+"""The paper's orderings, per condition and motion: each pair ``(a, b)`` claims ``a`` below ``b`` (in
+overshoot and in settling time): a shaper beats the pulse, the robust shaper beats the non-robust one."""
+
+
+def prediction_errors(table: pd.DataFrame, systems: Sequence[str] = ("zv", "zvd")) -> pd.DataFrame:
+    """Errors of a Table II (means) against the paper's, for the rows of ``systems``.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        Output of :func:`scenario_table` (or a stored copy of it).
+    systems : sequence of str
+        The systems whose rows are compared (default the shaped ones: the held-out predictions).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The keys, then ``peak_err_n``, ``overshoot_err_pp``, ``settling_err_ms`` (ours minus the paper's) and
+        ``peak_is_bound`` (False if the table does not say).
+    """
+    cmp = paper_comparison(table)
+    cmp = cmp[cmp["system"].isin(systems)].copy()
+    out = cmp[_KEYS].copy()
+    out["peak_err_n"] = cmp["peak_n"] - cmp["peak_n_paper"]
+    out["overshoot_err_pp"] = cmp["overshoot_pct"] - cmp["overshoot_pct_paper"]
+    out["settling_err_ms"] = cmp["settling_ms"] - cmp["settling_ms_paper"]
+    bound = cmp["peak_is_bound"] if "peak_is_bound" in cmp else pd.Series(False, index=cmp.index)
+    out["peak_is_bound"] = bound.fillna(False).astype(bool)
+    return out.reset_index(drop=True)
+
+
+def ordering_agreement(table: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """Whether a Table II reproduces the paper's orderings (:data:`ORDERINGS`) of ``metric``, row by row.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        Output of :func:`scenario_table` (means in ``<metric>_mean``).
+    metric : {"overshoot_pct", "settling_ms"}
+        The metric compared.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Per condition, motion and ordering ``a < b``: ``paper`` (does the paper's table show it), ``ours``
+        (does ``table``), ``agrees`` (the same answer).
+    """
+    if metric not in ("overshoot_pct", "settling_ms"):
+        raise ValueError(f"metric must be 'overshoot_pct' or 'settling_ms', got {metric!r}")
+    ours = table.set_index(_KEYS)[f"{metric}_mean"]
+    theirs = paper.table_ii().set_index(_KEYS)[metric]
+    rows = []
+    for v, x in paper.TABLE_I_CONDITIONS:
+        for motion in MOTIONS:
+            for a, b in ORDERINGS:
+                key_a, key_b = (float(v), float(x), a, motion), (float(v), float(x), b, motion)
+                p_ok = bool(theirs.loc[key_a] < theirs.loc[key_b])
+                try:
+                    o_ok = bool(ours.loc[key_a] < ours.loc[key_b])
+                except KeyError:
+                    o_ok = None
+                rows.append({"v_in_mm_s": v, "x_f_mm": x, "motion": motion, "ordering": f"{a} < {b}",
+                             "paper": p_ok, "ours": o_ok, "agrees": o_ok == p_ok})  # fmt: skip
+    return pd.DataFrame(rows)

@@ -32,6 +32,17 @@ BACKBONE = {"material": "A228 music wire", "d_m": 0.82e-3, "L_m": 0.24, "n_discs
 
 STEPS_PER_REV = 800
 SPOOL_DIAMETER_M = 0.065
+"""The stepper set to 800 steps per revolution (TB6600 driver) and the cable spool's diameter."""
+
+FULL_STEP_DEG = 1.8
+HOLDING_TORQUE_KG_CM = 4.3
+"""The stepper (MOTOU 17HS4401S, NEMA 17): full step angle and holding torque as printed."""
+
+SHUNT_OHM = 150.0
+"""The resistor that turns the load-cell amplifier's current-loop output into the ADC's input voltage."""
+
+LOADCELL_RANGE_N = 5.0
+"""The load cell's stated range (LSP-5, 0-5 N); Table II reports peaks up to 17.7 N."""
 
 PULSE_T_UP_S = 1.0
 PULSE_T_DOWN_S = 8.0

@@ -66,6 +66,7 @@ LAYERS: dict[str, int] = {
     "helpers.table2": 10,
     "helpers.reproduce": 11,
     "helpers.benchmarks": 11,
+    "helpers.rig_studies": 11,
     "helpers.__main__": 12,
 }
 """Layer of each module or room (a room's submodules share its layer)."""

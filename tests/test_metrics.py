@@ -421,3 +421,148 @@ def test_aborted_runs_stay_out_of_table_ii_unless_asked():
     assert set(metrics.scenario_table([good, cut], include_aborted=True)["n_runs"]) == {2}
     with pytest.raises(ValueError, match="no complete recordings"):
         metrics.scenario_table([cut])
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the range check: clipped samples make the peak a bound, for hardware and virtual recordings alike
+
+# the paper's chain written out here: a 4-20 mA loop (saturating at 3.8 and 20.5 mA) through 150 ohm into a
+# 10-bit ADC with a 5 V reference; within 2 counts of the upper saturation counts as clipped
+LOW = math.floor(3.8e-3 * 150 * 1024 / 5)
+HIGH = round(20.5e-3 * 150 * 1024 / 5) - 2
+
+
+def test_clipped_samples_are_the_adc_rails_and_the_loop_saturation():
+    adc = np.array([0, LOW, LOW + 1, 123, 558, HIGH - 1, HIGH, 630, 1023])
+    expected = np.array([True, True, False, False, False, False, True, True, True])
+    np.testing.assert_array_equal(metrics.clipped_samples(adc), expected)
+
+
+def _counts_recording(y, ceiling, source):
+    """A recording whose ADC reads offset + gain * y, cut at ``ceiling`` counts, and the tension derived."""
+    gain, offset = 24.576, 122.88
+    adc = np.minimum(np.rint(offset + gain * y), ceiling).astype(int)
+    frame = frame_of(T, (adc - offset) / gain, steps_profile())
+    frame["adc"] = adc
+    meta = {"source": {"kind": source}, "scenario": {"v_in_mm_s": 200, "x_f_mm": 20, "system": "unshaped",
+                                                     "repetition": 1}}  # fmt: skip
+    return SimpleNamespace(frame=frame, meta=meta)
+
+
+@pytest.mark.parametrize("source", ["hardware", "virtual-rig"])
+def test_a_clipped_peak_is_a_flagged_bound_carried_into_the_tables(source):
+    # overshoots to ~22 N, beyond the loop's 20.6 N; a cable only pulls, so no reading below 0 N
+    y = np.maximum(tension(T, zeta=0.05, low=2.0, high=13.0), 0.0)
+    rec = _counts_recording(y, round(20.5e-3 * 150 * 1024 / 5), source)
+    df = metrics.recording_metrics(rec.frame).set_index("motion")
+    up, down = df.loc["Up"], df.loc["Down"]
+    assert up["peak_is_bound"] and up["n_clipped"] > 0
+    assert "lower bound" in up["reason"]
+    # the value is kept: the largest reading, below the true peak
+    assert up["peak_n"] == pytest.approx(rec.frame["tension_n"].max())
+    assert up["peak_n"] < y.max()
+    assert not down["peak_is_bound"] and down["reason"] == ""
+    table = metrics.scenario_table([rec])
+    row = table[(table.system == "unshaped") & (table.motion == "Up")].iloc[0]
+    assert row["peak_is_bound"] and "rep 1: peak is a lower bound" in row["reason"]
+    cmp = metrics.paper_comparison(table)
+    assert cmp[(cmp.system == "unshaped") & (cmp.motion == "Up") & (cmp.x_f_mm == 20)
+               & (cmp.v_in_mm_s == 200)]["peak_is_bound"].item()  # fmt: skip
+
+
+def test_an_unclipped_recording_is_not_flagged():
+    y = np.maximum(tension(T, zeta=0.05, low=2.0, high=9.0), 0.0)
+    df = metrics.recording_metrics(_counts_recording(y, 1023, "hardware").frame)
+    assert not df["peak_is_bound"].any() and (df["n_clipped"] == 0).all()
+
+
+def test_a_virtual_recording_that_clips_is_flagged_whatever_the_gain():
+    """A simulated run read through a chain whose span is set below the run's own peak: it must clip."""
+    from helpers.programmes import experiment_programme
+    from helpers.virtual import LoadCell, RigParameters, simulate
+
+    params = RigParameters()
+    prog, _ = experiment_programme(300.0, 20.0)
+    first = simulate(prog, params=params)
+    peak = first.output.max()
+    # span such that the loop saturates (at 20.5 mA) at 70 % of this run's peak, whatever the default gain
+    span = 0.7 * peak * 16.0 / 16.5
+    run = simulate(prog, params=params, sensor=LoadCell(params, span_n=span))
+    assert np.any(metrics.clipped_samples(run.adc))
+    df = metrics.recording_metrics(run.frame("adc")).set_index("motion")
+    assert df.loc["Up", "peak_is_bound"] and "lower bound" in df.loc["Up", "reason"]
+    assert df.loc["Up", "peak_n"] < peak
+    assert not df.loc["Down", "peak_is_bound"]
+
+
+def test_the_scenario_figure_marks_clipped_samples():
+    import matplotlib.pyplot as plt
+
+    from helpers.plotting import experiments as plots
+
+    y = np.maximum(tension(T, zeta=0.05, low=2.0, high=13.0), 0.0)
+    rec = _counts_recording(y, round(20.5e-3 * 150 * 1024 / 5), "hardware")
+    fig = plots.fig_scenario([rec], (200, 20), 9)
+    labels = [line.get_label() for line in fig.axes[0].lines]
+    assert any("clipped" in label for label in labels)
+    plt.close("all")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# held-out predictions
+
+
+def _as_scenario_table(df):
+    return df.rename(columns={m: f"{m}_mean" for m in metrics.METRIC_COLUMNS})
+
+
+def test_prediction_errors_are_ours_minus_the_papers_on_the_shaped_rows():
+    paper = table_ii()
+    ours = paper.copy()
+    ours["peak_n"] += 1.0
+    ours["overshoot_pct"] -= 5.0
+    err = metrics.prediction_errors(_as_scenario_table(ours))
+    assert len(err) == 16 and set(err["system"]) == {"zv", "zvd"}
+    np.testing.assert_allclose(err["peak_err_n"], 1.0)
+    np.testing.assert_allclose(err["overshoot_err_pp"], -5.0)
+    np.testing.assert_allclose(err["settling_err_ms"], 0.0)
+    assert not err["peak_is_bound"].any()
+
+
+def test_ordering_agreement_of_the_paper_with_itself_and_with_a_reversed_table():
+    paper = table_ii()
+    same = metrics.ordering_agreement(_as_scenario_table(paper), "overshoot_pct")
+    assert len(same) == 4 * 2 * 3 and same["agrees"].all()
+    # the paper's one exception: at 30 mm / 200 mm/s the robust TDF's Up overshoot is above the non-robust's
+    row = same[(same.x_f_mm == 30) & (same.motion == "Up") & (same.ordering == "zvd < zv")]
+    assert not row["paper"].item()
+    reversed_ = paper.copy()
+    reversed_["settling_ms"] = -reversed_["settling_ms"]
+    flipped = metrics.ordering_agreement(_as_scenario_table(reversed_), "settling_ms")
+    # reversing every value flips every ordering except ties (the paper has one: 30 mm Up, 1044 ms twice)
+    key = paper.set_index(["v_in_mm_s", "x_f_mm", "system", "motion"])["settling_ms"]
+    ties = [key[(v, x, a, m)] == key[(v, x, b, m)]
+            for v, x, m, (a, b) in zip(flipped.v_in_mm_s, flipped.x_f_mm, flipped.motion,
+                                       (o.split(" < ") for o in flipped.ordering), strict=True)]  # fmt: skip
+    assert sum(ties) == 1
+    np.testing.assert_array_equal(flipped["agrees"].to_numpy(), np.array(ties))
+    with pytest.raises(ValueError, match="metric"):
+        metrics.ordering_agreement(_as_scenario_table(paper), "peak_n")
+
+
+def test_another_chain_is_bounded_by_the_adc_rails_only():
+    """A calibration whose zero is not the 4 mA loop's (e.g. 50 counts) comes from another chain: only 0 and
+    1023 count as clipped, so its ordinary readings above 628 counts are not flagged."""
+    other = {"offset_counts": 50.0, "newtons_per_count": 0.02}
+    adc = np.array([0, 50, 117, 700, 1022, 1023])
+    expected = [True, False, False, False, False, True]
+    np.testing.assert_array_equal(metrics.clipped_samples(adc, other), expected)
+    paper_chain = {"offset_counts": 123.4, "newtons_per_count": 1 / 24.576}
+    expected = [True, True, False, True, True, True]
+    np.testing.assert_array_equal(metrics.clipped_samples(adc, paper_chain), expected)
+    y = np.maximum(tension(T, zeta=0.05, low=2.0, high=13.0), 0.0)
+    adc = np.rint(50 + 50 * y).astype(int)  # 50 counts/N: ~22 N reads ~1150 -> the ADC's top clips
+    frame = frame_of(T, (np.minimum(adc, 1023) - 50) / 50, steps_profile())
+    frame["adc"] = np.minimum(adc, 1023)
+    df = metrics.recording_metrics(frame, calibration=other).set_index("motion")
+    assert df.loc["Up", "peak_is_bound"] and not df.loc["Down", "peak_is_bound"]

@@ -57,6 +57,7 @@ HOW: dict[str, str] = {
     "python -m helpers home": "help",
     "python -m helpers home --confirm-slack": "help",
     "python -m helpers serve-virtual-rig": "help",
+    "python -m helpers virtual-rig studies": "help",
     # the command line itself
     "python -m helpers": "help",
     "python -m helpers --help": "help",

@@ -33,11 +33,11 @@ from helpers.virtual import RigParameters, linearise, statics
 p = RigParameters()
 out = {}
 for m in (1, 2, 4, 8):
-    lin = linearise(p.replace(segments_per_disc=m), 0.0)
+    lin = linearise(p.replace(elements_per_disc=m), 0.0)
     out[f"omega_d_{m}_per_disc"] = lin.omega_d
     out[f"zeta_{m}_per_disc"] = lin.zeta
 fm = statics.frequency_map(p, np.array([0.0, 10.0, 20.0, 30.0, 40.0]))
-for col in ("tension_n", "omega_d", "zeta"):
+for col in ("static_tension_n", "omega_d_rad_s", "zeta", "dominant_omega_d_rad_s", "dominant_zeta"):
     out[f"map_{col}"] = fm[col].tolist()
 rec = recordings.load(DATA_DIR / "identification" / "pulse_v100_x10")
 res = identify_recording(rec, window=(9.0, 10.0), column="adc")

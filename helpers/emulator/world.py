@@ -8,8 +8,10 @@ how far to advance: in-process, as far as the reader needs (so the virtual rig r
 a pseudo-terminal, paced to the wall clock.
 
 The boards drive a plant given to them (dependency injection: the virtual rig's
-:class:`helpers.virtual.ArmPlant`, or a test double with the same ``advance`` signature) and read the tension
-through a sensor model (``LoadCell.counts``). :func:`default_world` builds the tuned virtual rig.
+:class:`helpers.virtual.ArmPlant`, or a test double with the same ``advance`` signature) and read what the
+plant returns (the virtual rig's amplifier output; its low-pass filter is part of the plant's state, so
+chunked ``advance`` calls give the same samples as one call) through a sensor model (``LoadCell.counts``:
+current loop, shunt and ADC). :func:`default_world` builds the tuned virtual rig.
 """
 
 from __future__ import annotations
@@ -36,9 +38,10 @@ class VirtualWorld:
     Parameters
     ----------
     plant : Plant
-        Integrates the arm; ``advance(sample_times, step_times, step_signs)`` returns tension (N).
+        Integrates the arm; ``advance(sample_times, step_times, step_signs)`` returns the load cell's
+        amplifier output (N).
     sensor : Sensor
-        ``counts(tension)`` gives ADC counts (noise and quantisation included).
+        ``counts(output)`` gives ADC counts (loop saturation, noise and quantisation included).
     name : str
         The rig's name in ``virtual://...?rig=<name>`` URLs.
     seed : int
@@ -196,8 +199,14 @@ def default_world(name: str = "default", options: dict[str, str] | None = None) 
 
 
 def parameters_dict(params: Any) -> dict[str, Any]:
-    """The parameters as flat JSON values (the recording contract's ``source.parameters``)."""
-    if dataclasses.is_dataclass(params):
+    """The parameters as flat JSON values (the recording contract's ``source.parameters``).
+
+    A :class:`~helpers.virtual.RigParameters` gives every field and its main derived values
+    (``RigParameters.metadata()``); other dataclasses, dicts and objects give their fields.
+    """
+    if callable(getattr(params, "metadata", None)):
+        raw = params.metadata()
+    elif dataclasses.is_dataclass(params):
         raw = dataclasses.asdict(params)
     elif isinstance(params, dict):
         raw = dict(params)

@@ -8,6 +8,7 @@ from typing import Any
 import matplotlib.pyplot as plt
 
 from helpers import paper
+from helpers.metrics import clipped_samples
 from helpers.plotting import SYSTEM_COLOURS
 from helpers.plotting import save as save_figure
 
@@ -67,7 +68,8 @@ def fig_scenario(
     """Tension responses of the three systems for one condition, the motor position underneath (Figs. 9-11).
 
     Every repetition is drawn (the first with a label, the others fainter); recordings of other conditions
-    are ignored.
+    are ignored. Samples the sensor clipped (:func:`helpers.metrics.clipped_samples`, on the ``adc`` column)
+    are marked with black crosses: their tension is only a bound.
 
     Parameters
     ----------
@@ -109,6 +111,7 @@ def fig_scenario(
         2, 1, sharex=True, figsize=(7.0, 4.8), gridspec_kw={"height_ratios": [3, 1.3]}
     )
     virtual = False
+    clipped_label = "clipped (outside the sensor's range)"
     for system in order:
         colour = SYSTEM_COLOURS.get(system, "C7")
         label = paper.SYSTEM_LABELS.get(system, system) + (" TDF" if system in ("zv", "zvd") else "")
@@ -118,6 +121,11 @@ def fig_scenario(
             f = rec.frame
             kw = {"color": colour, "lw": 1.0 if i == 0 else 0.7, "alpha": 1.0 if i == 0 else 0.4}
             ax_t.plot(f["t_s"], f["tension_n"], label=label if i == 0 else None, **kw)
+            if "adc" in f.columns:
+                clip = clipped_samples(f["adc"].to_numpy(), (rec.meta or {}).get("calibration"))
+                if clip.any():
+                    ax_t.plot(f["t_s"][clip], f["tension_n"][clip], "x", color="k", ms=4, label=clipped_label)
+                    clipped_label = None
             if "cable_mm" in f.columns:
                 ax_u.plot(f["t_s"], f["cable_mm"], **kw)
             else:

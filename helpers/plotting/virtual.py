@@ -8,6 +8,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from helpers.metrics import clipped_samples
+
 __all__ = [
     "statics_oracle",
     "linear_model_agreement",
@@ -69,36 +71,44 @@ def linear_model_agreement(df: pd.DataFrame) -> plt.Figure:
     return fig
 
 
-def convergence(df: pd.DataFrame) -> plt.Figure:
-    """Dominant frequency against the number of segments (error to the finest as a log-log inset)."""
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(7.0, 3.0))
-    ax.plot(df["n_segments"], df["omega_d"], "o-")
-    ax.set_xscale("log", base=2)
-    ax.set_xlabel("rigid segments")
-    ax.set_ylabel("dominant omega_d at rest (rad/s)")
-    err = np.abs(df["omega_d"] - df["omega_d"].iloc[-1])[:-1]
-    ax2.loglog(df["n_segments"][:-1], err, "o-", label="|omega_d(N) - omega_d(finest)|")
-    n = df["n_segments"][:-1].to_numpy(dtype=float)
-    ax2.loglog(n, err.iloc[0] * (n[0] / n) ** 2, "k--", lw=0.8, label="slope -2")
-    ax2.set_xlabel("rigid segments")
-    ax2.set_ylabel("rad/s")
-    ax2.legend()
+def convergence(df: pd.DataFrame, tension_tol_pct: float = 1.0, omega_tol_pct: float = 0.5) -> plt.Figure:
+    """The rig (one arc per disc interval) against a finer rod: static tension and dominant frequency.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Columns ``u_mm``, ``tension_pct`` and ``omega_d_pct`` (the rig's deviation from the finer rod, %).
+    tension_tol_pct, omega_tol_pct : float
+        The convergence criteria, drawn as bands.
+    """
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(7.0, 2.8))
+    ax.axhspan(-tension_tol_pct, tension_tol_pct, color="0.9", label=f"+-{tension_tol_pct:g} %")
+    ax.plot(df["u_mm"], df["tension_pct"], "o-", ms=4)
+    ax.set_ylabel("static tension vs 4x finer (%)")
+    ax2.axhspan(-omega_tol_pct, omega_tol_pct, color="0.9", label=f"+-{omega_tol_pct:g} %")
+    ax2.plot(df["u_mm"], df["omega_d_pct"], "o-", ms=4)
+    ax2.set_ylabel("omega_d vs 4x finer (%)")
+    for a in (ax, ax2):
+        a.set_xlabel("cable displacement u (mm)")
+        a.legend(loc="upper left")
     fig.tight_layout()
     return fig
 
 
 def frequency_map(fm: pd.DataFrame, omega_design: float, zeta_design: float) -> plt.Figure:
-    """omega_d(u) and zeta(u) of the dominant mode about the static equilibria, beside the design values."""
+    """omega_d(u) and zeta(u) of the lowest bending mode about the static equilibria, beside the design."""
     fig, axs = plt.subplots(1, 3, figsize=(7.5, 2.8))
-    axs[0].plot(fm["u_mm"], fm["omega_d"], "o-", ms=3, label="virtual rig")
+    axs[0].plot(fm["u_mm"], fm["omega_d_rad_s"], "o-", ms=2.5, label="spool held")
+    if "dominant_omega_d_rad_s" in fm:
+        axs[0].plot(fm["u_mm"], fm["dominant_omega_d_rad_s"], "-", lw=1.0, label="rotor free (as it runs)")
     axs[0].axhline(omega_design, color="k", lw=0.8, label="design (identified)")
     axs[0].fill_between(fm["u_mm"], 0.9 * omega_design, 1.1 * omega_design, color="0.9", label="+-10 %")
     axs[0].set_ylabel("omega_d (rad/s)")
-    axs[0].legend()
-    axs[1].plot(fm["u_mm"], fm["zeta"], "o-", ms=3)
+    axs[0].legend(fontsize=6)
+    axs[1].plot(fm["u_mm"], fm["zeta"], "o-", ms=2.5)
     axs[1].axhline(zeta_design, color="k", lw=0.8)
     axs[1].set_ylabel("zeta")
-    axs[2].plot(fm["u_mm"], fm["tension_n"], "o-", ms=3)
+    axs[2].plot(fm["u_mm"], fm["static_tension_n"], "o-", ms=2.5)
     axs[2].set_ylabel("static tension (N)")
     for ax in axs:
         ax.set_xlabel("cable displacement u (mm)")
@@ -127,9 +137,15 @@ def arm_shapes(
 
 
 def identification_run(t: np.ndarray, adc: np.ndarray, window: tuple[float, float]) -> plt.Figure:
-    """The simulated identification run in ADC counts, with the analysis window shaded (cf. paper Fig. 5)."""
+    """The simulated identification run in ADC counts, with the analysis window shaded (cf. paper Fig. 5).
+
+    Samples outside the sensor's range (:func:`helpers.metrics.clipped_samples`) are marked with crosses.
+    """
     fig, ax = plt.subplots(figsize=(7.0, 2.8))
     ax.plot(t, adc, lw=0.7)
+    clip = clipped_samples(adc)
+    if clip.any():
+        ax.plot(np.asarray(t)[clip], np.asarray(adc)[clip], "kx", ms=4, label="clipped (outside the range)")
     label = f"identification window {window[0]:.0f}-{window[1]:.0f} s"
     ax.axvspan(*window, color="C1", alpha=0.2, label=label)
     ax.set_xlabel("time (s)")

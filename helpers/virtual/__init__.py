@@ -1,4 +1,4 @@
-"""The virtual rig's physics: a tuned nonlinear simulation of the arm, its cable and its load cell.
+"""The virtual rig's physics: a tuned nonlinear simulation of the arm, cable, stepper and load cell.
 
 Physics only (parameters, plant, sensor, statics, simulation, the ``solve_ivp`` reference); it imports
 neither pyserial nor anything of the serial side. The emulated boards that put it behind the firmware's
@@ -11,7 +11,7 @@ from helpers.virtual.parameters import RigParameters, parameter_table
 from helpers.virtual.plant import ArmPlant
 from helpers.virtual.sensor import LoadCell
 from helpers.virtual.simulate import SimResult, simulate
-from helpers.virtual.statics import equilibrium, frequency_map, linearise
+from helpers.virtual.statics import ArcChain, equilibrium, frequency_map, linearise
 
 __all__ = [
     "RigParameters",
@@ -23,4 +23,5 @@ __all__ = [
     "equilibrium",
     "linearise",
     "frequency_map",
+    "ArcChain",
 ]

@@ -1,22 +1,45 @@
-"""Compiled (numba) right-hand side and fixed-step integrator of the arm: the fast path of the plant.
+"""Compiled (numba) right-hand side and fixed-step integrator of the arc-chain arm with its actuator.
 
-Coordinates: the *absolute* angles ``phi_i`` of the rigid segments (i = 0..N-1, zero-based) and their rates.
-Node ``j`` (0 = clamp) is at ``p_j = sum_{i<j} l (cos phi_i, sin phi_i)``; segment ``i`` runs from node ``i``
-to node ``i + 1`` and its joint spring sits at node ``i`` (relative angle ``phi_i - phi_{i-1}``,
-``phi_{-1}`` = the base angle). An eyelet at node ``j`` belongs to segment ``j - 1`` (the clamp plate for
-``j = 0``) and sits at ``p_j + r n_j`` with ``n = (-sin phi, cos phi)``.
+No ``fastmath`` anywhere: plain IEEE arithmetic, the same bits on every x86-64 CPU
+(``docs/reproducibility.md``).
 
-Packed parameters ``P`` (floats): ``l, r, phi0, g, alpha, k, ell_ref, j_seg, bilateral``
-(``bilateral`` = 1 lets the cable push: only for linearising about a just-taut cable); arrays ``mu`` (mass at
-and
-beyond node i + 1), ``kap`` (joint stiffness), ``cj`` (joint damping), ``eye`` (eyelet nodes).
+Model (``docs/virtual_rig.md``; :mod:`helpers.virtual.statics` has the statics of the same arm)
+---------------------------------------------------------------------------------------------
+The rod is a chain of ``N`` circular arcs of length ``l`` (constant curvature inside each). The coordinates
+are the tangent angles ``theta_1..theta_N`` at the element ends (``theta_0`` = the clamp direction). Body
+``i`` is node ``i``: a point mass ``m_i`` (wire halves and, at a disc, the disc) and a rotary inertia ``J_i``
+(the disc's, about a diameter); it turns with the rod tangent ``theta_i``. Joint ``i`` (one degree of
+freedom, ``D_i = theta_i - theta_{i-1}``) places body ``i`` at ``p_{i-1} + l R(theta_{i-1}) (f1(D_i),
+f2(D_i))`` with ``f1 = sin D / D``, ``f2 = (1 - cos D) / D``: the exact chord of the arc, a curved 1-DOF
+joint. The equations of motion are solved in O(N) by the articulated-body algorithm in planar form
+(3-vectors ``(omega, v_x, v_y)`` about each node, 3x3 articulated inertias); the bias term ``kappa`` holds
+the velocity-product terms of the curved joint.
 
-Equations (Lagrange, point masses at the nodes, rod inertia correction ``j_seg`` per segment)::
+Loads: bending springs ``EI/l`` on each ``D_i`` (exact for an arc); gravity along -y; drag ``-alpha m v``
+on every mass and ``-alpha J omega`` on every disc; dashpots between the *chords* of consecutive disc
+intervals (``c_chord`` on ``d_0 = w_1 / 2``, ``d_k = (w_{k+1} - w_{k-1}) / 2``, ``w_k`` the disc rotation
+rates, clamp = 0); optional dashpots on the relative rotation of consecutive discs (``c_disc``, only for the
+damping-layout comparison); a constant full-rank damping ``-sum_k c_k W_k (W_k . theta')`` (the high-mode
+floor); the cable through the clamp guide and the disc eyelets (force on eyelet ``q``:
+``-T_q u_q + T_{q+1} u_{q+1}``, moment ``r n x F``). The run tensions ``T_q`` all equal the arm-side tension
+``lambda_2`` unless eyelet friction is on: capstan law ``T_{q+1} = T_q exp(-mu beta_q tanh(v_q / v0))`` at
+the guide and each eyelet (wrap angle ``beta_q`` between the incoming and outgoing runs, ``v_q`` the speed at
+which the cable slides through that eyelet towards the guide: the rate at which the runs beyond it shorten).
 
-    M(phi) phi'' + C(phi, phi') = Q_spring + Q_damp + Q_gravity - alpha M phi' - lambda d ell / d phi
-    M_ik = l^2 mu_max(i,k) cos(phi_i - phi_k) + j_seg delta_ik
-    C_i  = sum_k l^2 mu_max(i,k) sin(phi_i - phi_k) phi_k'^2
-    lambda = k max(0, u + ell(phi) - ell_ref)
+Actuator modes (``P[I_MODE]``):
+
+0. ideal: arm-side stretch ``e2 = u + ell - ell_ref``; ``u`` jumps by one step's cable at each step;
+1. stepper: rotor + spool angle ``psi``, ``J psi'' = T_m(psi_cmd - psi) - c_r psi' - R lambda``,
+   ``e2 = R psi + ell - ell_ref``; ``psi_cmd`` jumps by ``2 pi / steps_per_rev`` at each step;
+2. stepper + load-cell carriage (mass ``m_c`` on rails between the spool-side cable ``k1`` and the arm-side
+   cable ``k2``): ``e1 = R psi - x_c - s1_ref``, ``e2 = x_c + ell - ell_ref``,
+   ``m_c x_c'' = lambda_1 - lambda_2 - c_c x_c'``.
+
+Motor torque ``T_m``: linear ``T_h N_r delta`` or sinusoidal ``T_h sin(N_r delta)`` (``P[I_TLAW]``). The
+load cell reads ``lambda_2`` (arm side) or ``lambda_1`` (spool side, ``P[I_MEAS] = 1``); its amplifier is a
+first-order low-pass integrated exactly for a tension linear over each step (``filt = [tau, y]``).
+
+State ``y = [theta (N), theta' (N), psi, psi', x_c, x_c']``.
 """
 
 from __future__ import annotations
@@ -26,494 +49,504 @@ import math
 import numpy as np
 from numba import njit
 
-I_L, I_R, I_PHI0, I_G, I_ALPHA, I_K, I_ELLREF, I_JSEG, I_BILATERAL = range(9)
-N_PACKED = 9
+# packed parameter indices
+(I_L, I_R, I_TH0, I_G, I_ALPHA, I_KAP, I_K2, I_ELLREF, I_MODE, I_RSP, I_JR, I_TH, I_NR, I_CR, I_K1,
+ I_S1REF, I_MC, I_CC, I_CDISC, I_MU, I_V0, I_TLAW, I_BILAT, I_MEAS, I_CCHORD) = range(25)  # fmt: skip
+N_PACKED = 25
+
+# series coefficients of the chord functions for |D| < 0.2, in x = D^2 (truncation < 1e-18)
+_NS = 8
+_A1 = np.array([(-1.0) ** k / math.factorial(2 * k + 1) for k in range(_NS)])  # f1
+_B2 = np.array([(-1.0) ** k / math.factorial(2 * k + 2) for k in range(_NS)])  # f2 / D
+_A1P = np.array([(-1.0) ** k * 2 * k / math.factorial(2 * k + 1) for k in range(1, _NS + 1)])  # f1' / D
+_B2P = np.array([(-1.0) ** k * (2 * k + 1) / math.factorial(2 * k + 2) for k in range(_NS)])  # f2'
+_A1PP = np.array([(-1.0) ** k * 2 * k * (2 * k - 1) / math.factorial(2 * k + 1) for k in range(1, _NS + 1)])
+_B2PP = np.array([(-1.0) ** k * (2 * k + 1) * 2 * k / math.factorial(2 * k + 2) for k in range(1, _NS + 1)])
+_SIN = np.array([(-1.0) ** k / math.factorial(2 * k + 1) for k in range(_NS)])  # sin D / D
+_COS = np.array([(-1.0) ** k / math.factorial(2 * k) for k in range(_NS)])  # cos D
+
+N_WS_PER = 40
+"""Work floats per body."""
+
+
+def workspace_size(n: int, n_eye: int) -> int:
+    """Floats needed by :func:`rhs_ws` for ``n`` bodies and ``n_eye`` eyelets (guide included)."""
+    return N_WS_PER * n + 12 * n_eye + 16
 
 
 @njit(cache=True, error_model="numpy")
-def cable_length(phi, P, eye):  # noqa: D103 - see module docstring
-    return cable_length_ws(phi, P, eye, np.empty(2 * phi.shape[0] + 2))
+def _horner(c, x):
+    acc = 0.0
+    for k in range(c.shape[0] - 1, -1, -1):
+        acc = acc * x + c[k]
+    return acc
 
 
 @njit(cache=True, error_model="numpy")
-def cable_length_ws(phi, P, eye, ws):
-    """Cable path length through the eyelets (``ws``: at least 2 n + 2 floats)."""
-    l_ = P[I_L]
-    r = P[I_R]
-    n = phi.shape[0]
-    px = ws[: n + 1]
-    py = ws[n + 1 : 2 * n + 2]
-    px[0] = 0.0
-    py[0] = 0.0
-    for i in range(n):
-        px[i + 1] = px[i] + l_ * math.cos(phi[i])
-        py[i + 1] = py[i] + l_ * math.sin(phi[i])
-    total = 0.0
-    ang = P[I_PHI0]
-    ax = px[0] - r * math.sin(ang)
-    ay = py[0] + r * math.cos(ang)
-    for q in range(1, eye.shape[0]):
-        b = eye[q]
-        ang = phi[b - 1]
-        bx = px[b] - r * math.sin(ang)
-        by = py[b] + r * math.cos(ang)
-        total += math.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
-        ax = bx
-        ay = by
-    return total
+def chord_funcs(D, sD, cD):
+    """``f1, f2, f1', f2', f1'', f2''`` of an arc turning by ``D`` (``sD, cD`` = sin D, cos D)."""
+    if abs(D) < 0.2:
+        x = D * D
+        f1 = _horner(_A1, x)
+        f2 = D * _horner(_B2, x)
+        f1p = D * _horner(_A1P, x)
+        f2p = _horner(_B2P, x)
+        f1pp = _horner(_A1PP, x)
+        f2pp = D * _horner(_B2PP, x)
+    else:
+        iD = 1.0 / D
+        omc = 1.0 - cD
+        f1 = sD * iD
+        f2 = omc * iD
+        f1p = (cD - f1) * iD
+        f2p = (sD - f2) * iD
+        f1pp = (-sD - 2.0 * f1p) * iD
+        f2pp = (cD - 2.0 * f2p) * iD
+    return f1, f2, f1p, f2p, f1pp, f2pp
 
 
 @njit(cache=True, error_model="numpy")
-def cable_length_grad(phi, P, eye, grad):
-    """Cable path length through the eyelets and its gradient (written into ``grad``) w.r.t. ``phi``."""
-    n = phi.shape[0]
-    ws = np.empty(4 * n + 2)
-    return cable_length_grad_ws(phi, P, eye, grad, ws)
+def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass per stage, kept together
+    """Write ``dy = f(y)``; return ``(e1, e2, lam1, lam2)`` (stretches and tensions of the two cables).
 
-
-@njit(cache=True, error_model="numpy")
-def cable_length_grad_ws(phi, P, eye, grad, ws):
-    """As :func:`cable_length_grad`, with a work array of at least ``4 n + 2`` floats."""
-    n = phi.shape[0]
-    c = ws[:n]
-    s = ws[n : 2 * n]
-    for i in range(n):
-        c[i] = math.cos(phi[i])
-        s[i] = math.sin(phi[i])
-    return cable_grad_cs(c, s, P, eye, grad, ws[2 * n :])
-
-
-@njit(cache=True, error_model="numpy")
-def cable_grad_cs(c, s, P, eye, grad, ws):
-    """Cable length and gradient from the segments' cosines ``c`` and sines ``s`` (``ws``: 2 n + 2 floats)."""
-    l_ = P[I_L]
-    r = P[I_R]
-    n = c.shape[0]
-    px = ws[: n + 1]
-    py = ws[n + 1 : 2 * n + 2]
-    px[0] = 0.0
-    py[0] = 0.0
-    for i in range(n):
-        px[i + 1] = px[i] + l_ * c[i]
-        py[i + 1] = py[i] + l_ * s[i]
-        grad[i] = 0.0
-    total = 0.0
-    ang = P[I_PHI0]
-    ax = px[0] - r * math.sin(ang)
-    ay = py[0] + r * math.cos(ang)
-    for q in range(1, eye.shape[0]):
-        a = eye[q - 1]
-        b = eye[q]
-        bx = px[b] - r * s[b - 1]
-        by = py[b] + r * c[b - 1]
-        dx = bx - ax
-        dy = by - ay
-        dist = math.sqrt(dx * dx + dy * dy)
-        total += dist
-        inv = 1.0 / dist
-        ux = dx * inv
-        uy = dy * inv
-        for i in range(a, b):
-            # rotating segment i translates everything distal to node i + 1 by l n_i
-            grad[i] += l_ * (-ux * s[i] + uy * c[i])
-        # the eyelet at node b turns with segment b - 1: d(r n)/d phi = -r t
-        grad[b - 1] -= r * (ux * c[b - 1] + uy * s[b - 1])
-        if a >= 1:
-            grad[a - 1] += r * (ux * c[a - 1] + uy * s[a - 1])
-        ax = bx
-        ay = by
-    return total
-
-
-@njit(cache=True, error_model="numpy")
-def tension_of(phi, u, P, eye):  # noqa: D103
-    e = u + cable_length(phi, P, eye) - P[I_ELLREF]
-    return P[I_K] * e if e > 0.0 else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def stretch_of(phi, u, P, eye):  # noqa: D103
-    return u + cable_length(phi, P, eye) - P[I_ELLREF]
-
-
-@njit(cache=True, error_model="numpy")
-def rhs(y, u, P, mu, kap, cj, eye, dy):
-    """Write d/dt of the state ``y = [phi, omega]`` into ``dy``; return the cable tension."""
-    n = mu.shape[0]
-    ws = np.empty(workspace_size(n))
-    return rhs_ws(y, u, P, mu, kap, cj, eye, dy, ws)
-
-
-@njit(cache=True, error_model="numpy")
-def rhs_dense(y, u, P, mu, kap, cj, eye, dy):
-    """Allocating wrapper of :func:`rhs_dense_ws`."""
-    n = mu.shape[0]
-    ws = np.empty(workspace_size(n))
-    return rhs_dense_ws(y, u, P, mu, kap, cj, eye, dy, ws)
-
-
-@njit(cache=True, error_model="numpy")
-def workspace_size(n):  # noqa: D103
-    return n * n + 12 * n + 2
-
-
-@njit(cache=True, error_model="numpy")
-def rhs_dense_ws(y, u, P, mu, kap, cj, eye, dy, ws):
-    """The same right-hand side through the dense mass matrix and a Cholesky solve (O(n^3)).
-
-    Kept as an independent check of the recursive :func:`rhs_ws` (tests compare the two).
+    Parameters
+    ----------
+    y, dy : float64[2 N + 4]
+        State and its derivative (written).
+    drive : float
+        Cable displacement ``u`` (mode 0) or commanded rotor angle (modes 1, 2).
+    P : float64[N_PACKED]
+        Packed scalars (indices ``I_*``).
+    mb, Jb : float64[N]
+        Node masses and rotary inertias.
+    disc : int64[n_eyelets]
+        Node indices (1-based) of the eyelet discs, increasing, last = N (tip, knot).
+    W : float64[r, N]
+        Rows of the constant damping: generalised force ``-sum_k cw_k W_k (W_k . theta')``.
+    cw : float64[r]
+        Its coefficients.
+    ws : float64[workspace_size]
+        Work array.
     """
-    n = mu.shape[0]
+    n = mb.shape[0]
+    nd = disc.shape[0]
     l_ = P[I_L]
-    l2 = l_ * l_
-    g = P[I_G]
-    alpha = P[I_ALPHA]
-    jseg = P[I_JSEG]
-    phi = y[:n]
-    w = y[n:]
-    M = ws[: n * n].reshape((n, n))
-    c = ws[n * n : n * n + n]
-    s = ws[n * n + n : n * n + 2 * n]
-    rhs_ = ws[n * n + 2 * n : n * n + 3 * n]
-    taus = ws[n * n + 3 * n : n * n + 4 * n]
-    grad = ws[n * n + 4 * n : n * n + 5 * n]
-    ws2 = ws[n * n + 5 * n :]
-    for i in range(n):
-        c[i] = math.cos(phi[i])
-        s[i] = math.sin(phi[i])
-    for i in range(n):
-        M[i, i] = l2 * mu[i] + jseg
-        for k in range(i + 1, n):
-            v = l2 * mu[k] * (c[i] * c[k] + s[i] * s[k])
-            M[i, k] = v
-            M[k, i] = v
-    # Coriolis/centrifugal terms, gravity
-    for i in range(n):
-        acc = 0.0
-        for k in range(n):
-            if k != i:
-                m_ = mu[k] if k > i else mu[i]
-                acc += l2 * m_ * (s[i] * c[k] - c[i] * s[k]) * w[k] * w[k]
-        rhs_[i] = -acc - g * l_ * mu[i] * c[i]
-    # joint springs and dashpots
-    prev_phi = P[I_PHI0]
-    prev_w = 0.0
-    tau_next = 0.0
-    for i in range(n):
-        taus[i] = kap[i] * (phi[i] - prev_phi) + cj[i] * (w[i] - prev_w)
-        prev_phi = phi[i]
-        prev_w = w[i]
-    for i in range(n - 1, -1, -1):
-        rhs_[i] += -taus[i] + tau_next
-        tau_next = taus[i]
-    # air-drag-like mass-proportional damping
-    if alpha != 0.0:
-        for i in range(n):
-            acc = 0.0
-            for k in range(n):
-                acc += M[i, k] * w[k]
-            rhs_[i] -= alpha * acc
-    # cable
-    ell = cable_grad_cs(c, s, P, eye, grad, ws2)
-    e = u + ell - P[I_ELLREF]
-    lam = P[I_K] * e if (e > 0.0 or P[I_BILATERAL] != 0.0) else 0.0
-    if lam != 0.0:
-        for i in range(n):
-            rhs_[i] -= lam * grad[i]
-    # Cholesky solve M a = rhs_ (M is symmetric positive definite)
-    for j in range(n):
-        d = M[j, j]
-        for k in range(j):
-            d -= M[j, k] * M[j, k]
-        d = math.sqrt(d)
-        M[j, j] = d
-        for i in range(j + 1, n):
-            v = M[i, j]
-            for k in range(j):
-                v -= M[i, k] * M[j, k]
-            M[i, j] = v / d
-    for i in range(n):
-        v = rhs_[i]
-        for k in range(i):
-            v -= M[i, k] * rhs_[k]
-        rhs_[i] = v / M[i, i]
-    for i in range(n - 1, -1, -1):
-        v = rhs_[i]
-        for k in range(i + 1, n):
-            v -= M[k, i] * rhs_[k]
-        rhs_[i] = v / M[i, i]
-    for i in range(n):
-        dy[i] = w[i]
-        dy[n + i] = rhs_[i]
-    return lam
-
-
-@njit(cache=True, error_model="numpy")
-def rhs_ws(y, u, P, mu, kap, cj, eye, dy, ws):
-    """As :func:`rhs`, with a work array of :func:`workspace_size` floats.
-
-    Solves ``M phi'' = Q - C`` in O(n) by the articulated-body recursion of a planar chain of point masses:
-    with ``R_i`` the total inertial force ``sum_{j >= i} m_j a_j`` of the chain distal to link ``i``, the
-    equation of ``phi_i`` reads ``J phi_i'' + l n_i . R_i = Q_i``, and ``R_i = K_i a_{i-1} + r_i`` is affine
-    in the acceleration ``a_{i-1}`` of the link's proximal node. An inward pass builds ``K_i`` (2 x 2, the
-    articulated mass) and ``r_i``; an outward pass from the clamp (``a = 0``) gives ``phi''``.
-    Mass-proportional damping ``alpha M phi'`` contributes exactly ``-alpha phi'`` to ``phi''``.
-    (A thin wrapper of :func:`rhs_rows`, the form the integrator calls.)
-    """
-    m = y.shape[0]
-    S = np.empty((2, m))
-    for i in range(m):
-        S[0, i] = y[i]
-    e = rhs_rows(S, 0, 1, u, P, mu, kap, cj, eye, ws)
-    for i in range(m):
-        dy[i] = S[1, i]
-    return P[I_K] * e if (e > 0.0 or P[I_BILATERAL] != 0.0) else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def rhs_rows(S, iy, idy, u, P, mu, kap, cj, eye, ws):
-    """The right-hand side of :func:`rhs_ws` from row ``iy`` of ``S`` into row ``idy``; returns the stretch.
-
-    The stretch ``u + ell - ell_ref`` serves the integrator both for the taut/slack test and for the sampled
-    tension, so the cable geometry is evaluated once per state. Hot path: the state vectors are rows of one
-    2-D array and the work array is indexed by offsets (``ws``: :func:`workspace_size` floats), because
-    every array slice costs an atomic reference count in numba; the cable geometry is that of
-    :func:`cable_grad_cs`, written out here.
-    """
-    n = mu.shape[0]
-    l_ = P[I_L]
-    l2 = l_ * l_
     r = P[I_R]
     g = P[I_G]
-    jseg = P[I_JSEG]
     alpha = P[I_ALPHA]
-    # ws layout: c 0, s n, q 2n, grad 3n, p00 4n, p01 5n, p11 6n, wx 7n, wy 8n, 1/d 9n
+    kap = P[I_KAP]
+    o_c = 0
     o_s = n
-    o_q = 2 * n
-    o_g = 3 * n
-    o_00 = 4 * n
-    o_01 = 5 * n
-    o_11 = 6 * n
-    o_wx = 7 * n
-    o_wy = 8 * n
-    o_d = 9 * n
-    # sines and cosines; generalised forces of the joint springs and dashpots and of gravity
-    prev_phi = P[I_PHI0]
-    prev_w = 0.0
-    q_prev = 0.0
-    for i in range(n):
-        ph = S[iy, i]
-        wi = S[iy, n + i]
-        ci = math.cos(ph)
-        ws[i] = ci
-        ws[o_s + i] = math.sin(ph)
-        tau = kap[i] * (ph - prev_phi) + cj[i] * (wi - prev_w)
-        if i > 0:
-            ws[o_q + i - 1] = q_prev + tau
-        q_prev = -tau - g * l_ * mu[i] * ci
-        prev_phi = ph
-        prev_w = wi
-        ws[o_g + i] = 0.0
-    ws[o_q + n - 1] = q_prev
-    # cable: straight runs between eyelets, the arithmetic of cable_grad_cs with the gradient of each
-    # run's last segment kept in a register until the next run adds its share (eyelet nodes strictly
-    # increasing from 0, as RigParameters.eyelet_nodes makes them)
+    o_wx = 2 * n  # the chord rotated by 90 deg (the X transform)
+    o_wy = 3 * n
+    o_ex = 4 * n  # d chord / d D
+    o_ey = 5 * n
+    o_kx = 6 * n  # bias acceleration
+    o_ky = 7 * n
+    o_px = 8 * n  # node position
+    o_py = 9 * n
+    o_vx = 10 * n  # node velocity
+    o_vy = 11 * n
+    o_fx = 12 * n  # external force on the body
+    o_fy = 13 * n
+    o_fn = 14 * n  # external moment
+    o_q = 15 * n  # joint generalised force
+    o_i = 16 * n  # six articulated-inertia accumulators (16n .. 22n)
+    o_p = 22 * n  # three bias-force accumulators (22n .. 25n)
+    o_u = 25 * n  # U (3), 1/D, u  (25n .. 30n)
+    o_qt = 30 * n  # generalised forces on theta (constant and chord damping)
+    o_e = 40 * n  # eyelets: Ex, Ey, ux, uy, L, T, Evx, Evy (12 per eyelet)
+    ne = nd + 1
+    # ---- outward pass 1: kinematics ----
+    cp = math.cos(P[I_TH0])
+    sp = math.sin(P[I_TH0])
+    thp = P[I_TH0]
+    wp = 0.0
     px = 0.0
     py = 0.0
-    j = 0
+    vx = 0.0
+    vy = 0.0
+    for i in range(n):
+        th = y[i]
+        w = y[n + i]
+        D = th - thp
+        Dd = w - wp
+        if abs(D) < 0.2:
+            # rotate the previous tangent by D (series sin/cos, error < 1e-18): two libm calls fewer
+            x = D * D
+            sD = D * _horner(_SIN, x)
+            cD = _horner(_COS, x)
+            ci = cp * cD - sp * sD
+            si = sp * cD + cp * sD
+        else:
+            ci = math.cos(th)
+            si = math.sin(th)
+            sD = si * cp - ci * sp
+            cD = ci * cp + si * sp
+        ws[o_c + i] = ci
+        ws[o_s + i] = si
+        f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
+        chx = l_ * (cp * f1 - sp * f2)
+        chy = l_ * (sp * f1 + cp * f2)
+        ex = l_ * (cp * f1p - sp * f2p)
+        ey = l_ * (sp * f1p + cp * f2p)
+        ddx = l_ * (cp * f1pp - sp * f2pp)
+        ddy = l_ * (sp * f1pp + cp * f2pp)
+        ws[o_wx + i] = -chy
+        ws[o_wy + i] = chx
+        ws[o_ex + i] = ex
+        ws[o_ey + i] = ey
+        # bias: -wp^2 c + 2 wp Dd e_perp + Dd^2 d2(chord)/dD^2
+        ws[o_kx + i] = -wp * wp * chx - 2.0 * wp * Dd * ey + Dd * Dd * ddx
+        ws[o_ky + i] = -wp * wp * chy + 2.0 * wp * Dd * ex + Dd * Dd * ddy
+        vx = vx - wp * chy + ex * Dd
+        vy = vy + wp * chx + ey * Dd
+        px += chx
+        py += chy
+        ws[o_px + i] = px
+        ws[o_py + i] = py
+        ws[o_vx + i] = vx
+        ws[o_vy + i] = vy
+        ws[o_fx + i] = -alpha * mb[i] * vx
+        ws[o_fy + i] = -mb[i] * g - alpha * mb[i] * vy
+        ws[o_fn + i] = -alpha * Jb[i] * w
+        ws[o_q + i] = -kap * D
+        ws[o_qt + i] = 0.0
+        cp = ci
+        sp = si
+        thp = th
+        wp = w
+    # ---- cable geometry ----
+    th0 = P[I_TH0]
+    ax = -r * math.sin(th0)
+    ay = r * math.cos(th0)
     ell = 0.0
-    ang = P[I_PHI0]
-    ax = -r * math.sin(ang)
-    ay = r * math.cos(ang)
-    pend = 0.0
-    b = 0
-    for qq in range(1, eye.shape[0]):
-        a = eye[qq - 1]
-        b = eye[qq]
-        while j < b:
-            px += l_ * ws[j]
-            py += l_ * ws[o_s + j]
-            j += 1
-        cb = ws[b - 1]
-        sb = ws[o_s + b - 1]
-        bx = px - r * sb
-        by = py + r * cb
+    for qq in range(1, ne):
+        b = disc[qq - 1] - 1
+        bx = ws[o_px + b] - r * ws[o_s + b]
+        by = ws[o_py + b] + r * ws[o_c + b]
         dx = bx - ax
-        dy = by - ay
-        dist = math.sqrt(dx * dx + dy * dy)
-        ell += dist
-        inv = 1.0 / dist
-        ux = dx * inv
-        uy = dy * inv
-        if a >= 1:
-            ws[o_g + a - 1] = pend + r * (ux * ws[a - 1] + uy * ws[o_s + a - 1])
-        for i in range(a, b - 1):
-            ws[o_g + i] = l_ * (-ux * ws[o_s + i] + uy * ws[i])
-        pend = l_ * (-ux * sb + uy * cb) - r * (ux * cb + uy * sb)
+        dyy = by - ay
+        Lq = math.sqrt(dx * dx + dyy * dyy)
+        ell += Lq
+        base = o_e + 12 * qq
+        ws[base + 0] = bx
+        ws[base + 1] = by
+        ws[base + 2] = dx / Lq
+        ws[base + 3] = dyy / Lq
+        ws[base + 4] = Lq
         ax = bx
         ay = by
-    if b >= 1:
-        ws[o_g + b - 1] = pend
-    e = u + ell - P[I_ELLREF]
-    lam = P[I_K] * e if (e > 0.0 or P[I_BILATERAL] != 0.0) else 0.0
-    if lam != 0.0:
-        for i in range(n):
-            ws[o_q + i] -= lam * ws[o_g + i]
-    # inward pass
-    k00 = 0.0
-    k01 = 0.0
-    k11 = 0.0
-    rx = 0.0
-    ry = 0.0
-    m_next = 0.0
+    # ---- actuator and tensions ----
+    mode = P[I_MODE]
+    e1 = 0.0
+    lam1 = 0.0
+    if mode == 0.0:
+        e2 = drive + ell - P[I_ELLREF]
+    elif mode == 1.0:
+        e2 = P[I_RSP] * y[2 * n] + ell - P[I_ELLREF]
+    else:
+        e1 = P[I_RSP] * y[2 * n] - y[2 * n + 2] - P[I_S1REF]
+        lam1 = P[I_K1] * e1 if e1 > 0.0 else 0.0
+        e2 = y[2 * n + 2] + ell - P[I_ELLREF]
+    lam2 = P[I_K2] * e2 if (e2 > 0.0 or P[I_BILAT] != 0.0) else 0.0
+    # run tensions (capstan friction at the guide and the eyelets, regularised)
+    mu = P[I_MU]
+    T = lam2
+    if mu == 0.0 or lam2 == 0.0:
+        for qq in range(1, ne):
+            ws[o_e + 12 * qq + 5] = lam2
+    else:
+        for qq in range(1, ne):
+            b = disc[qq - 1] - 1
+            w = y[n + b]
+            base = o_e + 12 * qq
+            ws[base + 6] = ws[o_vx + b] - r * ws[o_c + b] * w
+            ws[base + 7] = ws[o_vy + b] - r * ws[o_s + b] * w
+        # the cable slides out through the eyelet before run qq (towards the guide) at the rate at which the
+        # runs from qq to the knot shorten: v = -sum_{j >= qq} dL_j/dt (each eyelet's own sliding speed, so
+        # the friction only dissipates: sum (T_before - T_after) v >= 0)
+        ldot = 0.0
+        for qq in range(ne - 1, 0, -1):
+            base = o_e + 12 * qq
+            evx = ws[base + 6]
+            evy = ws[base + 7]
+            if qq > 1:
+                evx -= ws[base - 12 + 6]
+                evy -= ws[base - 12 + 7]
+            ldot += ws[base + 2] * evx + ws[base + 3] * evy
+            ws[base + 8] = ldot
+        tx = math.cos(th0)
+        ty = math.sin(th0)
+        for qq in range(1, ne):
+            base = o_e + 12 * qq
+            ux = ws[base + 2]
+            uy = ws[base + 3]
+            cosb = tx * ux + ty * uy
+            if cosb > 1.0:
+                cosb = 1.0
+            elif cosb < -1.0:
+                cosb = -1.0
+            sinb = abs(tx * uy - ty * ux)
+            wrap = math.atan2(sinb, cosb)
+            T = T * math.exp(-mu * wrap * math.tanh(-ws[base + 8] / P[I_V0]))
+            ws[base + 5] = T
+            tx = ux
+            ty = uy
+    # eyelet forces and moments
+    for qq in range(1, ne):
+        b = disc[qq - 1] - 1
+        base = o_e + 12 * qq
+        Fx = -ws[base + 5] * ws[base + 2]
+        Fy = -ws[base + 5] * ws[base + 3]
+        if qq + 1 < ne:
+            Fx += ws[base + 12 + 5] * ws[base + 12 + 2]
+            Fy += ws[base + 12 + 5] * ws[base + 12 + 3]
+        ws[o_fx + b] += Fx
+        ws[o_fy + b] += Fy
+        ws[o_fn + b] += -r * (ws[o_c + b] * Fx + ws[o_s + b] * Fy)
+    # dashpots on the relative rotation of consecutive discs (clamp = disc 0)
+    cd = P[I_CDISC]
+    if cd != 0.0:
+        prev_b = 0
+        wprev = 0.0
+        for k in range(nd):
+            b = disc[k]
+            tau = -cd * (y[n + b - 1] - wprev)
+            for j in range(prev_b, b):
+                ws[o_q + j] += tau
+            prev_b = b
+            wprev = y[n + b - 1]
+    # dashpots between disc chords: d_0 = w_1 / 2, d_k = (w_{k+1} - w_{k-1}) / 2 (disc rates, clamp = 0)
+    cc_ = P[I_CCHORD]
+    if cc_ != 0.0:
+        wm = 0.0
+        w0 = y[n + disc[0] - 1]
+        ws[o_qt + disc[0] - 1] -= cc_ * 0.25 * w0
+        for k in range(1, nd):
+            wpk = y[n + disc[k] - 1]
+            dk = 0.5 * (wpk - wm)
+            ws[o_qt + disc[k] - 1] -= cc_ * 0.5 * dk
+            if k >= 2:
+                ws[o_qt + disc[k - 2] - 1] += cc_ * 0.5 * dk
+            wm = w0
+            w0 = wpk
+    # constant damping on theta' (the high-mode floor)
+    nr = cw.shape[0]
+    if nr > 0 or cc_ != 0.0:
+        for k in range(nr):
+            acc = 0.0
+            for i in range(n):
+                acc += W[k, i] * y[n + i]
+            acc *= cw[k]
+            for i in range(n):
+                ws[o_qt + i] -= acc * W[k, i]
+        # a force on theta_i acts on every joint j <= i (theta_i = sum_{j <= i} D_j)
+        acc = 0.0
+        for i in range(n - 1, -1, -1):
+            acc += ws[o_qt + i]
+            ws[o_q + i] += acc
+    # ---- inward pass ----
+    for j in range(o_i, o_u):
+        ws[j] = 0.0
     for i in range(n - 1, -1, -1):
-        m_i = mu[i] - m_next
-        m_next = mu[i]
-        a00 = m_i + k00
-        a01 = k01
-        a11 = m_i + k11
-        nx = -ws[o_s + i]
-        ny = ws[i]
-        wi = S[iy, n + i]
-        lw2 = l_ * wi * wi
-        bx = -lw2 * ny
-        by = lw2 * nx
-        pnx = a00 * nx + a01 * ny
-        pny = a01 * nx + a11 * ny
-        invd = 1.0 / (jseg + l2 * (nx * pnx + ny * pny))
-        vx = a00 * bx + a01 * by + rx
-        vy = a01 * bx + a11 * by + ry
-        ws[o_00 + i] = a00
-        ws[o_01 + i] = a01
-        ws[o_11 + i] = a11
-        ws[o_wx + i] = vx
-        ws[o_wy + i] = vy
-        ws[o_d + i] = invd
-        # (products grouped so that they run alongside the division)
-        k00 = a00 - (l2 * pnx * pnx) * invd
-        k01 = a01 - (l2 * pnx * pny) * invd
-        k11 = a11 - (l2 * pny * pny) * invd
-        coef = l_ * (ws[o_q + i] - l_ * (nx * vx + ny * vy)) * invd
-        rx = vx + coef * pnx
-        ry = vy + coef * pny
-    # outward pass
-    ax = 0.0
-    ay = 0.0
+        I00 = Jb[i] + ws[o_i + i]
+        I01 = ws[o_i + n + i]
+        I02 = ws[o_i + 2 * n + i]
+        I11 = mb[i] + ws[o_i + 3 * n + i]
+        I12 = ws[o_i + 4 * n + i]
+        I22 = mb[i] + ws[o_i + 5 * n + i]
+        p0 = -ws[o_fn + i] + ws[o_p + i]
+        p1 = -ws[o_fx + i] + ws[o_p + n + i]
+        p2 = -ws[o_fy + i] + ws[o_p + 2 * n + i]
+        ex = ws[o_ex + i]
+        ey = ws[o_ey + i]
+        U0 = I00 + I01 * ex + I02 * ey
+        U1 = I01 + I11 * ex + I12 * ey
+        U2 = I02 + I12 * ex + I22 * ey
+        Dv = U0 + ex * U1 + ey * U2
+        uu = ws[o_q + i] - (p0 + ex * p1 + ey * p2)
+        ws[o_u + i] = U0
+        ws[o_u + n + i] = U1
+        ws[o_u + 2 * n + i] = U2
+        ws[o_u + 3 * n + i] = 1.0 / Dv
+        ws[o_u + 4 * n + i] = uu
+        if i > 0:
+            iD = 1.0 / Dv
+            a00 = I00 - U0 * U0 * iD
+            a01 = I01 - U0 * U1 * iD
+            a02 = I02 - U0 * U2 * iD
+            a11 = I11 - U1 * U1 * iD
+            a12 = I12 - U1 * U2 * iD
+            a22 = I22 - U2 * U2 * iD
+            kx = ws[o_kx + i]
+            ky = ws[o_ky + i]
+            ud = uu * iD
+            q0 = p0 + a01 * kx + a02 * ky + U0 * ud
+            q1 = p1 + a11 * kx + a12 * ky + U1 * ud
+            q2 = p2 + a12 * kx + a22 * ky + U2 * ud
+            wx = ws[o_wx + i]
+            wy = ws[o_wy + i]
+            Mwx = a11 * wx + a12 * wy
+            Mwy = a12 * wx + a22 * wy
+            j = i - 1
+            ws[o_i + j] += a00 + 2.0 * (a01 * wx + a02 * wy) + wx * Mwx + wy * Mwy
+            ws[o_i + n + j] += a01 + Mwx
+            ws[o_i + 2 * n + j] += a02 + Mwy
+            ws[o_i + 3 * n + j] += a11
+            ws[o_i + 4 * n + j] += a12
+            ws[o_i + 5 * n + j] += a22
+            ws[o_p + j] += q0 + wx * q1 + wy * q2
+            ws[o_p + n + j] += q1
+            ws[o_p + 2 * n + j] += q2
+    # ---- outward pass 2: accelerations ----
+    A0 = 0.0
+    A1 = 0.0
+    A2 = 0.0
     for i in range(n):
-        nx = -ws[o_s + i]
-        ny = ws[i]
-        wi = S[iy, n + i]
-        fx = ws[o_00 + i] * ax + ws[o_01 + i] * ay + ws[o_wx + i]
-        fy = ws[o_01 + i] * ax + ws[o_11 + i] * ay + ws[o_wy + i]
-        acc = (ws[o_q + i] - l_ * (nx * fx + ny * fy)) * ws[o_d + i]
-        lw2 = l_ * wi * wi
-        ax += l_ * nx * acc - lw2 * ny
-        ay += l_ * ny * acc + lw2 * nx
-        S[idy, i] = wi
-        S[idy, n + i] = acc - alpha * wi
-    return e
+        b0 = A0
+        b1 = A1 + A0 * ws[o_wx + i] + ws[o_kx + i]
+        b2 = A2 + A0 * ws[o_wy + i] + ws[o_ky + i]
+        dd = (ws[o_u + 4 * n + i] - (ws[o_u + i] * b0 + ws[o_u + n + i] * b1 + ws[o_u + 2 * n + i] * b2)) \
+            * ws[o_u + 3 * n + i]  # fmt: skip
+        A0 = b0 + dd
+        A1 = b1 + ws[o_ex + i] * dd
+        A2 = b2 + ws[o_ey + i] * dd
+        dy[i] = y[n + i]
+        dy[n + i] = A0
+    # ---- actuator dynamics ----
+    m2 = 2 * n
+    if mode == 0.0:
+        dy[m2] = 0.0
+        dy[m2 + 1] = 0.0
+        dy[m2 + 2] = 0.0
+        dy[m2 + 3] = 0.0
+    else:
+        delta = drive - y[m2]
+        if P[I_TLAW] == 0.0:
+            tm = P[I_TH] * P[I_NR] * delta
+        else:
+            tm = P[I_TH] * math.sin(P[I_NR] * delta)
+        lam_sp = lam2 if mode == 1.0 else lam1
+        dy[m2] = y[m2 + 1]
+        dy[m2 + 1] = (tm - P[I_CR] * y[m2 + 1] - P[I_RSP] * lam_sp) / P[I_JR]
+        if mode == 2.0:
+            dy[m2 + 2] = y[m2 + 3]
+            dy[m2 + 3] = (lam1 - lam2 - P[I_CC] * y[m2 + 3]) / P[I_MC]
+        else:
+            dy[m2 + 2] = 0.0
+            dy[m2 + 3] = 0.0
+    return e1, e2, lam1, lam2
 
 
 @njit(cache=True, error_model="numpy")
-def stretch_row(S, iy, u, P, eye):
-    """Cable stretch ``u + ell - ell_ref`` of the state in row ``iy`` of ``S`` (as :func:`rhs_rows`)."""
-    l_ = P[I_L]
-    r = P[I_R]
-    px = 0.0
-    py = 0.0
-    j = 0
-    ell = 0.0
-    ang = P[I_PHI0]
-    ax = -r * math.sin(ang)
-    ay = r * math.cos(ang)
-    for qq in range(1, eye.shape[0]):
-        b = eye[qq]
-        while j < b:
-            px += l_ * math.cos(S[iy, j])
-            py += l_ * math.sin(S[iy, j])
-            j += 1
-        ang = S[iy, b - 1]
-        bx = px - r * math.sin(ang)
-        by = py + r * math.cos(ang)
-        dx = bx - ax
-        dy = by - ay
-        ell += math.sqrt(dx * dx + dy * dy)
-        ax = bx
-        ay = by
-    return u + ell - P[I_ELLREF]
-
-
-# rows of the integrator's state array (see advance)
-R_K2, R_K3, R_K4, R_TMP = 0, 1, 2, 3
-N_ROWS = 9
+def rhs(y, drive, P, mb, Jb, disc, W, cw):
+    """Allocating convenience wrapper of :func:`rhs_ws`: returns ``(dy, e1, e2, lam1, lam2)``."""
+    n = mb.shape[0]
+    ws = np.empty(N_WS_PER * n + 12 * (disc.shape[0] + 1) + 16)
+    dy = np.empty(y.shape[0])
+    e1, e2, l1, l2 = rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws)
+    return dy, e1, e2, l1, l2
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_rows(S, iy, ik1, h, u, P, mu, kap, cj, eye, iout, ws):
-    """RK4 step of size ``h`` from row ``iy`` of ``S``, given its slope in row ``ik1``, into row ``iout``.
+def _measured(P, lam1, lam2):
+    return lam1 if (P[I_MODE] == 2.0 and P[I_MEAS] == 1.0) else lam2
 
-    Rows ``R_K2 .. R_TMP`` hold the other stages.
-    """
-    m = S.shape[1]
+
+@njit(cache=True, error_model="numpy")
+def _rk4(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, out):
+    m = y.shape[0]
     hh = 0.5 * h
     for i in range(m):
-        S[R_TMP, i] = S[iy, i] + hh * S[ik1, i]
-    rhs_rows(S, R_TMP, R_K2, u, P, mu, kap, cj, eye, ws)
+        tmp[i] = y[i] + hh * k1[i]
+    rhs_ws(tmp, k2, drive, P, mb, Jb, disc, W, cw, ws)
     for i in range(m):
-        S[R_TMP, i] = S[iy, i] + hh * S[R_K2, i]
-    rhs_rows(S, R_TMP, R_K3, u, P, mu, kap, cj, eye, ws)
+        tmp[i] = y[i] + hh * k2[i]
+    rhs_ws(tmp, k3, drive, P, mb, Jb, disc, W, cw, ws)
     for i in range(m):
-        S[R_TMP, i] = S[iy, i] + h * S[R_K3, i]
-    rhs_rows(S, R_TMP, R_K4, u, P, mu, kap, cj, eye, ws)
+        tmp[i] = y[i] + h * k3[i]
+    rhs_ws(tmp, k4, drive, P, mb, Jb, disc, W, cw, ws)
     h6 = h / 6.0
     for i in range(m):
-        S[iout, i] = S[iy, i] + h6 * (S[ik1, i] + 2.0 * S[R_K2, i] + 2.0 * S[R_K3, i] + S[R_K4, i])
+        out[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
 @njit(cache=True, error_model="numpy")
-def integrate_interval(S, rows, e0, dt, u, h_max, P, mu, kap, cj, eye, stats, ws):
-    """Integrate the state over ``dt`` with cable position ``u`` (constant), equal steps <= ``h_max``.
+def _flip(a0, a1, b0, b1):
+    """True if the taut/slack pattern of the two cables changed."""
+    return ((a0 > 0.0) != (a1 > 0.0)) or ((b0 > 0.0) != (b1 > 0.0))
 
-    ``rows`` (int array, updated in place) = row indices in ``S`` of the state, its slope, and three spare
-    rows (the next state, a trial state, the next slope). On entry the slope row holds ``f(y)`` and ``e0``
-    is the cable stretch at ``y``; on return the same holds at the new state, whose stretch is returned
-    (each step's last evaluation is the next step's first stage). A step across which the cable changes
-    between taut and slack is split at the transition, located by the Illinois (regula falsi) method on
-    the step size, so that each RK4 step sees a smooth right-hand side. ``stats[0]`` counts steps,
-    ``stats[1]`` counts taut/slack transitions.
+
+@njit(cache=True, error_model="numpy")
+def _filter(filt, h, x0, x1):
+    """First-order low-pass ``tau y' = x - y`` over ``h`` for an input linear from ``x0`` to ``x1``."""
+    tau = filt[0]
+    if tau <= 0.0:
+        filt[1] = x1
+        return
+    a = math.exp(-h / tau)
+    filt[1] = a * (filt[1] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
+
+
+@njit(cache=True, error_model="numpy")
+def _lag(P, drive, y, n, health):
+    if P[I_MODE] != 0.0:
+        lag = abs(drive - y[2 * n])
+        if lag > health[0]:
+            health[0] = lag
+
+
+@njit(cache=True, error_model="numpy")
+def integrate(y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, filt, stats, health):  # noqa: C901
+    """Integrate ``y`` (in place) over ``dt`` with constant ``drive``: equal RK4 steps ``<= h_max``.
+
+    ``k1`` holds ``f(y)`` on entry and on exit (the evaluation at a step's end is the next step's first
+    stage). ``st = [e1, e2, lam1, lam2]`` of ``y`` (updated). A step across which a cable changes between
+    taut and slack is split at the transition (Illinois method on the step size), so no step straddles the
+    kink of ``max(0, .)``. ``filt = [tau, y]``: the amplifier's low-pass, updated exactly for a tension
+    linear over each step (``tau = 0``: off). ``stats[0]`` counts RK4 steps, ``stats[1]`` transitions;
+    ``health[0]`` is the largest rotor lag ``|psi_cmd - psi|`` seen (rad).
     """
     if dt <= 0.0:
-        return e0
-    n_steps = int(math.ceil(dt / h_max - 1e-9))
-    h = dt / n_steps
-    m = S.shape[1]
-    iy = rows[0]
-    ik1 = rows[1]
-    iy1 = rows[2]
-    itry = rows[3]
-    ik1n = rows[4]
-    for _ in range(n_steps):
-        rk4_rows(S, iy, ik1, h, u, P, mu, kap, cj, eye, iy1, ws)
+        return
+    nst = int(math.ceil(dt / h_max - 1e-9))
+    h = dt / nst
+    m = y.shape[0]
+    n = mb.shape[0]
+    k2 = bufs[0]
+    k3 = bufs[1]
+    k4 = bufs[2]
+    tmp = bufs[3]
+    y1 = bufs[4]
+    yt = bufs[5]
+    k1n = bufs[6]
+    mode2 = P[I_MODE] == 2.0
+    for _ in range(nst):
+        _rk4(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, y1)
         stats[0] += 1
-        e1 = rhs_rows(S, iy1, ik1n, u, P, mu, kap, cj, eye, ws)
-        if (e0 > 0.0) != (e1 > 0.0):
+        e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, drive, P, mb, Jb, disc, W, cw, ws)
+        a0 = st[0] if mode2 else 1.0
+        a1 = e1n if mode2 else 1.0
+        if _flip(a0, a1, st[1], e2n):
             stats[1] += 1
-            # bracket the transition in the step size: f(0) = e0, f(h) = e1
+            use1 = mode2 and ((a0 > 0.0) != (a1 > 0.0))
+            f_lo = st[0] if use1 else st[1]
+            f_hi = e1n if use1 else e2n
             lo = 0.0
             hi = h
-            f_lo = e0
-            f_hi = e1
             side = 0
             hc = h
-            for _it in range(30):
+            for _it in range(40):
                 den = f_hi - f_lo
                 hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
                 if not (hc > lo and hc < hi):
                     hc = 0.5 * (lo + hi)
-                rk4_rows(S, iy, ik1, hc, u, P, mu, kap, cj, eye, itry, ws)
+                _rk4(y, k1, hc, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, yt)
                 stats[0] += 1
-                fc = stretch_row(S, itry, u, P, eye)
-                if abs(fc) < 1e-12 or hi - lo < 1e-10:
+                ec1, ec2, _a, _b = rhs_ws(yt, k2, drive, P, mb, Jb, disc, W, cw, ws)
+                fc = ec1 if use1 else ec2
+                if abs(fc) < 1e-13 or hi - lo < 1e-11:
                     break
                 if (fc > 0.0) == (f_lo > 0.0):
                     lo = hc
@@ -527,125 +560,74 @@ def integrate_interval(S, rows, e0, dt, u, h_max, P, mu, kap, cj, eye, stats, ws
                     if side == 1:
                         f_lo *= 0.5
                     side = 1
-            # advance to the transition, then finish the step on the other branch
+            # to the transition, then the rest of the step on the other branch
+            x0 = _measured(P, st[2], st[3])
             for i in range(m):
-                S[iy, i] = S[itry, i]
-            rhs_rows(S, iy, ik1, u, P, mu, kap, cj, eye, ws)
-            rk4_rows(S, iy, ik1, h - hc, u, P, mu, kap, cj, eye, iy1, ws)
+                y[i] = yt[i]
+            ec1, ec2, lc1, lc2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
+            xc = _measured(P, lc1, lc2)
+            _filter(filt, hc, x0, xc)
+            _rk4(y, k1, h - hc, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, y1)
             stats[0] += 1
-            e1 = rhs_rows(S, iy1, ik1n, u, P, mu, kap, cj, eye, ws)
-        iy, iy1 = iy1, iy
-        ik1, ik1n = ik1n, ik1
-        e0 = e1
-    rows[0] = iy
-    rows[1] = ik1
-    rows[2] = iy1
-    rows[4] = ik1n
-    return e0
+            e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, drive, P, mb, Jb, disc, W, cw, ws)
+            _filter(filt, h - hc, xc, _measured(P, l1n, l2n))
+        else:
+            _filter(filt, h, _measured(P, st[2], st[3]), _measured(P, l1n, l2n))
+        for i in range(m):
+            y[i] = y1[i]
+            k1[i] = k1n[i]
+        st[0] = e1n
+        st[1] = e2n
+        st[2] = l1n
+        st[3] = l2n
+        _lag(P, drive, y, n, health)
 
 
 @njit(cache=True, error_model="numpy")
-def advance(y, t0, u0, du, sample_times, step_times, step_signs, h_max, P, mu, kap, cj, eye,
-            tension_out, phi_out, stats):
-    """Advance the state ``y`` (in place) from ``t0`` through every sample time; return ``(t, u)``.
+def advance(y, t0, drive0, d_drive, sample_times, step_times, step_signs, h_max, P, mb, Jb, disc, W, cw,
+            filt, out_raw, out_filt, out_theta, stats, health):  # fmt: skip
+    """Advance ``y`` from ``t0`` through every sample time; return ``(t, drive)``.
 
-    Steps at ``step_times`` move the cable by ``du * step_signs`` instantly; a step at exactly a sample
-    time is applied before that sample. Tension (N) and segment angles at the samples are written into
-    ``tension_out`` and ``phi_out``. The slope at the current state is kept between intervals and
-    re-evaluated only when the cable moves.
+    ``drive`` (cable displacement or commanded rotor angle) jumps by ``d_drive * sign`` at each step time;
+    a step at exactly a sample time is applied before that sample. At each sample the measured tension (raw
+    and amplifier output) and the node angles are written into ``out_*``.
     """
-    n = mu.shape[0]
+    n = mb.shape[0]
     m = y.shape[0]
-    S = np.empty((N_ROWS, m))
-    ws = np.empty(workspace_size(n))
-    rows = np.array([4, 5, 6, 7, 8])
-    for i in range(m):
-        S[4, i] = y[i]
+    ws = np.empty(N_WS_PER * n + 12 * (disc.shape[0] + 1) + 16)
+    bufs = np.empty((7, m))
+    k1 = np.empty(m)
+    st = np.empty(4)
     t = t0
-    u = u0
+    drive = drive0
     js = 0
-    n_steps = step_times.shape[0]
-    e = 0.0
-    valid = False
-    for q in range(sample_times.shape[0]):
-        ts = sample_times[q]
-        while js < n_steps and step_times[js] <= ts:
-            dt = step_times[js] - t
-            if dt > 0.0:
-                if not valid:
-                    e = rhs_rows(S, rows[0], rows[1], u, P, mu, kap, cj, eye, ws)
-                    valid = True
-                e = integrate_interval(S, rows, e, dt, u, h_max, P, mu, kap, cj, eye, stats, ws)
+    nst = step_times.shape[0]
+    e1, e2, l1, l2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
+    st[0] = e1
+    st[1] = e2
+    st[2] = l1
+    st[3] = l2
+    for qi in range(sample_times.shape[0]):
+        ts = sample_times[qi]
+        while js < nst and step_times[js] <= ts:
+            integrate(y, k1, st, step_times[js] - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, filt,
+                      stats, health)  # fmt: skip
+            if step_times[js] > t:
                 t = step_times[js]
-            u += du * step_signs[js]
-            valid = False
+            drive += d_drive * step_signs[js]
             js += 1
-        if not valid:
-            e = rhs_rows(S, rows[0], rows[1], u, P, mu, kap, cj, eye, ws)
-            valid = True
-        e = integrate_interval(S, rows, e, ts - t, u, h_max, P, mu, kap, cj, eye, stats, ws)
+            e1, e2, l1, l2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
+            st[0] = e1
+            st[1] = e2
+            st[2] = l1
+            st[3] = l2
+            if filt[0] <= 0.0:
+                filt[1] = _measured(P, l1, l2)
+        integrate(y, k1, st, ts - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, filt, stats, health)
         if ts > t:
             t = ts
-        tension_out[q] = P[I_K] * e if e > 0.0 else 0.0
-        iy = rows[0]
+        out_raw[qi] = _measured(P, st[2], st[3])
+        out_filt[qi] = filt[1]
         for i in range(n):
-            phi_out[q, i] = S[iy, i]
-    iy = rows[0]
-    for i in range(m):
-        y[i] = S[iy, i]
-    return t, u
-
-
-@njit(cache=True, error_model="numpy")
-def energy(y, u, P, mu, m_nodes, kap, eye):
-    """Kinetic + elastic + gravitational + cable energy of the state (J), for the energy-balance test."""
-    n = mu.shape[0]
-    l_ = P[I_L]
-    phi = y[:n]
-    w = y[n:]
-    kin = 0.0
-    for i in range(n):
-        kin += 0.5 * P[I_JSEG] * w[i] * w[i]
-        for k in range(n):
-            m_ = mu[k] if k > i else mu[i]
-            kin += 0.5 * l_ * l_ * m_ * math.cos(phi[i] - phi[k]) * w[i] * w[k]
-    el = 0.0
-    prev = P[I_PHI0]
-    for i in range(n):
-        el += 0.5 * kap[i] * (phi[i] - prev) ** 2
-        prev = phi[i]
-    grav = 0.0
-    yy = 0.0
-    for i in range(n):
-        yy += l_ * math.sin(phi[i])
-        grav += P[I_G] * m_nodes[i] * yy
-    e = u + cable_length(phi, P, eye) - P[I_ELLREF]
-    cab = 0.5 * P[I_K] * e * e if e > 0.0 else 0.0
-    return kin + el + grav + cab
-
-
-@njit(cache=True, error_model="numpy")
-def static_force(phi, u, lam_fixed, P, mu, kap, eye, out):
-    """Generalised static force (springs, gravity, cable) at rest, written into ``out``; returns the tension.
-
-    The tension is ``lam_fixed`` if it is >= 0 (tension-controlled statics), else it follows from ``u``.
-    """
-    n = mu.shape[0]
-    l_ = P[I_L]
-    g = P[I_G]
-    grad = np.empty(n)
-    ell = cable_length_grad(phi, P, eye, grad)
-    if lam_fixed >= 0.0:
-        lam = lam_fixed
-    else:
-        e = u + ell - P[I_ELLREF]
-        lam = P[I_K] * e if (e > 0.0 or P[I_BILATERAL] != 0.0) else 0.0
-    prev = P[I_PHI0]
-    taus = np.empty(n)
-    for i in range(n):
-        taus[i] = kap[i] * (phi[i] - prev)
-        prev = phi[i]
-    for i in range(n):
-        nxt = taus[i + 1] if i + 1 < n else 0.0
-        out[i] = -taus[i] + nxt - g * l_ * mu[i] * math.cos(phi[i]) - lam * grad[i]
-    return lam
+            out_theta[qi, i] = y[i]
+    return t, drive

@@ -1,11 +1,12 @@
-"""Physical parameters of the virtual rig's plant: the one place they are defined, tuned values included.
+"""Physical parameters of the virtual rig: the one place they are defined, tuned values included.
 
 Every field says its unit, its value and where the value comes from: *paper* (stated in the paper),
-*handbook* (a material constant), *assumed* (a plausible value nobody measured, with the reason) or *tuned*
-(chosen by the rig tuning, :mod:`helpers.rig_tuning`, so that the simulated rig reproduces the paper's
-identified mode and Table II magnitudes). ``RigParameters()`` is the tuned rig. The backbone's fields come
-from :class:`helpers.backbone.Backbone`, shared with the linear model. ``docs/virtual_rig.md`` carries the
-same table with more words.
+*handbook* (a material constant), *datasheet* (a typical catalogue value of the part the paper names),
+*assumed* (a plausible value nobody measured, with the reason), *tuned* (chosen by the rig tuning,
+:mod:`helpers.rig_tuning`, so that the simulated rig reproduces the paper's identified mode and its unshaped
+Table II rows) or *numerical* (a discretisation choice, checked by a convergence study). ``RigParameters()``
+is the tuned rig. The backbone's fields come from :class:`helpers.backbone.Backbone`, shared with the linear
+model. ``docs/virtual_rig.md`` carries the same table with more words; :func:`parameter_table` prints it.
 """
 
 from __future__ import annotations
@@ -13,121 +14,217 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from helpers import hardware, paper
 from helpers.backbone import SOURCES as BACKBONE_SOURCES
 from helpers.backbone import Backbone
 
-__all__ = ["RigParameters", "TUNED", "parameter_table"]
+__all__ = ["RigParameters", "TUNED", "ACTUATORS", "KG_CM", "parameter_table"]
+
+KG_CM: float = 0.0980665
+"""One kilogram-force centimetre in N m."""
+
+ACTUATORS = ("ideal", "stepper", "stepper+carriage")
+"""Actuator models: the cable moved instantly by each step (``ideal``, for comparison); the rotor and spool
+on the motor's microstep spring (``stepper``); the same plus the load-cell carriage between its two cables
+(``stepper+carriage``, the rig)."""
 
 TUNED: dict[str, float] = {
-    "disc_mass": 1.1333e-3,
-    "r": 7.8e-3,
-    "k": 6000.0,
-    "pretension": 2.3,
-    "base_angle_deg": 0.0,
-    "alpha": 1.8688,
-    "beta": 5.821e-4,
+    "disc_mass": 1.110076e-03,
+    "r": 7.77383e-03,
+    "k": 21055.9,
+    "pretension": 2.3340,
+    "alpha": 1.888623,
+    "beta_chord": 5.746086e-04,
 }
 """The values the rig tuning chose (the defaults of :class:`RigParameters`; ``docs/virtual_rig.md``)."""
 
 
+def _check(value: object, name: str, positive: bool) -> None:
+    ok = isinstance(value, int | float | np.floating) and not isinstance(value, bool) and math.isfinite(value)
+    ok = ok and (value > 0 if positive else value >= 0)
+    if not ok:
+        kind = "a positive finite number" if positive else "a finite number >= 0"
+        raise ValueError(f"RigParameters.{name} must be {kind}, got {value!r}")
+
+
 @dataclass(frozen=True)
 class RigParameters(Backbone):
-    """Parameters of the nonlinear arm, the cable and the load cell (SI units unless a name says otherwise).
+    """Parameters of the arm, its cable, the stepper, the load-cell carriage and the sensor chain (SI units).
 
     The defaults are the tuned virtual rig. The backbone (``E``, ``rho``, ``d``, ``L``, ``n_discs``) is
-    :class:`helpers.backbone.Backbone`'s.
+    :class:`helpers.backbone.Backbone`'s. Units and sources of every field: :func:`parameter_table`.
 
     Attributes
     ----------
-    n_discs : int
-        Number of cable-support discs, 12 (*paper*). Disc ``k`` (1..n_discs) sits at arc length
-        ``k L / n_discs``; the last one is at the tip, where the cable is knotted (*paper*). The cable
-        enters the arm through a guide hole in the clamp plate at the same offset ``r`` (*assumed*: the
-        paper routes the cable "into the proximal end" over pulleys; a guide at the clamp is the simplest
-        reading).
-    segments_per_disc : int
-        Rigid segments between consecutive discs (1 by default: one segment per disc station). Larger values
-        refine the rod for the convergence test while keeping the eyelets at the disc stations.
+    elements_per_disc : int
+        Constant-curvature elements per disc interval (1: one arc between consecutive discs). Larger values
+        refine the rod for the convergence study; the discs stay at their 12 stations.
     disc_mass : float
-        Mass of each disc (with its share of eyelet, glue and knot), kg. *Tuned* so that the dominant
-        mode of the simulated identification run has omega_d = 25.085 rad/s.
+        Mass of each disc with its eyelet and glue, kg. *Tuned*: the identification run gives
+        omega_d = 25.085 rad/s.
+    disc_radius, disc_thickness : float
+        Disc size for its rotary inertia about a diameter, ``J = m (R^2/4 + t^2/12)``, m. *Assumed*.
     disc_mass_uniform : bool
-        If True, the total disc mass is spread over *every* node (uniform mass per length, as the paper's
-        linear model assumes) instead of concentrated at the 12 stations. Only for validation.
+        Spread the discs' mass over every node as point masses (no rotary inertia), as the paper's linear
+        model assumes. Validation only.
     eyelets_every_node : bool
-        If True, the cable passes an eyelet at every node (the cable then follows the backbone polygon, as the
-        continuum formula assumes); otherwise only at the disc stations (the real rig). Only for validation.
+        Put an eyelet at every node (the cable then follows the backbone). Validation only.
     r : float
-        Offset of the cable eyelets from the backbone's neutral axis, m. *Assumed* (paper hint: ~7 mm).
+        Offset of the eyelets from the backbone's neutral axis, m.
     k : float
-        Series stiffness of the cable, the pulleys and the load cell, N/m. *Tuned* to Table II's Up peaks.
+        Series stiffness of everything between the arm and the motor's commanded position at low frequency
+        (microstep spring, spool-side cable, load cell, arm-side cable), N/m. *Tuned*.
     pretension : float
-        Cable tension with the arm at rest at cable position 0 (the "down position"), N. *Calibrated* to the
-        Down overshoots of Table II (their peaks read 0 N: the cable goes slack on the way down).
+        Cable tension with the arm at rest at cable position 0, N. *Tuned*.
     base_angle_deg : float
-        Direction of the backbone's tangent at the clamp, degrees counter-clockwise from the horizontal;
-        gravity points along -y and the cable runs on the left (+normal) side, so pulling bends the arm
-        counter-clockwise. 0 = horizontal arm bending up, -90 = hanging arm, 90 = upright arm. *Assumed*,
-        see ``docs/virtual_rig.md``.
+        Direction of the clamp tangent, degrees counter-clockwise from the horizontal (0: horizontal arm
+        bending up against gravity). *Assumed*.
     g : float
-        Gravitational acceleration, m/s^2. 9.81; 0 switches gravity off (validation).
+        Gravity, m/s^2 (0 switches it off for validation).
     alpha : float
-        Mass-proportional damping, 1/s: a viscous drag ``-alpha m_j v_j`` on every point mass (air drag and
-        support losses). *Tuned* with ``beta`` to zeta = 0.044 of the dominant mode.
-    beta : float
-        Stiffness-proportional damping, s: a dashpot ``beta * EI/l`` in parallel with every joint spring
-        (material damping of the wire). *Tuned* with ``alpha``.
+        Mass-proportional damping, 1/s: ``-alpha m v`` on every mass and ``-alpha J omega`` on every disc.
+    beta_chord : float
+        Wire material damping, s: rotational dashpots ``beta_chord EI / l_d`` on the relative rotation of
+        consecutive inter-disc chords. With ``alpha`` *tuned* to zeta = 0.044 of the lowest mode.
+    beta_disc : float
+        Stiffness-proportional dashpots ``beta_disc EI / l_d`` on the relative rotation of consecutive discs
+        (0 in the rig; the damping-layout comparison uses it).
+    floor_zeta, floor_omega : float
+        High-mode damping floor: every undamped mode at rest gets an added ``2 floor_zeta omega s(omega)``
+        with ``s = 1 / (1 + (floor_omega / omega)^8)``: about ``floor_zeta`` above ``floor_omega`` (rad/s),
+        nothing on the low modes. *Assumed*.
+    eyelet_mu, eyelet_v0 : float
+        Capstan friction coefficient of the cable in the guide and the eyelets (0: frictionless, the rig) and
+        its regularisation speed, m/s.
+    actuator : str
+        One of :data:`ACTUATORS`.
+    steps_per_rev, spool_diameter : int, float
+        Microsteps per revolution and the spool's diameter, m (*paper*).
+    rotor_inertia, spool_inertia : float
+        kg m^2 (*datasheet*; *assumed*).
+    holding_torque : float
+        Amplitude of the motor's torque against rotor displacement, N m (*assumed*, see the table).
+    rotor_teeth : int
+        Rotor teeth of the 1.8 deg hybrid motor (200 full steps = 4 x 50).
+    torque_law : str
+        ``"sin"`` (``T = T_h sin(N_r delta)``) or ``"linear"`` (``T_h N_r delta``).
+    rotor_zeta : float
+        Damping ratio of the rotor mode (rotor + spool on the microstep spring and the cable), *assumed*.
+    carriage_mass, carriage_zeta : float
+        Load-cell carriage on its rails (kg) and the damping ratio of its mode, *assumed*.
+    spool_side_share : float
+        Share of the cable's compliance on the spool side of the carriage, *assumed*.
+    load_cell_side : str
+        ``"arm"``: the load cell reads the arm-side cable's tension; ``"spool"``: the spool side's.
+    amp_bandwidth_hz : float
+        -3 dB bandwidth of the load-cell amplifier, first order, Hz (0: no filter). *Assumed*.
+    span_n : float
+        Load that drives the amplifier's loop to 20 mA (its full-scale setting), N. *Assumed*.
+    adc_noise_counts : float
+        Gaussian noise of the reading, counts rms. *Assumed*.
     max_step : float
-        Largest integration step of the fixed-step integrator, s. Chosen by measured convergence against a
-        tight solve_ivp reference (``docs/virtual_rig.md``).
+        Largest RK4 step, s (*numerical*).
     """
 
-    segments_per_disc: int = 1
+    elements_per_disc: int = 1
     disc_mass: float = TUNED["disc_mass"]
+    disc_radius: float = 12.0e-3
+    disc_thickness: float = 4.0e-3
     disc_mass_uniform: bool = False
     eyelets_every_node: bool = False
     r: float = TUNED["r"]
     k: float = TUNED["k"]
     pretension: float = TUNED["pretension"]
-    base_angle_deg: float = TUNED["base_angle_deg"]
+    base_angle_deg: float = 0.0
     g: float = 9.81
     alpha: float = TUNED["alpha"]
-    beta: float = TUNED["beta"]
-    max_step: float = 5.0e-4
+    beta_chord: float = TUNED["beta_chord"]
+    beta_disc: float = 0.0
+    floor_zeta: float = 0.2
+    floor_omega: float = 1000.0
+    eyelet_mu: float = 0.0
+    eyelet_v0: float = 1.0e-3
+    actuator: str = "stepper+carriage"
+    steps_per_rev: int = paper.STEPS_PER_REV
+    spool_diameter: float = paper.SPOOL_DIAMETER_M
+    rotor_inertia: float = 5.4e-6
+    spool_inertia: float = 1.6e-5
+    holding_torque: float = 1.5 * paper.HOLDING_TORQUE_KG_CM * KG_CM
+    rotor_teeth: int = 50
+    torque_law: str = "sin"
+    rotor_zeta: float = 0.1
+    carriage_mass: float = 0.030
+    carriage_zeta: float = 0.05
+    spool_side_share: float = 0.25
+    load_cell_side: str = "arm"
+    amp_bandwidth_hz: float = 1000.0
+    span_n: float = 20.0
+    adc_noise_counts: float = 0.5
+    max_step: float = 2.5e-4
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ("r", "k", "max_step"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float | np.floating) and math.isfinite(value) and value > 0):
-                raise ValueError(f"RigParameters.{name} must be a positive finite number, got {value!r}")
-        for name in ("disc_mass", "pretension", "g", "alpha", "beta"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float | np.floating) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"RigParameters.{name} must be a finite number >= 0, got {value!r}")
+        for name in ("r", "k", "max_step", "spool_diameter", "rotor_inertia", "holding_torque", "span_n",
+                     "carriage_mass", "disc_radius", "eyelet_v0", "floor_omega"):  # fmt: skip
+            _check(getattr(self, name), name, positive=True)
+        for name in ("disc_mass", "disc_thickness", "pretension", "g", "alpha", "beta_chord", "beta_disc",
+                     "floor_zeta", "eyelet_mu", "spool_inertia", "rotor_zeta", "carriage_zeta",
+                     "amp_bandwidth_hz", "adc_noise_counts"):  # fmt: skip
+            _check(getattr(self, name), name, positive=False)
         if not math.isfinite(self.base_angle_deg):
             raise ValueError(f"RigParameters.base_angle_deg must be finite, got {self.base_angle_deg!r}")
-        value = self.segments_per_disc
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-            raise ValueError(f"RigParameters.segments_per_disc must be a positive integer, got {value!r}")
+        for name in ("elements_per_disc", "steps_per_rev", "rotor_teeth"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise ValueError(f"RigParameters.{name} must be a positive integer, got {value!r}")
+        if self.actuator not in ACTUATORS:
+            raise ValueError(f"RigParameters.actuator must be one of {ACTUATORS}, got {self.actuator!r}")
+        if self.torque_law not in ("sin", "linear"):
+            raise ValueError(f"RigParameters.torque_law must be 'sin' or 'linear', got {self.torque_law!r}")
+        if self.load_cell_side not in ("arm", "spool"):
+            raise ValueError(
+                f"RigParameters.load_cell_side must be 'arm' or 'spool', got {self.load_cell_side!r}"
+            )
+        if not 0.0 < self.spool_side_share < 1.0:
+            raise ValueError(
+                f"RigParameters.spool_side_share must lie in (0, 1), got {self.spool_side_share!r}"
+            )
+        if self.actuator != "ideal" and self.k * self.spool_radius**2 >= self.motor_stiffness:
+            raise ValueError(
+                f"RigParameters.k = {self.k:.0f} N/m is not below the microstep spring alone "
+                f"({self.motor_stiffness / self.spool_radius**2:.0f} N/m at the cable): no cable stiffness "
+                "is left"
+            )
 
     def replace(self, **changes: object) -> RigParameters:
         """Return a copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
+    # --- the arm --------------------------------------------------------------------------------------
     @property
-    def n_segments(self) -> int:
-        """Number of rigid segments (= joints = nodes after the clamp)."""
-        return int(self.n_discs * self.segments_per_disc)
+    def n_elements(self) -> int:
+        """Number of arc elements (= nodes after the clamp)."""
+        return int(self.n_discs * self.elements_per_disc)
 
     @property
-    def segment_length(self) -> float:
-        """Length of one rigid segment, m."""
-        return self.L / self.n_segments
+    def element_length(self) -> float:
+        """Length of one arc element, m."""
+        return self.L / self.n_elements
+
+    @property
+    def disc_interval(self) -> float:
+        """Distance between consecutive discs along the rod, m."""
+        return self.L / self.n_discs
+
+    @property
+    def disc_inertia(self) -> float:
+        """Rotary inertia of one disc about a diameter, kg m^2."""
+        return self.disc_mass * (self.disc_radius**2 / 4.0 + self.disc_thickness**2 / 12.0)
 
     @property
     def total_mass(self) -> float:
@@ -135,68 +232,240 @@ class RigParameters(Backbone):
         return self.rod_mass + self.n_discs * self.disc_mass
 
     @property
-    def joint_stiffness(self) -> float:
-        """Rotational stiffness EI / l of the joint springs, N m/rad (the clamp's is 2 EI / l)."""
-        return self.EI / self.segment_length
-
-    @property
     def base_angle(self) -> float:
-        """Base tangent direction, rad."""
+        """Clamp direction, rad."""
         return math.radians(self.base_angle_deg)
 
-    def line_density(self) -> float:
-        """Mass per length of the uniform rod, kg/m: the wire, plus the discs if ``disc_mass_uniform``."""
-        mu = self.rho * self.area
-        if self.disc_mass_uniform:
-            mu += self.n_discs * self.disc_mass / self.L
-        return mu
-
-    def node_masses(self) -> np.ndarray:
-        """Point masses at the nodes 1..n_segments, kg.
-
-        Each segment is a uniform rigid rod (:meth:`line_density`): half its mass at each end node (the clamp
-        keeps the half at node 0); the rod's rotary-inertia correction is in :meth:`segment_inertia`. Each
-        disc is a point mass at its station (its own rotary inertia, ~5e-8 kg m^2, is 0.3 % of its
-        translational inertia about the clamp and is neglected).
-        """
-        n = self.n_segments
-        m_seg = self.line_density() * self.segment_length
-        m = np.full(n, m_seg)
-        m[-1] = 0.5 * m_seg
-        if not self.disc_mass_uniform:
-            m[self.segments_per_disc - 1 :: self.segments_per_disc] += self.disc_mass
-        return m
-
-    def segment_inertia(self) -> float:
-        """Rotary-inertia correction of each segment, kg m^2.
-
-        Two half masses at the ends of a segment give it ``m l^2 / 4`` about its centre; a uniform rod has
-        ``m l^2 / 12``: the difference ``-m l^2 / 6`` is added to the segment's own rotational inertia.
-        """
-        m_seg = self.line_density() * self.segment_length
-        return -m_seg * self.segment_length**2 / 6.0
+    def disc_nodes(self) -> np.ndarray:
+        """Node indices (1-based) of the discs, the last at the tip."""
+        m = self.elements_per_disc
+        return np.arange(m, self.n_elements + 1, m, dtype=np.int64)
 
     def eyelet_nodes(self) -> np.ndarray:
-        """Node indices of the eyelets (0 = the guide at the clamp), increasing, last = tip."""
-        step = 1 if self.eyelets_every_node else self.segments_per_disc
-        return np.arange(0, self.n_segments + 1, step, dtype=np.int64)
+        """Node indices (1-based) of the eyelets after the clamp guide: the discs, or every node."""
+        if self.eyelets_every_node:
+            return np.arange(1, self.n_elements + 1, dtype=np.int64)
+        return self.disc_nodes()
+
+    def node_masses(self) -> np.ndarray:
+        """Point masses at nodes 1..N, kg.
+
+        Half of each adjacent element's wire (the clamp keeps its half) and the disc at a disc node (or the
+        discs' mass spread evenly if ``disc_mass_uniform``).
+        """
+        n = self.n_elements
+        m_el = self.rho * self.area * self.element_length
+        m = np.full(n, m_el)
+        m[-1] = 0.5 * m_el
+        if self.disc_mass_uniform:
+            m += self.n_discs * self.disc_mass / n
+        else:
+            m[self.disc_nodes() - 1] += self.disc_mass
+        return m
+
+    def node_inertias(self) -> np.ndarray:
+        """Rotary inertias at nodes 1..N, kg m^2 (the discs'; none if ``disc_mass_uniform``)."""
+        J = np.zeros(self.n_elements)
+        if not self.disc_mass_uniform:
+            J[self.disc_nodes() - 1] = self.disc_inertia
+        return J
+
+    # --- the actuator ---------------------------------------------------------------------------------
+    @property
+    def spool_radius(self) -> float:
+        """M."""
+        return 0.5 * self.spool_diameter
+
+    @property
+    def cable_per_step(self) -> float:
+        """Cable per microstep, m (pi x 65 mm / 800 = 0.25525 mm)."""
+        return math.pi * self.spool_diameter / self.steps_per_rev
+
+    @property
+    def step_angle(self) -> float:
+        """Commanded rotor increment per microstep, rad."""
+        return 2.0 * math.pi / self.steps_per_rev
+
+    @property
+    def drive_inertia(self) -> float:
+        """Rotor plus spool, kg m^2."""
+        return self.rotor_inertia + self.spool_inertia
+
+    @property
+    def motor_stiffness(self) -> float:
+        """Small-angle microstep stiffness ``T_h N_r``, N m/rad."""
+        return self.holding_torque * self.rotor_teeth
+
+    @property
+    def pull_out_tension(self) -> float:
+        """Largest cable tension the motor holds, ``T_h / R``, N."""
+        return self.holding_torque / self.spool_radius
+
+    @property
+    def k_cable(self) -> float:
+        """Stiffness of the cables and the load cell between the spool and the arm, N/m.
+
+        ``1/k_cable = 1/k - R^2/K_motor`` (``k`` itself for the ideal actuator).
+        """
+        if self.actuator == "ideal":
+            return self.k
+        return 1.0 / (1.0 / self.k - self.spool_radius**2 / self.motor_stiffness)
+
+    @property
+    def k_spool_side(self) -> float:
+        """Spool-side cable of the carriage, N/m."""
+        return self.k_cable / self.spool_side_share
+
+    @property
+    def k_arm_side(self) -> float:
+        """Arm-side cable of the carriage (with the load cell), N/m."""
+        return self.k_cable / (1.0 - self.spool_side_share)
+
+    def motor_torque(self, delta: float) -> float:
+        """Motor torque for a rotor lag ``delta = psi_cmd - psi`` (rad), N m."""
+        if self.torque_law == "sin":
+            return self.holding_torque * math.sin(self.rotor_teeth * delta)
+        return self.motor_stiffness * delta
+
+    def tangent_motor_stiffness(self, delta: float) -> float:
+        """d(torque)/d(delta) at lag ``delta``, N m/rad."""
+        if self.torque_law == "sin":
+            return self.motor_stiffness * math.cos(self.rotor_teeth * delta)
+        return self.motor_stiffness
+
+    def static_lag(self, tension: float) -> float:
+        """Rotor lag (rad) that carries ``tension`` on the spool; NaN beyond the pull-out tension."""
+        torque = self.spool_radius * tension
+        if self.torque_law == "sin":
+            x = torque / self.holding_torque
+            return math.asin(x) / self.rotor_teeth if abs(x) <= 1.0 else math.nan
+        return torque / self.motor_stiffness
+
+    @property
+    def rotor_damping(self) -> float:
+        """Rotor viscous coefficient from ``rotor_zeta``, N m s/rad.
+
+        The rotor on the microstep spring and the cable to a fixed arm.
+        """
+        R = self.spool_radius
+        side = self.k_spool_side if self.actuator == "stepper+carriage" else self.k_cable
+        return 2.0 * self.rotor_zeta * math.sqrt((self.motor_stiffness + side * R**2) * self.drive_inertia)
+
+    @property
+    def carriage_damping(self) -> float:
+        """Carriage viscous coefficient from ``carriage_zeta``, N s/m."""
+        return (
+            2.0 * self.carriage_zeta * math.sqrt((self.k_spool_side + self.k_arm_side) * self.carriage_mass)
+        )
+
+    # --- the sensor chain -----------------------------------------------------------------------------
+    @property
+    def gain_counts_per_n(self) -> float:
+        """ADC counts per newton of the chain: 16 mA per ``span_n``, through the shunt, 10 bits of V_ref."""
+        return hardware.loop_counts(hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A) / self.span_n
+
+    @property
+    def offset_counts(self) -> float:
+        """ADC counts at zero tension (the loop's 4 mA)."""
+        return hardware.loop_counts(hardware.LOOP_ZERO_A)
+
+    @property
+    def saturation_n(self) -> float:
+        """Tension at which the loop saturates (20.5 mA), N."""
+        lo, hi = hardware.LOOP_SATURATION_A
+        return (hi - hardware.LOOP_ZERO_A) / (hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A) * self.span_n
+
+    def metadata(self) -> dict[str, Any]:
+        """Every field and the main derived values as flat JSON values (recordings' ``source.parameters``)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = value.item() if isinstance(value, np.generic) else value
+        derived = {
+            "n_elements": self.n_elements,
+            "disc_inertia": self.disc_inertia,
+            "k_cable": self.k_cable,
+            "k_spool_side": self.k_spool_side,
+            "k_arm_side": self.k_arm_side,
+            "motor_stiffness": self.motor_stiffness,
+            "pull_out_tension": self.pull_out_tension,
+            "rotor_damping": self.rotor_damping,
+            "carriage_damping": self.carriage_damping,
+            "cable_per_step": self.cable_per_step,
+            "gain_counts_per_n": self.gain_counts_per_n,
+            "offset_counts": self.offset_counts,
+            "saturation_n": self.saturation_n,
+            "loop_zero_a": hardware.LOOP_ZERO_A,
+            "loop_full_a": hardware.LOOP_FULL_A,
+            "loop_min_a": hardware.LOOP_SATURATION_A[0],
+            "loop_max_a": hardware.LOOP_SATURATION_A[1],
+            "shunt_ohm": hardware.SHUNT_OHM,
+            "adc_vref_v": hardware.ADC_VREF_V,
+        }
+        out.update({f"derived_{k}": v for k, v in derived.items()})
+        return out
 
 
 _SOURCES: dict[str, tuple[str, str, str]] = {
     # field: (unit, source, reason)
     **BACKBONE_SOURCES,
-    "segments_per_disc": ("-", "numerical", "one rigid segment per disc interval; convergence checked"),
+    "elements_per_disc": (
+        "-",
+        "numerical",
+        "one constant-curvature arc per disc interval; converged (notebook 06)",
+    ),
     "disc_mass": ("kg", "tuned", "identification run gives omega_d = 25.085 rad/s via helpers.identify"),
-    "disc_mass_uniform": ("-", "numerical", "False: discs are point masses at their stations"),
-    "eyelets_every_node": ("-", "numerical", "False: cable straight between disc eyelets (True: validation)"),
-    "r": ("m", "assumed", "paper hint r ~ 7 mm; 7.8 mm puts the static Up tensions near Table II"),
-    "k": ("N/m", "tuned", "cable + load cell stiffness: sets the Up peaks/overshoots of Table II"),
-    "pretension": ("N", "tuned", "Down overshoots of Table II with a slack cable at the Down peak"),
+    "disc_radius": ("m", "assumed", "eyelets at r need a disc of >= 10 mm radius; 1 g of PLA is ~24 x 2 mm"),
+    "disc_thickness": ("m", "assumed", "printed disc; its term is 3 % of the disc's rotary inertia"),
+    "disc_mass_uniform": ("-", "numerical", "False: discs at their stations (True: validation only)"),
+    "eyelets_every_node": ("-", "numerical", "False: cable straight from disc to disc (True: validation)"),
+    "r": ("m", "tuned", "eyelet offset: sets the static tensions; the paper's hint gives ~7 mm"),
+    "k": ("N/m", "tuned", "microstep spring + cables + load cell in series: Up peaks/overshoots of Table II"),
+    "pretension": (
+        "N",
+        "tuned",
+        "tension at rest: the Down overshoots of Table II (slack cable at the peak)",
+    ),
     "base_angle_deg": ("deg", "assumed", "clamp horizontal, arm bends up against gravity (Fig. 7 caption)"),
     "g": ("m/s^2", "handbook", "standard gravity"),
-    "alpha": ("1/s", "tuned", "mass-proportional (air-drag) damping; Rayleigh pair gives zeta = 0.044"),
-    "beta": ("s", "tuned", "stiffness-proportional (wire) damping; Rayleigh pair gives zeta = 0.044"),
-    "max_step": ("s", "numerical", "RK4 step: max 0.01 N error vs 0.05 ms steps over a 12 s scenario"),
+    "alpha": ("1/s", "tuned", "air drag on masses and discs; with beta_chord: zeta = 0.044 of mode 1"),
+    "beta_chord": ("s", "tuned", "wire damping between disc chords; Rayleigh ratio through modes 1-2"),
+    "beta_disc": ("s", "numerical", "0: disc-to-disc dashpots only in the damping-layout comparison"),
+    "floor_zeta": (
+        "-",
+        "assumed",
+        "no mode above ~1 krad/s (disc rocking) is left undamped; sample-level only",
+    ),
+    "floor_omega": ("rad/s", "assumed", "well above the modes that shape the tension (< 650 rad/s)"),
+    "eyelet_mu": ("-", "assumed", "0: frictionless; capstan friction did not shorten the tail (notebook 06)"),
+    "eyelet_v0": (
+        "m/s",
+        "numerical",
+        "regularisation speed of the friction law (used only if eyelet_mu > 0)",
+    ),
+    "actuator": ("-", "assumed", "rotor, spool and load-cell carriage modelled (ideal: for comparison)"),
+    "steps_per_rev": ("-", "paper", "800 steps/rev (quarter steps of the 1.8 deg motor)"),
+    "spool_diameter": ("m", "paper", "65 mm spool"),
+    "rotor_inertia": ("kg m^2", "datasheet", "17HS4401: 54 g cm^2 (typical catalogue value)"),
+    "spool_inertia": ("kg m^2", "assumed", "printed PLA spool 65 x 12 mm at 60 % infill: 29.6 g, m R^2 / 2"),
+    "holding_torque": (
+        "N m",
+        "assumed",
+        "1.5 x the paper's 4.3 kg cm: 4.3 kg cm pulls out at 13.0 N, "
+        "below Table II's 17.7 N peak (needs 0.58 N m); TB6600 current above the motor's rating",
+    ),
+    "rotor_teeth": ("-", "datasheet", "1.8 deg hybrid stepper: 50 rotor teeth (200 = 4 x 50)"),
+    "torque_law": ("-", "assumed", "ideal sine/cosine microstepping: torque ~ sin of the electrical lag"),
+    "rotor_zeta": ("-", "assumed", "chopper-driven steppers ring for several cycles after a step: 0.1"),
+    "carriage_mass": ("kg", "assumed", "LSP-5 cell, miniature rail block and clamps"),
+    "carriage_zeta": ("-", "assumed", "rail block on a linear guide: light damping"),
+    "spool_side_share": ("-", "assumed", "short cable from the spool to the carriage"),
+    "load_cell_side": ("-", "assumed", "the cell measures the arm-side cable (it sits between the two)"),
+    "amp_bandwidth_hz": ("Hz", "assumed", "LCA-RTC bandwidth unknown to us: first order at 1 kHz"),
+    "span_n": ("N", "assumed", "4-20 mA over 0-20 N: Table II's 17.7 N reads 558 counts, nothing clips"),
+    "adc_noise_counts": ("counts", "assumed", "0.5 count rms: the paper's unshaped 10 mm settling (1.2 s "
+                         "in a +-0.13 N band) rules out 1 count (0.04 N) rms on this chain"),
+    "max_step": ("s", "numerical", "RK4 step: stable (limit ~0.6 ms) and within an ADC count of 25 us steps"),
 }
 
 

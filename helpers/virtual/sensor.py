@@ -1,15 +1,17 @@
-"""The load cell, its amplifier and the DAQ board's 10-bit ADC: tension (N) in, counts out.
+"""The load cell's signal chain after the amplifier's filter: current loop, shunt and the 10-bit ADC.
 
-``counts = clip(round(offset + gain * tension + noise), 0, 1023)``
+The amplifier's bandwidth is modelled inside the plant (:class:`~helpers.virtual.plant.ArmPlant` returns
+the amplifier's output, a first-order low-pass of the tension integrated with the arm); this module turns
+that output into ADC counts::
 
-Assumed values (the paper gives the parts, not their calibration):
+    I = 4 mA + 16 mA * output / span_n,   clipped to the loop's linear range [3.8, 20.5] mA
+    counts = clip(round(1024 * I * 150 ohm / 5 V + noise), 0, 1023)
 
-- gain: the paper's load cell is an LSP-5 (0-5 N) but Table II reports peaks up to 17.7 N, so the chain
-  must not saturate below ~20 N. With the offset below, 50 counts per N puts 19.4 N at full scale
-  (``(1023 - 50) / 50``); 0.02 N per count is also about the resolution of the paper's Fig. 5 trace.
-- offset: 50 counts at zero tension, so that a slack cable (0 N) reads above the ADC floor and small negative
-  amplifier offsets would still be visible.
-- noise: Gaussian, 1.0 count rms (amplifier noise plus ADC noise of a typical Arduino set-up).
+The loop, the shunt (paper) and the ADC reference are in :mod:`helpers.hardware`; ``span_n`` (20 N) and the
+noise (0.5 count rms) are :class:`~helpers.virtual.parameters.RigParameters` fields. With the defaults: 24.58
+counts per N (0.041 N per count), 122.9 counts at 0 N, saturation at 20.6 N (629.8 counts): the paper's
+largest tension, 17.7 N, reads 558 counts. A reading at or beyond the loop's saturation (or the ADC's rails)
+is *clipped*; :func:`helpers.metrics.clipped_samples` flags it, for hardware recordings too.
 """
 
 from __future__ import annotations
@@ -17,57 +19,66 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from helpers import hardware
 from helpers.hardware import ADC_MAX
 from helpers.virtual.parameters import RigParameters
 
-__all__ = ["LoadCell", "GAIN_COUNTS_PER_N", "OFFSET_COUNTS", "NOISE_COUNTS_RMS"]
+__all__ = ["LoadCell", "GAIN_COUNTS_PER_N", "OFFSET_COUNTS"]
 
-GAIN_COUNTS_PER_N: float = 50.0
-"""Counts per newton (assumed, see module docstring)."""
+GAIN_COUNTS_PER_N: float = RigParameters().gain_counts_per_n
+"""Counts per newton of the tuned rig's chain (24.58)."""
 
-OFFSET_COUNTS: float = 50.0
-"""Counts at zero tension (assumed)."""
-
-NOISE_COUNTS_RMS: float = 1.0
-"""Gaussian noise before quantisation, counts rms (assumed)."""
+OFFSET_COUNTS: float = RigParameters().offset_counts
+"""Counts at zero tension (the loop's 4 mA: 122.88)."""
 
 
 class LoadCell:
-    """Load cell + amplifier + 10-bit ADC with noise and quantisation.
+    """Current loop, shunt and 10-bit ADC, with noise and quantisation.
 
     Parameters
     ----------
     params : RigParameters or None
-        The rig (kept for provenance; the sensor constants are module constants).
+        The rig (``span_n`` and ``adc_noise_counts``); default the tuned rig.
     seed : int or None
         Seed of the noise generator.
-    gain, offset, noise_rms : float
-        Counts per N, counts at 0 N, noise in counts rms.
+    noise_rms : float, optional
+        Override the noise, counts rms.
+    span_n : float, optional
+        Override the load that drives the loop to 20 mA (N), e.g. to make a recording that clips.
     """
 
     def __init__(
         self,
         params: RigParameters | None = None,
         seed: int | None = 0,
-        gain: float = GAIN_COUNTS_PER_N,
-        offset: float = OFFSET_COUNTS,
-        noise_rms: float = NOISE_COUNTS_RMS,
+        noise_rms: float | None = None,
+        span_n: float | None = None,
     ) -> None:
-        if not (np.isfinite(gain) and gain > 0):
-            raise ValueError(f"gain must be positive, got {gain!r}")
-        if not (np.isfinite(offset) and 0 <= offset <= ADC_MAX):
-            raise ValueError(f"offset must lie in 0..{ADC_MAX}, got {offset!r}")
-        if not (np.isfinite(noise_rms) and noise_rms >= 0):
-            raise ValueError(f"noise_rms must be >= 0, got {noise_rms!r}")
+        params = RigParameters() if params is None else params
+        noise = params.adc_noise_counts if noise_rms is None else float(noise_rms)
+        span = params.span_n if span_n is None else float(span_n)
+        if not (np.isfinite(noise) and noise >= 0):
+            raise ValueError(f"noise_rms must be >= 0, got {noise!r}")
+        if not (np.isfinite(span) and span > 0):
+            raise ValueError(f"span_n must be positive, got {span!r}")
         self.params = params
-        self.gain = float(gain)
-        self.offset = float(offset)
-        self.noise_rms = float(noise_rms)
+        self.noise_rms = noise
+        self.span_n = span
         self._rng = np.random.default_rng(seed)
 
     def reseed(self, seed: int | None) -> None:
         """Restart the noise generator from ``seed`` (one seed per recorded run)."""
         self._rng = np.random.default_rng(seed)
+
+    @property
+    def gain(self) -> float:
+        """Counts per newton."""
+        return hardware.loop_counts(hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A) / self.span_n
+
+    @property
+    def offset(self) -> float:
+        """Counts at zero tension."""
+        return hardware.loop_counts(hardware.LOOP_ZERO_A)
 
     @property
     def newtons_per_count(self) -> float:
@@ -81,15 +92,23 @@ class LoadCell:
 
     @property
     def full_scale_newtons(self) -> float:
-        """Tension that reads 1023 counts, N."""
-        return (ADC_MAX - self.offset) / self.gain
+        """Tension at which the loop saturates (20.5 mA), N."""
+        lo, hi = hardware.LOOP_SATURATION_A
+        return (hi - hardware.LOOP_ZERO_A) / (hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A) * self.span_n
 
-    def counts(self, tension: npt.ArrayLike) -> np.ndarray:
-        """ADC counts (int64, 0..1023) for tensions in N."""
-        lam = np.asarray(tension, dtype=float)
+    def current(self, output_n: npt.ArrayLike) -> np.ndarray:
+        """Loop current (A) for amplifier outputs in N, clipped to the loop's linear range."""
+        lam = np.asarray(output_n, dtype=float)
+        span_a = hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A
+        lo, hi = hardware.LOOP_SATURATION_A
+        return np.clip(hardware.LOOP_ZERO_A + span_a * lam / self.span_n, lo, hi)
+
+    def counts(self, output_n: npt.ArrayLike) -> np.ndarray:
+        """ADC counts (int64, 0..1023) for amplifier outputs in N."""
+        lam = np.asarray(output_n, dtype=float)
         if not np.all(np.isfinite(lam)):
             raise ValueError("tension must be finite")
-        v = self.offset + self.gain * lam
+        v = hardware.loop_counts(1.0) * self.current(lam)
         if self.noise_rms > 0:
             v = v + self._rng.normal(0.0, self.noise_rms, size=lam.shape)
         return np.clip(np.rint(v), 0, ADC_MAX).astype(np.int64)

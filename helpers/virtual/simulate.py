@@ -1,7 +1,8 @@
 """Offline convenience: run a stepper programme on the virtual rig and return the sampled time series.
 
 This is what the emulated boards do over the serial protocol, without the protocol: the plant integrates
-the programme's exact step instants and the load cell samples at the DAQ rate.
+the programme's exact step instants, the amplifier filters the tension and the ADC samples its output at the
+DAQ rate.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from helpers.hardware import MM_PER_STEP
 from helpers.recordings import counts_to_newtons
 from helpers.virtual.parameters import RigParameters
 from helpers.virtual.plant import ArmPlant
@@ -33,32 +33,38 @@ class SimResult:
     t : numpy.ndarray
         Sample times, s (the DAQ clock; GO at ``t_go``).
     tension : numpy.ndarray
-        True cable tension at the samples, N.
+        True tension of the measured cable at the samples, N.
+    output : numpy.ndarray
+        The amplifier's output at the samples (the tension through its low-pass), N, noise-free.
     adc : numpy.ndarray
-        Load-cell ADC counts at the samples (noise and quantisation included).
+        Load-cell ADC counts at the samples (loop saturation, noise and quantisation included).
     steps : numpy.ndarray
         Motor position at the samples, steps (a step at a sample instant counts).
     angles : numpy.ndarray
-        Segment angles at the samples, rad, shape ``(n_samples, n_segments)``.
+        Tangent angles at the element ends at the samples, rad, shape ``(n_samples, n_elements)``.
     params : RigParameters
         The rig.
     newtons_per_count, offset_counts : float
         The load cell's true calibration.
+    max_rotor_lag_steps : float
+        Largest lag of the rotor behind its commanded angle during the run, microsteps (health figure).
     """
 
     t: np.ndarray
     tension: np.ndarray
+    output: np.ndarray
     adc: np.ndarray
     steps: np.ndarray
     angles: np.ndarray
     params: RigParameters
     newtons_per_count: float
     offset_counts: float
+    max_rotor_lag_steps: float = 0.0
 
     @property
     def u_mm(self) -> np.ndarray:
         """Cable displacement at the samples, mm."""
-        return self.steps * MM_PER_STEP
+        return self.steps * self.params.cable_per_step * 1e3
 
     def shapes(self) -> tuple[np.ndarray, np.ndarray]:
         """Backbone node positions ``(x, y)`` at every sample, m, each of shape ``(n_samples, n_nodes)``."""
@@ -74,22 +80,25 @@ class SimResult:
         x, y = self.shapes()
         return x[:, -1], y[:, -1]
 
-    def frame(self, signal: str = "tension") -> pd.DataFrame:
-        """The run as a recording-like frame: ``t_s``, ``steps`` and ``tension_n`` (for ``helpers.metrics``).
+    def frame(self, signal: str = "output") -> pd.DataFrame:
+        """The run as a recording-like frame ``t_s``, ``steps``, ``adc``, ``tension_n`` (for helpers.metrics).
 
         Parameters
         ----------
-        signal : {"tension", "adc"}
-            ``tension_n`` is the true, noise-free tension, or the ADC counts converted with the load cell's
-            true calibration (what a calibrated user would compute from a recording).
+        signal : {"output", "tension", "adc"}
+            ``tension_n`` is the amplifier's noise-free output, the true tension of the measured cable, or the
+            ADC counts converted with the load cell's true calibration (what a calibrated user would compute
+            from a recording). The ``adc`` column is always there, so the metrics' range check sees clipping.
         """
-        if signal == "tension":
+        if signal == "output":
+            tension = self.output
+        elif signal == "tension":
             tension = self.tension
         elif signal == "adc":
             tension = counts_to_newtons(self.adc, self.newtons_per_count, self.offset_counts)
         else:
-            raise ValueError(f"signal must be 'tension' or 'adc', got {signal!r}")
-        return pd.DataFrame({"t_s": self.t, "steps": self.steps, "tension_n": tension})
+            raise ValueError(f"signal must be 'output', 'tension' or 'adc', got {signal!r}")
+        return pd.DataFrame({"t_s": self.t, "steps": self.steps, "adc": self.adc, "tension_n": tension})
 
 
 def programme_steps(programme: Any) -> tuple[np.ndarray, np.ndarray, float]:
@@ -121,6 +130,7 @@ def simulate(
     t_end: float | None = None,
     seed: int | None = 0,
     plant: ArmPlant | None = None,
+    sensor: LoadCell | None = None,
 ) -> SimResult:
     """Run ``programme`` on the virtual rig and sample it at ``rate_hz``.
 
@@ -140,6 +150,8 @@ def simulate(
         Seed of the load-cell noise.
     plant : ArmPlant, optional
         Reuse a plant (it is reset first), e.g. to avoid rebuilding it in sweeps.
+    sensor : LoadCell, optional
+        The signal chain (default ``LoadCell(params, seed=seed)``).
 
     Returns
     -------
@@ -164,19 +176,21 @@ def simulate(
         plant = ArmPlant(params)
     else:
         plant.reset()
-    tension, angles = plant.advance(t, times, signs, return_angles=True)
+    output, raw, angles = plant.advance_all(t, times, signs)
     steps = np.cumsum(np.bincount(np.searchsorted(t, times, side="left"), weights=signs, minlength=n)[:n])
-    sensor = LoadCell(params, seed=seed)
-    adc = sensor.counts(tension)
+    sensor = LoadCell(params, seed=seed) if sensor is None else sensor
+    adc = sensor.counts(output)
     return SimResult(
         t=t,
-        tension=tension,
+        tension=raw,
+        output=output,
         adc=adc,
         steps=np.rint(steps).astype(np.int64),
         angles=angles,
         params=plant.params,
         newtons_per_count=sensor.newtons_per_count,
         offset_counts=sensor.offset_counts,
+        max_rotor_lag_steps=plant.max_rotor_lag_steps,
     )
 
 

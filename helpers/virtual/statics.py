@@ -1,20 +1,26 @@
-"""Equilibria and linearisation of the nonlinear arm: static shapes, tension and the frequency map.
+"""The arc-chain arm in numpy: geometry, potential, mass and damping matrices, equilibria, linearisation.
 
-- :func:`model_arrays` packs :class:`~helpers.virtual.parameters.RigParameters` into the arrays the compiled
-  kernel uses, including the cable's reference length, fixed by the rule "at cable position 0 the arm rests in
-  static equilibrium with the cable tension equal to the pretension".
-- :func:`equilibrium` solves the static shape for a cable displacement ``u`` (Newton with a finite-difference
-  Jacobian, continued in ``u`` from the rest state).
-- :func:`linearise` linearises the full dynamics about an equilibrium (finite differences of the compiled
-  right-hand side) and returns the poles, the tension residues and the dominant mode.
-- :func:`frequency_map` gives omega_d(u) and zeta(u) of the dominant mode for u = 0..40 mm.
+:class:`ArcChain` is the arm of ``docs/virtual_rig.md`` written as plain (vectorised, complex-step safe)
+numpy: ``N`` constant-curvature elements, coordinates the tangent angles at the element ends, the discs
+turning with the rod, the cable straight from eyelet to eyelet. Exact Hessians of the potential come from
+the complex-step method (``h = 1e-30``: no subtractive cancellation), the mass matrix from the node
+Jacobians in closed form, so the printed frequencies do not depend on round-off (BLAS threads, CPU).
+
+- :func:`model_arrays` packs a :class:`~helpers.virtual.parameters.RigParameters` into the arrays of the
+  compiled kernel (:mod:`helpers.virtual._kernel`), with the rest state: "at cable position 0 the arm rests
+  in static equilibrium with the cable tension equal to the pretension" (the rotor at its static lag).
+- :func:`equilibrium` is the frictionless static equilibrium with the cable end at the spool displaced by
+  ``u`` from rest and the spool held there (rotor locked).
+- :func:`linearise` gives the small vibrations about an equilibrium, with the rotor locked or free on its
+  microstep spring (the rig as it runs).
+- :func:`frequency_map` tabulates both for ``u = 0..40 mm``.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -24,7 +30,9 @@ from helpers.virtual import _kernel as kern
 from helpers.virtual.parameters import RigParameters
 
 __all__ = [
-    "ModelArrays",
+    "ArcChain",
+    "chord_functions",
+    "KernelArrays",
     "model_arrays",
     "Equilibrium",
     "equilibrium",
@@ -33,139 +41,433 @@ __all__ = [
     "Linearisation",
     "linearise",
     "frequency_map",
+    "state_space_poles",
+    "DECAY_S",
+    "rk4_stable_step",
+    "stable_max_step",
 ]
 
+_SERIES_TERMS = 14  # |D| < 0.2: truncation below 1e-25
 
+
+def chord_functions(D: np.ndarray, order: int = 1) -> tuple[np.ndarray, ...]:
+    """Chord functions ``f1 = sin D / D``, ``f2 = (1 - cos D) / D`` of an arc turning by ``D``, derivatives.
+
+    ``(f1, f2)`` is the chord of a unit-length arc in the frame of its start tangent. A Taylor series is
+    used for ``|Re D| < 0.2``; complex arguments are supported (complex step).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(f1, f2, f1', f2')``, or with ``order=2`` also ``(f1'', f2'')``.
+    """
+    D = np.asarray(D)
+    small = np.abs(D.real) < 0.2
+    Ds = np.where(small, D, 0.0)
+    Dl = np.where(small, 1.0, D)
+    zero = np.zeros_like(Ds)
+    f1s, f2s, f1ps, f2ps, f1pps, f2pps = zero, zero, zero, zero, zero, zero
+    # F(D) = f1 + i f2 = sum_n (i D)^n / (n + 1)!: even n -> f1, odd n -> f2
+    for n in range(_SERIES_TERMS + 1):
+        term = (1.0 if n % 4 in (0, 1) else -1.0) / math.factorial(n + 1)
+        t0 = term * Ds**n
+        t1 = term * n * Ds ** (n - 1) if n >= 1 else zero
+        t2 = term * n * (n - 1) * Ds ** (n - 2) if n >= 2 else zero
+        if n % 2 == 0:
+            f1s, f1ps, f1pps = f1s + t0, f1ps + t1, f1pps + t2
+        else:
+            f2s, f2ps, f2pps = f2s + t0, f2ps + t1, f2pps + t2
+    s = np.sin(Dl)
+    c = np.cos(Dl)
+    out = [
+        np.where(small, f1s, s / Dl),
+        np.where(small, f2s, (1.0 - c) / Dl),
+        np.where(small, f1ps, c / Dl - s / Dl**2),
+        np.where(small, f2ps, s / Dl - (1.0 - c) / Dl**2),
+    ]
+    if order == 2:
+        out += [
+            np.where(small, f1pps, -s / Dl - 2.0 * c / Dl**2 + 2.0 * s / Dl**3),
+            np.where(small, f2pps, c / Dl - 2.0 * s / Dl**2 + 2.0 * (1.0 - c) / Dl**3),
+        ]
+    return tuple(out)
+
+
+class ArcChain:
+    """The arm's geometry, potential and matrices for coordinates ``q`` = tangent angles ``theta_1..theta_N``.
+
+    Every geometric function accepts a leading batch dimension and complex arrays.
+
+    Parameters
+    ----------
+    params : RigParameters
+        The rig (only the arm's and the cable's fields are used here).
+    """
+
+    def __init__(self, params: RigParameters) -> None:
+        self.params = params
+        self.N = params.n_elements
+        self.l = params.element_length
+        self.m_nodes = params.node_masses()
+        self.J_nodes = params.node_inertias()
+        self.disc_nodes = params.disc_nodes()
+        self.eye_nodes = np.concatenate([[0], params.eyelet_nodes()])  # the clamp guide first
+        self.kap = params.EI / self.l
+
+    # --- geometry ---------------------------------------------------------------------------------
+    def full_angles(self, q: np.ndarray) -> np.ndarray:
+        """``[theta_0, theta_1, ..., theta_N]`` with the clamp direction first."""
+        q = np.asarray(q)
+        base = np.full(q.shape[:-1] + (1,), self.params.base_angle, dtype=q.dtype)
+        return np.concatenate([base, q], axis=-1)
+
+    def geometry(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Node positions and chord derivatives.
+
+        Returns
+        -------
+        dict
+            ``p`` (..., N+1, 2) node positions (clamp first); ``own`` (..., N, 2) = d chord_i / d theta_i;
+            ``prev`` (..., N, 2) = d chord_{i+1} / d theta_i (zero for the last).
+        """
+        th = self.full_angles(q)
+        c, s = np.cos(th), np.sin(th)
+        D = th[..., 1:] - th[..., :-1]
+        f1, f2, f1p, f2p = chord_functions(D)
+        c0, s0 = c[..., :-1], s[..., :-1]
+        chx = self.l * (c0 * f1 - s0 * f2)
+        chy = self.l * (s0 * f1 + c0 * f2)
+        bx = self.l * (c0 * f1p - s0 * f2p)
+        by = self.l * (s0 * f1p + c0 * f2p)
+        own = np.stack([bx, by], axis=-1)
+        nxt = np.stack([-chy - bx, chx - by], axis=-1)  # d chord_i / d theta_{i-1}
+        prev = np.zeros_like(own)
+        prev[..., :-1, :] = nxt[..., 1:, :]
+        ch = np.stack([chx, chy], axis=-1)
+        zero = np.zeros(ch.shape[:-2] + (1, 2), dtype=ch.dtype)
+        pos = np.concatenate([zero, np.cumsum(ch, axis=-2)], axis=-2)
+        return {"p": pos, "own": own, "prev": prev, "theta": th}
+
+    def eyelets(self, q: np.ndarray, geo: dict | None = None) -> np.ndarray:
+        """Eyelet positions (..., Q+1, 2), the clamp guide first: ``p + r n(theta)``."""
+        geo = self.geometry(q) if geo is None else geo
+        ang = geo["theta"][..., self.eye_nodes]
+        pos = geo["p"][..., self.eye_nodes, :]
+        return pos + self.params.r * np.stack([-np.sin(ang), np.cos(ang)], axis=-1)
+
+    def cable_length(self, q: np.ndarray) -> np.ndarray:
+        """Cable path from the clamp guide through the eyelets, m."""
+        E = self.eyelets(q)
+        d = E[..., 1:, :] - E[..., :-1, :]
+        return np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2).sum(axis=-1)
+
+    def _map_forces(self, geo: dict, G_node: np.ndarray, g_ang: np.ndarray) -> np.ndarray:
+        """Generalised force from node 'forces' ``G_node`` (..., N+1, 2) and direct angle terms (..., N)."""
+        S = np.cumsum(G_node[..., ::-1, :], axis=-2)[..., ::-1, :]  # S_j = sum_{k >= j} G_k
+        S1 = S[..., 1:, :]
+        out = (geo["own"] * S1).sum(-1)
+        S2 = np.zeros_like(S1)
+        S2[..., :-1, :] = S1[..., 1:, :]
+        return out + (geo["prev"] * S2).sum(-1) + g_ang
+
+    def cable_grad(self, q: np.ndarray, geo: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Cable length and its gradient with respect to ``q``."""
+        q = np.asarray(q)
+        geo = self.geometry(q) if geo is None else geo
+        ang = geo["theta"][..., self.eye_nodes]
+        r = self.params.r
+        E = geo["p"][..., self.eye_nodes, :] + r * np.stack([-np.sin(ang), np.cos(ang)], axis=-1)
+        d = E[..., 1:, :] - E[..., :-1, :]
+        lengths = np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2)
+        uhat = d / lengths[..., None]
+        dE = np.zeros_like(E)
+        dE[..., 1:, :] += uhat
+        dE[..., :-1, :] -= uhat
+        dE[..., 0, :] = 0.0  # the guide is fixed
+        G_node = np.zeros(geo["p"].shape, dtype=dE.dtype)
+        G_node[..., self.eye_nodes, :] = dE
+        tvec = np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+        dang = -r * (tvec * dE).sum(-1)  # d(eyelet offset)/d(angle) = -r t
+        g_ang = np.zeros(q.shape, dtype=dE.dtype)
+        g_ang[..., self.eye_nodes[1:] - 1] += dang[..., 1:]
+        return lengths.sum(-1), self._map_forces(geo, G_node, g_ang)
+
+    def elastic_grad(self, q: np.ndarray) -> np.ndarray:
+        """Gradient of the bending energy ``sum EI/(2 l) D_i^2`` (exact for arcs)."""
+        th = self.full_angles(q)
+        t = self.kap * (th[..., 1:] - th[..., :-1])
+        out = t.copy()
+        out[..., :-1] -= t[..., 1:]
+        return out
+
+    def gravity_grad(self, q: np.ndarray, geo: dict | None = None, g: float | None = None) -> np.ndarray:
+        """Gradient of the gravitational energy ``g sum m_j y_j``."""
+        geo = self.geometry(q) if geo is None else geo
+        g = self.params.g if g is None else g
+        G = np.zeros(geo["p"].shape, dtype=geo["p"].dtype)
+        G[..., 1:, 1] = g * self.m_nodes
+        return self._map_forces(geo, G, np.zeros(np.shape(q), dtype=G.dtype))
+
+    def potential_grad(
+        self,
+        q: np.ndarray,
+        *,
+        lam: float | None = None,
+        u: float | None = None,
+        k: float = 0.0,
+        ell_ref: float = 0.0,
+        g: float | None = None,
+        bilateral: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Gradient of the potential and the cable tension.
+
+        Either a prescribed tension ``lam`` or a cable spring ``k`` whose end is displaced by ``u``:
+        tension ``k max(0, u + ell(q) - ell_ref)`` (``bilateral``: the spring may also push).
+        """
+        q = np.asarray(q)
+        geo = self.geometry(q)
+        ell, dl = self.cable_grad(q, geo)
+        if lam is None:
+            e = u + ell - ell_ref
+            lam_ = np.where((np.real(e) > 0) | bilateral, k * e, 0.0)
+        else:
+            lam_ = np.full(np.shape(ell), lam, dtype=float)
+        grad = self.elastic_grad(q) + self.gravity_grad(q, geo, g) + lam_[..., None] * dl
+        return grad, lam_
+
+    def hessian(self, q: np.ndarray, **kwargs: object) -> np.ndarray:
+        """Exact Hessian of the potential (complex step on the gradient, one batched call), symmetrised."""
+        n = q.size
+        h = 1e-30
+        Q = q[None, :] + 1j * h * np.eye(n)
+        grad, _ = self.potential_grad(Q, **kwargs)
+        H = grad.imag / h
+        return 0.5 * (H + H.T)
+
+    # --- inertia and damping ----------------------------------------------------------------------
+    def node_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """D p_j / d q_i, shape (N+1, 2, N)."""
+        geo = self.geometry(q)
+        N = self.N
+        J = np.zeros((N + 1, 2, N), dtype=np.result_type(q, float))
+        own, prev = geo["own"], geo["prev"]
+        for i in range(N):  # coordinate i moves node i+1 by own_i and every later node by own_i + prev_i
+            J[i + 1, :, i] = own[i]
+            J[i + 2 :, :, i] = own[i] + prev[i]
+        return J
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """``M(q) = sum_j m_j J_j^T J_j + diag(J_nodes)`` (the discs turn with ``theta`` at their node)."""
+        Jn = self.node_jacobian(q)[1:]
+        return np.einsum("j,jai,jak->ik", self.m_nodes, Jn, Jn) + np.diag(self.J_nodes)
+
+    def disc_rate_matrix(self) -> np.ndarray:
+        """Rows: the clamp (zero) and the eyelet discs; ``T @ q'`` are their rotation rates."""
+        T = np.zeros((len(self.eye_nodes), self.N))
+        for row, node in enumerate(self.eye_nodes[1:], start=1):
+            T[row, node - 1] = 1.0
+        return T
+
+    def damping_matrix(
+        self, q: np.ndarray, M: np.ndarray | None = None, floor: tuple | None = None
+    ) -> np.ndarray:
+        """Linear damping: ``alpha M`` + disc and chord dashpots + the constant floor ``W^T diag(c) W``."""
+        p = self.params
+        M = self.mass_matrix(q) if M is None else M
+        C = p.alpha * M
+        T = self.disc_rate_matrix()
+        c_d = p.EI / p.disc_interval
+        if p.beta_disc:
+            Dd = T[1:] - T[:-1]
+            C = C + p.beta_disc * c_d * Dd.T @ Dd
+        if p.beta_chord:
+            nd = T.shape[0] - 1
+            Dc = np.zeros((nd, self.N))
+            Dc[0] = 0.5 * T[1]
+            for k in range(1, nd):
+                Dc[k] = 0.5 * (T[k + 1] - T[k - 1])
+            C = C + p.beta_chord * c_d * Dc.T @ Dc
+        if floor is not None and floor[1].size:
+            W, cw = floor
+            C = C + (W.T * cw) @ W
+        return C
+
+    # --- statics ----------------------------------------------------------------------------------
+    def newton(self, q0: np.ndarray, tol: float = 1e-12, max_iter: int = 60, **kwargs: object) -> np.ndarray:
+        """Damped Newton on the gradient of the potential with the exact Hessian."""
+        q = np.array(q0, dtype=float)
+        scale = float(self.kap)
+        g0, _ = self.potential_grad(q, **kwargs)
+        for _ in range(max_iter):
+            norm = np.linalg.norm(g0) / scale
+            if norm < tol:
+                return q
+            dq = -np.linalg.solve(self.hessian(q, **kwargs), g0)
+            step = 1.0
+            while True:
+                qn = q + step * dq
+                gn, _ = self.potential_grad(qn, **kwargs)
+                if np.linalg.norm(gn) / scale < norm or step < 1e-3:
+                    break
+                step *= 0.5
+            q, g0 = qn, gn
+        if np.linalg.norm(g0) / scale > 1e-8:
+            raise RuntimeError(
+                f"static equilibrium did not converge (residual {np.linalg.norm(g0) / scale:.2e})"
+            )
+        return q
+
+    def rest_shape(self, tension: float, n_stages: int = 20) -> np.ndarray:
+        """Static shape under a prescribed cable tension (gravity and tension raised together)."""
+        p = self.params
+        q = np.full(self.N, p.base_angle)
+        stages = n_stages if (p.g > 0 or tension > 0) else 1
+        for i in range(1, stages + 1):
+            f = i / stages
+            q = self.newton(q, lam=tension * f, g=p.g * f)
+        return q
+
+
+def node_positions(params: RigParameters, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Backbone node positions (m) for tangent angles ``q`` (..., N): arrays (..., N + 1), clamp first."""
+    pos = _chain(params).geometry(np.asarray(q, dtype=float))["p"]
+    return pos[..., 0], pos[..., 1]
+
+
+@functools.lru_cache(maxsize=32)
+def _chain(params: RigParameters) -> ArcChain:
+    return ArcChain(params)
+
+
+# --- the kernel's arrays and the rest state --------------------------------------------------------------
 @dataclass(frozen=True)
-class ModelArrays:
-    """The arrays the compiled kernel works on (see :mod:`helpers.virtual._kernel`)."""
+class KernelArrays:
+    """What the compiled kernel integrates (``helpers.virtual._kernel``) and the rest state.
+
+    Attributes
+    ----------
+    P, mb, Jb, disc, W, cw : numpy.ndarray
+        Packed scalars, node masses, node rotary inertias, eyelet nodes, the constant damping's rows and
+        coefficients.
+    y_rest : numpy.ndarray
+        The rest state ``[theta, theta', psi, psi', x_c, x_c']``.
+    q_rest : numpy.ndarray
+        The rest shape (tangent angles).
+    ell_rest : float
+        Cable length through the arm at rest, m.
+    d_drive : float
+        Drive increment per step: cable (m, ideal) or commanded rotor angle (rad).
+    """
 
     P: np.ndarray
-    mu: np.ndarray
-    m_nodes: np.ndarray
-    kap: np.ndarray
-    cj: np.ndarray
-    eye: np.ndarray
-    phi_rest: np.ndarray
+    mb: np.ndarray
+    Jb: np.ndarray
+    disc: np.ndarray
+    W: np.ndarray
+    cw: np.ndarray
+    y_rest: np.ndarray
+    q_rest: np.ndarray
+    ell_rest: float
+    d_drive: float
 
     @property
     def n(self) -> int:
-        """Number of segments."""
-        return int(self.mu.shape[0])
-
-    def with_bilateral(self) -> ModelArrays:
-        """A copy whose cable can also push (for linearising about a just-taut cable)."""
-        P = self.P.copy()
-        P[kern.I_BILATERAL] = 1.0
-        return ModelArrays(P, self.mu, self.m_nodes, self.kap, self.cj, self.eye, self.phi_rest)
+        """Number of elements."""
+        return int(self.mb.shape[0])
 
 
-def _raw_arrays(params: RigParameters) -> ModelArrays:
-    n = params.n_segments
-    m_nodes = params.node_masses()
-    mu = np.cumsum(m_nodes[::-1])[::-1].copy()
-    kap = np.full(n, params.joint_stiffness)
-    kap[0] = 2.0 * params.joint_stiffness  # the clamp joint carries half a cell: second-order lumping
-    cj = params.beta * kap
-    P = np.zeros(kern.N_PACKED)
-    P[kern.I_L] = params.segment_length
-    P[kern.I_R] = params.r
-    P[kern.I_PHI0] = params.base_angle
-    P[kern.I_G] = params.g
-    P[kern.I_ALPHA] = params.alpha
-    P[kern.I_K] = params.k
-    P[kern.I_ELLREF] = 0.0
-    P[kern.I_JSEG] = params.segment_inertia()
-    return ModelArrays(P, mu, m_nodes, kap, cj, params.eyelet_nodes(), np.full(n, params.base_angle))
+def floor_damping(chain: ArcChain, q_rest: np.ndarray, tension: float) -> tuple[np.ndarray, np.ndarray]:
+    """The high-mode floor ``C_f = W^T diag(c) W``: ``W = (M Phi)^T``, ``c = 2 zeta_f omega s(omega)``.
 
-
-def _newton(fun, x0: np.ndarray, tol: float = 1e-11, max_iter: int = 60) -> np.ndarray:
-    """Damped Newton on ``fun(x) = 0`` with a forward-difference Jacobian."""
-    x = np.array(x0, dtype=float)
-    f = fun(x)
-    n = x.size
-    for _ in range(max_iter):
-        norm = np.linalg.norm(f)
-        if norm < tol:
-            return x
-        J = np.empty((n, n))
-        for j in range(n):
-            h = 1e-7 * max(1.0, abs(x[j]))
-            xp = x.copy()
-            xp[j] += h
-            J[:, j] = (fun(xp) - f) / h
-        dx = np.linalg.solve(J, -f)
-        step = 1.0
-        while step > 1e-4:
-            xn = x + step * dx
-            fn = fun(xn)
-            if np.linalg.norm(fn) < norm:
-                break
-            step *= 0.5
-        x, f = xn, fn
-    if np.linalg.norm(f) > 1e3 * tol:
-        raise RuntimeError(f"static equilibrium did not converge (residual {np.linalg.norm(f):.3e})")
-    return x
-
-
-def _force_scale(arr: ModelArrays) -> float:
-    return float(arr.kap[0])
-
-
-def _solve_at_tension(arr: ModelArrays, lam: float, phi0: np.ndarray) -> np.ndarray:
-    out = np.empty(arr.n)
-    scale = _force_scale(arr)
-
-    def fun(phi: np.ndarray) -> np.ndarray:
-        kern.static_force(phi, 0.0, lam, arr.P, arr.mu, arr.kap, arr.eye, out)
-        return out / scale
-
-    return _newton(fun, phi0)
-
-
-def _solve_at_u(arr: ModelArrays, u: float, phi0: np.ndarray) -> np.ndarray:
-    out = np.empty(arr.n)
-    scale = _force_scale(arr)
-
-    def fun(phi: np.ndarray) -> np.ndarray:
-        kern.static_force(phi, u, -1.0, arr.P, arr.mu, arr.kap, arr.eye, out)
-        return out / scale
-
-    return _newton(fun, phi0)
+    ``Phi``, ``omega``: the undamped modes of the arm at rest with the cable as a spring of the series
+    stiffness ``k``; ``s = 1 / (1 + (omega_f / omega)^8)``. A matrix function of (K, M), so it does not
+    depend on the eigenvector basis inside near-degenerate clusters.
+    """
+    p = chain.params
+    if p.floor_zeta == 0.0:
+        return np.zeros((0, chain.N)), np.zeros(0)
+    _, dl = chain.cable_grad(q_rest)
+    K = chain.hessian(q_rest, lam=tension) + p.k * np.outer(dl, dl)
+    M = chain.mass_matrix(q_rest)
+    w2, V = linalg.eigh(K, M)
+    om = np.sqrt(np.abs(w2))
+    s = 1.0 / (1.0 + (p.floor_omega / om) ** 8)
+    return np.ascontiguousarray((M @ V).T), 2.0 * p.floor_zeta * om * s
 
 
 @functools.lru_cache(maxsize=64)
-def model_arrays(params: RigParameters) -> ModelArrays:
-    """Pack the parameters and find the rest state (tension = pretension at cable position 0).
+def model_arrays(params: RigParameters) -> KernelArrays:
+    """Pack the parameters for the kernel and build the rest state (tension = pretension at position 0).
 
-    The rest shape is found by continuation: gravity and the pretension are raised together from zero in
-    20 stages, Newton at each, starting from the straight arm.
+    The rest shape comes from :meth:`ArcChain.rest_shape` (gravity and pretension raised together). The
+    rotor rests at its static lag behind the commanded angle 0; the carriage at ``x_c = 0``. The cables'
+    reference lengths are set so that this state carries the pretension.
     """
-    arr = _raw_arrays(params)
-    phi = np.full(arr.n, params.base_angle)
-    n_stages = 20 if (params.g > 0 or params.pretension > 0) else 1
-    P = arr.P.copy()
-    for stage in range(1, n_stages + 1):
-        frac = stage / n_stages
-        P[kern.I_G] = params.g * frac
-        staged = ModelArrays(P, arr.mu, arr.m_nodes, arr.kap, arr.cj, arr.eye, arr.phi_rest)
-        phi = _solve_at_tension(staged, params.pretension * frac, phi)
-    P[kern.I_G] = params.g
-    ell = kern.cable_length(phi, P, arr.eye)
-    P[kern.I_ELLREF] = ell - params.pretension / params.k
-    for a in (P, phi):
+    p = params
+    chain = _chain(p)
+    lam0 = p.pretension
+    q_rest = chain.rest_shape(lam0)
+    ell0 = float(chain.cable_length(q_rest))
+    W, cw = floor_damping(chain, q_rest, lam0)
+    P = np.zeros(kern.N_PACKED)
+    P[kern.I_L] = chain.l
+    P[kern.I_R] = p.r
+    P[kern.I_TH0] = p.base_angle
+    P[kern.I_G] = p.g
+    P[kern.I_ALPHA] = p.alpha
+    P[kern.I_KAP] = chain.kap
+    P[kern.I_CDISC] = p.beta_disc * p.EI / p.disc_interval
+    P[kern.I_CCHORD] = p.beta_chord * p.EI / p.disc_interval
+    P[kern.I_MU] = p.eyelet_mu
+    P[kern.I_V0] = p.eyelet_v0
+    R = p.spool_radius
+    P[kern.I_RSP] = R
+    P[kern.I_JR] = p.drive_inertia
+    P[kern.I_TH] = p.holding_torque
+    P[kern.I_NR] = p.rotor_teeth
+    P[kern.I_TLAW] = 1.0 if p.torque_law == "sin" else 0.0
+    P[kern.I_MEAS] = 1.0 if p.load_cell_side == "spool" else 0.0
+    y = np.zeros(2 * chain.N + 4)
+    y[: chain.N] = q_rest
+    if p.actuator == "ideal":
+        P[kern.I_MODE] = 0.0
+        P[kern.I_K2] = p.k
+        P[kern.I_ELLREF] = ell0 - lam0 / p.k
+        d_drive = p.cable_per_step
+    else:
+        psi0 = -p.static_lag(lam0)
+        if not math.isfinite(psi0):
+            raise ValueError(
+                f"the pretension {lam0} N exceeds the motor's pull-out tension {p.pull_out_tension:.2f} N"
+            )
+        y[2 * chain.N] = psi0
+        P[kern.I_CR] = p.rotor_damping
+        d_drive = p.step_angle
+        if p.actuator == "stepper":
+            P[kern.I_MODE] = 1.0
+            P[kern.I_K2] = p.k_cable
+            P[kern.I_ELLREF] = R * psi0 + ell0 - lam0 / p.k_cable
+        else:
+            P[kern.I_MODE] = 2.0
+            P[kern.I_K1] = p.k_spool_side
+            P[kern.I_K2] = p.k_arm_side
+            P[kern.I_ELLREF] = ell0 - lam0 / p.k_arm_side
+            P[kern.I_S1REF] = R * psi0 - lam0 / p.k_spool_side
+            P[kern.I_MC] = p.carriage_mass
+            P[kern.I_CC] = p.carriage_damping
+    arrays = KernelArrays(
+        P=P, mb=chain.m_nodes.copy(), Jb=chain.J_nodes.copy(), disc=params.eyelet_nodes(), W=W,
+        cw=np.ascontiguousarray(cw), y_rest=y, q_rest=q_rest, ell_rest=ell0, d_drive=d_drive,
+    )  # fmt: skip
+    for a in (arrays.P, arrays.mb, arrays.Jb, arrays.disc, arrays.W, arrays.cw, arrays.y_rest, arrays.q_rest):
         a.setflags(write=False)
-    return ModelArrays(P, arr.mu, arr.m_nodes, arr.kap, arr.cj, arr.eye, phi)
+    return arrays
 
 
-def node_positions(params: RigParameters, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Backbone node positions (m) for segment angles ``phi`` (``(..., N)``): arrays ``(..., N + 1)``."""
-    phi = np.asarray(phi, dtype=float)
-    lseg = params.segment_length
-    zeros = np.zeros(phi.shape[:-1] + (1,))
-    x = np.concatenate([zeros, np.cumsum(lseg * np.cos(phi), axis=-1)], axis=-1)
-    y = np.concatenate([zeros, np.cumsum(lseg * np.sin(phi), axis=-1)], axis=-1)
-    return x, y
+# --- equilibria ----------------------------------------------------------------------------------------
+def _static_stiffness(params: RigParameters) -> float:
+    """Stiffness between the held spool and the arm: cables and load cell in series (``k`` if ideal)."""
+    return params.k if params.actuator == "ideal" else params.k_cable
 
 
 @dataclass(frozen=True)
@@ -175,9 +477,9 @@ class Equilibrium:
     Attributes
     ----------
     u : float
-        Cable displacement from the rest position, m.
-    phi : numpy.ndarray
-        Segment angles, rad.
+        Cable displacement at the spool from the rest position, m (spool held).
+    q : numpy.ndarray
+        Tangent angles at the element ends, rad.
     tension : float
         Cable tension, N.
     x, y : numpy.ndarray
@@ -185,59 +487,123 @@ class Equilibrium:
     """
 
     u: float
-    phi: np.ndarray
+    q: np.ndarray
     tension: float
     x: np.ndarray
     y: np.ndarray
 
     @property
     def tip_angle(self) -> float:
-        """Angle of the last segment relative to the base tangent, rad (total bend)."""
-        return float(self.phi[-1])
+        """Tangent angle at the tip, rad."""
+        return float(self.q[-1])
 
 
-def _make_eq(params: RigParameters, arr: ModelArrays, u: float, phi: np.ndarray) -> Equilibrium:
-    lam = kern.tension_of(phi, u, arr.P, arr.eye)
-    x, y = node_positions(params, phi)
-    return Equilibrium(u=float(u), phi=phi, tension=float(lam), x=x, y=y)
+def _make_eq(params: RigParameters, u: float, q: np.ndarray, tension: float) -> Equilibrium:
+    x, y = node_positions(params, q)
+    return Equilibrium(u=float(u), q=q, tension=float(tension), x=x, y=y)
+
+
+def _spring(params: RigParameters) -> dict[str, float]:
+    arr = model_arrays(params)
+    k = _static_stiffness(params)
+    return {"k": k, "ell_ref": arr.ell_rest - params.pretension / k}
+
+
+def _continue(params: RigParameters, q: np.ndarray, u0: float, u1: float, du_max: float = 1e-3) -> np.ndarray:
+    chain = _chain(params)
+    spring = _spring(params)
+    n_inc = max(1, int(math.ceil(abs(u1 - u0) / du_max - 1e-9)))
+    for i in range(1, n_inc + 1):
+        q = chain.newton(q, u=u0 + (u1 - u0) * i / n_inc, **spring)
+    return q
+
+
+def _tension_at(params: RigParameters, q: np.ndarray, u: float) -> float:
+    spring = _spring(params)
+    e = u + float(_chain(params).cable_length(q)) - spring["ell_ref"]
+    return spring["k"] * e if e > 0 else 0.0
 
 
 def equilibrium(params: RigParameters, u: float, du_max: float = 1.0e-3) -> Equilibrium:
-    """Static equilibrium for the cable pulled by ``u`` metres from the rest position.
+    """Frictionless static equilibrium with the cable end at the spool displaced by ``u`` (m), spool held.
 
-    Continuation from the rest state in increments of at most ``du_max``.
-
-    Raises
-    ------
-    ValueError
-        If ``u`` is not finite.
+    Continuation from the rest state in increments of at most ``du_max``; Newton with the exact Hessian.
     """
     if not math.isfinite(u):
         raise ValueError(f"cable displacement must be finite, got {u!r}")
-    arr = model_arrays(params)
-    phi = arr.phi_rest.copy()
-    n_inc = max(1, int(math.ceil(abs(u) / du_max)))
-    for i in range(1, n_inc + 1):
-        phi = _solve_at_u(arr, u * i / n_inc, phi)
-    return _make_eq(params, arr, u, phi)
+    q = _continue(params, model_arrays(params).q_rest.copy(), 0.0, u, du_max)
+    return _make_eq(params, u, q, _tension_at(params, q, u))
 
 
 def equilibrium_at_tension(params: RigParameters, tension: float, n_stages: int = 20) -> Equilibrium:
     """Static equilibrium with a prescribed cable tension (N), e.g. for the constant-curvature oracle.
 
-    The cable displacement ``u`` that produces it is reported as well.
+    The cable displacement ``u`` at the held spool that produces it is reported as well.
     """
     if not (math.isfinite(tension) and tension >= 0):
         raise ValueError(f"tension must be finite and >= 0, got {tension!r}")
-    arr = model_arrays(params)
-    phi = arr.phi_rest.copy()
+    chain = _chain(params)
+    q = model_arrays(params).q_rest.copy()
     for i in range(1, n_stages + 1):
         lam = params.pretension + (tension - params.pretension) * i / n_stages
-        phi = _solve_at_tension(arr, lam, phi)
-    ell = kern.cable_length(phi, arr.P, arr.eye)
-    u = tension / params.k - ell + arr.P[kern.I_ELLREF]
-    x, y = node_positions(params, phi)
-    return Equilibrium(u=float(u), phi=phi, tension=float(tension), x=x, y=y)
+        q = chain.newton(q, lam=lam)
+    spring = _spring(params)
+    u = tension / spring["k"] - float(chain.cable_length(q)) + spring["ell_ref"]
+    return _make_eq(params, u, q, tension)
+
+
+# --- linearisation -------------------------------------------------------------------------------------
+DECAY_S: float = 1.0
+"""Default age (s) of the transient at which :func:`linearise` ranks the modes: the paper identifies on
+9-10 s, 1-2 s after the release at 8 s, so the mode that dominates there is the one that matters."""
+
+
+def state_space_poles(
+    M: np.ndarray, C: np.ndarray, K: np.ndarray, f_in: np.ndarray, c_out: np.ndarray, decay_s: float = DECAY_S
+) -> tuple[np.ndarray, np.ndarray]:
+    """Poles of ``M x'' + C x' + K x = f_in u`` and their weights in the step response of ``y = c_out . x``.
+
+    Well-conditioned form: mass-normalised modal coordinates from the flexibility problem
+    ``L_K^-1 M L_K^-T psi = omega^-2 psi`` (``K = L_K L_K^T``), whose largest eigenvalues (the low modes)
+    come out with full relative accuracy, and the near-normal state ``[Omega eta, eta']``. Weights:
+    ``2 |r / p| exp(Re p decay_s)``.
+
+    Returns
+    -------
+    poles : numpy.ndarray
+        Sorted by modulus.
+    weights : numpy.ndarray
+        Amplitude of each pole's term in the step response, ``decay_s`` after the step.
+    """
+    try:
+        Lk = linalg.cholesky(K, lower=True)
+        Lki = linalg.solve_triangular(Lk, np.eye(K.shape[0]), lower=True)
+        Mt = Lki @ M @ Lki.T
+        mu, Psi = linalg.eigh(0.5 * (Mt + Mt.T))
+        mu, Psi = mu[::-1], Psi[:, ::-1]
+        Om = 1.0 / np.sqrt(mu)
+        T = (Lki.T @ Psi) * Om
+    except linalg.LinAlgError:  # K not positive definite: the mass-normalised form
+        Lc = linalg.cholesky(M, lower=True)
+        Li = linalg.solve_triangular(Lc, np.eye(M.shape[0]), lower=True)
+        Kt = Li @ K @ Li.T
+        w2, Phi = linalg.eigh(0.5 * (Kt + Kt.T))
+        Om = np.sqrt(np.abs(w2))
+        T = Li.T @ Phi
+    Cm = T.T @ C @ T
+    Cm = 0.5 * (Cm + Cm.T)
+    n = M.shape[0]
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.diag(Om)
+    A[n:, :n] = -np.diag(Om)
+    A[n:, n:] = -Cm
+    b = np.concatenate([np.zeros(n), T.T @ f_in])
+    cc = np.concatenate([(c_out @ T) / Om, np.zeros(n)])
+    ev, vl, vr = linalg.eig(A, left=True, right=True)
+    res = (cc @ vr) * (vl.conj().T @ b) / np.einsum("ij,ij->j", vl.conj(), vr)
+    order = np.argsort(np.abs(ev), kind="stable")
+    ev, res = ev[order], res[order]
+    return ev, 2.0 * np.abs(res / ev) * np.exp(ev.real * decay_s)
 
 
 @dataclass(frozen=True)
@@ -248,168 +614,239 @@ class Linearisation:
     ----------
     equilibrium : Equilibrium
         The operating point.
+    rotor : str
+        ``"locked"`` (spool held) or ``"free"`` (rotor on its microstep spring, the rig as it runs).
     poles : numpy.ndarray
-        Eigenvalues of the linearised state matrix (1/s), sorted by modulus.
-    residues : numpy.ndarray
-        Residues of the tension response to a cable-displacement step, per pole (N/m).
+        Eigenvalues of the state matrix (1/s), sorted by modulus.
+    weights : numpy.ndarray
+        Amplitude of each pole in the measured tension's response to a drive step, ``decay_s`` after it.
     omega_n, zeta, omega_d : float
-        Dominant mode (see :func:`linearise`).
+        The *dominant* mode: the oscillatory pair with the largest weight.
+    M, C, K : numpy.ndarray
+        Mass, damping and tangent-stiffness matrices (arm coordinates, then rotor and carriage if present).
+    n_arm : int
+        Number of arm coordinates.
     """
 
     equilibrium: Equilibrium
+    rotor: str
     poles: np.ndarray
-    residues: np.ndarray
+    weights: np.ndarray
     omega_n: float
     zeta: float
     omega_d: float
+    M: np.ndarray = field(repr=False)
+    C: np.ndarray = field(repr=False)
+    K: np.ndarray = field(repr=False)
+    n_arm: int = 0
 
-    def oscillatory(self) -> pd.DataFrame:
-        """The oscillatory poles (upper half-plane) with their frequency, damping and weight."""
-        p, r = self.poles, self.residues
-        up = p.imag > 0
-        p, r = p[up], r[up]
+    def modes(self) -> pd.DataFrame:
+        """The oscillatory poles (upper half-plane), lowest first: omega_n, zeta, omega_d, weight."""
+        up = self.poles.imag > 1e-9
+        p, w = self.poles[up], self.weights[up]
+        order = np.argsort(np.abs(p), kind="stable")
+        p, w = p[order], w[order]
         return pd.DataFrame(
-            {
-                "omega_n": np.abs(p),
-                "zeta": -p.real / np.abs(p),
-                "omega_d": p.imag,
-                "weight": 2 * np.abs(r / p),
-            }
+            {"omega_n": np.abs(p), "zeta": -p.real / np.abs(p), "omega_d": p.imag, "weight": w}
         )
 
-
-DECAY_S: float = 1.0
-"""Default age (s) of the transient at which :func:`linearise` ranks the modes: the paper identifies on
-9-10 s, 1-2 s after the release at 8 s, so the mode that dominates there is the one that matters."""
-
-
-def _mass_matrix(arr: ModelArrays, phi: np.ndarray) -> np.ndarray:
-    """The chain's mass matrix ``M_ik = l^2 mu_max(i,k) cos(phi_i - phi_k) + J delta_ik`` (symmetric)."""
-    n = arr.n
-    l2 = float(arr.P[kern.I_L]) ** 2
-    idx = np.arange(n)
-    mu_max = arr.mu[np.maximum.outer(idx, idx)]
-    return l2 * mu_max * np.cos(np.subtract.outer(phi, phi)) + float(arr.P[kern.I_JSEG]) * np.eye(n)
-
-
-def _stiffness_matrix(arr: ModelArrays, phi: np.ndarray, u: float, h: float = 1e-6) -> np.ndarray:
-    """``K = -dQ/dphi`` of the static generalised force (springs, gravity, cable), symmetrised.
-
-    ``Q`` is minus the gradient of a potential, so ``K`` is its Hessian: central differences of ``Q`` (whose
-    terms are of order one in N m, so round-off enters at 1e-10 of ``K``) and the symmetric part.
-    """
-    n = arr.n
-    out = np.empty(n)
-    K = np.empty((n, n))
-    for j in range(n):
-        cols = []
-        for sign in (1.0, -1.0):
-            x = phi.copy()
-            x[j] += sign * h
-            kern.static_force(x, u, -1.0, arr.P, arr.mu, arr.kap, arr.eye, out)
-            cols.append(out.copy())
-        K[:, j] = -(cols[0] - cols[1]) / (2 * h)
-    return 0.5 * (K + K.T)
-
-
-def _damping_matrix(arr: ModelArrays, M: np.ndarray) -> np.ndarray:
-    """``C``: mass-proportional ``alpha M`` plus the joint dashpots ``cj`` on the relative rates."""
-    n = arr.n
-    D = np.eye(n) - np.eye(n, k=-1)  # joint rates from segment rates (the clamp joint's base is fixed)
-    return float(arr.P[kern.I_ALPHA]) * M + D.T @ np.diag(arr.cj) @ D
+    def undamped(self) -> np.ndarray:
+        """Undamped natural frequencies (rad/s), ascending (``K phi = w^2 M phi``)."""
+        return np.sqrt(np.abs(linalg.eigh(self.K, self.M, eigvals_only=True)))
 
 
 def linearise(
-    params: RigParameters, u: float = 0.0, eq: Equilibrium | None = None, decay_s: float = DECAY_S
+    params: RigParameters,
+    u: float = 0.0,
+    eq: Equilibrium | None = None,
+    rotor: str = "free",
+    decay_s: float = DECAY_S,
 ) -> Linearisation:
-    """Linearise the dynamics about the equilibrium at cable displacement ``u`` (m).
+    """Linearise the rig about the static equilibrium at cable displacement ``u`` (m).
 
-    The *dominant* mode is the oscillatory pair with the largest amplitude in the tension response to a
-    cable step, ``decay_s`` seconds after it: ``2 |r_i / p_i| exp(Re(p_i) decay_s)``. With ``decay_s = 0``
-    this is ``helpers.model.dominant_mode``'s definition; with the default (1 s) it is the mode the paper's
-    identification window (1-2 s after the release) sees.
-
-    The small-vibration equations ``M q'' + C q' + K q = b du`` are assembled from symmetric pieces (the
-    mass matrix in closed form, the stiffness as the Hessian of the potential, the Rayleigh-type damping) and
-    solved in the coordinates of the undamped modes (``K phi = w^2 M phi``, a symmetric-definite
-    problem), where the damped state matrix is nearly normal. This keeps the low frequencies well
-    conditioned even for very fine chains, whose stiffest modes are 1e6 times faster than the dominant one:
-    the frequencies printed by the notebooks do not depend on round-off (BLAS thread count, CPU). At rest
-    the velocity terms vanish, so nothing else enters. The tension output is ``k (u + ell(q) - ell_ref)``;
-    if the cable is just taut (zero pretension) it is linearised as a two-sided spring.
+    Coordinates: the arm's, then (actuators with a stepper) the rotor angle if ``rotor="free"``, then the
+    carriage position (``stepper+carriage``). With ``rotor="locked"`` the spool is held; with
+    ``rotor="free"`` the rotor sits on the motor's tangent microstep stiffness at its static lag and the
+    input is the commanded rotor angle (the cable displacement for the ideal actuator). The output is the
+    tension the load cell reads. Velocity-product terms vanish at rest, so ``M``, ``C`` and the exact
+    Hessian ``K`` are all there is; a cable with zero tension is linearised as a two-sided spring.
     """
-    eq = equilibrium(params, u) if eq is None else eq
-    arr = model_arrays(params)
-    if eq.tension <= 1e-9:
-        arr = arr.with_bilateral()
-    n = arr.n
-    M = _mass_matrix(arr, eq.phi)
-    K = _stiffness_matrix(arr, eq.phi, eq.u)
-    C = _damping_matrix(arr, M)
-    grad = np.empty(n)
-    kern.cable_length_grad(eq.phi, arr.P, arr.eye, grad)
-    taut = eq.tension > 1e-9 or bool(arr.P[kern.I_BILATERAL])
-    k = float(arr.P[kern.I_K]) if taut else 0.0
-    c_out = k * grad  # d(tension)/d(phi)
-    b_in = -k * grad  # d(Q)/du: the cable's pull on the generalised coordinates per metre of cable
-    w2, Phi = linalg.eigh(K, M)  # Phi^T M Phi = I
-    Cm = Phi.T @ C @ Phi
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.diag(w2), -0.5 * (Cm + Cm.T)]])
-    b = np.concatenate([np.zeros(n), Phi.T @ b_in])
-    c = np.concatenate([c_out @ Phi, np.zeros(n)])
-    evals, left, right = linalg.eig(A, left=True, right=True)
-    res = (c @ right) * (left.conj().T @ b) / np.einsum("ij,ij->j", left.conj(), right)
-    order = np.argsort(np.abs(evals), kind="stable")
-    evals, res = evals[order], res[order]
-    up = evals.imag > 1e-9
+    if rotor not in ("free", "locked"):
+        raise ValueError(f"rotor must be 'free' or 'locked', got {rotor!r}")
+    p = params
+    eq = equilibrium(p, u) if eq is None else eq
+    chain = _chain(p)
+    arr = model_arrays(p)
+    floor = (np.asarray(arr.W), np.asarray(arr.cw))
+    q, lam = eq.q, eq.tension
+    N = chain.N
+    bil = lam <= 1e-12
+    Hl = chain.hessian(q, lam=lam)
+    _, dl = chain.cable_grad(q)
+    M_arm = chain.mass_matrix(q)
+    C_arm = chain.damping_matrix(q, M_arm, floor)
+    R = p.spool_radius
+    if p.actuator == "ideal" or (p.actuator == "stepper" and rotor == "locked"):
+        kc = p.k if p.actuator == "ideal" else p.k_cable
+        kc = kc if (lam > 0 or bil) else 0.0
+        K = Hl + kc * np.outer(dl, dl)
+        bf = -kc * dl
+        cvec = kc * dl
+        Mf, Cf = M_arm, C_arm
+    else:
+        carriage = p.actuator == "stepper+carriage"
+        free = rotor == "free"
+        n = N + int(free) + int(carriage)
+        K = np.zeros((n, n))
+        Mf = np.zeros((n, n))
+        Cf = np.zeros((n, n))
+        Mf[:N, :N] = M_arm
+        Cf[:N, :N] = C_arm
+        bf = np.zeros(n)
+        Km = p.tangent_motor_stiffness(p.static_lag(lam)) if free else 0.0
+        ir = N if free else -1
+        if not carriage:  # stepper, rotor free
+            kc = p.k_cable
+            K[:N, :N] = Hl + kc * np.outer(dl, dl)
+            K[:N, ir] = K[ir, :N] = kc * R * dl
+            K[ir, ir] = kc * R**2 + Km
+            Mf[ir, ir] = p.drive_inertia
+            Cf[ir, ir] = p.rotor_damping
+            bf[ir] = Km
+            cvec = np.concatenate([kc * dl, [kc * R]])
+        else:
+            k1, k2 = p.k_spool_side, p.k_arm_side
+            ic = n - 1
+            K[:N, :N] = Hl + k2 * np.outer(dl, dl)
+            K[:N, ic] = K[ic, :N] = k2 * dl
+            K[ic, ic] = k1 + k2
+            Mf[ic, ic] = p.carriage_mass
+            Cf[ic, ic] = p.carriage_damping
+            if free:
+                K[ir, ir] = k1 * R**2 + Km
+                K[ir, ic] = K[ic, ir] = -k1 * R
+                Mf[ir, ir] = p.drive_inertia
+                Cf[ir, ir] = p.rotor_damping
+                bf[ir] = Km
+            else:
+                bf[ic] = k1 * R  # input: the spool angle
+            cvec = np.zeros(n)
+            if p.load_cell_side == "arm":
+                cvec[:N] = k2 * dl
+                cvec[ic] = k2
+            else:
+                cvec[ic] = -k1
+                if free:
+                    cvec[ir] = k1 * R
+    poles, weights = state_space_poles(Mf, Cf, K, bf, cvec, decay_s)
+    up = poles.imag > 1e-9
     if not np.any(up):
         raise ValueError("the linearisation has no oscillatory mode")
-    weights = np.abs(res[up] / evals[up]) * np.exp(evals[up].real * decay_s)
-    best = evals[up][np.argmax(weights)]
-    omega_n = float(abs(best))
+    best = poles[int(np.argmax(np.where(up, weights, -1.0)))]
+    wn = float(abs(best))
     return Linearisation(
-        equilibrium=eq,
-        poles=evals,
-        residues=res,
-        omega_n=omega_n,
-        zeta=float(-best.real / omega_n),
-        omega_d=float(best.imag),
-    )
+        equilibrium=eq, rotor=rotor, poles=poles, weights=weights, omega_n=wn, zeta=float(-best.real / wn),
+        omega_d=float(best.imag), M=Mf, C=Cf, K=K, n_arm=N,
+    )  # fmt: skip
+
+
+def _bending_modes(lin: Linearisation, n_modes: int) -> list[tuple[float, float, float]]:
+    """The ``n_modes`` lowest oscillatory poles as ``(omega_n, omega_d, zeta)``."""
+    m = lin.modes()
+    return [(float(r.omega_n), float(r.omega_d), float(r.zeta)) for r in m.iloc[:n_modes].itertuples()]
 
 
 def frequency_map(
-    params: RigParameters, u_mm: np.ndarray | None = None, decay_s: float = DECAY_S
+    params: RigParameters, u_mm: np.ndarray | None = None, n_modes: int = 2, decay_s: float = DECAY_S
 ) -> pd.DataFrame:
-    """Dominant mode omega_d(u), zeta(u) and static tension about the equilibria for u in ``u_mm`` (mm).
+    """The frequency map: statics and small vibrations for cable displacements ``u_mm`` (mm).
+
+    At each ``u``: the frictionless static equilibrium with the spool held (rotor locked) at cable
+    displacement ``u`` and the lowest bending modes of the small vibrations about it (rotor locked); also the
+    dominant mode of the rig as it runs (rotor free, the mode the identification window sees).
 
     Returns
     -------
     pandas.DataFrame
-        Columns ``u_mm``, ``tension_n``, ``tip_angle_deg``, ``omega_n``, ``zeta``, ``omega_d``, ``period_s``.
+        ``u_mm``, ``static_tension_n``, ``omega_n_rad_s``, ``omega_d_rad_s``, ``zeta`` (the lowest bending
+        mode), ``omega_d2_rad_s``, ``zeta2`` (the second, if ``n_modes >= 2``), ``tip_angle_deg``,
+        ``dominant_omega_d_rad_s``, ``dominant_zeta`` (rotor free, largest weight ``decay_s`` after a step).
     """
-    u_mm = np.arange(0.0, 40.01, 2.0) if u_mm is None else np.asarray(u_mm, dtype=float)
+    u_mm = np.arange(0.0, 40.01, 1.0) if u_mm is None else np.asarray(u_mm, dtype=float)
     if np.any(~np.isfinite(u_mm)):
         raise ValueError("u_mm must be finite")
     rows = []
-    arr = model_arrays(params)
-    phi = arr.phi_rest.copy()
+    q = model_arrays(params).q_rest.copy()
     u_prev = 0.0
     for u in np.sort(u_mm) * 1e-3:
-        n_inc = max(1, int(math.ceil(abs(u - u_prev) / 1e-3)))
-        for i in range(1, n_inc + 1):
-            phi = _solve_at_u(arr, u_prev + (u - u_prev) * i / n_inc, phi)
+        q = _continue(params, q, u_prev, u)
         u_prev = u
-        eq = _make_eq(params, arr, u, phi)
-        lin = linearise(params, u, eq=eq, decay_s=decay_s)
-        rows.append(
-            {
-                "u_mm": u * 1e3,
-                "tension_n": eq.tension,
-                "tip_angle_deg": math.degrees(eq.tip_angle - params.base_angle),
-                "omega_n": lin.omega_n,
-                "zeta": lin.zeta,
-                "omega_d": lin.omega_d,
-                "period_s": 2 * math.pi / lin.omega_d,
-            }
-        )
+        eq = _make_eq(params, u, q, _tension_at(params, q, u))
+        locked = linearise(params, u, eq=eq, rotor="locked", decay_s=decay_s)
+        free = linearise(params, u, eq=eq, rotor="free", decay_s=decay_s)
+        modes = _bending_modes(locked, n_modes)
+        row = {
+            "u_mm": u * 1e3,
+            "static_tension_n": eq.tension,
+            "omega_n_rad_s": modes[0][0],
+            "omega_d_rad_s": modes[0][1],
+            "zeta": modes[0][2],
+        }
+        for i in range(1, n_modes):
+            row[f"omega_d{i + 1}_rad_s"] = modes[i][1]
+            row[f"zeta{i + 1}"] = modes[i][2]
+        row["tip_angle_deg"] = math.degrees(eq.tip_angle - params.base_angle)
+        row["dominant_omega_d_rad_s"] = free.omega_d
+        row["dominant_zeta"] = free.zeta
+        rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _rk4_amplification(z: np.ndarray) -> np.ndarray:
+    return np.abs(1.0 + z + z**2 / 2.0 + z**3 / 6.0 + z**4 / 24.0)
+
+
+def rk4_stable_step(poles: np.ndarray, h_hi: float = 5e-3) -> float:
+    """Largest fixed step ``h`` (s) with ``|R(p h)| <= 1`` for every pole.
+
+    ``R`` is classical RK4's stability polynomial; a scan from below, refined by bisection.
+    """
+    poles = np.asarray(poles)[np.abs(poles) > 1e-9]
+    if poles.size == 0:
+        return h_hi
+    hs = np.linspace(h_hi / 2000, h_hi, 2000)
+    ok = np.array([np.all(_rk4_amplification(poles * h) <= 1 + 1e-12) for h in hs])
+    if ok.all():
+        return h_hi
+    first_bad = int(np.argmin(ok))
+    lo = hs[first_bad - 1] if first_bad > 0 else 0.0
+    hi = hs[first_bad]
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if np.all(_rk4_amplification(poles * mid) <= 1 + 1e-12):
+            lo = mid
+        else:
+            hi = mid
+    return float(lo)
+
+
+def stable_max_step(
+    params: RigParameters, u_mm: tuple[float, ...] = (0.0, 20.0, 40.0), margin: float = 0.9
+) -> float:
+    """The largest step ``1 ms / n`` (n = 2, 3, ...) within ``margin`` of RK4's linear stability limit.
+
+    The limit is taken over the rig's linearisations (rotor free) at the cable displacements ``u_mm``; the
+    stiffest mode is the tip disc rocking against the cable (about ``sqrt(k_arm r^2 / J_disc)``), so it
+    falls as the cable gets stiffer. Whole divisions of the 1 ms sample interval keep every sample interval
+    split into equal steps.
+    """
+    q = model_arrays(params).q_rest.copy()
+    h = math.inf
+    u_prev = 0.0
+    for u in sorted(u_mm):
+        q = _continue(params, q, u_prev, u * 1e-3)
+        u_prev = u * 1e-3
+        eq = _make_eq(params, u_prev, q, _tension_at(params, q, u_prev))
+        h = min(h, rk4_stable_step(linearise(params, u_prev, eq=eq, rotor="free").poles))
+    n = max(2, math.ceil(1e-3 / (margin * h) - 1e-9))
+    return 1e-3 / n
