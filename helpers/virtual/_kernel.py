@@ -74,7 +74,7 @@ def workspace_size(n: int, n_eye: int) -> int:
     return N_WS_PER * n + 12 * n_eye + 16
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _horner(c, x):
     acc = 0.0
     for k in range(c.shape[0] - 1, -1, -1):
@@ -82,7 +82,7 @@ def _horner(c, x):
     return acc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def chord_funcs(D, sD, cD):
     """``f1, f2, f1', f2', f1'', f2''`` of an arc turning by ``D`` (``sD, cD`` = sin D, cos D)."""
     if abs(D) < 0.2:
@@ -105,7 +105,7 @@ def chord_funcs(D, sD, cD):
     return f1, f2, f1p, f2p, f1pp, f2pp
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass per stage, kept together
     """Write ``dy = f(y)``; return ``(e1, e2, lam1, lam2)`` (stretches and tensions of the two cables).
 
@@ -439,7 +439,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
     return e1, e2, lam1, lam2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def rhs(y, drive, P, mb, Jb, disc, W, cw):
     """Allocating convenience wrapper of :func:`rhs_ws`: returns ``(dy, e1, e2, lam1, lam2)``."""
     n = mb.shape[0]
@@ -449,12 +449,12 @@ def rhs(y, drive, P, mb, Jb, disc, W, cw):
     return dy, e1, e2, l1, l2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _measured(P, lam1, lam2):
     return lam1 if (P[I_MODE] == 2.0 and P[I_MEAS] == 1.0) else lam2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _rk4(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, out):
     m = y.shape[0]
     hh = 0.5 * h
@@ -472,13 +472,13 @@ def _rk4(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, out):
         out[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _flip(a0, a1, b0, b1):
     """True if the taut/slack pattern of the two cables changed."""
     return ((a0 > 0.0) != (a1 > 0.0)) or ((b0 > 0.0) != (b1 > 0.0))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _filter(filt, h, x0, x1):
     """First-order low-pass ``tau y' = x - y`` over ``h`` for an input linear from ``x0`` to ``x1``."""
     tau = filt[0]
@@ -489,7 +489,7 @@ def _filter(filt, h, x0, x1):
     filt[1] = a * (filt[1] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _lag(P, drive, y, n, health):
     if P[I_MODE] != 0.0:
         lag = abs(drive - y[2 * n])
@@ -497,7 +497,7 @@ def _lag(P, drive, y, n, health):
             health[0] = lag
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def integrate(y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, filt, stats, health):  # noqa: C901
     """Integrate ``y`` (in place) over ``dt`` with constant ``drive``: equal RK4 steps ``<= h_max``.
 
@@ -583,7 +583,7 @@ def integrate(y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, fil
         _lag(P, drive, y, n, health)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def advance(y, t0, drive0, d_drive, sample_times, step_times, step_signs, h_max, P, mb, Jb, disc, W, cw,
             filt, out_raw, out_filt, out_theta, stats, health):  # fmt: skip
     """Advance ``y`` from ``t0`` through every sample time; return ``(t, drive)``.
