@@ -392,17 +392,23 @@ def test_scenario_figure_is_written(tmp_path, monkeypatch):
     ]
     fig = plots.fig_scenario(recs, (200, 20), 9, save=True)
     assert (tmp_path / "fig9_20mm_200mms.png").stat().st_size > 0
-    assert "virtual rig" in fig.axes[0].get_title()
-    assert len(fig.axes[0].lines) == 6  # three systems x two repetitions, other condition ignored
+    assert "virtual rig" in fig._suptitle.get_text() and fig._suptitle.get_text().startswith("Fig. 9")
+    assert len(fig.axes) == 4  # one row per system (the traces cannot hide each other) and the cable
+    assert [ax.get_title(loc="left") for ax in fig.axes[:3]] == ["Pulse", "Non-robust TDF", "Robust TDF"]
+    for ax, pair in zip(fig.axes[:3], (recs[0:2], recs[2:4], recs[4:6]), strict=True):
+        (mean_line,) = ax.lines  # the mean of the two repetitions of this condition, nothing else
+        expected = (pair[0].frame["tension_n"].to_numpy() + pair[1].frame["tension_n"].to_numpy()) / 2
+        np.testing.assert_allclose(mean_line.get_ydata(), expected)
+        assert len(ax.collections) == 1  # the band between the repetitions
     by_system = {"unshaped": recs[:2], "zv": recs[2:4], "zvd": recs[4:6]}
     plots.fig_scenario(by_system, (200.0, 20.0), save=True)  # number from the paper's numbering
     fig_a = plots.fig_scenario(recs, (200, 10), save=True)
     assert (tmp_path / "figA_10mm_200mms.png").exists()
-    assert "no figure in the paper" in fig_a.axes[0].get_title()
+    assert "no figure in the paper" in fig_a._suptitle.get_text()
     with pytest.raises(ValueError, match="no recording"):
         plots.fig_scenario(recs, (300, 20), 11)
     hw = [fake_recording(200, 20, "zv", 1, 0.3, source="hardware")]
-    assert "virtual" not in plots.fig_scenario(hw, (200, 20), 9).axes[0].get_title()
+    assert "virtual" not in plots.fig_scenario(hw, (200, 20), 9)._suptitle.get_text()
     plt.close("all")
 
 
