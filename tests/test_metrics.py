@@ -572,3 +572,29 @@ def test_another_chain_is_bounded_by_the_adc_rails_only():
     frame["adc"] = np.minimum(adc, 1023)
     df = metrics.recording_metrics(frame, calibration=other).set_index("motion")
     assert df.loc["Up", "peak_is_bound"] and not df.loc["Down", "peak_is_bound"]
+
+
+def test_move_residuals_match_the_closed_form_after_each_move():
+    zeta = 0.15
+    rec = fake_recording(200, 20, "zv", 1, zeta)
+    rec.frame["tension_n"] += 5.0  # 6 N at rest: the Down transient (62 % of 8 N) stays taut
+    table = metrics.move_residuals(rec.frame)
+    assert list(table["motion"]) == ["Up", "Down"]
+    for row, t0 in zip(table.itertuples(), (T_UP, T_DOWN), strict=True):
+        assert row.move_end_s == pytest.approx(t0 + 0.1, abs=2e-3)  # the step ramp lasts 0.1 s
+        # the definition evaluated on the continuous closed form, on a 10 us grid
+        tt = np.arange(row.move_end_s + 0.1, row.move_end_s + 1.1, 1e-5)
+        y = tension(tt, zeta) + 5.0
+        expected = 100.0 * (y.max() - y.min()) / 2.0 / 8.0  # the step is 9 - 1 = 8 N
+        assert row.residual_pct == pytest.approx(expected, rel=0.01)
+        assert row.noise_floor_pct == pytest.approx(0.0, abs=1e-9)  # a noise-free signal at rest
+        assert not row.slack and row.reason == ""
+    noisy = metrics.move_residuals(fake_recording(200, 20, "zv", 1, 0.6, noise=0.05).frame)
+    assert (noisy["noise_floor_pct"] > 0.5).all()  # +-3 sigma of 0.05 N is ~2 % of 8 N
+
+
+def test_a_slack_cable_in_the_residual_window_is_said():
+    rec = fake_recording(200, 20, "unshaped", 1, 0.05)
+    rec.frame["tension_n"] = rec.frame["tension_n"] - 1.5  # the Down move now dips below 0 N
+    down = metrics.move_residuals(rec.frame).set_index("motion").loc["Down"]
+    assert down["slack"] and "slack" in down["reason"]
