@@ -138,6 +138,9 @@ def design_candidates(
         )  # fmt: skip
         note["auto (no longer than zv)"] = capped.message
         made["auto"] = choice.design
+        for d in made.values():  # the map's prediction travels with each convolution design
+            if d is not None and d.kind != "schedule":
+                d.provenance["worst_predicted_pct"] = design.worst_predicted_pct(d, mode_map, x)
         note["auto"] = choice.message
         out[(v, x)] = made
         notes[(v, x)] = note
