@@ -354,7 +354,10 @@ def _shown(path: Path) -> str:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``python -m helpers tune``."""
     parser.formatter_class = DefaultsHelp
-    parser.description = __doc__.split("\n\n")[1].replace("\n", " ")
+    parser.description = (
+        "Measure the arm's modes at 0-40 mm of cable, design shapers from that map, verify each by running "
+        "it on the rig, and write the report and the chosen design (docs/shaper_design.md)."
+    )
     parser.add_argument(
         "--ports",
         default="virtual",
