@@ -64,6 +64,10 @@ class RigParameters(Backbone):
     elements_per_disc : int
         Constant-curvature elements per disc interval (1: one arc between consecutive discs). Larger values
         refine the rod for the convergence study; the discs stay at their 12 stations.
+    bowing : bool
+        Include the rod's bowing between eyelets (:meth:`helpers.virtual.statics.ArcChain.bow_compliance`):
+        the part of the cable's moment that a constant-curvature element cannot carry, as a compliance in
+        series with the cable. *Numerical* (it vanishes as the elements shrink); off only for comparison.
     disc_mass : float
         Mass of each disc with its eyelet and glue, kg. *Tuned*: the identification run gives
         omega_d = 25.085 rad/s.
@@ -132,6 +136,7 @@ class RigParameters(Backbone):
     """
 
     elements_per_disc: int = 1
+    bowing: bool = True
     disc_mass: float = TUNED["disc_mass"]
     disc_radius: float = 12.0e-3
     disc_thickness: float = 4.0e-3
@@ -413,6 +418,11 @@ _SOURCES: dict[str, tuple[str, str, str]] = {
         "-",
         "numerical",
         "one constant-curvature arc per disc interval; converged (notebook 06)",
+    ),
+    "bowing": (
+        "-",
+        "numerical",
+        "the rod bows away from the straight cable between eyelets: compliance in series with the cable",
     ),
     "disc_mass": ("kg", "tuned", "identification run gives omega_d = 25.085 rad/s via helpers.identify"),
     "disc_radius": ("m", "assumed", "eyelets at r need a disc of >= 10 mm radius; 1 g of PLA is ~24 x 2 mm"),
