@@ -246,6 +246,20 @@ def test_default_step_is_within_rk4_stability():
 
 
 # --- the O(N) kernel against the dense Lagrangian ---------------------------------------------------------
+def test_kernel_bowing_factors_match_numpy():
+    """The kernel's shorter series and closed forms of the bowing factors against the numpy ones, through both
+    branches (|D| < 0.8 or 1 and beyond)."""
+    from helpers.virtual.statics import bow_functions
+
+    D = np.concatenate([np.linspace(-2.5, 2.5, 501), [1e-6, 0.7999, 0.8001, 0.9999, 1.0001]])
+    P, Q, dP, dQ = bow_functions(D)
+    for i, d in enumerate(D):
+        p_, dp_ = kern.bow_p(d, math.sin(d), math.cos(d))
+        assert p_ == pytest.approx(P[i], rel=1e-11) and dp_ == pytest.approx(dP[i], rel=1e-11)
+        full = kern.bow_funcs(d, math.sin(d), math.cos(d))
+        np.testing.assert_allclose(full, [P[i], dP[i], Q[i], dQ[i]], rtol=1e-11)
+    assert P[-5] == pytest.approx(1e-12 / 720, rel=1e-9) and Q[-5] == pytest.approx(1 / 12, rel=1e-9)
+
 @pytest.mark.parametrize(
     ("actuator", "m"), [("ideal", 1), ("stepper", 1), ("stepper+carriage", 1), ("stepper+carriage", 2)]
 )

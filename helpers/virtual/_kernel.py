@@ -79,6 +79,8 @@ _BP = 0.5 * (_S1C[1:] - 2.0 * _S2C[1:])  # P
 _BQ = _S2C[1:] - _S1C[1:]  # Q
 _BPD = np.array([2.0 * j * _BP[j] for j in range(1, _NB)])  # P' / D
 _BQD = np.array([2.0 * j * _BQ[j] for j in range(1, _NB)])  # Q' / D
+_BP7 = _BP[:7].copy()
+_BPD6 = _BPD[:6].copy()
 _SIN = np.array([(-1.0) ** k / math.factorial(2 * k + 1) for k in range(_NS)])  # sin D / D
 _COS = np.array([(-1.0) ** k / math.factorial(2 * k) for k in range(_NS)])  # cos D
 
@@ -149,6 +151,24 @@ def bow_funcs(D, sD, cD):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
+def bow_p(D, sD, cD):
+    """``P, P'`` of :func:`bow_funcs` alone (a cable run of one element: ``c = 0``).
+
+    Shorter series, for ``|D| < 0.8``: relative truncation and the closed form's cancellation beyond < 1e-12.
+    """
+    if abs(D) < 0.8:
+        x = D * D
+        return _horner(_BP7, x), D * _horner(_BPD6, x)
+    iD = 1.0 / D
+    S1 = sD * iD
+    S2 = 2.0 * (1.0 - cD) * iD * iD
+    dS1 = (cD - S1) * iD
+    dS2 = 2.0 * sD * iD * iD - 2.0 * S2 * iD
+    P = 0.5 * (1.0 + S1 - 2.0 * S2) * iD * iD
+    return P, 0.5 * (dS1 - 2.0 * dS2) * iD * iD - 2.0 * P * iD
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
 def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass per stage, kept together
     """Write ``dy = f(y)``; return ``(e1, e2, lam1, lam2)`` (stretches and tensions of the two cables).
 
@@ -206,6 +226,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
     o_e = 40 * n  # eyelets: Ex, Ey, ux, uy, L, T, Evx, Evy (12 per eyelet)
     ne = nd + 1
     bow = P[I_BOW]  # l^3 / EI, or 0: no bowing
+    bowrun = P[I_BOWRUN] != 0.0  # some cable run spans several elements
     # ---- outward pass 1: kinematics ----
     cp = math.cos(P[I_TH0])
     sp = math.sin(P[I_TH0])
@@ -220,8 +241,8 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         w = y[n + i]
         D = th - thp
         Dd = w - wp
-        if abs(D) < 0.2:
-            # rotate the previous tangent by D (series sin/cos, error < 1e-18): two libm calls fewer
+        if abs(D) < 0.6:
+            # rotate the previous tangent by D (series sin/cos, error < 2e-17): two libm calls fewer
             x = D * D
             sD = D * _horner(_SIN, x)
             cD = _horner(_COS, x)
@@ -235,11 +256,14 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         ws[o_c + i] = ci
         ws[o_s + i] = si
         if bow != 0.0:
-            bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
+            if bowrun:
+                bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
+                ws[o_bq + i] = bQ
+                ws[o_bdq + i] = bdQ
+            else:
+                bP, bdP = bow_p(D, sD, cD)
             ws[o_bp + i] = bP
             ws[o_bdp + i] = bdP
-            ws[o_bq + i] = bQ
-            ws[o_bdq + i] = bdQ
         f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
         chx = l_ * (cp * f1 - sp * f2)
         chy = l_ * (sp * f1 + cp * f2)
@@ -298,7 +322,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
     # on its two eyelets) and the element's chord (a force on theta_{e-1} and half of it on D_e).
     hb = 0.0
     if bow != 0.0:
-        if P[I_BOWRUN] == 0.0:
+        if not bowrun:
             for i in range(n):
                 hb += ws[o_bp + i]
                 ws[o_bdp + i] *= bow
@@ -397,7 +421,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
     # bowing: generalised forces (lam2^2 / 2) dH (its potential is -lam2^2 H / 2 at the tension lam2)
     if hb != 0.0 and lam2 != 0.0:
         hl = 0.5 * lam2 * lam2
-        if P[I_BOWRUN] == 0.0:
+        if not bowrun:
             for i in range(n):
                 ws[o_q + i] += hl * ws[o_bdp + i]
         else:
@@ -448,7 +472,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
             w0 = wpk
     # constant damping on theta' (the high-mode floor)
     nr = cw.shape[0]
-    if nr > 0 or cc_ != 0.0 or (hb != 0.0 and P[I_BOWRUN] != 0.0):
+    if nr > 0 or cc_ != 0.0 or (hb != 0.0 and bowrun):
         for k in range(nr):
             acc = 0.0
             for i in range(n):
