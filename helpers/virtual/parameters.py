@@ -34,12 +34,12 @@ on the motor's microstep spring (``stepper``); the same plus the load-cell carri
 (``stepper+carriage``, the rig)."""
 
 TUNED: dict[str, float] = {
-    "disc_mass": 1.110076e-03,
-    "r": 7.77383e-03,
-    "k": 21055.9,
-    "pretension": 2.3340,
-    "alpha": 1.888623,
-    "beta_chord": 5.746086e-04,
+    "disc_mass": 1.109951e-03,
+    "r": 7.78330e-03,
+    "k": 21122.3,
+    "pretension": 2.3554,
+    "alpha": 1.887944,
+    "beta_chord": 5.753788e-04,
 }
 """The values the rig tuning chose (the defaults of :class:`RigParameters`; ``docs/virtual_rig.md``)."""
 

@@ -74,7 +74,7 @@ class ReferenceArm:
         self.bowing = params.bowing
         # the cable run (eyelet q-1 to eyelet q) of each element
         self.elem_run = np.searchsorted(self.eye, np.arange(1, self.n + 1), side="left") - 1
-        self.gl_x, self.gl_w = np.polynomial.legendre.leggauss(16)
+        self.gl_x, self.gl_w = np.polynomial.legendre.leggauss(10)
         self.P = np.array(arr.P)
         self.y_rest = np.array(arr.y_rest)
         self.d_drive = float(arr.d_drive)
@@ -144,7 +144,7 @@ class ReferenceArm:
         """The bowing compliance ``H = sum_e int_e (h - mean_e h)^2 ds / EI``, m/N.
 
         ``h`` is the distance of element e's points from its cable run (the line through the run's two
-        eyelets), sampled at 16 Gauss-Legendre points per element. Batch over leading dimensions;
+        eyelets), sampled at 10 Gauss-Legendre points per element. Batch over leading dimensions;
         complex-safe.
         """
         if not self.bowing:
