@@ -66,8 +66,9 @@ STUDY_FILES = {
 RETUNED: dict[str, dict[str, float]] = {
     "mass": {"r": 7.943e-3, "k": 18629.0, "pretension": 2.534},
 }
-"""Layouts whose tuned unknowns were searched again (``rig_tuning.tune(layout=...)``, started from the previous
-values: objective 0.0369 for ``mass`` against 0.0590 for the rig's layout); :func:`damping_layouts` adds a re-tuned row for each."""
+"""Layouts whose tuned unknowns were searched again (``rig_tuning.tune(layout=...)``, started from the
+previous values: objective 0.0369 for ``mass`` against 0.0590 for the rig's layout); :func:`damping_layouts`
+adds a re-tuned row for each."""
 
 
 def _identified(params: RigParameters) -> tuple[float, float]:
