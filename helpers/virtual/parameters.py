@@ -475,7 +475,11 @@ _SOURCES: dict[str, tuple[str, str, str]] = {
     "span_n": ("N", "assumed", "4-20 mA over 0-20 N: Table II's 17.7 N reads 558 counts, nothing clips"),
     "adc_noise_counts": ("counts", "assumed", "0.5 count rms: the paper's unshaped 10 mm settling (1.2 s "
                          "in a +-0.13 N band) rules out 1 count (0.04 N) rms on this chain"),
-    "max_step": ("s", "numerical", "RK4 step: stable (limit ~0.6 ms) and within an ADC count of 25 us steps"),
+    "max_step": (
+        "s",
+        "numerical",
+        "RK4 step: within 90 % of the stability limit (0.30 ms at rest), within an ADC count of 25 us steps",
+    ),
 }
 
 
