@@ -175,8 +175,8 @@ def layout_damping(params: RigParameters, layout: str, zeta: float) -> RigParame
 def _two_lowest(params: RigParameters) -> tuple[float, float]:
     chain = ArcChain(params)
     q = model_arrays(params).q_rest
-    _, dl = chain.cable_grad(q)
-    K = chain.hessian(q, lam=params.pretension) + params.k * np.outer(dl, dl)
+    kap, g = chain.cable_tangent(q, params.pretension, params.k)
+    K = chain.hessian(q, lam=params.pretension) + kap * np.outer(g, g)
     w = np.sqrt(np.abs(linalg.eigh(K, chain.mass_matrix(q), eigvals_only=True)))
     return float(w[0]), float(w[1])
 

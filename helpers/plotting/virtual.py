@@ -78,17 +78,22 @@ def convergence(df: pd.DataFrame, tension_tol_pct: float = 1.0, omega_tol_pct: f
     Parameters
     ----------
     df : pandas.DataFrame
-        Columns ``u_mm``, ``tension_pct`` and ``omega_d_pct`` (the rig's deviation from the finer rod, %).
+        Columns ``u_mm``, ``tension_pct`` and ``omega_d_pct`` (the rig's deviation from the finer rod, %);
+        optionally ``plain_tension_pct`` and ``plain_omega_d_pct``, the same for the plain arc chain (no
+        bowing between eyelets), drawn dashed.
     tension_tol_pct, omega_tol_pct : float
         The convergence criteria, drawn as bands.
     """
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(7.0, 2.8))
     ax.axhspan(-tension_tol_pct, tension_tol_pct, color="0.9", label=f"+-{tension_tol_pct:g} %")
-    ax.plot(df["u_mm"], df["tension_pct"], "o-", ms=4)
+    ax.plot(df["u_mm"], df["tension_pct"], "o-", ms=4, label="the rig")
     ax.set_ylabel("static tension vs 4x finer (%)")
     ax2.axhspan(-omega_tol_pct, omega_tol_pct, color="0.9", label=f"+-{omega_tol_pct:g} %")
-    ax2.plot(df["u_mm"], df["omega_d_pct"], "o-", ms=4)
+    ax2.plot(df["u_mm"], df["omega_d_pct"], "o-", ms=4, label="the rig")
     ax2.set_ylabel("omega_d vs 4x finer (%)")
+    for a, col in ((ax, "plain_tension_pct"), (ax2, "plain_omega_d_pct")):
+        if col in df:
+            a.plot(df["u_mm"], df[col], "s--", ms=3, color="0.4", label="no bowing")
     for a in (ax, ax2):
         a.set_xlabel("cable displacement u (mm)")
         a.set_xticks(df["u_mm"])

@@ -26,6 +26,13 @@ floor); the cable through the clamp guide and the disc eyelets (force on eyelet 
 the guide and each eyelet (wrap angle ``beta_q`` between the incoming and outgoing runs, ``v_q`` the speed at
 which the cable slides through that eyelet towards the guide: the rate at which the runs beyond it shorten).
 
+Bowing between eyelets (``P[I_BOW] = l^3 / EI``, 0 = off): the arm-side cable's tension is
+``lambda_2 = e2 / (1/k2 + H(theta))`` with the compliance ``H = (l^3/EI) sum_e (P(D_e) + Q(D_e) sin^2 c_e)``
+of the part of the cable's moment that the arcs cannot carry (``c_e``: the angle between element e's chord and
+its cable run; 0 when a run is one element, ``P[I_BOWRUN] = 0``), i.e. the potential
+``e2^2 / (2 (1/k2 + H))``, whose ``theta``-gradient adds the generalised force ``(lambda_2^2 / 2) dH/dtheta``
+(with friction on, the bowing uses the tension at the guide).
+
 Actuator modes (``P[I_MODE]``):
 
 0. ideal: arm-side stretch ``e2 = u + ell - ell_ref``; ``u`` jumps by one step's cable at each step;
@@ -51,8 +58,9 @@ from numba import njit
 
 # packed parameter indices
 (I_L, I_R, I_TH0, I_G, I_ALPHA, I_KAP, I_K2, I_ELLREF, I_MODE, I_RSP, I_JR, I_TH, I_NR, I_CR, I_K1,
- I_S1REF, I_MC, I_CC, I_CDISC, I_MU, I_V0, I_TLAW, I_BILAT, I_MEAS, I_CCHORD) = range(25)  # fmt: skip
-N_PACKED = 25
+ I_S1REF, I_MC, I_CC, I_CDISC, I_MU, I_V0, I_TLAW, I_BILAT, I_MEAS, I_CCHORD, I_BOW,
+ I_BOWRUN) = range(27)  # fmt: skip
+N_PACKED = 27
 
 # series coefficients of the chord functions for |D| < 0.2, in x = D^2 (truncation < 1e-18)
 _NS = 8
@@ -62,6 +70,17 @@ _A1P = np.array([(-1.0) ** k * 2 * k / math.factorial(2 * k + 1) for k in range(
 _B2P = np.array([(-1.0) ** k * (2 * k + 1) / math.factorial(2 * k + 2) for k in range(_NS)])  # f2'
 _A1PP = np.array([(-1.0) ** k * 2 * k * (2 * k - 1) / math.factorial(2 * k + 1) for k in range(1, _NS + 1)])
 _B2PP = np.array([(-1.0) ** k * (2 * k + 1) * 2 * k / math.factorial(2 * k + 2) for k in range(1, _NS + 1)])
+# bowing shape factors P(D) = (1 + S1 - 2 S2) / (2 D^2), Q(D) = (S2 - S1) / D^2 (S1 = sin D / D,
+# S2 = 2 (1 - cos D) / D^2) as series in x = D^2 for |D| < 1 (truncation < 1e-14 relative)
+_NB = 9
+_S1C = np.array([(-1.0) ** j / math.factorial(2 * j + 1) for j in range(_NB + 1)])
+_S2C = np.array([2.0 * (-1.0) ** j / math.factorial(2 * j + 2) for j in range(_NB + 1)])
+_BP = 0.5 * (_S1C[1:] - 2.0 * _S2C[1:])  # P
+_BQ = _S2C[1:] - _S1C[1:]  # Q
+_BPD = np.array([2.0 * j * _BP[j] for j in range(1, _NB)])  # P' / D
+_BQD = np.array([2.0 * j * _BQ[j] for j in range(1, _NB)])  # Q' / D
+_BP7 = _BP[:7].copy()
+_BPD6 = _BPD[:6].copy()
 _SIN = np.array([(-1.0) ** k / math.factorial(2 * k + 1) for k in range(_NS)])  # sin D / D
 _COS = np.array([(-1.0) ** k / math.factorial(2 * k) for k in range(_NS)])  # cos D
 
@@ -103,6 +122,50 @@ def chord_funcs(D, sD, cD):
         f1pp = (-sD - 2.0 * f1p) * iD
         f2pp = (cD - 2.0 * f2p) * iD
     return f1, f2, f1p, f2p, f1pp, f2pp
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def bow_funcs(D, sD, cD):
+    """``P, P', Q, Q'``: shape factors of the bowing compliance of an arc turning by ``D``.
+
+    ``sD, cD`` = sin D, cos D. The arc's mean square distance from a line, about its mean, is
+    ``l^2 (P + Q sin^2 c)``, ``c`` the angle between its chord and the line.
+    """
+    if abs(D) < 1.0:
+        x = D * D
+        P = _horner(_BP, x)
+        Q = _horner(_BQ, x)
+        dP = D * _horner(_BPD, x)
+        dQ = D * _horner(_BQD, x)
+    else:
+        iD = 1.0 / D
+        S1 = sD * iD
+        S2 = 2.0 * (1.0 - cD) * iD * iD
+        dS1 = (cD - S1) * iD
+        dS2 = 2.0 * sD * iD * iD - 2.0 * S2 * iD
+        P = 0.5 * (1.0 + S1 - 2.0 * S2) * iD * iD
+        Q = (S2 - S1) * iD * iD
+        dP = 0.5 * (dS1 - 2.0 * dS2) * iD * iD - 2.0 * P * iD
+        dQ = (dS2 - dS1) * iD * iD - 2.0 * Q * iD
+    return P, dP, Q, dQ
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def bow_p(D, sD, cD):
+    """``P, P'`` of :func:`bow_funcs` alone (a cable run of one element: ``c = 0``).
+
+    Shorter series, for ``|D| < 0.8``: relative truncation and the closed form's cancellation beyond < 1e-12.
+    """
+    if abs(D) < 0.8:
+        x = D * D
+        return _horner(_BP7, x), D * _horner(_BPD6, x)
+    iD = 1.0 / D
+    S1 = sD * iD
+    S2 = 2.0 * (1.0 - cD) * iD * iD
+    dS1 = (cD - S1) * iD
+    dS2 = 2.0 * sD * iD * iD - 2.0 * S2 * iD
+    P = 0.5 * (1.0 + S1 - 2.0 * S2) * iD * iD
+    return P, 0.5 * (dS1 - 2.0 * dS2) * iD * iD - 2.0 * P * iD
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -154,9 +217,16 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
     o_i = 16 * n  # six articulated-inertia accumulators (16n .. 22n)
     o_p = 22 * n  # three bias-force accumulators (22n .. 25n)
     o_u = 25 * n  # U (3), 1/D, u  (25n .. 30n)
-    o_qt = 30 * n  # generalised forces on theta (constant and chord damping)
+    o_qt = 30 * n  # generalised forces on theta (constant and chord damping, bowing)
+    o_bp = 31 * n  # bowing: P, P', Q, Q' of each element, then d H / d(chord direction)
+    o_bdp = 32 * n
+    o_bq = 33 * n
+    o_bdq = 34 * n
+    o_bgt = 35 * n
     o_e = 40 * n  # eyelets: Ex, Ey, ux, uy, L, T, Evx, Evy (12 per eyelet)
     ne = nd + 1
+    bow = P[I_BOW]  # l^3 / EI, or 0: no bowing
+    bowrun = P[I_BOWRUN] != 0.0  # some cable run spans several elements
     # ---- outward pass 1: kinematics ----
     cp = math.cos(P[I_TH0])
     sp = math.sin(P[I_TH0])
@@ -171,8 +241,8 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         w = y[n + i]
         D = th - thp
         Dd = w - wp
-        if abs(D) < 0.2:
-            # rotate the previous tangent by D (series sin/cos, error < 1e-18): two libm calls fewer
+        if abs(D) < 0.6:
+            # rotate the previous tangent by D (series sin/cos, error < 2e-17): two libm calls fewer
             x = D * D
             sD = D * _horner(_SIN, x)
             cD = _horner(_COS, x)
@@ -185,6 +255,15 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
             cD = ci * cp + si * sp
         ws[o_c + i] = ci
         ws[o_s + i] = si
+        if bow != 0.0:
+            if bowrun:
+                bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
+                ws[o_bq + i] = bQ
+                ws[o_bdq + i] = bdQ
+            else:
+                bP, bdP = bow_p(D, sD, cD)
+            ws[o_bp + i] = bP
+            ws[o_bdp + i] = bdP
         f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
         chx = l_ * (cp * f1 - sp * f2)
         chy = l_ * (sp * f1 + cp * f2)
@@ -237,6 +316,37 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         ws[base + 4] = Lq
         ax = bx
         ay = by
+    # ---- bowing between eyelets: compliance H in series with the arm-side cable ----
+    # H = bow * sum_e (P(D_e) + Q(D_e) sin^2 c_e), c_e the angle between element e's chord and its run. A run
+    # of one element is symmetric (c = 0): H depends on its D alone. Otherwise d H / d c turns the run (forces
+    # on its two eyelets) and the element's chord (a force on theta_{e-1} and half of it on D_e).
+    hb = 0.0
+    if bow != 0.0:
+        if not bowrun:
+            for i in range(n):
+                hb += ws[o_bp + i]
+                ws[o_bdp + i] *= bow
+        else:
+            i = 0
+            for qq in range(1, ne):
+                base = o_e + 12 * qq
+                ux = ws[base + 2]
+                uy = ws[base + 3]
+                gam = 0.0
+                while i < disc[qq - 1]:
+                    cx = ws[o_wy + i]
+                    cy = -ws[o_wx + i]
+                    ic = 1.0 / math.sqrt(cx * cx + cy * cy)
+                    sc = (cx * uy - cy * ux) * ic
+                    cc = (cx * ux + cy * uy) * ic
+                    hb += ws[o_bp + i] + ws[o_bq + i] * sc * sc
+                    ws[o_bdp + i] = bow * (ws[o_bdp + i] + ws[o_bdq + i] * sc * sc)
+                    gt = -2.0 * bow * ws[o_bq + i] * sc * cc
+                    ws[o_bgt + i] = gt
+                    gam -= gt
+                    i += 1
+                ws[base + 9] = gam / ws[base + 4]  # d H / d gamma_q over the run's length
+        hb *= bow
     # ---- actuator and tensions ----
     mode = P[I_MODE]
     e1 = 0.0
@@ -249,7 +359,10 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         e1 = P[I_RSP] * y[2 * n] - y[2 * n + 2] - P[I_S1REF]
         lam1 = P[I_K1] * e1 if e1 > 0.0 else 0.0
         e2 = y[2 * n + 2] + ell - P[I_ELLREF]
-    lam2 = P[I_K2] * e2 if (e2 > 0.0 or P[I_BILAT] != 0.0) else 0.0
+    if e2 > 0.0 or P[I_BILAT] != 0.0:
+        lam2 = P[I_K2] * e2 if hb == 0.0 else e2 / (1.0 / P[I_K2] + hb)
+    else:
+        lam2 = 0.0
     # run tensions (capstan friction at the guide and the eyelets, regularised)
     mu = P[I_MU]
     T = lam2
@@ -305,6 +418,32 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         ws[o_fx + b] += Fx
         ws[o_fy + b] += Fy
         ws[o_fn + b] += -r * (ws[o_c + b] * Fx + ws[o_s + b] * Fy)
+    # bowing: generalised forces (lam2^2 / 2) dH (its potential is -lam2^2 H / 2 at the tension lam2)
+    if hb != 0.0 and lam2 != 0.0:
+        hl = 0.5 * lam2 * lam2
+        if not bowrun:
+            for i in range(n):
+                ws[o_q + i] += hl * ws[o_bdp + i]
+        else:
+            for i in range(n):
+                gt = ws[o_bgt + i]
+                ws[o_q + i] += hl * (ws[o_bdp + i] + 0.5 * gt)
+                if i > 0:
+                    ws[o_qt + i - 1] += hl * gt
+            # the runs' directions: d gamma_q = perp_q . (dE_q - dE_{q-1}) / L_q, perp = (-u_y, u_x)
+            for qq in range(1, ne):
+                b = disc[qq - 1] - 1
+                base = o_e + 12 * qq
+                g = hl * ws[base + 9]
+                Fx = -g * ws[base + 3]
+                Fy = g * ws[base + 2]
+                if qq + 1 < ne:
+                    g = hl * ws[base + 12 + 9]
+                    Fx += g * ws[base + 12 + 3]
+                    Fy -= g * ws[base + 12 + 2]
+                ws[o_fx + b] += Fx
+                ws[o_fy + b] += Fy
+                ws[o_fn + b] += -r * (ws[o_c + b] * Fx + ws[o_s + b] * Fy)
     # dashpots on the relative rotation of consecutive discs (clamp = disc 0)
     cd = P[I_CDISC]
     if cd != 0.0:
@@ -333,7 +472,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
             w0 = wpk
     # constant damping on theta' (the high-mode floor)
     nr = cw.shape[0]
-    if nr > 0 or cc_ != 0.0:
+    if nr > 0 or cc_ != 0.0 or (hb != 0.0 and bowrun):
         for k in range(nr):
             acc = 0.0
             for i in range(n):

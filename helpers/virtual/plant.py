@@ -126,7 +126,8 @@ class ArmPlant:
         """Kinetic + bending + gravitational + cable + motor energy now, J (dissipated by damping).
 
         Computed from the state in numpy (:class:`~helpers.virtual.statics.ArcChain`), independently of
-        the kernel: ``0.5 q'^T M(q) q' + sum EI/(2l) D^2 + g sum m y + the springs``.
+        the kernel: ``0.5 q'^T M(q) q' + sum EI/(2l) D^2 + g sum m y + the springs``; the arm-side cable's
+        spring is ``e^2 / (2 (1/k + H(q)))`` with the bowing compliance ``H``.
         """
         p = self.params
         a = self._arr
@@ -139,24 +140,28 @@ class ArmPlant:
         _, ypos = node_positions(p, q)
         gravity = p.g * float(np.sum(chain.m_nodes * ypos[1:]))
         ell = float(chain.cable_length(q))
+        c2 = 1.0 / a.P[kern.I_K2] + float(chain.bow_compliance(q)[0])  # arm-side cable and the bowing
         R = p.spool_radius
         psi, psid, xc, xcd = self._y[2 * n :]
 
         def spring(k: float, e: float) -> float:
             return 0.5 * k * e * e if e > 0 else 0.0
 
+        def arm_side(e: float) -> float:
+            return 0.5 * e * e / c2 if e > 0 else 0.0
+
         P = a.P
         if p.actuator == "ideal":
-            return kinetic + bending + gravity + spring(P[kern.I_K2], self.u + ell - P[kern.I_ELLREF])
+            return kinetic + bending + gravity + arm_side(self.u + ell - P[kern.I_ELLREF])
         if p.torque_law == "sin":
             motor = p.holding_torque / p.rotor_teeth * (1.0 - math.cos(p.rotor_teeth * (self._drive - psi)))
         else:
             motor = 0.5 * p.motor_stiffness * (self._drive - psi) ** 2
         rest = kinetic + bending + gravity + motor + 0.5 * p.drive_inertia * psid**2
         if p.actuator == "stepper":
-            return rest + spring(P[kern.I_K2], R * psi + ell - P[kern.I_ELLREF])
+            return rest + arm_side(R * psi + ell - P[kern.I_ELLREF])
         return (rest + 0.5 * p.carriage_mass * xcd**2 + spring(P[kern.I_K1], R * psi - xc - P[kern.I_S1REF])
-                + spring(P[kern.I_K2], xc + ell - P[kern.I_ELLREF]))  # fmt: skip
+                + arm_side(xc + ell - P[kern.I_ELLREF]))  # fmt: skip
 
     def shape(self) -> tuple[np.ndarray, np.ndarray]:
         """Current backbone node positions ``(x, y)`` in m, clamp first."""

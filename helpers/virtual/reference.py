@@ -8,8 +8,10 @@ The equations are written again here from the Lagrangian, independently of the O
 (:mod:`helpers.virtual._kernel`): node positions as sums of arc chords, the dense mass matrix
 ``M = sum m_j J_j^T J_j + diag(J)`` from the node Jacobians, the velocity-product terms
 ``sum m_j J_j^T (dJ_j/dt q')`` by a complex step of the Jacobian along ``q'``, the cable's gradient by a
-complex step of its length, and the amplifier as one more state (``tau y' = lambda - y``). Only the rest
-state, the cables' reference lengths and the constant high-mode damping matrix are taken from
+complex step of its length, the bowing compliance ``H`` in series with the arm-side cable
+(``docs/virtual_rig.md``) by Gauss-Legendre quadrature of the distances of the elements' points from their
+cable runs and its gradient by a complex step, and the amplifier as one more state (``tau y' = lambda - y``).
+Only the rest state, the cables' reference lengths and the constant high-mode damping matrix are taken from
 :func:`helpers.virtual.statics.model_arrays` (they are parameters of the equations, fixed by the same rules).
 The eyelet friction law is not implemented here (the rig is frictionless).
 """
@@ -69,6 +71,10 @@ class ReferenceArm:
         self.eye = np.concatenate([[0], params.eyelet_nodes()])
         self.th0 = params.base_angle
         self.kap = params.EI / self.l
+        self.bowing = params.bowing
+        # the cable run (eyelet q-1 to eyelet q) of each element
+        self.elem_run = np.searchsorted(self.eye, np.arange(1, self.n + 1), side="left") - 1
+        self.gl_x, self.gl_w = np.polynomial.legendre.leggauss(10)
         self.P = np.array(arr.P)
         self.y_rest = np.array(arr.y_rest)
         self.d_drive = float(arr.d_drive)
@@ -134,6 +140,42 @@ class ReferenceArm:
         d = np.diff(e, axis=-2)
         return np.sum(np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2), axis=-1)
 
+    def bow_compliance(self, q: np.ndarray) -> np.ndarray:
+        """The bowing compliance ``H = sum_e int_e (h - mean_e h)^2 ds / EI``, m/N.
+
+        ``h`` is the distance of element e's points from its cable run (the line through the run's two
+        eyelets), sampled at 10 Gauss-Legendre points per element. Batch over leading dimensions;
+        complex-safe.
+        """
+        if not self.bowing:
+            return np.zeros(np.shape(q)[:-1])
+        base = np.full(np.shape(q)[:-1] + (1,), self.th0)
+        th = np.concatenate([base, q], axis=-1)
+        p = self.nodes(q)
+        ang = th[..., self.eye]
+        e = p[..., self.eye, :] + self.params.r * np.stack([-np.sin(ang), np.cos(ang)], axis=-1)
+        d = np.diff(e, axis=-2)
+        length = np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2)
+        n_run = np.stack([-d[..., 1], d[..., 0]], axis=-1) / length[..., None]
+        sig = 0.5 * (self.gl_x + 1.0)  # quadrature points along each element, s / l
+        wts = 0.5 * self.gl_w
+        D = (th[..., 1:] - th[..., :-1])[..., None] * sig  # turning up to each point
+        f1, f2, _, _ = _chord(D)
+        c0, s0 = np.cos(th[..., :-1])[..., None], np.sin(th[..., :-1])[..., None]
+        px = p[..., :-1, 0, None] + self.l * sig * (c0 * f1 - s0 * f2)
+        py = p[..., :-1, 1, None] + self.l * sig * (s0 * f1 + c0 * f2)
+        start = e[..., :-1, :][..., self.elem_run, :]
+        nr = n_run[..., self.elem_run, :]
+        h = (px - start[..., 0, None]) * nr[..., 0, None] + (py - start[..., 1, None]) * nr[..., 1, None]
+        dev = h - (h * wts).sum(-1)[..., None]
+        return self.l * ((dev * dev) * wts).sum(-1).sum(-1) / self.params.EI
+
+    def bow_grad(self, q: np.ndarray) -> tuple[float, np.ndarray]:
+        """The bowing compliance and its gradient (complex step)."""
+        h = 1e-30
+        grad = self.bow_compliance(q[None, :] + 1j * h * np.eye(self.n)).imag / h
+        return float(self.bow_compliance(q)), grad
+
     def cable_grad(self, q: np.ndarray) -> tuple[float, np.ndarray]:
         """Cable length and its gradient (complex step, exact to round-off)."""
         h = 1e-30
@@ -141,7 +183,9 @@ class ReferenceArm:
         return float(self.cable_length(q)), grad
 
     # --- dynamics ---------------------------------------------------------------------------------
-    def _tensions(self, y: np.ndarray, drive: float, ell: float) -> tuple[float, float, float, float]:
+    def _tensions(
+        self, y: np.ndarray, drive: float, ell: float, bow: float
+    ) -> tuple[float, float, float, float]:
         P, n = self.P, self.n
         mode = P[kern.I_MODE]
         e1 = lam1 = 0.0
@@ -153,7 +197,7 @@ class ReferenceArm:
             e1 = P[kern.I_RSP] * y[2 * n] - y[2 * n + 2] - P[kern.I_S1REF]
             lam1 = P[kern.I_K1] * e1 if e1 > 0 else 0.0
             e2 = y[2 * n + 2] + ell - P[kern.I_ELLREF]
-        lam2 = P[kern.I_K2] * e2 if e2 > 0 else 0.0
+        lam2 = e2 / (1.0 / P[kern.I_K2] + bow) if e2 > 0 else 0.0
         return e1, e2, lam1, lam2
 
     def _measured(self, lam1: float, lam2: float) -> float:
@@ -175,8 +219,10 @@ class ReferenceArm:
         q_el[:-1] += tau_b[1:]
         q_g = -p.g * np.einsum("j,ji->i", self.m, J[:, 1, :])
         ell, dl = self.cable_grad(q)
-        e1, e2, lam1, lam2 = self._tensions(y, drive, ell)
-        Q = q_el + q_g - lam2 * dl - p.alpha * (M @ w) - self.C_struct @ w
+        bow, dbow = self.bow_grad(q)
+        e1, e2, lam1, lam2 = self._tensions(y, drive, ell, bow)
+        # the arm-side spring's energy is e2^2 / (2 (1/k2 + H)): -dV/dq = -lam2 dl + lam2^2 dH / 2
+        Q = q_el + q_g - lam2 * dl + 0.5 * lam2**2 * dbow - p.alpha * (M @ w) - self.C_struct @ w
         acc = np.linalg.solve(M, Q - bias)
         out = np.zeros_like(y)
         out[:n] = w
@@ -197,12 +243,15 @@ class ReferenceArm:
 
     def stretches(self, y: np.ndarray, drive: float) -> tuple[float, float]:
         """Stretches ``(e1, e2)`` of the spool-side and the arm-side cable (taut when positive)."""
-        e1, e2, _, _ = self._tensions(y, drive, float(self.cable_length(y[: self.n])))
+        q = y[: self.n]
+        e1, e2, _, _ = self._tensions(y, drive, float(self.cable_length(q)), float(self.bow_compliance(q)))
         return e1, e2
 
     def measured(self, y: np.ndarray, drive: float) -> tuple[float, float]:
         """``(amplifier output, true measured tension)`` in state ``y``."""
-        _, _, lam1, lam2 = self._tensions(y, drive, float(self.cable_length(y[: self.n])))
+        q = y[: self.n]
+        ell, bow = float(self.cable_length(q)), float(self.bow_compliance(q))
+        _, _, lam1, lam2 = self._tensions(y, drive, ell, bow)
         raw = self._measured(lam1, lam2)
         return (float(y[-1]) if self.tau > 0 else raw), raw
 

@@ -2,9 +2,11 @@
 
 :class:`ArcChain` is the arm of ``docs/virtual_rig.md`` written as plain (vectorised, complex-step safe)
 numpy: ``N`` constant-curvature elements, coordinates the tangent angles at the element ends, the discs
-turning with the rod, the cable straight from eyelet to eyelet. Exact Hessians of the potential come from
-the complex-step method (``h = 1e-30``: no subtractive cancellation), the mass matrix from the node
-Jacobians in closed form, so the printed frequencies do not depend on round-off (BLAS threads, CPU).
+turning with the rod, the cable straight from eyelet to eyelet, and the rod's bowing away from the cable
+between eyelets as a compliance ``H(q)`` in series with the cable (:meth:`ArcChain.bow_compliance`). Exact
+Hessians of the potential come from the complex-step method (``h = 1e-30``: no subtractive cancellation),
+the mass matrix from the node Jacobians in closed form, so the printed frequencies do not depend on round-off
+(BLAS threads, CPU).
 
 - :func:`model_arrays` packs a :class:`~helpers.virtual.parameters.RigParameters` into the arrays of the
   compiled kernel (:mod:`helpers.virtual._kernel`), with the rest state: "at cable position 0 the arm rests
@@ -93,6 +95,63 @@ def chord_functions(D: np.ndarray, order: int = 1) -> tuple[np.ndarray, ...]:
     return tuple(out)
 
 
+_BOW_SERIES = 16  # |D| < 2: truncation below 1e-20 of the leading term
+
+
+def _bow_coefficients() -> tuple[np.ndarray, np.ndarray]:
+    """Taylor coefficients (in ``D^2``) of :func:`bow_functions`' ``P`` and ``Q``."""
+    a = np.array([(-1.0) ** j / math.factorial(2 * j + 1) for j in range(_BOW_SERIES + 2)])  # sin D / D
+    b = np.array([2.0 * (-1.0) ** j / math.factorial(2 * j + 2) for j in range(_BOW_SERIES + 2)])  # S2
+    return 0.5 * (a[1:-1] - 2.0 * b[1:-1]), b[1:-1] - a[1:-1]
+
+
+_BOW_P, _BOW_Q = _bow_coefficients()
+
+
+def bow_functions(D: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The shape factors of the bowing compliance of an arc turning by ``D``, and their derivatives.
+
+    An arc of length ``l`` turning by ``D`` whose mid-tangent makes the angle ``c`` with a straight line
+    (the cable run) has ``(1/l) int (h - mean h)^2 ds = l^2 (P(D) + Q(D) sin^2 c)``, ``h`` the distance of
+    the arc's points from the line: ``P = (1 + S1 - 2 S2) / (2 D^2)``, ``Q = (S2 - S1) / D^2`` with
+    ``S1 = sin D / D``, ``S2 = 2 (1 - cos D) / D^2``; ``P = D^2/720 - ...``, ``Q = 1/12 - D^2/180 + ...``.
+    Taylor series for ``|Re D| < 2``, the closed form beyond; complex arguments supported.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(P, Q, P', Q')``.
+    """
+    D = np.asarray(D)
+    small = np.abs(D.real) < 2.0
+    x = np.where(small, D, 0.0) ** 2
+    Ps = np.zeros_like(x)
+    Qs = np.zeros_like(x)
+    dPs = np.zeros_like(x)
+    dQs = np.zeros_like(x)
+    for j in range(_BOW_SERIES - 1, -1, -1):  # Horner in x = D^2; derivatives d/dD = 2 D d/dx
+        Ps = Ps * x + _BOW_P[j]
+        Qs = Qs * x + _BOW_Q[j]
+        if j >= 1:
+            dPs = dPs * x + j * _BOW_P[j]
+            dQs = dQs * x + j * _BOW_Q[j]
+    Ds = np.where(small, D, 0.0)
+    dPs = 2.0 * Ds * dPs
+    dQs = 2.0 * Ds * dQs
+    Dl = np.where(small, 3.0, D)
+    s, c = np.sin(Dl), np.cos(Dl)
+    S1 = s / Dl
+    S2 = 2.0 * (1.0 - c) / Dl**2
+    dS1 = (c - S1) / Dl
+    dS2 = (2.0 * s / Dl**2) - 2.0 * S2 / Dl
+    Pl = (1.0 + S1 - 2.0 * S2) / (2.0 * Dl**2)
+    Ql = (S2 - S1) / Dl**2
+    dPl = (dS1 - 2.0 * dS2) / (2.0 * Dl**2) - 2.0 * Pl / Dl
+    dQl = (dS2 - dS1) / Dl**2 - 2.0 * Ql / Dl
+    return (np.where(small, Ps, Pl), np.where(small, Qs, Ql), np.where(small, dPs, dPl),
+            np.where(small, dQs, dQl))  # fmt: skip
+
+
 class ArcChain:
     """The arm's geometry, potential and matrices for coordinates ``q`` = tangent angles ``theta_1..theta_N``.
 
@@ -113,6 +172,10 @@ class ArcChain:
         self.disc_nodes = params.disc_nodes()
         self.eye_nodes = np.concatenate([[0], params.eyelet_nodes()])  # the clamp guide first
         self.kap = params.EI / self.l
+        # interval (cable run) of each element: run q goes from eyelet q-1 to eyelet q (the guide is 0)
+        self.element_run = np.searchsorted(self.eye_nodes, np.arange(1, self.N + 1), side="left") - 1
+        self._run_sum = (self.element_run[:, None] == np.arange(len(self.eye_nodes) - 1)).astype(float)
+        self.bow_scale = self.l**3 / params.EI if params.bowing else 0.0
 
     # --- geometry ---------------------------------------------------------------------------------
     def full_angles(self, q: np.ndarray) -> np.ndarray:
@@ -192,6 +255,53 @@ class ArcChain:
         g_ang[..., self.eye_nodes[1:] - 1] += dang[..., 1:]
         return lengths.sum(-1), self._map_forces(geo, G_node, g_ang)
 
+    def bow_compliance(self, q: np.ndarray, geo: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Compliance of the rod's bowing between eyelets, in series with the cable (m/N), and its gradient.
+
+        Between two eyelets the cable runs straight and loads the rod with its tension ``T`` along that line
+        at the distance ``h(s)`` from it: the moment ``T h(s)``. A constant-curvature element carries only
+        its mean; the rest, ``T (h - mean h)`` over each element, bends the rod further and shortens the
+        cable's path by ``T H``, ``H = sum_e int_e (h - mean_e h)^2 ds / EI`` (the complementary energy of
+        the moment the elements cannot carry; ``docs/virtual_rig.md``). Zero if ``params.bowing`` is off.
+        """
+        q = np.asarray(q)
+        geo = self.geometry(q) if geo is None else geo
+        th = geo["theta"]
+        D = th[..., 1:] - th[..., :-1]
+        tm = th[..., :-1] + 0.5 * D  # direction of each element's chord
+        ang = th[..., self.eye_nodes]
+        r = self.params.r
+        E = geo["p"][..., self.eye_nodes, :] + r * np.stack([-np.sin(ang), np.cos(ang)], axis=-1)
+        d = E[..., 1:, :] - E[..., :-1, :]
+        Lr = np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2)
+        u = d / Lr[..., None]
+        ue = u[..., self.element_run, :]
+        ct, st = np.cos(tm), np.sin(tm)
+        sc = ct * ue[..., 1] - st * ue[..., 0]  # sin(gamma - tm), gamma the run's direction
+        cc = ct * ue[..., 0] + st * ue[..., 1]
+        P, Q, dP, dQ = bow_functions(D)
+        k = self.bow_scale
+        H = k * (P + Q * sc**2).sum(-1)
+        g_D = k * (dP + dQ * sc**2)
+        g_s = 2.0 * k * Q * sc
+        g_t = -g_s * cc  # d/d(tm); d/d(gamma) is the opposite
+        grad = np.zeros(q.shape, dtype=H.dtype)
+        grad = grad + g_D + 0.5 * g_t  # theta_e (end of element e)
+        grad[..., :-1] += -g_D[..., 1:] + 0.5 * g_t[..., 1:]  # theta_{e-1} of element e (theta_0 fixed)
+        # gamma_q = atan2(d_q): d gamma = perp . (dE_q - dE_{q-1}) / L_q, perp = (-u_y, u_x)
+        Gam = -g_t @ self._run_sum  # d H / d gamma, summed over each run's elements
+        w = (Gam / Lr)[..., None] * np.stack([-u[..., 1], u[..., 0]], axis=-1)
+        dE = np.zeros_like(E, dtype=w.dtype)
+        dE[..., 1:, :] += w
+        dE[..., :-1, :] -= w
+        dE[..., 0, :] = 0.0  # the guide is fixed
+        G_node = np.zeros(geo["p"].shape, dtype=dE.dtype)
+        G_node[..., self.eye_nodes, :] = dE
+        tvec = np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+        g_ang = np.zeros(q.shape, dtype=dE.dtype)
+        g_ang[..., self.eye_nodes[1:] - 1] += -r * (tvec * dE).sum(-1)[..., 1:]
+        return H, grad + self._map_forces(geo, G_node, g_ang)
+
     def elastic_grad(self, q: np.ndarray) -> np.ndarray:
         """Gradient of the bending energy ``sum EI/(2 l) D_i^2`` (exact for arcs)."""
         th = self.full_angles(q)
@@ -227,13 +337,33 @@ class ArcChain:
         q = np.asarray(q)
         geo = self.geometry(q)
         ell, dl = self.cable_grad(q, geo)
+        H, dH = self.bow_compliance(q, geo)
         if lam is None:
             e = u + ell - ell_ref
-            lam_ = np.where((np.real(e) > 0) | bilateral, k * e, 0.0)
+            lam_ = np.where((np.real(e) > 0) | bilateral, e / (1.0 / k + H), 0.0)
         else:
             lam_ = np.full(np.shape(ell), lam, dtype=float)
-        grad = self.elastic_grad(q) + self.gravity_grad(q, geo, g) + lam_[..., None] * dl
+        grad = (self.elastic_grad(q) + self.gravity_grad(q, geo, g) + lam_[..., None] * dl
+                - 0.5 * lam_[..., None] ** 2 * dH)  # fmt: skip
         return grad, lam_
+
+    def cable_tangent(self, q: np.ndarray, lam: float, k: float) -> tuple[float, np.ndarray]:
+        """The tangent of a cable of stiffness ``k`` (N/m) at tension ``lam`` through the arm in shape ``q``.
+
+        With the bowing compliance ``H`` in series, the tension is ``e / (1/k + H(q))`` for a stretch ``e``,
+        and it changes by ``kappa (g . dq + de)`` (``de``: the stretch imposed at the far end).
+
+        Returns
+        -------
+        kappa : float
+            ``1 / (1/k + H)``, N/m.
+        g : numpy.ndarray
+            ``d ell/dq - lam dH/dq``, m/rad.
+        """
+        geo = self.geometry(q)
+        _, dl = self.cable_grad(q, geo)
+        H, dH = self.bow_compliance(q, geo)
+        return float(1.0 / (1.0 / k + H)), dl - lam * dH
 
     def hessian(self, q: np.ndarray, **kwargs: object) -> np.ndarray:
         """Exact Hessian of the potential (complex step on the gradient, one batched call), symmetrised."""
@@ -386,8 +516,8 @@ def floor_damping(chain: ArcChain, q_rest: np.ndarray, tension: float) -> tuple[
     p = chain.params
     if p.floor_zeta == 0.0:
         return np.zeros((0, chain.N)), np.zeros(0)
-    _, dl = chain.cable_grad(q_rest)
-    K = chain.hessian(q_rest, lam=tension) + p.k * np.outer(dl, dl)
+    kap, g = chain.cable_tangent(q_rest, tension, p.k)
+    K = chain.hessian(q_rest, lam=tension) + kap * np.outer(g, g)
     M = chain.mass_matrix(q_rest)
     w2, V = linalg.eigh(K, M)
     om = np.sqrt(np.abs(w2))
@@ -408,6 +538,7 @@ def model_arrays(params: RigParameters) -> KernelArrays:
     lam0 = p.pretension
     q_rest = chain.rest_shape(lam0)
     ell0 = float(chain.cable_length(q_rest))
+    h0 = float(chain.bow_compliance(q_rest)[0])  # the bowing's share of the arm-side stretch
     W, cw = floor_damping(chain, q_rest, lam0)
     P = np.zeros(kern.N_PACKED)
     P[kern.I_L] = chain.l
@@ -418,6 +549,8 @@ def model_arrays(params: RigParameters) -> KernelArrays:
     P[kern.I_KAP] = chain.kap
     P[kern.I_CDISC] = p.beta_disc * p.EI / p.disc_interval
     P[kern.I_CCHORD] = p.beta_chord * p.EI / p.disc_interval
+    P[kern.I_BOW] = chain.bow_scale
+    P[kern.I_BOWRUN] = 1.0 if np.any(np.diff(chain.eye_nodes) > 1) else 0.0
     P[kern.I_MU] = p.eyelet_mu
     P[kern.I_V0] = p.eyelet_v0
     R = p.spool_radius
@@ -432,7 +565,7 @@ def model_arrays(params: RigParameters) -> KernelArrays:
     if p.actuator == "ideal":
         P[kern.I_MODE] = 0.0
         P[kern.I_K2] = p.k
-        P[kern.I_ELLREF] = ell0 - lam0 / p.k
+        P[kern.I_ELLREF] = ell0 - lam0 * (1.0 / p.k + h0)
         d_drive = p.cable_per_step
     else:
         psi0 = -p.static_lag(lam0)
@@ -446,12 +579,12 @@ def model_arrays(params: RigParameters) -> KernelArrays:
         if p.actuator == "stepper":
             P[kern.I_MODE] = 1.0
             P[kern.I_K2] = p.k_cable
-            P[kern.I_ELLREF] = R * psi0 + ell0 - lam0 / p.k_cable
+            P[kern.I_ELLREF] = R * psi0 + ell0 - lam0 * (1.0 / p.k_cable + h0)
         else:
             P[kern.I_MODE] = 2.0
             P[kern.I_K1] = p.k_spool_side
             P[kern.I_K2] = p.k_arm_side
-            P[kern.I_ELLREF] = ell0 - lam0 / p.k_arm_side
+            P[kern.I_ELLREF] = ell0 - lam0 * (1.0 / p.k_arm_side + h0)
             P[kern.I_S1REF] = R * psi0 - lam0 / p.k_spool_side
             P[kern.I_MC] = p.carriage_mass
             P[kern.I_CC] = p.carriage_damping
@@ -506,7 +639,8 @@ def _make_eq(params: RigParameters, u: float, q: np.ndarray, tension: float) -> 
 def _spring(params: RigParameters) -> dict[str, float]:
     arr = model_arrays(params)
     k = _static_stiffness(params)
-    return {"k": k, "ell_ref": arr.ell_rest - params.pretension / k}
+    h0 = float(_chain(params).bow_compliance(arr.q_rest)[0])
+    return {"k": k, "ell_ref": arr.ell_rest - params.pretension * (1.0 / k + h0)}
 
 
 def _continue(params: RigParameters, q: np.ndarray, u0: float, u1: float, du_max: float = 1e-3) -> np.ndarray:
@@ -520,8 +654,9 @@ def _continue(params: RigParameters, q: np.ndarray, u0: float, u1: float, du_max
 
 def _tension_at(params: RigParameters, q: np.ndarray, u: float) -> float:
     spring = _spring(params)
-    e = u + float(_chain(params).cable_length(q)) - spring["ell_ref"]
-    return spring["k"] * e if e > 0 else 0.0
+    chain = _chain(params)
+    e = u + float(chain.cable_length(q)) - spring["ell_ref"]
+    return e / (1.0 / spring["k"] + float(chain.bow_compliance(q)[0])) if e > 0 else 0.0
 
 
 def equilibrium(params: RigParameters, u: float, du_max: float = 1.0e-3) -> Equilibrium:
@@ -548,7 +683,8 @@ def equilibrium_at_tension(params: RigParameters, tension: float, n_stages: int 
         lam = params.pretension + (tension - params.pretension) * i / n_stages
         q = chain.newton(q, lam=lam)
     spring = _spring(params)
-    u = tension / spring["k"] - float(chain.cable_length(q)) + spring["ell_ref"]
+    h = float(chain.bow_compliance(q)[0])
+    u = tension * (1.0 / spring["k"] + h) - float(chain.cable_length(q)) + spring["ell_ref"]
     return _make_eq(params, u, q, tension)
 
 
@@ -682,12 +818,11 @@ def linearise(
     N = chain.N
     bil = lam <= 1e-12
     Hl = chain.hessian(q, lam=lam)
-    _, dl = chain.cable_grad(q)
     M_arm = chain.mass_matrix(q)
     C_arm = chain.damping_matrix(q, M_arm, floor)
     R = p.spool_radius
     if p.actuator == "ideal" or (p.actuator == "stepper" and rotor == "locked"):
-        kc = p.k if p.actuator == "ideal" else p.k_cable
+        kc, dl = chain.cable_tangent(q, lam, p.k if p.actuator == "ideal" else p.k_cable)
         kc = kc if (lam > 0 or bil) else 0.0
         K = Hl + kc * np.outer(dl, dl)
         bf = -kc * dl
@@ -706,7 +841,7 @@ def linearise(
         Km = p.tangent_motor_stiffness(p.static_lag(lam)) if free else 0.0
         ir = N if free else -1
         if not carriage:  # stepper, rotor free
-            kc = p.k_cable
+            kc, dl = chain.cable_tangent(q, lam, p.k_cable)
             K[:N, :N] = Hl + kc * np.outer(dl, dl)
             K[:N, ir] = K[ir, :N] = kc * R * dl
             K[ir, ir] = kc * R**2 + Km
@@ -715,7 +850,8 @@ def linearise(
             bf[ir] = Km
             cvec = np.concatenate([kc * dl, [kc * R]])
         else:
-            k1, k2 = p.k_spool_side, p.k_arm_side
+            k1 = p.k_spool_side
+            k2, dl = chain.cable_tangent(q, lam, p.k_arm_side)
             ic = n - 1
             K[:N, :N] = Hl + k2 * np.outer(dl, dl)
             K[:N, ic] = K[ic, :N] = k2 * dl
