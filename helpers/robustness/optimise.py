@@ -254,6 +254,7 @@ def optimise_shaper(
     q: float = 95.0,
     max_iter: int = 3000,
     name: str = "robust",
+    extra_starts: Iterable[Shaper] = (),
 ) -> TunedShaper:
     """``n_impulses`` positive impulses within ``duration_s`` that minimise the percentile residual.
 
@@ -273,6 +274,8 @@ def optimise_shaper(
         Nelder-Mead iterations per stage and start.
     name : str
         The result's name.
+    extra_starts : iterable of Shaper
+        Further starts (compressed to the cap if longer), e.g. the optimum at a shorter cap.
 
     Returns
     -------
@@ -291,6 +294,7 @@ def optimise_shaper(
         starts.append(_as_n_impulses(s, n_impulses, duration_s))
     binomial = np.array([math.comb(n_impulses - 1, k) for k in range(n_impulses)], float)
     starts.append((binomial / binomial.sum(), np.linspace(0.0, duration_s, n_impulses)))
+    starts += [_as_n_impulses(s, n_impulses, duration_s) for s in extra_starts]
 
     def tail_mean(x: np.ndarray) -> float:
         r = free.residuals(x)
@@ -400,8 +404,11 @@ def robust_designs(
     ranked = [designs[f"{f.lower().replace(' ', '-')}-tuned"] for f in compared]
     best = min(ranked, key=lambda d: d.objective_pct)
     longest = max(ranked, key=lambda d: d.duration)
-    for name, cap in (("robust-equal", best.duration), ("robust-long", longest.duration)):
-        designs[name] = optimise_shaper(sample, cap, w_id, z_id, n_impulses, q, max_iter, name)
+    equal = optimise_shaper(sample, best.duration, w_id, z_id, n_impulses, q, max_iter, "robust-equal")
+    designs["robust-equal"] = equal
+    # the longer cap also starts from the shorter optimum, so it is never worse
+    designs["robust-long"] = optimise_shaper(sample, longest.duration, w_id, z_id, n_impulses, q, max_iter,
+                                             "robust-long", extra_starts=[equal.shaper])  # fmt: skip
     notes = {
         "robust-equal": f"capped at the duration of the best compared family ({best.name})",
         "robust-long": f"capped at the duration of the longest compared family ({longest.name})",

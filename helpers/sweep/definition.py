@@ -85,8 +85,8 @@ class Parameter:
     high: float
     integer: bool = False
 
-    def check(self, name: str, value: Any) -> float | int:
-        """``value`` as a number in range, or ``ValueError`` naming the parameter."""
+    def check(self, name: str, value: Any, where: str = "sweep definition") -> float | int:
+        """``value`` as a number in range, or ``ValueError`` naming the definition and the parameter."""
         ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
         ok = ok and math.isfinite(float(value)) and self.low <= float(value) <= self.high
         if ok and self.integer and float(value) != int(value):
@@ -94,7 +94,7 @@ class Parameter:
         if not ok:
             kind = "a whole number" if self.integer else "a number"
             raise ValueError(
-                f"sweep parameter {name} must be {kind} in [{self.low:g}, {self.high:g}], got {value!r}"
+                f"{where}: {name} must be {kind} in [{self.low:g}, {self.high:g}], got {value!r}"
             )
         return int(value) if self.integer else float(value)
 
@@ -199,7 +199,7 @@ class SweepDefinition:
             param = _parameter(name, where)
             if not isinstance(values, list | tuple) or not values:
                 raise ValueError(f"{where}: grid.{name} must be a non-empty list of values")
-            checked = tuple(param.check(name, v) for v in values)
+            checked = tuple(param.check(name, v, where) for v in values)
             if len(set(checked)) != len(checked):
                 raise ValueError(f"{where}: grid.{name} repeats a value")
             grid[name] = checked
@@ -210,7 +210,7 @@ class SweepDefinition:
             param = _parameter(name, where)
             if name in grid or (self.sample and name in self.sample["distributions"]):
                 raise ValueError(f"{where}: {name} is fixed and also on the grid or in the sample")
-            fixed[name] = param.check(name, value)
+            fixed[name] = param.check(name, value, where)
         object.__setattr__(self, "fixed", fixed)
         if isinstance(self.chunk_runs, bool) or not isinstance(self.chunk_runs, int) or self.chunk_runs < 1:
             raise ValueError(f"{where}: chunk_runs must be a positive integer, got {self.chunk_runs!r}")
@@ -432,14 +432,14 @@ def _check_sample(sample: Any, on_grid: set[str], where: str) -> dict[str, Any] 
         if not isinstance(args, list | tuple) or not args:
             raise ValueError(f"{where}: sample.distributions.{name}.{kind} needs a list of numbers")
         if kind == "uniform":
-            if len(args) != 2 or param.check(name, args[0]) > param.check(name, args[1]):
+            if len(args) != 2 or param.check(name, args[0], where) > param.check(name, args[1], where):
                 raise ValueError(f"{where}: sample.distributions.{name}.uniform must be [low, high]")
         elif kind == "normal":
             ok = len(args) == 2 and all(isinstance(a, int | float) and math.isfinite(a) for a in args)
             if not ok or args[1] < 0:
                 raise ValueError(f"{where}: sample.distributions.{name}.normal must be [mean, sd >= 0]")
         else:
-            [param.check(name, a) for a in args]
+            [param.check(name, a, where) for a in args]
         out[name] = {kind: [float(a) for a in args]}
     return {"n": int(n), "seed": int(seed), "distributions": out}
 

@@ -84,21 +84,24 @@ class SweepReport:
 
 
 @contextmanager
-def local_client(workers: int | None = None, threads: int = 1) -> Iterator[Any]:
-    """A local Dask cluster of ``workers`` processes (default: the cores) and its client, closed after.
+def local_client(workers: int | None = None, threads: int = 1, processes: bool = True) -> Iterator[Any]:
+    """A local Dask cluster of ``workers`` workers (default: the cores) and its client, closed after.
 
     Parameters
     ----------
     workers : int, optional
-        Worker processes.
+        Workers.
     threads : int
         Threads per worker.
+    processes : bool
+        Each worker in its own process (the default; False: threads of this process, which start at once and
+        suit short tests, the kernels releasing the GIL).
     """
     from distributed import Client, LocalCluster  # noqa: PLC0415 - Dask loads only where a sweep runs
 
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=threads, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)  # fmt: skip
+    cluster = LocalCluster(n_workers=n, threads_per_worker=threads, processes=processes,
+                           dashboard_address=":0", silence_logs=logging.ERROR)  # fmt: skip
     client = Client(cluster)
     try:
         yield client

@@ -3,7 +3,8 @@
 The compiled kernels release the GIL (``nogil=True``), so plants integrate in parallel in threads of one
 process. :func:`run_batch` runs a list of :class:`BatchRun` on ``threads`` threads; each thread keeps its own
 :class:`~helpers.virtual.plant.ArmPlant` per distinct :class:`~helpers.virtual.parameters.RigParameters`
-(:class:`PlantPool`) and :func:`~helpers.virtual.simulate.simulate` resets it before every run, so a result
+(:class:`PlantPool`; the threads themselves are kept for the process, so plants outlive a call) and
+:func:`~helpers.virtual.simulate.simulate` resets it before every run, so a result
 depends only on its run, never on the thread, the order or the thread count (the same bits as a fresh
 plant). An optional ``reduce`` function turns each :class:`~helpers.virtual.simulate.SimResult` into what
 the caller keeps (for example a few metrics), in the same thread, so a batch holds no more time series than
@@ -137,6 +138,18 @@ class PlantPool:
 _SHARED_POOL = PlantPool()
 """The pool :func:`run_batch` uses by default: plants survive from one batch to the next in a process."""
 
+_EXECUTORS: dict[int, ThreadPoolExecutor] = {}
+_EXECUTORS_LOCK = threading.Lock()
+
+
+def _executor(threads: int) -> ThreadPoolExecutor:
+    """A thread pool of ``threads`` kept for the process, so its threads (and their plants) are reused."""
+    with _EXECUTORS_LOCK:
+        ex = _EXECUTORS.get(threads)
+        if ex is None:
+            ex = _EXECUTORS[threads] = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="rig-batch")
+        return ex
+
 
 def run_batch(
     runs: Sequence[BatchRun],
@@ -192,8 +205,7 @@ def run_batch(
     if threads == 1 or len(runs) <= 1:
         results = [one(r) for r in runs]
     else:
-        with ThreadPoolExecutor(max_workers=min(threads, len(runs))) as ex:
-            results = list(ex.map(one, runs))
+        results = list(_executor(threads).map(one, runs))
     stats.wall_s = time.perf_counter() - start
     stats.plants_built = pool.built - built0
     stats.build_s = pool.build_s - build0
