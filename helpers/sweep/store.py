@@ -40,7 +40,14 @@ from helpers.virtual import RigParameters
 __all__ = ["Parts", "assemble", "code_version", "physics_fingerprint", "write_dataset", "load_sweep"]
 
 PHYSICS_SOURCES = REPO_ROOT / "helpers" / "virtual"
-"""The virtual rig's code: its source files enter the physics fingerprint."""
+"""The virtual rig's code: its source files enter the physics fingerprint (but :data:`NOT_PHYSICS`)."""
+
+NOT_PHYSICS = frozenset({"__init__.py", "batch.py", "reference.py"})
+"""Files of the virtual rig that do not change what a run computes (exports, the batch runner, the
+``solve_ivp`` oracle)."""
+
+BACKBONE_SOURCE = REPO_ROOT / "helpers" / "backbone.py"
+"""The backbone shared with the linear model (the rig's parameters derive from it)."""
 
 
 def code_version() -> str:
@@ -69,7 +76,9 @@ def physics_fingerprint() -> str:
     Two sweeps with the same fingerprint ran the same physics; a parts folder with another is not resumed.
     """
     h = hashlib.sha256()
-    for path in sorted(PHYSICS_SOURCES.glob("*.py")):
+    for path in [*sorted(PHYSICS_SOURCES.glob("*.py")), BACKBONE_SOURCE]:
+        if path.name in NOT_PHYSICS:
+            continue
         h.update(path.name.encode())
         h.update(path.read_bytes())
     h.update(json.dumps(rig_dict(), sort_keys=True).encode())
