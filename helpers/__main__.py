@@ -29,6 +29,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("helpers.reproduce", "execute every notebook in order; regenerate figures/ and tables"),
     "record": ("helpers.record", "record experiments into data/ (hardware or virtual rig)"),
     "metrics": ("helpers.table2", "Table II metrics (peak, overshoot, settling) of any recordings"),
+    "tune": ("helpers.tune", "measure the modes across configurations, design shapers, verify them"),
     "home": ("helpers.home", "bring the cable back to position 0 safely"),
     "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
     "frame": ("helpers.frame_command", "append the CRC-8 to commands typed by hand (PING -> PING*79)"),

@@ -51,6 +51,7 @@ from helpers.loadcell import (
     save_calibration,
 )
 from helpers.locks import folder_lock
+from helpers.modemap import load_map
 from helpers.modes import omega_n_from_damped
 from helpers.paths import DATA_DIR
 from helpers.programmes import experiment_programme
@@ -58,6 +59,7 @@ from helpers.recordings import check_group, check_name, recording_path, refuse_e
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
 from helpers.shapers import Shaper, design_tdfs, ei
+from helpers.teleop import record_streams
 from helpers.validate import DefaultsHelp, arg_number
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
@@ -74,6 +76,7 @@ SYSTEM_HELP = (
 )
 DEFAULT_GROUPS = {
     "calibration": "calibration", "pulse": "runs", "table-i": "experiments", "all": "experiments",
+    "streams": "streams",
 }  # fmt: skip
 SESSION_LOCK = ".recording.lock"
 """The lock a recorder holds on its group for the whole session (another recorder is refused)."""
@@ -98,9 +101,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "what",
-        choices=["calibration", "pulse", "table-i", "all"],  # the keys of RECORDERS
+        choices=["calibration", "pulse", "table-i", "all", "streams"],  # the keys of RECORDERS
         help="calibration: known loads; pulse: one up-hold-down move; table-i: the paper's 12 scenarios; "
-        "all: the identification run, its analysis, then Table I",
+        "all: the identification run, its analysis, then Table I; streams: notebook 08's two arbitrary "
+        "motions, unshaped, zv, zvd and scheduled (needs tuning/mode_map.json from `tune`)",
     )
     parser.add_argument(
         "--ports",
@@ -480,11 +484,21 @@ def _record_all(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> None:
     )
 
 
+def _record_streams(rig: Rig, args: argparse.Namespace, seeds: _Seeds) -> None:
+    mode_map = load_map(args.data_dir / "tuning" / "mode_map.json")
+    rest = load_identification(args.data_dir / "identification" / "result.json")
+    recs = record_streams(rig, args.data_dir / args.group, mode_map, (rest.omega_d, rest.zeta),
+                          replace=args.replace, seeds=seeds.take, rate_hz=args.rate)  # fmt: skip
+    for rec in recs:
+        print(f"{rec.status}: {len(rec.frame)} samples -> {_shown(rec.path)}")
+
+
 RECORDERS: dict[str, Callable[[Rig, argparse.Namespace, _Seeds], None]] = {
     "calibration": _record_calibration,
     "pulse": _record_pulse,
     "table-i": _record_table_i,
     "all": _record_all,
+    "streams": _record_streams,
 }
 """What ``record`` can record -> the function that does it."""
 

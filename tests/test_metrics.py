@@ -392,17 +392,23 @@ def test_scenario_figure_is_written(tmp_path, monkeypatch):
     ]
     fig = plots.fig_scenario(recs, (200, 20), 9, save=True)
     assert (tmp_path / "fig9_20mm_200mms.png").stat().st_size > 0
-    assert "virtual rig" in fig.axes[0].get_title()
-    assert len(fig.axes[0].lines) == 6  # three systems x two repetitions, other condition ignored
+    assert "virtual rig" in fig._suptitle.get_text() and fig._suptitle.get_text().startswith("Fig. 9")
+    assert len(fig.axes) == 4  # one row per system (the traces cannot hide each other) and the cable
+    assert [ax.get_title(loc="left") for ax in fig.axes[:3]] == ["Pulse", "Non-robust TDF", "Robust TDF"]
+    for ax, pair in zip(fig.axes[:3], (recs[0:2], recs[2:4], recs[4:6]), strict=True):
+        (mean_line,) = ax.lines  # the mean of the two repetitions of this condition, nothing else
+        expected = (pair[0].frame["tension_n"].to_numpy() + pair[1].frame["tension_n"].to_numpy()) / 2
+        np.testing.assert_allclose(mean_line.get_ydata(), expected)
+        assert len(ax.collections) == 1  # the band between the repetitions
     by_system = {"unshaped": recs[:2], "zv": recs[2:4], "zvd": recs[4:6]}
     plots.fig_scenario(by_system, (200.0, 20.0), save=True)  # number from the paper's numbering
     fig_a = plots.fig_scenario(recs, (200, 10), save=True)
     assert (tmp_path / "figA_10mm_200mms.png").exists()
-    assert "no figure in the paper" in fig_a.axes[0].get_title()
+    assert "no figure in the paper" in fig_a._suptitle.get_text()
     with pytest.raises(ValueError, match="no recording"):
         plots.fig_scenario(recs, (300, 20), 11)
     hw = [fake_recording(200, 20, "zv", 1, 0.3, source="hardware")]
-    assert "virtual" not in plots.fig_scenario(hw, (200, 20), 9).axes[0].get_title()
+    assert "virtual" not in plots.fig_scenario(hw, (200, 20), 9)._suptitle.get_text()
     plt.close("all")
 
 
@@ -566,3 +572,29 @@ def test_another_chain_is_bounded_by_the_adc_rails_only():
     frame["adc"] = np.minimum(adc, 1023)
     df = metrics.recording_metrics(frame, calibration=other).set_index("motion")
     assert df.loc["Up", "peak_is_bound"] and not df.loc["Down", "peak_is_bound"]
+
+
+def test_move_residuals_match_the_closed_form_after_each_move():
+    zeta = 0.15
+    rec = fake_recording(200, 20, "zv", 1, zeta)
+    rec.frame["tension_n"] += 5.0  # 6 N at rest: the Down transient (62 % of 8 N) stays taut
+    table = metrics.move_residuals(rec.frame)
+    assert list(table["motion"]) == ["Up", "Down"]
+    for row, t0 in zip(table.itertuples(), (T_UP, T_DOWN), strict=True):
+        assert row.move_end_s == pytest.approx(t0 + 0.1, abs=2e-3)  # the step ramp lasts 0.1 s
+        # the definition evaluated on the continuous closed form, on a 10 us grid
+        tt = np.arange(row.move_end_s + 0.1, row.move_end_s + 1.1, 1e-5)
+        y = tension(tt, zeta) + 5.0
+        expected = 100.0 * (y.max() - y.min()) / 2.0 / 8.0  # the step is 9 - 1 = 8 N
+        assert row.residual_pct == pytest.approx(expected, rel=0.01)
+        assert row.noise_floor_pct == pytest.approx(0.0, abs=1e-9)  # a noise-free signal at rest
+        assert not row.slack and row.reason == ""
+    noisy = metrics.move_residuals(fake_recording(200, 20, "zv", 1, 0.6, noise=0.05).frame)
+    assert (noisy["noise_floor_pct"] > 0.5).all()  # +-3 sigma of 0.05 N is ~2 % of 8 N
+
+
+def test_a_slack_cable_in_the_residual_window_is_said():
+    rec = fake_recording(200, 20, "unshaped", 1, 0.05)
+    rec.frame["tension_n"] = rec.frame["tension_n"] - 1.5  # the Down move now dips below 0 N
+    down = metrics.move_residuals(rec.frame).set_index("motion").loc["Down"]
+    assert down["slack"] and "slack" in down["reason"]

@@ -49,6 +49,10 @@ HOW: dict[str, str] = {
     "python -m helpers bench": "slow",
     "python -m helpers bench plant": "slow",
     "python -m helpers bench serial": "slow",
+    "python -m helpers record pulse --design data/tuning/designs/<file>.json": "quick",
+    "python -m helpers tune": "slow",
+    "python -m helpers reproduce 07": "slow",
+    "python -m helpers record streams": "slow",
     # hardware only: --help and a dry run
     "python -m helpers record calibration --ports auto": "dry-run",
     "python -m helpers record all --ports auto": "dry-run",
@@ -175,12 +179,35 @@ def test_jupyter_lab_is_installed_with_the_widget_extension():
     assert sorted(p.name for p in (REPO_ROOT / "notebooks").glob("0*.ipynb"))[0].startswith("00_")
 
 
-def test_the_python_example_runs(newcomer, capsys):
-    code = re.search(r"```python\n(.*?)```", README, re.S).group(1)
-    exec(compile(code, "README.md", "exec"), {})  # noqa: S102 - the README's own example
+def test_the_python_examples_run(newcomer, capsys):
+    first, second = re.findall(r"```python\n(.*?)```", README, re.S)[:2]
+    exec(compile(first, "README.md", "exec"), {})  # noqa: S102 - the README's own example
     out = capsys.readouterr().out
     assert "overshoot_pct" in out and "Up" in out and "Down" in out
     assert (newcomer / "data" / "mine" / "zvd_v250_x25_py.json").exists()
+    (newcomer / "data" / "runs").mkdir()
+    scope: dict = {}
+    exec(compile(second, "README.md", "exec"), scope)  # noqa: S102 - the streaming example
+    assert scope["rec"].meta["scenario"]["kind"] == "stream" and scope["rec"].status == "complete"
+
+
+def test_a_saved_design_runs_again(newcomer, capsys):
+    command = "python -m helpers record pulse --design data/tuning/designs/<file>.json"
+    assert command in readme_commands()
+    design = "map-following_v200_x20.json"
+    (newcomer / "data" / "tuning" / "designs").mkdir(parents=True)
+    shutil.copy(DATA_DIR / "tuning" / "designs" / design, newcomer / "data" / "tuning" / "designs" / design)
+    assert _run_in(newcomer, command.replace("<file>.json", design), "--quiet") == 0
+    (saved,) = (newcomer / "data" / "runs").glob("*.json")
+    assert '"map-following"' in saved.read_text()
+
+
+@pytest.mark.slow
+def test_record_streams_records_notebook_08s_runs(newcomer):
+    (newcomer / "data" / "tuning").mkdir()
+    shutil.copy(DATA_DIR / "tuning" / "mode_map.json", newcomer / "data" / "tuning" / "mode_map.json")
+    assert _run_in(newcomer, "python -m helpers record streams", "--quiet") == 0
+    assert len(list((newcomer / "data" / "streams").glob("*.json"))) == 8
 
 
 @pytest.mark.slow

@@ -12,6 +12,7 @@ import io
 import json
 import math
 import re
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,27 @@ from helpers import recordings
 from helpers.paths import DATA_DIR
 
 NOT_RECORDINGS = {"calibration.json", "result.json"}
-RECORDINGS = sorted(p for p in DATA_DIR.rglob("*.json") if p.name not in NOT_RECORDINGS)
+
+
+def _tracked_json() -> list[Path]:
+    """The JSON files the repository holds under data/ (git ls-files; every file outside a checkout)."""
+    try:
+        out = subprocess.run(["git", "ls-files", "-z", "--", "*.json"], cwd=DATA_DIR, capture_output=True,
+                             check=True, timeout=60).stdout.decode()  # fmt: skip
+        return [DATA_DIR / name for name in out.split("\0") if name]
+    except (OSError, subprocess.SubprocessError):
+        return list(DATA_DIR.rglob("*.json"))
+
+
+def _is_recording(path: Path) -> bool:
+    """A recording's JSON, not another document: those (designs, mode maps, results) declare a ``format``."""
+    if path.name in NOT_RECORDINGS:
+        return False
+    doc = json.loads(path.read_text())
+    return not (isinstance(doc, dict) and "format" in doc and "schema_version" not in doc)
+
+
+RECORDINGS = sorted(p for p in _tracked_json() if _is_recording(p))
 VIRTUAL_PARAMETER_KEYS = (
     "E", "rho", "d", "L", "n_discs", "disc_mass", "r", "k", "pretension", "g", "base_angle_deg",
 )  # fmt: skip

@@ -6,6 +6,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import matplotlib.pyplot as plt
+import numpy as np
 
 from helpers import paper
 from helpers.metrics import clipped_samples
@@ -58,6 +59,14 @@ def _matches(rec: Any, condition: tuple[float, float]) -> bool:
     )
 
 
+def _common_grid(recs: Sequence[Any], column: str) -> tuple[np.ndarray, np.ndarray]:
+    """The recordings' ``column`` on the first one's time grid (shortest length), one row per recording."""
+    t = recs[0].frame["t_s"].to_numpy()
+    n = min(len(r.frame) for r in recs)
+    rows = [np.interp(t[:n], r.frame["t_s"].to_numpy(), r.frame[column].to_numpy()) for r in recs]
+    return t[:n], np.vstack(rows)
+
+
 def fig_scenario(
     recordings_by_system: Mapping[str, Sequence[Any]] | Iterable[Any],
     condition: tuple[float, float],
@@ -67,9 +76,11 @@ def fig_scenario(
 ) -> plt.Figure:
     """Tension responses of the three systems for one condition, the motor position underneath (Figs. 9-11).
 
-    Every repetition is drawn (the first with a label, the others fainter); recordings of other conditions
-    are ignored. Samples the sensor clipped (:func:`helpers.metrics.clipped_samples`, on the ``adc`` column)
-    are marked with black crosses: their tension is only a bound.
+    One row per system, so that no trace hides another: the mean over the repetitions as a line and the range
+    between their lowest and highest value as a band; the cable displacement of each system underneath.
+    Recordings of other conditions are ignored. Samples the sensor clipped
+    (:func:`helpers.metrics.clipped_samples`, on the ``adc`` column) are marked with black crosses: their
+    tension is only a bound.
 
     Parameters
     ----------
@@ -107,38 +118,51 @@ def fig_scenario(
         )
     order = [s for s in paper.SYSTEMS if s in groups] + sorted(s for s in groups if s not in paper.SYSTEMS)
 
-    fig, (ax_t, ax_u) = plt.subplots(
-        2, 1, sharex=True, figsize=(7.0, 4.8), gridspec_kw={"height_ratios": [3, 1.3]}
-    )
+    # one row per system (the shaped traces never hide each other), the repetitions as their mean and the
+    # band between their lowest and highest sample, the cable underneath
+    fig, axes = plt.subplots(
+        len(order) + 1, 1, sharex=True, figsize=(7.0, 1.9 * len(order) + 1.6),
+        gridspec_kw={"height_ratios": [2.0] * len(order) + [1.2]},
+    )  # fmt: skip
+    ax_u = axes[-1]
     virtual = False
     clipped_label = "clipped (outside the sensor's range)"
-    for system in order:
+    n_reps = max(len(v) for v in groups.values())
+    for ax_t, system in zip(axes[:-1], order, strict=False):
         colour = SYSTEM_COLOURS.get(system, "C7")
         label = paper.SYSTEM_LABELS.get(system, system) + (" TDF" if system in ("zv", "zvd") else "")
         recs = sorted(groups[system], key=lambda r: int(r.meta["scenario"].get("repetition", 0)))
-        for i, rec in enumerate(recs):
-            virtual |= source_kind(rec.meta) == "virtual-rig"
+        virtual |= any(source_kind(r.meta) == "virtual-rig" for r in recs)
+        t, tension = _common_grid(recs, "tension_n")
+        if len(recs) > 1:
+            ax_t.fill_between(t, tension.min(axis=0), tension.max(axis=0), color=colour, alpha=0.3, lw=0,
+                              label=f"range of {len(recs)} repetitions")  # fmt: skip
+        ax_t.plot(t, tension.mean(axis=0), color=colour, lw=0.9,
+                  label=f"mean of {len(recs)}" if len(recs) > 1 else "tension")  # fmt: skip
+        for rec in recs:
             f = rec.frame
-            kw = {"color": colour, "lw": 1.0 if i == 0 else 0.7, "alpha": 1.0 if i == 0 else 0.4}
-            ax_t.plot(f["t_s"], f["tension_n"], label=label if i == 0 else None, **kw)
             if "adc" in f.columns:
                 clip = clipped_samples(f["adc"].to_numpy(), (rec.meta or {}).get("calibration"))
                 if clip.any():
                     ax_t.plot(f["t_s"][clip], f["tension_n"][clip], "x", color="k", ms=4, label=clipped_label)
                     clipped_label = None
-            if "cable_mm" in f.columns:
-                ax_u.plot(f["t_s"], f["cable_mm"], **kw)
-            else:
-                ax_u.plot(f["t_s"], f["steps"], **kw)
-    n_reps = max(len(v) for v in groups.values())
-    ax_t.set_ylabel("tension (N)")
-    ax_t.legend(loc="upper right", title=f"{n_reps} repetitions each" if n_reps > 1 else None)
+        ax_t.set_ylabel("tension (N)")
+        ax_t.set_title(label, fontsize=9, loc="left", color=colour)
+        ax_t.legend(loc="upper right", fontsize=7)
+        column = "cable_mm" if "cable_mm" in recs[0].frame.columns else "steps"
+        ax_u.plot(recs[0].frame["t_s"], recs[0].frame[column], color=colour, lw=1.0, label=label)
+    low = min(ax.get_ylim()[0] for ax in axes[:-1])
+    high = max(ax.get_ylim()[1] for ax in axes[:-1])
+    for ax in axes[:-1]:
+        ax.set_ylim(low, high)
     first = groups[order[0]][0].frame
     ax_u.set_ylabel("cable (mm)" if "cable_mm" in first.columns else "motor (steps)")
     ax_u.set_xlabel("time (s)")
+    ax_u.legend(loc="upper right", fontsize=7, ncols=len(order))
     what = f"{condition[1]:g} mm at {condition[0]:g} mm/s"
     title = f"Fig. {number}: {what}" if isinstance(number, int) else f"{what} (no figure in the paper)"
-    ax_t.set_title(title + (" (virtual rig)" if virtual else ""))
+    reps = f", {n_reps} repetitions per system" if n_reps > 1 else ""
+    fig.suptitle(title + (" (virtual rig" + reps + ")" if virtual else reps), fontsize=10)
     fig.tight_layout()
     if save:
         save_figure(fig, scenario_figure_name(condition, number))

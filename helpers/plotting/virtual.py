@@ -44,7 +44,7 @@ def statics_oracle(df: pd.DataFrame) -> plt.Figure:
     ax2.set_xlabel("total bend theta (rad)")
     ax2.set_ylabel("deviation from oracle (%)")
     ax2.legend()
-    fig.suptitle("Constant-curvature statics (gravity off)")
+    fig.suptitle("Virtual rig: constant-curvature statics against the closed form (gravity off)", fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -67,6 +67,7 @@ def linear_model_agreement(df: pd.DataFrame) -> plt.Figure:
     ax.set_ylabel("natural frequency (rad/s)")
     ax.set_xticks(df["mode"])
     ax.legend()
+    ax.set_title("Virtual rig (linearised) against the linear modal model", fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -90,7 +91,9 @@ def convergence(df: pd.DataFrame, tension_tol_pct: float = 1.0, omega_tol_pct: f
     ax2.set_ylabel("omega_d vs 4x finer (%)")
     for a in (ax, ax2):
         a.set_xlabel("cable displacement u (mm)")
+        a.set_xticks(df["u_mm"])
         a.legend(loc="upper left")
+    fig.suptitle("Virtual rig: the rod against one 4x finer (static tension, dominant omega_d)", fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -112,6 +115,8 @@ def frequency_map(fm: pd.DataFrame, omega_design: float, zeta_design: float) -> 
     axs[2].set_ylabel("static tension (N)")
     for ax in axs:
         ax.set_xlabel("cable displacement u (mm)")
+    fig.suptitle("Virtual rig: frequency map of the lowest bending mode about the static equilibrium",
+                 fontsize=10)  # fmt: skip
     fig.tight_layout()
     return fig
 
@@ -119,19 +124,36 @@ def frequency_map(fm: pd.DataFrame, omega_design: float, zeta_design: float) -> 
 def arm_shapes(
     x: np.ndarray, y: np.ndarray, times: Sequence[float], title: str = "", tension: np.ndarray | None = None
 ) -> plt.Figure:
-    """Backbone shapes at several instants (rows of ``x``, ``y`` in m), coloured by time."""
-    fig, ax = plt.subplots(figsize=(5.0, 4.2))
-    cmap = plt.get_cmap("viridis")
-    for i, t in enumerate(times):
-        colour = cmap(i / max(len(times) - 1, 1))
-        label = f"{t:.2f} s" + ("" if tension is None else f", {tension[i]:.1f} N")
-        ax.plot(1e3 * x[i], 1e3 * y[i], "-o", ms=2.5, color=colour, label=label)
-    ax.plot([0], [0], "ks", ms=6)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm), gravity down")
-    ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    ax.set_title(title)
+    """Backbone shapes at several instants (rows of ``x``, ``y`` in m), one distinct colour each.
+
+    Instants separated by more than 2 s (an up move and a later down move) go into separate panels, and
+    every shape is labelled at its tip with its time (and tension), so that no colour has to be matched to a
+    legend.
+    """
+    times = list(times)
+    groups: list[list[int]] = [[0]]
+    for i in range(1, len(times)):
+        if times[i] - times[i - 1] > 2.0:
+            groups.append([])
+        groups[-1].append(i)
+    fig, axes = plt.subplots(1, len(groups), figsize=(4.2 * len(groups), 4.2), sharex=True, sharey=True,
+                             squeeze=False)  # fmt: skip
+    colours = plt.get_cmap("tab10").colors
+    for ax, members in zip(axes[0], groups, strict=True):
+        for k, i in enumerate(members):
+            colour = colours[k % len(colours)]
+            label = f"{times[i]:.2f} s" + ("" if tension is None else f", {tension[i]:.1f} N")
+            ax.plot(1e3 * x[i], 1e3 * y[i], "-o", ms=2.5, lw=1.4, color=colour, label=label)
+            ax.annotate(f"{times[i]:.2f} s", (1e3 * x[i][-1], 1e3 * y[i][-1]), textcoords="offset points",
+                        xytext=(4, 2), fontsize=7, color=colour)  # fmt: skip
+        ax.plot([0], [0], "ks", ms=6)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (mm)")
+        ax.legend(fontsize=7, loc="best")
+        span = f"{times[members[0]]:.2f}-{times[members[-1]]:.2f} s"
+        ax.set_title(span, fontsize=9)
+    axes[0][0].set_ylabel("y (mm), gravity down")
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -168,6 +190,8 @@ def pulse_comparison(table: pd.DataFrame) -> plt.Figure:
         ax.set_xticklabels(labels, fontsize=6)
         ax.set_ylabel(unit)
     axs[0].legend()
+    fig.suptitle("Unshaped pulses: virtual rig (simulated) against the paper's Table II (hardware)",
+                 fontsize=10)  # fmt: skip
     fig.tight_layout()
     return fig
 

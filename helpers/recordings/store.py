@@ -371,12 +371,28 @@ def _catalogue_row(root: Path, csv_path: Path) -> dict[str, Any]:
     return row
 
 
+def is_other_document(path: Path) -> bool:
+    """True for a JSON file without a CSV beside it that declares another ``format`` (a design, a mode map).
+
+    The project keeps such documents next to recordings (``data/tuning``); they are not recordings, neither
+    sound nor broken, so :func:`catalogue` leaves them out.
+    """
+    if path.suffix != ".json" or path.with_suffix(".csv").exists():
+        return False
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+        return False
+    return isinstance(doc, dict) and isinstance(doc.get("format"), str) and "csv_sha256" not in doc
+
+
 def catalogue(root: str | os.PathLike = DATA_DIR) -> pd.DataFrame:
     """List every recording under ``root`` with its key metadata (without loading the samples).
 
-    Files that are not sound are listed too, never skipped: ``problem`` says what is wrong (malformed
-    metadata, an incomplete run whose CSV has no JSON, a missing CSV); it is ``""`` for sound metadata (the
-    samples and their checksum are checked by :func:`load`).
+    JSON documents of other formats (designs, mode maps: :func:`is_other_document`) are not recordings and
+    are left out. Files that are not sound are listed too, never skipped: ``problem`` says what is wrong
+    (malformed metadata, an incomplete run whose CSV has no JSON, a missing CSV); it is ``""`` for sound
+    metadata (the samples and their checksum are checked by :func:`load`).
 
     Parameters
     ----------
@@ -395,7 +411,7 @@ def catalogue(root: str | os.PathLike = DATA_DIR) -> pd.DataFrame:
     stems = set()
     for p in root.rglob("*"):
         ours = p.suffix in (".csv", ".json") and not p.name.startswith(".")
-        if ours and p.stem.lower() not in RESERVED_NAMES:
+        if ours and p.stem.lower() not in RESERVED_NAMES and not is_other_document(p):
             stems.add(p.with_suffix(".csv"))
     rows = [_catalogue_row(root, p) for p in sorted(stems)]
     return pd.DataFrame(rows, columns=CATALOGUE_COLUMNS).sort_values(["group", "name"], ignore_index=True)
