@@ -11,6 +11,7 @@ import xarray as xr
 
 from helpers import __main__ as cli
 from helpers.jsonfile import DataFileError
+from helpers.modemap import ModeMap
 from helpers.sweep import SweepDefinition, SweepInterrupted, load_sweep, local_client, run_sweep
 from helpers.sweep import execute as execute_module
 from helpers.sweep.definition import load_definition
@@ -157,12 +158,13 @@ def test_parts_of_another_sweep_are_refused(tmp_path, monkeypatch):
 
 
 def test_refused_designs_are_recorded_not_raised(tmp_path):
-    # the scheduled pair needs the map at the destination; the predicted map ends at 35 mm: 38 mm is refused
-    d = tiny(shapers=("scheduled-zvd",), grid={"amplitude_mm": [5.0, 38.0]}, fixed={})
+    # the scheduled pair needs the map at the destination; this map ends at 20 mm: a 30 mm move is refused
+    short_map = ModeMap.constant(25.0, 0.044, positions_mm=(0.0, 20.0)).to_dict()
+    d = tiny(shapers=("scheduled-zvd",), grid={"amplitude_mm": [5.0, 30.0]}, fixed={}, mode_map=short_map)
     ds, report = run_sweep(d, tmp_path / "r.nc", serial=True, progress=False)
     assert report.refused == 1
     assert ds["status"].sel(shaper="scheduled-zvd").values.tolist() == [0, 1]
-    refused = ds["residual_pct"].sel(amplitude_mm=38.0, move="up", shaper="scheduled-zvd")
+    refused = ds["residual_pct"].sel(amplitude_mm=30.0, move="up", shaper="scheduled-zvd")
     assert math.isnan(float(refused))
     assert "leaves the measured range" in json.loads(ds.attrs["refused_runs"])["1"]
 

@@ -8,9 +8,11 @@
 """
 
 from helpers.robustness.model import (
+    MEASURED_MAP,
     PREDICTED_MAP_TABLE,
     UncertaintyModel,
     UncertaintySample,
+    default_map,
     linear_residual_pct,
     percentile_pct,
     predicted_map,
@@ -29,10 +31,12 @@ from helpers.robustness.optimise import (
 
 __all__ = [
     "COMPARED_FAMILIES",
+    "MEASURED_MAP",
     "PREDICTED_MAP_TABLE",
     "DesignSet",
     "TunedShaper",
     "UncertaintyModel",
+    "default_map",
     "UncertaintySample",
     "linear_residual_pct",
     "load_designs",

@@ -14,9 +14,14 @@ What varies between the mode a shaper was designed for and the mode it meets:
   amplitudes and days. The identified damping ratio is only the designs' input.
 
 The distribution is fixed before any design is judged by it and favours none. :func:`uncertainty_model` is
-the one place that chooses the map: the measured map when given, else the virtual rig's predicted map
-(:func:`predicted_map`). On the **linear model** a shaper's residual for a draw is Singer and Seering's
-``V`` (:meth:`helpers.shapers.Shaper.vibration`) at the draw's mode, in percent of the unshaped move's (with a
+the one place that chooses the map: the map given, else :func:`default_map` (the measured map of
+``data/tuning/mode_map.json`` when the repository has one, else the virtual rig's predicted map). With a
+second mode in the map, its frequency carries the same identification error, its damping ratio moves with the
+dominant mode's (the map's ratio times the drawn one over the map's dominant one: the rig's damping scales
+as a whole) and its share is the map's, with its standard error.
+
+On the **linear model** a shaper's residual for a draw is Singer and Seering's ``V``
+(:meth:`helpers.shapers.Shaper.vibration`) at the draw's mode, in percent of the unshaped move's (with a
 second mode and its share, the predicted-residual rule ``(1 - s) V1 + s V2`` of ``docs/shaper_design.md``).
 """
 
@@ -32,20 +37,26 @@ import pandas as pd
 from scipy.stats import norm, qmc
 
 from helpers.identify import IdentifiedMode, load_identification
-from helpers.modemap import ModeMap
-from helpers.paths import stored_table
+from helpers.modemap import ModeMap, load_map
+from helpers.paths import DATA_DIR, stored_table
 from helpers.shapers import Shaper
 
 __all__ = [
+    "MEASURED_MAP",
     "PREDICTED_MAP_TABLE",
     "PREDICTED_RANGE_MM",
     "UncertaintyModel",
     "UncertaintySample",
+    "default_map",
     "predicted_map",
     "uncertainty_model",
     "linear_residual_pct",
     "percentile_pct",
 ]
+
+MEASURED_MAP = DATA_DIR / "tuning" / "mode_map.json"
+"""The measured frequency map (``python -m helpers tune``: a kick and two ring-downs per position, two modes
+identified from each, with standard errors and the second mode's share)."""
 
 PREDICTED_MAP_TABLE = "virtual_frequency_map.csv"
 """The virtual rig's predicted frequency map in ``figures/`` (notebook 06, ``helpers.virtual.statics``)."""
@@ -97,6 +108,18 @@ def predicted_map(share2: float | None = None) -> ModeMap:
         f"free (figures/{PREDICTED_MAP_TABLE}, {lo:g}-{hi:g} mm)",
     }
     return ModeMap.from_table(df, source, share2=share2)
+
+
+def default_map(share2_if_predicted: float | None = None) -> ModeMap:
+    """The map the designs and the uncertainty use by default: the measured one, else the predicted one.
+
+    The measured map (:data:`MEASURED_MAP`) when the repository has one; otherwise the virtual rig's
+    predicted map (:func:`predicted_map`, with ``share2_if_predicted`` as its second mode's share). The map's
+    ``source`` says which.
+    """
+    if MEASURED_MAP.exists():
+        return load_map(MEASURED_MAP)
+    return predicted_map(share2_if_predicted)
 
 
 @dataclass(frozen=True)
@@ -201,7 +224,7 @@ class UncertaintyModel:
             raise ValueError(f"n must be a positive integer, got {n!r}")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            u = qmc.Halton(d=6, scramble=True, seed=seed).random(int(n))
+            u = qmc.Halton(d=8, scramble=True, seed=seed).random(int(n))
         u = np.clip(u, 1e-12, 1 - 1e-12)
         amp = self.amplitude_mm[0] + (self.amplitude_mm[1] - self.amplitude_mm[0]) * u[:, 0]
         speed = self.speed_mm_s[0] + (self.speed_mm_s[1] - self.speed_mm_s[0]) * u[:, 1]
@@ -218,11 +241,16 @@ class UncertaintyModel:
         omega_n = omega_d / np.sqrt(1.0 - zeta**2)
         second: dict[str, Any] = {}
         if self.mode_map.has_second_mode:
-            z2 = np.asarray(m.zeta2)
+            # the rig's damping scales as a whole: the second mode's ratio moves with the dominant one's
+            z2 = np.clip(np.asarray(m.zeta2) * zeta / np.asarray(m.zeta), 0.0, 0.99)
+            wd2 = np.asarray(m.omega_d2) * (1.0 + e_id2) + norm.ppf(u[:, 6]).repeat(2) * np.asarray(
+                m.omega_d2_se
+            )
+            share = np.asarray(m.share2) + norm.ppf(u[:, 7]).repeat(2) * np.asarray(m.share2_se)
             second = {
-                "omega_n2": np.asarray(m.omega_d2) * (1.0 + e_id2) / np.sqrt(1.0 - z2**2),
+                "omega_n2": wd2 / np.sqrt(1.0 - z2**2),
                 "zeta2": z2,
-                "share2": np.asarray(m.share2),
+                "share2": np.clip(share, 0.0, 0.99),
             }
         move = np.tile(np.array(["up", "down"]), n)
         return UncertaintySample(move, pos, omega_n, zeta, amp, speed, e_id, **second)
@@ -252,7 +280,7 @@ def uncertainty_model(
     UncertaintyModel
     """
     return UncertaintyModel(
-        mode_map=predicted_map() if mode_map is None else mode_map,
+        mode_map=default_map() if mode_map is None else mode_map,
         identified=load_identification() if identified is None else identified,
         zeta_prior=zeta_prior,
         amplitude_mm=amplitude_mm,

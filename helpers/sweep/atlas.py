@@ -92,7 +92,7 @@ def target_check(ds: xr.Dataset, q: float = 95.0, n_boot: int = 2000, seed: int 
     Parameters
     ----------
     ds : xarray.Dataset
-        The uncertainty sweep (with the tuned families and ``robust-equal``, ``robust-long``).
+        The uncertainty sweep (with the tuned families and ``robust``, ``robust-short``).
     q, n_boot, seed
         As :func:`percentile_table`.
 
@@ -115,7 +115,7 @@ def target_check(ds: xr.Dataset, q: float = 95.0, n_boot: int = 2000, seed: int 
         return 1e3 * d if d is not None else float(table.loc[name, "shaper_ms"])
 
     rows: list[dict[str, Any]] = []
-    for robust in ("robust-equal", "robust-long"):
+    for robust in ("robust", "robust-short"):
         if robust not in table.index:
             continue
         fams = [f for f in compared_names() if f in table.index]

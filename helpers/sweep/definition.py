@@ -3,7 +3,7 @@
 A definition is a JSON object (``docs/sweeps.md``)::
 
     {"format": "continuum-arm-sweep", "version": 1, "name": "atlas_freq_damping",
-     "shapers": ["unshaped", "zvd", "ei", "robust-equal"],
+     "shapers": ["unshaped", "zvd", "ei", "robust"],
      "designs_file": "robust_shapers.json",          # optional: custom shapers by name (relative paths
                                                      # are relative to the definition file)
      "custom_shapers": {"my-ei": {"family": "EI", "omega_d": 27.0, "zeta": 0.044, "vtol": 0.1}},
@@ -41,7 +41,7 @@ import numpy as np
 from helpers.identify import load_identification
 from helpers.jsonfile import read_json
 from helpers.modemap import ModeMap, load_map
-from helpers.robustness import load_designs, predicted_map
+from helpers.robustness import default_map, load_designs
 
 __all__ = [
     "DESIGN_SHARE2",
@@ -120,9 +120,9 @@ DISTRIBUTIONS = ("uniform", "normal", "choice")
 ``{"choice": [v, ...]}``."""
 
 DESIGN_SHARE2 = 0.05
-"""The second mode's share given to the predicted map (which has none of its own) so that it keeps its
-second mode for the ``multi-mode`` design. The design (both factors at their band centres) does not depend on
-it; only the predicted residual in the design's provenance does."""
+"""Without a measured map: the second mode's share given to the predicted map (which has none of its own)
+so that it keeps its second mode for the ``multi-mode`` design. The design (both factors at their band
+centres) does not depend on it; only the predicted residual in the design's provenance does."""
 
 RUN_DEFAULTS = {"t_end_s": 12.0, "rate_hz": 1000.0, "t_up_s": 1.0, "t_down_s": 8.0}
 """The run's timing (the paper's pulse: up at 1 s, down at 8 s, 12 s at 1 kHz)."""
@@ -163,8 +163,8 @@ class SweepDefinition:
     identified : dict or None
         ``{"omega_d", "zeta", "omega_d_std", "zeta_std"}``; None until resolved (then from the repository).
     mode_map : dict or str or None
-        A map file's path, or the map as data (:meth:`helpers.modemap.ModeMap.to_dict`); None: the virtual
-        rig's predicted map.
+        A map file's path, or the map as data (:meth:`helpers.modemap.ModeMap.to_dict`); None:
+        :func:`helpers.robustness.default_map` (the measured map when the repository has one).
     description : str
         Free text.
     """
@@ -380,7 +380,7 @@ class SweepDefinition:
                           "zeta_std": _finite(m.zeta_std)}  # fmt: skip
         mode_map = self.mode_map
         if mode_map is None:
-            mode_map = predicted_map(share2=DESIGN_SHARE2).to_dict()
+            mode_map = default_map(share2_if_predicted=DESIGN_SHARE2).to_dict()
         elif isinstance(mode_map, str):
             mode_map = load_map(mode_map).to_dict()
         else:

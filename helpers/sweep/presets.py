@@ -26,12 +26,12 @@ __all__ = ["ATLAS_SHAPERS", "DESIGNS_FILE", "UNCERTAINTY_SHAPERS", "atlas_defini
 DESIGNS_FILE = "robust_shapers.json"
 """The design-set file the atlas's definitions read (beside them)."""
 
-ATLAS_SHAPERS = ("unshaped", "zv", "zvd", "ei", "2-hump-ei", "multi-mode", "scheduled-zvd", "robust-equal",
-                 "robust-long")  # fmt: skip
+ATLAS_SHAPERS = ("unshaped", "zv", "zvd", "ei", "2-hump-ei", "multi-mode", "scheduled-zvd", "robust",
+                 "robust-short")  # fmt: skip
 """The shapers of the two grid sweeps."""
 
 UNCERTAINTY_SHAPERS = (*ATLAS_SHAPERS[:7], "zvd-tuned", "ei-tuned", "mzv-tuned", "2-hump-ei-tuned",
-                       "zvdd-tuned", "robust-equal", "robust-long")  # fmt: skip
+                       "zvdd-tuned", "robust", "robust-short")  # fmt: skip
 """The shapers of the uncertainty sample: the atlas's and the tuned families."""
 
 RIG_ZETA = paper.ZETA
@@ -64,7 +64,7 @@ def atlas_definitions(model: UncertaintyModel, full: bool = False) -> list[Sweep
         zetas = [0.02, 0.03, 0.044, 0.06, 0.08]
         amplitudes = [5.0, 10.0, 15.0, 20.0, 25.0, 30.0]
         speeds = [100.0, 150.0, 200.0, 250.0, 300.0]
-        n, seeds = 48, [0]
+        n, seeds = 64, [0]
     suffix = "_full" if full else ""
     z_lo, z_hi = model.zeta_prior
     common = {"designs_file": DESIGNS_FILE, "chunk_runs": 4}
