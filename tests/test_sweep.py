@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -12,9 +17,12 @@ import xarray as xr
 from helpers import __main__ as cli
 from helpers.jsonfile import DataFileError
 from helpers.modemap import ModeMap
-from helpers.sweep import SweepDefinition, SweepInterrupted, load_sweep, local_client, run_sweep
+from helpers.paths import DATA_DIR, REPO_ROOT
 from helpers.sweep import execute as execute_module
-from helpers.sweep.definition import load_definition
+from helpers.sweep.definition import SweepDefinition, load_definition
+from helpers.sweep.execute import SweepInterrupted, local_client, run_sweep
+from helpers.sweep.files import load_sweep
+from helpers.sweep.store import physics_fingerprint
 
 # short runs: a 5 mm pulse at 200 mm/s, up at 0.6 s, down at 2.0 s, 3.2 s long (the residual windows fit)
 SHORT = {"t_end_s": 3.2, "t_up_s": 0.6, "t_down_s": 2.0}
@@ -194,3 +202,42 @@ def test_cli_runs_a_definition_and_refuses_to_overwrite(tmp_path, capsys):
     assert "exists already" in capsys.readouterr().err
     assert cli.main(["sweep", "info", str(tmp_path / "tiny.nc")]) == 0
     assert "shaper 1" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_sigterm_keeps_finished_chunks_and_the_same_command_resumes(tmp_path):
+    # a real process on a real local cluster of 2 worker processes, stopped by SIGTERM after its first chunk
+    path = tmp_path / "stop.json"
+    d = tiny(grid={"freq_error": [0.0, 0.05, 0.1, 0.15, 0.2, 0.25]}, chunk_runs=1, run={"t_end_s": 12.0})
+    path.write_text(json.dumps(d.to_dict()))
+    env = {**os.environ, "PYTHONPATH": str(REPO_ROOT)}
+    cmd = [sys.executable, "-m", "helpers", "sweep", "run", str(path), "--workers", "2", "--no-progress"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    parts = tmp_path / "stop.nc.parts"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not list(parts.glob("chunk-*.npz")):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert (
+        len(lines) == 1 and "interrupted by SIGTERM" in lines[0] and "run the same command again" in lines[0]
+    )
+    saved = len(list(parts.glob("chunk-*.npz")))
+    assert 1 <= saved < d.n_chunks and f"{saved} of {d.n_chunks} chunks" in lines[0]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert f"({saved} found on disk, {d.n_chunks - saved} computed" in done.stdout
+    assert load_sweep(tmp_path / "stop.nc")["residual_pct"].notnull().all()
+
+
+@pytest.mark.slow
+def test_the_stored_atlas_was_made_by_the_present_virtual_rig():
+    # if this fails, the rig changed since the atlas was stored: python -m helpers sweep atlas --overwrite
+    for name in ("atlas_freq_damping", "atlas_amplitude_speed", "atlas_uncertainty"):
+        ds = load_sweep(DATA_DIR / "sweeps" / f"{name}.nc")
+        assert ds.attrs["physics_fingerprint"] == physics_fingerprint(), name
+        assert json.loads(ds.attrs["definition"]) == json.loads(
+            load_definition(DATA_DIR / "sweeps" / f"{name}.json").resolved().to_json()
+        ), name

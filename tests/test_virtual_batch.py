@@ -27,9 +27,10 @@ def test_threads_give_the_bits_of_a_fresh_plant_per_run_in_order():
     # two rigs on at most two threads: at most four plants built, reused for the rest
     assert stats.runs == 4 and 2 <= stats.plants_built <= 4 and pool.built == stats.plants_built
     assert stats.simulate_s > 0 and stats.wall_s > 0
-    # the same batch again builds nothing new
-    _, again = run_batch(runs, threads=2, pool=pool)
-    assert again.plants_built == 0
+    # in one thread: one plant per rig, kept for the next call
+    serial_pool = PlantPool()
+    assert run_batch(runs, pool=serial_pool)[1].plants_built == 2
+    assert run_batch(runs, pool=serial_pool)[1].plants_built == 0
 
 
 def test_reduce_runs_in_the_worker_and_its_value_is_kept():

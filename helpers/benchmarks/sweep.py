@@ -1,8 +1,8 @@
 """Speed of sweeps: runs per second on 1 and 2 workers of a local Dask cluster, and what Dask costs.
 
 The tasks are realistic: 12 s runs of the paper's pulse (200 mm/s, 20 mm) with three shapers (ZVD, EI,
-2-hump EI) over eight design frequency errors, 24 runs chunked as a sweep chunks them (3 runs per chunk, 8
-tasks). Measured in one call, each configuration best of ``repeats`` (the machine may be shared):
+2-hump EI) over eight design frequency errors, 24 runs chunked as a sweep chunks them by default (4 runs per
+chunk, 6 tasks). Measured in one call, each configuration best of ``repeats`` (the machine may be shared):
 
 - a **bare loop** over the chunks in this process (:func:`helpers.sweep.runs.run_chunk`, no Dask), with the
   time per run inside :func:`helpers.virtual.simulate` (the integration) and outside it (design, programme,
@@ -23,7 +23,9 @@ import time
 from typing import Any
 
 from helpers.programmes import experiment_programme
-from helpers.sweep import SweepDefinition, local_client, run_chunk
+from helpers.sweep.definition import SweepDefinition
+from helpers.sweep.execute import local_client
+from helpers.sweep.runs import run_chunk
 from helpers.virtual import RigParameters
 from helpers.virtual.batch import BatchRun, run_batch
 
@@ -33,9 +35,8 @@ BENCH_DEFINITION = SweepDefinition(
     name="bench",
     shapers=("zvd", "ei", "2-hump-ei"),
     grid={"freq_error": [-0.15, -0.1, -0.05, 0.0, 0.05, 0.1, 0.15, 0.2]},
-    chunk_runs=3,
 )
-"""The benchmark's sweep: 24 runs of 12 s in 8 chunks."""
+"""The benchmark's sweep: 24 runs of 12 s in 6 chunks (the default chunking)."""
 
 
 def _load() -> str:

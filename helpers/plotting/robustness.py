@@ -64,8 +64,7 @@ def residual_maps(
             ax.set_visible(False)
             continue
         z = values.sel(shaper=shapers[k]).transpose(y, x).values
-        mesh = ax.pcolormesh(np.arange(xs.size), np.arange(ys.size), z, norm=norm, cmap="viridis",
-                             shading="nearest")  # fmt: skip
+        mesh = ax.imshow(z, norm=norm, cmap="viridis", origin="lower", aspect="auto", interpolation="nearest")
         ax.set_title((labels or {}).get(shapers[k], shapers[k]), fontsize=8)
         step = max(1, -(-xs.size // 4))
         ax.set_xticks(np.arange(xs.size)[::step])

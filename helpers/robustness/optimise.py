@@ -346,6 +346,10 @@ class DesignSet:
         The sample.
     q : float
         The percentile.
+    notes : dict of str to str
+        How each robust design's cap was chosen.
+    compared : tuple of str
+        The names of the compared (tuned) families.
     """
 
     designs: dict[str, TunedShaper]
@@ -354,6 +358,7 @@ class DesignSet:
     seed: int
     q: float
     notes: dict[str, str] = field(default_factory=dict)
+    compared: tuple[str, ...] = ()
 
     def table(self) -> pd.DataFrame:
         """One row per design: ``name``, ``family``, ``duration_s``, ``objective_pct``."""
@@ -423,7 +428,7 @@ def robust_designs(
         "robust": f"capped at the duration of the best compared family ({best.name})",
         "robust-short": f"capped at the duration of the shortest compared family ({shortest.name})",
     }
-    return DesignSet(designs, model.describe(), n_draws, seed, q, notes)
+    return DesignSet(designs, model.describe(), n_draws, seed, q, notes, tuple(d.name for d in ranked))
 
 
 def save_designs(designs: DesignSet, path: str | os.PathLike) -> Path:
@@ -436,6 +441,7 @@ def save_designs(designs: DesignSet, path: str | os.PathLike) -> Path:
         "seed": designs.seed,
         "q": designs.q,
         "notes": designs.notes,
+        "compared": list(designs.compared),
         "shapers": {k: d.to_dict() for k, d in designs.designs.items()},
     }
     return write_json(path, data)

@@ -26,8 +26,8 @@ from helpers.paths import DATA_DIR
 from helpers.robustness import robust_designs, save_designs, uncertainty_model
 from helpers.sweep.definition import SweepDefinition, load_definition
 from helpers.sweep.execute import SweepReport, run_sweep
+from helpers.sweep.files import load_sweep
 from helpers.sweep.presets import DESIGNS_FILE, atlas_definitions
-from helpers.sweep.store import load_sweep
 from helpers.validate import DefaultsHelp, arg_number
 
 SWEEPS_DIR = DATA_DIR / "sweeps"

@@ -11,6 +11,7 @@ grid's parameters, ``sample``, ``shaper``, ``seed`` when on the grid, ``move``; 
 coordinates along ``sample``; the others as scalar coordinates) and :func:`write_dataset` saves it as
 NetCDF-3 through scipy (one self-contained file, no further dependency), atomically. Its attributes carry
 the resolved definition, the rig's parameters, the code version and the physics fingerprint.
+:func:`helpers.sweep.files.load_sweep` reads it back.
 """
 
 from __future__ import annotations
@@ -29,15 +30,15 @@ import numpy as np
 import xarray as xr
 
 import helpers
-from helpers.jsonfile import DataFileError, MissingDataError, atomic_write, read_json, write_json
+from helpers.jsonfile import DataFileError, atomic_write, read_json, write_json
 from helpers.paths import REPO_ROOT
 from helpers.signals import signals_held
 from helpers.sweep.definition import PARAMETERS, SweepDefinition
-from helpers.sweep.runs import MOVES, STATUS, VARIABLES
 from helpers.sweep.shaping import BUILTIN
+from helpers.sweep.variables import MOVES, STATUS, VARIABLES
 from helpers.virtual import RigParameters
 
-__all__ = ["Parts", "assemble", "code_version", "physics_fingerprint", "write_dataset", "load_sweep"]
+__all__ = ["Parts", "assemble", "code_version", "physics_fingerprint", "write_dataset"]
 
 PHYSICS_SOURCES = REPO_ROOT / "helpers" / "virtual"
 """The virtual rig's code: its source files enter the physics fingerprint (but :data:`NOT_PHYSICS`)."""
@@ -261,28 +262,3 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     data = ds.to_netcdf(None, engine="scipy", format="NETCDF3_64BIT")
     with signals_held():
         return atomic_write(path, bytes(data))
-
-
-def load_sweep(path: str | os.PathLike) -> xr.Dataset:
-    """Read a finished sweep's dataset (into memory; the file is closed again).
-
-    Raises
-    ------
-    helpers.jsonfile.MissingDataError
-        If there is no such file (the message says how to make it).
-    helpers.jsonfile.DataFileError
-        If it is not a sweep's NetCDF file.
-    """
-    path = Path(path)
-    if not path.exists():
-        raise MissingDataError(
-            f"{path} is missing: run the sweep (`python -m helpers sweep run ...`, docs/sweeps.md)"
-        )
-    try:
-        with xr.open_dataset(path, engine="scipy") as ds:
-            out = ds.load()
-    except (OSError, ValueError, TypeError) as exc:
-        raise DataFileError(f"{path}: not a readable NetCDF file ({exc})") from None
-    if "definition" not in out.attrs:
-        raise DataFileError(f"{path}: not a sweep (no definition attribute)")
-    return out
