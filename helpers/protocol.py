@@ -16,8 +16,9 @@ XOR).
 - ``overruns``: sample periods the board itself reports as missed (``W,OVERRUN,<n>``),
 - ``corrupted``: non-blank lines that failed a check,
 - ``implausible``: data lines that passed every check but describe the impossible: a step count that changed
-  faster than the step-rate limit allows, or left the range the running programme can reach
-  (:attr:`StreamParser.steps_range`); they are rejected (their ``seq`` then counts as dropped too),
+  faster than the step-rate limit allows, left the range the running programme can reach
+  (:attr:`StreamParser.steps_range`), or changed while the programme makes no step
+  (:attr:`StreamParser.step_windows`); they are rejected (their ``seq`` then counts as dropped too),
 
 and unwraps the board's 32-bit microsecond clock.
 """
@@ -282,6 +283,9 @@ class StreamParser:
         """Step-rate limit used to reject impossible step counts (None: no check)."""
         self.steps_range: tuple[int, int] | None = None
         """The step counts the running programme can reach (from ``ZERO``), or None (no check)."""
+        self.step_windows: tuple[np.ndarray, np.ndarray] | None = None
+        """Sorted, disjoint ``(starts, ends)`` in device us where the programme makes steps, or None (no
+        check): a count that changes outside them is impossible."""
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
         self._t_offset = 0
@@ -303,6 +307,12 @@ class StreamParser:
         if last is not None and self.max_step_rate_hz is not None:
             dt = max(t_us - last[0], 0)
             if abs(steps - last[1]) > self.max_step_rate_hz * dt * 1e-6 + 1:
+                return False
+        windows = self.step_windows
+        if windows is not None and last is not None and steps != last[1]:
+            # the count changed in (last t, t]: some window must overlap that interval
+            i = int(np.searchsorted(windows[0], t_us, side="right")) - 1
+            if i < 0 or windows[1][i] < last[0]:
                 return False
         return True
 

@@ -138,6 +138,9 @@ def design_candidates(
         )  # fmt: skip
         note["auto (no longer than zv)"] = capped.message
         made["auto"] = choice.design
+        for d in made.values():  # the map's prediction travels with each convolution design
+            if d is not None and d.kind != "schedule":
+                d.provenance["worst_predicted_pct"] = design.worst_predicted_pct(d, mode_map, x)
         note["auto"] = choice.message
         out[(v, x)] = made
         notes[(v, x)] = note
@@ -351,7 +354,10 @@ def _shown(path: Path) -> str:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``python -m helpers tune``."""
     parser.formatter_class = DefaultsHelp
-    parser.description = __doc__.split("\n\n")[1].replace("\n", " ")
+    parser.description = (
+        "Measure the arm's modes at 0-40 mm of cable, design shapers from that map, verify each by running "
+        "it on the rig, and write the report and the chosen design (docs/shaper_design.md)."
+    )
     parser.add_argument(
         "--ports",
         default="virtual",

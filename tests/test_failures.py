@@ -22,6 +22,7 @@ from helpers.home import home
 from helpers.paths import DATA_DIR, REPO_ROOT
 from helpers.programmes import Programme, Segment
 from helpers.rig import PortBusy, Rig
+from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard
 
 PY = sys.executable
@@ -58,6 +59,9 @@ class Server:
             paths[kind] = path
         assert set(paths) == {"daq", "stepper"}, self.proc.stderr.read()[-500:]
         self.daq, self.stepper = paths["daq"], paths["stepper"]
+        # ready when both boards answer (on a loaded machine the server's first answers can take seconds)
+        for board, path in ((DaqBoard, self.daq), (StepperBoard, self.stepper)):
+            board.open(path, hello_timeout=60.0).close()
 
     @property
     def ports(self) -> str:

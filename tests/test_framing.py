@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import random
 
+import numpy as np
 import pytest
 from crc_reference import link_hex, xor_hex
 from hypothesis import HealthCheck, assume, given, settings
@@ -297,6 +298,37 @@ def test_impossible_step_counts_are_rejected_and_counted():
     plain = StreamParser()  # no limits given: nothing is judged
     rows, _ = plain.feed(b"".join(lines))
     assert len(rows) == 6 and plain.stats.implausible == 0
+
+
+def test_a_step_while_the_programme_makes_none_is_rejected_and_counted():
+    """Steps happen only inside the programme's segments; a count that changes in a dwell is impossible."""
+    p = StreamParser(max_step_rate_hz=2000.0)
+    p.step_windows = (np.array([2_000, 9_000]), np.array([4_000, 10_000]))  # two segments, a dwell between
+    lines = [
+        frame("D,0,1000,600,0"),
+        frame("D,1,3000,600,2"),  # inside the first segment
+        frame("D,2,5000,600,3"),  # changed in (3000, 5000]: overlaps the segment ending at 4000: fine
+        frame("D,3,7000,600,4"),  # changed in (5000, 7000]: the dwell
+        frame("D,4,8000,600,3"),  # unchanged since the last accepted sample: fine
+        frame("D,5,9500,600,5"),  # inside the second segment
+    ]
+    rows, _ = p.feed(b"".join(lines))
+    assert [r[0] for r in rows] == [0, 1, 2, 4, 5]
+    assert p.stats.implausible == 1 and p.stats.dropped == 1
+
+
+def test_step_windows_cover_every_step_of_a_programme_and_no_dwell():
+    from helpers.programmes import Dwell, Programme, Segment
+    from helpers.rig.experiment import GO_LATENCY_US, step_windows
+
+    prog = Programme((Dwell(1000), Segment(1, 10, 1000), Dwell(500), Segment(-1, 10, 2000)))
+    starts, ends = step_windows(prog, t_go_us=100_000)
+    times, _ = prog.step_times_us()
+    for t in times + 100_000:  # every step of the programme lies in a window
+        i = np.searchsorted(starts, t, side="right") - 1
+        assert i >= 0 and t <= ends[i]
+    assert starts[0] == 100_000 + 1_001_000 - GO_LATENCY_US and len(starts) == 2
+    assert ends[0] < 100_000 + 1_000_000 + 10_000 + 500_000  # the dwell between the segments stays closed
 
 
 def test_frame_command_prints_what_to_type(capsys):

@@ -164,7 +164,10 @@ def test_commands_shown_without_a_run_have_help(command, capsys):
             with pytest.raises(SystemExit) as done:
                 main([name, "--help"])
             assert done.value.code == 0, name
-    assert "usage: python -m helpers" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "usage: python -m helpers" in out
+    for markup in ("``", ":func:", ":class:", ":data:", ":mod:"):  # help is read in a terminal, not rendered
+        assert markup not in out, f"{command} --help shows {markup!r}"
 
 
 def test_jupyter_lab_is_installed_with_the_widget_extension():

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+import numpy as np
+
 from helpers.hardware import DAQ_BAUD, DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_STEP_RATE_HZ
 from helpers.protocol import StreamParser, StreamStats
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
@@ -33,6 +35,17 @@ class DaqBoard(BoardLink):
         """Reject (and count as implausible) step counts outside ``lo..hi`` until the next :meth:`start`."""
         self.parser.steps_range = (int(lo), int(hi))
 
+    def expect_steps_within(self, starts_us: np.ndarray, ends_us: np.ndarray) -> None:
+        """Reject (and count as implausible) a step count that changes outside these device-time windows.
+
+        Parameters
+        ----------
+        starts_us, ends_us : numpy.ndarray
+            Sorted, disjoint windows (device us, the samples' clock) in which the programme makes steps.
+        """
+        starts, ends = np.asarray(starts_us, dtype=np.int64), np.asarray(ends_us, dtype=np.int64)
+        self.parser.step_windows = (starts, ends)
+
     @property
     def stats(self) -> StreamStats:
         """Counts of the present (or last) stream."""
@@ -56,6 +69,7 @@ class DaqBoard(BoardLink):
         self.parser.restart()
         self.parser.stats = StreamStats()
         self.parser.steps_range = None
+        self.parser.step_windows = None
         reply = self.command("START")
         self.streaming = True
         words = reply.split()

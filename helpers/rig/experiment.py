@@ -49,7 +49,7 @@ from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, MAX_PROGR
 from helpers.loadcell import LoadCellCalibration, load_calibration
 from helpers.noise import white_noise_std
 from helpers.paths import DATA_DIR
-from helpers.programmes import Programme, experiment_programme
+from helpers.programmes import Programme, Segment, experiment_programme
 from helpers.recordings import Recording, RecordingError, refuse_existing
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.daq import DaqBoard
@@ -100,6 +100,8 @@ class _RunState:
     """
 
     t_go_us: int | None = None
+    step_offsets: tuple[np.ndarray, np.ndarray] | None = None
+    """The programme's step windows relative to GO (:func:`step_windows` at ``t_go_us = 0``)."""
     go_sent: bool = False
     started_utc: str = ""
 
@@ -143,6 +145,36 @@ def _shaper_meta(shaper: Any) -> dict[str, Any]:
         "amplitudes": [float(a) for a in shaper.amplitudes],
         "times": [float(t) for t in shaper.times],
     }
+
+
+GO_LATENCY_US = 50_000
+"""How much earlier than the host's estimate ``GO`` may have happened on the DAQ's clock (the estimate is the
+newest sample at hand once ``GO`` is acknowledged: never early, a few ms late over USB)."""
+
+
+def step_windows(programme: Programme, t_go_us: int, slack_us: int = 2_000) -> tuple[np.ndarray, np.ndarray]:
+    """Device-time windows in which ``programme`` makes steps, given the estimated time of ``GO``.
+
+    Each segment's steps fall in ``[t_go + first, t_go + last]``; the window opens :data:`GO_LATENCY_US`
+    earlier (GO may precede its estimate) and closes ``slack_us`` later (a sample's own timing). A step count
+    that changes outside every window is impossible, and the DAQ driver rejects it.
+    """
+    starts, ends = [], []
+    for item, t0 in zip(programme.items, programme.item_starts_us(), strict=True):
+        if isinstance(item, Segment):
+            first = int(t0) + item.interval_us
+            last = int(t0) + item.n_steps * item.interval_us
+            starts.append(t_go_us + first - GO_LATENCY_US)
+            ends.append(t_go_us + last + slack_us)
+    merged_s: list[int] = []
+    merged_e: list[int] = []
+    for a, b in zip(starts, ends, strict=True):
+        if merged_e and a <= merged_e[-1]:
+            merged_e[-1] = max(merged_e[-1], b)
+        else:
+            merged_s.append(a)
+            merged_e.append(b)
+    return np.array(merged_s, dtype=np.int64), np.array(merged_e, dtype=np.int64)
 
 
 class _DeviceTimeBar:
@@ -791,9 +823,17 @@ class Rig:
         self.stepper.go()
         # GO's device time, estimated as the newest DAQ sample at hand once GO is acknowledged (exact
         # on the in-process virtual rig; a few ms late on hardware). Metrics use `steps` instead.
+        state.step_offsets = step_windows(programme, 0)
         self.daq.pump(block=False)
         if self.daq.rows:
-            state.t_go_us = self.daq.rows[-1][1]
+            self._went(state, self.daq.rows[-1][1])
+
+    def _went(self, state: _RunState, t_go_us: int) -> None:
+        """Note GO's device time; from then on a count changing between the programme's steps is refused."""
+        state.t_go_us = t_go_us
+        if state.step_offsets is not None:
+            starts, ends = state.step_offsets
+            self.daq.expect_steps_within(starts + t_go_us, ends + t_go_us)
 
     def _check_corruption(self, max_corrupted_fraction: float) -> None:
         stats = self.daq.stats
@@ -844,7 +884,7 @@ class Rig:
             new, silence = self._read_both(silence, max_corrupted_fraction)
             rows = self.daq.rows
             if new and state.t_go_us is None:
-                state.t_go_us = rows[len(rows) - new][1] - period_us
+                self._went(state, rows[len(rows) - new][1] - period_us)
             if state.t_go_us is None or not rows:
                 continue
             last_us = rows[-1][1]
