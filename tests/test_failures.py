@@ -131,11 +131,17 @@ def recordings_calibration() -> dict:
         pytest.param(signal.SIGINT, 130, marks=pytest.mark.slow),
     ],
 )
-def test_a_signal_mid_run_stops_the_boards_and_saves_a_loadable_partial_recording(
-    server, data_dir, sig, status
-):
+def test_a_signal_mid_run_stops_the_boards_and_saves_a_loadable_partial_recording(data_dir, sig, status):
+    server = Server(speed=3.0)  # the 12 s run lasts 4 s of wall time: a signal 1.5 s in lands inside it
+    try:
+        _signal_mid_run(server, data_dir, sig, status)
+    finally:
+        server.stop()
+
+
+def _signal_mid_run(server: Server, data_dir: Path, sig: int, status: int) -> None:
     proc = _record(data_dir, server.ports)
-    _wait_for_samples(proc, 0.6)  # at 10x: the run is under way
+    _wait_for_samples(proc, 1.5)  # past the wait for rest (0.5 s of device time) on a loaded machine too
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == status, err
@@ -209,7 +215,7 @@ def test_home_returns_the_cable_from_where_the_board_says_it_is(server):
 @pytest.mark.slow
 def test_a_pulse_refuses_to_start_away_from_zero(own_server, data_dir):
     server = own_server
-    stepper = StepperBoard.open(server.stepper, hello_timeout=5.0)
+    stepper = StepperBoard.open(server.stepper, timeout=10.0, hello_timeout=30.0)
     try:
         stepper.load(Programme((Segment(1, 10, 2000),)))
         stepper.enable(True)
