@@ -35,6 +35,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "frame": ("helpers.frame_command", "append the CRC-8 to commands typed by hand (PING -> PING*79)"),
     "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
     "virtual-rig": ("helpers.rig_studies", "check or re-tune the virtual rig; rewrite its evidence tables"),
+    "sweep": ("helpers.sweep.command", "parameter sweeps on the virtual rig (Dask); the robustness atlas"),
 }
 """command name -> (module, one-line help)."""
 

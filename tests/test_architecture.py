@@ -48,6 +48,7 @@ LAYERS: dict[str, int] = {
     "helpers.streaming": 3,
     "helpers.profiles": 4,
     "helpers.design": 4,
+    "helpers.robustness": 4,
     "helpers.programmes": 5,
     # 6: the rig and the virtual rig side by side; the emulated boards above the physics
     "helpers.rig": 6,
@@ -68,6 +69,7 @@ LAYERS: dict[str, int] = {
     "helpers.teleop": 9,
     "helpers.tune": 11,
     "helpers.table2": 10,
+    "helpers.sweep": 10,
     "helpers.reproduce": 11,
     "helpers.benchmarks": 11,
     "helpers.rig_studies": 11,

@@ -3,7 +3,9 @@
 - ``plant``: simulated seconds per wall second of the virtual rig's plant (and of a plain ``solve_ivp``
   implementation of the same equations, measured in the same run);
 - ``serial``: sustained DAQ rate over the pseudo-terminal server and the wall time to record one scenario on
-  the in-process virtual rig.
+  the in-process virtual rig;
+- ``sweep``: runs per second of a sweep's tasks on 1 and 2 workers of a local Dask cluster, the scaling
+  ratio, Dask's overhead against a bare loop, the per-run overhead outside the integration.
 """
 
 from __future__ import annotations
@@ -16,10 +18,12 @@ from typing import Any
 
 from helpers.benchmarks.plant import run_plant_benchmark
 from helpers.benchmarks.serial import run_serial_benchmark
+from helpers.benchmarks.sweep import run_sweep_benchmark
 
 SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "plant": run_plant_benchmark,
     "serial": run_serial_benchmark,
+    "sweep": run_sweep_benchmark,
 }
 """suite name -> function; each prints its figures and returns them as a dict."""
 

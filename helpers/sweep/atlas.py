@@ -1,0 +1,142 @@
+"""The robustness atlas's numbers from stored sweeps (notebook 09): percentiles, durations, the target.
+
+Every function reads a sweep's dataset (:func:`helpers.sweep.load_sweep`) and returns a table; nothing here
+runs the rig. A residual case is one move of one run: the Up and the Down residual count alike, as in the
+uncertainty model (:mod:`helpers.robustness.model`).
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+__all__ = ["TARGET_REDUCTION", "definition_of", "percentile_table", "target_check", "worst_move"]
+
+TARGET_REDUCTION = 0.30
+"""The robust design's target: a 95th-percentile residual at least 30 % below the best compared family."""
+
+EQUAL_DURATION_MS = 0.5
+"""Designed durations this close count as equal (the quantised programme moves pieces by up to 1 ms)."""
+
+
+def worst_move(ds: xr.Dataset, variable: str = "residual_pct") -> xr.DataArray:
+    """The larger of the Up and the Down move's value, per run."""
+    return ds[variable].max("move")
+
+
+def _cases(ds: xr.Dataset, shaper: str) -> np.ndarray:
+    """All residual cases (runs x moves) of one shaper, in a fixed order."""
+    r = ds["residual_pct"].sel(shaper=shaper)
+    return r.transpose(..., "move").values.reshape(-1)
+
+
+def percentile_table(ds: xr.Dataset, q: float = 95.0, n_boot: int = 2000, seed: int = 0) -> pd.DataFrame:
+    """Per shaper: the ``q``-th percentile residual over all cases, its bootstrap interval, the durations.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep over a random sample (dimension ``sample``).
+    q : float
+        The percentile.
+    n_boot : int
+        Bootstrap resamples (of the sample's points, both moves of a point together).
+    seed : int
+        The bootstrap's seed.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index ``shaper``; ``p{q}_pct``, ``low_pct``, ``high_pct`` (the 5th and 95th percentiles of the
+        bootstrap), ``median_pct``, ``shaper_ms`` and ``move_ms`` (mean over the cases), ``refused``.
+    """
+    n = ds.sizes["sample"]
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, n, size=(n_boot, n))
+    rows = []
+    for shaper in ds["shaper"].values:
+        r = ds["residual_pct"].sel(shaper=shaper).transpose("sample", "move").values
+        cases = r.reshape(-1)
+        boot = np.percentile(r[picks].reshape(n_boot, -1), q, axis=1)
+        rows.append({
+            "shaper": str(shaper),
+            f"p{q:g}_pct": float(np.percentile(cases, q)),
+            "low_pct": float(np.percentile(boot, 5)),
+            "high_pct": float(np.percentile(boot, 95)),
+            "median_pct": float(np.median(cases)),
+            # to the microsecond, the programme's resolution; the unshaped pulse's quantised ramp may end a
+            # microsecond before t_p, which is no negative shaper
+            "shaper_ms": max(0.0, round(1e3 * float(ds["shaper_duration_s"].sel(shaper=shaper).mean()), 3)),
+            "move_ms": round(1e3 * float(ds["move_duration_s"].sel(shaper=shaper).mean()), 3) + 0.0,
+            "refused": int((ds["status"].sel(shaper=shaper) > 0).sum()),
+        })  # fmt: skip
+    return pd.DataFrame(rows).set_index("shaper")
+
+
+def target_check(
+    ds: xr.Dataset, compared: list[str], q: float = 95.0, n_boot: int = 2000, seed: int = 0
+) -> pd.DataFrame:
+    """Each robust design against the best compared family no longer than it, with a paired bootstrap.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The uncertainty sweep (with the tuned families and ``robust``, ``robust-short``).
+    compared : list of str
+        The compared families' names in the sweep (the design-set file's ``compared``).
+    q, n_boot, seed
+        As :func:`percentile_table`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per robust design: its designed duration (ms) and ``q``-th percentile, the best compared
+        family whose designed duration is equal or shorter (to :data:`EQUAL_DURATION_MS`) and its
+        percentile, the reduction (1 - robust / family), its paired bootstrap interval (5-95 %), and whether
+        the target (:data:`TARGET_REDUCTION`) is met.
+    """
+    table = percentile_table(ds, q, n_boot=1, seed=seed)
+    col = f"p{q:g}_pct"
+    n = ds.sizes["sample"]
+    picks = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
+    designed = {k: v.get("duration_s") for k, v in definition_of(ds)["custom_shapers"].items()}
+
+    def duration(name: str) -> float:  # as designed (the quantised programme moves it by microseconds)
+        d = designed.get(name)
+        return 1e3 * d if d is not None else float(table.loc[name, "shaper_ms"])
+
+    rows: list[dict[str, Any]] = []
+    for robust in ("robust", "robust-short"):
+        if robust not in table.index:
+            continue
+        fams = [f for f in compared if f in table.index]
+        fams = [f for f in fams if duration(f) <= duration(robust) + EQUAL_DURATION_MS]
+        best = min(fams, key=lambda f: table.loc[f, col])
+        a = ds["residual_pct"].sel(shaper=robust).transpose("sample", "move").values
+        b = ds["residual_pct"].sel(shaper=best).transpose("sample", "move").values
+        ratio = np.percentile(a[picks].reshape(n_boot, -1), q, axis=1) / np.percentile(
+            b[picks].reshape(n_boot, -1), q, axis=1
+        )
+        reduction = 1 - table.loc[robust, col] / table.loc[best, col]
+        rows.append({
+            "robust": robust,
+            "robust_ms": duration(robust),
+            f"robust_{col}": table.loc[robust, col],
+            "best_family": best,
+            "family_ms": duration(best),
+            f"family_{col}": table.loc[best, col],
+            "reduction_pct": 100 * reduction,
+            "reduction_low_pct": 100 * (1 - np.percentile(ratio, 95)),
+            "reduction_high_pct": 100 * (1 - np.percentile(ratio, 5)),
+            "target_met": bool(reduction >= TARGET_REDUCTION),
+        })  # fmt: skip
+    return pd.DataFrame(rows).set_index("robust")
+
+
+def definition_of(ds: xr.Dataset) -> dict[str, Any]:
+    """The sweep's resolved definition (from its attributes)."""
+    return json.loads(ds.attrs["definition"])

@@ -1,0 +1,264 @@
+"""Where a sweep's results live: one file per finished chunk while it runs, one NetCDF file when it is done.
+
+While a sweep runs, ``<output>.parts/`` holds ``sweep.json`` (the resolved definition and the physics
+fingerprint it was started with) and one ``chunk-NNNNN.npz`` per finished chunk, each written atomically
+(readers and a resumed sweep see a whole chunk or none). A sweep that stops for any reason leaves its
+finished chunks there; run it again with the same definition and it computes only the others. A parts folder
+of another definition, or of a virtual rig whose code or parameters changed since, is refused.
+
+When every chunk is done, :func:`assemble` builds the :class:`xarray.Dataset` (labelled dimensions: the
+grid's parameters, ``sample``, ``shaper``, ``seed`` when on the grid, ``move``; the sampled parameters as
+coordinates along ``sample``; the others as scalar coordinates) and :func:`write_dataset` saves it as
+NetCDF-3 through scipy (one self-contained file, no further dependency), atomically. Its attributes carry
+the resolved definition, the rig's parameters, the code version and the physics fingerprint.
+:func:`helpers.sweep.files.load_sweep` reads it back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import io
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+import helpers
+from helpers.jsonfile import DataFileError, atomic_write, read_json, write_json
+from helpers.paths import REPO_ROOT
+from helpers.signals import signals_held
+from helpers.sweep.definition import PARAMETERS, SweepDefinition
+from helpers.sweep.shaping import BUILTIN
+from helpers.sweep.variables import MOVES, STATUS, VARIABLES
+from helpers.virtual import RigParameters
+
+__all__ = ["Parts", "assemble", "code_version", "physics_fingerprint", "write_dataset"]
+
+PHYSICS_SOURCES = REPO_ROOT / "helpers" / "virtual"
+"""The virtual rig's code: its source files enter the physics fingerprint (but :data:`NOT_PHYSICS`)."""
+
+NOT_PHYSICS = frozenset({"__init__.py", "batch.py", "reference.py"})
+"""Files of the virtual rig that do not change what a run computes (exports, the batch runner, the
+``solve_ivp`` oracle)."""
+
+BACKBONE_SOURCE = REPO_ROOT / "helpers" / "backbone.py"
+"""The backbone shared with the linear model (the rig's parameters derive from it)."""
+
+
+def code_version() -> str:
+    """``helpers <version>, git <commit>`` (``+ uncommitted changes`` when the tree differs), or no git."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=REPO_ROOT, capture_output=True,
+                              text=True, timeout=30)  # fmt: skip
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO_ROOT,
+                               capture_output=True, text=True, timeout=30)  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return f"helpers {helpers.__version__}, git unavailable"
+    if head.returncode != 0:
+        return f"helpers {helpers.__version__}, not a git checkout"
+    mark = " + uncommitted changes" if dirty.stdout.strip() else ""
+    return f"helpers {helpers.__version__}, git {head.stdout.strip()}{mark}"
+
+
+def rig_dict(params: RigParameters | None = None) -> dict[str, Any]:
+    """The rig's parameters as JSON-safe data."""
+    return json.loads(json.dumps(dataclasses.asdict(RigParameters() if params is None else params)))
+
+
+def physics_fingerprint() -> str:
+    """A hash of the virtual rig's source files and the tuned rig's parameters (16 hex digits).
+
+    Two sweeps with the same fingerprint ran the same physics; a parts folder with another is not resumed.
+    """
+    h = hashlib.sha256()
+    for path in [*sorted(PHYSICS_SOURCES.glob("*.py")), BACKBONE_SOURCE]:
+        if path.name in NOT_PHYSICS:
+            continue
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    h.update(json.dumps(rig_dict(), sort_keys=True).encode())
+    return h.hexdigest()[:16]
+
+
+class Parts:
+    """The folder of finished chunks of one sweep (module docstring).
+
+    Parameters
+    ----------
+    output : path-like
+        The sweep's output file; the folder is ``<output>.parts``.
+    definition : SweepDefinition
+        The resolved definition.
+    """
+
+    def __init__(self, output: str | os.PathLike, definition: SweepDefinition) -> None:
+        self.output = Path(output)
+        self.folder = self.output.with_name(self.output.name + ".parts")
+        self.definition = definition
+        self.header = {"definition": definition.to_dict(), "physics": physics_fingerprint()}
+
+    def open(self) -> list[int]:
+        """Create the folder or check it is this sweep's; return the chunks already done."""
+        meta = self.folder / "sweep.json"
+        if meta.exists():
+            old = read_json(meta, "sweep parts header")
+            if old.get("definition") != self.header["definition"]:
+                raise DataFileError(
+                    f"{self.folder} holds an interrupted sweep with another definition: delete it or choose "
+                    "another output"
+                )
+            if old.get("physics") != self.header["physics"]:
+                raise DataFileError(
+                    f"{self.folder} was started with another virtual rig (code or parameters changed): "
+                    "delete it to start again"
+                )
+        else:
+            write_json(meta, self.header)
+        return self.done()
+
+    def path(self, chunk: int) -> Path:
+        """The file of ``chunk``."""
+        return self.folder / f"chunk-{chunk:05d}.npz"
+
+    def done(self) -> list[int]:
+        """Chunks whose file is there."""
+        out = []
+        for p in self.folder.glob("chunk-*.npz"):
+            try:
+                out.append(int(p.stem.split("-")[1]))
+            except (IndexError, ValueError):
+                continue
+        return sorted(c for c in out if 0 <= c < self.definition.n_chunks)
+
+    def save(self, result: dict[str, Any]) -> Path:
+        """Write a chunk's arrays atomically (signals held, so an interrupt cannot cut it)."""
+        arrays = {k: np.asarray(result[k]) for k in ("runs", *VARIABLES)}
+        arrays["messages"] = np.array(json.dumps({str(k): v for k, v in result["messages"].items()}))
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        with signals_held():
+            return atomic_write(self.path(int(result["chunk"])), buf.getvalue())
+
+    def load(self, chunk: int) -> dict[str, Any]:
+        """A saved chunk's arrays."""
+        path = self.path(chunk)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                out = {k: z[k] for k in z.files}
+        except (OSError, ValueError) as exc:
+            raise DataFileError(f"{path}: unreadable chunk ({exc}); delete it and resume") from None
+        out["messages"] = json.loads(str(out["messages"]))
+        return out
+
+    def remove(self) -> None:
+        """Delete the folder (after the dataset is written)."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def assemble(definition: SweepDefinition, chunks: list[dict[str, Any]]) -> xr.Dataset:
+    """The sweep's dataset from its chunks' arrays (every chunk once, any order).
+
+    Parameters
+    ----------
+    definition : SweepDefinition
+        The resolved definition.
+    chunks : list of dict
+        What :func:`helpers.sweep.runs.run_chunk` returned (or :meth:`Parts.load` read).
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    n = definition.n_runs
+    flat: dict[str, np.ndarray] = {}
+    messages: dict[str, str] = {}
+    seen = np.zeros(n, dtype=bool)
+    for c in chunks:
+        runs = np.asarray(c["runs"], dtype=np.int64)
+        if np.any(seen[runs]):
+            raise ValueError("assemble: a run appears in two chunks")
+        seen[runs] = True
+        for name in VARIABLES:
+            arr = np.asarray(c[name])
+            if name not in flat:
+                dtype = np.int8 if name == "status" else float
+                flat[name] = np.full((n, *arr.shape[1:]), np.nan if dtype is float else -1, dtype=dtype)
+            flat[name][runs] = arr
+        messages.update({str(k): v for k, v in c["messages"].items()})
+    if not seen.all():
+        raise ValueError(f"assemble: {int((~seen).sum())} runs have no result")
+    run_dims = list(definition.run_dims)
+    shape = definition.run_shape
+    seed_on_grid = "seed" in definition.grid
+    data_vars = {}
+    for name, (extra, unit, meaning) in VARIABLES.items():
+        arr = flat[name].reshape(*shape, *flat[name].shape[1:])
+        dims = list(run_dims)
+        if "seed" in extra:
+            if seed_on_grid:
+                dims.append("seed")
+            else:
+                arr = arr[..., 0, :] if "move" in extra else arr[..., 0]
+        if "move" in extra:
+            dims.append("move")
+        if name in ("rig_omega_d_rad_s", "rig_zeta"):  # a property of the rig, not of the shaper
+            arr = np.take(arr, 0, axis=run_dims.index("shaper"))
+            dims.remove("shaper")
+        data_vars[name] = xr.Variable(dims, arr, attrs={"units": unit, "long_name": meaning})
+    coords: dict[str, Any] = {"shaper": ("shaper", np.array(definition.shapers, dtype=str)),
+                              "move": ("move", np.array(MOVES, dtype=str))}  # fmt: skip
+    for dim, values in definition.grid.items():
+        dtype = np.int32 if PARAMETERS[dim].integer else float
+        coords[dim] = (
+            dim,
+            np.asarray(values, dtype=dtype),
+            {"units": PARAMETERS[dim].unit, "long_name": PARAMETERS[dim].meaning},
+        )
+    if definition.sample is not None:
+        coords["sample"] = ("sample", np.arange(definition.sample["n"], dtype=np.int32))
+        for name, values in definition.sample_values().items():
+            coords[name] = (
+                "sample",
+                values,
+                {"units": PARAMETERS[name].unit, "long_name": PARAMETERS[name].meaning},
+            )
+    sampled = set(definition.sample["distributions"]) if definition.sample else set()
+    for name, param in PARAMETERS.items():
+        if name not in definition.grid and name not in sampled:
+            value = definition.fixed.get(name, param.default)
+            coords[name] = (
+                (),
+                np.int32(value) if param.integer else float(value),
+                {"units": param.unit, "long_name": param.meaning},
+            )
+    ds = xr.Dataset(data_vars, coords=coords)
+    ds.attrs = {
+        "title": f"sweep {definition.name} on the virtual rig (simulated, never measured)",
+        "source": "virtual-rig",
+        "definition": definition.to_json(),
+        "rig_parameters": json.dumps(rig_dict(), sort_keys=True),
+        "physics_fingerprint": physics_fingerprint(),
+        "code_version": code_version(),
+        "status_meaning": json.dumps(STATUS),
+        "shapers_meaning": json.dumps(
+            {s: BUILTIN.get(s, "custom (see definition)") for s in definition.shapers}
+        ),
+        "refused_runs": json.dumps(messages, sort_keys=True),
+    }
+    return ds
+
+
+def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> Path:
+    """Save ``ds`` as NetCDF-3 (scipy), atomically."""
+    path = Path(path)
+    if path.suffix != ".nc":
+        raise ValueError(f"sweep output must be a NetCDF file ending in .nc, got {path.name}")
+    data = ds.to_netcdf(None, engine="scipy", format="NETCDF3_64BIT")
+    with signals_held():
+        return atomic_write(path, bytes(data))
