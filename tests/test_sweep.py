@@ -114,8 +114,10 @@ def test_tiny_sweep_on_a_local_cluster_of_two_workers_equals_the_serial_loop(tmp
     # ADC readings, not the true tension; the unshaped pulse does not depend on the design error
     res = ds["residual_pct"].sel(freq_error=0.0)
     assert float(res.sel(shaper="zvd").max()) < 0.5 * float(res.sel(shaper="unshaped").min())
-    adc = ds["residual_adc_pct"].sel(freq_error=0.0, shaper="zvd", move="up")
-    assert adc.sel(seed=0) != adc.sel(seed=1)
+    # (the ADC's residual is a handful of counts, so one move's can coincide across seeds: compare them all)
+    adc = ds["residual_adc_pct"]
+    assert not np.array_equal(adc.sel(seed=0), adc.sel(seed=1))
+    assert not np.array_equal(ds["peak_n"].sel(seed=0), ds["peak_n"].sel(seed=1))
     unshaped = ds["residual_pct"].sel(shaper="unshaped")
     assert np.array_equal(unshaped.sel(freq_error=0.0), unshaped.sel(freq_error=0.2))
     # the fixed impulses' move lasts its shaper (125 ms, shortened by 1 + freq_error) plus t_p = 25 ms
