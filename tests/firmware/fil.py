@@ -188,12 +188,20 @@ def tension_waveform(edges: Edges, duration_s: float, params: RigParameters | No
 
 
 def exact_counts(wave: Waveform, edges: Edges, at_s: np.ndarray) -> np.ndarray:
-    """The load cell's continuous count at times ``at_s`` (s from the first edge), from a fresh plant."""
-    plant = ArmPlant(wave.params)
+    """The load cell's continuous count at times ``at_s`` (s from the first edge), from a fresh plant.
+
+    The plant is integrated through the waveform's own points as well as ``at_s``: RK4 takes its steps
+    between output times, and during a move the tension depends on that partition by up to about 0.15 N
+    (4 counts; the rig's step-size error at the re-engagement snaps, docs/virtual_rig.md section 2). On the
+    waveform's 0.1 ms partition, points added in between move it by about 0.1 count, so what is left is the
+    waveform's interpolation and the harness's rounding.
+    """
     at = np.asarray(at_s, dtype=float)
-    keep = edges.t <= at[-1]
-    tension = plant.advance(at + PLANT_LEAD_S, edges.t[keep] + PLANT_LEAD_S, edges.signs[keep])
-    return wave.sensor.offset_counts + tension / wave.sensor.newtons_per_count
+    grid = np.union1d(wave.t[wave.t <= at[-1]], at)
+    plant = ArmPlant(wave.params)
+    keep = edges.t <= grid[-1]
+    tension = plant.advance(grid + PLANT_LEAD_S, edges.t[keep] + PLANT_LEAD_S, edges.signs[keep])
+    return (wave.sensor.offset_counts + tension / wave.sensor.newtons_per_count)[np.searchsorted(grid, at)]
 
 
 # --- pass 3: the recording -------------------------------------------------------------------------------
