@@ -206,6 +206,28 @@ def test_cli_runs_a_definition_and_refuses_to_overwrite(tmp_path, capsys):
     assert "shaper 1" in capsys.readouterr().out
 
 
+def test_cli_runs_against_a_given_scheduler_address(tmp_path, capsys, monkeypatch, reference):
+    """``sweep run --scheduler ADDRESS``: a running scheduler (here a 2-worker cluster listening on TCP in
+    this process), the same numbers as the serial loop."""
+    from distributed import LocalCluster  # noqa: PLC0415 - the test's own cluster
+
+    serial, _, _ = reference
+    path = tmp_path / "tiny.json"
+    path.write_text(json.dumps(tiny().to_dict()))
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp",
+                      dashboard_address=":0") as cluster:  # fmt: skip
+        assert cluster.scheduler_address.startswith("tcp://")
+        address = cluster.scheduler_address
+        code = cli.main(["sweep", "run", str(path), "--scheduler", address, "--no-progress"])
+    assert code == 0
+    assert f"the Dask scheduler at {cluster.scheduler_address}" in capsys.readouterr().out
+    xr.testing.assert_identical(serial.drop_attrs(), load_sweep(tmp_path / "tiny.nc").drop_attrs())
+    monkeypatch.setattr(execute_module, "CONNECT_TIMEOUT_S", 2)  # nothing listens on port 9
+    assert cli.main(["sweep", "run", str(path), "--overwrite", "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err
+
+
 @pytest.mark.slow
 def test_sigterm_keeps_finished_chunks_and_the_same_command_resumes(tmp_path):
     # a real process on a real local cluster of 2 worker processes, stopped by SIGTERM after its first chunk

@@ -110,6 +110,10 @@ def local_client(workers: int | None = None, threads: int = 1, processes: bool =
         cluster.close()
 
 
+CONNECT_TIMEOUT_S = 20
+"""How long to try reaching a given scheduler before giving up (s)."""
+
+
 @contextmanager
 def _client_for(client: Any, scheduler: str | None, workers: int | None) -> Iterator[tuple[Any, str]]:
     if client is not None:
@@ -119,7 +123,7 @@ def _client_for(client: Any, scheduler: str | None, workers: int | None) -> Iter
         from distributed import Client  # noqa: PLC0415 - Dask loads only where a sweep runs
 
         try:
-            c = Client(scheduler, timeout="20s")
+            c = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
         except OSError as exc:
             raise ValueError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
         try:
@@ -129,6 +133,12 @@ def _client_for(client: Any, scheduler: str | None, workers: int | None) -> Iter
         return
     with local_client(workers) as c:
         yield c, f"a local Dask cluster of {len(c.scheduler_info()['workers'])} worker(s)"
+
+
+def _start(bar: Any) -> None:
+    """Show a bar made with an infinite ``delay`` now."""
+    bar.delay = 0
+    bar.refresh()
 
 
 def run_sweep(
@@ -188,8 +198,9 @@ def run_sweep(
     done = set(parts.open())
     todo = [c for c in range(resolved.n_chunks) if c not in done]
     desc = f"{resolved.name} ({resolved.n_runs} runs)"
+    # the bar starts once the chunks can run (after connecting), so an error line is never mixed into it
     bar = tqdm(total=resolved.n_chunks, initial=len(done), unit="chunk", disable=not progress,
-               file=sys.stderr, desc=desc, dynamic_ncols=True)  # fmt: skip
+               file=sys.stderr, desc=desc, dynamic_ncols=True, delay=1e9)  # fmt: skip
     stats: dict[str, float] = {}
     where = "this process (serial)"
     start = time.perf_counter()
@@ -203,12 +214,14 @@ def run_sweep(
 
     try:
         if serial or not todo:
+            _start(bar)
             for c in todo:
                 keep(run_chunk(text, c, threads))
         else:
             with _client_for(client, scheduler, workers) as (cl, where):
                 from distributed import as_completed  # noqa: PLC0415 - Dask loads only where a sweep runs
 
+                _start(bar)
                 futures = [
                     cl.submit(run_chunk, text, c, threads, key=f"{resolved.name}-chunk-{c}", pure=False)
                     for c in todo
