@@ -9,6 +9,7 @@ itself (``.ci/run`` runs exactly them). A README edit that adds a command withou
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shlex
@@ -53,6 +54,15 @@ HOW: dict[str, str] = {
     "python -m helpers tune": "slow",
     "python -m helpers reproduce 07": "slow",
     "python -m helpers record streams": "slow",
+    "python -m helpers sweep": "help",
+    "python -m helpers sweep atlas": "help",
+    "python -m helpers sweep info data/sweeps/atlas_uncertainty.nc": "quick",
+    "python -m helpers sweep run my_sweep.json --serial": "quick",
+    "python -m helpers sweep run my_sweep.json": "slow",
+    "python -m helpers sweep run my_sweep.json --scheduler tcp://head:8786": "help",  # and test_sweep.py
+    "python -m helpers sweep atlas --overwrite": "help",  # ten minutes; its parts in tests/test_sweep.py
+    "python -m helpers sweep atlas --full": "help",
+    "python -m helpers bench sweep": "slow",
     # hardware only: --help and a dry run
     "python -m helpers record calibration --ports auto": "dry-run",
     "python -m helpers record all --ports auto": "dry-run",
@@ -205,6 +215,40 @@ def test_a_saved_design_runs_again(newcomer, capsys):
     assert '"map-following"' in saved.read_text()
 
 
+def _my_sweep(folder: Path) -> None:
+    """The README's own sweep definition, written where the README's commands expect it."""
+    (definition,) = re.findall(r"```json\n(.*?)```", README, re.S)
+    assert json.loads(definition)["name"] == "my_sweep"
+    (folder / "my_sweep.json").write_text(definition)
+
+
+def test_sweep_info_reads_the_stored_atlas(capsys, monkeypatch):
+    monkeypatch.chdir(REPO_ROOT)
+    command = "python -m helpers sweep info data/sweeps/atlas_uncertainty.nc"
+    assert command in readme_commands()
+    assert main(_argv(command)) == 0
+    out = capsys.readouterr().out
+    assert "sample 64" in out and "shaper 14" in out
+
+
+def test_a_small_sweep_of_ones_own_runs_serially(newcomer, capsys):
+    command = "python -m helpers sweep run my_sweep.json --serial"
+    assert command in readme_commands()
+    _my_sweep(newcomer)
+    assert main(_argv(command) + ["--no-progress"]) == 0
+    assert "my_sweep: 4 runs" in capsys.readouterr().out and (newcomer / "my_sweep.nc").exists()
+
+
+@pytest.mark.slow
+def test_a_small_sweep_on_a_local_cluster(newcomer, capsys):
+    command = "python -m helpers sweep run my_sweep.json"
+    assert command in readme_commands()
+    _my_sweep(newcomer)
+    assert main(_argv(command) + ["--no-progress", "--workers", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "my_sweep: 4 runs" in out and "local Dask cluster of 2 worker(s)" in out
+
+
 @pytest.mark.slow
 def test_record_streams_records_notebook_08s_runs(newcomer):
     (newcomer / "data" / "tuning").mkdir()
@@ -221,14 +265,14 @@ def test_record_all_regenerates_the_paper_experiment(newcomer):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("suite", ["plant", "serial"])
+@pytest.mark.parametrize("suite", ["plant", "serial", "sweep"])
 def test_bench_prints_its_figures(suite):
     proc = subprocess.run(
         [sys.executable, "-m", "helpers", "bench", suite], capture_output=True, text=True, timeout=600,
         cwd=REPO_ROOT,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "x real time" in proc.stdout or "samples" in proc.stdout
+    assert "x real time" in proc.stdout or "samples" in proc.stdout or "scaling ratio" in proc.stdout
 
 
 @pytest.mark.slow
