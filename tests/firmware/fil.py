@@ -310,6 +310,44 @@ def check_alignment(fil: FilRun, edges: Edges, wave: Waveform) -> Alignment:
     )
 
 
+# --- the plant at the recording's own instants --------------------------------------------------------------
+def plant_frame(fil: FilRun, edges: Edges, wave: Waveform) -> pd.DataFrame:
+    """The virtual rig's plant at the FIL recording's own sample instants, as the noise-free load cell counts.
+
+    Integrated through the waveform's points and those instants (:func:`exact_counts`), so it differs from the
+    recording only by the waveform's interpolation and the harness's millivolt; before the first step, the
+    rest the harness holds. The steps column is pass 1's count at each instant.
+    """
+    at = sample_instants(fil)
+    after = at >= 0
+    counts = np.empty(at.shape)
+    counts[after] = exact_counts(wave, edges, at[after])
+    counts[~after] = wave.mv[0] / SIMAVR_MV_PER_COUNT - 0.5
+    counts = np.clip(np.rint(counts), 0, 1023)
+    frame = fil.recording.frame[["t_s"]].copy()
+    frame["steps"] = np.concatenate([[0], np.cumsum(edges.signs)])[np.searchsorted(edges.t, at, side="right")]
+    frame["tension_n"] = (counts - wave.sensor.offset_counts) * wave.sensor.newtons_per_count
+    return frame
+
+
+def one_count_settling_spread(frame: pd.DataFrame, newtons_per_count: float) -> pd.Series:
+    """How far each motion's settling time moves when its band is one ADC count wider or narrower (ms).
+
+    A 10-bit load cell resolves the band's edge to a count (about 1.6 % of a 20 mm step's 2.6 N), and a
+    settling time is where the tension last leaves the band: a one-count difference between two runs can move
+    it by a whole oscillation. This is the settling time's resolution from quantisation alone.
+    """
+    base = metrics.recording_metrics(frame).set_index("motion")
+    spread = {}
+    for motion, row in base.iterrows():
+        step = abs(row["yf_n"] - row["y0_n"])
+        bands = [0.05 + k * newtons_per_count / step for k in (-1, 0, 1)]
+        times = [metrics.recording_metrics(frame, band=b).set_index("motion").loc[motion, "settling_ms"]
+                 for b in bands]  # fmt: skip
+        spread[motion] = float(np.nanmax(times) - np.nanmin(times))
+    return pd.Series(spread)
+
+
 # --- the virtual rig's physics at a given sampling phase ---------------------------------------------------
 def virtual_frame(
     edges: Edges, phase_s: float, duration_s: float, params: RigParameters | None = None
@@ -390,12 +428,16 @@ def run_case(which: str, tmp: Path, pace: float = 1.0) -> dict[str, Any]:
     at = sample_instants(fil)
     phase = float(np.median(np.mod(at, 1e-3)))
     duration = float(at[-1])  # the FIL recording's end, from its first step
+    plant = plant_frame(fil, edges, wave)
     return {
         "fil": compare(fil.recording),
         "in_process": compare(ref),
+        "plant_at_instants": compare_frame(plant),
         "virtual_at_phase": compare_frame(virtual_frame(edges, phase, duration)),
         "phase_ms": phase * 1e3,
         "phase_spread": phase_spread(edges, duration),
+        "settling_resolution": one_count_settling_spread(ref.frame, wave.sensor.newtons_per_count),
+        "settling_resolution_plant": one_count_settling_spread(plant, wave.sensor.newtons_per_count),
         "alignment": check_alignment(fil, edges, wave),
         "recording": fil.recording,
         "reference": ref,
@@ -410,6 +452,7 @@ def _show(which: str, result: dict[str, Any]) -> None:
         "FIL": result["fil"],
         "FIL - in-process": result["fil"] - result["in_process"],
         "phase spread": result["phase_spread"],
+        "FIL - plant at its instants": result["fil"] - result["plant_at_instants"],
         f"FIL - virtual at {result['phase_ms']:.3f} ms": result["fil"] - result["virtual_at_phase"],
     }
     with pd.option_context("display.width", 250):
@@ -421,6 +464,9 @@ def _show(which: str, result: dict[str, Any]) -> None:
         f"plant: {a.max_count_error:.3f} count at most; {len(result['edges'].t)} steps; wall "
         f"{result['wall_s']:.1f} s"
     )
+    print("settling moved by one ADC count of band (ms): in-process",
+          result["settling_resolution"].round(1).to_dict(), "plant at the instants",
+          result["settling_resolution_plant"].round(1).to_dict())  # fmt: skip
     st = result["recording"].meta["scenario"].get("stream")
     if st:
         print(f"stream: {st['n_setpoints']} set-points, periods consecutive: "

@@ -2,22 +2,27 @@
 from both firmware images in simavr with the virtual rig's physics, give the virtual rig's Table II metrics
 and residual vibration.
 
-Two comparisons. The recordings are 1 kHz samples of a tension that jumps by about 1.5 N at every step, so a
-peak depends on where the samples fall between the steps (the sampling phase): over the phases of one
-millisecond the virtual rig's own Up peak moves by 0.5 N and its overshoot by 9 percentage points
-(``fil.phase_spread``). Hence:
+Two comparisons. The recordings are 1 kHz samples of a tension that every step kicks by about a newton for
+a few milliseconds, so a peak depends on where the samples fall between the steps (the sampling phase), and
+RK4's steps fall between the output times, which moves single samples during a move by up to about 0.15 N (the
+rig's step-size error, docs/virtual_rig.md section 2). Hence:
 
-- against the virtual rig sampled with the FIL run's phase (``helpers.virtual.simulate`` on the stepper
-  firmware's edges): the brief's tolerances, peak within 0.1 N, overshoot within 2 percentage points,
-  settling within 50 ms, residual vibration within 2 points;
-- against the in-process virtual rig (``Rig`` on ``virtual://``, whose samples fall with another phase):
-  within the phase spread, plus one ADC count (0.02 N; about 0.3 points of overshoot for these moves) and one
-  sample (1 ms) of settling.
+- against the virtual rig's plant at the FIL recording's own instants, integrated through the ADC waveform's
+  points (``fil.plant_frame``): the brief's tolerances, peak within 0.1 N, overshoot within 2 percentage
+  points, settling within 50 ms (or, where a count's difference moves it further, within what one count of
+  band moves it: the interpolated waveform is within 0.5 count of the plant, so a sample at x.5 counts can
+  round either way), residual vibration within 2 points;
+- against the in-process virtual rig (``Rig`` on ``virtual://``, whose samples fall with another phase and
+  whose steps with another partition): within the spread over sampling phases (``fil.phase_spread``) plus
+  half an ADC count (0.02 N; about 0.5 points of overshoot) and 2 ms of settling; and since a count's
+  difference can move a settling time (the last exit from the band) by an oscillation, settling also within
+  the change one ADC count of band makes on the in-process run (``fil.one_count_settling_spread``).
 """
 
 from __future__ import annotations
 
 import fil
+import numpy as np
 import pytest
 
 pytestmark = [pytest.mark.firmware, pytest.mark.slow]
@@ -36,12 +41,16 @@ def test_firmware_in_the_loop_gives_the_virtual_rigs_metrics(which, tmp_path, fi
     # counts late
     assert a.adc_mismatches == 0 and a.max_count_error < 0.5
     assert a.step_mismatches == a.near_edge <= 0.005 * a.samples
-    same_phase = (result["fil"] - result["virtual_at_phase"]).abs()
+    same_instants = (result["fil"] - result["plant_at_instants"]).abs()
     for metric, tolerance in TOLERANCE.items():
-        assert (same_phase[metric] <= tolerance).all(), (metric, same_phase)
+        if metric == "settling_ms":  # or within what one count of band moves it (the waveform's 0.4 count can
+            tolerance = np.maximum(tolerance, result["settling_resolution_plant"])  # flip a count at x.5)
+        assert (same_instants[metric] <= tolerance).all(), (metric, same_instants, tolerance)
     in_process = (result["fil"] - result["in_process"]).abs()
     for metric, margin in MARGIN.items():
         bound = result["phase_spread"][metric] + margin
+        if metric == "settling_ms":  # a count's difference can move the last exit from the band
+            bound = bound + result["settling_resolution"]
         assert (in_process[metric] <= bound).all(), (metric, in_process[metric], bound)
     if which == "stream":  # the pacing held through the harness's pseudo-terminals: the board's periods
         st = result["recording"].meta["scenario"]["stream"]
