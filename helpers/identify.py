@@ -417,14 +417,35 @@ def log_decrement(
     )
 
 
+def _peaks(y: FloatArray, prominence: float, distance: int) -> np.ndarray:
+    """``scipy.signal.find_peaks(y, prominence=, distance=)`` with ties broken the same on every CPU.
+
+    SciPy thins peaks closer than ``distance`` from the highest down, ordered by ``numpy.argsort``, whose
+    default sort orders equal heights (common on ADC counts) differently depending on the SIMD sort numpy
+    dispatches to. Here the order is a stable sort (equal heights: the later peak first), then the
+    prominence filter, as in SciPy.
+    """
+    peaks, _ = signal.find_peaks(y)
+    keep = np.ones(peaks.size, dtype=bool)
+    for j in np.argsort(y[peaks], kind="stable")[::-1]:
+        if not keep[j]:
+            continue
+        near = np.abs(peaks - peaks[j]) < distance
+        near[j] = False
+        keep[near] = False
+    peaks = peaks[keep]
+    prominences = signal.peak_prominences(y, peaks)[0]
+    return peaks[prominences >= prominence]
+
+
 def _extrema(
     t: FloatArray, y: FloatArray, dt: float, period: float, prominence: float
 ) -> tuple[FloatArray, FloatArray]:
     """Peaks and troughs ``(time, value)`` above ``prominence``, refined by parabolas (step 2 above)."""
     distance = max(1, int(0.6 * period / dt))
     half = max(2, int(round(period / 8.0 / dt)))
-    idx_max, _ = signal.find_peaks(y, prominence=prominence, distance=distance)
-    idx_min, _ = signal.find_peaks(-y, prominence=prominence, distance=distance)
+    idx_max = _peaks(y, prominence, distance)
+    idx_min = _peaks(-y, prominence, distance)
     if idx_max.size < 2 or idx_max.size + idx_min.size < 3:
         raise ValueError(
             f"too few cycles above the noise: found {idx_max.size} peaks and {idx_min.size} troughs with "

@@ -289,3 +289,20 @@ def test_identification_figures_are_written(tmp_path, monkeypatch):
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+def test_peak_thinning_breaks_ties_the_same_whatever_the_sort():
+    """Equal heights within the minimum distance (common on ADC counts): the later peak is kept, by a stable
+    sort, where scipy's find_peaks orders ties by numpy's default sort, which depends on the CPU's SIMD."""
+    from scipy import signal
+
+    from helpers.identify import _peaks
+
+    y = np.zeros(60)
+    y[[10, 14, 40]] = [5.0, 5.0, 3.0]  # two equal peaks 4 samples apart, a lower one far away
+    assert _peaks(y, prominence=1.0, distance=6).tolist() == [14, 40]
+    # without ties it is scipy's own selection
+    rng = np.random.default_rng(3)
+    z = np.sin(np.linspace(0, 20, 800)) + 0.05 * rng.standard_normal(800)
+    expected, _ = signal.find_peaks(z, prominence=0.3, distance=40)
+    assert _peaks(z, prominence=0.3, distance=40).tolist() == expected.tolist()
