@@ -142,6 +142,8 @@ def test_the_walkthrough_records_and_analyses_an_own_scenario(newcomer, capsys):
     assert main(_argv(metrics)) == 0
     out = capsys.readouterr().out
     assert "zvd (Robust)" in out and "Skipped: none." in out and "virtual-rig" in out
+    shown = README.split("Example output (virtual rig):\n\n```text\n")[1].split("```")[0]
+    assert shown in out  # the README's example output is what the command prints for these runs
     assert main(_argv(metrics_files)) == 0
     assert (newcomer / "results" / "mine_runs.csv").exists() and (newcomer / "results" / "mine.md").exists()
     assert _run_in(newcomer, calibration) == 0
