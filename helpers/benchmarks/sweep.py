@@ -106,11 +106,10 @@ def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]
         started += time.perf_counter() - t0
         for _ in range(repeats):
             wall2 = min(wall2, _on_cluster(two, text, chunks))
-    total = bare
-    sim_ms, outside_ms = 1e3 * inside / runs, 1e3 * (total - inside) / runs
+    sim_ms, outside_ms = 1e3 * inside / runs, 1e3 * (bare - inside) / runs
     say(f"  bare loop (no Dask), 1 core: {runs / bare:.2f} runs/s ({bare:.2f} s); per run {sim_ms:.0f} ms in "
         f"simulate (the integration) + {outside_ms:.1f} ms outside it (design, programme, metrics): "
-        f"{100 * (total - inside) / total:.1f} %")  # fmt: skip
+        f"{100 * (bare - inside) / bare:.1f} %")  # fmt: skip
 
     prog, _ = experiment_programme(200.0, 20.0, None)
     batch = [BatchRun(prog, RigParameters(), seed=i, t_end=t_sim) for i in range(4)]

@@ -426,15 +426,12 @@ def run_case(which: str, tmp: Path, pace: float = 1.0) -> dict[str, Any]:
     fil = record(wave, action, kwargs, tmp, pace)
     ref = in_process(action, kwargs, tmp)
     at = sample_instants(fil)
-    phase = float(np.median(np.mod(at, 1e-3)))
     duration = float(at[-1])  # the FIL recording's end, from its first step
     plant = plant_frame(fil, edges, wave)
     return {
         "fil": compare(fil.recording),
         "in_process": compare(ref),
         "plant_at_instants": compare_frame(plant),
-        "virtual_at_phase": compare_frame(virtual_frame(edges, phase, duration)),
-        "phase_ms": phase * 1e3,
         "phase_spread": phase_spread(edges, duration),
         "settling_resolution": one_count_settling_spread(ref.frame, wave.sensor.newtons_per_count),
         "settling_resolution_plant": one_count_settling_spread(plant, wave.sensor.newtons_per_count),
@@ -453,7 +450,6 @@ def _show(which: str, result: dict[str, Any]) -> None:
         "FIL - in-process": result["fil"] - result["in_process"],
         "phase spread": result["phase_spread"],
         "FIL - plant at its instants": result["fil"] - result["plant_at_instants"],
-        f"FIL - virtual at {result['phase_ms']:.3f} ms": result["fil"] - result["virtual_at_phase"],
     }
     with pd.option_context("display.width", 250):
         print(pd.concat(table, axis=1).round(3).to_string())
