@@ -9,7 +9,7 @@ three passes:
 2. **Tension.** The virtual rig's plant, through the public API of :mod:`helpers.virtual` only
    (``RigParameters``, ``ArmPlant.advance``, the ``LoadCell``'s calibration), is driven with those edges, time
    0 at the first STEP edge; the tension, as the load cell and its amplifier turn it into a voltage, becomes
-   the DAQ sketch's ADC waveform: 0.1 ms apart, plus the values just before and at every step (a step moves
+   the DAQ sketch's ADC waveform: 0.05 ms apart, plus the values just before and at every step (a step moves
    the tension at once).
 3. **Record.** Both sketches run in one harness, in lockstep, wired as on the bench (the stepper's STEP and
    DIR into the DAQ's step counter), on pseudo-terminals; :class:`helpers.rig.Rig` connects to them as to
@@ -56,13 +56,20 @@ from helpers.shapers import paper_tdfs  # noqa: E402
 from helpers.virtual import ArmPlant, LoadCell, RigParameters, simulate  # noqa: E402
 
 F = fwsim.F_CPU
-WAVE_DT_S = 1e-4
-"""Spacing of the ADC waveform's points between steps (s)."""
+WAVE_DT_S = 5e-5
+"""Spacing of the ADC waveform's points between steps (s). The harness interpolates linearly in between, which
+cuts the crest of each step's kick (about 10 counts in 0.3 ms at the Down move's snaps) by up to h^2/8 times
+the curvature: at 0.1 ms up to 0.66 count of the plant, at 0.05 ms 0.17 (:func:`interpolation_error`, over
+every interval of both cases)."""
 CYCLE_S = 1.0 / F
 PLANT_LEAD_S = 1e-3
 """The plant starts at rest this long before the first step (plant time = waveform time + this)."""
 SIMAVR_MV_PER_COUNT = 5000 / 1023
 """simavr's ADC: count = floor(mV * 1023 / 5000) with the harness's 5000 mV reference."""
+HARNESS_ROUNDING_COUNTS = 0.5 / SIMAVR_MV_PER_COUNT + 1e-4
+"""The harness hands simavr whole millivolts: the ADC input is the waveform to within half a millivolt (0.1023
+count), plus the waveform file's own rounding (times to 1 ns, at most 40 counts/ms during a kick; mV to 1e-4):
+under 1e-4 count."""
 
 _names = itertools.count()
 
@@ -193,7 +200,7 @@ def exact_counts(wave: Waveform, edges: Edges, at_s: np.ndarray) -> np.ndarray:
     The plant is integrated through the waveform's own points as well as ``at_s``: RK4 takes its steps
     between output times, and during a move the tension depends on that partition by up to about 0.15 N
     (4 counts; the rig's step-size error at the re-engagement snaps, docs/virtual_rig.md section 2). On the
-    waveform's 0.1 ms partition, points added in between move it by about 0.1 count, so what is left is the
+    waveform's 0.05 ms partition, points added in between move it by 0.1 count or less, so what is left is the
     waveform's interpolation and the harness's rounding.
     """
     at = np.asarray(at_s, dtype=float)
@@ -274,6 +281,7 @@ class Alignment:
         int  # of those, samples taken up to 20 us after a step edge (the DAQ counts it late, see below)
     )
     adc_mismatches: int  # recorded counts that differ from simavr's conversion of the logged millivolts
+    harness_error: float  # |logged count - waveform's count| at the samples (the harness's rounding to a mV)
     max_count_error: float  # |logged count - exact plant count| over the run (interpolation + rounding)
 
 
@@ -300,14 +308,27 @@ def check_alignment(fil: FilRun, edges: Edges, wave: Waveform) -> Alignment:
     simavr = np.floor(mv * 1023 / 5000).astype(np.int64)
     after = at >= 0
     exact = exact_counts(wave, edges, at[after])
-    err = np.abs(mv[after] / SIMAVR_MV_PER_COUNT - 0.5 - exact)
+    logged = mv[after] / SIMAVR_MV_PER_COUNT
+    err = np.abs(logged - 0.5 - exact)
+    harness = np.abs(logged - np.interp(at[after], wave.t, wave.mv) / SIMAVR_MV_PER_COUNT)
     return Alignment(
         n,
         int(wrong.sum()),
         int((wrong & (dist <= 2e-5)).sum()),
         int((recorded != simavr).sum()),
+        float(harness.max()),
         float(err.max()),
     )
+
+
+def interpolation_error(wave: Waveform, edges: Edges) -> float:
+    """The most the harness's linear interpolation of the waveform misses the plant by (counts), whatever the
+    sampling phase: the exact plant at the midpoint of every interval between waveform points after the first
+    step (where a chord is furthest from a smooth curve), against the chord."""
+    mid = wave.t[:-1] + 0.5 * np.diff(wave.t)
+    mid = mid[(mid > 0) & (np.diff(wave.t) > CYCLE_S)]
+    chord = np.interp(mid, wave.t, wave.mv) / SIMAVR_MV_PER_COUNT - 0.5
+    return float(np.abs(chord - exact_counts(wave, edges, mid)).max())
 
 
 # --- the plant at the recording's own instants --------------------------------------------------------------
@@ -436,6 +457,7 @@ def run_case(which: str, tmp: Path, pace: float = 1.0) -> dict[str, Any]:
         "settling_resolution": one_count_settling_spread(ref.frame, wave.sensor.newtons_per_count),
         "settling_resolution_plant": one_count_settling_spread(plant, wave.sensor.newtons_per_count),
         "alignment": check_alignment(fil, edges, wave),
+        "interpolation_error": interpolation_error(wave, edges),
         "recording": fil.recording,
         "reference": ref,
         "wall_s": fil.wall_s,
@@ -456,9 +478,10 @@ def _show(which: str, result: dict[str, Any]) -> None:
     a = result["alignment"]
     print(
         f"samples {a.samples}; steps column vs pass 1: {a.step_mismatches} differ ({a.near_edge} up to 20 "
-        f"us after an edge); ADC counts vs simavr's conversion: {a.adc_mismatches} differ; waveform vs exact "
-        f"plant: {a.max_count_error:.3f} count at most; {len(result['edges'].t)} steps; wall "
-        f"{result['wall_s']:.1f} s"
+        f"us after an edge); ADC counts vs simavr's conversion: {a.adc_mismatches} differ; ADC input vs "
+        f"waveform: {a.harness_error:.3f} count at most; vs exact plant: {a.max_count_error:.3f} (the "
+        f"waveform's interpolation at any phase: {result['interpolation_error']:.3f}); "
+        f"{len(result['edges'].t)} steps; wall {result['wall_s']:.1f} s"
     )
     print("settling moved by one ADC count of band (ms): in-process",
           result["settling_resolution"].round(1).to_dict(), "plant at the instants",
