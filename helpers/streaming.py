@@ -234,17 +234,17 @@ def velocity_units(mm_per_s: float, mm_per_step: float) -> int:
 class SetpointRules:
     """The board's rule for the set-point of each control period (the first half of its control tick).
 
-    ``take(k, arrived)`` gives period ``k``'s set-point: the one that arrived for it (``OK V <k>``), else, in
-    an active stream, the previous one (an underrun); after ``WATCHDOG_PERIODS`` underruns in a row the
-    watchdog fires and that period and every later one is zero; from ``end_period`` on (``OK END``) every
-    period without a set-point is zero. ``state`` is ``active``, ``end`` or ``watchdog``.
+    ``take(k, arrived)`` gives period ``k``'s set-point: the one that arrived for it (``OK V <k>``), else zero
+    (an underrun: the period moves nothing, so the cable never goes further than the set-points sent, however
+    late the host is; firmware 2.0.0 held the previous set-point instead); after ``WATCHDOG_PERIODS``
+    underruns in a row the watchdog fires and that period and every later one is zero; from ``end_period`` on
+    (``OK END``) every period without a set-point is zero. ``state`` is ``active``, ``end`` or ``watchdog``.
     """
 
     def __init__(self, end_period: int | None = None) -> None:
         self.end_period = end_period
         self.state = "active"
         self.underruns = 0
-        self.previous = 0
         self.watchdog_period: int | None = None
 
     def take(self, k: int, arrived: int | None) -> int:
@@ -252,17 +252,13 @@ class SetpointRules:
         if self.state == "active" and self.end_period is not None and k >= self.end_period:
             self.state = "end"
         if arrived is not None:
-            v, self.underruns = arrived, 0
-        elif self.state != "active":
-            v = 0
-        else:
+            self.underruns = 0
+            return arrived
+        if self.state == "active":
             self.underruns += 1
             if self.underruns > WATCHDOG_PERIODS:
-                self.state, self.watchdog_period, v = "watchdog", k, 0
-            else:
-                v = self.previous
-        self.previous = v
-        return v
+                self.state, self.watchdog_period = "watchdog", k
+        return 0
 
 
 @dataclass
