@@ -475,6 +475,23 @@ class StreamRun:
             self.finish_tick = k + 3
         return True
 
+    def checkpoint(self) -> tuple:
+        """The run's state now, for :meth:`rollback` (a host planning ahead of the board; O(history))."""
+        p = self.planner
+        flags = (p._speed_this, p._speed_clamped, p._travel_clamped, p._period)
+        lengths = (len(p.ticks), len(p.notices), len(self.v_by_period))
+        run = (self.finish_tick, self.last_nonzero, self.watchdog_seen)
+        return (p.c, p.r, dict(p.hist), flags, lengths, *run)
+
+    def rollback(self, state: tuple) -> None:
+        """Return to a :meth:`checkpoint` (the periods planned since are forgotten)."""
+        p = self.planner
+        p.c, p.r, hist, flags, lengths, self.finish_tick, self.last_nonzero, self.watchdog_seen = state
+        p.hist = dict(hist)
+        p._speed_this, p._speed_clamped, p._travel_clamped, p._period = flags
+        n_steps, n_notices, n_v = lengths
+        del p.ticks[n_steps:], p.dirs[n_steps:], p.notices[n_notices:], self.v_by_period[n_v:]
+
     def result(self) -> StreamResult:
         """What the board has done so far (all of it once the stream has stopped)."""
         p = self.planner

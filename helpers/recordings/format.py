@@ -38,8 +38,10 @@ DERIVED_COLUMNS = ("t_s", "tension_n", "cable_mm")
 SOURCES = ("hardware", "virtual-rig")
 """The vocabulary of ``source.kind``."""
 
-STATUSES = ("complete", "aborted")
-"""The vocabulary of ``status``."""
+STATUSES = ("complete", "aborted", "deviated")
+"""The vocabulary of ``status``: ``deviated`` is a run that went to its end but whose motion differed from
+its command (a stream whose host fell behind, or whose shaped motion the board clamped; ``deviation`` says
+how)."""
 
 REQUIRED_META = (
     "schema_version",
@@ -91,7 +93,7 @@ class Recording:
 
     @property
     def status(self) -> str:
-        """``"complete"`` or ``"aborted"``."""
+        """``"complete"``, ``"aborted"`` or ``"deviated"``."""
         return str(self.meta.get("status"))
 
     @property

@@ -104,11 +104,73 @@ def refuse_existing(target: str | os.PathLike, replace: bool = False) -> None:
         raise RecordingExists(f"{csv}: a recording of that name exists; choose another name or replace it")
 
 
-def aborted_path(path: str | os.PathLike, started_utc: str) -> Path:
-    """The name an aborted run is saved under: ``<name>_aborted_<UTC start>.csv`` beside ``path``."""
+def aborted_path(path: str | os.PathLike, started_utc: str, status: str = "aborted") -> Path:
+    """The name a run that is not ``complete`` is saved under: ``<name>_<status>_<UTC start>.csv``."""
     p = _csv_path(path)
     stamp = re.sub(r"[^0-9TZ]", "", started_utc) or time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    return p.with_name(f"{p.stem}_aborted_{stamp}.csv")
+    return p.with_name(f"{p.stem}_{status}_{stamp}.csv")
+
+
+class Reservation:
+    """A recording's name held by one run from before it starts until it is saved (:func:`reserve`)."""
+
+    def __init__(self, lock: Path, fd: int) -> None:
+        self.lock = lock
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        """Give the name back (idempotent)."""
+        if self._fd is None:
+            return
+        with contextlib.suppress(OSError):
+            self.lock.unlink()  # still holding the lock: nobody can have taken this file meanwhile
+        os.close(self._fd)
+        self._fd = None
+
+    def __enter__(self) -> Reservation:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def reserve(target: str | os.PathLike, replace: bool = False) -> Reservation:
+    """Refuse an existing recording (unless replacing) and hold its name until :meth:`Reservation.release`.
+
+    A second run asking for the same name meanwhile, in another process or this one, is refused at once,
+    before it starts, instead of learning of the conflict only when its finished run is saved. The hold is a
+    ``flock`` on ``.<name>.reserved.lock`` beside the recording (released by the kernel if the process dies).
+
+    Raises
+    ------
+    RecordingExists
+        The recording exists (and ``replace`` is False), or another run holds the name.
+    """
+    csv = _csv_path(target)
+    refuse_existing(csv, replace)
+    csv.parent.mkdir(parents=True, exist_ok=True)
+    lock = csv.with_name(f".{csv.stem}.reserved.lock")
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 32).decode("ascii", "replace").strip()
+            os.close(fd)
+            who = f"process {holder}" if holder.isdigit() else "another run"
+            raise RecordingExists(
+                f"{csv}: {who} is recording under this name right now; choose another name"
+            ) from None
+        try:  # the previous holder may have removed the file between our open and our lock: try again
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    os.ftruncate(fd, 0)
+    os.write(fd, str(os.getpid()).encode())
+    return Reservation(lock, fd)
 
 
 def _csv_path(path: str | os.PathLike) -> Path:
