@@ -45,6 +45,7 @@ from helpers.recordings.format import (
     validate,
     validate_meta,
 )
+from helpers.signals import signals_held
 
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}\Z")
 """A recording's name, or one component of a group."""
@@ -122,10 +123,11 @@ class Reservation:
         """Give the name back (idempotent)."""
         if self._fd is None:
             return
-        with contextlib.suppress(OSError):
-            self.lock.unlink()  # still holding the lock: nobody can have taken this file meanwhile
-        os.close(self._fd)
-        self._fd = None
+        with signals_held():
+            with contextlib.suppress(OSError):
+                self.lock.unlink()  # still holding the lock: nobody can have taken this file meanwhile
+            os.close(self._fd)
+            self._fd = None
 
     def __enter__(self) -> Reservation:
         return self
@@ -149,7 +151,11 @@ def reserve(target: str | os.PathLike, replace: bool = False) -> Reservation:
     csv = _csv_path(target)
     refuse_existing(csv, replace)
     csv.parent.mkdir(parents=True, exist_ok=True)
-    lock = csv.with_name(f".{csv.stem}.reserved.lock")
+    with signals_held():  # an interrupt cannot leave the name held by a lost file descriptor
+        return _reserve(csv, csv.with_name(f".{csv.stem}.reserved.lock"))
+
+
+def _reserve(csv: Path, lock: Path) -> Reservation:
     while True:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
         try:
