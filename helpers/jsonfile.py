@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -33,7 +34,7 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.{os.getpid()}-", suffix=".tmp")
     try:
         umask = os.umask(0)
         os.umask(umask)
@@ -47,6 +48,44 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
             os.unlink(tmp)
         raise
     return Path(tmp)
+
+
+TEMP_PATTERN = re.compile(r"\.(?P<name>.+)\.(?P<pid>\d+)-[A-Za-z0-9_]+\.tmp\Z")
+"""A temporary file of :func:`write_temp`: ``.<name>.<pid of its writer>-<random>.tmp``."""
+
+
+def process_alive(pid: int) -> bool:
+    """True if a process ``pid`` exists (it may be another program that got a dead writer's pid)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files of :func:`write_temp` in ``folder`` whose writer has died; return them.
+
+    A live writer's file is never touched (its pid is in the name and the process exists). Callers hold the
+    folder's lock, so that no writer of theirs can be starting meanwhile.
+    """
+    removed = []
+    try:
+        entries = list(Path(folder).iterdir())
+    except OSError:
+        return removed
+    for path in entries:
+        m = TEMP_PATTERN.match(path.name)
+        if m is None or process_alive(int(m["pid"])):
+            continue
+        try:
+            path.unlink()
+        except OSError:
+            continue
+        removed.append(path)
+    return removed
 
 
 def atomic_write(path: str | os.PathLike, data: bytes) -> Path:

@@ -599,7 +599,9 @@ def run(args: argparse.Namespace) -> int:
     calibration = _calibration_for(args.what, args.data_dir)
     with contextlib.ExitStack() as stack:
         for g in sorted(groups):  # one recorder per group at a time
-            stack.enter_context(folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK))
+            stack.enter_context(  # beside the group, so that deleting its folder cannot let a second in
+                folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK, beside=True)
+            )
         rig = Rig.connect(args.ports, rig_name=args.rig_name, calibration=calibration)
         stack.callback(rig.close)
         print(

@@ -338,8 +338,11 @@ periods): closer than this fraction of a period less is impossible."""
 
 
 def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
-    """Contents no rig can produce, whatever the checksum says: samples faster than the stated rate, a step
-    count beyond the travel, or one that changes faster than the step rate allows."""
+    """Refuse contents no rig can produce, whatever the checksum says.
+
+    Samples closer than the stated rate, a step count beyond the travel, or one that changes faster than the
+    step rate allows.
+    """
     if len(frame) < 2:
         return
     t_us = frame["t_us"].to_numpy(np.int64)

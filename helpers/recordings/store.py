@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.jsonfile import dumps, write_temp
+from helpers.jsonfile import dumps, process_alive, remove_stale_temporaries, write_temp
 from helpers.locks import LOCK_NAME, FolderBusy, folder_lock
 from helpers.paths import DATA_DIR
 from helpers.recordings.format import (
@@ -238,6 +238,7 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
     json_target = target.with_suffix(".json")
     try:
         with folder_lock(target.parent, wait_s=SAVE_WAIT_S, what="saving a recording"):
+            tidy_folder(target.parent)
             exists = target.exists() or json_target.exists()
             if exists and not replace:
                 raise RecordingExists(
@@ -249,6 +250,40 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
     recording.meta = json.loads(text)
     recording.path = target
     return target
+
+
+_BACKUP = re.compile(r"\.(?P<name>.+)\.replaced-(?P<pid>\d+)\.tmp\Z")
+"""A recording file set aside during a replacement: ``.<file name>.replaced-<pid of its writer>.tmp``."""
+
+
+def tidy_folder(folder: Path) -> None:
+    """What writers that died left in ``folder``: called by a writer holding the folder's lock.
+
+    Their temporary files go (:func:`helpers.jsonfile.remove_stale_temporaries`). A pair a dead writer was
+    replacing is made whole again: if the new pair is complete, the old one's set-aside files go; if not,
+    the new part goes and the old pair is put back. A live writer's files are never touched.
+    """
+    remove_stale_temporaries(folder)
+    aside: dict[str, dict[str, Path]] = {}
+    for path in folder.iterdir():
+        m = _BACKUP.match(path.name)
+        if m is None or process_alive(int(m["pid"])):
+            continue
+        dest = folder / m["name"]
+        aside.setdefault(dest.stem, {})[dest.suffix] = path
+    for stem, files in aside.items():
+        csv, js = folder / f"{stem}.csv", folder / f"{stem}.json"
+        if csv.exists() and js.exists():  # the replacement was complete: the old pair is obsolete
+            for p in files.values():
+                p.unlink(missing_ok=True)
+            continue
+        for new in (js, csv):  # half a new pair: the old pair comes back
+            if new.suffix in files:
+                new.unlink(missing_ok=True)
+        if ".json" not in files and js.exists():  # the new JSON alone, old JSON gone: keep the new pair's
+            continue
+        for suffix, p in files.items():
+            os.replace(p, folder / f"{stem}{suffix}")
 
 
 def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exists: bool) -> None:
