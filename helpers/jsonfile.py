@@ -33,8 +33,11 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
     error (a full disk, a signal) the temporary file is removed and the error re-raised: nothing else changed.
     """
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.{os.getpid()}-", suffix=".tmp")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.{os.getpid()}-", suffix=".tmp")
+    except OSError as exc:  # a read-only or full file system: name the file it was for
+        raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
     try:
         umask = os.umask(0)
         os.umask(umask)
@@ -43,9 +46,11 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
         raise
     return Path(tmp)
 

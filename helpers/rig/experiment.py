@@ -502,7 +502,7 @@ class Rig:
         if require_zero and position != 0:
             raise NotAtZero(
                 f"the cable is at {position} steps, not at 0 (the paper's experiments start from the down "
-                "position): run `python -m helpers home` first"
+                f"position): {self._home_hint()} first"
             )
         scenario["start_position_steps"] = position
         self._seed_noise(noise_seed, scenario)
@@ -784,6 +784,14 @@ class Rig:
             _, silence = self._read_both(silence, max_corrupted_fraction)
             now = self.daq.rows[-1][1]
             bar.show((now - state.t_go_us) / 1e6)
+
+    def _home_hint(self) -> str:
+        """How to bring this rig's cable home: the command with this rig's ports, or the call in-process."""
+        ports = self.source.get("ports", {})
+        if str(ports.get("daq", "")).startswith("virtual://"):
+            return "return it with helpers.home.home(rig.stepper) (the in-process rig lives in this process)"
+        daq, stepper = ports.get("daq", "DAQ"), ports.get("stepper", "STEPPER")
+        return f"run `python -m helpers home --ports {daq},{stepper}`"
 
     def _target(self, path: str | os.PathLike | None) -> Path:
         """Where a run is saved: ``path`` (its name checked) or ``data/runs/run_<UTC time>``."""
