@@ -516,7 +516,7 @@ class Rig:
             try:
                 self._stream_until_done(
                     state, programme.duration_us, rate_hz, margin_s, done_grace_s, silence_timeout,
-                    max_corrupted_fraction, bar,
+                    max_corrupted_fraction, bar, position + int(positions[-1]),
                 )  # fmt: skip
             finally:
                 bar.close()
@@ -940,10 +940,16 @@ class Rig:
         silence_timeout: float,
         max_corrupted_fraction: float,
         bar: _DeviceTimeBar,
+        end_position: int,
     ) -> None:
-        """Read samples until the programme's end + ``margin_s`` has passed and ``DONE`` has arrived."""
+        """Read samples until the programme's end + ``margin_s`` has passed and ``DONE`` has arrived.
+
+        A ``DONE`` lost to a bit error on the link (a corrupted line came from the stepper instead) is not a
+        silent board: ``POS`` then tells whether the programme ended where it should.
+        """
         period_us = round(1e6 / rate_hz)
         silence = Waiter(silence_timeout)
+        corrupted = self.stepper.parser.stats.corrupted
         while True:
             new, silence = self._read_both(silence, max_corrupted_fraction)
             rows = self.daq.rows
@@ -957,6 +963,16 @@ class Rig:
             if past_end and self.stepper.done_position is not None:
                 return
             overdue = last_us >= state.t_go_us + duration_us + done_grace_s * 1e6
+            lost = self.stepper.parser.stats.corrupted > corrupted
+            if self.stepper.done_position is None and overdue and lost:
+                where = self.stepper.position()  # DONE came corrupted: ask where the programme ended
+                if where == end_position:
+                    self.stepper.done_position = where
+                    continue
+                raise BoardError(
+                    f"the stepper board's DONE was lost on the link, and it is at {where} steps, not at the "
+                    f"programme's end ({end_position})"
+                )
             if self.stepper.done_position is None and overdue:
                 raise BoardTimeout(
                     f"the stepper board did not report DONE within {done_grace_s:.1f} s of device time "
