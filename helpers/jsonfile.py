@@ -177,6 +177,8 @@ def read_json(path: str | os.PathLike, what: str, missing_hint: str = "") -> dic
         data = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise DataFileError(f"{path}: the {what} is not valid JSON ({exc})") from None
+    except RecursionError:
+        raise DataFileError(f"{path}: the {what} is nested too deeply to be what it should be") from None
     if not isinstance(data, dict):
         raise DataFileError(f"{path}: the {what} is not a JSON object")
     return data
