@@ -12,18 +12,16 @@ disables the driver, stops the DAQ and saves what it recorded, and the line says
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import sys
 import traceback
 from pathlib import Path
 
-from helpers.jsonfile import DataFileError
-from helpers.locks import FolderBusy
-from helpers.recordings import RecordingError
-from helpers.rig.boards import BoardError
-from helpers.rig.safety import SafetyError
-from helpers.signals import Interrupted, interrupts_from_signals
+# Only the standard library and helpers.signals (standard library only) load before the signal handlers are
+# in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
+from helpers.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("helpers.reproduce", "execute every notebook in order; regenerate figures/ and tables"),
@@ -64,35 +62,59 @@ def _shown(path: Path | None) -> str:
 
 
 def _run_outcome(exc: BaseException) -> str:
-    """For an aborted run: where its data went, and whether the cleanup reached the boards."""
+    """For a run that ended early: where its data went, and whether the cleanup reached the boards."""
     if not hasattr(exc, "cleanup"):
         return ""
-    if getattr(exc, "saved_path", None) is not None:
-        n = len(exc.recording.frame) if getattr(exc, "recording", None) is not None else 0
+    n = len(exc.recording.frame) if getattr(exc, "recording", None) is not None else 0
+    if getattr(exc, "complete", False) and getattr(exc, "saved_path", None) is not None:
+        saved = f"the run had finished: saved whole to {_shown(exc.saved_path)} ({n} samples)"
+    elif getattr(exc, "saved_path", None) is not None:
         saved = f"partial recording saved to {_shown(exc.saved_path)} ({n} samples)"
     else:
-        saved = f"the partial recording could NOT be saved ({getattr(exc, 'save_error', '?')})"
+        saved = f"the recording could NOT be saved ({getattr(exc, 'save_error', '?')})"
     cleanup = exc.cleanup
-    if cleanup:
+    stepper_failed = [c for c in cleanup if "stepper board" in c]
+    if stepper_failed:
         boards = "cleanup failed: " + "; ".join(cleanup) + ": the driver may be on, switch its power off"
+    elif cleanup:  # only the DAQ's STOP failed: the stepper is stopped and its driver off
+        boards = "the stepper was stopped and disabled; " + "; ".join(cleanup)
     else:
         boards = "the stepper was stopped and disabled and the DAQ stopped"
     return f"; {saved}; {boards}"
 
 
+def _loaded(module: str, name: str) -> type | None:
+    """An exception class of a module that is loaded already (error_line never imports anything)."""
+    mod = sys.modules.get(module)
+    return getattr(mod, name, None) if mod is not None else None
+
+
+def _is(exc: BaseException, *classes: tuple[str, str]) -> bool:
+    found = tuple(c for c in (_loaded(m, n) for m, n in classes) if c is not None)
+    return bool(found) and isinstance(exc, found)
+
+
 def error_line(exc: BaseException) -> tuple[str, int]:
-    """The one line the user sees for ``exc``, and the exit status."""
+    """The one line the user sees for ``exc``, and the exit status (:data:`EXIT_CODES`)."""
     if isinstance(exc, KeyboardInterrupt):
         signum = exc.signum if isinstance(exc, Interrupted) else 2
         what = str(exc) if isinstance(exc, Interrupted) else "interrupted by Ctrl-C"
-        return f"{what}{_run_outcome(exc)}", 128 + signum
+        return f"{what}{_run_outcome(exc)}", EXIT_STATUS.get(signum, 128 + signum)
     first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-    if isinstance(exc, SafetyError):
+    if _is(exc, ("helpers.rig.safety", "SafetyError")):
         status = 3
-    elif isinstance(exc, BoardError):
+    elif _is(exc, ("helpers.rig.boards", "BoardError")):
         status = 4
-    elif isinstance(exc, RecordingError | DataFileError | FolderBusy):
+    elif _is(
+        exc, ("helpers.recordings.format", "RecordingError"), ("helpers.jsonfile", "DataFileError"),
+        ("helpers.locks", "FolderBusy"),
+    ):  # fmt: skip
         status = 5
+    elif isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EDQUOT):
+        why = {errno.ENOSPC: "no space left on device", errno.EROFS: "read-only file system",
+               errno.EACCES: "permission denied", errno.EDQUOT: "disk quota exceeded"}[exc.errno]  # fmt: skip
+        where = exc.filename if exc.filename is not None else "?"
+        first, status = f"{_shown(Path(where))}: could not write ({why})", 5
     elif isinstance(exc, ValueError):
         status = 2
     else:
@@ -110,6 +132,24 @@ class _Parser(argparse.ArgumentParser):
 def main(argv: list[str] | None = None) -> int:
     """Run the command line and return its exit status."""
     argv = sys.argv[1:] if argv is None else argv
+    debug = "--debug" in argv
+    try:
+        with interrupts_from_signals():  # first: the commands' modules take seconds to load
+            return _main(argv)
+    except SystemExit as exc:
+        if isinstance(exc.code, str):  # a command's usage refusal: one line, status 2
+            print(f"error: {exc.code}", file=sys.stderr)
+            return 2
+        raise
+    except BaseException as exc:  # noqa: BLE001 - every error ends in one line and a documented status
+        if debug:
+            traceback.print_exc()
+        line, status = error_line(exc)
+        print(line, file=sys.stderr)
+        return status
+
+
+def _main(argv: list[str]) -> int:
     parser = _Parser(
         prog="python -m helpers",
         description=__doc__.splitlines()[0].replace("``", ""),
@@ -124,20 +164,7 @@ def main(argv: list[str] | None = None) -> int:
         if name == chosen:
             importlib.import_module(module).add_arguments(p)
     args = parser.parse_args(argv)
-    try:
-        with interrupts_from_signals():
-            return int(importlib.import_module(args.module).run(args))
-    except SystemExit as exc:
-        if isinstance(exc.code, str):  # a command's usage refusal: one line, status 2
-            print(f"error: {exc.code}", file=sys.stderr)
-            return 2
-        raise
-    except BaseException as exc:  # noqa: BLE001 - every error ends in one line and a documented status
-        if args.debug:
-            traceback.print_exc()
-        line, status = error_line(exc)
-        print(line, file=sys.stderr)
-        return status
+    return int(importlib.import_module(args.module).run(args))
 
 
 if __name__ == "__main__":

@@ -99,3 +99,7 @@ STEPPER_BAUD: int = 115_200
 
 MAX_PROGRAMME_S: float = 600.0
 """Longest programme the host runs, s (a recording is held in memory: 10 min at 2 kHz is 1.2 M rows)."""
+
+
+MAX_PULSE_MM: float = LIMITS.max_position_steps * MM_PER_STEP
+"""The longest pulse: the travel's 156 steps, 39.82 mm (a pulse moves round(x_f / MM_PER_STEP) steps)."""

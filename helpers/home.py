@@ -22,7 +22,7 @@ from helpers.rig.boards import BoardError, BoardTimeout, Waiter
 from helpers.rig.discovery import find_rig_ports
 from helpers.rig.safety import SafetyError, check_programme
 from helpers.rig.stepper import StepperBoard
-from helpers.validate import DefaultsHelp, arg_number
+from helpers.validate import DefaultsHelp, arg_number, arg_rig_name
 
 HOME_SPEED_MM_S = 50.0
 """Cable speed of the way home, mm/s (gentle: a quarter of the experiments' slowest move)."""
@@ -59,7 +59,9 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
             )
         stepper.enable(False)
         return "the cable was confirmed slack: the stepper counts from 0 here (driver disabled)"
-    position = stepper.position()
+    # ABORT first: a programme or stream an earlier session left running stops (CLEAR would be refused while
+    # it runs), the driver goes off, and the reply says where the cable is
+    position = stepper.abort()
     if position == 0:
         stepper.enable(False)
         return "the cable is at position 0 already (driver disabled)"
@@ -95,7 +97,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="virtual",
         help="'virtual' (in-process virtual rig), 'auto' (USB discovery), 'DAQ,STEPPER' or the stepper port",
     )
-    parser.add_argument("--rig-name", default="record", help="name of the in-process virtual rig")
+    parser.add_argument(
+        "--rig-name", default="record", type=arg_rig_name, help="name of the in-process virtual rig"
+    )
     parser.add_argument(
         "--confirm-slack",
         action="store_true",
@@ -122,6 +126,12 @@ def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers home``."""
     if not math.isfinite(args.speed):
         raise SystemExit("--speed must be finite")
+    if args.ports == "virtual":  # a new in-process rig is made for this command: it is at 0 by construction
+        print(
+            "the in-process virtual rig is made anew by every command, at rest at position 0: nothing to "
+            "home (a virtual rig that keeps running is serve-virtual-rig's: home --ports DAQ,STEPPER)"
+        )
+        return 0
     stepper = StepperBoard.open(_stepper_url(args.ports, args.rig_name))
     try:
         print(home(stepper, confirm_slack=args.confirm_slack, speed_mm_s=args.speed))

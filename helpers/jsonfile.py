@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -32,8 +33,11 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
     error (a full disk, a signal) the temporary file is removed and the error re-raised: nothing else changed.
     """
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=".tmp")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.{os.getpid()}-", suffix=".tmp")
+    except OSError as exc:  # a read-only or full file system: name the file it was for
+        raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
     try:
         umask = os.umask(0)
         os.umask(umask)
@@ -42,11 +46,51 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
         raise
     return Path(tmp)
+
+
+TEMP_PATTERN = re.compile(r"\.(?P<name>.+)\.(?P<pid>\d+)-[A-Za-z0-9_]+\.tmp\Z")
+"""A temporary file of :func:`write_temp`: ``.<name>.<pid of its writer>-<random>.tmp``."""
+
+
+def process_alive(pid: int) -> bool:
+    """True if a process ``pid`` exists (it may be another program that got a dead writer's pid)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files of :func:`write_temp` in ``folder`` whose writer has died; return them.
+
+    A live writer's file is never touched (its pid is in the name and the process exists). Callers hold the
+    folder's lock, so that no writer of theirs can be starting meanwhile.
+    """
+    removed = []
+    try:
+        entries = list(Path(folder).iterdir())
+    except OSError:
+        return removed
+    for path in entries:
+        m = TEMP_PATTERN.match(path.name)
+        if m is None or process_alive(int(m["pid"])):
+            continue
+        try:
+            path.unlink()
+        except OSError:
+            continue
+        removed.append(path)
+    return removed
 
 
 def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
@@ -133,6 +177,8 @@ def read_json(path: str | os.PathLike, what: str, missing_hint: str = "") -> dic
         data = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise DataFileError(f"{path}: the {what} is not valid JSON ({exc})") from None
+    except RecursionError:
+        raise DataFileError(f"{path}: the {what} is nested too deeply to be what it should be") from None
     if not isinstance(data, dict):
         raise DataFileError(f"{path}: the {what} is not a JSON object")
     return data

@@ -31,7 +31,11 @@ def _holder(path: Path) -> str:
 
 @contextmanager
 def folder_lock(
-    folder: str | os.PathLike, wait_s: float = 0.0, what: str = "writing", name: str = LOCK_NAME
+    folder: str | os.PathLike,
+    wait_s: float = 0.0,
+    what: str = "writing",
+    name: str = LOCK_NAME,
+    beside: bool = False,
 ) -> Iterator[Path]:
     """Hold ``folder``'s lock for the ``with`` block (created if missing).
 
@@ -45,6 +49,9 @@ def folder_lock(
         What the holder is doing, for the message.
     name : str
         The lock file's name (one folder may carry independent locks for different purposes).
+    beside : bool
+        Keep the lock file beside the folder (``.<folder><name>`` in its parent) rather than in it, so that
+        deleting the folder while it is held does not let a second holder in.
 
     Raises
     ------
@@ -53,7 +60,7 @@ def folder_lock(
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / name
+    path = folder.parent / f".{folder.name}{name}" if beside else folder / name
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     try:
         deadline = time.monotonic() + max(0.0, wait_s)

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import os
 import warnings
-
-import numpy as np
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from helpers.style import apply_style
+
+if TYPE_CHECKING:
+    import numpy as np
 
 PRINT_PRECISION = 4
 """Digits after the decimal point in printed arrays and DataFrames."""
@@ -58,6 +59,11 @@ def setup(precision: int = PRINT_PRECISION, seed: int = 0) -> np.random.Generato
     numpy.random.Generator
         A generator seeded with ``seed``, for any randomness a notebook needs.
     """
+    # numpy and pandas load here, not when the package is imported: `python -m helpers` imports the package
+    # first, and a Ctrl-C must find the command line's handlers in place while the heavy modules load
+    import numpy as np  # noqa: PLC0415
+    import pandas as pd  # noqa: PLC0415
+
     np.set_printoptions(precision=precision, suppress=True, legacy="1.25")
     pd.set_option("display.precision", precision)
     pd.set_option("display.width", 120)

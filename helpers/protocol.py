@@ -34,7 +34,7 @@ from helpers.crc8 import INIT, crc8, crc8_hex
 from helpers.crc8 import TABLE as _CRC_TABLE
 from helpers.hardware import ADC_MAX
 
-FW_VERSION = "2.0.0"
+FW_VERSION = "2.1.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
 
 MAX_LINE = 63

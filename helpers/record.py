@@ -38,8 +38,8 @@ from helpers.hardware import (
     DAQ_RATE_MAX_HZ,
     DAQ_RATE_MIN_HZ,
     MAX_PROGRAMME_S,
+    MAX_PULSE_MM,
     MAX_SPEED_MM_S,
-    MAX_TRAVEL_MM,
 )
 from helpers.identify import identify_recording, load_identification, save_identification
 from helpers.jsonfile import MissingDataError
@@ -55,7 +55,7 @@ from helpers.modemap import load_map
 from helpers.modes import omega_n_from_damped
 from helpers.paths import DATA_DIR
 from helpers.programmes import experiment_programme
-from helpers.recordings import check_group, check_name, recording_path, refuse_existing
+from helpers.recordings import RecordingExists, check_group, check_name, recording_path, refuse_existing
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
 from helpers.shapers import Shaper, design_tdfs, ei
@@ -124,9 +124,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="pulse speed, mm/s, in (0, 400]; required for pulse",  # fmt: skip
     )
     parser.add_argument(
-        "--x-f", type=arg_number(0, MAX_TRAVEL_MM, lo_open=True),
-        help="pulse displacement, mm, in (0, 40]; required for pulse",  # fmt: skip
-    )
+        "--x-f", type=arg_number(0, round(MAX_PULSE_MM, 2), lo_open=True),
+        help=f"pulse displacement, mm, in (0, {MAX_PULSE_MM:.2f}] (the travel, 156 steps); needed for pulse",
+    )  # fmt: skip
     parser.add_argument("--system", choices=list(SYSTEMS), default=None, help=SYSTEM_HELP)
     parser.add_argument(
         "--design",
@@ -196,7 +196,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _shapers(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
+def _shapers(args: argparse.Namespace, quiet: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
     if (args.zeta is None) != (args.omega_d is None):
         raise SystemExit("give both --zeta and --omega-d, or neither (then result.json is used)")
     if args.zeta is not None:
@@ -205,13 +205,14 @@ def _shapers(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
         path = Path(args.identification or args.data_dir / "identification" / "result.json")
         try:
             found = load_identification(path)
-        except MissingDataError as exc:
-            raise SystemExit(f"{exc} (or pass --zeta and --omega-d)") from None
+        except MissingDataError as exc:  # a data file is missing: status 5, not a usage error
+            raise MissingDataError(f"{exc} (or pass --zeta and --omega-d)") from None
         zeta, omega_d = found.zeta, found.omega_d
         origin = _shown(path)
     zv, zvd = design_tdfs(omega_d, zeta)
     extra = ei(omega_n_from_damped(omega_d, zeta), zeta)
-    print(f"shapers designed from zeta = {zeta:.4f}, omega_d = {omega_d:.3f} rad/s ({origin})")
+    if not quiet:
+        print(f"shapers designed from zeta = {zeta:.4f}, omega_d = {omega_d:.3f} rad/s ({origin})")
     shapers = {"unshaped": None, "zv": zv, "zvd": zvd, "ei": Shaper(extra.amplitudes, extra.times, "ei")}
     return shapers, {"zeta": zeta, "omega_d": omega_d, "origin": origin}
 
@@ -514,10 +515,12 @@ def _calibration_for(what: str, data_dir: Path) -> LoadCellCalibration | None:
         raise
 
 
-def _planned_pulses(args: argparse.Namespace) -> list[tuple[str, str, float, float, str, Any]]:
+def _planned_pulses(
+    args: argparse.Namespace, quiet: bool = False
+) -> list[tuple[str, str, float, float, str, Any]]:
     """(group, name, v_in, x_f, system, shaping) of every pulse ``args`` asks for, in recording order."""
     if args.what == "pulse":
-        system, shaping, _, v_in, x_f = _pulse_request(args)
+        system, shaping, _, v_in, x_f = getattr(args, "pulse_request", None) or _pulse_request(args)
         base = args.name or scenario_name(system, v_in, x_f)
         reps = args.repetitions or 1
         return [
@@ -529,9 +532,10 @@ def _planned_pulses(args: argparse.Namespace) -> list[tuple[str, str, float, flo
         run = paper.IDENTIFICATION_RUN
         v, x = run["v_in_mm_s"], run["x_f_mm"]
         planned.append(("identification", "pulse_v100_x10", v, x, "unshaped", None))
-        print("dry run: the shapers of Table I are designed from the identification run once it is recorded;")
-        print("         the plan below checks them with the current identification result")
-    shapers, _ = _shapers(args)
+        if not quiet:
+            print("dry run: the shapers of Table I are designed from the identification run once recorded;")
+            print("         the plan below checks them with the current identification result")
+    shapers, _ = _shapers(args, quiet=quiet)
     reps = args.repetitions or 3
     for system in paper.SYSTEMS:
         for v, x in paper.TABLE_I_CONDITIONS:
@@ -586,6 +590,23 @@ def dry_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _refuse_existing_targets(args: argparse.Namespace) -> None:
+    """Refuse a request whose recordings exist already, naming the options that avoid it."""
+    if args.what == "calibration":
+        names = [(args.group, f"load_{round(1000 * m):04d}g") for m in CALIBRATION_MASSES_KG]
+    elif args.what in ("pulse", "table-i", "all"):
+        names = [(g, n) for g, n, *_ in _planned_pulses(args, quiet=True)]
+    else:
+        return  # streams: each is checked by Rig.stream before anything moves
+    how = "choose another --name" if args.what == "pulse" else "choose another --group"
+    for group, name in names:
+        target = recording_path(group, name, args.data_dir)
+        if target.exists() or target.with_suffix(".json").exists():
+            raise RecordingExists(
+                f"{_shown(target)}: a recording of that name exists; {how} or pass --replace to replace it"
+            )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers record`` (errors are turned into one line by ``python -m helpers``)."""
     args.group = args.group or DEFAULT_GROUPS[args.what]
@@ -597,9 +618,13 @@ def run(args: argparse.Namespace) -> int:
         args.pulse_request = _pulse_request(args)
     groups = {args.group, "identification"} if args.what == "all" else {args.group}
     calibration = _calibration_for(args.what, args.data_dir)
+    if not args.replace:  # before any port is opened (opening one resets an Arduino)
+        _refuse_existing_targets(args)
     with contextlib.ExitStack() as stack:
         for g in sorted(groups):  # one recorder per group at a time
-            stack.enter_context(folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK))
+            stack.enter_context(  # beside the group, so that deleting its folder cannot let a second in
+                folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK, beside=True)
+            )
         rig = Rig.connect(args.ports, rig_name=args.rig_name, calibration=calibration)
         stack.callback(rig.close)
         print(

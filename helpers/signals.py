@@ -1,9 +1,22 @@
 """Ending a run cleanly however it ends: SIGTERM and SIGHUP as interrupts, and no interrupt mid-save.
 
-:func:`interrupts_from_signals` turns SIGTERM and SIGHUP into :class:`Interrupted` (a ``KeyboardInterrupt``),
-so that the same guard that handles Ctrl-C aborts the stepper, disables the driver, stops the DAQ and saves
-what was recorded. :func:`signals_held` blocks SIGINT, SIGTERM and SIGHUP while that cleanup and the save run,
-so a second Ctrl-C cannot cut a save in half; a signal that arrives meanwhile is delivered afterwards.
+:func:`interrupts_from_signals` turns SIGINT, SIGTERM and SIGHUP into :class:`Interrupted` (a
+``KeyboardInterrupt``), so that the same guard that handles Ctrl-C aborts the stepper, disables the driver,
+stops the DAQ and saves what was recorded.
+
+:func:`signals_held` **defers** those signals for a block (a save, the parser's counts): the handler notes
+a signal that arrives meanwhile and it is delivered when the block ends. The deferral is done by the
+handler itself (installed for the block if it is not already), not by masking the thread: the kernel may
+hand a process's signal to any thread, and Python then runs the handler in the main thread whatever the
+main thread's mask is.
+
+:func:`run_guard` is what an experiment runs in: signals are deferred except inside its
+:meth:`Guard.interruptible` part (the run), and there only the **first** one raises; the handler itself
+then defers every later one, so nothing can interrupt the cleanup and the save that follow, not even a
+signal that arrives between the run's end and the save's start (the gap a ``with signals_held()`` written
+after the run would leave open). The signals deferred during a guard are in :attr:`Guard.pending`.
+
+All of this works in the main thread; elsewhere (where Python cannot install handlers) it does nothing.
 """
 
 from __future__ import annotations
@@ -12,41 +25,156 @@ import signal
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 
 HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
+"""The documented exit status of a command interrupted by each signal (128 + the signal's number)."""
 
 
 class Interrupted(KeyboardInterrupt):
     """A run was interrupted by a signal (``signum``): treated exactly like Ctrl-C."""
 
     def __init__(self, signum: int) -> None:
-        super().__init__(f"interrupted by {signal.Signals(signum).name}")
+        name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        super().__init__(f"interrupted by {name}")
         self.signum = signum
 
 
-def _raise(signum: int, frame: object) -> None:
+@dataclass
+class _State:
+    depth: int = 0
+    """> 0: signals are deferred."""
+    armed: bool = False
+    """An interruptible part is running: the next signal raises (once) and latches the deferral."""
+    pending: list[int] = field(default_factory=list)
+
+
+_state = _State()
+
+
+def _handler(signum: int, frame: object) -> None:
+    if _state.depth > 0:
+        _state.pending.append(signum)
+        return
+    if _state.armed:  # the first signal of a guarded run: from now on, defer (the cleanup must not be cut)
+        _state.armed = False
+        _state.depth += 1
     raise Interrupted(signum)
+
+
+def _main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+@contextmanager
+def _handlers() -> Iterator[bool]:
+    """Install :func:`_handler` for :data:`HELD` for the block (main thread); yield whether it could."""
+    if not _main_thread():
+        yield False
+        return
+    previous = {s: signal.getsignal(s) for s in HELD}
+    for s, h in previous.items():
+        if h is not _handler:
+            signal.signal(s, _handler)
+    try:
+        yield True
+    finally:
+        for s, h in previous.items():
+            if h is not _handler:
+                signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+def _redeliver(pending: list[int]) -> None:
+    """Deliver the first deferred signal again to whatever handles it now (ours raises, the default kills)."""
+    if pending:
+        signal.raise_signal(pending[0])
 
 
 @contextmanager
 def interrupts_from_signals() -> Iterator[None]:
-    """Within the block, SIGTERM and SIGHUP raise :class:`Interrupted` (main thread only; else a no-op)."""
-    if threading.current_thread() is not threading.main_thread():
+    """Within the block, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted` (main thread; else a no-op)."""
+    with _handlers():
         yield
-        return
-    previous = {s: signal.signal(s, _raise) for s in (signal.SIGTERM, signal.SIGHUP)}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
 
 
 @contextmanager
 def signals_held() -> Iterator[None]:
-    """Block SIGINT, SIGTERM and SIGHUP for the block; any that arrived are delivered when it ends."""
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, HELD)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+    """Defer SIGINT, SIGTERM and SIGHUP for the block; one that arrived is delivered when the block ends.
+
+    If the block ends with an exception, that exception goes on and a deferred signal is dropped (it asked
+    to stop, and the run is stopping).
+    """
+    with _handlers() as installed:
+        if not installed:
+            yield
+            return
+        base = _state.depth
+        _state.depth = base + 1
+        failed = True
+        try:
+            yield
+            failed = False
+        finally:
+            _state.depth = base
+            pending = [] if base else _state.pending[:]
+            if not base:
+                _state.pending.clear()
+    if not failed:
+        _redeliver(pending)
+
+
+@dataclass
+class Guard:
+    """A guarded run (:func:`run_guard`): where signals may interrupt, and which arrived while deferred."""
+
+    installed: bool
+    base: int = 0
+
+    @contextmanager
+    def interruptible(self) -> Iterator[None]:
+        """The run: the first signal raises :class:`Interrupted`; every later one is deferred."""
+        if not self.installed:
+            yield
+            return
+        _state.depth = self.base
+        _state.armed = True
+        try:
+            yield
+        finally:  # defer again (a signal arriving right now latches the same way, then raises)
+            _state.depth = self.base + 1
+            _state.armed = False
+
+    def take_pending(self) -> int | None:
+        """The first signal deferred so far (None: none), and forget them (the caller reports it itself)."""
+        signum = _state.pending[0] if _state.pending else None
+        if not self.base:
+            _state.pending.clear()
+        return signum
+
+
+@contextmanager
+def run_guard() -> Iterator[Guard]:
+    """Defer SIGINT, SIGTERM and SIGHUP except in the guard's :meth:`Guard.interruptible` part (module doc).
+
+    A signal deferred in the guard and not taken (:meth:`Guard.take_pending`) is delivered when the guard
+    ends without an exception; with one, that exception goes on.
+    """
+    with _handlers() as installed:
+        guard = Guard(installed, _state.depth)
+        if not installed:
+            yield guard
+            return
+        _state.depth = guard.base + 1
+        failed = True
+        try:
+            yield guard
+            failed = False
+        finally:
+            _state.armed = False
+            _state.depth = guard.base
+            pending = [] if guard.base else _state.pending[:]
+            if not guard.base:
+                _state.pending.clear()
+    if not failed:
+        _redeliver(pending)

@@ -234,17 +234,17 @@ def velocity_units(mm_per_s: float, mm_per_step: float) -> int:
 class SetpointRules:
     """The board's rule for the set-point of each control period (the first half of its control tick).
 
-    ``take(k, arrived)`` gives period ``k``'s set-point: the one that arrived for it (``OK V <k>``), else, in
-    an active stream, the previous one (an underrun); after ``WATCHDOG_PERIODS`` underruns in a row the
-    watchdog fires and that period and every later one is zero; from ``end_period`` on (``OK END``) every
-    period without a set-point is zero. ``state`` is ``active``, ``end`` or ``watchdog``.
+    ``take(k, arrived)`` gives period ``k``'s set-point: the one that arrived for it (``OK V <k>``), else zero
+    (an underrun: the period moves nothing, so the cable never goes further than the set-points sent, however
+    late the host is; firmware 2.0.0 held the previous set-point instead); after ``WATCHDOG_PERIODS``
+    underruns in a row the watchdog fires and that period and every later one is zero; from ``end_period`` on
+    (``OK END``) every period without a set-point is zero. ``state`` is ``active``, ``end`` or ``watchdog``.
     """
 
     def __init__(self, end_period: int | None = None) -> None:
         self.end_period = end_period
         self.state = "active"
         self.underruns = 0
-        self.previous = 0
         self.watchdog_period: int | None = None
 
     def take(self, k: int, arrived: int | None) -> int:
@@ -252,17 +252,13 @@ class SetpointRules:
         if self.state == "active" and self.end_period is not None and k >= self.end_period:
             self.state = "end"
         if arrived is not None:
-            v, self.underruns = arrived, 0
-        elif self.state != "active":
-            v = 0
-        else:
+            self.underruns = 0
+            return arrived
+        if self.state == "active":
             self.underruns += 1
             if self.underruns > WATCHDOG_PERIODS:
-                self.state, self.watchdog_period, v = "watchdog", k, 0
-            else:
-                v = self.previous
-        self.previous = v
-        return v
+                self.state, self.watchdog_period = "watchdog", k
+        return 0
 
 
 @dataclass
@@ -478,6 +474,23 @@ class StreamRun:
         if self.finish_tick is None and state != "active" and k - self.last_nonzero >= self.planner.q_max + 2:
             self.finish_tick = k + 3
         return True
+
+    def checkpoint(self) -> tuple:
+        """The run's state now, for :meth:`rollback` (a host planning ahead of the board; O(history))."""
+        p = self.planner
+        flags = (p._speed_this, p._speed_clamped, p._travel_clamped, p._period)
+        lengths = (len(p.ticks), len(p.notices), len(self.v_by_period))
+        run = (self.finish_tick, self.last_nonzero, self.watchdog_seen)
+        return (p.c, p.r, dict(p.hist), flags, lengths, *run)
+
+    def rollback(self, state: tuple) -> None:
+        """Return to a :meth:`checkpoint` (the periods planned since are forgotten)."""
+        p = self.planner
+        p.c, p.r, hist, flags, lengths, self.finish_tick, self.last_nonzero, self.watchdog_seen = state
+        p.hist = dict(hist)
+        p._speed_this, p._speed_clamped, p._travel_clamped, p._period = flags
+        n_steps, n_notices, n_v = lengths
+        del p.ticks[n_steps:], p.dirs[n_steps:], p.notices[n_notices:], self.v_by_period[n_v:]
 
     def result(self) -> StreamResult:
         """What the board has done so far (all of it once the stream has stopped)."""

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib as mpl
-
 STYLE: dict[str, object] = {
     "figure.figsize": (7.0, 3.6),
     "figure.dpi": 100,
@@ -26,4 +24,6 @@ SYSTEM_COLOURS: dict[str, str] = {"unshaped": "C3", "zv": "C0", "zvd": "C2"}
 
 def apply_style() -> None:
     """Apply the project's matplotlib style."""
+    import matplotlib as mpl  # noqa: PLC0415 - here, so that importing helpers (the command line) stays light
+
     mpl.rcParams.update(STYLE)

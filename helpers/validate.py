@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from typing import Any
 
 import numpy as np
@@ -58,6 +59,19 @@ def arg_number(lo: float, hi: float, kind: type = float, lo_open: bool = False) 
 
     parse.__name__ = kind.__name__  # argparse shows it in "invalid <name> value"
     return parse
+
+
+RIG_NAME = re.compile(r"[A-Za-z0-9_.-]{1,64}\Z")
+"""An in-process virtual rig's name: letters, digits, ``_``, ``-``, ``.`` (no URL option can be injected)."""
+
+
+def arg_rig_name(text: str) -> str:
+    """An argparse ``type`` for a virtual rig's name (:data:`RIG_NAME`)."""
+    if not RIG_NAME.match(text):
+        raise argparse.ArgumentTypeError(
+            f"invalid virtual rig name {text!r}: letters, digits, '_', '-', '.' (at most 64)"
+        )
+    return text
 
 
 class DefaultsHelp(argparse.HelpFormatter):

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from helpers import recordings
-from helpers.home import home
+from helpers.home import PositionUnknown, home
 from helpers.paths import DATA_DIR, REPO_ROOT
 from helpers.programmes import Programme, Segment
 from helpers.rig import PortBusy, Rig
@@ -232,13 +232,16 @@ def test_a_pulse_refuses_to_start_away_from_zero(own_server, data_dir):
 
 @pytest.mark.slow
 def test_home_after_a_board_reset_asks_for_confirmation():
-    cmd = [PY, "-m", "helpers", "home", "--ports", "virtual"]
-    done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=60)
-    assert done.returncode == 3 and "position is unknown" in done.stderr and "--confirm-slack" in done.stderr
-    done = subprocess.run(
-        [*cmd, "--confirm-slack"], capture_output=True, text=True, cwd=REPO_ROOT, timeout=60
-    )
-    assert done.returncode == 0 and "confirmed slack" in done.stdout
+    # the in-process virtual stepper restarts when its port opens, as an Arduino does (`home --ports virtual`
+    # itself makes a new rig at 0 and says there is nothing to home: tests/test_cli_refusals.py)
+    stepper = StepperBoard.open("virtual://stepper?rig=home-after-reset")
+    try:
+        assert stepper.booted_on_open
+        with pytest.raises(PositionUnknown, match="position is unknown.*--confirm-slack"):
+            home(stepper)
+        assert "confirmed slack" in home(stepper, confirm_slack=True)
+    finally:
+        stepper.close()
 
 
 @pytest.mark.slow

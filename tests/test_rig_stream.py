@@ -211,9 +211,13 @@ def test_clamps_may_be_allowed_and_are_counted(tmp_path):
     rec = rig.stream(iter([390.0] * 11 + [0.0] * 30 + [-390.0] * 11), shaper, path=tmp_path / "c",
                      progress=False, allow_clamps=True)  # fmt: skip
     st = rec.meta["scenario"]["stream"]
-    assert rec.status == "complete" and st["clamps"] == {"speed": 0, "travel": 2}
+    # the motion was not the command's (clamped): never complete, and saved beside the name it asked for
+    assert rec.status == "deviated" and "clamped" in rec.meta["deviation"]
+    assert rec.path.name.startswith("c_deviated_") and not (tmp_path / "c.csv").exists()
+    assert st["clamps"] == {"speed": 0, "travel": 2}
     assert st["notices"] == ["N,LIMIT,TRAVEL,156", "N,LIMIT,TRAVEL,0"]
     assert rec.frame["steps"].max() == 156 and rec.meta["done_position"] == 0
+    assert recordings.load(rec.path).status == "deviated"
 
 
 def test_the_pacer_keeps_its_lead_when_the_boards_clocks_differ():

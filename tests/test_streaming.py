@@ -102,11 +102,11 @@ def test_speed_and_travel_clamps():
 def test_setpoint_rules():
     c = hs.PeriodCommands({1: 5, 2: 6, 5: 7}, end_period=9)
     got = [(k, v, s) for k, v, s in _take(c, 11)]
-    assert [v for _, v, _ in got] == [5, 6, 6, 6, 7, 7, 7, 7, 0, 0, 0]  # underruns hold, END zeros
+    assert [v for _, v, _ in got] == [5, 6, 0, 0, 7, 0, 0, 0, 0, 0, 0]  # underruns and END: zero
     assert [s for _, _, s in got][-3:] == ["end"] * 3
     w = hs.PeriodCommands({1: 9})
     got = list(_take(w, 14))
-    assert [v for _, v, _ in got[:11]] == [9] * 11  # 10 underruns hold ...
+    assert [v for _, v, _ in got[:11]] == [9] + [0] * 10  # 10 underruns move nothing ...
     assert got[11] == (12, 0, "watchdog")  # ... the 11th fires the watchdog
 
 

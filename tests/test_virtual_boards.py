@@ -26,10 +26,10 @@ def talk(board, *commands, checksum=True):
 
 def test_hello_on_reset_and_pong_with_the_documented_checksum():
     w = make_world()
-    assert w.daq.take_output() == frame("HELLO daq 2.0.0")
+    assert w.daq.take_output() == frame("HELLO daq 2.1.0")
     w.daq.receive(b"PING*79\n")
-    assert w.daq.take_output() == b"PONG daq 2.0.0*FD\n"  # the example of PROTOCOL.md
-    assert talk(w.stepper, "PING") == ["HELLO stepper 2.0.0", "PONG stepper 2.0.0"]
+    assert w.daq.take_output() == b"PONG daq 2.1.0*9F\n"  # tests/crc_reference.py gives 9F
+    assert talk(w.stepper, "PING") == ["HELLO stepper 2.1.0", "PONG stepper 2.1.0"]
 
 
 def test_daq_errors_and_limits():
@@ -55,7 +55,7 @@ def test_daq_errors_and_limits():
     assert talk(d, "START") == ["OK START 200"]
     assert talk(d, "RATE 300")[0].startswith("ERR STATE")
     assert talk(d, "START")[0].startswith("ERR STATE")
-    assert talk(d, "PING") == ["PONG daq 2.0.0"]  # allowed while streaming
+    assert talk(d, "PING") == ["PONG daq 2.1.0"]  # allowed while streaming
 
 
 def test_daq_streams_at_its_rate_and_stop_reports_the_count():
@@ -154,7 +154,7 @@ def test_reset_sends_hello_and_forgets_state():
     talk(w.stepper, "CLEAR", "SEG 1 50 1000", "EN 1", "GO")
     w.advance_to(w.t + 0.02)
     msgs = talk(w.stepper)
-    assert msgs[-1] == "HELLO stepper 2.0.0"
+    assert msgs[-1] == "HELLO stepper 2.1.0"
     assert not w.stepper.enabled and not w.stepper.running and w.stepper.position == 0
 
 
@@ -169,7 +169,7 @@ def test_url_handler_same_rig_name_same_world():
     assert d.world is s.world is w
     assert d.read(100).startswith(b"HELLO daq")
     s.write(frame("PING"))
-    assert s.read(100) == frame("HELLO stepper 2.0.0") + frame("PONG stepper 2.0.0")  # reset on open, reply
+    assert s.read(100) == frame("HELLO stepper 2.1.0") + frame("PONG stepper 2.1.0")  # reset on open, reply
     t0 = w.t
     assert s.read(10) == b""  # nothing to come: the read waited its timeout in device time
     assert w.t == pytest.approx(t0 + 0.01)
@@ -229,17 +229,24 @@ def test_the_stream_watchdog_and_clamps_as_notices():
     w = _stream_world()
     talk(w.stepper, *hs.UNIT_SHAPER.commands(), "EN 1", "STREAM")
     t0 = w.t
-    for i in range(3):
+    for i in range(5):
         w.advance_to(t0 + 0.004 + 0.01 * i)
         talk(w.stepper, f"V {hs.V_MAX}")
-    w.advance_to(t0 + 0.5)  # the host falls silent: the set-point is held for 10 periods, then zero
-    ref = hs.simulate(hs.UNIT_SHAPER, hs.PeriodCommands({1: hs.V_MAX, 2: hs.V_MAX, 3: hs.V_MAX}))
-    expected = [f"N,{n.kind},{n.value}" for n in ref.notices] + [f"DONE {ref.position}"]
-    assert talk(w.stepper) == expected
-    # 13 periods at full speed (3 set-points, then 10 held) would be 203 steps: clamped at 156; period 14 has
-    # no set-point and is the 11th in a row without one: the watchdog fires there and disables the driver
-    assert expected == ["N,LIMIT,TRAVEL,156", "N,WATCHDOG,14", "DONE 156"] and not w.stepper.enabled
+    w.advance_to(t0 + 0.5)  # the host falls silent: the periods without a set-point move nothing
+    # 5 periods at 1640 units: 5 x 1640 x 625 / 2^16 = 78.2 steps; silent periods 6-15, the watchdog at 16
+    assert talk(w.stepper) == ["N,WATCHDOG,16", "DONE 78"] and not w.stepper.enabled
     assert talk(w.stepper, "V 0")[0].startswith("ERR STATE")
+    talk(w.stepper, "EN 1", "STREAM")
+    t0 = w.t
+    heard = []
+    for i in range(11):  # 11 periods at full speed would be 172 steps: clamped at 156
+        w.advance_to(t0 + 0.004 + 0.01 * i)
+        heard += [m for m in talk(w.stepper, f"V {hs.V_MAX}") if not m.startswith("OK V")]
+    w.advance_to(t0 + 0.5)
+    heard += talk(w.stepper)
+    ref = hs.simulate(hs.UNIT_SHAPER, hs.PeriodCommands(dict.fromkeys(range(1, 12), hs.V_MAX)), position=78)
+    expected = [f"N,{n.kind},{n.value}" for n in ref.notices] + [f"DONE {ref.position}"]
+    assert heard == expected == ["N,LIMIT,TRAVEL,156", "N,WATCHDOG,22", "DONE 156"]
 
 
 def test_stream_commands_refused_as_the_firmware_refuses_them():

@@ -19,7 +19,7 @@
 #include "proto.h"
 #include "reply.h"
 
-#define FW_VERSION "2.0.0"
+#define FW_VERSION "2.1.0"
 
 static const uint16_t RATE_MIN_HZ = 100;
 static const uint16_t RATE_MAX_HZ = 2000;

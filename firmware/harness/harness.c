@@ -352,6 +352,8 @@ static double pace = 1.0;
 static struct timespec wall0;
 static void on_signal(int sig) { (void)sig; stop_requested = 1; }
 
+#define HOST_LINK_BUFFER 128 /* bytes from the host the link holds before the board takes them (pty mode) */
+
 static double wall_elapsed(void) {
   struct timespec now;
   clock_gettime(CLOCK_MONOTONIC, &now);
@@ -366,7 +368,11 @@ static avr_cycle_count_t pty_timer(struct avr_t *a, avr_cycle_count_t when, void
     write_all(bd->pty, bd->obuf, bd->olen);
     bd->olen = 0;
   }
-  while ((n = read(bd->pty, buf, sizeof buf)) > 0) inq_push(bd, buf, (size_t)n);
+  /* Read from the host only while little is queued, like a real USB-serial chip (its buffer of about 128
+   * bytes, flow-controlled towards the host): a host's write of a long burst then lasts until the board has
+   * nearly taken it in, as on the bench, instead of returning at once with the whole burst still to come. */
+  while (bd->inq_len - bd->inq_pos < HOST_LINK_BUFFER && (n = read(bd->pty, buf, sizeof buf)) > 0)
+    inq_push(bd, buf, (size_t)n);
   uart_pump(bd);
   if (pace > 0 && bd == &boards[0]) {
     double ahead = (double)when / (double)a->frequency / pace - wall_elapsed();

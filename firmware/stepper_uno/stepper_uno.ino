@@ -30,7 +30,7 @@
 #include "reply.h"
 #include "stream_plan.h"
 
-#define FW_VERSION "2.0.0"
+#define FW_VERSION "2.1.0"
 
 // Compiled-in limits (PROTOCOL.md table).
 static const int32_t INTERVAL_MIN_US = 639;       // 400 mm/s at 0.25525 mm/step
@@ -206,7 +206,6 @@ static volatile uint32_t end_period;              // the first period fed with z
 static volatile uint8_t queue_overflow;           // never expected (at most 32 steps are ever pending)
 static volatile uint8_t tick_busy;
 static uint8_t underruns;                         // control ticks in a row without a set-point
-static int16_t last_v;
 static uint32_t last_nonzero;                     // the last period with a non-zero set-point
 static uint8_t finishing;                         // no step can follow: the stream stops at tick finish_at
 static uint32_t finish_at;
@@ -325,7 +324,8 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
       v = 0;
       push_notice(NOTICE_WATCHDOG, (int32_t)k);
     } else {
-      v = last_v;  // an underrun: hold the last set-point
+      v = 0;  // an underrun: the period moves nothing (2.1.0; 2.0.0 held the last set-point, moving the
+              // cable further than commanded whenever the host was late)
     }
   } else {
     v = 0;
@@ -342,7 +342,6 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
     done_flag = 1;
     sei();
   } else {
-    last_v = v;
     st.planner.plan_period(k, v);
     if (v) last_nonzero = k;
     if (!finishing && state != ST_ACTIVE && k >= end_period &&
@@ -366,7 +365,6 @@ static void stream_start() {
   next_period = 1;
   end_period = 0xFFFFFFFFUL;
   underruns = 0;
-  last_v = 0;
   last_nonzero = 0;
   finishing = 0;
   queue_overflow = 0;

@@ -26,6 +26,7 @@ import numpy as np
 
 from helpers import __version__
 from helpers.emulator.boards import DaqEmulator, EmulatedBoard, Faults, StepperEmulator
+from helpers.signals import signals_held
 from helpers.virtual import ArmPlant, LoadCell, RigParameters
 
 __all__ = ["VirtualWorld", "register_world", "forget_world", "get_world", "default_world", "parameters_dict"]
@@ -103,7 +104,15 @@ class VirtualWorld:
         return min(cands)
 
     def advance_to(self, t_end: float) -> None:
-        """Move the device clock to ``t_end`` (s): steps, plant, samples, DONE and faults in order."""
+        """Move the device clock to ``t_end`` (s): steps, plant, samples, DONE and faults in order.
+
+        A signal that arrives meanwhile waits until the world is consistent again (the plant, the boards and
+        the clock advanced together), then interrupts the caller.
+        """
+        with signals_held():
+            self._advance_to(t_end)
+
+    def _advance_to(self, t_end: float) -> None:
         while t_end > self.t + 1e-12:
             faults = self._fault_times()
             t1 = min([t_end] + [t for t, _, _ in faults if t <= t_end])

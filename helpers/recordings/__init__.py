@@ -32,6 +32,7 @@ from helpers.recordings.store import (
     load,
     recording_path,
     refuse_existing,
+    reserve,
     save,
 )
 
@@ -56,6 +57,7 @@ __all__ = [
     "load",
     "recording_path",
     "refuse_existing",
+    "reserve",
     "save",
     "validate",
     "validate_meta",

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
+from helpers.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
 
 SCHEMA_VERSION = 1
 """Version of the metadata layout; :func:`helpers.recordings.load` refuses any other."""
@@ -38,8 +38,10 @@ DERIVED_COLUMNS = ("t_s", "tension_n", "cable_mm")
 SOURCES = ("hardware", "virtual-rig")
 """The vocabulary of ``source.kind``."""
 
-STATUSES = ("complete", "aborted")
-"""The vocabulary of ``status``."""
+STATUSES = ("complete", "aborted", "deviated")
+"""The vocabulary of ``status``: ``deviated`` is a run that went to its end but whose motion differed from
+its command (a stream whose host fell behind, or whose shaped motion the board clamped; ``deviation`` says
+how)."""
 
 REQUIRED_META = (
     "schema_version",
@@ -91,7 +93,7 @@ class Recording:
 
     @property
     def status(self) -> str:
-        """``"complete"`` or ``"aborted"``."""
+        """``"complete"``, ``"aborted"`` or ``"deviated"``."""
         return str(self.meta.get("status"))
 
     @property
@@ -162,7 +164,9 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
 
-def _section(meta: dict[str, Any], key: str, path: Path) -> dict[str, Any]:
+def _section(meta: dict[str, Any], key: str, path: Path, where: str = "") -> dict[str, Any]:
+    if key not in meta:
+        raise _fail(path, f"{where}{key}: missing")
     value = meta[key]
     if not isinstance(value, dict):
         raise _fail(path, f"{key}: expected an object, got {type(value).__name__}")
@@ -250,7 +254,7 @@ def _int_list(section: dict[str, Any], key: str, where: str, path: Path) -> list
 
 def _validate_stream(scenario: dict[str, Any], path: Path) -> None:
     """``scenario.stream`` of a streamed run (``docs/recording_format.md``)."""
-    stream = _section(scenario, "stream", path)
+    stream = _section(scenario, "stream", path, "scenario.")
     _number(stream, "rate_hz", "scenario.stream", path, positive=True)
     impulses = stream.get("impulses")
     if not isinstance(impulses, dict):
@@ -294,7 +298,8 @@ def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
 
     Checks: the raw columns are present and integer; ``counts.samples`` rows; ``seq`` strictly increases and
     its gaps add up to no more than the metadata's ``counts.dropped``; ``t_us`` strictly increases; ``adc`` is
-    within 0-1023.
+    within 0-1023; and nothing a rig cannot produce (:func:`_check_physics`), whatever the checksum: samples
+    closer than the stated rate, a step count beyond the travel or changing faster than the step rate.
     """
     for col in RAW_COLUMNS:
         if col not in frame.columns:
@@ -324,3 +329,44 @@ def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
     adc = frame["adc"].to_numpy(np.int64)
     if len(adc) and (adc.min() < 0 or adc.max() > ADC_MAX):
         raise _fail(path, f"adc outside 0-{ADC_MAX}")
+    _check_physics(frame, meta, path)
+
+
+SAMPLE_TIME_TOLERANCE = 0.1
+"""Samples are one period of ``rate_hz`` apart or more (the board's timer; lost lines and overruns only add
+periods): closer than this fraction of a period less is impossible."""
+
+
+def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
+    """Refuse contents no rig can produce, whatever the checksum says.
+
+    Samples closer than the stated rate, a step count beyond the travel, or one that changes faster than the
+    step rate allows.
+    """
+    if len(frame) < 2:
+        return
+    t_us = frame["t_us"].to_numpy(np.int64)
+    steps = frame["steps"].to_numpy(np.int64)
+    period_us = 1e6 / float(meta["rate_hz"])
+    dt = np.diff(t_us)
+    short = dt < (1.0 - SAMPLE_TIME_TOLERANCE) * period_us
+    if np.any(short):
+        i = int(np.argmax(short))
+        raise _fail(
+            path,
+            f"t_us: samples {dt[i]} us apart at row {i + 1}, less than the period of rate_hz "
+            f"{meta['rate_hz']} ({period_us:g} us): not what the board records",
+        )
+    travel = LIMITS.max_position_steps
+    if np.abs(steps).max() > travel:
+        i = int(np.argmax(np.abs(steps) > travel))
+        raise _fail(path, f"steps: {steps[i]} at row {i} is beyond the travel of {travel} steps")
+    allowed = np.floor(LIMITS.max_step_rate_hz * dt * 1e-6) + 1  # steps possible between two samples
+    jump = np.abs(np.diff(steps)) > allowed
+    if np.any(jump):
+        i = int(np.argmax(jump))
+        raise _fail(
+            path,
+            f"steps: changes by {steps[i + 1] - steps[i]} in {dt[i]} us at row {i + 1}, faster than the "
+            f"stepper's {LIMITS.max_step_rate_hz:g} steps/s",
+        )

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.jsonfile import dumps, write_temp
+from helpers.jsonfile import dumps, process_alive, remove_stale_temporaries, write_temp
 from helpers.locks import LOCK_NAME, FolderBusy, folder_lock
 from helpers.paths import DATA_DIR
 from helpers.recordings.format import (
@@ -45,6 +45,7 @@ from helpers.recordings.format import (
     validate,
     validate_meta,
 )
+from helpers.signals import signals_held
 
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}\Z")
 """A recording's name, or one component of a group."""
@@ -104,11 +105,78 @@ def refuse_existing(target: str | os.PathLike, replace: bool = False) -> None:
         raise RecordingExists(f"{csv}: a recording of that name exists; choose another name or replace it")
 
 
-def aborted_path(path: str | os.PathLike, started_utc: str) -> Path:
-    """The name an aborted run is saved under: ``<name>_aborted_<UTC start>.csv`` beside ``path``."""
+def aborted_path(path: str | os.PathLike, started_utc: str, status: str = "aborted") -> Path:
+    """The name a run that is not ``complete`` is saved under: ``<name>_<status>_<UTC start>.csv``."""
     p = _csv_path(path)
     stamp = re.sub(r"[^0-9TZ]", "", started_utc) or time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    return p.with_name(f"{p.stem}_aborted_{stamp}.csv")
+    return p.with_name(f"{p.stem}_{status}_{stamp}.csv")
+
+
+class Reservation:
+    """A recording's name held by one run from before it starts until it is saved (:func:`reserve`)."""
+
+    def __init__(self, lock: Path, fd: int) -> None:
+        self.lock = lock
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        """Give the name back (idempotent)."""
+        if self._fd is None:
+            return
+        with signals_held():
+            with contextlib.suppress(OSError):
+                self.lock.unlink()  # still holding the lock: nobody can have taken this file meanwhile
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> Reservation:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def reserve(target: str | os.PathLike, replace: bool = False) -> Reservation:
+    """Refuse an existing recording (unless replacing) and hold its name until :meth:`Reservation.release`.
+
+    A second run asking for the same name meanwhile, in another process or this one, is refused at once,
+    before it starts, instead of learning of the conflict only when its finished run is saved. The hold is a
+    ``flock`` on ``.<name>.reserved.lock`` beside the recording (released by the kernel if the process dies).
+
+    Raises
+    ------
+    RecordingExists
+        The recording exists (and ``replace`` is False), or another run holds the name.
+    """
+    csv = _csv_path(target)
+    refuse_existing(csv, replace)
+    csv.parent.mkdir(parents=True, exist_ok=True)
+    with signals_held():  # an interrupt cannot leave the name held by a lost file descriptor
+        return _reserve(csv, csv.with_name(f".{csv.stem}.reserved.lock"))
+
+
+def _reserve(csv: Path, lock: Path) -> Reservation:
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 32).decode("ascii", "replace").strip()
+            os.close(fd)
+            who = f"process {holder}" if holder.isdigit() else "another run"
+            raise RecordingExists(
+                f"{csv}: {who} is recording under this name right now; choose another name"
+            ) from None
+        try:  # the previous holder may have removed the file between our open and our lock: try again
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    os.ftruncate(fd, 0)
+    os.write(fd, str(os.getpid()).encode())
+    return Reservation(lock, fd)
 
 
 def _csv_path(path: str | os.PathLike) -> Path:
@@ -170,6 +238,7 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
     json_target = target.with_suffix(".json")
     try:
         with folder_lock(target.parent, wait_s=SAVE_WAIT_S, what="saving a recording"):
+            tidy_folder(target.parent)
             exists = target.exists() or json_target.exists()
             if exists and not replace:
                 raise RecordingExists(
@@ -181,6 +250,40 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
     recording.meta = json.loads(text)
     recording.path = target
     return target
+
+
+_BACKUP = re.compile(r"\.(?P<name>.+)\.replaced-(?P<pid>\d+)\.tmp\Z")
+"""A recording file set aside during a replacement: ``.<file name>.replaced-<pid of its writer>.tmp``."""
+
+
+def tidy_folder(folder: Path) -> None:
+    """What writers that died left in ``folder``: called by a writer holding the folder's lock.
+
+    Their temporary files go (:func:`helpers.jsonfile.remove_stale_temporaries`). A pair a dead writer was
+    replacing is made whole again: if the new pair is complete, the old one's set-aside files go; if not,
+    the new part goes and the old pair is put back. A live writer's files are never touched.
+    """
+    remove_stale_temporaries(folder)
+    aside: dict[str, dict[str, Path]] = {}
+    for path in folder.iterdir():
+        m = _BACKUP.match(path.name)
+        if m is None or process_alive(int(m["pid"])):
+            continue
+        dest = folder / m["name"]
+        aside.setdefault(dest.stem, {})[dest.suffix] = path
+    for stem, files in aside.items():
+        csv, js = folder / f"{stem}.csv", folder / f"{stem}.json"
+        if csv.exists() and js.exists():  # the replacement was complete: the old pair is obsolete
+            for p in files.values():
+                p.unlink(missing_ok=True)
+            continue
+        for new in (js, csv):  # half a new pair: the old pair comes back
+            if new.suffix in files:
+                new.unlink(missing_ok=True)
+        if ".json" not in files and js.exists():  # the new JSON alone, old JSON gone: keep the new pair's
+            continue
+        for suffix, p in files.items():
+            os.replace(p, folder / f"{stem}{suffix}")
 
 
 def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exists: bool) -> None:

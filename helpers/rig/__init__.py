@@ -20,6 +20,7 @@ from helpers.rig.boards import (
     BoardReset,
     BoardTimeout,
     CommandRefused,
+    LinkCorrupted,
     OldFirmware,
     PortBusy,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "BoardTimeout",
     "CommandRefused",
     "DaqBoard",
+    "LinkCorrupted",
     "OldFirmware",
     "PortBusy",
     "Rig",

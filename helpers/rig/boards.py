@@ -48,6 +48,17 @@ class PortBusy(BoardError):
     """The port is open in another program (ports are opened exclusively)."""
 
 
+class LinkCorrupted(BoardError):
+    """A board answered, but its reply failed its checksum, and the command cannot safely be sent again."""
+
+
+RESENDABLE = frozenset({"PING", "POS", "MEM", "ABORT", "EN", "RATE", "ZERO", "STOP", "CLEAR"})
+"""Commands whose second execution changes nothing: sent again when their reply was corrupted on the link."""
+
+SEND_ATTEMPTS = 3
+"""How often a command is sent when the board refused it as damaged in transit or its reply was damaged."""
+
+
 class CommandRefused(BoardError):
     """A board answered ``ERR <code> <text>``."""
 
@@ -232,8 +243,37 @@ class BoardLink:
 
         Data lines and ``DONE`` arriving meanwhile are kept; ``HELLO`` raises :class:`BoardReset`. A reply
         that cannot belong to this command (a late answer to an earlier one that timed out) is set aside in
-        ``unexpected``.
+        ``unexpected``. A bit error on the link is not a silent board: a command the board refused as damaged
+        (``ERR CHECKSUM``, ``ERR NOCRC``: it executed nothing) is sent again, and so is one of
+        :data:`RESENDABLE` whose reply did not come while a corrupted line did (up to :data:`SEND_ATTEMPTS`
+        times); any other command whose reply was lost that way raises :class:`LinkCorrupted`.
         """
+        for attempt in range(1, SEND_ATTEMPTS + 1):
+            corrupted = self.parser.stats.corrupted
+            try:
+                reply = self._command_once(body, timeout)
+            except BoardTimeout:
+                if self.parser.stats.corrupted == corrupted:
+                    raise  # nothing arrived at all: the board is silent
+                if body.split(" ", 1)[0] not in RESENDABLE:
+                    raise LinkCorrupted(
+                        f"the {self.kind} board's reply to {body!r} was corrupted on the link (it failed its "
+                        "checksum), and the command cannot safely be sent again"
+                    ) from None
+                if attempt == SEND_ATTEMPTS:
+                    raise LinkCorrupted(
+                        f"the {self.kind} board's replies to {body!r} were corrupted {attempt} times on the "
+                        "link (a bad cable, or the wrong baud rate?)"
+                    ) from None
+                continue
+            except CommandRefused as exc:
+                if exc.code in ("CHECKSUM", "NOCRC") and attempt < SEND_ATTEMPTS:
+                    continue  # the command was damaged on its way: the board executed nothing
+                raise
+            return reply
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    def _command_once(self, body: str, timeout: float | None) -> str:
         self.replies.clear()
         self.write_line(body)
         expected = _expected_reply(body)

@@ -44,6 +44,10 @@ KNOWN_BOARDS: dict[tuple[int, int], tuple[str, str]] = {
 """(VID, PID) -> (role, description)."""
 
 
+class BoardsNotFound(BoardError):
+    """``--ports auto`` found no DAQ and stepper pair (a board fault for the command line: status 4)."""
+
+
 @dataclass(frozen=True)
 class Candidate:
     """A serial port whose USB identity matches a known board."""
@@ -100,7 +104,7 @@ def find_rig_ports(hello_timeout: float = 3.0) -> tuple[str, str]:
 
     Raises
     ------
-    RuntimeError
+    BoardsNotFound
         When not exactly one DAQ and one stepper board are found; the message lists what was seen.
     """
     cands = candidate_ports()
@@ -111,7 +115,7 @@ def find_rig_ports(hello_timeout: float = 3.0) -> tuple[str, str]:
             roles[role].append(c.device)
     if len(roles["daq"]) != 1 or len(roles["stepper"]) != 1:
         seen = ", ".join(f"{c.device} ({c.vid:04x}:{c.pid:04x} {c.description})" for c in cands) or "none"
-        raise RuntimeError(
+        raise BoardsNotFound(
             f"expected one DAQ board (Mega) and one stepper board (Uno); found daq={roles['daq']}, "
             f"stepper={roles['stepper']}. Known-board ports: {seen}. "
             "Pass the ports explicitly: 'DAQ,STEPPER'."

@@ -50,7 +50,7 @@ from helpers.loadcell import LoadCellCalibration, load_calibration
 from helpers.noise import white_noise_std
 from helpers.paths import DATA_DIR
 from helpers.programmes import Programme, Segment, experiment_programme
-from helpers.recordings import Recording, RecordingError, refuse_existing
+from helpers.recordings import Recording, RecordingError, reserve
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.daq import DaqBoard
 from helpers.rig.discovery import find_rig_ports, virtual_source_for
@@ -65,7 +65,7 @@ from helpers.rig.stream import (
     StreamRecord,
     StreamStarved,
 )
-from helpers.signals import signals_held
+from helpers.signals import Interrupted, run_guard
 from helpers.streaming import board_shaper
 
 
@@ -104,6 +104,10 @@ class _RunState:
     """The programme's step windows relative to GO (:func:`step_windows` at ``t_go_us = 0``)."""
     go_sent: bool = False
     started_utc: str = ""
+    finished: bool = False
+    """Every sample of the run is in: an interrupt from now on cannot make it partial."""
+    deviation: str | None = None
+    """Why the motion differed from its command (a stream's underruns, clamps), or None."""
 
 
 def _design_system(system: str | None) -> str | None:
@@ -117,6 +121,24 @@ def _utc_now() -> str:
 
 def _is_virtual_url(url: str) -> bool:
     return str(url).startswith("virtual://")
+
+
+STREAM_FIRMWARE = (2, 1)
+"""The oldest stepper firmware that streams: 2.0.x held the last set-point through a period without one."""
+
+
+def _check_stream_firmware(version: str | None) -> None:
+    """Refuse a stream on a stepper board whose firmware holds the last set-point when the host is late."""
+    try:
+        major, minor = (int(x) for x in str(version).split(".")[:2])
+    except ValueError:
+        major, minor = -1, -1
+    if (major, minor) < STREAM_FIRMWARE:
+        raise BoardError(
+            f"the stepper board runs firmware {version}, whose streams hold the last set-point through a "
+            "period the host was late for (the cable then goes further than commanded): flash firmware "
+            f"{STREAM_FIRMWARE[0]}.{STREAM_FIRMWARE[1]} or later to stream (make -C firmware upload-stepper)"
+        )
 
 
 def _check_rate(rate_hz: Any) -> None:
@@ -466,12 +488,21 @@ class Rig:
         scenario = dict(scenario or {"kind": "programme"})
         scenario.setdefault("programme", programme.to_dict())
         target = self._target(path)
-        refuse_existing(target, replace)
+        with reserve(target, replace):  # a second run to this name is refused now, not after this one
+            return self._run(programme, scenario, target, rate_hz, margin_s, done_grace_s, silence_timeout,
+                             progress, max_corrupted_fraction, replace, noise_seed, rest_timeout_s,
+                             require_zero)  # fmt: skip
+
+    def _run(
+        self, programme: Programme, scenario: dict[str, Any], target: Path, rate_hz: int, margin_s: float,
+        done_grace_s: float, silence_timeout: float, progress: bool, max_corrupted_fraction: float,
+        replace: bool, noise_seed: int | None, rest_timeout_s: float, require_zero: bool,
+    ) -> Recording:  # fmt: skip
         position = self._checked_start_position(programme)
         if require_zero and position != 0:
             raise NotAtZero(
                 f"the cable is at {position} steps, not at 0 (the paper's experiments start from the down "
-                "position): run `python -m helpers home` first"
+                f"position): {self._home_hint()} first"
             )
         scenario["start_position_steps"] = position
         self._seed_noise(noise_seed, scenario)
@@ -485,10 +516,11 @@ class Rig:
             try:
                 self._stream_until_done(
                     state, programme.duration_us, rate_hz, margin_s, done_grace_s, silence_timeout,
-                    max_corrupted_fraction, bar,
+                    max_corrupted_fraction, bar, position + int(positions[-1]),
                 )  # fmt: skip
             finally:
                 bar.close()
+            state.finished = True
             self.daq.stop()
             self.stepper.enable(False)
 
@@ -597,20 +629,31 @@ class Rig:
         source = SetpointSource(setpoints, source_name)
         units = source.check_all() if source.sized else None
         target = self._target(path)
-        refuse_existing(target, replace)
+        _check_stream_firmware(self.stepper.version)
+        with reserve(target, replace):  # a second run to this name is refused now, not after this one
+            return self._stream(board, source, units, shaper, target, scenario, rate_hz, lead_periods,
+                                lead_in_s, tail_s, allow_clamps, done_grace_s, silence_timeout, progress,
+                                max_corrupted_fraction, replace, noise_seed, rest_timeout_s)  # fmt: skip
+
+    def _stream(
+        self, board: Any, source: SetpointSource, units: np.ndarray | None, shaper: Any, target: Path,
+        scenario: dict[str, Any] | None, rate_hz: int, lead_periods: int, lead_in_s: float, tail_s: float,
+        allow_clamps: bool, done_grace_s: float, silence_timeout: float, progress: bool,
+        max_corrupted_fraction: float, replace: bool, noise_seed: int | None, rest_timeout_s: float,
+    ) -> Recording:  # fmt: skip
         self.stepper.check_reset()
         self.daq.check_reset()
         position = self.stepper.position()
-        check: ShapedCheck | None = ShapedCheck(board, position, refuse=not allow_clamps)
         if units is not None:
+            whole = ShapedCheck(board, position, refuse=not allow_clamps)
             for u in units.tolist():
-                check.setpoint(u)
-            check.end()
-            reach = check.reach()
-            check = None  # checked whole: nothing more to predict
+                whole.setpoint(u)
+            whole.end()
+            reach = whole.reach()
         else:
             reach = (0, LIMITS.max_position_steps)
-            check = None if allow_clamps else check
+        # the prediction that follows the board period by period as the set-points go out (module docstring)
+        check = ShapedCheck(board, position, refuse=not allow_clamps)
         record = StreamRecord(board, source.name, lead_periods)
         record.data.update({"lead_in_s": float(lead_in_s), "tail_s": float(tail_s)})
         scenario = {**(scenario or {}), "kind": "stream"}
@@ -635,10 +678,12 @@ class Rig:
             bar = _DeviceTimeBar(expected_s, progress)
             try:
                 self._feed(state, feed, check, record, lead_periods, lead_in_s, tail_s, allow_clamps,
-                           done_grace_s, silence_timeout, max_corrupted_fraction, bar)  # fmt: skip
+                           done_grace_s, silence_timeout, max_corrupted_fraction, bar, position)  # fmt: skip
             finally:
                 self.daq.port.timeout = timeout
                 bar.close()
+            state.deviation = record.deviation()
+            state.finished = True
             self.daq.stop()
             self.stepper.enable(False)
 
@@ -648,7 +693,7 @@ class Rig:
         self,
         state: _RunState,
         feed: Any,
-        check: ShapedCheck | None,
+        check: ShapedCheck,
         record: StreamRecord,
         lead_periods: int,
         lead_in_s: float,
@@ -658,8 +703,14 @@ class Rig:
         silence_timeout: float,
         max_corrupted_fraction: float,
         bar: _DeviceTimeBar,
+        position: int,
     ) -> None:
-        """The lead-in, ``STREAM``, the set-points as they fall due, ``END``, ``DONE``, the tail."""
+        """The lead-in, ``STREAM``, the set-points as they fall due, ``END``, ``DONE``, the tail.
+
+        Every set-point is planned with the board's own planner before it is sent (``check``), and planned
+        again where the board put it if the board ran short meanwhile: a clamp the board would make is
+        refused before it happens, whatever the host's timing.
+        """
         silence = Waiter(silence_timeout)
         while not self.daq.rows or self.daq.rows[-1][1] - self.daq.rows[0][1] < lead_in_s * 1e6:
             _, silence = self._read_both(silence, max_corrupted_fraction)
@@ -696,18 +747,23 @@ class Rig:
                     except StopIteration:
                         exhausted = True
                         break
-                    if check is not None:
-                        check.setpoint(pending)
+                planned = check.checkpoint()
+                check.setpoint(pending)  # StreamLimit before the byte is sent if the board would clamp
                 try:
                     period = self.stepper.set_point(pending)
                 except CommandRefused:
                     take_notices()  # a stream the board has ended (the watchdog) refuses V: say why
                     raise
+                self.daq.pump(block=False)  # device time went on while the source and the board were asked
+                now = self.daq.rows[-1][1]
                 if period is None:
+                    check.rollback(planned)
                     pacer.refused_full(now)
                 else:
-                    pacer.accepted(period, now)
                     record.sent(pending, period)
+                    if check.confirm(planned, pending, period):  # the board ran short: planned where it went
+                        self.daq.expect_steps(-position, LIMITS.max_position_steps - position)
+                    pacer.accepted(period, now)
                     pending = None
                 record.counts(pacer)
             if exhausted and end_period is None:
@@ -728,6 +784,14 @@ class Rig:
             _, silence = self._read_both(silence, max_corrupted_fraction)
             now = self.daq.rows[-1][1]
             bar.show((now - state.t_go_us) / 1e6)
+
+    def _home_hint(self) -> str:
+        """How to bring this rig's cable home: the command with this rig's ports, or the call in-process."""
+        ports = self.source.get("ports", {})
+        if str(ports.get("daq", "")).startswith("virtual://"):
+            return "return it with helpers.home.home(rig.stepper) (the in-process rig lives in this process)"
+        daq, stepper = ports.get("daq", "DAQ"), ports.get("stepper", "STEPPER")
+        return f"run `python -m helpers home --ports {daq},{stepper}`"
 
     def _target(self, path: str | os.PathLike | None) -> Path:
         """Where a run is saved: ``path`` (its name checked) or ``data/runs/run_<UTC time>``."""
@@ -876,10 +940,16 @@ class Rig:
         silence_timeout: float,
         max_corrupted_fraction: float,
         bar: _DeviceTimeBar,
+        end_position: int,
     ) -> None:
-        """Read samples until the programme's end + ``margin_s`` has passed and ``DONE`` has arrived."""
+        """Read samples until the programme's end + ``margin_s`` has passed and ``DONE`` has arrived.
+
+        A ``DONE`` lost to a bit error on the link (a corrupted line came from the stepper instead) is not a
+        silent board: ``POS`` then tells whether the programme ended where it should.
+        """
         period_us = round(1e6 / rate_hz)
         silence = Waiter(silence_timeout)
+        corrupted = self.stepper.parser.stats.corrupted
         while True:
             new, silence = self._read_both(silence, max_corrupted_fraction)
             rows = self.daq.rows
@@ -893,6 +963,16 @@ class Rig:
             if past_end and self.stepper.done_position is not None:
                 return
             overdue = last_us >= state.t_go_us + duration_us + done_grace_s * 1e6
+            lost = self.stepper.parser.stats.corrupted > corrupted
+            if self.stepper.done_position is None and overdue and lost:
+                where = self.stepper.position()  # DONE came corrupted: ask where the programme ended
+                if where == end_position:
+                    self.stepper.done_position = where
+                    continue
+                raise BoardError(
+                    f"the stepper board's DONE was lost on the link, and it is at {where} steps, not at the "
+                    f"programme's end ({end_position})"
+                )
             if self.stepper.done_position is None and overdue:
                 raise BoardTimeout(
                     f"the stepper board did not report DONE within {done_grace_s:.1f} s of device time "
@@ -936,8 +1016,15 @@ class Rig:
             raise SafetyError(f"duration must be within (0, {MAX_PROGRAMME_S:.0f}] s, got {duration_s!r}")
         _check_rate(rate_hz)
         target = self._target(path)
-        refuse_existing(target, replace)
+        with reserve(target, replace):  # a second run to this name is refused now, not after this one
+            return self._record_static(
+                duration_s, scenario, target, rate_hz, silence_timeout, progress, replace
+            )
 
+    def _record_static(
+        self, duration_s: float, scenario: dict[str, Any], target: Path, rate_hz: int, silence_timeout: float,
+        progress: bool, replace: bool,
+    ) -> Recording:  # fmt: skip
         def body(state: _RunState) -> None:
             self.daq.check_reset()
             self.daq.stop()  # a stream left running by an earlier session stops (OK STOP 0 when idle)
@@ -968,6 +1055,7 @@ class Rig:
                         break
             finally:
                 bar.close()
+            state.finished = True
             self.daq.stop()
 
         return self._guarded(body, dict(scenario), target, rate_hz, stepper_used=False, replace=replace)
@@ -1000,18 +1088,29 @@ class Rig:
         stepper_used: bool = True,
         replace: bool = False,
     ) -> Recording:
+        """Run ``body`` so that every way it ends leaves the boards safe and its recording on disk.
+
+        Signals interrupt only the body (:func:`helpers.signals.run_guard`): the first one raises, every later
+        one waits until the cleanup and the save are done. A run that had recorded everything when the signal
+        came (``state.finished``) is saved whole, as if nothing had happened, and the interrupt is raised
+        after the save; so is a run that ended normally and was interrupted just after.
+        """
         state = _RunState(started_utc=_utc_now())
         self.daq.take_rows()  # nothing of an earlier run is this run's
-        try:
-            body(state)
-        except BaseException as exc:
-            with signals_held():  # a second Ctrl-C or a SIGTERM now cannot cut the cleanup or the save short
+        with run_guard() as guard:
+            try:
+                with guard.interruptible():
+                    body(state)
+            except BaseException as exc:
                 self.last_cleanup = self._cleanup(stepper_used)
+                exc.cleanup = list(self.last_cleanup)  # type: ignore[attr-defined]
+                if state.finished and isinstance(exc, KeyboardInterrupt):  # every sample is in: save it whole
+                    self._save_finished(state, scenario, target, rate_hz, replace, exc)
+                    raise
                 reason = f"{type(exc).__name__}: {exc}"
                 if self.last_cleanup:
                     reason += " | cleanup: " + "; ".join(self.last_cleanup)
                 rec = self._recording(state, scenario, rate_hz, "aborted", reason)
-                exc.cleanup = list(self.last_cleanup)  # type: ignore[attr-defined]
                 try:
                     recordings.save(rec, recordings.aborted_path(target, state.started_utc))
                 except (RecordingError, OSError) as save_exc:
@@ -1022,12 +1121,43 @@ class Rig:
                     exc.recording = rec.derive()  # type: ignore[attr-defined]
                     exc.saved_path = rec.path  # type: ignore[attr-defined]
                     exc.save_error = None  # type: ignore[attr-defined]
-            raise
-        self.last_cleanup = []
-        rec = self._recording(state, scenario, rate_hz, "complete", None)
-        with signals_held():
-            recordings.save(rec, target, replace=replace)
-        return rec.derive()
+                raise
+            self.last_cleanup = []
+            rec = self._save_finished(state, scenario, target, rate_hz, replace, None)
+            signum = guard.take_pending()
+            if signum is not None:  # a signal came after the run had ended: it is saved; now act on it
+                late = Interrupted(signum)
+                late.cleanup, late.complete = [], True  # type: ignore[attr-defined]
+                late.recording, late.saved_path, late.save_error = rec, rec.path, None  # type: ignore[attr-defined]
+                raise late
+        return rec
+
+    def _save_finished(
+        self, state: _RunState, scenario: dict[str, Any], target: Path, rate_hz: int, replace: bool,
+        exc: BaseException | None,
+    ) -> Recording:  # fmt: skip
+        """Save a run that recorded everything: ``complete`` under its name, or ``deviated`` beside it.
+
+        With ``exc`` (an interrupt that came after the last sample), a failed save is noted on ``exc`` rather
+        than raised, so that the interrupt is what the caller sees.
+        """
+        status = "deviated" if state.deviation else "complete"
+        rec = self._recording(state, scenario, rate_hz, status, None)
+        if state.deviation:
+            rec.meta["deviation"] = state.deviation
+        where = target if status == "complete" else recordings.aborted_path(target, state.started_utc, status)
+        try:
+            recordings.save(rec, where, replace=replace and status == "complete")
+        except (RecordingError, OSError) as save_exc:
+            if exc is None:
+                raise
+            exc.recording, exc.saved_path, exc.save_error = None, None, str(save_exc)  # type: ignore[attr-defined]
+            return rec
+        rec.derive()
+        if exc is not None:
+            exc.recording, exc.saved_path, exc.save_error = rec, rec.path, None  # type: ignore[attr-defined]
+            exc.complete = True  # type: ignore[attr-defined]
+        return rec
 
     def _recording(
         self, state: _RunState, scenario: dict[str, Any], rate_hz: int, status: str, reason: str | None

@@ -14,6 +14,7 @@ from typing import Any
 from helpers.hardware import (
     LIMITS,
     MAX_PROGRAMME_S,
+    MAX_PULSE_MM,
     MAX_SPEED_MM_S,
     MAX_STEP_RATE_HZ,
     MAX_TRAVEL_MM,
@@ -43,7 +44,7 @@ def check_request(v_in_mm_s: Any, x_f_mm: Any) -> tuple[float, float]:
     v_in_mm_s : float
         Cable speed (mm/s): finite, > 0, <= 400 mm/s and <= 2000 steps/s.
     x_f_mm : float
-        Cable displacement (mm): finite, > 0, at least half a step, <= 40 mm.
+        Cable displacement (mm): finite, > 0, at least half a step, at most the travel's 156 steps (39.8 mm).
 
     Returns
     -------
@@ -69,6 +70,11 @@ def check_request(v_in_mm_s: Any, x_f_mm: Any) -> tuple[float, float]:
         raise SafetyError(f"displacement {x} mm exceeds the travel limit of {MAX_TRAVEL_MM:.0f} mm")
     if round(x / MM_PER_STEP) < 1:
         raise SafetyError(f"displacement {x} mm is less than half a step ({MM_PER_STEP:.5f} mm)")
+    if round(x / MM_PER_STEP) > LIMITS.max_position_steps:
+        raise SafetyError(
+            f"displacement {x} mm is {round(x / MM_PER_STEP)} steps, beyond the travel of "
+            f"{LIMITS.max_position_steps} steps ({MAX_PULSE_MM:.1f} mm)"
+        )
     return v, x
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from helpers.hardware import STEPPER_BAUD
 from helpers.programmes import Dwell, Programme, Segment
-from helpers.rig.boards import BoardError, BoardLink, CommandRefused
+from helpers.rig.boards import SEND_ATTEMPTS, BoardError, BoardLink, CommandRefused, LinkCorrupted
 from helpers.rig.safety import check_programme
 from helpers.streaming import StreamShaper
 
@@ -62,11 +62,18 @@ class StepperBoard(BoardLink):
             Items on the board.
         """
         check_programme(programme, start_position)
-        n = 0
-        for line in programme.commands():
-            reply = self.command(line)
-            if line != "CLEAR":
-                n = _last_int(reply, line.split()[0])
+        for attempt in range(1, SEND_ATTEMPTS + 1):
+            n = 0
+            try:
+                for line in programme.commands():  # CLEAR first: loading again starts from nothing
+                    reply = self.command(line)
+                    if line != "CLEAR":
+                        n = _last_int(reply, line.split()[0])
+            except LinkCorrupted:
+                if attempt == SEND_ATTEMPTS:
+                    raise
+                continue  # a reply to SEG or WAIT was lost on the link: load the whole programme again
+            break
         if n != len(programme):
             raise BoardError(f"the stepper board holds {n} items, the programme has {len(programme)}")
         return n
@@ -95,8 +102,15 @@ class StepperBoard(BoardLink):
     # --- streaming mode (PROTOCOL.md "Stepper board: streaming mode") --------------------------------
     def load_shaper(self, shaper: StreamShaper) -> None:
         """``SHAPER`` and one ``IMP`` per impulse: load the shaper the next streams use."""
-        for line in shaper.commands():
-            self.command(line)
+        for attempt in range(1, SEND_ATTEMPTS + 1):
+            try:
+                for line in shaper.commands():  # SHAPER first: loading again discards what was loaded
+                    self.command(line)
+            except LinkCorrupted:
+                if attempt == SEND_ATTEMPTS:
+                    raise
+                continue
+            return
 
     def start_stream(self) -> int:
         """``STREAM``: start streaming from the present position (returned); the notices list is emptied."""

@@ -147,9 +147,12 @@ class ShapedCheck:
     """The board's planner run ahead of the board, to refuse a set-point that would make the board clamp.
 
     Planning period k needs only the set-points of periods up to k (the shaper delays, it never
-    anticipates), so the clamp a set-point would cause is known before it is sent. The prediction assumes the
-    board takes the set-points in consecutive periods (no underrun: what the :class:`Pacer` is for); the board
-    clamps whatever happens, and the host stops the run on its notice.
+    anticipates), so the clamp a set-point would cause is known before it is sent. :meth:`setpoint` plans
+    the next period on the assumption that the board takes it there (no underrun: what the :class:`Pacer`
+    is for); once the board's ``OK V <k>`` says where it went, :meth:`confirm` keeps the plan or, when the
+    board ran short (periods without a set-point, which move nothing), plans those periods as the board did,
+    so the prediction follows the board whatever the host's timing. The board clamps whatever happens, and
+    the host stops the run on its notice.
 
     Parameters
     ----------
@@ -166,8 +169,10 @@ class ShapedCheck:
         self.rules = hs.SetpointRules()
         self.period = 0
         self.start = position
+        self.gaps = 0
+        """Periods the board got no set-point for, so far."""
 
-    def _plan(self, v: int | None) -> None:
+    def _plan(self, v: int | None, late: str = "") -> None:
         self.period += 1
         k = self.period
         v_k = self.rules.take(k, v)
@@ -180,11 +185,41 @@ class ShapedCheck:
                 if n.kind == "LIMIT,TRAVEL"
                 else f"exceed the speed limit of {V_MAX_MM_S:.1f} mm/s (the shaper overshoots)"
             )
-            raise SafetyError(f"set-point {k - 1}: the shaped stream would {what} in period {n.period}")
+            if self.gaps and not late:
+                late = f"the host fell behind earlier ({self.gaps} period(s) without a set-point), so "
+            raise StreamLimit(f"set-point {k - 1}: {late}the shaped stream would {what} in period {n.period}")
+
+    def checkpoint(self) -> tuple:
+        """The prediction's state, to go back to when the board assigns the set-point another period."""
+        r = self.rules
+        return self.run.checkpoint(), self.period, (r.state, r.underruns, r.watchdog_period, r.end_period)
+
+    def rollback(self, state: tuple) -> None:
+        """Forget what was planned since :meth:`checkpoint` (e.g. a set-point the board refused as FULL)."""
+        run, self.period, rules = state
+        self.run.rollback(run)
+        self.rules.state, self.rules.underruns, self.rules.watchdog_period, self.rules.end_period = rules
 
     def setpoint(self, u: int) -> None:
-        """Plan the next period with set-point ``u``; :class:`SafetyError` if the board would clamp."""
+        """Plan the next period with set-point ``u``; :class:`StreamLimit` if the board would clamp."""
         self._plan(u)
+
+    def confirm(self, state: tuple, u: int, period: int) -> bool:
+        """The board took ``u`` (planned since ``state``) for ``period``; True if it is not the one planned.
+
+        Then the periods before it had no set-point: they are planned as the board planned them (zero), and
+        :class:`StreamLimit` is raised if the shaped motion would now clamp.
+        """
+        if period == self.period:
+            return False
+        self.rollback(state)
+        first = self.period + 1
+        self.gaps += period - first
+        for _ in range(first, period):
+            self._plan(None)
+        late = f"the host fell behind (periods {first}-{period - 1} had no set-point and moved nothing), so "
+        self._plan(u, late)
+        return True
 
     def end(self) -> None:
         """Plan the stream's end (``END``: zeros until the shaped motion is over)."""
@@ -209,8 +244,9 @@ class Pacer:
 
     - ``ERR FULL``: the FIFO holds 8, so the board plans the 8th-last set-point at its next tick: the anchor
       moves there and the refused set-point is sent again when due;
-    - ``OK V <k>`` with ``k`` later than expected: the board held the previous set-point for the missing
-      periods (an underrun, counted); it is planning ``k`` at its next tick: the anchor moves there.
+    - ``OK V <k>`` with ``k`` later than expected: the missing periods had no set-point and moved nothing
+      (an underrun, counted: the motion is the command's, later); the board is planning ``k`` at its next
+      tick: the anchor moves there.
 
     Parameters
     ----------
@@ -232,6 +268,10 @@ class Pacer:
         """The period the next set-point is expected to drive."""
         self.full = 0
         self.underruns = 0
+        """Periods without a set-point between the first set-point and the last (the board fed zero there)."""
+        self.late_start = 0
+        """Periods without a set-point before the first (the stream started that much later: at rest)."""
+        self.accepted_count = 0
 
     def due_us(self) -> float:
         """Device time (us) at which the next set-point is due."""
@@ -244,9 +284,13 @@ class Pacer:
     def accepted(self, period: int, now_us: float) -> None:
         """``OK V <period>``: the set-point drives ``period``."""
         if period > self.next_period:
-            self.underruns += period - self.next_period
+            if self.accepted_count:
+                self.underruns += period - self.next_period
+            else:
+                self.late_start += period - self.next_period
             self.t_anchor, self.p_anchor = now_us, period - 0.5  # tick period - 1 fell within the last period
         self.next_period = period + 1
+        self.accepted_count += 1
 
     def refused_full(self, now_us: float) -> None:
         """``ERR FULL``: the FIFO holds the 8 set-points before ``next_period``."""
@@ -297,6 +341,7 @@ class StreamRecord:
                 "lead_periods": self.lead_periods,
                 "fifo_full": 0,
                 "underruns": 0,
+                "late_start_periods": 0,
                 "notices": [],
                 "clamps": {"speed": 0, "travel": 0},
                 "watchdog": False,
@@ -325,6 +370,23 @@ class StreamRecord:
         """Copy the pacer's counts."""
         self.data["fifo_full"] = pacer.full
         self.data["underruns"] = pacer.underruns
+        self.data["late_start_periods"] = pacer.late_start
+
+    def deviation(self) -> str | None:
+        """Why the motion differed from the command (underruns, clamps), or None: it was the command's."""
+        why = []
+        if self.data["underruns"]:
+            why.append(
+                f"the host fell behind: {self.data['underruns']} period(s) between set-points had none and "
+                "moved nothing (the board's rule), so the motion is the command's stretched in time"
+            )
+        clamps = self.data["clamps"]
+        if clamps["speed"] or clamps["travel"]:
+            why.append(
+                f"the board clamped the shaped motion ({clamps['travel']} travel and {clamps['speed']} speed "
+                "episode(s))"
+            )
+        return "; ".join(why) or None
 
 
 def setpoints_digest(setpoints: Iterable[int]) -> str:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -82,6 +83,8 @@ def _run(definitions: list[tuple[SweepDefinition, Path]], args: argparse.Namespa
             d, out, scheduler=args.scheduler, workers=args.workers, threads=args.threads, serial=args.serial,
             progress=not args.no_progress, overwrite=args.overwrite, keep_parts=args.keep_parts,
         )  # fmt: skip
+        for line in report.rejected:
+            print(f"note: {line}", file=sys.stderr)
         print(_summary(report, d.name), flush=True)
 
 

@@ -42,6 +42,7 @@ from helpers.identify import load_identification
 from helpers.jsonfile import read_json
 from helpers.modemap import ModeMap, load_map
 from helpers.robustness import default_map, load_designs
+from helpers.sweep.schema import SWEEP_LIMITS, RunSettings, check_custom, check_definition
 
 __all__ = [
     "DESIGN_SHARE2",
@@ -224,8 +225,18 @@ class SweepDefinition:
         if not (0 < run["t_up_s"] < run["t_down_s"] < run["t_end_s"] and run["rate_hz"] > 0):
             raise ValueError(f"{where}: run needs 0 < t_up_s < t_down_s < t_end_s and rate_hz > 0, got {run}")
         object.__setattr__(self, "run", run)
+        try:
+            RunSettings.model_validate(run)
+        except ValueError as exc:
+            problem = str(exc).splitlines()
+            raise ValueError(f"{where}: run: {problem[1].strip()}: {problem[2].strip()}") from None
+        if self.n_runs > SWEEP_LIMITS["runs"]:
+            limit = SWEEP_LIMITS["runs"]
+            raise ValueError(f"{where}: {self.n_runs} runs, over the limit of {limit} in one sweep")
         if not isinstance(self.custom_shapers, Mapping):
             raise ValueError(f"{where}: custom_shapers must be an object of name -> shaper")
+        for name, entry in self.custom_shapers.items():
+            check_custom(str(name), entry)  # a family at a stated mode, or fixed impulses, within limits
         object.__setattr__(self, "custom_shapers", {str(k): dict(v) for k, v in self.custom_shapers.items()})
 
     # -- the runs -------------------------------------------------------------------------------------------
@@ -341,6 +352,10 @@ class SweepDefinition:
             raise ValueError("a sweep definition must be a JSON object")
         name = data.get("name", "")
         where = _where(name if isinstance(name, str) else "")
+        try:
+            check_definition(data)  # the file's structure, types and sizes (helpers.sweep.schema)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
         if data.get("format", FORMAT) != FORMAT:
             raise ValueError(f"{where}: format must be {FORMAT!r}, got {data.get('format')!r}")
         if data.get("version", VERSION) != VERSION:

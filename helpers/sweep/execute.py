@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
+import struct
 import sys
 import time
 from collections.abc import Iterator
@@ -30,6 +32,7 @@ import xarray as xr
 from tqdm import tqdm
 
 from helpers.jsonfile import DataFileError
+from helpers.locks import folder_lock
 from helpers.signals import Interrupted
 from helpers.sweep.definition import SweepDefinition
 from helpers.sweep.runs import run_chunk
@@ -81,6 +84,8 @@ class SweepReport:
     refused: int
     where: str
     stats: dict[str, float] = field(default_factory=dict)
+    rejected: list[str] = field(default_factory=list)
+    """Chunk files found damaged or not this sweep's, and computed again (one line each)."""
 
 
 @contextmanager
@@ -113,6 +118,75 @@ def local_client(workers: int | None = None, threads: int = 1, processes: bool =
 CONNECT_TIMEOUT_S = 20
 """How long to try reaching a given scheduler before giving up (s)."""
 
+GREETING_TIMEOUT_S = 10.0
+"""How long a scheduler may take to send its greeting once connected (s)."""
+
+GREETING_MAX_BYTES = 1 << 20
+"""The largest greeting accepted from a scheduler (a Dask scheduler's is under 100 bytes)."""
+
+
+def probe_scheduler(
+    address: str, timeout: float = GREETING_TIMEOUT_S, max_bytes: int = GREETING_MAX_BYTES
+) -> None:
+    """Check that ``address`` (``tcp://host:port`` or ``host:port``) is a Dask scheduler, before Dask does.
+
+    A Dask scheduler greets every connection at once with a short handshake (a length, then msgpack
+    frames: compression, Python version, pickle protocol). Anything else (an HTTP server waits for a request;
+    another service sends bytes that read as an absurd length) is refused in one line, within ``timeout`` and
+    reading at most ``max_bytes``, instead of hanging or allocating what the bytes ask for.
+
+    Raises
+    ------
+    ValueError
+        Naming the address and what was wrong.
+    """
+    from distributed.protocol.core import loads  # noqa: PLC0415 - Dask loads only where a sweep runs
+    from distributed.protocol.utils import unpack_frames  # noqa: PLC0415
+
+    text = address.removeprefix("tcp://")
+    if "://" in text:
+        return  # another transport (tls://, ucx://): left to Dask and its timeout
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"scheduler address {address!r}: expected tcp://HOST:PORT")
+    where = f"the Dask scheduler at {address}"
+
+    def read(sock: socket.socket, n: int) -> bytes:
+        data = b""
+        while len(data) < n:
+            chunk = sock.recv(n - len(data))
+            if not chunk:
+                raise ValueError(f"{where} closed the connection without greeting as a Dask scheduler does")
+            data += chunk
+        return data
+
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            (n,) = struct.unpack("<Q", read(sock, 8))
+            if not 0 < n <= max_bytes:
+                raise ValueError(
+                    f"{where} is not a Dask scheduler: its first message announces {n} bytes (a scheduler's "
+                    f"greeting is under {max_bytes} bytes)"
+                )
+            frames, buffers = unpack_frames(read(sock, n), partial=True)
+            if sum(buffers) > max_bytes:
+                raise ValueError(f"{where} is not a Dask scheduler: its greeting has {sum(buffers)} bytes")
+            greeting = loads(frames, deserialize=False)
+    except TimeoutError:
+        raise ValueError(
+            f"{where} did not greet as a Dask scheduler within {timeout:g} s (is it a scheduler's address?)"
+        ) from None
+    except OSError as exc:
+        raise ValueError(f"cannot reach {where}: {exc}") from None
+    except ValueError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - whatever the bytes were, they were not a scheduler's greeting
+        why = type(exc).__name__
+        raise ValueError(f"{where} is not a Dask scheduler: its greeting does not decode ({why})") from None
+    if not (isinstance(greeting, dict) and "pickle-protocol" in greeting):
+        raise ValueError(f"{where} is not a Dask scheduler: it greeted with {str(greeting)[:60]!r}")
+
 
 @contextmanager
 def _client_for(client: Any, scheduler: str | None, workers: int | None) -> Iterator[tuple[Any, str]]:
@@ -122,6 +196,7 @@ def _client_for(client: Any, scheduler: str | None, workers: int | None) -> Iter
     if scheduler is not None:
         from distributed import Client  # noqa: PLC0415 - Dask loads only where a sweep runs
 
+        probe_scheduler(scheduler, timeout=GREETING_TIMEOUT_S)
         try:
             c = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
         except OSError as exc:
@@ -191,6 +266,18 @@ def run_sweep(
         raise ValueError(f"sweep output must be a NetCDF file ending in .nc, got {output.name}")
     if output.exists() and not overwrite:
         raise DataFileError(f"{output} exists already: pass --overwrite (overwrite=True) to replace it")
+    # one sweep at a time into one output: a second is refused at once (helpers.locks.FolderBusy)
+    with folder_lock(output.parent, what=f"running a sweep into {output.name}", name=f".{output.name}.lock"):
+        return _run_sweep(definition, output, client, scheduler, workers, threads, serial, progress,
+                          overwrite, keep_parts)  # fmt: skip
+
+
+def _run_sweep(
+    definition: SweepDefinition, output: Path, client: Any, scheduler: str | None, workers: int | None,
+    threads: int, serial: bool, progress: bool, overwrite: bool, keep_parts: bool,
+) -> tuple[xr.Dataset, SweepReport]:  # fmt: skip
+    if output.exists() and not overwrite:  # made by the holder of the lock before us
+        raise DataFileError(f"{output} exists already: pass --overwrite (overwrite=True) to replace it")
     resolved = definition.resolved()
     check_shapers(resolved.shapers, resolved.custom_shapers)
     text = resolved.to_json()
@@ -249,6 +336,7 @@ def run_sweep(
         parts.remove()
     refused = int((ds["status"] > 0).sum())
     report = SweepReport(
-        output, resolved.n_chunks, len(done), len(todo), resolved.n_runs, wall, refused, where, stats
-    )
+        output, resolved.n_chunks, len(done), len(todo), resolved.n_runs, wall, refused, where, stats,
+        rejected=list(parts.rejected),
+    )  # fmt: skip
     return ds, report

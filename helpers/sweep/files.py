@@ -8,6 +8,7 @@ from pathlib import Path
 import xarray as xr
 
 from helpers.jsonfile import DataFileError, MissingDataError
+from helpers.sweep.schema import check_attrs
 
 __all__ = ["load_sweep"]
 
@@ -32,6 +33,11 @@ def load_sweep(path: str | os.PathLike) -> xr.Dataset:
             out = ds.load()
     except (OSError, ValueError, TypeError) as exc:
         raise DataFileError(f"{path}: not a readable NetCDF file ({exc})") from None
-    if "definition" not in out.attrs:
-        raise DataFileError(f"{path}: not a sweep (no definition attribute)")
+    try:
+        check_attrs(dict(out.attrs))  # the one schema of a dataset's attributes (helpers.sweep.schema)
+    except ValueError as exc:
+        raise DataFileError(f"{path}: not a sweep's dataset: attribute {exc}") from None
+    missing = [v for v in ("residual_pct", "status") if v not in out.data_vars]
+    if missing:
+        raise DataFileError(f"{path}: not a sweep's dataset: no variable {missing[0]}")
     return out

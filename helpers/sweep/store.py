@@ -30,7 +30,7 @@ import numpy as np
 import xarray as xr
 
 import helpers
-from helpers.jsonfile import DataFileError, atomic_write, read_json, write_json
+from helpers.jsonfile import DataFileError, atomic_write, read_json, remove_stale_temporaries, write_json
 from helpers.paths import REPO_ROOT
 from helpers.signals import signals_held
 from helpers.sweep.definition import PARAMETERS, SweepDefinition
@@ -102,6 +102,10 @@ class Parts:
         self.folder = self.output.with_name(self.output.name + ".parts")
         self.definition = definition
         self.header = {"definition": definition.to_dict(), "physics": physics_fingerprint()}
+        self.digest = hashlib.sha256(json.dumps(self.header, sort_keys=True).encode()).hexdigest()
+        """What every chunk file of this sweep carries: a chunk of another sweep is not this one's."""
+        self.rejected: list[str] = []
+        """Chunk files found damaged or not this sweep's (computed again), with the reason."""
 
     def open(self) -> list[int]:
         """Create the folder or check it is this sweep's; return the chunks already done."""
@@ -127,34 +131,77 @@ class Parts:
         return self.folder / f"chunk-{chunk:05d}.npz"
 
     def done(self) -> list[int]:
-        """Chunks whose file is there."""
+        """Chunks whose file is there and sound (checked against the definition); others are computed again.
+
+        A damaged file, or one that is not this sweep's chunk (another sweep's, another chunk's, edited), is
+        listed in :attr:`rejected` and left to be overwritten when its chunk is computed again.
+        """
         out = []
-        for p in self.folder.glob("chunk-*.npz"):
+        remove_stale_temporaries(self.folder)
+        for p in sorted(self.folder.glob("chunk-*.npz")):
             try:
-                out.append(int(p.stem.split("-")[1]))
+                c = int(p.stem.split("-")[1])
             except (IndexError, ValueError):
                 continue
-        return sorted(c for c in out if 0 <= c < self.definition.n_chunks)
+            if not 0 <= c < self.definition.n_chunks:
+                continue
+            try:
+                self.load(c)
+            except DataFileError as exc:
+                self.rejected.append(str(exc))
+                continue
+            out.append(c)
+        return out
 
     def save(self, result: dict[str, Any]) -> Path:
         """Write a chunk's arrays atomically (signals held, so an interrupt cannot cut it)."""
         arrays = {k: np.asarray(result[k]) for k in ("runs", *VARIABLES)}
         arrays["messages"] = np.array(json.dumps({str(k): v for k, v in result["messages"].items()}))
+        arrays["chunk"] = np.array(int(result["chunk"]))
+        arrays["sweep_digest"] = np.array(self.digest)
         buf = io.BytesIO()
         np.savez(buf, **arrays)
         with signals_held():
             return atomic_write(self.path(int(result["chunk"])), buf.getvalue())
 
     def load(self, chunk: int) -> dict[str, Any]:
-        """A saved chunk's arrays."""
+        """A saved chunk's arrays, checked: this sweep's, this chunk's runs, every variable for each run.
+
+        Raises
+        ------
+        helpers.jsonfile.DataFileError
+            Naming the chunk file and what is wrong with it.
+        """
         path = self.path(chunk)
         try:
             with np.load(path, allow_pickle=False) as z:
                 out = {k: z[k] for k in z.files}
-        except (OSError, ValueError) as exc:
-            raise DataFileError(f"{path}: unreadable chunk ({exc}); delete it and resume") from None
-        out["messages"] = json.loads(str(out["messages"]))
+            out["messages"] = json.loads(str(out["messages"]))
+        except Exception as exc:  # noqa: BLE001 - whatever the damage, one line naming the file
+            why = f"{type(exc).__name__}: {str(exc)[:80]}"
+            raise DataFileError(f"{path}: damaged chunk ({why}); it is computed again") from None
+        problem = self._problem(chunk, out)
+        if problem:
+            raise DataFileError(f"{path}: {problem}; it is computed again")
         return out
+
+    def _problem(self, chunk: int, arrays: dict[str, Any]) -> str | None:
+        """Why ``arrays`` are not ``chunk`` of this sweep, or None."""
+        if str(arrays.get("sweep_digest", "")) != self.digest:
+            return "not a chunk of this sweep (another definition or physics, or written by an older version)"
+        if int(arrays.get("chunk", -1)) != chunk:
+            return f"holds chunk {int(arrays.get('chunk', -1))}, not {chunk}"
+        runs = np.asarray(arrays.get("runs", []))
+        span = self.definition.chunk_range(chunk)
+        expected = np.arange(span.start, span.stop)
+        if runs.shape != expected.shape or np.any(runs != expected):
+            return "its runs are not the chunk's"
+        for name in VARIABLES:
+            if name not in arrays or np.asarray(arrays[name]).shape[:1] != runs.shape:
+                return f"variable {name} missing or of the wrong shape"
+        if not isinstance(arrays["messages"], dict):
+            return "messages is not an object"
+        return None
 
     def remove(self) -> None:
         """Delete the folder (after the dataset is written)."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 from crc_reference import LINK_CHECK, xor_hex
 from fwsim import with_checksum
 
-V = r"2\.0\.0"
+V = r"2\.1\.0"
 
 
 def _c(body: str) -> bytes:
@@ -304,9 +304,10 @@ def stream_conformance_cases() -> list[tuple[bytes, float]]:
     script += [(burst, 0.004), (_c("END"), 0.3), (_c("POS"), 0.0)]  # ... and DONE follows the shaped stop
     script += [(_c(c), 0.0) for c in unit]
     script += [(_c("STREAM"), OFF_TICK)]
-    script += [(_c("V 1640"), 0.0) for _ in range(8)]  # to the top: N,LIMIT,TRAVEL,156
+    # to the top: N,LIMIT,TRAVEL,156 (one set-point per period: a period without one moves nothing)
+    script += [(_c("V 1640"), 0.01) for _ in range(11)]
     script += [(_c("POS"), 0.2)]  # no set-point for 200 ms: N,WATCHDOG, DONE, driver disabled
     script += [(_c("STREAM"), 0.0), (_c("V 0"), 0.0), (_c("EN 1"), 0.0), (_c("STREAM"), OFF_TICK)]
-    script += [(_c("V -1640"), 0.0) for _ in range(8)]  # to the bottom: N,LIMIT,TRAVEL,0
+    script += [(_c("V -1640"), 0.01) for _ in range(11)]  # to the bottom: N,LIMIT,TRAVEL,0
     script += [(_c("END"), 0.1), (_c("POS"), 0.0), (_c("MEM"), 0.0)]
     return script
