@@ -16,6 +16,9 @@ from helpers.emulator.server import serve
 from helpers.programmes import Dwell, Programme, Segment
 from helpers.rig import Rig
 
+READY_S = 60.0
+"""Deadline (s) for the server and the boards to be ready: waits end on readiness, only a failure takes it."""
+
 
 def _serve(speed: float):
     """Serve a fresh test-double world on pseudo-terminals in a thread: its ports, the world, a stop."""
@@ -25,16 +28,15 @@ def _serve(speed: float):
     kwargs = {"speed": speed, "duration": 30.0, "out": out, "stop": stop}
     thread = threading.Thread(target=serve, args=(world,), kwargs=kwargs, daemon=True)
     thread.start()
-    for _ in range(200):
-        if out.getvalue().count("\n") >= 2:
-            break
-        time.sleep(0.01)
+    deadline = time.monotonic() + READY_S
+    while out.getvalue().count("\n") < 2 and thread.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.01)  # the server prints its two device paths when it is ready
     paths = dict(line.split() for line in out.getvalue().splitlines())
     assert paths["daq"].startswith("/dev/pts/") and paths["stepper"].startswith("/dev/pts/")
 
     def finish() -> None:
         stop.set()
-        thread.join(timeout=10)
+        thread.join(timeout=READY_S)
         assert not thread.is_alive()
 
     return (paths["daq"], paths["stepper"]), world, finish
@@ -42,7 +44,7 @@ def _serve(speed: float):
 
 def test_record_over_pseudo_terminals(tmp_path):
     ports, world, finish = _serve(speed=4.0)
-    rig = Rig.connect(ports, calibration=CALIBRATION, hello_timeout=2.0)
+    rig = Rig.connect(ports, calibration=CALIBRATION, hello_timeout=READY_S)
     prog = Programme((Dwell(100), Segment(1, 20, 1000), Dwell(100), Segment(-1, 20, 1000), Dwell(50)))
     rec = rig.run(prog, path=tmp_path / "pty", progress=False)
     rig.close()
@@ -59,7 +61,7 @@ def test_record_over_pseudo_terminals(tmp_path):
 def test_stream_over_pseudo_terminals_in_real_time(tmp_path):
     """The same Rig.stream as in-process, paced by the server's real-time device clock through the ports."""
     ports, world, finish = _serve(speed=1.0)
-    rig = Rig.connect(ports, calibration=CALIBRATION, hello_timeout=2.0)
+    rig = Rig.connect(ports, calibration=CALIBRATION, hello_timeout=READY_S)
     shaper = hs.StreamShaper((1024, 2048, 1024), (0, 40_000, 80_000))
     setpoints = [150.0] * 8 + [0.0] * 10 + [-150.0] * 8 + [0.0] * 4
     # a lead of 7 periods: the host may stall 70 ms (a busy shared machine) before the board runs short
