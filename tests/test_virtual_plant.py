@@ -14,6 +14,7 @@ import pytest
 
 from helpers import hardware, model, paper
 from helpers.hardware import MM_PER_STEP
+from helpers.rig_studies import SENSITIVITY_VARIANTS, _variant, actuator_sensitivity
 from helpers.virtual import (
     ArcChain,
     ArmPlant,
@@ -545,3 +546,24 @@ def test_eyelet_friction_only_dissipates():
     e = np.array(energies)
     assert e[-1] < 0.95 * e[0]
     assert np.max(np.diff(e)) < 1e-6 * e[0]
+
+
+def test_a_weaker_motor_on_the_same_cable_loses_steps_where_the_assumed_one_holds():
+    """The actuator assumption that matters (docs/virtual_rig.md): the paper's 4.3 kg cm cannot hold the
+    unshaped 300 mm/s pulse, whose peak tension passes the motor's pull-out; the assumed 1.5x holds it."""
+    rig = RigParameters()
+    weak = _variant(rig, SENSITIVITY_VARIANTS["paper torque"])
+    assert weak.k_cable == pytest.approx(rig.k_cable, rel=1e-12) and weak.k < rig.k  # the same cable
+    assert weak.pull_out_tension == pytest.approx(rig.pull_out_tension / 1.5, rel=1e-12)
+    stiff = _variant(rig, SENSITIVITY_VARIANTS["3x stiffer cable"])
+    assert stiff.k_cable == pytest.approx(3 * rig.k_cable, rel=1e-12) and stiff.max_step < rig.max_step
+    df = actuator_sensitivity(
+        variants={"rig": {}, "paper torque": SENSITIVITY_VARIANTS["paper torque"]},
+        conditions=((300.0, 20.0),),
+        systems=("unshaped",),
+    )
+    runs = df.drop_duplicates("variant").set_index("variant")
+    assert runs.loc["rig", "lost_steps"] == 0 and runs.loc["rig", "end_tension_n"] > 2.0
+    assert runs.loc["paper torque", "lost_steps"] >= 16  # at least a tooth slipped ...
+    assert runs.loc["paper torque", "end_tension_n"] < 0.5  # ... and the cable is left slack
+    assert paper.table_ii().peak_n.max() > weak.pull_out_tension  # the paper's own peak: beyond 4.3 kg cm
