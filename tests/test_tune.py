@@ -64,6 +64,7 @@ def test_tune_runs_end_to_end_on_the_virtual_rig(tmp_path, monkeypatch):
     for path in chosen["designs"].values():
         assert (tuning / path).exists()
     # data elsewhere: the report stays beside its data, and no figure of the repository is written
-    assert {"tuning_report.csv", "tuning_report.md", "tuning_report.png"} <= {p.name for p in tuning.iterdir()}
+    report = {"tuning_report.csv", "tuning_report.md", "tuning_report.png"}
+    assert report <= {p.name for p in tuning.iterdir()}
     assert not (tmp_path / "figures").exists()
     assert main(["tune", "--data-dir", str(tmp_path), "--quiet"]) == 5  # the map exists: refused, kept
