@@ -296,6 +296,7 @@ def test_kernel_right_hand_side_equals_dense_lagrangian(actuator, m):
         np.testing.assert_allclose(dy, dense, rtol=1e-9, atol=1e-9 * np.abs(dense).max())
 
 
+@pytest.mark.slow  # 8-18 s of solve_ivp; the default suite keeps the energy and statics oracles
 def test_compiled_integrator_converges_to_the_solve_ivp_reference():
     """A 4-disc arm with stepper and carriage through the start of a pull: the fixed-step kernel converges to
     the solve_ivp reference at fourth order as the step shrinks (equations and integrator agree)."""
