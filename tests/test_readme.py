@@ -232,7 +232,7 @@ def test_sweep_info_reads_the_stored_atlas(capsys, monkeypatch):
     assert command in readme_commands()
     assert main(_argv(command)) == 0
     out = capsys.readouterr().out
-    assert "sample 64" in out and "shaper 14" in out
+    assert "sample 64" in out and "shaper 22" in out  # 14 shapers and 8 families at the robust durations
 
 
 def test_a_small_sweep_of_ones_own_runs_serially(newcomer, capsys):
