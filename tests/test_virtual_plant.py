@@ -56,6 +56,7 @@ def convergence():
     return maps
 
 
+@pytest.mark.slow  # the convergence study (notebook 06 prints and nbval checks the same table)
 def test_static_tension_converged_within_1_percent_up_to_40_mm(convergence):
     coarse, fine = convergence[1], convergence[4]
     rel = np.abs(coarse.static_tension_n.to_numpy() / fine.static_tension_n.to_numpy() - 1)
@@ -64,6 +65,7 @@ def test_static_tension_converged_within_1_percent_up_to_40_mm(convergence):
     assert fine.tip_angle_deg.iloc[-1] > 250.0
 
 
+@pytest.mark.slow  # see above
 def test_dominant_frequency_converged_within_half_a_percent_up_to_40_mm(convergence):
     coarse, fine = convergence[1], convergence[4]
     rel = np.abs(coarse.omega_d_rad_s.to_numpy() / fine.omega_d_rad_s.to_numpy() - 1)
@@ -73,6 +75,7 @@ def test_dominant_frequency_converged_within_half_a_percent_up_to_40_mm(converge
     assert fine.omega_d_rad_s.iloc[-1] > 1.5 * fine.omega_d_rad_s.iloc[0]
 
 
+@pytest.mark.slow  # see above
 def test_the_plain_arc_chain_misses_at_40_mm_and_the_bowing_is_what_meets_it(convergence):
     """Without the bowing between eyelets the arcs are stiff by more than 0.5 % at 40 mm; the bowing is the
     part of the cable's moment they cannot carry, and it moves the coarse rod, not the fine one."""
@@ -128,6 +131,7 @@ def _check_constant_curvature(p, tension, rel):
     return theta
 
 
+@pytest.mark.slow  # a fine rod's statics, 4 tensions (notebook 06's statics oracle checks them too)
 @pytest.mark.parametrize("tension", [0.5, 2.0, 5.0, 9.0])
 def test_constant_curvature_statics_fine_rod(tension):
     """Gravity off, cable following the backbone (an eyelet at every node): a circular arc."""
