@@ -18,7 +18,7 @@ import math
 
 from helpers.hardware import MAX_SPEED_MM_S, MM_PER_STEP
 from helpers.programmes import Programme, Segment
-from helpers.rig.boards import BoardError, BoardTimeout, Waiter
+from helpers.rig.boards import BoardError, BoardTimeout
 from helpers.rig.discovery import find_rig_ports
 from helpers.rig.safety import SafetyError, check_programme
 from helpers.rig.stepper import StepperBoard
@@ -71,7 +71,7 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
     try:
         stepper.enable(True)
         stepper.go()
-        wait = Waiter(programme.duration_s + 2.0)
+        wait = stepper.waiter(programme.duration_s + 2.0)
         while stepper.done_position is None:
             stepper.pump()
             stepper.check_reset()

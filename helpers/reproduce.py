@@ -1,9 +1,11 @@
 """``python -m helpers reproduce``: execute every numbered notebook in place and summarise.
 
 Each notebook runs top to bottom in a fresh kernel (nbclient), from its own folder, with the live cells
-inactive (``LIVE = False`` in every parameters cell). Independent notebooks run two at a time (``--jobs``);
-a notebook that reads another's output declares it in its metadata. Figures and tables land in ``figures/``.
-On the first error the run stops and names the notebook and the cell.
+inactive (``LIVE = False`` in every parameters cell), and is written back in the stored form
+(:func:`normalise`: what a JupyterLab autosave changed in its metadata is undone). Independent notebooks
+run two at a time (``--jobs``); a notebook that reads another's output declares it in its metadata.
+Figures and tables land in ``figures/``. On the first error the run stops and names the notebook and the
+cell.
 """
 
 from __future__ import annotations
@@ -93,6 +95,39 @@ def coalesce_streams(nb: nbformat.NotebookNode) -> None:
             cell["outputs"] = merged
 
 
+KERNELSPEC = {"display_name": "Python 3 (ipykernel)", "language": "python", "name": "python3"}
+"""The stored notebooks' kernel: ipykernel's own spec, as JupyterLab writes it when it opens a notebook."""
+
+NOTEBOOK_METADATA = ("kernelspec", "language_info", "helpers")
+"""Notebook metadata kept in the stored form (``helpers``: the notebook's dependencies and priority)."""
+
+CELL_METADATA = ("tags",)
+"""Cell metadata kept in the stored form; what JupyterLab adds (``collapsed``, ``scrolled``, ``jupyter``,
+``execution`` timings, ...) is dropped."""
+
+
+def normalise(nb: nbformat.NotebookNode) -> nbformat.NotebookNode:
+    """Bring a notebook to the stored form (in place), whatever JupyterLab's autosave left in it.
+
+    The kernelspec is :data:`KERNELSPEC`; notebook metadata other than :data:`NOTEBOOK_METADATA` (widget
+    state, a kernel name of another environment) and cell metadata other than :data:`CELL_METADATA` are
+    dropped. ``language_info`` is what the executing kernel reported. Outputs are left to the execution.
+
+    Returns
+    -------
+    nbformat.NotebookNode
+        ``nb`` itself.
+    """
+    meta = nb.metadata
+    for key in [k for k in meta if k not in NOTEBOOK_METADATA]:
+        del meta[key]
+    meta["kernelspec"] = nbformat.from_dict(dict(KERNELSPEC))
+    for cell in nb.cells:
+        for key in [k for k in cell.metadata if k not in CELL_METADATA]:
+            del cell.metadata[key]
+    return nb
+
+
 def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
     """Execute ``path`` in place in a fresh kernel and write the outputs back.
 
@@ -130,13 +165,13 @@ def execute_notebook(path: Path, timeout: int = 600) -> NotebookRun:
         client.execute()
     except CellExecutionError as exc:
         coalesce_streams(nb)
-        nbformat.write(nb, path)
+        nbformat.write(normalise(nb), path)
         index, first = _failing_cell(nb)
         text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc)).strip()  # no terminal colour codes in the message
         last = text.splitlines()[-1] if text else type(exc).__name__
         raise NotebookFailed(f"{path.name}: code cell {index} ({first!r}) failed: {last}") from exc
     coalesce_streams(nb)
-    nbformat.write(nb, path)
+    nbformat.write(normalise(nb), path)
     return NotebookRun(path=path, seconds=time.perf_counter() - start, n_cells=len(nb.cells))
 
 

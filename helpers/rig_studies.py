@@ -13,6 +13,9 @@ so notebook 06 reads their results from CSV files that ``python -m helpers virtu
 - :func:`actuator_effects`: ideal actuator against stepper and stepper + carriage, and the amplifier: the
   tension right after one step, the ripple during a ramp, per-sample differences, Table II peaks.
 - :func:`rotor_lag`: the rotor's largest lag behind its commanded angle in every Table I run (health).
+- :func:`actuator_sensitivity`: every Table I scenario with the motor's torque at the paper's 4.3 kg cm and
+  at 0.8x, 1.0x and 1.5x the assumed value, a 100 g carriage and a 3x stiffer cable (nothing re-tuned): the
+  steps lost, the rotor's lag and how far each Table II row moves; :func:`sensitivity_summary` condenses it.
 - the ``virtual-rig`` command (``check``, ``tune``, ``studies``).
 """
 
@@ -43,6 +46,7 @@ from helpers.rig_tuning import (
 )
 from helpers.shapers import paper_tdfs
 from helpers.virtual import ArmPlant, RigParameters, SimResult, linearise, simulate
+from helpers.virtual.parameters import KG_CM
 from helpers.virtual.statics import stable_max_step
 
 __all__ = [
@@ -50,6 +54,9 @@ __all__ = [
     "eyelet_friction",
     "actuator_effects",
     "rotor_lag",
+    "actuator_sensitivity",
+    "sensitivity_summary",
+    "SENSITIVITY_VARIANTS",
     "write_studies",
     "STUDY_FILES",
     "RETUNED",
@@ -60,6 +67,7 @@ STUDY_FILES = {
     "friction": "virtual_eyelet_friction.csv",
     "actuator": "virtual_actuator_effects.csv",
     "lag": "virtual_rotor_lag.csv",
+    "sensitivity": "virtual_actuator_sensitivity.csv",
 }
 """Study name -> the CSV in ``figures/`` that :func:`write_studies` writes and notebook 06 reads."""
 
@@ -292,6 +300,124 @@ def rotor_lag(params: RigParameters | None = None) -> pd.DataFrame:
     ])  # fmt: skip
 
 
+SENSITIVITY_VARIANTS: dict[str, dict[str, float]] = {
+    "rig": {},
+    "paper torque": {"holding_torque": paper.HOLDING_TORQUE_KG_CM * KG_CM},
+    "0.8x torque": {"holding_torque_scale": 0.8},
+    "1.5x torque": {"holding_torque_scale": 1.5},
+    "100 g carriage": {"carriage_mass": 0.100},
+    "3x stiffer cable": {"k_scale": 3.0},
+}
+"""The assumptions whose effect :func:`actuator_sensitivity` measures, each alone on the tuned rig: the
+motor's torque amplitude (the rig assumes 1.5 x the paper's 4.3 kg cm; ``paper torque`` is 4.3 kg cm, the
+others scale the assumed value), the load-cell carriage's mass (30 g assumed) and the cable's stiffness
+(tuned)."""
+
+
+def _variant(params: RigParameters, changes: dict[str, float]) -> RigParameters:
+    """The rig with one assumption changed; the cable itself (``k_cable``) kept unless ``k_scale`` scales it.
+
+    ``k`` is the whole path's stiffness, the cable in series with the motor's microstep spring, so a weaker
+    motor with the same cable has a lower ``k``: ``1/k = 1/k_cable + R^2 / (T_h N_r)``.
+    """
+    kw = dict(changes)
+    if "holding_torque_scale" in kw:
+        kw["holding_torque"] = params.holding_torque * kw.pop("holding_torque_scale")
+    k_cable = params.k_cable * kw.pop("k_scale", 1.0)
+    torque = kw.get("holding_torque", params.holding_torque)
+    kw["k"] = 1.0 / (1.0 / k_cable + params.spool_radius**2 / (torque * params.rotor_teeth))
+    p = params.replace(**kw)
+    return p.replace(max_step=min(params.max_step, stable_max_step(p)))  # a stiffer cable needs a finer step
+
+
+def actuator_sensitivity(
+    params: RigParameters | None = None,
+    variants: dict[str, dict[str, float]] | None = None,
+    conditions: tuple[tuple[float, float], ...] = paper.TABLE_I_CONDITIONS,
+    systems: tuple[str, ...] = paper.SYSTEMS,
+) -> pd.DataFrame:
+    """Every Table I scenario (unshaped and the paper's two shapers) under each variant of the actuator.
+
+    Each variant (:data:`SENSITIVITY_VARIANTS`) changes one assumption of the tuned rig and nothing else
+    (the cable stays the same cable when the motor changes; nothing is re-tuned: this is the sensitivity of
+    the predictions to that assumption). The steps lost are
+    read from the rotor's lag behind its command when the run has ended at rest (a tooth slipped is 16
+    microsteps; what remains below one is the static lag that holds the tension). ``conditions`` and
+    ``systems`` default to all of Table I; the first variant is the reference of the ``d_`` columns.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per variant, condition, system and motion: ``variant``, ``holding_torque_kg_cm``,
+        ``carriage_g``, ``k_n_m``, ``v_in_mm_s``, ``x_f_mm``, ``system``, ``motion``, ``peak_n``,
+        ``overshoot_pct``, ``settling_ms``, ``max_rotor_lag_steps`` (the run's largest lag, microsteps),
+        ``end_lag_steps`` (at the end), ``lost_steps`` (microsteps lost: 16 per tooth), ``end_tension_n``
+        (mean of the last 0.3 s: the pretension when nothing was lost, about 0 for a slack cable), and
+        ``d_peak_n``, ``d_overshoot_pp``, ``d_settling_ms``: the change from the ``rig`` variant's row.
+    """
+    params = RigParameters() if params is None else params
+    variants = SENSITIVITY_VARIANTS if variants is None else variants
+    zv, zvd = paper_tdfs()
+    shapers = {"unshaped": None, "zv": zv, "zvd": zvd}
+    tooth = 4 * round((math.pi / 2 / params.rotor_teeth) / params.step_angle)  # microsteps per tooth
+    rows = []
+    for name, changes in variants.items():
+        p = _variant(params, changes)
+        plant = ArmPlant(p)
+        for v_in, x_f in conditions:
+            for system in systems:
+                prog, _ = experiment_programme(v_in, x_f, shaper=shapers[system])
+                run = simulate(prog, params=p, seed=0, plant=plant)
+                lag = plant.rotor_lag_steps
+                metrics = recording_metrics(run.frame("output")).set_index("motion")
+                for motion in ("Up", "Down"):
+                    m = metrics.loc[motion]
+                    rows.append({
+                        "variant": name, "holding_torque_kg_cm": p.holding_torque / KG_CM,
+                        "carriage_g": p.carriage_mass * 1e3, "k_n_m": p.k, "v_in_mm_s": v_in, "x_f_mm": x_f,
+                        "system": system, "motion": motion, "peak_n": float(m["peak_n"]),
+                        "overshoot_pct": float(m["overshoot_pct"]), "settling_ms": float(m["settling_ms"]),
+                        "max_rotor_lag_steps": run.max_rotor_lag_steps, "end_lag_steps": lag,
+                        "lost_steps": int(tooth * round(lag / tooth)),
+                        "end_tension_n": float(np.mean(run.output[-300:])),
+                    })  # fmt: skip
+    df = pd.DataFrame(rows)
+    key = ["v_in_mm_s", "x_f_mm", "system", "motion"]
+    ref = df[df.variant == next(iter(variants))].set_index(key)[["peak_n", "overshoot_pct", "settling_ms"]]
+    base = ref.reindex(pd.MultiIndex.from_frame(df[key])).to_numpy()
+    df["d_peak_n"] = df.peak_n.to_numpy() - base[:, 0]
+    df["d_overshoot_pp"] = df.overshoot_pct.to_numpy() - base[:, 1]
+    df["d_settling_ms"] = df.settling_ms.to_numpy() - base[:, 2]
+    return df
+
+
+def sensitivity_summary(df: pd.DataFrame) -> pd.DataFrame:
+    """Per variant of :func:`actuator_sensitivity`: runs that lost steps, the largest lag, how far rows moved.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index ``variant``; ``holding_torque_kg_cm``, ``carriage_g``, ``k_n_m``; ``unshaped_runs_losing_steps``
+        and ``shaped_runs_losing_steps`` (of 4 and 8 runs), ``max_lag_unshaped_steps`` and
+        ``max_lag_shaped_steps`` (microsteps), and the largest change of an unshaped and of a shaped Table II
+        row from the rig's: ``unshaped_max_d_peak_n``, ``unshaped_max_d_overshoot_pp``,
+        ``unshaped_max_d_settling_ms``, ``shaped_max_d_peak_n``, ``shaped_max_d_overshoot_pp``,
+        ``shaped_max_d_settling_ms``.
+    """
+    rows = []
+    for name, g in df.groupby("variant", sort=False):
+        runs = g.drop_duplicates(["v_in_mm_s", "x_f_mm", "system"])
+        row = {"variant": name, **g.iloc[0][["holding_torque_kg_cm", "carriage_g", "k_n_m"]].to_dict()}
+        for label, sel in (("unshaped", g.system == "unshaped"), ("shaped", g.system != "unshaped")):
+            r = runs[runs.system == "unshaped"] if label == "unshaped" else runs[runs.system != "unshaped"]
+            row[f"{label}_runs_losing_steps"] = int((r.lost_steps != 0).sum())
+            row[f"max_lag_{label}_steps"] = float(r.max_rotor_lag_steps.max())
+            for col in ("d_peak_n", "d_overshoot_pp", "d_settling_ms"):
+                row[f"{label}_max_{col}"] = float(g.loc[sel, col].abs().max())
+        rows.append(row)
+    return pd.DataFrame(rows).set_index("variant")
+
+
 def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = True) -> list[Path]:
     """Run the studies and write their CSVs into the repository's ``figures/`` (6 significant digits).
 
@@ -299,7 +425,7 @@ def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = T
     notebooks' output: notebook 06 reads them from there.
     """
     funcs = {"layouts": damping_layouts, "friction": eyelet_friction, "actuator": actuator_effects,
-             "lag": rotor_lag}  # fmt: skip
+             "lag": rotor_lag, "sensitivity": actuator_sensitivity}  # fmt: skip
     paths = []
     for name in names:
         t0 = time.perf_counter()

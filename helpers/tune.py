@@ -11,7 +11,8 @@ One command for what the paper does once at rest, done where the arm actually is
    ``<data>/tuning/verify/`` (Table I grid) or ``<data>/tuning/wide/`` (the wider grid; regenerated, not
    committed), and measure each move's residual vibration, its noise floor, its duration and the Table II
    metrics (:func:`helpers.metrics.move_residuals`);
-4. **report**: ``figures/tuning_report.{md,csv,png}`` and ``<data>/tuning/<grid>_verification.json`` (every
+4. **report**: ``figures/tuning_report.{md,csv,png}`` (``<data>/tuning/`` when ``--data-dir`` is not the
+   project's ``data/``) and ``<data>/tuning/<grid>_verification.json`` (every
    run's rows, so that notebook 07 needs no recordings), and **choose**: the candidate whose worst measured
    residual over every move of the grid is lowest among those whose moves are no longer than the paper's
    non-robust TDF's, written to ``<data>/tuning/chosen.json``.
@@ -322,11 +323,19 @@ def report_markdown(document: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_report(document: dict[str, Any]) -> list[Path]:
-    """Write ``figures/tuning_report[_<grid>].{csv,md,png}`` from a verification document.
+def write_report(document: dict[str, Any], folder: Path | None = None) -> list[Path]:
+    """Write ``tuning_report[_<grid>].{csv,md,png}`` from a verification document into ``figures/``.
 
     ``python -m helpers tune`` calls it after a run, and notebook 07 calls it again from the stored
     document (its figures and tables are what ``reproduce`` regenerates).
+
+    Parameters
+    ----------
+    document : dict
+        The verification document.
+    folder : pathlib.Path, optional
+        Write there instead of ``figures/`` (``tune --data-dir`` elsewhere: the report stays beside its data
+        and the repository's figures are left alone).
 
     Returns
     -------
@@ -337,7 +346,10 @@ def write_report(document: dict[str, Any]) -> list[Path]:
     stem = "tuning_report" if grid == "table-i" else f"tuning_report_{grid}"
     summary = summarise(rows_of(document))
     source = str(document["source"]["kind"])
-    csv, md, png = (figure_path(f"{stem}.{ext}") for ext in ("csv", "md", "png"))
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+    where = figure_path if folder is None else (lambda name: folder / name)
+    csv, md, png = (where(f"{stem}.{ext}") for ext in ("csv", "md", "png"))
     summary.assign(source=source).to_csv(csv, index=False, float_format="%.6g")
     md.write_text(report_markdown(document))
     fig = report_figure(summary, grid, source)
@@ -504,7 +516,9 @@ def run(args: argparse.Namespace) -> int:
                 },
             },
         )
-    for path in write_report(document):
+    # the project's figures come from the project's data: a tuning run on other data keeps its report there
+    ours = args.data_dir.resolve() == DATA_DIR.resolve()
+    for path in write_report(document, None if ours else tuning):
         say(f"wrote {_shown(path)}")
     print(report_markdown(document), end="")
     return 0

@@ -8,6 +8,7 @@ ports twice, and check what the user sees (one line, an exit status from docs/fa
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -26,6 +27,16 @@ from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard
 
 PY = sys.executable
+
+READY_S = 60.0
+"""Deadline (s) for a board or a process to become ready: generous, since waits end on readiness (a board's
+greeting, a line printed) and only a failure runs to the deadline; a busy machine may take seconds."""
+
+PROCESS_S = 300.0
+"""Deadline (s) for a command-line process to finish: a fresh environment compiles the virtual rig first."""
+
+PROGRESS = re.compile(r"(\d+\.\d)/\d+\.\d s")
+"""The recorder's progress bar: device seconds since GO."""
 
 
 class Server:
@@ -50,7 +61,7 @@ class Server:
             cwd=REPO_ROOT,
         )
         paths: dict[str, str] = {}
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + PROCESS_S  # the first start compiles the plant
         while len(paths) < 2 and time.monotonic() < deadline:
             line = self.proc.stdout.readline()
             if not line:
@@ -61,7 +72,7 @@ class Server:
         self.daq, self.stepper = paths["daq"], paths["stepper"]
         # ready when both boards answer (on a loaded machine the server's first answers can take seconds)
         for board, path in ((DaqBoard, self.daq), (StepperBoard, self.stepper)):
-            board.open(path, hello_timeout=60.0).close()
+            board.open(path, hello_timeout=READY_S).close()
 
     @property
     def ports(self) -> str:
@@ -70,7 +81,7 @@ class Server:
     def stop(self) -> None:
         if self.proc.poll() is None:
             self.proc.terminate()
-            self.proc.wait(timeout=30)
+            self.proc.wait(timeout=READY_S)
 
 
 @pytest.fixture(scope="module")
@@ -97,22 +108,44 @@ def data_dir(tmp_path):
     return tmp_path
 
 
-def _record(data_dir: Path, ports: str, *extra: str) -> subprocess.Popen:
+def _record(data_dir: Path, ports: str, *extra: str, quiet: bool = True) -> subprocess.Popen:
     cmd = [PY, "-m", "helpers", "record", "pulse", "--ports", ports, "--v-in", "200", "--x-f", "20",
-           "--data-dir", str(data_dir), "--group", "g", "--name", "p", "--quiet", *extra]  # fmt: skip
+           "--data-dir", str(data_dir), "--group", "g", "--name", "p", *(["--quiet"] if quiet else []),
+           *extra]  # fmt: skip
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO_ROOT)
 
 
-def _wait_for_samples(proc: subprocess.Popen, seconds: float) -> None:
-    """Let the recorder run a while (it prints 'connected' once both boards answer)."""
+def _run_until(proc: subprocess.Popen, device_s: float) -> str:
+    """Wait until a recorder (started with ``quiet=False``) shows ``device_s`` s of its run since GO.
+
+    Readiness, not a delay: the recorder prints 'connected' once both boards answer, then its progress bar in
+    device time; whatever the machine's load, the run is then at least that far. Returns stderr read so far.
+    """
     line = proc.stdout.readline()
     assert line.startswith("connected"), line + proc.stderr.read()
-    time.sleep(seconds)
+    fd, seen = proc.stderr.fileno(), b""
+    deadline = time.monotonic() + READY_S
+    while time.monotonic() < deadline:
+        chunk = os.read(fd, 4096)  # blocks until the bar moves (or the recorder ends)
+        if not chunk:
+            break
+        seen += chunk
+        shown = PROGRESS.findall(seen.decode(errors="replace"))
+        if shown and float(shown[-1]) >= device_s:
+            return seen.decode(errors="replace")
+    text = seen.decode(errors="replace")
+    raise AssertionError(f"the run did not reach {device_s} s of device time: {text}")
+
+
+def _message_lines(err: str) -> list[str]:
+    """What the recorder said on stderr besides its progress bar (redrawn with carriage returns)."""
+    parts = (p.strip() for p in re.split(r"[\r\n]", err))
+    return [p for p in parts if p and not PROGRESS.search(p)]
 
 
 def _boards_idle(server: Server) -> tuple[str, str]:
     """Ask both boards, as a new client, whether anything is still running: (CLEAR reply, RATE reply)."""
-    rig = Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=5.0)
+    rig = Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=READY_S)
     try:
         return rig.stepper.command("CLEAR"), rig.daq.command("RATE 1000")
     finally:
@@ -132,7 +165,7 @@ def recordings_calibration() -> dict:
     ],
 )
 def test_a_signal_mid_run_stops_the_boards_and_saves_a_loadable_partial_recording(data_dir, sig, status):
-    server = Server(speed=3.0)  # the 12 s run lasts 4 s of wall time: a signal 1.5 s in lands inside it
+    server = Server(speed=3.0)  # the 12 s run lasts about 4 s of wall time
     try:
         _signal_mid_run(server, data_dir, sig, status)
     finally:
@@ -140,13 +173,14 @@ def test_a_signal_mid_run_stops_the_boards_and_saves_a_loadable_partial_recordin
 
 
 def _signal_mid_run(server: Server, data_dir: Path, sig: int, status: int) -> None:
-    proc = _record(data_dir, server.ports)
-    _wait_for_samples(proc, 1.5)  # past the wait for rest (0.5 s of device time) on a loaded machine too
+    proc = _record(data_dir, server.ports, quiet=False)
+    seen = _run_until(proc, 1.5)  # the cable is pulled in (1.0-1.1 s after GO) and held until 8 s
     proc.send_signal(sig)
-    out, err = proc.communicate(timeout=60)
+    out, err = proc.communicate(timeout=PROCESS_S)
+    err = seen + err
     assert proc.returncode == status, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err  # one line, no traceback
+    lines = _message_lines(err)
+    assert len(lines) == 1 and "Traceback" not in err, err  # one line, no traceback
     assert "partial recording saved to" in lines[0] and "stepper was stopped and disabled" in lines[0]
     saved = list((data_dir / "g").glob("p_aborted_*.csv"))
     assert len(saved) == 1 and not (data_dir / "g" / "p.csv").exists()
@@ -155,7 +189,7 @@ def _signal_mid_run(server: Server, data_dir: Path, sig: int, status: int) -> No
     # the boards are idle: no programme running (CLEAR is accepted), no stream running (RATE is accepted)
     assert _boards_idle(server) == ("OK CLEAR", "OK RATE 1000")
     # the cable stopped part-way: home brings it back from where the board says it is
-    stepper = StepperBoard.open(server.stepper, hello_timeout=5.0)
+    stepper = StepperBoard.open(server.stepper, hello_timeout=READY_S)
     try:
         assert stepper.position() > 0
         assert "back to position 0" in home(stepper)
@@ -165,12 +199,12 @@ def _signal_mid_run(server: Server, data_dir: Path, sig: int, status: int) -> No
 
 
 def test_a_second_client_on_the_same_ports_gets_port_busy(server, data_dir):
-    first = Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=5.0)
+    first = Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=READY_S)
     try:
         with pytest.raises(PortBusy, match="port busy"):
-            Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=5.0)
+            Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=READY_S)
         proc = _record(data_dir, server.ports)
-        _, err = proc.communicate(timeout=60)
+        _, err = proc.communicate(timeout=PROCESS_S)
         assert proc.returncode == 4 and err.count("\n") == 1 and "port busy" in err
     finally:
         first.close()
@@ -178,19 +212,21 @@ def test_a_second_client_on_the_same_ports_gets_port_busy(server, data_dir):
 
 def test_a_server_killed_mid_run_is_reported_and_the_data_kept(own_server, data_dir):
     server = own_server
-    proc = _record(data_dir, server.ports)
-    _wait_for_samples(proc, 0.6)
+    proc = _record(data_dir, server.ports, quiet=False)
+    seen = _run_until(proc, 0.5)
     server.proc.kill()
-    _, err = proc.communicate(timeout=60)
+    _, err = proc.communicate(timeout=PROCESS_S)
+    err = seen + err
     assert proc.returncode == 4, err
-    assert err.count("\n") == 1 and "partial recording saved to" in err
+    lines = _message_lines(err)
+    assert len(lines) == 1 and "partial recording saved to" in lines[0], err
     assert "cleanup failed" in err and "driver may be on" in err  # the host could not reach the boards
     saved = list((data_dir / "g").glob("p_aborted_*.csv"))
     assert len(saved) == 1 and recordings.load(saved[0]).status == "aborted"
 
 
 def test_home_returns_the_cable_from_where_the_board_says_it_is(server):
-    stepper = StepperBoard.open(server.stepper, hello_timeout=5.0)
+    stepper = StepperBoard.open(server.stepper, hello_timeout=READY_S)
     try:  # another client leaves the cable pulled in by 40 steps
         stepper.load(Programme((Segment(1, 40, 2000),)))
         stepper.enable(True)
@@ -202,10 +238,10 @@ def test_home_returns_the_cable_from_where_the_board_says_it_is(server):
         stepper.close()
     # a pulse refuses to start from there ...
     cmd = [PY, "-m", "helpers", "home", "--ports", server.ports]
-    done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=60)
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=PROCESS_S)
     assert done.returncode == 0, done.stderr
     assert "moved 40 steps" in done.stdout
-    stepper = StepperBoard.open(server.stepper, hello_timeout=5.0)
+    stepper = StepperBoard.open(server.stepper, hello_timeout=READY_S)
     try:
         assert stepper.position() == 0
     finally:
@@ -215,7 +251,7 @@ def test_home_returns_the_cable_from_where_the_board_says_it_is(server):
 @pytest.mark.slow
 def test_a_pulse_refuses_to_start_away_from_zero(own_server, data_dir):
     server = own_server
-    stepper = StepperBoard.open(server.stepper, timeout=10.0, hello_timeout=30.0)
+    stepper = StepperBoard.open(server.stepper, timeout=10.0, hello_timeout=READY_S)
     try:
         stepper.load(Programme((Segment(1, 10, 2000),)))
         stepper.enable(True)
@@ -225,7 +261,7 @@ def test_a_pulse_refuses_to_start_away_from_zero(own_server, data_dir):
     finally:
         stepper.close()
     proc = _record(data_dir, server.ports)
-    _, err = proc.communicate(timeout=60)
+    _, err = proc.communicate(timeout=PROCESS_S)
     assert proc.returncode == 3 and "not at 0" in err and "helpers home" in err
     assert not (data_dir / "g").exists() or not list((data_dir / "g").glob("*.csv"))
 
@@ -254,11 +290,11 @@ def test_two_recorders_into_one_group_the_second_is_refused(data_dir):
     try:
         assert first.stdout.readline().startswith("connected")
         proc = _record(data_dir, "virtual")
-        _, err = proc.communicate(timeout=60)
+        _, err = proc.communicate(timeout=PROCESS_S)
         assert proc.returncode == 5 and "busy" in err and err.count("\n") == 1
     finally:
         first.terminate()
-        first.communicate(timeout=60)
+        first.communicate(timeout=PROCESS_S)
 
 
 REFUSALS = [
@@ -326,7 +362,7 @@ def test_every_refusal_is_one_line_with_its_exit_status(data_dir, capsys, argv, 
 @pytest.mark.parametrize(("argv", "status"), [(REFUSALS[-1][0], 3)])
 def test_refusals_end_to_end(data_dir, argv, status):
     cmd = [PY, "-m", "helpers", *argv, "--data-dir", str(data_dir)]
-    done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=120)
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=PROCESS_S)
     assert done.returncode == status and done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
 
 
@@ -344,7 +380,7 @@ def test_garbage_and_floods_through_the_server(data_dir):
     noisy = Server(10.0, "--daq-faults", "garbage=0.02,corrupt=0.02,drop=0.01")
     try:
         proc = _record(data_dir, noisy.ports)
-        out, err = proc.communicate(timeout=120)
+        out, err = proc.communicate(timeout=PROCESS_S)
         assert proc.returncode == 0, err
         rec = recordings.load(data_dir / "g" / "p")
         c = rec.meta["counts"]
@@ -354,7 +390,7 @@ def test_garbage_and_floods_through_the_server(data_dir):
     flood = Server(10.0, "--daq-faults", "garbage=1.0,corrupt=0.9")
     try:
         proc = _record(data_dir, flood.ports, "--name", "q")
-        _, err = proc.communicate(timeout=120)
+        _, err = proc.communicate(timeout=PROCESS_S)
         assert proc.returncode == 4 and err.count("\n") == 1, err
         assert "corrupted lines" in err or "did not come to rest" in err or "no sample" in err
     finally:
@@ -370,7 +406,7 @@ def test_no_stale_lock_after_a_killed_recorder(data_dir):
     )  # fmt: skip
     assert proc.stdout.readline().startswith("connected")
     os.kill(proc.pid, signal.SIGKILL)  # no cleanup at all: the kernel still releases the lock
-    proc.communicate(timeout=60)
+    proc.communicate(timeout=PROCESS_S)
     done = _record(data_dir, "virtual", "--t-end", "9")
-    _, err = done.communicate(timeout=120)
+    _, err = done.communicate(timeout=PROCESS_S)
     assert done.returncode == 0, err

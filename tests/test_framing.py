@@ -253,6 +253,7 @@ def test_fuzz_stream_counts_exactly(seed, n, p_fault, cuts):
     _check(data, truth, cuts)
 
 
+@pytest.mark.slow  # 750 fuzzed streams; the default suite keeps the structured and byte-level fuzzing
 @settings(max_examples=FUZZ_EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**32 - 1), p_fault=st.floats(0.0, 0.3))
 def test_fuzz_many_streams_per_example(seed, p_fault):

@@ -539,6 +539,13 @@ def test_ordering_agreement_of_the_paper_with_itself_and_with_a_reversed_table()
     paper = table_ii()
     same = metrics.ordering_agreement(_as_scenario_table(paper), "overshoot_pct")
     assert len(same) == 4 * 2 * 3 and same["agrees"].all()
+    # 8 informative orderings (robust against non-robust), 16 trivial ones (a shaper below the pulse)
+    assert set(same.loc[same.informative, "ordering"]) == {"zvd < zv"} and same.informative.sum() == 8
+    pulse = paper.set_index(["v_in_mm_s", "x_f_mm", "system", "motion"])["overshoot_pct"]
+    first = same.iloc[0]  # 10 mm Up, zv < unshaped: the margin is the paper's own difference
+    assert first["ours_margin"] == pytest.approx(
+        pulse[(200.0, 10.0, "unshaped", "Up")] - pulse[(200.0, 10.0, "zv", "Up")]
+    )
     # the paper's one exception: at 30 mm / 200 mm/s the robust TDF's Up overshoot is above the non-robust's
     row = same[(same.x_f_mm == 30) & (same.motion == "Up") & (same.ordering == "zvd < zv")]
     assert not row["paper"].item()

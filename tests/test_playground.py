@@ -1,9 +1,6 @@
 """Notebook 03's interactive shaper study: physically sensible, quick enough to follow a slider, honest
 about its inputs."""
 
-import statistics
-import time
-
 import matplotlib
 import pytest
 
@@ -45,17 +42,18 @@ def test_sliders_outside_their_range_are_refused(playground):
         playground.study(1.0, -0.1)
 
 
-def test_each_update_after_the_first_takes_at_most_0_3_s_of_cpu(playground):
-    """The issue's interactivity target, measured in CPU time of this process (not wall time, which other
-    processes on a shared machine inflate); the update includes redrawing the figure."""
-    playground.update(1.0, 0.0)  # the first draws the figure
-    cpu = []
-    for ratio, zeta_error in [(1.1, 0.0), (0.9, 0.02), (1.3, -0.02), (1.2, 0.05), (0.8, 0.0)]:
-        start = time.process_time()
-        playground.update(ratio, zeta_error)
-        cpu.append(time.process_time() - start)
-    print(f"update CPU time: median {statistics.median(cpu):.3f} s, max {max(cpu):.3f} s")
-    assert statistics.median(cpu) <= 0.3
+def test_an_update_redraws_the_same_figure_with_the_new_study(playground):
+    """The slider's path: the first update draws the figure, the next ones redraw it in place with the new
+    study's numbers (their CPU time is `python -m helpers bench playground`'s figure, never asserted here)."""
+    playground.update(1.0, 0.0)
+    fig = playground.fig
+    heights = [[b.get_height() for b in bars] for bars in playground._bars.values()]
+    study = playground.update(1.3, -0.02)
+    assert playground.fig is fig
+    after = [[b.get_height() for b in bars] for bars in playground._bars.values()]
+    assert after != heights
+    linear = dict(zip(SHAPERS, [b.get_height() for b in playground._bars["linear"]], strict=True))
+    assert linear == {name: study.residual_linear[name] for name in SHAPERS}
 
 
 def test_batch_runs_are_not_interactive(monkeypatch):

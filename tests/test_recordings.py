@@ -343,6 +343,7 @@ def _writer(folder: str, n: int, seed: int, replace: bool, results) -> None:
             results.put(("saved", seed, i))
         except RecordingExists:
             results.put(("refused", seed, i))
+    results.put(("end", seed, n))
 
 
 def _reader(folder: str, stop, results) -> None:
@@ -358,15 +359,15 @@ def _reader(folder: str, stop, results) -> None:
     results.put(("reader", ok, bad))
 
 
-def _drain(queue) -> list:
-    import queue as q
-
-    out = []
-    while True:
-        try:
-            out.append(queue.get(timeout=2))
-        except q.Empty:
-            return out
+def _drain(queue, processes: int) -> list:
+    """Every result the processes put, up to the ``("end", ...)`` each one puts last (the reader's summary
+    is its end): readiness, not a quiet period."""
+    out, ended = [], 0
+    while ended < processes:
+        item = queue.get(timeout=300)
+        ended += item[0] in ("end", "reader")
+        out.append(item)
+    return out
 
 
 def test_concurrent_writers_and_a_reader_never_see_a_torn_pair(tmp_path):
@@ -383,7 +384,7 @@ def test_concurrent_writers_and_a_reader_never_see_a_torn_pair(tmp_path):
         w.join(120)
     stop.set()
     reader.join(60)
-    out = _drain(results)
+    out = _drain(results, 1 + len(writers))
     saved = [r for r in out if r[0] == "saved"]
     summary = [r for r in out if r[0] == "reader"]
     errors = [r for r in out if r[0] == "reader-error"]
@@ -402,6 +403,6 @@ def test_two_writers_of_one_new_name_one_wins_the_other_is_refused(tmp_path):
         w.start()
     for w in writers:
         w.join(60)
-    outcomes = sorted(r[0] for r in _drain(results))
+    outcomes = sorted(r[0] for r in _drain(results, len(writers)) if r[0] != "end")
     assert outcomes == ["refused", "saved"]
     assert len(recordings.load(tmp_path / "shared").frame) >= 5

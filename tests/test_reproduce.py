@@ -63,3 +63,36 @@ def test_stream_outputs_are_merged_so_reruns_store_the_same_bytes(tmp_path):
     reproduce.execute_notebook(nb_path, timeout=60)
     outputs = nbformat.read(nb_path, as_version=4).cells[0].outputs
     assert [(o["output_type"], o["name"], o["text"]) for o in outputs] == [("stream", "stdout", "a\nb\n")]
+
+
+def test_reproduce_undoes_what_a_jupyterlab_autosave_changes(tmp_path):
+    """Measured: JupyterLab (4.x, ipykernel) that opens a stored notebook rewrites its kernelspec's display
+    name within its 2-minute autosave; one that ran it may add widget state, cell metadata and timings."""
+    path = _write(tmp_path / "01_saved.ipynb", ["print(1)"])
+    clean = reproduce.normalise(nbformat.read(path, as_version=4))
+    nb = nbformat.read(path, as_version=4)
+    nb.metadata["kernelspec"] = {"display_name": "Python 3 (my env)", "language": "python", "name": "my-env"}
+    nb.metadata["widgets"] = {"application/vnd.jupyter.widget-state+json": {"state": {}, "version_major": 2}}
+    timing = {"iopub.status.busy": "2026-01-01T00:00:00Z"}
+    nb.cells[0].metadata.update(
+        {"scrolled": True, "collapsed": False, "jupyter": {"source_hidden": True}, "execution": timing,
+         "tags": ["x"]}
+    )  # fmt: skip
+    nbformat.write(nb, path)
+    reproduce.execute_notebook(path, timeout=60)
+    back = nbformat.read(path, as_version=4)
+    assert back.metadata["kernelspec"] == reproduce.KERNELSPEC == clean.metadata["kernelspec"]
+    assert "widgets" not in back.metadata and back.metadata["language_info"]["name"] == "python"
+    assert dict(back.cells[0].metadata) == {"tags": ["x"]}
+    assert back.cells[0].outputs[0]["text"] == "1\n"
+
+
+def test_the_stored_notebooks_are_in_the_stored_form():
+    """What reproduce writes: an autosave that only opened a notebook (the measured kernelspec change)
+    leaves its bytes as they are."""
+    for path in reproduce.numbered_notebooks():
+        raw = path.read_text(encoding="utf-8")
+        nb = nbformat.reads(raw, as_version=4)
+        normal = reproduce.normalise(nbformat.reads(raw, as_version=4))
+        assert nbformat.writes(normal) == nbformat.writes(nb), path
+        assert nb.metadata["kernelspec"] == reproduce.KERNELSPEC, path

@@ -80,6 +80,7 @@ def _assert_close(a: dict, b: dict, rtol: float) -> None:
         np.testing.assert_allclose(x, y, rtol=rtol, err_msg=key)
 
 
+@pytest.mark.slow  # 14-18 s; the slow suite also runs every notebook under one BLAS thread
 def test_sensitive_numbers_do_not_depend_on_blas_threads(tmp_path):
     """One BLAS thread against the default: agreement to 1e-7, 1000 times finer than the printed digits."""
     _assert_close(_sensitive({}, tmp_path), _sensitive(ONE_THREAD, tmp_path), rtol=1e-7)

@@ -12,6 +12,7 @@ from helpers.identify import IdentifiedMode
 from helpers.modemap import ModeMap
 from helpers.paths import STORED_TABLES_DIR
 from helpers.robustness import (
+    at_duration,
     linear_residual_pct,
     load_designs,
     optimise_shaper,
@@ -102,12 +103,30 @@ def test_the_optimiser_beats_its_starts_within_the_cap():
     assert best.objective_pct <= tuned.objective_pct + 1e-9 or best.objective_pct < 0.9 * start
 
 
+def test_a_family_at_a_duration_keeps_its_shape_and_scales_its_frequency():
+    s = uncertainty_model(predicted_map(), IDENT, zeta_prior=(0.03, 0.06)).sample(32)
+    tuned = tune_family("2-hump EI", s, 25.0, 0.05)
+    for target in (0.8 * tuned.duration, 1.25 * tuned.duration):  # compressed, stretched
+        at = at_duration(tuned, target, s, 95.0, "robust")
+        assert at.name == "2-hump-ei-at-robust" and at.family == "2-hump EI"
+        assert at.duration == pytest.approx(target, rel=1e-12)
+        assert np.allclose(at.shaper.amplitudes, tuned.shaper.amplitudes, rtol=1e-12)
+        assert np.allclose(at.shaper.times * at.omega_d, tuned.shaper.times * tuned.omega_d, rtol=1e-12)
+        assert at.objective_pct == pytest.approx(np.percentile(linear_residual_pct(at.shaper, s), 95))
+    with pytest.raises(ValueError, match="not a family"):
+        at_duration(optimise_shaper(s, 0.2, 25.0, 0.05, n_impulses=3, max_iter=5), 0.3, s, 95.0, "x")
+
+
 @pytest.mark.slow
 def test_a_longer_cap_never_hurts_and_the_design_set_round_trips(tmp_path):
     model = uncertainty_model(predicted_map(), IDENT, zeta_prior=(0.03, 0.06), amplitude_mm=(10.0, 20.0))
     designs = robust_designs(model, n_draws=48, families=("ZVD", "EI"), extra_families=(), max_iter=150)
     d = designs.designs
-    assert set(d) == {"zvd-tuned", "ei-tuned", "robust", "robust-short"}
+    at = {f"{f}-at-{r}" for f in ("zvd", "ei") for r in ("robust", "robust-short")}
+    assert set(d) == {"zvd-tuned", "ei-tuned", "robust", "robust-short", *at}
+    assert designs.equal_duration == {r: (f"zvd-at-{r}", f"ei-at-{r}") for r in ("robust", "robust-short")}
+    for name in at:  # every compared family at each robust design's duration
+        assert d[name].duration == pytest.approx(d[name.split("-at-")[1]].duration, rel=1e-12)
     # the longer cap starts from the shorter optimum too
     assert d["robust"].duration >= d["robust-short"].duration - 1e-12
     assert d["robust"].objective_pct <= d["robust-short"].objective_pct + 1e-9

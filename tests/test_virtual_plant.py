@@ -14,6 +14,7 @@ import pytest
 
 from helpers import hardware, model, paper
 from helpers.hardware import MM_PER_STEP
+from helpers.rig_studies import SENSITIVITY_VARIANTS, _variant, actuator_sensitivity
 from helpers.virtual import (
     ArcChain,
     ArmPlant,
@@ -55,6 +56,7 @@ def convergence():
     return maps
 
 
+@pytest.mark.slow  # the convergence study (notebook 06 prints and nbval checks the same table)
 def test_static_tension_converged_within_1_percent_up_to_40_mm(convergence):
     coarse, fine = convergence[1], convergence[4]
     rel = np.abs(coarse.static_tension_n.to_numpy() / fine.static_tension_n.to_numpy() - 1)
@@ -63,6 +65,7 @@ def test_static_tension_converged_within_1_percent_up_to_40_mm(convergence):
     assert fine.tip_angle_deg.iloc[-1] > 250.0
 
 
+@pytest.mark.slow  # see above
 def test_dominant_frequency_converged_within_half_a_percent_up_to_40_mm(convergence):
     coarse, fine = convergence[1], convergence[4]
     rel = np.abs(coarse.omega_d_rad_s.to_numpy() / fine.omega_d_rad_s.to_numpy() - 1)
@@ -72,6 +75,7 @@ def test_dominant_frequency_converged_within_half_a_percent_up_to_40_mm(converge
     assert fine.omega_d_rad_s.iloc[-1] > 1.5 * fine.omega_d_rad_s.iloc[0]
 
 
+@pytest.mark.slow  # see above
 def test_the_plain_arc_chain_misses_at_40_mm_and_the_bowing_is_what_meets_it(convergence):
     """Without the bowing between eyelets the arcs are stiff by more than 0.5 % at 40 mm; the bowing is the
     part of the cable's moment they cannot carry, and it moves the coarse rod, not the fine one."""
@@ -127,6 +131,7 @@ def _check_constant_curvature(p, tension, rel):
     return theta
 
 
+@pytest.mark.slow  # a fine rod's statics, 4 tensions (notebook 06's statics oracle checks them too)
 @pytest.mark.parametrize("tension", [0.5, 2.0, 5.0, 9.0])
 def test_constant_curvature_statics_fine_rod(tension):
     """Gravity off, cable following the backbone (an eyelet at every node): a circular arc."""
@@ -295,6 +300,7 @@ def test_kernel_right_hand_side_equals_dense_lagrangian(actuator, m):
         np.testing.assert_allclose(dy, dense, rtol=1e-9, atol=1e-9 * np.abs(dense).max())
 
 
+@pytest.mark.slow  # 8-18 s of solve_ivp; the default suite keeps the energy and statics oracles
 def test_compiled_integrator_converges_to_the_solve_ivp_reference():
     """A 4-disc arm with stepper and carriage through the start of a pull: the fixed-step kernel converges to
     the solve_ivp reference at fourth order as the step shrinks (equations and integrator agree)."""
@@ -545,3 +551,24 @@ def test_eyelet_friction_only_dissipates():
     e = np.array(energies)
     assert e[-1] < 0.95 * e[0]
     assert np.max(np.diff(e)) < 1e-6 * e[0]
+
+
+def test_a_weaker_motor_on_the_same_cable_loses_steps_where_the_assumed_one_holds():
+    """The actuator assumption that matters (docs/virtual_rig.md): the paper's 4.3 kg cm cannot hold the
+    unshaped 300 mm/s pulse, whose peak tension passes the motor's pull-out; the assumed 1.5x holds it."""
+    rig = RigParameters()
+    weak = _variant(rig, SENSITIVITY_VARIANTS["paper torque"])
+    assert weak.k_cable == pytest.approx(rig.k_cable, rel=1e-12) and weak.k < rig.k  # the same cable
+    assert weak.pull_out_tension == pytest.approx(rig.pull_out_tension / 1.5, rel=1e-12)
+    stiff = _variant(rig, SENSITIVITY_VARIANTS["3x stiffer cable"])
+    assert stiff.k_cable == pytest.approx(3 * rig.k_cable, rel=1e-12) and stiff.max_step < rig.max_step
+    df = actuator_sensitivity(
+        variants={"rig": {}, "paper torque": SENSITIVITY_VARIANTS["paper torque"]},
+        conditions=((300.0, 20.0),),
+        systems=("unshaped",),
+    )
+    runs = df.drop_duplicates("variant").set_index("variant")
+    assert runs.loc["rig", "lost_steps"] == 0 and runs.loc["rig", "end_tension_n"] > 2.0
+    assert runs.loc["paper torque", "lost_steps"] >= 16  # at least a tooth slipped ...
+    assert runs.loc["paper torque", "end_tension_n"] < 0.5  # ... and the cable is left slack
+    assert paper.table_ii().peak_n.max() > weak.pull_out_tension  # the paper's own peak: beyond 4.3 kg cm

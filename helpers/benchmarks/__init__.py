@@ -4,6 +4,7 @@
   implementation of the same equations, measured in the same run);
 - ``serial``: sustained DAQ rate over the pseudo-terminal server and the wall time to record one scenario on
   the in-process virtual rig;
+- ``playground``: CPU time of one update of notebook 03's interactive shaper study (target <= 0.3 s);
 - ``sweep``: runs per second of a sweep's tasks on 1 and 2 workers of a local Dask cluster, the scaling
   ratio, Dask's overhead against a bare loop, the per-run overhead outside the integration.
 """
@@ -17,11 +18,13 @@ from collections.abc import Callable
 from typing import Any
 
 from helpers.benchmarks.plant import run_plant_benchmark
+from helpers.benchmarks.playground import run_playground_benchmark
 from helpers.benchmarks.serial import run_serial_benchmark
 from helpers.benchmarks.sweep import run_sweep_benchmark
 
 SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "plant": run_plant_benchmark,
+    "playground": run_playground_benchmark,
     "serial": run_serial_benchmark,
     "sweep": run_sweep_benchmark,
 }

@@ -108,6 +108,10 @@ class Serial(SerialBase):
             "(device disconnected or multiple access on port?)"
         )
 
+    def device_time(self) -> float:
+        """The rig's device clock (s): what the host's timeouts count on this port (``rig.boards.Waiter``)."""
+        return self.world.t if self.world is not None else 0.0
+
     @property
     def in_waiting(self) -> int:
         """Bytes available now (does not move device time)."""

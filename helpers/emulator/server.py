@@ -11,7 +11,9 @@ program, including a notebook's live cells, can connect by device path exactly a
 
 A reader on a pseudo-terminal cannot pull device time forward, so the server paces it to the wall clock:
 device time = ``speed`` x wall time (``--speed 1`` is real time, the default; ``--speed 4`` runs four times
-faster; ``--speed 0`` advances only as fast as the reader drains the DAQ's output). Lines that the reader does
+faster; ``--speed 0`` advances only as fast as the reader drains the DAQ's output). On a machine too busy to
+keep that pace the device clock slips (the boards run slower, and keep answering every few milliseconds)
+rather than falling ever further behind. Lines that the reader does
 not collect pile up in the server; beyond ``--buffer`` bytes the oldest are dropped, as a real USB-serial link
 would lose them (the host then sees gaps in ``seq``).
 
@@ -39,6 +41,13 @@ from helpers.emulator.boards import EmulatedBoard, Faults
 from helpers.emulator.world import VirtualWorld, default_world
 from helpers.paths import VIRTUAL_RIG_REGISTRY
 from helpers.validate import DefaultsHelp, arg_number
+
+CATCH_UP_S = 0.02
+"""Wall seconds the server integrates at most before it reads and answers the ports again."""
+
+MAX_LAG_S = 0.1
+"""Wall seconds the device clock may fall behind ``speed`` x wall time before it slips (the pace is a
+target, not a promise)."""
 
 
 class _PtyPort:
@@ -172,11 +181,18 @@ def serve(
                 if p.master in readable:
                     p.read_commands()
             if speed > 0:
-                target = dev0 + (time.monotonic() - wall0) * speed
-                while world.t < target - 1e-9:
+                now = time.monotonic()
+                target = dev0 + (now - wall0) * speed
+                # catch up for at most CATCH_UP_S of wall time before serving the ports again, and let the
+                # device clock slip when the machine cannot keep the pace (a busy host): the boards stay
+                # responsive and run slower instead of going silent while the plant catches up
+                while world.t < target - 1e-9 and time.monotonic() - now < CATCH_UP_S:
                     world.advance_to(min(target, world.t + step))
                     for p in ports:
                         p.collect()
+                behind = target - world.t - MAX_LAG_S * speed
+                if behind > 0:
+                    dev0 -= behind
             elif ports[0].pending_bytes < 4096:
                 world.advance_to(world.t + step)
                 for p in ports:

@@ -6,14 +6,24 @@ become messages. Replies (``OK``, ``ERR``, ``PONG``, ``ABORTED``) answer the pen
 ``DONE`` is remembered; ``HELLO`` means the board rebooted, which is an error whenever it was not expected.
 
 Timeouts are counted in the port's own read timeouts (a pyserial read that returns early has waited its
-``timeout``), or in wall time, whichever is larger. That is exact on hardware and lets the in-process virtual
-rig, which returns at once but advances its device clock by the timeout, report the same errors instantly.
+``timeout``), or in wall time, whichever is larger, on hardware and on pseudo-terminals. The in-process
+virtual rig has a device clock of its own (its port's ``device_time()``): there a timeout is counted in device
+time only, so it reports the same errors instantly and never a spurious one when the host process is slow (a
+busy machine, a first compilation).
+
+Connecting (:data:`BOOT_TIMEOUT_S`, :data:`BOOTLOADER_QUIET_S`): an Arduino Uno or Mega resets when its
+USB port opens (DTR), and its bootloader listens for an upload for about 1.5-2 s before the sketch starts and
+sends ``HELLO``. The host sends nothing for the first :data:`BOOTLOADER_QUIET_S` s (bytes sent to a listening
+bootloader can keep it from starting the sketch), then ``PING`` every 0.25 s, and gives up after
+:data:`BOOT_TIMEOUT_S` s: five times the bootloader's wait, so a board on a slow USB hub or a host busy with
+other work still connects, and a port with no board behind it is named within seconds.
 """
 
 from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Callable
 
 import serial
 
@@ -22,6 +32,14 @@ from helpers.rig.ports import open_port
 from helpers.signals import signals_held
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
+
+BOOT_TIMEOUT_S = 10.0
+"""Seconds a board has to answer after its port opens (``HELLO``, or ``PONG`` to a ``PING``): an Arduino's
+reset and bootloader take about 1.5-2 s, so five times that, for a slow USB hub or a busy host."""
+
+BOOTLOADER_QUIET_S = 2.5
+"""Seconds the host stays silent after opening a USB serial port, past the bootloader's 1.5-2 s window (a
+pseudo-terminal or an emulated board has no bootloader: it is asked at once)."""
 
 
 class BoardError(RuntimeError):
@@ -83,11 +101,16 @@ def _expected_reply(command: str) -> str:
 
 
 class Waiter:
-    """Elapsed waiting time: the larger of wall time and the sum of read timeouts that expired."""
+    """Elapsed waiting time: the larger of wall time and the sum of read timeouts that expired.
 
-    def __init__(self, timeout: float) -> None:
+    Given a device ``clock`` (the in-process virtual rig's :meth:`device_time`), the elapsed time is that
+    clock's alone: the emulated boards' time moves only when the host reads, so wall time says nothing there.
+    """
+
+    def __init__(self, timeout: float, clock: Callable[[], float] | None = None) -> None:
         self.timeout = timeout
-        self._t0 = time.monotonic()
+        self._clock = clock
+        self._t0 = time.monotonic() if clock is None else clock()
         self._virtual = 0.0
 
     def idle(self, seconds: float) -> None:
@@ -97,6 +120,8 @@ class Waiter:
     @property
     def elapsed(self) -> float:
         """Seconds waited so far."""
+        if self._clock is not None:
+            return self._clock() - self._t0
         return max(time.monotonic() - self._t0, self._virtual)
 
     @property
@@ -142,7 +167,7 @@ class BoardLink:
         timeout: float = 2.0,
         read_timeout: float = 0.05,
         sync: bool = True,
-        hello_timeout: float = 3.0,
+        hello_timeout: float = BOOT_TIMEOUT_S,
     ) -> BoardLink:
         """Open ``url`` (a device path or a pyserial URL) and synchronise with the board.
 
@@ -157,7 +182,7 @@ class BoardLink:
         sync : bool
             Wait for ``HELLO`` (the board resets when the port opens) or ``PING`` until ``PONG``.
         hello_timeout : float
-            Seconds to wait for the board to boot.
+            Seconds to wait for the board to boot (default :data:`BOOT_TIMEOUT_S`).
 
         Returns
         -------
@@ -178,6 +203,10 @@ class BoardLink:
         return link
 
     # --- low level ----------------------------------------------------------------------------------
+    def waiter(self, timeout: float) -> Waiter:
+        """A :class:`Waiter` for this port: in device time on the in-process virtual rig, else wall time."""
+        return Waiter(timeout, getattr(self.port, "device_time", None))
+
     def _fail_disconnected(self, exc: Exception) -> BoardDisconnected:
         return BoardDisconnected(f"{self.kind} board disconnected ({self.port.port}): {exc}")
 
@@ -277,7 +306,7 @@ class BoardLink:
         self.replies.clear()
         self.write_line(body)
         expected = _expected_reply(body)
-        wait = Waiter(self.timeout if timeout is None else timeout)
+        wait = self.waiter(self.timeout if timeout is None else timeout)
         reply = None
         while reply is None:
             while self.replies:
@@ -301,23 +330,24 @@ class BoardLink:
             raise CommandRefused(f"the {self.kind} board refused {body!r}: {reply}", code)
         return reply
 
-    def sync(self, hello_timeout: float = 3.0, ping_every: float = 0.25) -> str:
+    def sync(self, hello_timeout: float = BOOT_TIMEOUT_S, ping_every: float = 0.25) -> str:
         """Wait for the board after opening: ``HELLO`` (reset-on-open) or else ``PING`` until ``PONG``.
 
-        On a USB serial port nothing is sent for ``hello_timeout / 2`` (a bootloader may be listening); then
-        ``PING`` every ``ping_every`` s until a ``PONG`` naming this board's kind arrives or
-        ``hello_timeout`` expires.
+        On a USB serial port nothing is sent for :data:`BOOTLOADER_QUIET_S` (at most half of
+        ``hello_timeout``: a bootloader may be listening); then ``PING`` every ``ping_every`` s until a
+        ``PONG`` naming this board's kind arrives or ``hello_timeout`` expires.
 
         Returns
         -------
         str
             The firmware version.
         """
-        wait = Waiter(hello_timeout)
+        wait = self.waiter(hello_timeout)
         last_ping = -1.0
         port_name = str(getattr(self.port, "port", "") or "")
         # A pseudo-terminal or an emulated board has no bootloader to disturb: ask at once.
-        quiet = 0.0 if port_name.startswith(("/dev/pts/", "virtual://", "loop://")) else hello_timeout / 2
+        quiet = 0.0 if port_name.startswith(("/dev/pts/", "virtual://", "loop://")) else BOOTLOADER_QUIET_S
+        quiet = min(quiet, hello_timeout / 2)
         while True:
             if self.hello_seen:
                 break

@@ -8,7 +8,7 @@ import numpy as np
 
 from helpers.hardware import DAQ_BAUD, DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_STEP_RATE_HZ
 from helpers.protocol import StreamParser, StreamStats
-from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, Waiter
+from helpers.rig.boards import BoardError, BoardLink, BoardTimeout
 
 RATE_MIN_HZ, RATE_MAX_HZ = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ
 
@@ -111,11 +111,11 @@ class DaqBoard(BoardLink):
         Raises :class:`BoardTimeout` after ``silence_timeout`` s without a sample and
         :class:`helpers.rig.boards.BoardReset` if the board reboots.
         """
-        silence = Waiter(self.timeout if silence_timeout is None else silence_timeout)
+        silence = self.waiter(self.timeout if silence_timeout is None else silence_timeout)
         while True:
             rows = self.read_rows()
             if rows:
-                silence = Waiter(silence.timeout)
+                silence = self.waiter(silence.timeout)
                 yield rows
             else:
                 silence.idle(self.port.timeout or 0.0)

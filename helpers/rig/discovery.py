@@ -30,7 +30,7 @@ from typing import Any
 from serial.tools import list_ports
 
 from helpers.paths import VIRTUAL_RIG_REGISTRY
-from helpers.rig.boards import BoardError, OldFirmware
+from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, OldFirmware
 from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard
 
@@ -77,7 +77,7 @@ def candidate_ports() -> list[Candidate]:
     return sorted(out, key=lambda c: c.device)
 
 
-def identify(device: str, hello_timeout: float = 3.0) -> str | None:
+def identify(device: str, hello_timeout: float = BOOT_TIMEOUT_S) -> str | None:
     """Return ``"daq"`` or ``"stepper"`` for the board at ``device`` (asked by PING), or None.
 
     Parameters
@@ -99,7 +99,7 @@ def identify(device: str, hello_timeout: float = 3.0) -> str | None:
     return None
 
 
-def find_rig_ports(hello_timeout: float = 3.0) -> tuple[str, str]:
+def find_rig_ports(hello_timeout: float = BOOT_TIMEOUT_S) -> tuple[str, str]:
     """Return ``(daq_device, stepper_device)`` found by VID:PID (and PING for clones).
 
     Raises

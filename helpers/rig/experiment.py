@@ -51,7 +51,7 @@ from helpers.noise import white_noise_std
 from helpers.paths import DATA_DIR
 from helpers.programmes import Programme, Segment, experiment_programme
 from helpers.recordings import Recording, RecordingError, reserve
-from helpers.rig.boards import BoardError, BoardLink, BoardTimeout, CommandRefused, Waiter
+from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardLink, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.daq import DaqBoard
 from helpers.rig.discovery import find_rig_ports, virtual_source_for
 from helpers.rig.safety import SafetyError, check_programme, check_request
@@ -261,7 +261,7 @@ class Rig:
                 UserWarning,
                 stacklevel=2,
             )
-        self.cleanup_timeout = 0.5
+        self.cleanup_timeout = 2.0  # s per cleanup command: a board answers in ms, a busy pty server in < 2 s
         self.last_cleanup: list[str] = []
 
     # --- connecting ------------------------------------------------------------------------------
@@ -272,7 +272,7 @@ class Rig:
         rig_name: str = "default",
         calibration: LoadCellCalibration | dict[str, Any] | None = None,
         timeout: float = 2.0,
-        hello_timeout: float = 3.0,
+        hello_timeout: float = BOOT_TIMEOUT_S,
         daq_options: str = "",
         stepper_options: str = "",
     ) -> Rig:
@@ -711,7 +711,7 @@ class Rig:
         again where the board put it if the board ran short meanwhile: a clamp the board would make is
         refused before it happens, whatever the host's timing.
         """
-        silence = Waiter(silence_timeout)
+        silence = self.daq.waiter(silence_timeout)
         while not self.daq.rows or self.daq.rows[-1][1] - self.daq.rows[0][1] < lead_in_s * 1e6:
             _, silence = self._read_both(silence, max_corrupted_fraction)
         self.stepper.enable(True)
@@ -920,7 +920,7 @@ class Rig:
         self.stepper.check_reset()
         new = len(self.daq.rows) - before
         if new:
-            silence = Waiter(silence.timeout)
+            silence = self.daq.waiter(silence.timeout)
         else:
             silence.idle(self.daq.port.timeout or 0.0)
             if silence.expired:
@@ -948,7 +948,7 @@ class Rig:
         silent board: ``POS`` then tells whether the programme ended where it should.
         """
         period_us = round(1e6 / rate_hz)
-        silence = Waiter(silence_timeout)
+        silence = self.daq.waiter(silence_timeout)
         corrupted = self.stepper.parser.stats.corrupted
         while True:
             new, silence = self._read_both(silence, max_corrupted_fraction)
@@ -1032,7 +1032,7 @@ class Rig:
             self.daq.start()
             self.daq.expect_steps(0, 0)  # the motor is idle
             bar = _DeviceTimeBar(duration_s, progress, desc=None)
-            silence = Waiter(silence_timeout)
+            silence = self.daq.waiter(silence_timeout)
             try:
                 while True:
                     before = len(self.daq.rows)
@@ -1047,7 +1047,7 @@ class Rig:
                                 "answering)"
                             )
                         continue
-                    silence = Waiter(silence_timeout)
+                    silence = self.daq.waiter(silence_timeout)
                     if state.t_go_us is None:
                         state.t_go_us = rows[0][1] - round(1e6 / rate_hz)
                     bar.show((rows[-1][1] - state.t_go_us) / 1e6)

@@ -8,8 +8,10 @@
   exponentials, scaled into the cap when they exceed it), first on a smooth surrogate (the mean of the worst
   10 %, which bounds the 90th percentile from above), then on the percentile itself, from fixed starts: the
   families compressed to the cap and equally spaced binomial impulses. No random numbers: deterministic.
-- :func:`robust_designs`: the families tuned, the optimised shaper at the tuned families' durations, and a
-  table of their objective; :func:`save_designs` / :func:`load_designs` keep them in a JSON file that the
+- :func:`robust_designs`: the families tuned, the optimised shaper at the tuned families' durations, every
+  compared family compressed or stretched to each robust design's duration (:func:`at_duration`: the
+  comparison at equal duration), and a table of their objective; :func:`save_designs` /
+  :func:`load_designs` keep them in a JSON file that the
   sweeps read (``docs/sweeps.md``).
 
 The objective is the ``q``-th percentile (default 95) of :func:`helpers.robustness.model.linear_residual_pct`
@@ -40,6 +42,7 @@ __all__ = [
     "TunedShaper",
     "DesignSet",
     "tune_family",
+    "at_duration",
     "optimise_shaper",
     "robust_designs",
     "save_designs",
@@ -350,6 +353,8 @@ class DesignSet:
         How each robust design's cap was chosen.
     compared : tuple of str
         The names of the compared (tuned) families.
+    equal_duration : dict of str to tuple of str
+        For each robust design, the compared families at its duration (:func:`at_duration`).
     """
 
     designs: dict[str, TunedShaper]
@@ -359,6 +364,7 @@ class DesignSet:
     q: float
     notes: dict[str, str] = field(default_factory=dict)
     compared: tuple[str, ...] = ()
+    equal_duration: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
     def table(self) -> pd.DataFrame:
         """One row per design: ``name``, ``family``, ``duration_s``, ``objective_pct``."""
@@ -383,9 +389,11 @@ def robust_designs(
     """Tune the families, then optimise free impulses at the compared families' durations.
 
     Two robust designs: ``robust``, capped at the duration of the best compared family (the one with the
-    lowest objective: the comparison at equal duration), and ``robust-short``, capped at the shortest
-    compared family's duration (what robustness costs in time). ``extra_families`` are tuned for reference
-    only (not compared).
+    lowest objective), and ``robust-short``, capped at the shortest compared family's duration (what
+    robustness costs in time). The optimiser may end below its cap, so each compared family is also
+    compressed or stretched to each robust design's actual duration (:func:`at_duration`, named
+    ``"<family>-at-robust"``, ``"<family>-at-robust-short"``): the comparison at equal duration.
+    ``extra_families`` are tuned for reference only (not compared).
 
     Parameters
     ----------
@@ -428,7 +436,53 @@ def robust_designs(
         "robust": f"capped at the duration of the best compared family ({best.name})",
         "robust-short": f"capped at the duration of the shortest compared family ({shortest.name})",
     }
-    return DesignSet(designs, model.describe(), n_draws, seed, q, notes, tuple(d.name for d in ranked))
+    equal: dict[str, tuple[str, ...]] = {}
+    for robust in ("robust", "robust-short"):
+        matched = [at_duration(t, designs[robust].duration, sample, q, robust) for t in ranked]
+        designs.update((m.name, m) for m in matched)
+        equal[robust] = tuple(m.name for m in matched)
+        notes[f"at-{robust}"] = f"the compared families compressed or stretched to {robust}'s duration"
+    compared_names = tuple(d.name for d in ranked)
+    return DesignSet(designs, model.describe(), n_draws, seed, q, notes, compared_names, equal_duration=equal)
+
+
+def at_duration(
+    tuned: TunedShaper, duration_s: float, sample: UncertaintySample, q: float, label: str
+) -> TunedShaper:
+    """A tuned family compressed or stretched in time to ``duration_s``.
+
+    The same shape (damping ratio, EI's tolerance), its design frequency scaled by ``tuned.duration /
+    duration_s``. The comparison of designs at equal duration: a family's impulse times scale as one over its
+    design frequency, so this is the one member of the family (at the tuned shape) that lasts exactly as
+    long.
+
+    Parameters
+    ----------
+    tuned : TunedShaper
+        A tuned family (:func:`tune_family`).
+    duration_s : float
+        The duration to match (s).
+    sample : UncertaintySample
+        The draws its objective is evaluated on.
+    q : float
+        The percentile.
+    label : str
+        The design it is matched to: the result is named ``"<family>-at-<label>"``.
+
+    Returns
+    -------
+    TunedShaper
+    """
+    if tuned.family is None or tuned.omega_d is None or tuned.zeta is None:
+        raise ValueError(f"{tuned.name} is not a family: nothing to compress or stretch")
+    w = tuned.omega_d * tuned.duration / float(duration_s)
+    shaper = _family_shaper(tuned.family, w, tuned.zeta, tuned.vtol)
+    name = f"{tuned.family.lower().replace(' ', '-')}-at-{label}"
+    shaper = Shaper(shaper.amplitudes, shaper.times, name)
+    return TunedShaper(
+        name, shaper, _objective(shaper, sample, q), tuned.family, w, tuned.zeta, tuned.vtol,
+        tuned.reference_omega_d,
+    )  # fmt: skip
 
 
 def save_designs(designs: DesignSet, path: str | os.PathLike) -> Path:
@@ -442,6 +496,7 @@ def save_designs(designs: DesignSet, path: str | os.PathLike) -> Path:
         "q": designs.q,
         "notes": designs.notes,
         "compared": list(designs.compared),
+        "equal_duration": {k: list(v) for k, v in designs.equal_duration.items()},
         "shapers": {k: d.to_dict() for k, d in designs.designs.items()},
     }
     return write_json(path, data)

@@ -12,16 +12,20 @@ Three sweeps, each on the paper's pulse (up at 1 s, down at 8 s, 12 s at 1 kHz):
 
 The shapers: the paper's two TDFs, EI and 2-hump EI at the identified mode, the multi-mode design and the
 scheduled ZVD pair, the families tuned on the 95th-percentile residual and the two robust designs of
-:func:`helpers.robustness.robust_designs` (their file is ``robust_shapers.json`` beside the definitions).
+:func:`helpers.robustness.robust_designs` (their file is ``robust_shapers.json`` beside the definitions); the
+uncertainty sample also runs every compared family compressed or stretched to each robust design's duration,
+so that each design is judged against every family at the same duration.
 """
 
 from __future__ import annotations
 
 from helpers import paper
-from helpers.robustness import UncertaintyModel
+from helpers.robustness import COMPARED_FAMILIES, UncertaintyModel
 from helpers.sweep.definition import SweepDefinition
 
-__all__ = ["ATLAS_SHAPERS", "DESIGNS_FILE", "UNCERTAINTY_SHAPERS", "atlas_definitions"]
+__all__ = [
+    "ATLAS_SHAPERS", "DESIGNS_FILE", "EQUAL_DURATION_SHAPERS", "UNCERTAINTY_SHAPERS", "atlas_definitions"
+]  # fmt: skip
 
 DESIGNS_FILE = "robust_shapers.json"
 """The design-set file the atlas's definitions read (beside them)."""
@@ -30,9 +34,17 @@ ATLAS_SHAPERS = ("unshaped", "zv", "zvd", "ei", "2-hump-ei", "multi-mode", "sche
                  "robust-short")  # fmt: skip
 """The shapers of the two grid sweeps."""
 
+EQUAL_DURATION_SHAPERS = tuple(
+    f"{family.lower().replace(' ', '-')}-at-{robust}" for robust in ("robust", "robust-short")
+    for family in COMPARED_FAMILIES
+)  # fmt: skip
+"""The compared families compressed or stretched to each robust design's duration (the design set's
+``equal_duration``; :func:`helpers.robustness.optimise.at_duration`)."""
+
 UNCERTAINTY_SHAPERS = (*ATLAS_SHAPERS[:7], "zvd-tuned", "ei-tuned", "mzv-tuned", "2-hump-ei-tuned",
-                       "zvdd-tuned", "robust", "robust-short")  # fmt: skip
-"""The shapers of the uncertainty sample: the atlas's and the tuned families."""
+                       "zvdd-tuned", "robust", "robust-short", *EQUAL_DURATION_SHAPERS)  # fmt: skip
+"""The shapers of the uncertainty sample: the atlas's, the tuned families, and the families at the robust
+designs' durations."""
 
 RIG_ZETA = paper.ZETA
 """The tuned rig's damping ratio at rest: ``damping_scale`` = damping ratio / this."""

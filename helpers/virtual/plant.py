@@ -111,6 +111,18 @@ class ArmPlant:
         """
         return float(self._health[0] / self.params.step_angle)
 
+    @property
+    def rotor_lag_steps(self) -> float:
+        """The rotor's lag behind its commanded angle now, in microsteps; 0 for the ideal actuator.
+
+        After a run, at rest: the steps lost (16 per tooth the rotor slipped) plus the small static lag that
+        holds the tension.
+        """
+        if self.params.actuator == "ideal":
+            return 0.0
+        n = self.n_elements
+        return float((self._drive - self._y[2 * n]) / self.params.step_angle)
+
     def tension(self) -> float:
         """Tension of the measured cable now (true, not filtered), N."""
         a = self._arr

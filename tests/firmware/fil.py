@@ -242,8 +242,8 @@ def record(wave: Waveform, action: str, kwargs: dict[str, Any], tmp: Path, pace:
     )
     t0 = time.monotonic()
     try:
-        daq = DaqBoard.open(daq_path, timeout=3.0, hello_timeout=10.0)
-        stepper = StepperBoard.open(stepper_path, timeout=3.0, hello_timeout=10.0)
+        daq = DaqBoard.open(daq_path, timeout=60.0, hello_timeout=60.0)
+        stepper = StepperBoard.open(stepper_path, timeout=60.0, hello_timeout=60.0)
         source = {
             "kind": "virtual-rig",
             "via": "firmware in the loop (both sketches in simavr, plant from helpers.virtual)",

@@ -18,6 +18,10 @@ pytestmark = pytest.mark.firmware
 rig = pytest.importorskip("helpers.rig", reason="helpers.rig (the host drivers) is not importable")
 programmes = pytest.importorskip("helpers.programmes")
 
+READY_S = 60.0
+"""Deadline (s) for a board's greeting or reply: the waits end on readiness, so only a failure takes it
+(simavr runs slower than real time on a busy machine)."""
+
 
 @pytest.fixture(scope="module")
 def rig_paths(firmware_build):
@@ -34,7 +38,7 @@ def rig_paths(firmware_build):
 
 
 def test_daq_driver_streams_from_the_firmware(rig_paths):
-    daq = rig.DaqBoard.open(rig_paths[0], timeout=3.0, hello_timeout=5.0)
+    daq = rig.DaqBoard.open(rig_paths[0], timeout=READY_S, hello_timeout=READY_S)
     try:
         assert daq.version == "2.1.0"
         assert daq.set_rate(500) == 500
@@ -62,7 +66,7 @@ def test_daq_driver_streams_from_the_firmware(rig_paths):
 
 
 def test_stepper_driver_runs_a_programme_on_the_firmware(rig_paths):
-    stepper = rig.StepperBoard.open(rig_paths[1], timeout=3.0, hello_timeout=5.0)
+    stepper = rig.StepperBoard.open(rig_paths[1], timeout=READY_S, hello_timeout=READY_S)
     try:
         assert stepper.version == "2.1.0"
         prog = programmes.Programme(
@@ -94,8 +98,8 @@ def test_stepper_driver_runs_a_programme_on_the_firmware(rig_paths):
 
 
 def test_rig_records_the_steps_the_stepper_firmware_issues(rig_paths, tmp_path):
-    daq = rig.DaqBoard.open(rig_paths[0], timeout=3.0, hello_timeout=5.0)
-    stepper = rig.StepperBoard.open(rig_paths[1], timeout=3.0, hello_timeout=5.0)
+    daq = rig.DaqBoard.open(rig_paths[0], timeout=READY_S, hello_timeout=READY_S)
+    stepper = rig.StepperBoard.open(rig_paths[1], timeout=READY_S, hello_timeout=READY_S)
     the_rig = rig.Rig(
         daq,
         stepper,

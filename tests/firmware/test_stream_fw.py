@@ -214,6 +214,7 @@ def _run_random(n_streams: int, seed: int, per_session: int = 25):
     return failures, figures, max(spreads), loads_all.max(), min(free)
 
 
+@pytest.mark.slow  # 23 s of simavr; the default suite keeps the commands, FIFO, watchdog and clamps
 def test_random_streams_match_the_reference(firmware_build):
     failures, figures, spread, load, free = _run_random(50, seed=2024)
     print("\n" + figures)
