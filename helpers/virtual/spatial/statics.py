@@ -388,12 +388,13 @@ class SpatialLinearisation:
             row = {"omega_n": abs(p), "zeta": -p.real / abs(p), "omega_d": p.imag}
             if chain is not None:
                 d = Jv_tip @ v
-                row["azimuth_deg"] = math.degrees(math.atan2(d[1], d[0])) % 180.0
-                row["tip_axial"] = float(abs(d[2]) / max(np.linalg.norm(d), 1e-300))
+                # rounded so that round-off (a sideways motion of 1e-15 of the shape) prints as 0
+                row["azimuth_deg"] = round(math.degrees(math.atan2(d[1], d[0])), 6) % 180.0 + 0.0
+                row["tip_axial"] = round(float(abs(d[2]) / max(np.linalg.norm(d), 1e-300)), 9) + 0.0
                 energy = kdiag * v * v
                 tot = max(energy.sum(), 1e-300)
-                row["torsion"] = float(energy[2::3].sum() / tot)
-                row["in_plane"] = float(energy[1::3].sum() / tot)
+                row["torsion"] = round(float(energy[2::3].sum() / tot), 9) + 0.0
+                row["in_plane"] = round(float(energy[1::3].sum() / tot), 9) + 0.0
             row["weight"] = float(w[k])
             rows.append(row)
         df = pd.DataFrame(rows)
