@@ -15,7 +15,9 @@ base's acceleration ``-g``.
 Loads: bending and twisting springs ``EI/l``, ``GJ/l``; drag ``-alpha m v`` and ``-alpha J omega``; chord
 dashpots (the planar rig's, on every component); the constant high-mode floor ``-C_f phi'``;
 the tendons, straight from eyelet to eyelet (force ``T (u_{k+1} - u_k)`` on eyelet ``k``, its moment about
-the origin); the tendon-coupled bowing (generalised forces ``(1/2) d(lam^T H lam)/dq`` at the tensions).
+the origin); the tendon-coupled bowing (generalised forces ``(1/2) d(lam^T H lam)/dq`` at the tensions; with
+one element per run ``H = (l^3/EI) sum_e P(D_e)`` on every entry, :mod:`helpers.virtual.spatial.chain` says
+why).
 
 Each tendon has the planar rig's actuator: rotor + spool ``J psi'' = T_m(psi_cmd - psi) - c_r psi' - R lam_1``
 (``psi_cmd`` jumps by one step angle at each of *its* steps), the load-cell carriage ``m_c x'' = lam_1 -
@@ -56,7 +58,6 @@ _NB = 12
 _S1C = np.array([(-1.0) ** j / math.factorial(2 * j + 1) for j in range(_NB + 2)])
 _S2C = np.array([2.0 * (-1.0) ** j / math.factorial(2 * j + 2) for j in range(_NB + 2)])
 _BP = 0.5 * (_S1C[1:] - 2.0 * _S2C[1:])
-_BQ = _S2C[1:] - _S1C[1:]
 
 
 # scratch (``sp``) offsets: bowing matrix, tension system, its right-hand side and active set, Cholesky, the
@@ -110,12 +111,11 @@ def so3(x):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def bow_pq(x):
-    """The bowing factors ``P, Q`` of an element bent by ``D`` (``x = D^2``) and their x-derivatives."""
+def bow_p(x):
+    """The bowing factor ``P`` of an element bent by ``D`` (``x = D^2``) and its x-derivative."""
     if x < 2.25:
         P, Px, _p = _series(_BP, x, _NB)
-        Q, Qx, _q = _series(_BQ, x, _NB)
-        return P, Q, Px, Qx
+        return P, Px
     D = math.sqrt(x)
     iD = 1.0 / D
     sD = math.sin(D)
@@ -125,10 +125,8 @@ def bow_pq(x):
     dS1 = (cD - S1) * iD
     dS2 = 2.0 * sD * iD * iD - 2.0 * S2 * iD
     P = 0.5 * (1.0 + S1 - 2.0 * S2) * iD * iD
-    Q = (S2 - S1) * iD * iD
     dP = 0.5 * (dS1 - 2.0 * dS2) * iD * iD - 2.0 * P * iD
-    dQ = (dS2 - dS1) * iD * iD - 2.0 * Q * iD
-    return P, Q, 0.5 * dP * iD, 0.5 * dQ * iD
+    return P, 0.5 * dP * iD
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -415,12 +413,9 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
         o[W_CH + 2] = chwz / Lc
         o[W_CH + 3] = Lc
         if bow != 0.0:
-            xb = a * a + b * b
-            P, Q, Px, Qx = bow_pq(xb)
+            P, Px = bow_p(a * a + b * b)
             o[W_BOW + 0] = P
-            o[W_BOW + 1] = Q
             o[W_BOW + 2] = Px
-            o[W_BOW + 3] = Qx
         # body inertia in ground coordinates: J_w = Jd I + (Jp - Jd) t t^T, t = R e3; point mass at p
         m = mb[e]
         tx = n02
@@ -538,35 +533,14 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
             sc[i, k, 8] = dz / L
             sc[i, k, 9] = L
         sc[i, 0, 9] = ell
-    # ---- bowing compliance H (nt x nt) ----
-    for i in range(16):
-        sp[S_H + i] = 0.0
+    # ---- bowing compliance H = h sum_e P(D_e) 11^T (one element per run: no tilt term) ----
+    hP = 0.0
     if bow != 0.0:
         for e in range(n):
-            o = wb[e]
-            cxh = o[W_CH + 0]
-            cyh = o[W_CH + 1]
-            czh = o[W_CH + 2]
-            P = bow * o[W_BOW + 0]
-            Q = bow * o[W_BOW + 1]
-            for i in range(nt):
-                ux = sc[i, e + 1, 6]
-                uy = sc[i, e + 1, 7]
-                uz = sc[i, e + 1, 8]
-                uc = ux * cxh + uy * cyh + uz * czh
-                sx_i = ux - uc * cxh
-                sy_i = uy - uc * cyh
-                sz_i = uz - uc * czh
-                sp[S_SIG + 3 * i] = sx_i
-                sp[S_SIG + 3 * i + 1] = sy_i
-                sp[S_SIG + 3 * i + 2] = sz_i
-                for j in range(i + 1):
-                    sd = (sx_i * sp[S_SIG + 3 * j] + sy_i * sp[S_SIG + 3 * j + 1]
-                          + sz_i * sp[S_SIG + 3 * j + 2])  # fmt: skip
-                    sp[S_H + 4 * i + j] += P + Q * sd
-        for i in range(nt):
-            for j in range(i):
-                sp[S_H + 4 * j + i] = sp[S_H + 4 * i + j]
+            hP += wb[e, W_BOW + 0]
+        hP *= bow
+    for i in range(16):
+        sp[S_H + i] = hP
     # ---- tensions ----
     m2 = 2 * nq
     for i in range(nt):
@@ -626,94 +600,17 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
             o[W_F + 3] += Fx
             o[W_F + 4] += Fy
             o[W_F + 5] += Fz
-    # ---- bowing: generalised forces (1/2) d(lam^T H lam)/dq ----
+    # ---- bowing: generalised forces (1/2) d(lam^T H lam)/dq = (1/2) h P_x(D_e^2) S^2 2 (a_e, b_e) ----
     if bow != 0.0:
         S = 0.0
         for i in range(nt):
             S += lam[i]
         if S != 0.0:
+            hs = bow * S * S
             for e in range(n):
-                o = wb[e]
-                cxh = o[W_CH + 0]
-                cyh = o[W_CH + 1]
-                czh = o[W_CH + 2]
-                Q = o[W_BOW + 1]
-                sx = 0.0
-                sy = 0.0
-                sz = 0.0
-                mu = 0.0
-                for i in range(nt):
-                    ux = sc[i, e + 1, 6]
-                    uy = sc[i, e + 1, 7]
-                    uz = sc[i, e + 1, 8]
-                    uc = ux * cxh + uy * cyh + uz * czh
-                    sx += lam[i] * (ux - uc * cxh)
-                    sy += lam[i] * (uy - uc * cyh)
-                    sz += lam[i] * (uz - uc * czh)
-                    mu += lam[i] * uc
-                s2 = sx * sx + sy * sy + sz * sz
-                # direct terms through the bending angle: (1/2) bow (P_x S^2 + Q_x |s|^2) 2 (a, b)
-                dxb = bow * (o[W_BOW + 2] * S * S + o[W_BOW + 3] * s2)
-                o[W_TAU + 0] += dxb * y[3 * e]
-                o[W_TAU + 1] += dxb * y[3 * e + 1]
-                if Q == 0.0 or s2 == 0.0:
-                    continue
-                # the runs' directions: force (1/2) grad at the run's end eyelet, minus at its start
-                for i in range(nt):
-                    ux = sc[i, e + 1, 6]
-                    uy = sc[i, e + 1, 7]
-                    uz = sc[i, e + 1, 8]
-                    L = sc[i, e + 1, 9]
-                    f = bow * Q * lam[i] / L
-                    us = ux * sx + uy * sy + uz * sz
-                    Gx = f * (sx - us * ux)
-                    Gy = f * (sy - us * uy)
-                    Gz = f * (sz - us * uz)
-                    Ex = sc[i, e + 1, 0]
-                    Ey = sc[i, e + 1, 1]
-                    Ez = sc[i, e + 1, 2]
-                    o[W_F + 0] += Ey * Gz - Ez * Gy
-                    o[W_F + 1] += Ez * Gx - Ex * Gz
-                    o[W_F + 2] += Ex * Gy - Ey * Gx
-                    o[W_F + 3] += Gx
-                    o[W_F + 4] += Gy
-                    o[W_F + 5] += Gz
-                    if e > 0:
-                        op = wb[e - 1]
-                        Ex = sc[i, e, 0]
-                        Ey = sc[i, e, 1]
-                        Ez = sc[i, e, 2]
-                        op[W_F + 0] -= Ey * Gz - Ez * Gy
-                        op[W_F + 1] -= Ez * Gx - Ex * Gz
-                        op[W_F + 2] -= Ex * Gy - Ey * Gx
-                        op[W_F + 3] -= Gx
-                        op[W_F + 4] -= Gy
-                        op[W_F + 5] -= Gz
-                # the chord's direction: (1/2) d|s|^2 / d chord = -mu s / |chord|, at node e (+), node e-1 (-)
-                f = -bow * Q * mu / o[W_CH + 3]
-                Gx = f * sx
-                Gy = f * sy
-                Gz = f * sz
-                pxe = o[W_P + 0]
-                pye = o[W_P + 1]
-                pze = o[W_P + 2]
-                o[W_F + 0] += pye * Gz - pze * Gy
-                o[W_F + 1] += pze * Gx - pxe * Gz
-                o[W_F + 2] += pxe * Gy - pye * Gx
-                o[W_F + 3] += Gx
-                o[W_F + 4] += Gy
-                o[W_F + 5] += Gz
-                if e > 0:
-                    op = wb[e - 1]
-                    pxe = op[W_P + 0]
-                    pye = op[W_P + 1]
-                    pze = op[W_P + 2]
-                    op[W_F + 0] -= pye * Gz - pze * Gy
-                    op[W_F + 1] -= pze * Gx - pxe * Gz
-                    op[W_F + 2] -= pxe * Gy - pye * Gx
-                    op[W_F + 3] -= Gx
-                    op[W_F + 4] -= Gy
-                    op[W_F + 5] -= Gz
+                dxb = hs * wb[e, W_BOW + 2]
+                wb[e, W_TAU + 0] += dxb * y[3 * e]
+                wb[e, W_TAU + 1] += dxb * y[3 * e + 1]
     # ---- chord dashpots and the constant floor on phi' ----
     cb = geo[G_CB]
     ct = geo[G_CT]

@@ -15,8 +15,12 @@ in its frame, and every node the wire's polar inertia. Tendon ``i`` runs straigh
 on the tip disc. The rod's bowing between eyelets generalises the planar rig's: the part of the tendons'
 moment an element cannot carry is the complementary energy ``(1/2) lam^T H(q) lam``, with the tendon-coupled
 compliance ``H_ij = sum_e (l^3/EI) (P(D_e) + Q(D_e) sigma_ie . sigma_je)`` (``D_e`` the element's bending
-angle, ``sigma_ie`` the component of tendon ``i``'s run across element ``e`` normal to the element's chord;
-one element per run and no twist give ``sigma = 0``, the planar rig's ``P`` alone).
+angle, ``sigma_ie`` the component of tendon ``i``'s run across element ``e`` normal to the element's chord).
+With one element per run (the rig) the run is parallel to the chord but for twist, and the tilt term is left
+out: against a 4x finer rod, a twist-driven tilt term over-softens the twisting modes (the lowest sideways
+mode of the paper's rig at 40 mm: -0.93 % with it, +0.12 % without), so one-element runs use the planar
+rig's ``P`` alone; finer rods (the convergence study) keep ``Q`` for their runs' in-plane tilt, as the
+planar rig does.
 
 Every function is plain numpy, batched over leading dimensions and complex-step safe, so the Hessians of the
 statics are exact (:mod:`helpers.virtual.spatial.statics`); the compiled kernel writes the same equations
@@ -75,6 +79,8 @@ def so3_functions(x: np.ndarray) -> tuple[np.ndarray, ...]:
     A1, Ax1 = _horner(_SA, xs, _N_SO3)
     B1, Bx1 = _horner(_SB, xs, _N_SO3)
     C1, Cx1 = _horner(_SC, xs, _N_SO3)
+    if np.all(small):
+        return A1, B1, C1, Ax1, Bx1, Cx1
     xl = np.where(small, 4.0, x)
     t = np.sqrt(xl)
     s, co = np.sin(t), np.cos(t)
@@ -105,6 +111,8 @@ def bow_functions_x(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     xs = np.where(small, x, 0.0)
     P1, Px1 = _horner(_BOW_P, xs, len(_BOW_P))
     Q1, Qx1 = _horner(_BOW_Q, xs, len(_BOW_Q))
+    if np.all(small):
+        return P1, Q1, Px1, Qx1
     xl = np.where(small, 9.0, x)
     D = np.sqrt(xl)
     P2, Q2, dP2, dQ2 = bow_functions(D)
@@ -147,11 +155,17 @@ class Control:
     kinv : numpy.ndarray
         For displacement-controlled tendons: the compliance of the spring between the held end and the arm,
         m/N (the bowing's is added).
+    motor : tuple or None
+        ``(R, T_h, N_r, sin_law)``: the held end is a stepper's commanded angle, and its rotor lags it by
+        ``lag(lam) = asin(R lam / T_h) / N_r`` (``R lam / (T_h N_r)`` for the linear law), which shortens the
+        stretch by ``R lag(lam)`` (``e0`` then holds the rest lag's ``+ R lag(lam_0)``). ``None``: the spool
+        itself is held.
     """
 
     lam: np.ndarray
     e0: np.ndarray
     kinv: np.ndarray
+    motor: tuple | None = None
 
     @property
     def tension_controlled(self) -> np.ndarray:
@@ -278,29 +292,34 @@ class SpatialChain:
         """``dV/dq`` (..., 3N) from loads on the frames.
 
         ``F_k = sum dV/dx`` over the points fixed to frame k (..., N+1, 3) and ``M_k = sum (x - p_k) x dV/dx``
-        (plus pure moments) about node k.
+        (plus pure moments) about node k. ``F`` and ``M`` may carry extra axes before the node axis (e.g.
+        one per tendon). Element ``e`` turns everything beyond node ``e - 1``: ``dV/dphi_e = Jv_e^T F_tot +
+        Jw_e^T M_tot``, the totals over frames ``k >= e`` (moments about node ``e``), as suffix sums.
         """
-        p = kin["p"]
-        Jv, Jw = kin["Jv"], kin["Jw"]
-        Ft = np.zeros_like(F[..., 0, :])
-        Mt = np.zeros_like(Ft)
-        out = np.empty(F.shape[:-2] + (self.N, 3), dtype=np.result_type(F, Jv))
-        for e in range(self.N, 0, -1):
-            if e < self.N:
-                Mt = Mt + _cross(p[..., e + 1, :] - p[..., e, :], Ft)
-            Ft = Ft + F[..., e, :]
-            Mt = Mt + M[..., e, :]
-            out[..., e - 1, :] = (np.swapaxes(Jv[..., e - 1, :, :], -1, -2) @ Ft[..., None])[..., 0] + (
-                np.swapaxes(Jw[..., e - 1, :, :], -1, -2) @ Mt[..., None]
-            )[..., 0]
+        extra = F.ndim - kin["p"].ndim
+        p = kin["p"].reshape(kin["p"].shape[:-2] + (1,) * extra + kin["p"].shape[-2:])
+        Jv = kin["Jv"].reshape(kin["Jv"].shape[:-3] + (1,) * extra + kin["Jv"].shape[-3:])
+        Jw = kin["Jw"].reshape(kin["Jw"].shape[:-3] + (1,) * extra + kin["Jw"].shape[-3:])
+
+        def suffix(a: np.ndarray) -> np.ndarray:
+            return np.flip(np.cumsum(np.flip(a, -2), -2), -2)
+
+        Ft = suffix(F)
+        Mt = suffix(M + _cross(p, F)) - _cross(p, Ft)  # about each node
+        out = np.einsum("...eab,...ea->...eb", Jv, Ft[..., 1:, :]) + np.einsum(
+            "...eab,...ea->...eb", Jw, Mt[..., 1:, :]
+        )
         return out.reshape(out.shape[:-2] + (self.nq,))
 
     def _eyelet_loads(self, kin: dict, G: np.ndarray, off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Frame loads ``F``, ``M`` (..., N+1, 3) from gradients ``G`` (..., nt, Q+1, 3) at the eyelets."""
+        """Frame loads ``F``, ``M`` (..., N+1, 3) from gradients ``G`` (..., nt, Q+1, 3) at the eyelets.
+
+        The tendon axis (-3) is summed; pass ``G[..., :, None, :, :]`` to keep one load set per tendon.
+        """
         shape = G.shape[:-3] + (self.N + 1, 3)
-        F = np.zeros(shape, dtype=G.dtype)
+        F = np.zeros(shape, dtype=np.result_type(G, off))
         M = np.zeros(shape, dtype=np.result_type(G, off))
-        Fk = G.sum(-3)  # over tendons: (..., Q+1, 3)
+        Fk = G.sum(-3)  # over the tendon axis: (..., Q+1, 3)
         Mk = _cross(off, G).sum(-3)
         F[..., self.eye_nodes, :] += Fk
         M[..., self.eye_nodes, :] += Mk
@@ -320,11 +339,9 @@ class SpatialChain:
         G[..., 1:, :] += u
         G[..., 1:-1, :] -= u[..., 1:, :]
         G[..., 0, :] = 0.0
-        grads = []
-        for i in range(self.nt):
-            F, M = self._eyelet_loads(kin, G[..., i : i + 1, :, :], off[..., i : i + 1, :, :])
-            grads.append(self._generalised(kin, F, M))
-        return L.sum(-1), np.stack(grads, -2)
+        # one load set per tendon
+        F, M = self._eyelet_loads(kin, G[..., :, None, :, :], off[..., :, None, :, :])
+        return L.sum(-1), self._generalised(kin, F, M)
 
     def _bow_parts(self, kin: dict) -> dict[str, np.ndarray]:
         off, d, L, u = self._runs(kin)
@@ -334,6 +351,8 @@ class SpatialChain:
         ue = u[..., self.element_run, :]  # (..., nt, N, 3): each element's run
         sig = ue - _dot(ue, chat[..., None, :, :])[..., None] * chat[..., None, :, :]
         P, Q, Px, Qx = bow_functions_x(kin["xb"])
+        if self.rig.arm.elements_per_disc == 1:  # one element per run: no tilt term (module docstring)
+            Q, Qx = 0.0 * Q, 0.0 * Qx
         return {"off": off, "L": L, "u": u, "Lc": Lc, "chat": chat, "ue": ue, "sig": sig, "P": P, "Q": Q,
                 "Px": Px, "Qx": Qx}  # fmt: skip
 
@@ -417,14 +436,20 @@ class SpatialChain:
         Tension-controlled tendons carry their prescribed tension. The others solve the small
         complementarity problem ``lam = argmax_{lam >= 0} lam . e - lam^T C lam / 2 - lam^T H_DT lam_T``,
         ``C = diag(kinv) + H_DD``, ``e = e0 + ell`` (a taut tendon's net stretch equals its tension over its
-        stiffness; a slack one carries nothing and its net stretch is <= 0). The active set is found from
-        the real parts, so complex steps pass through.
+        stiffness; a slack one carries nothing and its net stretch is <= 0); with ``ctrl.motor`` each
+        rotor's lag takes ``R lag(lam)`` off the stretch (Newton, from the linearised lag). The active set is
+        found from the real parts, so complex steps pass through.
         """
         lamT = np.where(ctrl.tension_controlled, np.nan_to_num(ctrl.lam), 0.0)
         D = ~ctrl.tension_controlled
         e = ctrl.e0 + ell
         rhs = e - np.einsum("...ij,j->...i", H, lamT)
-        C = H + np.diag(np.where(D, ctrl.kinv, 0.0))
+        C0 = H + np.diag(np.where(D, ctrl.kinv, 0.0))
+        if ctrl.motor is not None:  # first pass with the microstep spring at zero lag
+            R, Th, Nr, sin_law = ctrl.motor
+            C = C0 + np.diag(np.where(D, R * R / (Th * Nr), 0.0))
+        else:
+            C = C0
         mask = D & (np.real(rhs) > 0)
         mask = np.broadcast_to(mask, rhs.shape).copy()
         eye = np.eye(self.nt)
@@ -439,6 +464,23 @@ class SpatialChain:
             if not (drop.any() or add.any()):
                 break
             mask = (mask & ~drop) | (add & ~drop.any(-1, keepdims=True))
+        if ctrl.motor is not None:  # Newton on the rotors' nonlinear lag, same active set
+            mm = mask[..., :, None] & mask[..., None, :]
+            xc = 0.99  # beyond, the sine law is continued by its tangent (a trial state; never an answer)
+            for _ in range(8):
+                x = R * lam / Th
+                if sin_law:
+                    big = np.abs(np.real(x)) > xc
+                    xs = np.where(big, 0.0, x)
+                    sgn = np.sign(np.real(x))
+                    lag = np.where(big, sgn * np.arcsin(xc) + (x - sgn * xc) / np.sqrt(1.0 - xc * xc),
+                                   np.arcsin(xs)) / Nr  # fmt: skip
+                    dlag = R / (Th * Nr * np.sqrt(1.0 - np.where(big, xc * xc, xs * xs)))
+                else:
+                    lag, dlag = x / Nr, R / (Th * Nr) + 0.0 * x
+                F = np.einsum("...ij,...j->...i", C0, lam) + R * lag - rhs
+                J = np.where(mm, C0 + (R * dlag)[..., :, None] * eye, 0.0) + eye * (~mask)[..., None, :]
+                lam = lam - np.linalg.solve(J, np.where(mask, F, 0.0)[..., None])[..., 0]
         return np.where(ctrl.tension_controlled, lamT, np.where(mask, lam, 0.0))
 
     def potential_grad(

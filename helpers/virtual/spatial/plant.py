@@ -167,12 +167,21 @@ class SpatialPlant:
         """A copy of the state ``[phi, phi', psi, psi', x_c, x_c']``."""
         return self._y.copy()
 
-    def set_state(self, y: npt.ArrayLike) -> None:
-        """Overwrite the state (for tests); time, drives and amplifiers unchanged."""
+    def set_state(self, y: npt.ArrayLike, drive: npt.ArrayLike | None = None) -> None:
+        """Overwrite the state (for tests and what-if runs); time and amplifiers unchanged.
+
+        ``drive`` also sets each rotor's commanded angle (rad), e.g. from
+        :func:`helpers.virtual.spatial.statics.equilibrium_state`.
+        """
         y = np.asarray(y, dtype=float)
         if y.shape != self._y.shape or not np.all(np.isfinite(y)):
             raise ValueError(f"state must be {self._y.shape[0]} finite numbers")
         self._y = y.copy()
+        if drive is not None:
+            d = np.asarray(drive, dtype=float)
+            if d.shape != self._drive.shape or not np.all(np.isfinite(d)):
+                raise ValueError(f"drive must be {self._drive.size} finite angles")
+            self._drive = d.copy()
 
     @property
     def integrator_steps(self) -> int:

@@ -39,6 +39,7 @@ __all__ = [
     "linearise",
     "modal_analysis",
     "stable_max_step",
+    "equilibrium_state",
     "DECAY_S",
 ]
 
@@ -112,11 +113,31 @@ class SpatialModel:
     floor_W: np.ndarray = field(repr=False)
     floor_c: np.ndarray = field(repr=False)
 
-    def series_control(self, u: np.ndarray, lam: np.ndarray | None = None) -> Control:
-        """The statics' control: spools held at ``u`` (m), or tendons with a finite ``lam`` held at it."""
+    def series_control(self, u: np.ndarray, lam: np.ndarray | None = None, rotor: str = "locked") -> Control:
+        """The statics' control: spools held at ``u`` (m), or tendons with a finite ``lam`` held at it.
+
+        ``rotor="free"``: ``u`` is each stepper's commanded cable displacement and its rotor lags it as its
+        torque law says (the rig at rest after a move); ``"locked"``: the spool itself sits at ``u``.
+        """
         nt = self.rig.n_tendons
         lam = np.full(nt, np.nan) if lam is None else np.asarray(lam, dtype=float)
-        return Control(lam=lam, e0=np.asarray(u, dtype=float) - self.ell_ref_series, kinv=1.0 / self.kc)
+        e0 = np.asarray(u, dtype=float) - self.ell_ref_series
+        if rotor == "locked":
+            return Control(lam=lam, e0=e0, kinv=1.0 / self.kc)
+        if rotor != "free":
+            raise ValueError(f"rotor must be 'locked' or 'free', got {rotor!r}")
+        return Control(lam=lam, e0=e0 - self.R * self.psi0, kinv=1.0 / self.kc, motor=self.motor)
+
+    @property
+    def R(self) -> np.ndarray:
+        """Spool radii, m."""
+        return np.array([self.rig.spool_radius(i) for i in range(self.rig.n_tendons)])
+
+    @property
+    def motor(self) -> tuple:
+        """``(R, T_h, N_r, sin_law)`` of the steppers (:class:`~helpers.virtual.spatial.chain.Control`)."""
+        th = np.array([t.holding_torque_n_m for t in self.rig.tendons])
+        return (self.R, th, float(self.rig.arm.rotor_teeth), self.rig.arm.torque_law == "sin")
 
 
 def _floor(
@@ -150,7 +171,7 @@ def spatial_model(rig: SpatialRig) -> SpatialModel:
     lam0 = rig.pretensions
     nt = rig.n_tendons
     q = np.zeros(chain.nq)
-    stages = 20
+    stages = 10
     for i in range(1, stages + 1):
         f = i / stages
         ctrl = Control(lam=lam0 * f, e0=np.zeros(nt), kinv=np.ones(nt))
@@ -181,6 +202,9 @@ class SpatialEquilibrium:
     u : numpy.ndarray
         Each tendon's cable displacement at its spool from rest, m (for a tension-controlled tendon: what
         the statics needs).
+    command : numpy.ndarray
+        Each stepper's commanded cable displacement from rest, m: ``u`` plus the change of its rotor's lag
+        (``u`` itself where the statics held the spools).
     q : numpy.ndarray
         Element rotation vectors (3N), rad.
     tension : numpy.ndarray
@@ -190,6 +214,7 @@ class SpatialEquilibrium:
     """
 
     u: np.ndarray
+    command: np.ndarray
     q: np.ndarray
     tension: np.ndarray
     positions: np.ndarray
@@ -203,10 +228,20 @@ class SpatialEquilibrium:
 def _make(model: SpatialModel, q: np.ndarray, ctrl: Control) -> SpatialEquilibrium:
     chain = model.chain
     _, lam, ell = chain.potential_grad(q, ctrl)
+    lam = np.real(lam)
     H = chain.bow_matrix(q)
-    u = np.where(ctrl.tension_controlled, lam / model.kc + H @ lam - ell + model.ell_ref_series, ctrl.e0 +
-                 model.ell_ref_series)  # fmt: skip
-    return SpatialEquilibrium(u=u, q=q, tension=np.real(lam), positions=chain.positions(q))
+    u = lam / model.kc + H @ lam - ell + model.ell_ref_series  # where the spools sit (taut or at the verge)
+    rig = model.rig
+    fixed = ctrl.tension_controlled
+    lag = np.array([rig.static_lag(i, lam[i]) for i in range(rig.n_tendons)])
+    shift = model.R * (lag + model.psi0)  # the rotor's lag now less at rest (psi0 = -lag at rest)
+    if ctrl.motor is None:  # the spools were held
+        u = np.where(fixed, u, ctrl.e0 + model.ell_ref_series)
+        command = u + shift
+    else:  # the steppers were commanded (a slack tendon's spool: its command less the rest lag's change)
+        command = np.where(fixed, u + shift, ctrl.e0 + model.ell_ref_series + model.R * model.psi0)
+        u = np.where(fixed | (lam > 0), np.where(fixed, u, command - shift), command - shift)
+    return SpatialEquilibrium(u=u, command=command, q=q, tension=lam, positions=chain.positions(q))
 
 
 def rest_equilibrium(rig: SpatialRig) -> SpatialEquilibrium:
@@ -219,10 +254,15 @@ def equilibrium(
     rig: SpatialRig,
     u: np.ndarray | float,
     tension: np.ndarray | None = None,
-    du_max: float = 1e-3,
+    du_max: float = 2e-3,
     start: SpatialEquilibrium | None = None,
+    rotor: str = "locked",
 ) -> SpatialEquilibrium:
     """Frictionless static equilibrium with tendon ``i``'s spool held at displacement ``u[i]`` (m) from rest.
+
+    With ``rotor="free"``, ``u[i]`` is instead tendon ``i``'s commanded displacement and its rotor rests at
+    the lag its torque law needs (the rig at rest after a move; the stiffer a tendon's load, the more the
+    microstep spring matters).
 
     Parameters
     ----------
@@ -236,6 +276,8 @@ def equilibrium(
         Largest change of any displacement (or tension / 2 kN/m) per continuation step from ``start``.
     start : SpatialEquilibrium, optional
         Where the continuation starts (default: the rest state).
+    rotor : {"locked", "free"}
+        Spools held at ``u``, or steppers commanded to ``u``.
     """
     model = spatial_model(rig)
     nt = rig.n_tendons
@@ -247,7 +289,7 @@ def equilibrium(
         raise ValueError("prescribed tensions must be >= 0")
     if start is None:
         start = rest_equilibrium(rig)
-    u0, lam0 = start.u, start.tension
+    u0, lam0 = (start.command if rotor == "free" else start.u), start.tension
     fixed = np.isfinite(lam)
     span = max(float(np.max(np.abs(np.where(fixed, 0.0, u - u0)), initial=0.0)),
                float(np.max(np.abs(np.where(fixed, lam - lam0, 0.0)), initial=0.0)) / 2000.0)  # fmt: skip
@@ -255,9 +297,37 @@ def equilibrium(
     q = start.q.copy()
     for i in range(1, n_inc + 1):
         f = i / n_inc
-        ctrl = model.series_control(u0 + (u - u0) * f, np.where(fixed, lam0 + (lam - lam0) * f, np.nan))
+        lam_f = np.where(fixed, lam0 + (lam - lam0) * f, np.nan)
+        ctrl = model.series_control(u0 + (u - u0) * f, lam_f, rotor)
         q = _newton(model.chain, q, ctrl)
-    return _make(model, q, ctrl)
+    eq = _make(model, q, ctrl)
+    pull_out = np.array([t.holding_torque_n_m / rig.spool_radius(i) for i, t in enumerate(rig.tendons)])
+    over = np.flatnonzero(eq.tension >= 0.99 * pull_out)
+    if over.size:
+        i = int(over[0])
+        raise ValueError(f"tendon {i + 1} would carry {eq.tension[i]:.1f} N, at its stepper's pull-out "
+                         f"tension ({pull_out[i]:.1f} N): the motor slips")  # fmt: skip
+    return eq
+
+
+def equilibrium_state(rig: SpatialRig, eq: SpatialEquilibrium) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's state at rest in ``eq`` and the commanded rotor angles that hold it there.
+
+    Returns
+    -------
+    (y, drive)
+        ``[phi, 0, psi, 0, x_c, 0]`` with each spool where ``eq`` holds it and each carriage between its two
+        cables' equal tensions (a slack tendon's at the verge of its spool side), and each rotor's command
+        its static lag ahead of it.
+    """
+    model = spatial_model(rig)
+    nt, nq = rig.n_tendons, model.chain.nq
+    R = np.array([rig.spool_radius(i) for i in range(nt)])
+    psi = model.psi0 + eq.u / R
+    x = R * psi - model.s1_ref - eq.tension / model.k1
+    drive = psi + np.array([rig.static_lag(i, eq.tension[i]) for i in range(nt)])
+    y = np.concatenate([eq.q, np.zeros(nq), psi, np.zeros(nt), x, np.zeros(nt)])
+    return y, drive
 
 
 # --- small vibrations ------------------------------------------------------------------------------------
@@ -437,11 +507,9 @@ def linearise(
     nt, nq = rig.n_tendons, chain.nq
     free = rotor == "free"
     R = np.array([rig.spool_radius(i) for i in range(nt)])
-    lam = eq.tension
-    psi = model.psi0 + eq.u / R
-    x = R * psi - model.s1_ref - lam / model.k1
-    lags = np.array([rig.static_lag(i, lam[i]) for i in range(nt)])
-    cmd = psi + lags
+    y_eq, cmd = equilibrium_state(rig, eq)
+    psi, x = y_eq[2 * nq : 2 * nq + nt], y_eq[2 * nq + 2 * nt : 2 * nq + 3 * nt]
+    lags = cmd - psi
     Th = np.array([t.holding_torque_n_m for t in rig.tendons])
     Nr = rig.arm.rotor_teeth
     sin_law = rig.arm.torque_law == "sin"
