@@ -10,6 +10,7 @@ import math
 import re
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from helpers.__main__ import main
@@ -221,10 +222,36 @@ def test_parse_values_and_the_command_line(capsys):
     assert parse_values("5", "x") == (5.0,)
     with pytest.raises(ValueError, match="--bends"):
         parse_values("a,b", "--bends")
-    assert main(["virtual-rig", "frequency-map", "--bends", "10", "--modes", "1"]) == 0
+    # the README's command: the hanging rig bent 10 mm along tendon 1 and between tendons 1 and 2
+    readme = "virtual-rig frequency-map --preset hanging --directions 0,45 --bends 10"
+    assert readme in (REPO_ROOT / "README.md").read_text()
+    assert main(readme.split()) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith("direction_deg,bend_mm,u1_mm,tension1_n") and len(out) == 2
-    assert float(out[1].split(",")[3]) == pytest.approx(4.97351, abs=1e-5)  # the planar rig's 10 mm tension
+    assert out[0].startswith("direction_deg,bend_mm,u1_mm,tension1_n,u2_mm,tension2_n") and len(out) == 3
+    head = out[0].split(",")
+    along, between = (dict(zip(head, map(float, line.split(",")), strict=True)) for line in out[1:])
+    assert along["tension1_n"] > 1.5 * along["tension2_n"] and along["tip_azimuth_deg"] == 0.0
+    assert between["tension1_n"] == pytest.approx(between["tension2_n"])
+    assert between["tip_azimuth_deg"] == 45.0
+    assert between["omega_d2_rad_s"] > 1.05 * between["omega_d1_rad_s"]  # split by the bend
     assert main(["virtual-rig", "frequency-map", "--directions", "120", "--bends", "5"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no tendon faces 120 deg" in err[0]
+
+
+def test_plotting_functions_draw_the_map():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from helpers.plotting.spatial import direction_map_polar, mode_splitting, shapes_3d
+
+    rows = [{"direction_deg": d, "bend_mm": b, "omega_d1_rad_s": 25 + 0.1 * b, "torsion1": 0.5,
+             "omega_d2_rad_s": 26 - 0.1 * b, "torsion2": 0.0, "dominant_omega_d_rad_s": 26.0}
+            for d in (0.0, 90.0, 180.0, 270.0) for b in (0.0, 10.0)]  # fmt: skip
+    df = pd.DataFrame(rows)
+    fig = mode_splitting(df, 90.0, "test")
+    assert len(fig.axes[0].lines) >= 3
+    assert len(direction_map_polar(df, 2).axes[0].lines) == 2
+    assert len(shapes_3d([np.zeros((13, 3))], ["rest"]).axes[0].lines) == 1
+    with pytest.raises(ValueError, match="no direction 45"):
+        mode_splitting(df, 45.0)
