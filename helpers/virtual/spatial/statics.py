@@ -440,8 +440,8 @@ class SpatialLinearisation:
             backbone, 0-180, the clamp frame's angle from tendon 1), ``tip_axial`` (share of the tip's motion
             along the clamp axis), ``torsion`` (the twist's share of the mode's strain energy), ``in_plane``
             (share of the strain energy in bending about the clamp frame's ``y``: the paper's plane for tendon
-            1), ``weight`` (largest over the tendons of the pole's weight in a tendon's tension for
-            ``command``).
+            1) (these four NaN for a mode degenerate with a neighbour to 1e-7: its shape is any mix),
+            ``weight`` (largest over the tendons of the pole's weight in a tendon's tension for ``command``).
         """
         nt = self.weights.shape[0]
         mix = np.ones(nt) if command is None else np.asarray(command, dtype=float)
@@ -468,7 +468,16 @@ class SpatialLinearisation:
             row["weight"] = float(w[k])
             rows.append(row)
         df = pd.DataFrame(rows)
-        return df.sort_values("omega_n", kind="stable").reset_index(drop=True) if len(df) else df
+        if not len(df):
+            return df
+        df = df.sort_values("omega_n", kind="stable").reset_index(drop=True)
+        if "azimuth_deg" in df:  # a degenerate pair's shapes are any mix of the two: no direction of its own
+            w = df.omega_n.to_numpy()
+            gap = np.minimum(np.abs(np.diff(w, prepend=-np.inf)), np.abs(np.diff(w, append=np.inf)))
+            degenerate = gap < 1e-7 * w
+            for col in ("azimuth_deg", "tip_axial", "torsion", "in_plane"):
+                df.loc[degenerate, col] = np.nan
+        return df
 
     def dominant(self, tendon: int = 0, command: np.ndarray | None = None) -> tuple[float, float]:
         """``(omega_d, zeta)`` of the pole with the largest weight in tendon ``tendon``'s tension."""
