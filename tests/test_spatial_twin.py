@@ -253,3 +253,17 @@ def test_plotting_functions_draw_the_map():
     assert len(shapes_3d([np.zeros((13, 3))], ["rest"]).axes[0].lines) == 1
     with pytest.raises(ValueError, match="no direction 45"):
         mode_splitting(df, 45.0)
+
+
+def test_a_slack_tendon_leaves_the_linearisation_finite():
+    # three tendons 120 degrees apart on a 10-disc arm, gravity off the axis, the third tendon slack at rest:
+    # its carriage is free between two slack cables and drops out; the modes stay finite
+    arm = RigParameters(n_discs=10)
+    rig = SpatialRig(arm=arm, tendons=tuple(TendonSpec.from_arm(arm, angle_deg=a, pretension_n=p)
+                                            for a, p in ((0, 1.0), (120, 1.0), (240, 0.0))),
+                     gravity_direction=(0.0, 0.3, 1.0))  # fmt: skip
+    for rotor in ("locked", "free"):
+        lin = linearise(rig, rotor=rotor)
+        modes = lin.modes()
+        assert np.all(np.isfinite(modes[["omega_d", "zeta", "weight"]].to_numpy()))
+        assert 20.0 < modes.omega_d.iloc[0] < 40.0 and np.all(lin.weights[2] == 0.0)

@@ -402,7 +402,7 @@ class SpatialLinearisation:
         ``"locked"`` (spools held) or ``"free"`` (rotors on their microstep springs).
     M, C, K : numpy.ndarray
         Mass, damping and tangent stiffness: arm coordinates (3N), then the rotors (if free), then the
-        carriages.
+        carriages (of the taut tendons: a slack tendon's carriage is free and decoupled).
     poles : numpy.ndarray
         Eigenvalues, sorted by modulus (1/s).
     shapes : numpy.ndarray
@@ -571,6 +571,12 @@ def linearise(
     else:
         taut = R * psi - x - model.s1_ref > 0
         inputs[np.arange(nt), ix] = np.where(taut, model.k1 * R, 0.0)
+    # a slack tendon's carriage sits between two slack cables: free and decoupled, so it leaves the model
+    keep = np.ones(nz, dtype=bool)
+    keep[ix[eq.tension <= 0.0]] = False
+    if not keep.all():
+        M, C, K = M[np.ix_(keep, keep)], C[np.ix_(keep, keep)], K[np.ix_(keep, keep)]
+        inputs, dlam = inputs[:, keep], dlam[:, keep]
     poles, shapes, modal = modal_analysis(M, C, K)
     weights = _weights(poles, modal, inputs, dlam, decay_s)
     return SpatialLinearisation(equilibrium=eq, rotor=rotor, M=M, C=C, K=K, poles=poles, shapes=shapes,
