@@ -16,7 +16,8 @@ so notebook 06 reads their results from CSV files that ``python -m helpers virtu
 - :func:`actuator_sensitivity`: every Table I scenario with the motor's torque at the paper's 4.3 kg cm and
   at 0.8x, 1.0x and 1.5x the assumed value, a 100 g carriage and a 3x stiffer cable (nothing re-tuned): the
   steps lost, the rotor's lag and how far each Table II row moves; :func:`sensitivity_summary` condenses it.
-- the ``virtual-rig`` command (``check``, ``tune``, ``studies``).
+- the ``virtual-rig`` command (``check``, ``tune``, ``studies``, and ``frequency-map``: the spatial twin's
+  modes over bend direction and magnitude, :func:`helpers.virtual.spatial.direction_map.frequency_map`).
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ from helpers.rig_tuning import (
 from helpers.shapers import paper_tdfs
 from helpers.virtual import ArmPlant, RigParameters, SimResult, linearise, simulate
 from helpers.virtual.parameters import KG_CM
+from helpers.virtual.spatial.direction_map import frequency_map_csv
+from helpers.virtual.spatial.rig import PRESETS, preset
 from helpers.virtual.statics import stable_max_step
 
 __all__ = [
@@ -444,17 +447,32 @@ def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = T
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``virtual-rig`` command's options."""
     parser.add_argument(
-        "action", choices=["check", "tune", "studies"],
+        "action", choices=["check", "tune", "studies", "frequency-map"],
         help="check: the tuned rig's identified mode and unshaped rows (seconds); tune: re-derive the tuned "
-             "literals (minutes); studies: rewrite figures/virtual_*.csv for notebook 06 (a few minutes)",
+             "literals (minutes); studies: rewrite figures/virtual_*.csv for notebook 06 (a few minutes); "
+             "frequency-map: print the spatial twin's modes against bend direction and magnitude as CSV "
+             "(docs/spatial_twin.md; about a second per row)",
     )  # fmt: skip
     parser.add_argument("--max-evaluations", type=int, default=100, help="Nelder-Mead budget of 'tune'")
     parser.add_argument("--only", nargs="*", choices=list(STUDY_FILES), help="'studies': run only these")
+    parser.add_argument("--preset", choices=list(PRESETS), default="paper",
+                        help="'frequency-map': the spatial twin's rig (default: paper)")  # fmt: skip
+    parser.add_argument("--directions", default="0:360:15",
+                        help="'frequency-map': bend directions, deg from tendon 1 (0,45,90 or a:b:step)")
+    parser.add_argument("--bends", default="0:35:5", help="'frequency-map': bend magnitudes, mm of cable")
+    parser.add_argument("--modes", type=int, default=4, help="'frequency-map': modes per row (default 4)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the ``virtual-rig`` command."""
     t0 = time.perf_counter()
+    if args.action == "frequency-map":
+        if args.modes < 1:
+            raise ValueError(f"--modes must be >= 1, got {args.modes}")
+        rig = preset(args.preset)
+        directions = "0" if rig.n_tendons == 1 and args.directions == "0:360:15" else args.directions
+        print(frequency_map_csv(rig, directions, args.bends, n_modes=args.modes), end="")
+        return 0
     if args.action == "studies":
         write_studies(tuple(args.only) if args.only else tuple(STUDY_FILES))
         return 0

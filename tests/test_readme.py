@@ -65,6 +65,8 @@ HOW: dict[str, str] = {
     "python -m helpers sweep atlas --overwrite": "help",  # ten minutes; its parts in tests/test_sweep.py
     "python -m helpers sweep atlas --full": "help",
     "python -m helpers bench sweep": "slow",
+    "python -m helpers bench spatial": "slow",
+    "python -m helpers virtual-rig frequency-map --preset hanging --directions 0,45 --bends 10": "quick",
     # hardware only: --help and a dry run
     "python -m helpers record calibration --ports auto": "dry-run",
     "python -m helpers record all --ports auto": "dry-run",
@@ -269,7 +271,7 @@ def test_record_all_regenerates_the_paper_experiment(newcomer):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("suite", ["plant", "serial", "sweep", "playground"])
+@pytest.mark.parametrize("suite", ["plant", "serial", "sweep", "playground", "spatial"])
 def test_bench_prints_its_figures(suite):
     proc = subprocess.run(
         [sys.executable, "-m", "helpers", "bench", suite], capture_output=True, text=True, timeout=3600,

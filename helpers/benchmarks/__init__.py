@@ -6,7 +6,9 @@
   the in-process virtual rig;
 - ``playground``: CPU time of one update of notebook 03's interactive shaper study (target <= 0.3 s);
 - ``sweep``: runs per second of a sweep's tasks on 1 and 2 workers of a local Dask cluster, the scaling
-  ratio, Dask's overhead against a bare loop, the per-run overhead outside the integration.
+  ratio, Dask's overhead against a bare loop, the per-run overhead outside the integration;
+- ``spatial``: simulated seconds per wall second of the spatial twin, a 12 s four-tendon scenario and the
+  paper's one tendon beside the planar plant.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from typing import Any
 from helpers.benchmarks.plant import run_plant_benchmark
 from helpers.benchmarks.playground import run_playground_benchmark
 from helpers.benchmarks.serial import run_serial_benchmark
+from helpers.benchmarks.spatial import run_spatial_benchmark
 from helpers.benchmarks.sweep import run_sweep_benchmark
 
 SUITES: dict[str, Callable[[], dict[str, Any]]] = {
@@ -27,6 +30,7 @@ SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "playground": run_playground_benchmark,
     "serial": run_serial_benchmark,
     "sweep": run_sweep_benchmark,
+    "spatial": run_spatial_benchmark,
 }
 """suite name -> function; each prints its figures and returns them as a dict."""
 
