@@ -23,7 +23,7 @@ import numpy as np
 
 from helpers.emulator.stream_mode import ShaperLoader, StreamMode
 from helpers.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
-from helpers.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, frame, frame_many
+from helpers.protocol import MAX_LINE, WRAP_US, board_version, checksum, frame, frame_many
 
 DAQ_RATE_MIN, DAQ_RATE_MAX, DAQ_RATE_DEFAULT = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_DEFAULT_HZ
 MIN_INTERVAL_US = LIMITS.min_interval_us
@@ -236,7 +236,7 @@ class EmulatedBoard:
             return
         self.received.append(" ".join([parsed.word, *map(str, parsed.args)]))
         if parsed.word == "PING":
-            self.send(self._arg_error(parsed, 0) or f"PONG {self.kind} {FW_VERSION}")
+            self.send(self._arg_error(parsed, 0) or f"PONG {self.kind} {board_version()}")
             return
         handler = getattr(self, f"cmd_{parsed.word}", None) if parsed.word.isupper() else None
         if handler is None:
@@ -261,7 +261,7 @@ class EmulatedBoard:
         self._overflow = False
         self._cr = False
         self.hung = False
-        self.send(f"HELLO {self.kind} {FW_VERSION}")
+        self.send(f"HELLO {self.kind} {board_version()}")
 
 
 class DaqEmulator(EmulatedBoard):
