@@ -169,7 +169,8 @@ def test_url_handler_same_rig_name_same_world():
     assert d.world is s.world is w
     assert d.read(100).startswith(b"HELLO daq")
     s.write(frame("PING"))
-    assert s.read(100) == frame("HELLO stepper 2.2.0+00000000") + frame("PONG stepper 2.2.0+00000000")  # reset on open, reply
+    # reset on open, reply
+    assert s.read(100) == frame("HELLO stepper 2.2.0+00000000") + frame("PONG stepper 2.2.0+00000000")
     t0 = w.t
     assert s.read(10) == b""  # nothing to come: the read waited its timeout in device time
     assert w.t == pytest.approx(t0 + 0.01)

@@ -1,7 +1,7 @@
 // A four-tendon rig (the spatial twin's arm with four tendons): four steppers on the stepper board, four load
 // cells on the DAQ board, each axis with the paper's travel and speed. The DAQ link runs at 1 Mbaud: four
-// channels at 1 kHz need up to 640 kbit/s in the text framing (PROTOCOL.md, "Link budget"). The programme
-// table is shortened to fit the Uno's RAM (PROTOCOL.md). RIG_HASH is a placeholder (no rig file behind it).
+// channels at 1 kHz need up to 640 kbit/s in the text framing (PROTOCOL.md, "Link budget"). RIG_HASH is a
+// placeholder (no rig file behind it).
 #ifndef RIG_CONFIG_FOUR_TENDON_H
 #define RIG_CONFIG_FOUR_TENDON_H
 
@@ -12,7 +12,7 @@
 #define RIG_MIN_INTERVAL_US 639
 #define RIG_MAX_INTERVAL_US 1000000L
 #define RIG_AXIS_TRAVEL_STEPS {156, 156, 156, 156}
-#define RIG_PROGRAMME_MAX 48
+#define RIG_PROGRAMME_MAX 64
 #define RIG_DAQ_RATE_MIN_HZ 100
 #define RIG_DAQ_RATE_MAX_HZ 2000
 #define RIG_DAQ_RATE_DEFAULT_HZ 1000
