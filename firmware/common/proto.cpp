@@ -100,10 +100,10 @@ bool proto_is(const Command *cmd, const char *w) { return strcmp_P(cmd->word, w)
 
 // Decimal conversion by subtracting powers of ten: no 32-bit division (slow on the AVR), at most
 // 9 subtractions per digit.
-static const uint32_t POW10[10] = {1000000000UL, 100000000UL, 10000000UL, 1000000UL, 100000UL,
+static const uint32_t POW10[10] PROGMEM = {1000000000UL, 100000000UL, 10000000UL, 1000000UL, 100000UL,
                                    10000UL,      1000UL,      100UL,      10UL,      1UL};
 
-static const uint16_t POW10_16[4] = {1000U, 100U, 10U, 1U};
+static const uint16_t POW10_16[4] PROGMEM = {1000U, 100U, 10U, 1U};
 
 // Values under 10000 (ADC counts, step counts) take 16-bit subtractions; larger ones skip their leading
 // zeros by comparisons first (a DAQ line of four channels holds ten numbers: the formatting is most of its
@@ -112,9 +112,9 @@ void LineWriter::u32(uint32_t v) {
   if (v < 10000UL) {
     uint16_t w = (uint16_t)v;
     uint8_t i = 0;
-    while (i < 3 && w < POW10_16[i]) i++;
+    while (i < 3 && w < pgm_read_word(&POW10_16[i])) i++;
     for (; i < 4; i++) {
-      uint16_t p = POW10_16[i];
+      uint16_t p = pgm_read_word(&POW10_16[i]);
       char d = '0';
       while (w >= p) { w -= p; d++; }
       put(d);
@@ -122,9 +122,9 @@ void LineWriter::u32(uint32_t v) {
     return;
   }
   uint8_t i = 0;
-  while (v < POW10[i]) i++;  // v >= 10000: stops by i = 5
+  while (v < pgm_read_dword(&POW10[i])) i++;  // v >= 10000: stops by i = 5
   for (; i < 10; i++) {
-    uint32_t p = POW10[i];
+    uint32_t p = pgm_read_dword(&POW10[i]);
     char d = '0';
     while (v >= p) { v -= p; d++; }
     put(d);
