@@ -1,8 +1,8 @@
-"""Several tendons: the firmware built for a four-tendon rig config (``firmware/common/rig_config_four_tendon.h``)
-in simavr: RAM budgets, compile-time refusal of configs that do not fit, coordinated four-axis programmes on
-the pins (every step within one timer tick of the programme, per axis), per-axis limits, the one-axis commands
-on axis 0, and four-channel DAQ frames with each tendon's step count; the link budget at 1 Mbaud through the
-harness's pseudo-terminal (``-m slow``: 60 s of device time).
+"""Several tendons: the firmware built for a four-tendon rig config
+(``firmware/common/rig_config_four_tendon.h``) in simavr: RAM budgets, compile-time refusal of configs that do
+not fit, coordinated four-axis programmes on the pins (every step within one timer tick of the programme, per
+axis), per-axis limits, the one-axis commands on axis 0, and four-channel DAQ frames with each tendon's step
+count; the link budget at 1 Mbaud through the harness's pseudo-terminal (``-m slow``: 60 s of device time).
 """
 
 from __future__ import annotations
@@ -26,7 +26,8 @@ TRAVEL = 156
 UNO_AXES = [("D5", "D6"), ("D2", "B2"), ("D3", "B3"), ("D4", "B4")]
 MEGA_AXES = [("E4", "G5"), ("E5", "E3"), ("D2", "A1"), ("D3", "A3")]
 _RAM = re.compile(
-    r"^(daq_mega|stepper_uno): .* (\d+) B RAM \(data \+ bss\) of (\d+) B \(([\d.]+)%, goal <= 80%: (\w+)\) \[(.+)\]$",
+    r"^(daq_mega|stepper_uno): .* (\d+) B RAM \(data \+ bss\) of (\d+) B "
+    r"\(([\d.]+)%, goal <= 80%: (\w+)\) \[(.+)\]$",
     re.M,
 )
 
@@ -65,8 +66,13 @@ def test_ram_budgets_printed_and_within_goal(four_build: tuple[Path, str], firmw
             assert ram == {"daq_mega": 8192, "stepper_uno": 2048}[board]
             assert abs(pct - 100.0 * used / ram) < 0.06
             assert pct <= 80.0 and verdict == "met", f"{name} {board}: {used} B of {ram} B"
-        print(f"{name}: " + ", ".join(f"{b} {u} B ({p:.1f} %)" for b, (u, _, p, _, _) in sorted(lines.items())))
-    assert four["stepper_uno"][4] == "rig_config_four_tendon.h" and paper["stepper_uno"][4] == "rig_config_paper.h"
+        print(
+            f"{name}: " + ", ".join(f"{b} {u} B ({p:.1f} %)" for b, (u, _, p, _, _) in sorted(lines.items()))
+        )
+    assert (
+        four["stepper_uno"][4] == "rig_config_four_tendon.h"
+        and paper["stepper_uno"][4] == "rig_config_paper.h"
+    )
     # four axes and four channels cost RAM: the tables grow with the config
     assert four["stepper_uno"][0] > paper["stepper_uno"][0] and four["daq_mega"][0] > paper["daq_mega"][0]
 
@@ -127,7 +133,9 @@ PROGRAMME = [  # (window_us, steps of axes 0-3): coincident steps, one idle axis
 ]
 
 
-def test_four_axis_programme_steps_within_one_tick(four_build: tuple[Path, str], firmware_build: None) -> None:
+def test_four_axis_programme_steps_within_one_tick(
+    four_build: tuple[Path, str], firmware_build: None
+) -> None:
     build, _ = four_build
     cmds = ["PING", "CONFIG", "EN 1"] + [f"MSEG {w} " + " ".join(map(str, n)) for w, n in PROGRAMME] + ["GO"]
     run = _stepper(build, cmds, 0.2 + sum(w for w, _ in PROGRAMME) / 1e6 + 0.1)
@@ -159,21 +167,28 @@ def test_four_axis_programme_steps_within_one_tick(four_build: tuple[Path, str],
         assert len(got) == len(exp), f"axis {a}: {len(got)} steps, expected {len(exp)}"
     # GO on the simulated clock, from the median offset of the edges from their ticks (the edges jitter by
     # the busy-wait's granularity on TCNT1, up to one tick)
-    offsets = sorted(c - 128 - t * TICK_CYCLES for exp, got in zip(expected, edges, strict=True)
-                     for (t, _, _), c in zip(exp, got, strict=True))
+    offsets = sorted(
+        c - 128 - t * TICK_CYCLES
+        for exp, got in zip(expected, edges, strict=True)
+        for (t, _, _), c in zip(exp, got, strict=True)
+    )
     origin = offsets[len(offsets) // 2]
     worst = 0.0
     for a, (exp, got) in enumerate(zip(expected, edges, strict=True)):
         for (tick, exact, pull), cycle in zip(exp, got, strict=True):
             at = cycle - 128 - origin  # cycles from GO, less the lead
-            assert abs(at - tick * TICK_CYCLES) <= TICK_CYCLES, f"axis {a}: step at tick {at / 8:.2f}, not {tick}"
+            assert abs(at - tick * TICK_CYCLES) <= TICK_CYCLES, (
+                f"axis {a}: step at tick {at / 8:.2f}, not {tick}"
+            )
             worst = max(worst, abs(at - exact * TICK_CYCLES))
             assert _level_at(run, UNO_AXES[a][1], cycle) == pull, f"axis {a}: DIR wrong at tick {tick}"
             assert _level_at(run, UNO_AXES[a][1], cycle - 600 * 16) == pull  # DIR set up early enough
     spread = offsets[-1] - offsets[0]
     assert spread <= TICK_CYCLES  # every step on its tick within one tick (as the streaming tests measure)
-    print(f"four axes, {len(offsets)} steps: edge-minus-tick spread {spread} cycles ({spread / 16:.3f} us), "
-          f"|edge - exact programme| <= {worst / 16:.3f} us")
+    print(
+        f"four axes, {len(offsets)} steps: edge-minus-tick spread {spread} cycles ({spread / 16:.3f} us), "
+        f"|edge - exact programme| <= {worst / 16:.3f} us"
+    )
     assert _level_at(run, "D7", edges[0][0]) == 0  # ENA LOW (enabled) while stepping
 
 
@@ -232,7 +247,9 @@ def test_one_axis_commands_drive_axis_zero(four_build: tuple[Path, str], firmwar
 
 def _mv(t: float, ch: int) -> float:
     """Four distinct waveforms (mV): ramps and a triangle, within 0-5 V."""
-    return [500 + 4000 * t, 4500 - 3000 * t, 2500 + 2000 * abs(((4 * t) % 2) - 1) - 1000, 300 + 4200 * t * t][ch]
+    return [500 + 4000 * t, 4500 - 3000 * t, 2500 + 2000 * abs(((4 * t) % 2) - 1) - 1000, 300 + 4200 * t * t][
+        ch
+    ]
 
 
 def test_four_channel_daq_frames(four_build: tuple[Path, str], firmware_build: None) -> None:
@@ -325,8 +342,10 @@ def test_link_budget_four_channels_through_pty(four_build: tuple[Path, str], fir
     finally:
         proc.terminate()
         proc.wait(timeout=30)
-    print(f"pty link, 4 channels at 1 kHz, 1 Mbaud: {frames} frames over {(t_last - t_first) / 1e6:.3f} s "
-          f"of device time, {drops} dropped, {bad} corrupted, {overruns} overruns")
+    print(
+        f"pty link, 4 channels at 1 kHz, 1 Mbaud: {frames} frames over {(t_last - t_first) / 1e6:.3f} s "
+        f"of device time, {drops} dropped, {bad} corrupted, {overruns} overruns"
+    )
     assert t_last - t_first >= 60_000_000
     assert (drops, bad, overruns) == (0, 0, 0)
     assert frames >= 60_000
