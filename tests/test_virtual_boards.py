@@ -264,3 +264,18 @@ def test_stream_commands_refused_as_the_firmware_refuses_them():
     assert talk(s, *["V 0"] * 9)[-1] == "ERR FULL 8 set-points queued"
     assert talk(s, "MEM") == ["OK MEM 560"] and talk(s, "ABORT") == ["ABORTED 0"]
     assert talk(s, "V 0") == ["ERR STATE not streaming"] and not s.enabled
+
+
+def test_mseg_spreads_its_steps_over_the_window_on_the_firmware_ticks():
+    w = make_world()
+    s = w.stepper
+    s.take_output()
+    assert talk(s, "CONFIG") == ["OK CONFIG 1 64 639 1000000 156"]
+    assert talk(s, "MSEG 7001 3", "MSEG 2000 -1", "EN 1", "GO")[-1] == "OK GO 2"
+    go = w.go_times[-1]
+    times, signs = s.steps_until(go + 1.0)
+    # PROTOCOL.md: step k of n on the first 0.5 us tick at or after k * W / n from the window's start
+    # (7001 us / 3 = 2333.67 us -> 2334.0; 4667.33 -> 4667.5; the window's end; then 7001 + 2000)
+    np.testing.assert_allclose((times - go) * 1e6, [2334.0, 4667.5, 7001.0, 9001.0], atol=1e-3)
+    assert list(signs) == [1, 1, 1, -1]
+    assert talk(w.daq, "CONFIG")[-1] == "OK CONFIG 1 1 100 2000"
