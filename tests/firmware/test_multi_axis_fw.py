@@ -107,6 +107,36 @@ def test_config_refused_at_compile_time(tmp_path: Path, changes: dict, message: 
     assert message in proc.stderr, proc.stderr[-2000:]
 
 
+def test_make_rig_generates_the_header_then_builds_with_it(tmp_path: Path) -> None:
+    """``make RIG=rigfile`` runs ``$(PYTHON) -m helpers.rigfile.firmware_header RIG -o $(BUILD)/rig_config.h``
+    from the repository root (a stand-in interpreter here records its arguments and writes the header)."""
+    rig = tmp_path / "rig.json"
+    rig.write_text("{}")
+    log = tmp_path / "args.txt"
+    fake = tmp_path / "fakepython"
+    fake.write_text(
+        "#!/bin/sh\n"
+        f'echo "$PWD $@" > {log}\n'
+        'while [ "$1" != "-o" ]; do shift; done\n'
+        f'cp {FOUR} "$2"\n'
+    )
+    fake.chmod(0o755)
+    build = tmp_path / "build"
+    target = f"{build}/stepper_uno/stepper_uno.o"
+    proc = _make(f"RIG={rig}", f"PYTHON={fake}", f"BUILD={build}", target, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    cwd, *args = log.read_text().split()
+    assert Path(cwd) == fwsim.REPO
+    assert args == ["-m", "helpers.rigfile.firmware_header", str(rig), "-o", f"{build}/rig_config.h.tmp"]
+    assert (build / "rig_config.h").read_text() == FOUR.read_text()
+    assert (build / "rig_config.path").read_text().strip() == str(build / "rig_config.h")
+    assert Path(target).stat().st_size > 0
+    # a generator that fails stops the build
+    fake.write_text("#!/bin/sh\necho 'rig file: bad tendon count' >&2\nexit 2\n")
+    proc = _make(f"RIG={rig}", f"PYTHON={fake}", f"BUILD={tmp_path / 'b2'}", "firmware", timeout=120)
+    assert proc.returncode != 0 and "bad tendon count" in proc.stderr
+
+
 def _stepper(build: Path, cmds: list[str], duration: float, spacing: float = 0.02) -> fwsim.SimRun:
     times = [0.05 + spacing * i for i in range(len(cmds))]
     watch = [p for pair in UNO_AXES for p in pair] + ["D7"]
@@ -243,6 +273,16 @@ def test_one_axis_commands_drive_axis_zero(four_build: tuple[Path, str], firmwar
     gaps_us = [(b - a) / 16 for a, b in zip(got, got[1:], strict=False)]
     expected = [1000.0] * 4 + [10_000 + 700.0, 700.0]
     assert all(abs(g - e) <= 0.5 for g, e in zip(gaps_us, expected, strict=True)), gaps_us
+
+
+def test_stream_drives_axis_zero_of_four(four_build: tuple[Path, str], firmware_build: None) -> None:
+    build, _ = four_build
+    cmds = ["SHAPER 1 0", "IMP 0 4096 0", "EN 1", "STREAM"] + ["V 1000"] * 10 + ["END"]
+    run = _stepper(build, cmds, 0.5, spacing=0.01)
+    assert [ln.body for ln in run.lines][-1] == "DONE 95 0 0 0"
+    # ten 10 ms periods at 1000 x 2^-16 step per 16 us: 95.37 steps, of which the count issues the whole ones
+    assert len(_rising(run, "D5")) == math.floor(10 * 1000 * 625 / 2**16) == 95
+    assert [len(_rising(run, s)) for s, _ in UNO_AXES[1:]] == [0, 0, 0]
 
 
 def _mv(t: float, ch: int) -> float:
