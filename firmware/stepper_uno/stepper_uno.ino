@@ -151,15 +151,24 @@ static void timer_stop() {
   TIMSK1 = 0;
 }
 
-// Loads the wait until the next event (called just after a compare match, or with the timer stopped):
-// OCR1A = period - 1; a wait over 65536 ticks starts with a chunk of 32768 and the ISR loads the rest.
+// Time bookkeeping of a programme: TCNT1 counts from the last compare match (CTC), whose time is `base_t`
+// (ticks from the start of the item in progress; <= 0 just after an item began between two matches), and
+// `period` is the length of the wait loaded last, so that each match advances `base_t` by it.
+static int32_t base_t;
+static uint32_t period;
+
+// Loads the wait until the next event, `ticks` after the last compare match (called just after a match, while
+// TCNT1 is still well below `ticks`, or with the timer stopped): OCR1A = ticks - 1; a wait over 65536 ticks
+// starts with a chunk of 32768 and the ISR loads the rest.
 static void schedule(uint32_t ticks) {
   if (ticks > 65536UL) {
     OCR1A = 32768 - 1;
     rem_ticks = ticks - 32768;
+    period = 32768;
   } else {
     OCR1A = (uint16_t)(ticks - 1);
     rem_ticks = 0;
+    period = ticks;
   }
 }
 
@@ -175,12 +184,16 @@ static void set_axis_dir(uint8_t a, bool pull) {
 
 static inline uint32_t axis_next(const AxisRun &r) { return r.f + (r.e ? 1 : 0); }
 
-// The next event of the item in progress, found when the previous one is served (so that the compare ISR
-// raises the STEP edges without computing first): its time (ticks from the item's start) and the STEP bits
-// of the axes whose next step falls on it.
-static uint32_t next_t;
-static uint8_t next_mask;
+// The item's next two events, known ahead so that the compare ISR raises an event's STEP edges without
+// computing first, and a second event due a few ticks after the first (a step of another axis) is raised at
+// its own tick before anything is computed: `ev_mask` is the event of the next compare match, (`nx_t`,
+// `nx_mask`) the one after it (ticks from the item's start; mask 0: none). Each axis's Bresenham state is
+// already advanced past both.
+static uint8_t ev_mask;
+static uint32_t nx_t;
+static uint8_t nx_mask;
 
+// The earliest next step among the axes with steps left: (nx_t, nx_mask), and advances those axes past it.
 static void plan_next() {
   uint32_t t = 0xFFFFFFFFUL;
   uint8_t mask = 0;
@@ -194,8 +207,30 @@ static void plan_next() {
       mask |= AXIS_STEP_BIT[a];
     }
   }
-  next_t = t;
-  next_mask = mask;
+  nx_t = t;
+  nx_mask = mask;
+  const Item &it = prog[cur];
+  for (uint8_t a = 0; a < AXES; a++) {
+    AxisRun &r = ax[a];
+    if (!(mask & AXIS_STEP_BIT[a])) continue;
+    if (--r.left) {  // step k + 1: (k + 1) * window = n * (f + q) + (e + r), carried
+      r.f += r.q;
+      uint16_t e = (uint16_t)r.e + r.r;
+      if (e >= it.n[a]) {
+        e -= it.n[a];
+        r.f++;
+      }
+      r.e = (uint8_t)e;
+    }
+  }
+}
+
+// The positions after the STEP edges of `mask` (called as they go up).
+static void count_steps(uint8_t mask) {
+  const Item &it = prog[cur];
+  for (uint8_t a = 0; a < AXES; a++) {
+    if (mask & AXIS_STEP_BIT[a]) position[a] += (it.release & (1 << a)) ? -1 : 1;
+  }
 }
 
 // Starts item `cur` at the present event time (skipping zero-length dwells); finishes after the last one.
@@ -213,13 +248,16 @@ static void start_item() {
         r.f = r.q;
         r.e = r.r;
       }
-      plan_next();  // an item moves at least one axis: its first step is the first event
-      schedule(next_t);
+      plan_next();  // an item moves at least one axis: its first step (>= 639 us away) is the first event
+      ev_mask = nx_mask;
+      uint32_t first = nx_t;
+      plan_next();  // and the one after it
+      schedule((uint32_t)((int32_t)first - base_t));
       return;
     }
     if (it.ticks > 0) {
       for (uint8_t a = 0; a < AXES; a++) ax[a].left = 0;
-      schedule(it.ticks);
+      schedule((uint32_t)((int32_t)it.ticks - base_t));
       return;
     }
     cur++;
@@ -232,6 +270,60 @@ static void start_item() {
 static void stream_step_isr();
 static volatile uint8_t stream_timer;  // Timer1 runs the stream (normal mode) rather than a programme (CTC)
 
+// Serves the events after the one whose STEP edges (`high`, up at tick `rise` from the last match) have just
+// been raised: an event due too soon for another interrupt (a step of another axis a few ticks later) is
+// raised here, at its own tick + STEP_LEAD_TICKS, by busy-waiting; otherwise the next one is scheduled. Every
+// pulse lasts at least PULSE_TICKS. Returns false when the item's last step has been issued.
+static const uint16_t PULSE_TICKS = 10;  // 5 us high (the TB6600 needs >= 2.5 us)
+static const uint16_t CHAIN_TICKS = 24;  // an edge closer than this to TCNT1 is raised in this interrupt
+
+// Waits for the end of the pulses up (at least PULSE_TICKS since `rise`) and lowers them.
+static inline void end_pulses(uint8_t high, uint16_t rise) {
+  while ((uint16_t)(TCNT1 - rise) < PULSE_TICKS) {
+  }
+  PORTD &= (uint8_t)~high;
+}
+
+// Raises `mask` at tick `edge` (from the last match), in this interrupt: no compare match meanwhile; the pulses
+// up end first when they can.
+static inline void raise_here(uint8_t mask, uint16_t edge, uint8_t &high, uint16_t &rise) {
+  OCR1A = 0xFFFF;
+  if (high && (uint16_t)(edge - rise) >= PULSE_TICKS) {
+    end_pulses(high, rise);
+    high = 0;
+  }
+  while (TCNT1 < edge) {
+  }
+  PORTD |= mask;
+  count_steps(mask);
+  high |= mask;
+  rise = edge;
+}
+
+static bool serve_steps(uint8_t high, uint16_t rise) {
+  for (;;) {
+    if (!nx_mask) {  // that was the item's last event
+      end_pulses(high, rise);
+      return false;
+    }
+    uint32_t delta = (uint32_t)((int32_t)nx_t - base_t);  // the next event, in ticks from the last match
+    if (delta < (uint32_t)TCNT1 + CHAIN_TICKS) {  // close: raise it first (it is known), then plan ahead
+      raise_here(nx_mask, (uint16_t)delta + STEP_LEAD_TICKS, high, rise);
+      plan_next();
+      continue;
+    }
+    ev_mask = nx_mask;  // the next match's event; plan the one after it meanwhile
+    plan_next();
+    end_pulses(high, rise);
+    high = 0;
+    if (delta >= (uint32_t)TCNT1 + CHAIN_TICKS) {
+      schedule(delta);
+      return true;
+    }
+    raise_here(ev_mask, (uint16_t)delta + STEP_LEAD_TICKS, high, rise);  // planning made it close
+  }
+}
+
 ISR(TIMER1_COMPA_vect) {
   if (stream_timer) {
     stream_step_isr();
@@ -239,12 +331,15 @@ ISR(TIMER1_COMPA_vect) {
   }
   if (rem_ticks) {
     uint32_t r = rem_ticks;
+    base_t += (int32_t)period;
     if (r > 65536UL) {
       OCR1A = 32767;
       rem_ticks = r - 32768;
+      period = 32768;
     } else {
       OCR1A = (uint16_t)(r - 1);
       rem_ticks = 0;
+      period = r;
     }
     return;
   }
@@ -253,38 +348,17 @@ ISR(TIMER1_COMPA_vect) {
     // The axes whose next step is due now step together: one port write, a fixed STEP_LEAD_TICKS after the
     // compare match whatever the interrupt latency (another ISR may delay this one by a few us): every step
     // is late by the same 8 us.
-    uint8_t mask = next_mask;
+    uint8_t mask = ev_mask;
     while (TCNT1 < STEP_LEAD_TICKS) {
     }
     PORTD |= mask;
-    __builtin_avr_delay_cycles(64);  // TB6600 needs >= 2.5 us high; with the code around it ~5 us
-    PORTD &= (uint8_t)~mask;
-    uint8_t more = 0;
-    for (uint8_t a = 0; a < AXES; a++) {
-      AxisRun &r = ax[a];
-      if (!(mask & AXIS_STEP_BIT[a])) {
-        more |= r.left;
-        continue;
-      }
-      position[a] += (it.release & (1 << a)) ? -1 : 1;
-      if (--r.left) {  // step k + 1: (k + 1) * window = n * (f + q) + (e + r), carried
-        r.f += r.q;
-        uint16_t e = (uint16_t)r.e + r.r;
-        if (e >= it.n[a]) {
-          e -= it.n[a];
-          r.f++;
-        }
-        r.e = (uint8_t)e;
-        more = 1;
-      }
-    }
-    if (more) {
-      uint32_t now = next_t;
-      plan_next();
-      schedule(next_t - now);
-      return;
-    }
+    base_t += (int32_t)period;
+    count_steps(mask);
+    if (serve_steps(mask, STEP_LEAD_TICKS)) return;
+  } else {
+    base_t += (int32_t)period;
   }
+  base_t -= (int32_t)it.ticks;  // from the next item's start (this item's end)
   cur++;
   start_item();
 }
@@ -502,6 +576,7 @@ static int16_t read_position() { return read_position(0); }
 static void run_go() {
   cli();
   cur = 0;
+  base_t = 0;
   running = 1;
   done_flag = 0;
   TCCR1A = 0;
