@@ -184,17 +184,22 @@ static void set_axis_dir(uint8_t a, bool pull) {
 
 static inline uint32_t axis_next(const AxisRun &r) { return r.f + (r.e ? 1 : 0); }
 
-// The item's next two events, known ahead so that the compare ISR raises an event's STEP edges without
-// computing first, and a second event due a few ticks after the first (a step of another axis) is raised at
-// its own tick before anything is computed: `ev_mask` is the event of the next compare match, (`nx_t`,
-// `nx_mask`) the one after it (ticks from the item's start; mask 0: none). Each axis's Bresenham state is
-// already advanced past both.
-static uint8_t ev_mask;
-static uint32_t nx_t;
-static uint8_t nx_mask;
+// The item's next events, planned ahead into a small queue, so that the compare ISR raises an event's STEP
+// edges without computing first, and events due a few ticks after one another (steps of different axes) are
+// each raised at their own tick: (evq_gap, evq_mask), the gap in ticks after the previous event (the first:
+// after the item's start), oldest first. Each axis's Bresenham state is advanced past every queued event;
+// `more_steps` is clear once every step is queued.
+#define EVQ 4  // a power of two; at most one event per axis falls within the shortest step interval
+static uint32_t evq_gap[EVQ];
+static uint8_t evq_close[EVQ];  // the gap when it is under CLOSE_TICKS (to be chained without 32-bit work), else 0
+#define CLOSE_TICKS 200
+static uint32_t evq_last;  // the time of the last queued event (ticks from the item's start)
+static uint8_t evq_mask[EVQ];
+static uint8_t evq_head, evq_n;
+static uint8_t more_steps;
 
-// The earliest next step among the axes with steps left: (nx_t, nx_mask), and advances those axes past it.
-static void plan_next() {
+// Queues the earliest next step among the axes with steps left, and advances those axes past it.
+static void produce() {
   uint32_t t = 0xFFFFFFFFUL;
   uint8_t mask = 0;
   for (uint8_t a = 0; a < AXES; a++) {
@@ -207,8 +212,16 @@ static void plan_next() {
       mask |= AXIS_STEP_BIT[a];
     }
   }
-  nx_t = t;
-  nx_mask = mask;
+  if (!mask) {
+    more_steps = 0;
+    return;
+  }
+  uint8_t i = (uint8_t)((evq_head + evq_n) & (EVQ - 1));
+  evq_gap[i] = t - evq_last;
+  evq_close[i] = (t - evq_last < CLOSE_TICKS) ? (uint8_t)(t - evq_last) : 0;
+  evq_last = t;
+  evq_mask[i] = mask;
+  evq_n++;
   const Item &it = prog[cur];
   for (uint8_t a = 0; a < AXES; a++) {
     AxisRun &r = ax[a];
@@ -248,11 +261,12 @@ static void start_item() {
         r.f = r.q;
         r.e = r.r;
       }
-      plan_next();  // an item moves at least one axis: its first step (>= 639 us away) is the first event
-      ev_mask = nx_mask;
-      uint32_t first = nx_t;
-      plan_next();  // and the one after it
-      schedule((uint32_t)((int32_t)first - base_t));
+      evq_head = evq_n = 0;
+      evq_last = 0;
+      more_steps = 1;
+      for (uint8_t k = 0; k < EVQ; k++) produce();  // its first events (the first >= 639 us away); the
+                                                     // compare ISRs plan the rest ahead
+      schedule((uint32_t)((int32_t)evq_gap[evq_head] - base_t));
       return;
     }
     if (it.ticks > 0) {
@@ -270,12 +284,14 @@ static void start_item() {
 static void stream_step_isr();
 static volatile uint8_t stream_timer;  // Timer1 runs the stream (normal mode) rather than a programme (CTC)
 
-// Serves the events after the one whose STEP edges (`high`, up at tick `rise` from the last match) have just
-// been raised: an event due too soon for another interrupt (a step of another axis a few ticks later) is
-// raised here, at its own tick + STEP_LEAD_TICKS, by busy-waiting; otherwise the next one is scheduled. Every
-// pulse lasts at least PULSE_TICKS. Returns false when the item's last step has been issued.
-static const uint16_t PULSE_TICKS = 10;  // 5 us high (the TB6600 needs >= 2.5 us)
-static const uint16_t CHAIN_TICKS = 24;  // an edge closer than this to TCNT1 is raised in this interrupt
+// Serves the queued events after the one whose STEP edges (`high`, up at tick `rise` from the last match)
+// have just been raised: every event due too soon for another interrupt (a step of another axis a few ticks
+// later) is raised here at its own tick + STEP_LEAD_TICKS by busy-waiting; then the queue is refilled while
+// the next event is far enough, the pulses end (each lasts at least PULSE_TICKS) and the next event is
+// scheduled. Returns false when the item's last step has been issued.
+static const uint16_t PULSE_TICKS = 10;    // 5 us high (the TB6600 needs >= 2.5 us)
+static const uint16_t CHAIN_TICKS = 24;    // an edge closer than this to TCNT1 is raised in this interrupt
+static const uint16_t REFILL_TICKS = 200;  // planning one event takes under 100 us (4 axes)
 
 // Waits for the end of the pulses up (at least PULSE_TICKS since `rise`) and lowers them.
 static inline void end_pulses(uint8_t high, uint16_t rise) {
@@ -284,43 +300,49 @@ static inline void end_pulses(uint8_t high, uint16_t rise) {
   PORTD &= (uint8_t)~high;
 }
 
-// Raises `mask` at tick `edge` (from the last match), in this interrupt: no compare match meanwhile; the pulses
-// up end first when they can.
-static inline void raise_here(uint8_t mask, uint16_t edge, uint8_t &high, uint16_t &rise) {
-  OCR1A = 0xFFFF;
-  if (high && (uint16_t)(edge - rise) >= PULSE_TICKS) {
-    end_pulses(high, rise);
-    high = 0;
-  }
-  while (TCNT1 < edge) {
-  }
-  PORTD |= mask;
-  count_steps(mask);
-  high |= mask;
-  rise = edge;
-}
-
-static bool serve_steps(uint8_t high, uint16_t rise) {
+static inline __attribute__((always_inline)) bool serve_steps(uint8_t high, uint16_t rise) {
+  uint8_t raised = high;
+  uint16_t at = (uint16_t)(rise - STEP_LEAD_TICKS);  // the tick (from the last match) of the last event raised
   for (;;) {
-    if (!nx_mask) {  // that was the item's last event
+    while (evq_n) {  // raise every queued event that is due too soon for another interrupt
+      uint8_t h = evq_head;
+      uint8_t g = evq_close[h];
+      if (!g) break;
+      uint16_t t = (uint16_t)(at + g);
+      if ((int16_t)(t - TCNT1) >= (int16_t)CHAIN_TICKS) break;
+      uint8_t m = evq_mask[h];
+      uint16_t edge = (uint16_t)(t + STEP_LEAD_TICKS);
+      while (TCNT1 < edge) {
+      }
+      PORTD |= m;
+      evq_head = (uint8_t)((h + 1) & (EVQ - 1));
+      evq_n--;
+      raised |= m;
+      high |= m;
+      rise = edge;
+      at = t;
+    }
+    if (raised) {
+      count_steps(raised);
+      raised = 0;
+    }
+    uint32_t delta = evq_n ? at + evq_gap[evq_head] : 0;  // the next event, in ticks from the last match
+    if (high && (!evq_n || delta >= (uint32_t)TCNT1 + CHAIN_TICKS + PULSE_TICKS)) {
       end_pulses(high, rise);
+      high = 0;
+    }
+    // plan ahead while the next event is far enough (or unknown)
+    while (more_steps && evq_n < EVQ && (!evq_n || delta >= (uint32_t)TCNT1 + REFILL_TICKS)) {
+      produce();
+      if (evq_n == 1) delta = at + evq_gap[evq_head];
+    }
+    if (!evq_n) {  // every step issued: the item is over (its last step is at the end of its window)
+      if (high) end_pulses(high, rise);
       return false;
     }
-    uint32_t delta = (uint32_t)((int32_t)nx_t - base_t);  // the next event, in ticks from the last match
-    if (delta < (uint32_t)TCNT1 + CHAIN_TICKS) {  // close: raise it first (it is known), then plan ahead
-      raise_here(nx_mask, (uint16_t)delta + STEP_LEAD_TICKS, high, rise);
-      plan_next();
-      continue;
-    }
-    ev_mask = nx_mask;  // the next match's event; plan the one after it meanwhile
-    plan_next();
-    end_pulses(high, rise);
-    high = 0;
-    if (delta >= (uint32_t)TCNT1 + CHAIN_TICKS) {
-      schedule(delta);
-      return true;
-    }
-    raise_here(ev_mask, (uint16_t)delta + STEP_LEAD_TICKS, high, rise);  // planning made it close
+    if (delta < (uint32_t)TCNT1 + CHAIN_TICKS || high) continue;  // close, or pulses still up
+    schedule(delta);
+    return true;
   }
 }
 
@@ -348,13 +370,28 @@ ISR(TIMER1_COMPA_vect) {
     // The axes whose next step is due now step together: one port write, a fixed STEP_LEAD_TICKS after the
     // compare match whatever the interrupt latency (another ISR may delay this one by a few us): every step
     // is late by the same 8 us.
-    uint8_t mask = ev_mask;
+    uint8_t mask = evq_mask[evq_head];
     while (TCNT1 < STEP_LEAD_TICKS) {
     }
     PORTD |= mask;
+    OCR1A = 0xFFFF;  // no compare match until the next event is scheduled (TCNT1 counts from this match)
+    uint8_t h = (uint8_t)((evq_head + 1) & (EVQ - 1));
+    evq_head = h;
+    evq_n--;
+    uint16_t rise = STEP_LEAD_TICKS;
+    uint8_t g = evq_n ? evq_close[h] : 0;
+    if (g && g < CHAIN_TICKS) {  // a step of another axis a few ticks later: raise it first
+      uint8_t m = evq_mask[h];
+      rise = (uint16_t)(STEP_LEAD_TICKS + g);
+      while (TCNT1 < rise) {
+      }
+      PORTD |= m;
+      mask |= m;
+      evq_head = (uint8_t)((h + 1) & (EVQ - 1));
+      evq_n--;
+    }
     base_t += (int32_t)period;
-    count_steps(mask);
-    if (serve_steps(mask, STEP_LEAD_TICKS)) return;
+    if (serve_steps(mask, rise)) return;
   } else {
     base_t += (int32_t)period;
   }
