@@ -397,7 +397,13 @@ ISR(TIMER1_COMPA_vect) {
   }
   base_t -= (int32_t)it.ticks;  // from the next item's start (this item's end)
   cur++;
+  // Planning the next item (a division and EVQ events per axis: up to about 400 us for four axes) runs with
+  // interrupts enabled, so that the UART's receiver is served meanwhile; no compare match can come before
+  // start_item() loads the next one (the next item's first event is >= 639 us away).
+  OCR1A = 0xFFFF;
+  sei();
   start_item();
+  cli();
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -619,12 +625,13 @@ static void run_go() {
   TCCR1A = 0;
   TCCR1B = 0;
   TCNT1 = 0;
+  OCR1A = 0xFFFF;
   TIFR1 = _BV(OCF1A);
-  start_item();  // t0 = now; sets OCR1A for the first event
-  if (running) {
-    TIMSK1 = _BV(OCIE1A);
-    TCCR1B = _BV(WGM12) | _BV(CS11);  // CTC on OCR1A, clk/8: 0.5 us ticks
-  }
+  TCCR1B = _BV(WGM12) | _BV(CS11);  // t0 = now: CTC on OCR1A, clk/8, 0.5 us ticks
+  // Plans the first events and sets OCR1A for the first (>= 639 us away; planning four axes takes under
+  // 400 us), so the planning does not delay the programme's time 0 after GO.
+  start_item();
+  if (running) TIMSK1 = _BV(OCIE1A);
   sei();
 }
 
