@@ -307,9 +307,15 @@ static inline __attribute__((always_inline)) bool serve_steps(uint8_t high, uint
     while (evq_n) {  // raise every queued event that is due too soon for another interrupt
       uint8_t h = evq_head;
       uint8_t g = evq_close[h];
-      if (!g) break;
-      uint16_t t = (uint16_t)(at + g);
-      if ((int16_t)(t - TCNT1) >= (int16_t)CHAIN_TICKS) break;
+      uint16_t t;
+      if (g) {  // the fast path for a step a few ticks after the last one
+        t = (uint16_t)(at + g);
+        if ((int16_t)(t - TCNT1) >= (int16_t)CHAIN_TICKS) break;
+      } else {  // a longer gap that planning has brought near (never expected: planning stops well before)
+        uint32_t d = at + evq_gap[h];
+        if (d >= (uint32_t)TCNT1 + CHAIN_TICKS) break;
+        t = (uint16_t)d;
+      }
       uint8_t m = evq_mask[h];
       uint16_t edge = (uint16_t)(t + STEP_LEAD_TICKS);
       while (TCNT1 < edge) {

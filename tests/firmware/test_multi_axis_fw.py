@@ -8,6 +8,7 @@ count; the link budget at 1 Mbaud through the harness's pseudo-terminal (``-m sl
 from __future__ import annotations
 
 import math
+import random
 import re
 import subprocess
 import time
@@ -255,6 +256,62 @@ def test_dense_four_axis_programme(four_build: tuple[Path, str], firmware_build:
     )
     assert min(late) >= -TICK_CYCLES and max(late) <= 4 * TICK_CYCLES
     assert within_one >= 0.98 * len(late)
+
+
+def random_programme(rnd: random.Random) -> tuple[list[str], list[list[int]], list[int], float]:
+    """A random four-axis programme within the limits: commands, each axis's step ticks (PROTOCOL.md's rule,
+    from GO), the final positions and the duration (s)."""
+    pos = [0, 0, 0, 0]
+    cmds, ticks, t0 = ["EN 1"], [[] for _ in UNO_AXES], 0
+    for _ in range(rnd.randint(2, 6)):
+        if rnd.random() < 0.2:
+            ms = rnd.randint(0, 30)
+            cmds.append(f"WAIT {ms}")
+            t0 += 2000 * ms
+            continue
+        steps = [0 if rnd.random() < 0.2 else rnd.randint(max(-p, -60), min(TRAVEL - p, 60)) for p in pos]
+        if not any(steps):
+            steps[0] = 1 if pos[0] < TRAVEL else -1
+        fastest, slowest = max(map(abs, steps)), min(abs(n) for n in steps if n)
+        window = rnd.randint(fastest * 639, min(slowest * 1_000_000, fastest * 639 * 3 + 5000))
+        cmds.append(f"MSEG {window} " + " ".join(map(str, steps)))
+        for a, n in enumerate(steps):
+            ticks[a] += [t0 - (-k * 2 * window // abs(n)) for k in range(1, abs(n) + 1)]
+            pos[a] += n
+        t0 += 2 * window
+    return cmds + ["GO"], ticks, pos, t0 / 2e6
+
+
+def _check_random(build: Path, seed: int) -> tuple[int, int]:
+    cmds, ticks, pos, duration = random_programme(random.Random(seed))
+    run = _stepper(build, cmds, 0.07 + 0.02 * len(cmds) + duration)
+    assert [ln.body for ln in run.lines][-1] == "DONE " + " ".join(map(str, pos)), seed
+    edges = [_rising(run, step) for step, _ in UNO_AXES]
+    assert [len(e) for e in edges] == [len(t) for t in ticks], seed
+    offsets = sorted(
+        c - 128 - t * TICK_CYCLES
+        for ts, es in zip(ticks, edges, strict=True)
+        for t, c in zip(ts, es, strict=True)
+    )
+    spread = offsets[-1] - offsets[0]
+    assert spread <= TICK_CYCLES, f"seed {seed}: edge-minus-tick spread {spread} cycles"
+    return len(offsets), spread
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_random_four_axis_programmes(four_build: tuple[Path, str], firmware_build: None, seed: int) -> None:
+    """Random programmes (2-6 items, dwells, 0-60 steps per axis and item, windows from the top speed up):
+    every step issued, each on its tick within one tick, the positions in DONE."""
+    _check_random(four_build[0], seed)
+
+
+@pytest.mark.slow
+def test_many_random_four_axis_programmes(four_build: tuple[Path, str], firmware_build: None) -> None:
+    results = [_check_random(four_build[0], seed) for seed in range(100, 160)]
+    print(
+        f"60 random four-axis programmes, {sum(n for n, _ in results)} steps: edge-minus-tick spread at most "
+        f"{max(s for _, s in results)} cycles"
+    )
 
 
 def test_per_axis_limits_refused_before_moving(four_build: tuple[Path, str], firmware_build: None) -> None:
