@@ -47,7 +47,9 @@ static const int32_t DWELL_MAX_MS = 60000;
 #define PROGRAMME_MAX RIG_PROGRAMME_MAX
 
 // The STEP edge is issued this many 0.5 us ticks after the compare match (longer than any other ISR).
-static const uint16_t STEP_LEAD_TICKS = 16;
+// (16 us with several axes: the compare ISR of a multi-axis programme saves more registers before its edge,
+// and a UART interrupt may come first.)
+static const uint16_t STEP_LEAD_TICKS = AXES > 1 ? 32 : 16;
 // Streaming: 16 us, since the control tick's short interrupt-free sections add to the UART's.
 static const uint16_t STREAM_STEP_LEAD_TICKS = 32;
 

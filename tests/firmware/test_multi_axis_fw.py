@@ -181,7 +181,7 @@ def test_four_axis_programme_steps_within_one_tick(
     ]
     assert bodies[8:] == ["DONE 0 0 0 0"]
     # PROTOCOL.md: step k of n in a window of W ticks falls on the first tick at or after k * W / n from the
-    # window's start (the exact time); its STEP edge follows the tick by a constant 8 us (128 cycles)
+    # window's start (the exact time); its STEP edge follows the tick by a constant lead (16 us, four axes)
     expected: list[list[tuple[int, float, int]]] = [[] for _ in UNO_AXES]  # (tick, exact tick, pull)
     t0 = 0
     for window, steps in PROGRAMME:
@@ -264,7 +264,7 @@ def random_programme(rnd: random.Random) -> tuple[list[str], list[list[int]], li
     pos = [0, 0, 0, 0]
     cmds, ticks, t0 = ["EN 1"], [[] for _ in UNO_AXES], 0
     for _ in range(rnd.randint(2, 6)):
-        if rnd.random() < 0.2:
+        if rnd.random() < 0.2 and any(ticks):  # a dwell (after some motion)
             ms = rnd.randint(0, 30)
             cmds.append(f"WAIT {ms}")
             t0 += 2000 * ms
