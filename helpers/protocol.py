@@ -34,8 +34,29 @@ from helpers.crc8 import INIT, crc8, crc8_hex
 from helpers.crc8 import TABLE as _CRC_TABLE
 from helpers.hardware import ADC_MAX
 
-FW_VERSION = "2.1.0"
+FW_VERSION = "2.2.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
+
+PAPER_RIG_HASH = "00000000"
+"""The rig hash the paper's one-tendon build reports (``firmware/common/rig_config_paper.h``; a placeholder
+until that header is generated from the rig file)."""
+
+
+def board_version(rig_hash: str = PAPER_RIG_HASH) -> str:
+    """The version token of ``HELLO``/``PONG``: ``<FW_VERSION>+<rig hash>`` (semantic-version build metadata).
+
+    Parameters
+    ----------
+    rig_hash : str
+        The 8 hex characters of the rig config the board was built for.
+
+    Returns
+    -------
+    str
+        E.g. ``"2.2.0+00000000"``.
+    """
+    return f"{FW_VERSION}+{rig_hash}"
+
 
 MAX_LINE = 63
 """Characters a line may hold before its ``\\n`` (PROTOCOL.md)."""

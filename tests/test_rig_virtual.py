@@ -26,7 +26,7 @@ def test_run_records_the_whole_programme(tmp_path):
     assert back.meta["counts"] == {
         "samples": len(f), "dropped": 0, "corrupted": 0, "overruns": 0, "implausible": 0,
     }  # fmt: skip
-    assert back.meta["firmware"] == {"daq": "2.1.0", "stepper": "2.1.0"}
+    assert back.meta["firmware"] == {"daq": "2.2.0+00000000", "stepper": "2.2.0+00000000"}
     assert back.meta["scenario"]["programme"]["items"][1] == {
         "kind": "SEG",
         "direction": 1,
@@ -86,7 +86,7 @@ def test_sync_by_ping_when_the_board_does_not_reset_on_open():
         timeout=0.5,
         hello_timeout=1.0,
     )
-    assert rig.daq.version == "2.1.0" and world.daq.received[0] == "PING"
+    assert rig.daq.version == "2.2.0+00000000" and world.daq.received[0] == "PING"
     assert world.daq.resets == 1  # only the reset at power-up
 
 

@@ -26,10 +26,10 @@ def talk(board, *commands, checksum=True):
 
 def test_hello_on_reset_and_pong_with_the_documented_checksum():
     w = make_world()
-    assert w.daq.take_output() == frame("HELLO daq 2.1.0")
+    assert w.daq.take_output() == frame("HELLO daq 2.2.0+00000000")
     w.daq.receive(b"PING*79\n")
-    assert w.daq.take_output() == b"PONG daq 2.1.0*9F\n"  # tests/crc_reference.py gives 9F
-    assert talk(w.stepper, "PING") == ["HELLO stepper 2.1.0", "PONG stepper 2.1.0"]
+    assert w.daq.take_output() == b"PONG daq 2.2.0+00000000*D4\n"  # tests/crc_reference.py gives D4
+    assert talk(w.stepper, "PING") == ["HELLO stepper 2.2.0+00000000", "PONG stepper 2.2.0+00000000"]
 
 
 def test_daq_errors_and_limits():
@@ -55,7 +55,7 @@ def test_daq_errors_and_limits():
     assert talk(d, "START") == ["OK START 200"]
     assert talk(d, "RATE 300")[0].startswith("ERR STATE")
     assert talk(d, "START")[0].startswith("ERR STATE")
-    assert talk(d, "PING") == ["PONG daq 2.1.0"]  # allowed while streaming
+    assert talk(d, "PING") == ["PONG daq 2.2.0+00000000"]  # allowed while streaming
 
 
 def test_daq_streams_at_its_rate_and_stop_reports_the_count():
@@ -154,7 +154,7 @@ def test_reset_sends_hello_and_forgets_state():
     talk(w.stepper, "CLEAR", "SEG 1 50 1000", "EN 1", "GO")
     w.advance_to(w.t + 0.02)
     msgs = talk(w.stepper)
-    assert msgs[-1] == "HELLO stepper 2.1.0"
+    assert msgs[-1] == "HELLO stepper 2.2.0+00000000"
     assert not w.stepper.enabled and not w.stepper.running and w.stepper.position == 0
 
 
@@ -169,7 +169,8 @@ def test_url_handler_same_rig_name_same_world():
     assert d.world is s.world is w
     assert d.read(100).startswith(b"HELLO daq")
     s.write(frame("PING"))
-    assert s.read(100) == frame("HELLO stepper 2.1.0") + frame("PONG stepper 2.1.0")  # reset on open, reply
+    # reset on open, reply
+    assert s.read(100) == frame("HELLO stepper 2.2.0+00000000") + frame("PONG stepper 2.2.0+00000000")
     t0 = w.t
     assert s.read(10) == b""  # nothing to come: the read waited its timeout in device time
     assert w.t == pytest.approx(t0 + 0.01)
@@ -263,3 +264,18 @@ def test_stream_commands_refused_as_the_firmware_refuses_them():
     assert talk(s, *["V 0"] * 9)[-1] == "ERR FULL 8 set-points queued"
     assert talk(s, "MEM") == ["OK MEM 560"] and talk(s, "ABORT") == ["ABORTED 0"]
     assert talk(s, "V 0") == ["ERR STATE not streaming"] and not s.enabled
+
+
+def test_mseg_spreads_its_steps_over_the_window_on_the_firmware_ticks():
+    w = make_world()
+    s = w.stepper
+    s.take_output()
+    assert talk(s, "CONFIG") == ["OK CONFIG 1 64 639 1000000 156"]
+    assert talk(s, "MSEG 7001 3", "MSEG 2000 -1", "EN 1", "GO")[-1] == "OK GO 2"
+    go = w.go_times[-1]
+    times, signs = s.steps_until(go + 1.0)
+    # PROTOCOL.md: step k of n on the first 0.5 us tick at or after k * W / n from the window's start
+    # (7001 us / 3 = 2333.67 us -> 2334.0; 4667.33 -> 4667.5; the window's end; then 7001 + 2000)
+    np.testing.assert_allclose((times - go) * 1e6, [2334.0, 4667.5, 7001.0, 9001.0], atol=1e-3)
+    assert list(signs) == [1, 1, 1, -1]
+    assert talk(w.daq, "CONFIG")[-1] == "OK CONFIG 1 1 100 2000"

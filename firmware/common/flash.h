@@ -11,6 +11,8 @@
 #define PROGMEM
 #define PSTR(s) (s)
 #define pgm_read_byte(p) (*(const uint8_t *)(p))
+#define pgm_read_word(p) (*(const uint16_t *)(p))
+#define pgm_read_dword(p) (*(const uint32_t *)(p))
 #define strcmp_P strcmp
 #endif
 

@@ -100,16 +100,34 @@ bool proto_is(const Command *cmd, const char *w) { return strcmp_P(cmd->word, w)
 
 // Decimal conversion by subtracting powers of ten: no 32-bit division (slow on the AVR), at most
 // 9 subtractions per digit.
-static const uint32_t POW10[10] = {1000000000UL, 100000000UL, 10000000UL, 1000000UL, 100000UL,
+static const uint32_t POW10[10] PROGMEM = {1000000000UL, 100000000UL, 10000000UL, 1000000UL, 100000UL,
                                    10000UL,      1000UL,      100UL,      10UL,      1UL};
 
+static const uint16_t POW10_16[4] PROGMEM = {1000U, 100U, 10U, 1U};
+
+// Values under 10000 (ADC counts, step counts) take 16-bit subtractions; larger ones skip their leading
+// zeros by comparisons first (a DAQ line of four channels holds ten numbers: the formatting is most of its
+// cost on the board).
 void LineWriter::u32(uint32_t v) {
-  bool started = false;
-  for (uint8_t i = 0; i < 10; i++) {
-    uint32_t p = POW10[i];
+  if (v < 10000UL) {
+    uint16_t w = (uint16_t)v;
+    uint8_t i = 0;
+    while (i < 3 && w < pgm_read_word(&POW10_16[i])) i++;
+    for (; i < 4; i++) {
+      uint16_t p = pgm_read_word(&POW10_16[i]);
+      char d = '0';
+      while (w >= p) { w -= p; d++; }
+      put(d);
+    }
+    return;
+  }
+  uint8_t i = 0;
+  while (v < pgm_read_dword(&POW10[i])) i++;  // v >= 10000: stops by i = 5
+  for (; i < 10; i++) {
+    uint32_t p = pgm_read_dword(&POW10[i]);
     char d = '0';
     while (v >= p) { v -= p; d++; }
-    if (d != '0' || started || i == 9) { put(d); started = true; }
+    put(d);
   }
 }
 

@@ -11,10 +11,14 @@
 
 #include "crc8.h"
 #include "flash.h"
+#include "rig_config.h"
 
 #define PROTO_MAX_LINE 63   // characters before '\n'
-#define PROTO_MAX_ARGS 3    // the most arguments any command takes (SEG)
-#define PROTO_OUT_MAX 72    // longest line a board sends, "*hh\n" included
+// The most arguments any command takes: SEG's 3, or MSEG's 1 + RIG_AXES.
+#define PROTO_MAX_ARGS (RIG_AXES + 1 > 3 ? RIG_AXES + 1 : 3)
+// Longest line a board sends, "*hh\n" included: 72, or 96 for a DAQ line of several channels and axes
+// ("D,<seq>,<t_us>" + RIG_CHANNELS ADC counts + RIG_AXES step counts: at most 91 + 4 characters).
+#define PROTO_OUT_MAX (RIG_CHANNELS + RIG_AXES > 2 ? 96 : 72)
 
 // Result of feeding one received byte to the line assembler.
 enum LineEvent : uint8_t { LINE_NONE = 0, LINE_READY, LINE_TOOLONG };

@@ -12,19 +12,34 @@
 
 #include <stdint.h>
 
+#include "rig_config.h"
+
 #define SP_DELTA_TICKS 32
 #define SP_PERIOD 625                       // DELTA per control period
 #define SP_PERIOD_TICKS 20000U              // 10 ms
 #define SP_ONE (1L << 28)                   // one step in residual units
 #define SP_AMP_ONE 4096                     // amplitude 1.0
 #define SP_AMP_MAX 16384                    // |a| <= 4.0
-#define SP_V_MAX 1640                       // |v| <= 1564.0 steps/s (a step every 639.375 us)
-#define SP_S_MAX (1640L * 4096L)            // speed limit on the shaped output
-#define SP_TRAVEL_MAX 156
+// The speed limit from the rig's shortest step interval: |v| <= 2^20 / RIG_MIN_INTERVAL_US (set-point units of
+// 2^-16 step per 16 us), i.e. 1640 for 639 us (1564.0 steps/s, a step every 639.375 us).
+#define SP_V_MAX ((int16_t)((1L << 20) / RIG_MIN_INTERVAL_US))
+#define SP_S_MAX ((int32_t)SP_V_MAX * 4096L)  // speed limit on the shaped output
+#define SP_TRAVEL_MAX ((int16_t)rig_axis_travel[0])  // streams drive axis 0 (its travel from the rig config)
 #define SP_MAX_IMPULSES 8
 #define SP_DELAY_UNIT_US 16
 #define SP_MAX_DELAY_US 1000000L
 #define SP_HIST 128                         // set-point history (a power of two > 100 + 2 periods)
+
+// The fixed-point ranges (PROTOCOL.md "Fixed point") hold for every rig config the contract allows:
+// the shaped sum of SP_MAX_IMPULSES impulses of |a| <= SP_AMP_MAX on |v| <= SP_V_MAX fits an int32; the clamped
+// speed moves less than one step per DELTA (one crossing per DELTA at most); a 10 ms period holds at most
+// 16 steps (the step queue holds two periods).
+static_assert((1L << 20) / RIG_MIN_INTERVAL_US <= 32767, "SP_V_MAX must fit an int16");
+static_assert((int64_t)((1L << 20) / RIG_MIN_INTERVAL_US) * SP_AMP_MAX * SP_MAX_IMPULSES < (1LL << 31),
+              "the shaped sum would overflow int32");
+static_assert((int64_t)((1L << 20) / RIG_MIN_INTERVAL_US) * SP_AMP_ONE < SP_ONE,
+              "the speed limit must stay under one step per DELTA");
+static_assert(10000L / RIG_MIN_INTERVAL_US + 1 <= 16, "more than 16 steps per control period");
 
 enum SpNotice : uint8_t { SP_NOTICE_SPEED = 1, SP_NOTICE_TRAVEL = 2 };
 

@@ -1,5 +1,6 @@
-// DAQ board: Arduino Mega 2560. Samples the load-cell amplifier on A0 and counts the stepper driver's STEP
-// pulses (with DIR), streaming both on one clock. Protocol: firmware/PROTOCOL.md (500000 baud, 8N1).
+// DAQ board: Arduino Mega 2560. Samples the load-cell amplifiers on A0..A3 (RIG_CHANNELS of them, from the rig
+// config) and counts each stepper driver's STEP pulses (with DIR; RIG_AXES of them), streaming both on one
+// clock. Protocol: firmware/PROTOCOL.md (RIG_DAQ_BAUD: 500000 baud for the paper's rig, 8N1).
 //
 // Built by firmware/Makefile as C++ with `-include Arduino.h` (no IDE: functions are declared before use).
 //
@@ -11,19 +12,28 @@
 // waits for the serial line: if the ring is full (the host link cannot keep up), the sample period is
 // counted as missed and reported as `W,OVERRUN,<n>` before the next data line, never skipped silently.
 //
-// Pins: A0 = amplifier output (via the 150 ohm shunt), D2 = STEP (INT4, rising edge), D4 = DIR (HIGH = pull).
+// Several channels: the timer ISR starts channel 0 and takes every axis's step count at the same instant; the
+// ADC-complete ISR starts the next channel (one 104 us conversion each) and stores the sample after the last.
+//
+// Pins: A0..A3 = amplifier outputs (via the 150 ohm shunts). Axis 0: D2 = STEP (INT4, rising edge), D4 = DIR
+// (HIGH = pull); axis 1: D3 (INT5) / D5; axis 2: D19 (INT2) / D23; axis 3: D18 (INT3) / D25.
 
 #include <avr/interrupt.h>
 #include <avr/io.h>
 
 #include "proto.h"
 #include "reply.h"
+#include "rig_config.h"
 
-#define FW_VERSION "2.1.0"
+// The version reported in HELLO and PONG: the protocol version, then "+" and the rig config's hash.
+#define FW_VERSION "2.2.0"
+#define FW_ID FW_VERSION "+" RIG_HASH
 
-static const uint16_t RATE_MIN_HZ = 100;
-static const uint16_t RATE_MAX_HZ = 2000;
-static const uint16_t RATE_DEFAULT_HZ = 1000;
+#define CHANNELS RIG_CHANNELS
+#define AXES RIG_AXES
+static const uint16_t RATE_MIN_HZ = RIG_DAQ_RATE_MIN_HZ;
+static const uint16_t RATE_MAX_HZ = RIG_DAQ_RATE_MAX_HZ;
+static const uint16_t RATE_DEFAULT_HZ = RIG_DAQ_RATE_DEFAULT_HZ;
 static const uint32_t TIMER1_HZ = 2000000UL;  // F_CPU / 8
 static const uint16_t SAMPLE_LEAD_TICKS = 32;   // conversion start 16 us after the compare match
 
@@ -32,28 +42,54 @@ static const uint16_t SAMPLE_LEAD_TICKS = 32;   // conversion start 16 us after 
 
 struct Sample {
   uint32_t t_us;
-  int32_t steps;
-  uint16_t adc;
+  int32_t steps[AXES];
+  uint16_t adc[CHANNELS];
   uint32_t missed_before;  // sample periods missed just before this sample (0 normally)
 };
 
 #define RING_SIZE 64  // power of two; 64 samples = 32 ms of slack at 2 kHz
 static volatile Sample ring[RING_SIZE];
+// The ring is the DAQ's one large table: refuse a config whose ring leaves less than half the RAM.
+static_assert(sizeof(ring) <= (RAMEND + 1 - RAMSTART) / 2, "rig config: the sample ring does not fit the Mega's RAM");
+// Every channel converted within the shortest sample period (13 ADC clocks of 8 us each, plus the lead).
+static_assert(CHANNELS * 104L + 16 < 1000000L / RIG_DAQ_RATE_MAX_HZ, "rig config: too many channels for the rate");
 static volatile uint8_t ring_head;     // next slot the ADC ISR fills (written only by ISRs)
 static volatile uint8_t ring_tail;     // next slot the main loop sends (written only by the main loop)
 static volatile uint8_t conv_busy;     // a conversion started by the timer ISR is in progress
 static volatile uint32_t missed;       // periods missed since the last sample taken
-static volatile int32_t step_count;    // STEP pulses since ZERO, + for pulls
+static volatile int32_t step_count[AXES];  // STEP pulses since ZERO, + for pulls
+static volatile uint8_t conv_channel;  // the channel being converted
 
 static uint8_t streaming;
 static uint16_t rate_hz = RATE_DEFAULT_HZ;
 static uint32_t n_sent;                // data lines sent since START (= next seq)
 
-// STEP on D2 = PE4 = INT4 (rising edge); DIR on D4 = PG5, sampled on each pulse.
+// Axis 0: STEP on D2 = PE4 = INT4 (rising edge); DIR on D4 = PG5, sampled on each pulse.
 ISR(INT4_vect) {
-  if (PING & _BV(PG5)) step_count++;
-  else step_count--;
+  if (PING & _BV(PG5)) step_count[0]++;
+  else step_count[0]--;
 }
+#if AXES > 1
+// Axis 1: STEP D3 = PE5 = INT5, DIR D5 = PE3.
+ISR(INT5_vect) {
+  if (PINE & _BV(PE3)) step_count[1]++;
+  else step_count[1]--;
+}
+#endif
+#if AXES > 2
+// Axis 2: STEP D19 = PD2 = INT2, DIR D23 = PA1.
+ISR(INT2_vect) {
+  if (PINA & _BV(PA1)) step_count[2]++;
+  else step_count[2]--;
+}
+#endif
+#if AXES > 3
+// Axis 3: STEP D18 = PD3 = INT3, DIR D25 = PA3.
+ISR(INT3_vect) {
+  if (PINA & _BV(PA3)) step_count[3]++;
+  else step_count[3]--;
+}
+#endif
 
 ISR(TIMER1_COMPA_vect) {
   uint8_t head = ring_head;
@@ -67,7 +103,7 @@ ISR(TIMER1_COMPA_vect) {
   }
   ADCSRA |= _BV(ADSC);
   volatile Sample &s = ring[head];
-  s.steps = step_count;
+  for (uint8_t a = 0; a < AXES; a++) s.steps[a] = step_count[a];
   s.t_us = micros();
   s.missed_before = missed;
   missed = 0;
@@ -76,7 +112,20 @@ ISR(TIMER1_COMPA_vect) {
 
 ISR(ADC_vect) {
   uint8_t head = ring_head;
-  ring[head].adc = ADC;
+#if CHANNELS > 1
+  uint8_t ch = conv_channel;
+  ring[head].adc[ch] = ADC;
+  if (++ch < CHANNELS) {  // the next channel at once (A0..A3 are MUX 0..3 with MUX5 = 0)
+    conv_channel = ch;
+    ADMUX = (uint8_t)(_BV(REFS0) | ch);
+    ADCSRA |= _BV(ADSC);
+    return;
+  }
+  conv_channel = 0;
+  ADMUX = _BV(REFS0);
+#else
+  ring[head].adc[0] = ADC;
+#endif
   ring_head = (uint8_t)((head + 1) & (RING_SIZE - 1));
   conv_busy = 0;
 }
@@ -111,10 +160,14 @@ static void service_stream() {
       pending.u32(n_sent);
       pending.put(',');
       pending.u32(s.t_us);
-      pending.put(',');
-      pending.u32(s.adc);
-      pending.put(',');
-      pending.i32(s.steps);
+      for (uint8_t c = 0; c < CHANNELS; c++) {
+        pending.put(',');
+        pending.u32(s.adc[c]);
+      }
+      for (uint8_t a = 0; a < AXES; a++) {
+        pending.put(',');
+        pending.i32(s.steps[a]);
+      }
       pending_is_data = 1;
     }
     pending_len = pending.finish();
@@ -139,6 +192,8 @@ static void sampler_start() {
   ring_head = 0;
   ring_tail = 0;
   conv_busy = 0;
+  conv_channel = 0;
+  ADMUX = _BV(REFS0);
   missed = 0;
   n_sent = 0;
   pending_len = 0;
@@ -182,20 +237,41 @@ static void sampler_stop() {
 static void handle(Command *cmd) {
   if (proto_is(cmd, PSTR("PING"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("PING takes no argument"));
-    out.text(PSTR("PONG daq " FW_VERSION));
+    out.text(PSTR("PONG daq " FW_ID));
   } else if (proto_is(cmd, PSTR("RATE"))) {
     if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("RATE needs 1 integer"));
     if (streaming) return out.err(PSTR("STATE"), PSTR("streaming"));
     int32_t hz = cmd->arg[0];
-    if (hz < RATE_MIN_HZ || hz > RATE_MAX_HZ) return out.err(PSTR("RANGE"), PSTR("rate 100-2000 Hz"));
+    if (hz < RATE_MIN_HZ || hz > RATE_MAX_HZ) {
+      out.begin();
+      out.line.str_P(PSTR("ERR RANGE rate "));
+      out.line.u32(RATE_MIN_HZ);
+      out.line.put('-');
+      out.line.u32(RATE_MAX_HZ);
+      out.line.str_P(PSTR(" Hz"));
+      return out.send();
+    }
     rate_hz = (uint16_t)hz;
     out.word_u32(PSTR("OK RATE"), rate_hz);
   } else if (proto_is(cmd, PSTR("ZERO"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("ZERO takes no argument"));
     cli();
-    step_count = 0;
+    for (uint8_t a = 0; a < AXES; a++) step_count[a] = 0;
     sei();
     out.text(PSTR("OK ZERO"));
+  } else if (proto_is(cmd, PSTR("CONFIG"))) {
+    // CONFIG -> OK CONFIG <channels> <axes> <rate_min_hz> <rate_max_hz>
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("CONFIG takes no argument"));
+    out.begin();
+    out.line.str_P(PSTR("OK CONFIG "));
+    out.line.u32(CHANNELS);
+    out.line.put(' ');
+    out.line.u32(AXES);
+    out.line.put(' ');
+    out.line.u32(RATE_MIN_HZ);
+    out.line.put(' ');
+    out.line.u32(RATE_MAX_HZ);
+    out.send();
   } else if (proto_is(cmd, PSTR("START"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("START takes no argument"));
     if (streaming) return out.err(PSTR("STATE"), PSTR("streaming"));
@@ -232,12 +308,12 @@ static void service_rx() {
 }
 
 void setup() {
-  Serial.begin(500000);
+  Serial.begin(RIG_DAQ_BAUD);
   reader.reset();
   // ADC: AVcc reference, channel A0, enabled with its interrupt, clk/128 (125 kHz, 104 us per conversion).
   ADMUX = _BV(REFS0);
   ADCSRB = 0;
-  DIDR0 = _BV(ADC0D);
+  DIDR0 = (uint8_t)((1 << CHANNELS) - 1);  // digital inputs off on A0..A(CHANNELS-1)
   ADCSRA = _BV(ADEN) | _BV(ADIE) | _BV(ADPS2) | _BV(ADPS1) | _BV(ADPS0);
   // STEP (D2/PE4) and DIR (D4/PG5) as inputs; INT4 on the rising edge.
   DDRE &= ~_BV(PE4);
@@ -245,7 +321,27 @@ void setup() {
   EICRB = (EICRB & ~(_BV(ISC41) | _BV(ISC40))) | _BV(ISC41) | _BV(ISC40);
   EIFR = _BV(INTF4);
   EIMSK |= _BV(INT4);
-  out.text(PSTR("HELLO daq " FW_VERSION));
+#if AXES > 1
+  DDRE &= (uint8_t)~(_BV(PE5) | _BV(PE3));
+  EICRB |= _BV(ISC51) | _BV(ISC50);
+  EIFR = _BV(INTF5);
+  EIMSK |= _BV(INT5);
+#endif
+#if AXES > 2
+  DDRD &= (uint8_t)~_BV(PD2);
+  DDRA &= (uint8_t)~_BV(PA1);
+  EICRA |= _BV(ISC21) | _BV(ISC20);
+  EIFR = _BV(INTF2);
+  EIMSK |= _BV(INT2);
+#endif
+#if AXES > 3
+  DDRD &= (uint8_t)~_BV(PD3);
+  DDRA &= (uint8_t)~_BV(PA3);
+  EICRA |= _BV(ISC31) | _BV(ISC30);
+  EIFR = _BV(INTF3);
+  EIMSK |= _BV(INT3);
+#endif
+  out.text(PSTR("HELLO daq " FW_ID));
 }
 
 void loop() {

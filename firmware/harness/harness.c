@@ -10,9 +10,10 @@
  *   -p            UART on a pseudo-terminal: prints "PTY <path>" on stdout, then serves it until -d or SIGTERM
  *   -s FACTOR     pty mode pacing: at most FACTOR x real time (default 1; 0 = as fast as possible)
  *   -T            stdio mode: prefix every UART output line with the cycle count at its '\n'
- *   -a FILE       ADC0 waveform: lines "<t_s> <mV>", linear in between, held before/after; it is sampled
- *                 at each conversion start (ADC_IRQ_OUT_TRIGGER)
- *   -A FILE       log of each conversion: "<cycle> <mV>" (and "# trigger <cycle>" when -t fires)
+ *   -a FILE       ADC waveform: lines "<t_s> <mV0> [<mV1> ...]" for ADC0 (and ADC1.. ADC7: one column each, as
+ *                 many as the first line has), linear in between, held before/after; sampled at each
+ *                 conversion start (ADC_IRQ_OUT_TRIGGER), every channel at once
+ *   -A FILE       log of each conversion: "<cycle> <mV0> [<mV1> ...]" (and "# trigger <cycle>" when -t fires)
  *   -t PIN        the waveform's time 0 is the first rising edge of the first board's pin PIN (e.g. E4, the
  *                 Mega's STEP input); until then ADC0 reads the waveform's first value. For recordings whose
  *                 input depends on when a motion starts (firmware in the loop: tension computed from the
@@ -230,10 +231,11 @@ static avr_cycle_count_t script_timer(struct avr_t *a, avr_cycle_count_t when, v
 /* ------------------------------------------------------------------------------------------------------ */
 /* ADC waveform                                                                                            */
 
-static double *wave_t, *wave_mv;
-static size_t wave_n;
+#define WAVE_MAX_CH 8
+static double *wave_t, *wave_mv;        /* wave_mv[i * wave_ch + c] */
+static size_t wave_n, wave_ch;
 static FILE *adc_log;
-static avr_irq_t *adc0_irq;
+static avr_irq_t *adc_irq[WAVE_MAX_CH];
 static int wave_triggered = 1;          /* 0 while -t waits for its edge */
 static avr_cycle_count_t wave_origin;   /* cycle of the waveform's time 0 */
 
@@ -248,19 +250,30 @@ static void on_trigger(struct avr_irq_t *irq, uint32_t value, void *param) {
 static void load_wave(const char *path) {
   FILE *f = fopen(path, "r");
   if (!f) die("cannot open the ADC waveform");
-  double t, v;
+  double t, v[WAVE_MAX_CH];
   size_t cap = 0;
-  char buf[256];
+  char buf[512];
   while (fgets(buf, sizeof buf, f)) {
-    if (sscanf(buf, "%lf %lf", &t, &v) != 2) continue;
+    char *p = buf, *end;
+    t = strtod(p, &end);
+    if (end == p) continue;
+    size_t nc = 0;
+    for (p = end; nc < WAVE_MAX_CH; p = end) {
+      v[nc] = strtod(p, &end);
+      if (end == p) break;
+      nc++;
+    }
+    if (!nc) continue;
+    if (!wave_ch) wave_ch = nc;
+    if (nc != wave_ch) die("every ADC waveform line needs the same number of channels");
     if (wave_n == cap) {
       cap = cap * 2 + 1024;
       wave_t = xrealloc(wave_t, cap * sizeof(double));
-      wave_mv = xrealloc(wave_mv, cap * sizeof(double));
+      wave_mv = xrealloc(wave_mv, cap * wave_ch * sizeof(double));
     }
     if (wave_n && t < wave_t[wave_n - 1]) die("ADC waveform times must not decrease");
     wave_t[wave_n] = t;
-    wave_mv[wave_n] = v;
+    for (size_t c = 0; c < wave_ch; c++) wave_mv[wave_n * wave_ch + c] = v[c];
     wave_n++;
   }
   fclose(f);
@@ -268,23 +281,30 @@ static void load_wave(const char *path) {
 }
 
 static size_t wave_i;
-static double wave_at(double t) {
-  if (t <= wave_t[0]) return wave_mv[0];
-  if (t >= wave_t[wave_n - 1]) return wave_mv[wave_n - 1];
+static double wave_at(double t, size_t c) {
+  const size_t k = wave_ch;
+  if (t <= wave_t[0]) return wave_mv[c];
+  if (t >= wave_t[wave_n - 1]) return wave_mv[(wave_n - 1) * k + c];
   if (wave_i >= wave_n - 1 || wave_t[wave_i] > t) wave_i = 0;
   while (wave_t[wave_i + 1] < t) wave_i++;
   double t0 = wave_t[wave_i], t1 = wave_t[wave_i + 1];
-  if (t1 <= t0) return wave_mv[wave_i + 1];
-  return wave_mv[wave_i] + (wave_mv[wave_i + 1] - wave_mv[wave_i]) * (t - t0) / (t1 - t0);
+  double v0 = wave_mv[wave_i * k + c], v1 = wave_mv[(wave_i + 1) * k + c];
+  if (t1 <= t0) return v1;
+  return v0 + (v1 - v0) * (t - t0) / (t1 - t0);
 }
 
 static void on_adc_trigger(struct avr_irq_t *irq, uint32_t value, void *param) {
   (void)irq; (void)value; (void)param;
-  double mv = wave_triggered ? wave_at((double)(avr->cycle - wave_origin) / (double)avr->frequency) : wave_mv[0];
-  if (mv < 0) mv = 0;
-  uint32_t imv = (uint32_t)llround(mv);
-  if (adc_log) fprintf(adc_log, "%llu %u\n", (unsigned long long)avr->cycle, imv);
-  avr_raise_irq(adc0_irq, imv);
+  if (adc_log) fprintf(adc_log, "%llu", (unsigned long long)avr->cycle);
+  for (size_t c = 0; c < wave_ch; c++) {
+    double mv = wave_triggered ? wave_at((double)(avr->cycle - wave_origin) / (double)avr->frequency, c)
+                               : wave_mv[c];
+    if (mv < 0) mv = 0;
+    uint32_t imv = (uint32_t)llround(mv);
+    if (adc_log) fprintf(adc_log, " %u", imv);
+    avr_raise_irq(adc_irq[c], imv);
+  }
+  if (adc_log) fputc('\n', adc_log);
 }
 
 /* ------------------------------------------------------------------------------------------------------ */
@@ -496,7 +516,7 @@ int main(int argc, char **argv) {
 
   if (wave_path) {
     load_wave(wave_path);
-    adc0_irq = avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0);
+    for (size_t c = 0; c < wave_ch; c++) adc_irq[c] = avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + c);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_OUT_TRIGGER), on_adc_trigger, NULL);
     if (adc_log_path && !(adc_log = fopen(adc_log_path, "w"))) die("cannot write the ADC log");
     if (trigger) {

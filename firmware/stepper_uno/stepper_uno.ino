@@ -1,7 +1,11 @@
-// Stepper board: Arduino Uno driving a TB6600 on STEP = D5, DIR = D6 (HIGH = pull), ENA = D7 (HIGH disables).
+// Stepper board: Arduino Uno driving up to four TB6600 drivers (RIG_AXES, from the rig config): axis 0 on
+// STEP = D5, DIR = D6 (HIGH = pull); axes 1-3 on STEP = D2, D3, D4 and DIR = D10, D11, D12; one ENA = D7
+// (HIGH disables every driver).
 // Two modes, both with Timer1 step timing: a stored programme of segments and dwells (GO), and a stream of
-// velocity set-points shaped on the board by one loaded input shaper (STREAM). Protocol: firmware/PROTOCOL.md
-// (115200 baud, 8N1).
+// velocity set-points shaped on the board by one loaded input shaper (STREAM, axis 0). A programme item moves
+// every axis by its own step count in one time window (MSEG; SEG is one on axis 0), the steps of each axis
+// spread over the window Bresenham-style: step k of n at the first timer tick at or after k/n of the window.
+// Protocol: firmware/PROTOCOL.md (RIG_STEPPER_BAUD, 115200 for the paper's rig, 8N1).
 //
 // Built by firmware/Makefile as C++ with `-include Arduino.h` (no IDE: functions are declared before use).
 //
@@ -28,26 +32,44 @@
 
 #include "proto.h"
 #include "reply.h"
+#include "rig_config.h"
 #include "stream_plan.h"
 
-#define FW_VERSION "2.1.0"
+// The version reported in HELLO and PONG: the protocol version, then "+" and the rig config's hash.
+#define FW_VERSION "2.2.0"
+#define FW_ID FW_VERSION "+" RIG_HASH
 
-// Compiled-in limits (PROTOCOL.md table).
-static const int32_t INTERVAL_MIN_US = 639;       // 400 mm/s at 0.25525 mm/step
-static const int32_t INTERVAL_MAX_US = 1000000;   // one step per second
-static const int16_t TRAVEL_MAX_STEPS = 156;      // 40 mm at 0.25525 mm/step, from zero
+// Compiled-in limits (PROTOCOL.md table), from the rig config (rig_config.h).
+static const int32_t INTERVAL_MIN_US = RIG_MIN_INTERVAL_US;  // paper: 639 us, 400 mm/s at 0.25525 mm/step
+static const int32_t INTERVAL_MAX_US = RIG_MAX_INTERVAL_US;  // paper: one step per second
 static const int32_t DWELL_MAX_MS = 60000;
-#define PROGRAMME_MAX 64
+#define AXES RIG_AXES
+#define PROGRAMME_MAX RIG_PROGRAMME_MAX
 
 // The STEP edge is issued this many 0.5 us ticks after the compare match (longer than any other ISR).
-static const uint16_t STEP_LEAD_TICKS = 16;
+// (16 us with several axes: the compare ISR of a multi-axis programme saves more registers before its edge,
+// and a UART interrupt may come first.)
+static const uint16_t STEP_LEAD_TICKS = AXES > 1 ? 32 : 16;
 // Streaming: 16 us, since the control tick's short interrupt-free sections add to the UART's.
 static const uint16_t STREAM_STEP_LEAD_TICKS = 32;
 
-// STEP = D5 = PD5, DIR = D6 = PD6, ENA = D7 = PD7.
+// Axis 0: STEP = D5 = PD5, DIR = D6 = PD6; ENA = D7 = PD7 (all drivers). Axes 1-3: STEP = D2, D3, D4 (PD2-PD4,
+// so that the STEP edges of steps due at the same tick are one port write), DIR = D10, D11, D12 (PB2-PB4).
 #define STEP_BIT _BV(PD5)
 #define DIR_BIT _BV(PD6)
 #define ENA_BIT _BV(PD7)
+static const uint8_t AXIS_STEP_BIT[4] = {_BV(PD5), _BV(PD2), _BV(PD3), _BV(PD4)};
+static const uint8_t AXIS_DIR_BIT[4] = {_BV(PD6), _BV(PB2), _BV(PB3), _BV(PB4)};  // axis 0 on PORTD, others PORTB
+static uint8_t all_step_bits() {
+  uint8_t m = 0;
+  for (uint8_t a = 0; a < AXES; a++) m |= AXIS_STEP_BIT[a];
+  return m;
+}
+static uint8_t dir_bits_b() {
+  uint8_t m = 0;
+  for (uint8_t a = 1; a < AXES; a++) m |= AXIS_DIR_BIT[a];
+  return m;
+}
 #define TP_TICK_BIT _BV(PB0)  // test point D8: control tick running
 #define TP_STEP_BIT _BV(PB1)  // test point D9: streamed step being emitted
 
@@ -78,10 +100,12 @@ void ena_disable_at_reset(void) {
 
 enum ItemKind : uint8_t { ITEM_SEG = 1, ITEM_WAIT = 2 };
 
+// SEG (axis 0) and MSEG are both a window of `ticks` in which axis a makes n[a] steps (step k of n at
+// ceil(k * ticks / n) from the window's start: for SEG, k * interval exactly); WAIT is a window without steps.
 struct Item {
-  uint32_t ticks;   // SEG: interval between steps; WAIT: the dwell; in 0.5 us ticks
-  uint8_t n_steps;  // SEG only (<= TRAVEL_MAX_STEPS)
-  int8_t dir;       // SEG only: +1 pull, -1 release
+  uint32_t ticks;      // the window (SEG: n * interval; WAIT: the dwell), in 0.5 us ticks
+  uint8_t n[AXES];     // steps of each axis (<= its travel)
+  uint8_t release;     // bit a set: axis a releases (-1), else pulls (+1)
   uint8_t kind;
 };
 
@@ -101,13 +125,27 @@ struct StreamMem {
 static StreamMem st;
 static uint8_t prog_len;
 
+// RAM budget, checked at compile time: the programme table and the streaming state (the tables the rig
+// config sizes) must leave room for the rest of the static data (serial buffers, line buffers, run state:
+// about 520 bytes) and at least 256 bytes of stack (the deepest stack measured in simavr is under 200 bytes).
+static const uint16_t RAM_BYTES = RAMEND + 1 - RAMSTART;
+static_assert(sizeof(prog) + sizeof(StreamMem) + 520 + 256 <= RAM_BYTES,
+              "rig config: the programme table (RIG_PROGRAMME_MAX x RIG_AXES) does not fit the Uno's RAM");
+
 // Run state (ISR-owned while running).
 static volatile uint8_t running;
 static volatile uint8_t done_flag;    // one byte: set by the ISR, cleared by the main loop
-static volatile int16_t position;     // steps from zero, + for pulls
+static volatile int16_t position[AXES];  // steps from zero, + for pulls
 static uint8_t cur;                   // index of the item in progress
-static uint8_t steps_left;            // steps still to issue in the current segment
 static uint32_t rem_ticks;            // ticks still to wait after the present chunk
+// The item in progress: the time of the present event and, per axis, its next step by the Bresenham
+// recurrence k * window = n * f + e (0 <= e < n): step k at f + (e != 0) ticks from the item's start.
+struct AxisRun {
+  uint32_t f, q;   // f: floor(k * window / n) of the next step k; q = window / n
+  uint8_t e, r;    // e: the remainder of the next step; r = window % n
+  uint8_t left;    // steps still to issue
+};
+static AxisRun ax[AXES];
 static volatile uint8_t enabled;      // driver enabled (ENA LOW); the stream watchdog may clear it
 
 static void timer_stop() {
@@ -115,21 +153,99 @@ static void timer_stop() {
   TIMSK1 = 0;
 }
 
-// Loads the wait until the next event (called just after a compare match, or with the timer stopped):
-// OCR1A = period - 1; a wait over 65536 ticks starts with a chunk of 32768 and the ISR loads the rest.
+// Time bookkeeping of a programme: TCNT1 counts from the last compare match (CTC), whose time is `base_t`
+// (ticks from the start of the item in progress; <= 0 just after an item began between two matches), and
+// `period` is the length of the wait loaded last, so that each match advances `base_t` by it.
+static int32_t base_t;
+static uint32_t period;
+
+// Loads the wait until the next event, `ticks` after the last compare match (called just after a match, while
+// TCNT1 is still well below `ticks`, or with the timer stopped): OCR1A = ticks - 1; a wait over 65536 ticks
+// starts with a chunk of 32768 and the ISR loads the rest.
 static void schedule(uint32_t ticks) {
   if (ticks > 65536UL) {
     OCR1A = 32768 - 1;
     rem_ticks = ticks - 32768;
+    period = 32768;
   } else {
     OCR1A = (uint16_t)(ticks - 1);
     rem_ticks = 0;
+    period = ticks;
   }
 }
 
-static void set_dir(int8_t dir) {
-  if (dir > 0) PORTD |= DIR_BIT;
-  else PORTD &= ~DIR_BIT;
+static void set_axis_dir(uint8_t a, bool pull) {
+  if (a == 0) {
+    if (pull) PORTD |= DIR_BIT;
+    else PORTD &= ~DIR_BIT;
+  } else {
+    if (pull) PORTB |= AXIS_DIR_BIT[a];
+    else PORTB &= (uint8_t)~AXIS_DIR_BIT[a];
+  }
+}
+
+static inline uint32_t axis_next(const AxisRun &r) { return r.f + (r.e ? 1 : 0); }
+
+// The item's next events, planned ahead into a small queue, so that the compare ISR raises an event's STEP
+// edges without computing first, and events due a few ticks after one another (steps of different axes) are
+// each raised at their own tick: (evq_gap, evq_mask), the gap in ticks after the previous event (the first:
+// after the item's start), oldest first. Each axis's Bresenham state is advanced past every queued event;
+// `more_steps` is clear once every step is queued.
+#define EVQ 4  // a power of two; at most one event per axis falls within the shortest step interval
+static uint32_t evq_gap[EVQ];
+static uint8_t evq_close[EVQ];  // the gap when it is under CLOSE_TICKS (to be chained without 32-bit work), else 0
+#define CLOSE_TICKS 200
+static uint32_t evq_last;  // the time of the last queued event (ticks from the item's start)
+static uint8_t evq_mask[EVQ];
+static uint8_t evq_head, evq_n;
+static uint8_t more_steps;
+
+// Queues the earliest next step among the axes with steps left, and advances those axes past it.
+static void produce() {
+  uint32_t t = 0xFFFFFFFFUL;
+  uint8_t mask = 0;
+  for (uint8_t a = 0; a < AXES; a++) {
+    if (!ax[a].left) continue;
+    uint32_t ta = axis_next(ax[a]);
+    if (ta < t) {
+      t = ta;
+      mask = AXIS_STEP_BIT[a];
+    } else if (ta == t) {
+      mask |= AXIS_STEP_BIT[a];
+    }
+  }
+  if (!mask) {
+    more_steps = 0;
+    return;
+  }
+  uint8_t i = (uint8_t)((evq_head + evq_n) & (EVQ - 1));
+  evq_gap[i] = t - evq_last;
+  evq_close[i] = (t - evq_last < CLOSE_TICKS) ? (uint8_t)(t - evq_last) : 0;
+  evq_last = t;
+  evq_mask[i] = mask;
+  evq_n++;
+  const Item &it = prog[cur];
+  for (uint8_t a = 0; a < AXES; a++) {
+    AxisRun &r = ax[a];
+    if (!(mask & AXIS_STEP_BIT[a])) continue;
+    if (--r.left) {  // step k + 1: (k + 1) * window = n * (f + q) + (e + r), carried
+      r.f += r.q;
+      uint16_t e = (uint16_t)r.e + r.r;
+      if (e >= it.n[a]) {
+        e -= it.n[a];
+        r.f++;
+      }
+      r.e = (uint8_t)e;
+    }
+  }
+}
+
+// The positions after the STEP edges of `mask` (called as they go up).
+static void count_steps(uint8_t mask) {
+  const Item &it = prog[cur];
+  for (uint8_t a = 0; a < AXES; a++) {
+    if (mask & AXIS_STEP_BIT[a]) position[a] += (it.release & (1 << a)) ? -1 : 1;
+  }
 }
 
 // Starts item `cur` at the present event time (skipping zero-length dwells); finishes after the last one.
@@ -137,13 +253,27 @@ static void start_item() {
   while (cur < prog_len) {
     Item &it = prog[cur];
     if (it.kind == ITEM_SEG) {
-      set_dir(it.dir);
-      steps_left = it.n_steps;
-      schedule(it.ticks);
+      for (uint8_t a = 0; a < AXES; a++) {
+        AxisRun &r = ax[a];
+        r.left = it.n[a];
+        if (!r.left) continue;
+        set_axis_dir(a, !(it.release & (1 << a)));
+        r.q = it.ticks / r.left;  // step 1 of n: 1 * window = n * q + r
+        r.r = (uint8_t)(it.ticks % r.left);
+        r.f = r.q;
+        r.e = r.r;
+      }
+      evq_head = evq_n = 0;
+      evq_last = 0;
+      more_steps = 1;
+      for (uint8_t k = 0; k < EVQ; k++) produce();  // its first events (the first >= 639 us away); the
+                                                     // compare ISRs plan the rest ahead
+      schedule((uint32_t)((int32_t)evq_gap[evq_head] - base_t));
       return;
     }
     if (it.ticks > 0) {
-      schedule(it.ticks);
+      for (uint8_t a = 0; a < AXES; a++) ax[a].left = 0;
+      schedule((uint32_t)((int32_t)it.ticks - base_t));
       return;
     }
     cur++;
@@ -156,6 +286,74 @@ static void start_item() {
 static void stream_step_isr();
 static volatile uint8_t stream_timer;  // Timer1 runs the stream (normal mode) rather than a programme (CTC)
 
+// Serves the queued events after the one whose STEP edges (`high`, up at tick `rise` from the last match)
+// have just been raised: every event due too soon for another interrupt (a step of another axis a few ticks
+// later) is raised here at its own tick + STEP_LEAD_TICKS by busy-waiting; then the queue is refilled while
+// the next event is far enough, the pulses end (each lasts at least PULSE_TICKS) and the next event is
+// scheduled. Returns false when the item's last step has been issued.
+static const uint16_t PULSE_TICKS = 10;    // 5 us high (the TB6600 needs >= 2.5 us)
+static const uint16_t CHAIN_TICKS = 24;    // an edge closer than this to TCNT1 is raised in this interrupt
+static const uint16_t REFILL_TICKS = 200;  // planning one event takes under 100 us (4 axes)
+
+// Waits for the end of the pulses up (at least PULSE_TICKS since `rise`) and lowers them.
+static inline void end_pulses(uint8_t high, uint16_t rise) {
+  while ((uint16_t)(TCNT1 - rise) < PULSE_TICKS) {
+  }
+  PORTD &= (uint8_t)~high;
+}
+
+static inline __attribute__((always_inline)) bool serve_steps(uint8_t high, uint16_t rise) {
+  uint8_t raised = high;
+  uint16_t at = (uint16_t)(rise - STEP_LEAD_TICKS);  // the tick (from the last match) of the last event raised
+  for (;;) {
+    while (evq_n) {  // raise every queued event that is due too soon for another interrupt
+      uint8_t h = evq_head;
+      uint8_t g = evq_close[h];
+      uint16_t t;
+      if (g) {  // the fast path for a step a few ticks after the last one
+        t = (uint16_t)(at + g);
+        if ((int16_t)(t - TCNT1) >= (int16_t)CHAIN_TICKS) break;
+      } else {  // a longer gap that planning has brought near (never expected: planning stops well before)
+        uint32_t d = at + evq_gap[h];
+        if (d >= (uint32_t)TCNT1 + CHAIN_TICKS) break;
+        t = (uint16_t)d;
+      }
+      uint8_t m = evq_mask[h];
+      uint16_t edge = (uint16_t)(t + STEP_LEAD_TICKS);
+      while (TCNT1 < edge) {
+      }
+      PORTD |= m;
+      evq_head = (uint8_t)((h + 1) & (EVQ - 1));
+      evq_n--;
+      raised |= m;
+      high |= m;
+      rise = edge;
+      at = t;
+    }
+    if (raised) {
+      count_steps(raised);
+      raised = 0;
+    }
+    uint32_t delta = evq_n ? at + evq_gap[evq_head] : 0;  // the next event, in ticks from the last match
+    if (high && (!evq_n || delta >= (uint32_t)TCNT1 + CHAIN_TICKS + PULSE_TICKS)) {
+      end_pulses(high, rise);
+      high = 0;
+    }
+    // plan ahead while the next event is far enough (or unknown)
+    while (more_steps && evq_n < EVQ && (!evq_n || delta >= (uint32_t)TCNT1 + REFILL_TICKS)) {
+      produce();
+      if (evq_n == 1) delta = at + evq_gap[evq_head];
+    }
+    if (!evq_n) {  // every step issued: the item is over (its last step is at the end of its window)
+      if (high) end_pulses(high, rise);
+      return false;
+    }
+    if (delta < (uint32_t)TCNT1 + CHAIN_TICKS || high) continue;  // close, or pulses still up
+    schedule(delta);
+    return true;
+  }
+}
+
 ISR(TIMER1_COMPA_vect) {
   if (stream_timer) {
     stream_step_isr();
@@ -163,32 +361,57 @@ ISR(TIMER1_COMPA_vect) {
   }
   if (rem_ticks) {
     uint32_t r = rem_ticks;
+    base_t += (int32_t)period;
     if (r > 65536UL) {
       OCR1A = 32767;
       rem_ticks = r - 32768;
+      period = 32768;
     } else {
       OCR1A = (uint16_t)(r - 1);
       rem_ticks = 0;
+      period = r;
     }
     return;
   }
   Item &it = prog[cur];
   if (it.kind == ITEM_SEG) {
-    // The step edge at a fixed STEP_LEAD_TICKS after the compare match, whatever the interrupt latency
-    // (another ISR may delay this one by a few us): every step is late by the same 8 us.
+    // The axes whose next step is due now step together: one port write, a fixed STEP_LEAD_TICKS after the
+    // compare match whatever the interrupt latency (another ISR may delay this one by a few us): every step
+    // is late by the same 8 us.
+    uint8_t mask = evq_mask[evq_head];
     while (TCNT1 < STEP_LEAD_TICKS) {
     }
-    PORTD |= STEP_BIT;
-    position += it.dir;
-    __builtin_avr_delay_cycles(64);  // TB6600 needs >= 2.5 us high; with the code around it ~5 us
-    PORTD &= ~STEP_BIT;
-    if (--steps_left) {
-      if (it.ticks > 65536UL) schedule(it.ticks);  // short intervals: OCR1A already holds the period
-      return;
+    PORTD |= mask;
+    OCR1A = 0xFFFF;  // no compare match until the next event is scheduled (TCNT1 counts from this match)
+    uint8_t h = (uint8_t)((evq_head + 1) & (EVQ - 1));
+    evq_head = h;
+    evq_n--;
+    uint16_t rise = STEP_LEAD_TICKS;
+    uint8_t g = evq_n ? evq_close[h] : 0;
+    if (g && g < CHAIN_TICKS) {  // a step of another axis a few ticks later: raise it first
+      uint8_t m = evq_mask[h];
+      rise = (uint16_t)(STEP_LEAD_TICKS + g);
+      while (TCNT1 < rise) {
+      }
+      PORTD |= m;
+      mask |= m;
+      evq_head = (uint8_t)((h + 1) & (EVQ - 1));
+      evq_n--;
     }
+    base_t += (int32_t)period;
+    if (serve_steps(mask, rise)) return;
+  } else {
+    base_t += (int32_t)period;
   }
+  base_t -= (int32_t)it.ticks;  // from the next item's start (this item's end)
   cur++;
+  // Planning the next item (a division and EVQ events per axis: up to about 400 us for four axes) runs with
+  // interrupts enabled, so that the UART's receiver is served meanwhile; no compare match can come before
+  // start_item() loads the next one (the next item's first event is >= 639 us away).
+  OCR1A = 0xFFFF;
+  sei();
   start_item();
+  cli();
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -275,7 +498,7 @@ static void stream_step_isr() {
   while ((int16_t)(TCNT1 - edge) < 0) {
   }
   PORTD |= STEP_BIT;
-  position += step_is_up(i) ? 1 : -1;
+  position[0] += step_is_up(i) ? 1 : -1;
   __builtin_avr_delay_cycles(64);  // TB6600 needs >= 2.5 us high
   PORTD &= ~STEP_BIT;
   i = (uint8_t)((i + 1) & (STEP_QUEUE - 1));
@@ -393,27 +616,30 @@ static void run_abort() {
   enabled = 0;
 }
 
-static int16_t read_position() {
+static int16_t read_position(uint8_t a) {
   cli();
-  int16_t p = position;
+  int16_t p = position[a];
   sei();
   return p;
 }
+static int16_t read_position() { return read_position(0); }
 
 static void run_go() {
   cli();
   cur = 0;
+  base_t = 0;
   running = 1;
   done_flag = 0;
   TCCR1A = 0;
   TCCR1B = 0;
   TCNT1 = 0;
+  OCR1A = 0xFFFF;
   TIFR1 = _BV(OCF1A);
-  start_item();  // t0 = now; sets OCR1A for the first event
-  if (running) {
-    TIMSK1 = _BV(OCIE1A);
-    TCCR1B = _BV(WGM12) | _BV(CS11);  // CTC on OCR1A, clk/8: 0.5 us ticks
-  }
+  TCCR1B = _BV(WGM12) | _BV(CS11);  // t0 = now: CTC on OCR1A, clk/8, 0.5 us ticks
+  // Plans the first events and sets OCR1A for the first (>= 639 us away; planning four axes takes under
+  // 400 us), so the planning does not delay the programme's time 0 after GO.
+  start_item();
+  if (running) TIMSK1 = _BV(OCIE1A);
   sei();
 }
 
@@ -427,50 +653,157 @@ static Reply out = {{}, serial_write};
 // ---------------------------------------------------------------------------------------------------------
 // Commands
 
-// Would the programme stay within 0..TRAVEL_MAX_STEPS starting from `pos`?
-static bool programme_within_travel(int16_t pos) {
-  for (uint8_t i = 0; i < prog_len; i++) {
-    if (prog[i].kind != ITEM_SEG) continue;
-    pos += prog[i].dir * (int16_t)prog[i].n_steps;
-    if (pos < 0 || pos > TRAVEL_MAX_STEPS) return false;
+// "ERR RANGE <text><lo><sep><hi><suffix>": range texts built from the rig config's limits (the paper's
+// build sends exactly the texts of firmware 2.1.0, e.g. "ERR RANGE n_steps 1-156").
+static void err_range(const char *text, int32_t lo, const char *sep, int32_t hi, const char *suffix) {
+  out.begin();
+  out.line.str_P(PSTR("ERR RANGE "));
+  out.line.str_P(text);
+  out.line.i32(lo);
+  out.line.str_P(sep);
+  out.line.i32(hi);
+  out.line.str_P(suffix);
+  out.send();
+}
+
+static void err_full() {
+  out.begin();
+  out.line.str_P(PSTR("ERR FULL "));
+  out.line.u32(PROGRAMME_MAX);
+  out.line.str_P(PSTR(" items"));
+  out.send();
+}
+
+// "<word> <p_0> ... <p_{AXES-1}>": every axis's position (one value on a one-axis rig, as in 2.1.0).
+static void word_positions(const char *word) {
+  out.begin();
+  out.line.str_P(word);
+  for (uint8_t a = 0; a < AXES; a++) {
+    out.line.put(' ');
+    out.line.i32(read_position(a));
+  }
+  out.send();
+}
+
+// The first axis the programme would take outside 0..its travel from the present positions, or -1.
+static int8_t programme_leaves_travel() {
+  for (uint8_t a = 0; a < AXES; a++) {
+    int16_t pos = read_position(a);
+    for (uint8_t i = 0; i < prog_len; i++) {
+      if (prog[i].kind != ITEM_SEG) continue;
+      int16_t n = prog[i].n[a];
+      pos += (prog[i].release & (1 << a)) ? -n : n;
+      if (pos < 0 || pos > (int16_t)rig_axis_travel[a]) return (int8_t)a;
+    }
+  }
+  return -1;
+}
+
+static bool editable() {
+  if (running) {
+    out.err(PSTR("STATE"), PSTR("running"));
+    return false;
   }
   return true;
+}
+
+static Item *new_item() {
+  if (prog_len >= PROGRAMME_MAX) {
+    err_full();
+    return 0;
+  }
+  Item *it = &prog[prog_len++];
+  for (uint8_t a = 0; a < AXES; a++) it->n[a] = 0;
+  it->release = 0;
+  return it;
 }
 
 static void handle(Command *cmd) {
   if (proto_is(cmd, PSTR("PING"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("PING takes no argument"));
-    out.text(PSTR("PONG stepper " FW_VERSION));
+    out.text(PSTR("PONG stepper " FW_ID));
   } else if (proto_is(cmd, PSTR("CLEAR"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("CLEAR takes no argument"));
-    if (running) return out.err(PSTR("STATE"), PSTR("running"));
+    if (!editable()) return;
     prog_len = 0;
     out.text(PSTR("OK CLEAR"));
   } else if (proto_is(cmd, PSTR("SEG"))) {
     if (!proto_args_ok(cmd, 3)) return out.err(PSTR("ARG"), PSTR("SEG needs 3 integers"));
-    if (running) return out.err(PSTR("STATE"), PSTR("running"));
+    if (!editable()) return;
     int32_t dir = cmd->arg[0], n = cmd->arg[1], iv = cmd->arg[2];
     if (dir != 1 && dir != -1) return out.err(PSTR("RANGE"), PSTR("dir must be 1 or -1"));
-    if (n < 1 || n > TRAVEL_MAX_STEPS) return out.err(PSTR("RANGE"), PSTR("n_steps 1-156"));
-    if (iv < INTERVAL_MIN_US || iv > INTERVAL_MAX_US) return out.err(PSTR("RANGE"), PSTR("interval 639-1000000 us"));
-    if (prog_len >= PROGRAMME_MAX) return out.err(PSTR("FULL"), PSTR("64 items"));
-    Item &it = prog[prog_len++];
-    it.kind = ITEM_SEG;
-    it.dir = (int8_t)dir;
-    it.n_steps = (uint8_t)n;
-    it.ticks = (uint32_t)iv * 2;
+    if (n < 1 || n > rig_axis_travel[0]) return err_range(PSTR("n_steps "), 1, PSTR("-"), rig_axis_travel[0], PSTR(""));
+    if (iv < INTERVAL_MIN_US || iv > INTERVAL_MAX_US)
+      return err_range(PSTR("interval "), INTERVAL_MIN_US, PSTR("-"), INTERVAL_MAX_US, PSTR(" us"));
+    Item *it = new_item();
+    if (!it) return;
+    it->kind = ITEM_SEG;
+    it->n[0] = (uint8_t)n;
+    it->release = dir < 0 ? 1 : 0;
+    it->ticks = (uint32_t)iv * 2 * (uint32_t)n;
     out.word_i32(PSTR("OK SEG"), prog_len);
+  } else if (proto_is(cmd, PSTR("MSEG"))) {
+    // MSEG <window_us> <n_0> ... <n_{AXES-1}>: every axis a moves n_a steps (signed: + pulls) in the window
+    if (!proto_args_ok(cmd, 1 + AXES)) {
+      out.begin();
+      out.line.str_P(PSTR("ERR ARG MSEG needs "));
+      out.line.u32(1 + AXES);
+      out.line.str_P(PSTR(" integers"));
+      return out.send();
+    }
+    if (!editable()) return;
+    int32_t window = cmd->arg[0];
+    if (window < 1 || window > 255L * INTERVAL_MAX_US)
+      return err_range(PSTR("window "), 1, PSTR("-"), 255L * INTERVAL_MAX_US, PSTR(" us"));
+    uint8_t moving = 0;
+    for (uint8_t a = 0; a < AXES; a++) {
+      int32_t n = cmd->arg[1 + a];
+      int32_t m = n < 0 ? -n : n;
+      if (n < -(int32_t)rig_axis_travel[a] || n > (int32_t)rig_axis_travel[a]) {
+        out.begin();
+        out.line.str_P(PSTR("ERR RANGE axis "));
+        out.line.u32(a);
+        out.line.str_P(PSTR(" steps -"));
+        out.line.u32(rig_axis_travel[a]);
+        out.line.put('.');
+        out.line.put('.');
+        out.line.u32(rig_axis_travel[a]);
+        return out.send();
+      }
+      // each moving axis steps every window / |n| us on average, within the interval limits
+      if (m && (window < m * INTERVAL_MIN_US || window > m * INTERVAL_MAX_US)) {
+        out.begin();
+        out.line.str_P(PSTR("ERR RANGE axis "));
+        out.line.u32(a);
+        out.line.str_P(PSTR(" interval "));
+        out.line.i32(INTERVAL_MIN_US);
+        out.line.put('-');
+        out.line.i32(INTERVAL_MAX_US);
+        out.line.str_P(PSTR(" us"));
+        return out.send();
+      }
+      if (m) moving = 1;
+    }
+    if (!moving) return out.err(PSTR("RANGE"), PSTR("no axis moves (a dwell is WAIT)"));
+    Item *it = new_item();
+    if (!it) return;
+    it->kind = ITEM_SEG;
+    for (uint8_t a = 0; a < AXES; a++) {
+      int32_t n = cmd->arg[1 + a];
+      it->n[a] = (uint8_t)(n < 0 ? -n : n);
+      if (n < 0) it->release |= (uint8_t)(1 << a);
+    }
+    it->ticks = (uint32_t)window * 2;
+    out.word_i32(PSTR("OK MSEG"), prog_len);
   } else if (proto_is(cmd, PSTR("WAIT"))) {
     if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("WAIT needs 1 integer"));
-    if (running) return out.err(PSTR("STATE"), PSTR("running"));
+    if (!editable()) return;
     int32_t ms = cmd->arg[0];
     if (ms < 0 || ms > DWELL_MAX_MS) return out.err(PSTR("RANGE"), PSTR("dwell 0-60000 ms"));
-    if (prog_len >= PROGRAMME_MAX) return out.err(PSTR("FULL"), PSTR("64 items"));
-    Item &it = prog[prog_len++];
-    it.kind = ITEM_WAIT;
-    it.dir = 0;
-    it.n_steps = 0;
-    it.ticks = (uint32_t)ms * 2000UL;
+    Item *it = new_item();
+    if (!it) return;
+    it->kind = ITEM_WAIT;
+    it->ticks = (uint32_t)ms * 2000UL;
     out.word_i32(PSTR("OK WAIT"), prog_len);
   } else if (proto_is(cmd, PSTR("GO"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("GO takes no argument"));
@@ -478,13 +811,43 @@ static void handle(Command *cmd) {
     if (stream_state) return out.err(PSTR("STATE"), PSTR("streaming"));
     if (prog_len == 0) return out.err(PSTR("STATE"), PSTR("programme empty"));
     if (!enabled) return out.err(PSTR("STATE"), PSTR("driver disabled"));
-    if (!programme_within_travel(read_position())) return out.err(PSTR("RANGE"), PSTR("travel 0-156 steps"));
+    int8_t bad = programme_leaves_travel();
+    if (bad >= 0) {
+      out.begin();
+      out.line.str_P(PSTR("ERR RANGE "));
+      if (AXES > 1) {
+        out.line.str_P(PSTR("axis "));
+        out.line.u32((uint8_t)bad);
+        out.line.put(' ');
+      }
+      out.line.str_P(PSTR("travel 0-"));
+      out.line.u32(rig_axis_travel[bad]);
+      out.line.str_P(PSTR(" steps"));
+      return out.send();
+    }
     out.word_i32(PSTR("OK GO"), prog_len);  // queued before DONE can be
     run_go();
   } else if (proto_is(cmd, PSTR("ABORT"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("ABORT takes no argument"));
     run_abort();
-    out.word_i32(PSTR("ABORTED"), read_position());
+    word_positions(PSTR("ABORTED"));
+  } else if (proto_is(cmd, PSTR("CONFIG"))) {
+    // CONFIG -> OK CONFIG <axes> <programme_max> <min_interval_us> <max_interval_us> <travel_0> ...
+    if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("CONFIG takes no argument"));
+    out.begin();
+    out.line.str_P(PSTR("OK CONFIG "));
+    out.line.u32(AXES);
+    out.line.put(' ');
+    out.line.u32(PROGRAMME_MAX);
+    out.line.put(' ');
+    out.line.i32(INTERVAL_MIN_US);
+    out.line.put(' ');
+    out.line.i32(INTERVAL_MAX_US);
+    for (uint8_t a = 0; a < AXES; a++) {
+      out.line.put(' ');
+      out.line.u32(rig_axis_travel[a]);
+    }
+    out.send();
   } else if (proto_is(cmd, PSTR("EN"))) {
     if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("EN needs 1 integer"));
     int32_t on = cmd->arg[0];
@@ -498,7 +861,7 @@ static void handle(Command *cmd) {
     out.word_i32(PSTR("OK EN"), on);
   } else if (proto_is(cmd, PSTR("POS"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("POS takes no argument"));
-    out.word_i32(PSTR("OK POS"), read_position());
+    word_positions(PSTR("OK POS"));
   } else if (proto_is(cmd, PSTR("MEM"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("MEM takes no argument"));
     out.word_u32(PSTR("OK MEM"), free_stack_min());
@@ -550,7 +913,7 @@ static void handle(Command *cmd) {
     if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("V needs 1 integer"));
     if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
     int32_t v = cmd->arg[0];
-    if (v < -SP_V_MAX || v > SP_V_MAX) return out.err(PSTR("RANGE"), PSTR("set-point -1640..1640"));
+    if (v < -SP_V_MAX || v > SP_V_MAX) return err_range(PSTR("set-point "), -SP_V_MAX, PSTR(".."), SP_V_MAX, PSTR(""));
     cli();
     if (fifo_count >= SETPOINT_FIFO) {
       sei();
@@ -595,21 +958,23 @@ static void service_done() {
   }
   if (done_flag) {
     done_flag = 0;
-    out.word_i32(PSTR("DONE"), read_position());
+    word_positions(PSTR("DONE"));
   }
 }
 
 void setup() {
   PORTD |= ENA_BIT;  // driver disabled (also done in .init3)
-  DDRD |= ENA_BIT | STEP_BIT | DIR_BIT;
-  PORTD &= ~(STEP_BIT | DIR_BIT);
+  DDRD |= ENA_BIT | DIR_BIT | all_step_bits();
+  PORTD &= (uint8_t)~(DIR_BIT | all_step_bits());
+  DDRB |= dir_bits_b();
+  PORTB &= (uint8_t)~dir_bits_b();
   DDRB |= TP_TICK_BIT | TP_STEP_BIT;
   PORTB &= ~(TP_TICK_BIT | TP_STEP_BIT);
-  Serial.begin(115200);
+  Serial.begin(RIG_STEPPER_BAUD);
   // Timer0's overflow interrupt (millis/micros, unused here) would delay step edges by up to ~5 us.
   TIMSK0 = 0;
   reader.reset();
-  out.text(PSTR("HELLO stepper " FW_VERSION));
+  out.text(PSTR("HELLO stepper " FW_ID));
 }
 
 void loop() {

@@ -23,7 +23,7 @@ import numpy as np
 
 from helpers.emulator.stream_mode import ShaperLoader, StreamMode
 from helpers.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
-from helpers.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, frame, frame_many
+from helpers.protocol import MAX_LINE, WRAP_US, board_version, checksum, frame, frame_many
 
 DAQ_RATE_MIN, DAQ_RATE_MAX, DAQ_RATE_DEFAULT = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_DEFAULT_HZ
 MIN_INTERVAL_US = LIMITS.min_interval_us
@@ -236,7 +236,7 @@ class EmulatedBoard:
             return
         self.received.append(" ".join([parsed.word, *map(str, parsed.args)]))
         if parsed.word == "PING":
-            self.send(self._arg_error(parsed, 0) or f"PONG {self.kind} {FW_VERSION}")
+            self.send(self._arg_error(parsed, 0) or f"PONG {self.kind} {board_version()}")
             return
         handler = getattr(self, f"cmd_{parsed.word}", None) if parsed.word.isupper() else None
         if handler is None:
@@ -261,7 +261,7 @@ class EmulatedBoard:
         self._overflow = False
         self._cr = False
         self.hung = False
-        self.send(f"HELLO {self.kind} {FW_VERSION}")
+        self.send(f"HELLO {self.kind} {board_version()}")
 
 
 class DaqEmulator(EmulatedBoard):
@@ -297,6 +297,11 @@ class DaqEmulator(EmulatedBoard):
             return f"ERR RANGE rate {DAQ_RATE_MIN}-{DAQ_RATE_MAX} Hz"
         self.rate = cmd.args[0]
         return f"OK RATE {self.rate}"
+
+    def cmd_CONFIG(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 0):
+            return err
+        return f"OK CONFIG 1 1 {DAQ_RATE_MIN} {DAQ_RATE_MAX}"
 
     def cmd_ZERO(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 0):
@@ -400,10 +405,21 @@ class _Item:
     n_steps: int
     interval_us: int
     dwell_ms: int = -1
+    window_us: int = -1
+    """``MSEG``: the window in which the ``n_steps`` are spread (step k on tick ``ceil(k * 2 W / n)``)."""
 
     @property
-    def duration_us(self) -> int:
+    def duration_us(self) -> float:
+        if self.window_us >= 0:
+            return self.window_us
         return self.dwell_ms * 1000 if self.dwell_ms >= 0 else self.n_steps * self.interval_us
+
+    def step_times_us(self) -> np.ndarray:
+        """The item's step instants from its start (us; ``MSEG`` on the firmware's 0.5 us ticks)."""
+        k = np.arange(1, self.n_steps + 1, dtype=np.int64)
+        if self.window_us >= 0:
+            return -(-k * (2 * self.window_us) // self.n_steps) / 2.0
+        return self.interval_us * k
 
 
 class StepperEmulator(EmulatedBoard):
@@ -469,6 +485,31 @@ class StepperEmulator(EmulatedBoard):
         self.items.append(_Item(d, n, iv))
         return f"OK SEG {len(self.items)}"
 
+    def cmd_MSEG(self, cmd: _Command) -> str:  # noqa: N802, D102
+        # one axis (the paper's build): MSEG <window_us> <n_0>
+        if err := self._arg_error(cmd, 2):
+            return err
+        if self.running:
+            return "ERR STATE running"
+        window, n = cmd.args
+        if not 1 <= window <= 255 * MAX_INTERVAL_US:
+            return f"ERR RANGE window 1-{255 * MAX_INTERVAL_US} us"
+        if not -MAX_TRAVEL_STEPS <= n <= MAX_TRAVEL_STEPS:
+            return f"ERR RANGE axis 0 steps -{MAX_TRAVEL_STEPS}..{MAX_TRAVEL_STEPS}"
+        if n and not abs(n) * MIN_INTERVAL_US <= window <= abs(n) * MAX_INTERVAL_US:
+            return f"ERR RANGE axis 0 interval {MIN_INTERVAL_US}-{MAX_INTERVAL_US} us"
+        if n == 0:
+            return "ERR RANGE no axis moves (a dwell is WAIT)"
+        if len(self.items) >= MAX_ITEMS:
+            return f"ERR FULL {MAX_ITEMS} items"
+        self.items.append(_Item(1 if n > 0 else -1, abs(n), 0, window_us=window))
+        return f"OK MSEG {len(self.items)}"
+
+    def cmd_CONFIG(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 0):
+            return err
+        return f"OK CONFIG 1 {MAX_ITEMS} {MIN_INTERVAL_US} {MAX_INTERVAL_US} {MAX_TRAVEL_STEPS}"
+
     def cmd_WAIT(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 1):
             return err
@@ -502,7 +543,7 @@ class StepperEmulator(EmulatedBoard):
         times, signs, t0_us = [], [], 0
         for it in self.items:
             if it.dwell_ms < 0:
-                times.append(t0_us + it.interval_us * np.arange(1, it.n_steps + 1, dtype=np.int64))
+                times.append(t0_us + it.step_times_us())
                 signs.append(np.full(it.n_steps, it.direction, dtype=np.int64))
             t0_us += it.duration_us
         go = self.world.t

@@ -11,7 +11,7 @@ from __future__ import annotations
 from crc_reference import LINK_CHECK, xor_hex
 from fwsim import with_checksum
 
-V = r"2\.1\.0"
+V = r"2\.2\.0\+00000000"
 
 
 def _c(body: str) -> bytes:
@@ -116,6 +116,8 @@ def daq_cases() -> list[tuple[bytes, str | None]]:
         (_c("RATE 200"), r"OK RATE 200"),
         (_c("START"), r"OK START 200"),
         (_c("STOP"), r"OK STOP \d+"),
+        (_c("CONFIG"), r"OK CONFIG 1 1 100 2000"),  # protocol 2.2
+        (_c("CONFIG 1"), r"ERR ARG( .*)?"),
     ]
 
 
@@ -202,6 +204,21 @@ def stepper_cases() -> list[tuple[bytes, str | None, float, str | None]]:
         (_c("WAIT 60001"), r"ERR RANGE( .*)?", 0, n),
         (_c("CLEAR"), r"OK CLEAR", 0, n),
         (_c("POS"), r"OK POS \d+", 0, n),
+        # protocol 2.2: CONFIG, and MSEG on the one axis (its steps spread over the window on 0.5 us ticks)
+        (_c("CONFIG"), r"OK CONFIG 1 64 639 1000000 156", 0, n),
+        (_c("CONFIG 1"), r"ERR ARG( .*)?", 0, n),
+        (_c("MSEG 1000"), r"ERR ARG( .*)?", 0, n),
+        (_c("MSEG 10000 1 1"), r"ERR ARG( .*)?", 0, n),
+        (_c("MSEG 0 1"), r"ERR RANGE( .*)?", 0, n),
+        (_c("MSEG 100000 157"), r"ERR RANGE( .*)?", 0, n),
+        (_c("MSEG 1000 2"), r"ERR RANGE( .*)?", 0, n),  # 500 us per step: faster than 400 mm/s
+        (_c("MSEG 3000001 3"), r"ERR RANGE( .*)?", 0, n),  # slower than a step per second
+        (_c("MSEG 100000 0"), r"ERR RANGE( .*)?", 0, n),  # nothing moves: a dwell is WAIT
+        (_c("EN 1"), r"OK EN 1", 0, n),
+        (_c("MSEG 7001 3"), r"OK MSEG 1", 0, n),  # 2333.67 us per step
+        (_c("MSEG 7001 -3"), r"OK MSEG 2", 0, n),
+        (_c("GO"), r"OK GO 2", 0.03, r"DONE \d+"),  # 14.0 ms
+        (_c("CLEAR"), r"OK CLEAR", 0, n),
     ]
     return cases
 

@@ -135,10 +135,11 @@ def run(
     script: Iterable[tuple[float, bytes | str]],
     duration: float,
     *,
-    wave: Sequence[tuple[float, float]] | None = None,
+    wave: Sequence[tuple[float, ...]] | None = None,
     edges: Sequence[tuple[float, str, int]] | None = None,
     watch: Sequence[str] = (),
     timeout: float = 300.0,
+    elf: Path | None = None,
 ) -> SimRun:
     """Run one board's firmware in simavr.
 
@@ -149,12 +150,15 @@ def run(
         Bytes sent to the UART at simulated time ``t_s`` (str is encoded as ASCII; nothing is appended).
     duration : float
         Simulated seconds to run.
-    wave : sequence of (t_s, mV), optional
-        ADC0 input, piecewise linear.
+    wave : sequence of (t_s, mV) or (t_s, mV0, mV1, ...), optional
+        ADC0 input (ADC0, ADC1, ... with more columns), piecewise linear. The ADC log then holds
+        ``(cycle, mV)`` per conversion, or ``(cycle, (mV0, mV1, ...))`` with several columns.
     edges : sequence of (t_s, "E4", level), optional
         Input pin levels to apply at the given times.
     watch : sequence of str
         Output pins to log, e.g. ``("D5", "D6", "D7")``.
+    elf : Path, optional
+        Another build of the board's firmware (e.g. for another rig config) instead of ``ELF[board]``.
     """
     with tempfile.TemporaryDirectory(prefix="fwsim-") as tmp:
         tmpd = Path(tmp)
@@ -166,14 +170,16 @@ def run(
                 f.write(f"{t:.9f} {_escape(raw)}\n")
         args += ["-i", str(script_path)]
         if wave is not None:
-            (tmpd / "wave.txt").write_text("".join(f"{t:.9f} {mv:.6f}\n" for t, mv in wave))
+            (tmpd / "wave.txt").write_text(
+                "".join(f"{row[0]:.9f} " + " ".join(f"{mv:.6f}" for mv in row[1:]) + "\n" for row in wave)
+            )
             args += ["-a", str(tmpd / "wave.txt"), "-A", str(tmpd / "adc.log")]
         if edges is not None:
             (tmpd / "edges.txt").write_text("".join(f"{t:.9f} {pin} {int(lv)}\n" for t, pin, lv in edges))
             args += ["-e", str(tmpd / "edges.txt")]
         if watch:
             args += ["-w", ",".join(watch), "-l", str(tmpd / "pins.log")]
-        args.append(str(ELF[board]))
+        args.append(str(elf or ELF[board]))
         proc = subprocess.run(args, capture_output=True, timeout=timeout, check=False)
         if proc.returncode != 0:
             raise RuntimeError(f"harness failed ({proc.returncode}): {proc.stderr.decode(errors='replace')}")
@@ -194,8 +200,8 @@ def run(
         adc = []
         if wave is not None:
             for text in (tmpd / "adc.log").read_text().splitlines():
-                c, mv = text.split()
-                adc.append((int(c), int(mv)))
+                c, *mvs = text.split()
+                adc.append((int(c), int(mvs[0]) if len(mvs) == 1 else tuple(int(v) for v in mvs)))
         return SimRun(lines, pins, adc, proc.stderr.decode(errors="replace"))
 
 

@@ -11,7 +11,7 @@ import pytest
 
 pytestmark = pytest.mark.firmware
 
-HELLO = {"daq": r"HELLO daq 2\.1\.0", "stepper": r"HELLO stepper 2\.1\.0"}
+HELLO = {"daq": r"HELLO daq 2\.2\.0\+00000000", "stepper": r"HELLO stepper 2\.2\.0\+00000000"}
 
 
 def _script(board: str) -> list[tuple[bytes, str | None, float, str | None]]:

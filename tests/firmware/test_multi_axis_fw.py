@@ -1,0 +1,483 @@
+"""Several tendons: the firmware built for a four-tendon rig config
+(``firmware/common/rig_config_four_tendon.h``) in simavr: RAM budgets, compile-time refusal of configs that do
+not fit, coordinated four-axis programmes on the pins (every step within one timer tick of the programme, per
+axis), per-axis limits, the one-axis commands on axis 0, and four-channel DAQ frames with each tendon's step
+count; the link budget at 1 Mbaud through the harness's pseudo-terminal (``-m slow``: 60 s of device time).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import re
+import subprocess
+import time
+from pathlib import Path
+
+import fwsim
+import pytest
+
+pytestmark = pytest.mark.firmware
+
+F = fwsim.F_CPU
+TICK_CYCLES = 8  # Timer1 /8: one tick is 0.5 us = 8 cycles
+FOUR = fwsim.FIRMWARE / "common" / "rig_config_four_tendon.h"
+TRAVEL = 156
+# (STEP, DIR) pins of the four axes on the Uno, and their inputs on the Mega (firmware/PROTOCOL.md)
+UNO_AXES = [("D5", "D6"), ("D2", "B2"), ("D3", "B3"), ("D4", "B4")]
+MEGA_AXES = [("E4", "G5"), ("E5", "E3"), ("D2", "A1"), ("D3", "A3")]
+_RAM = re.compile(
+    r"^(daq_mega|stepper_uno): .* (\d+) B RAM \(data \+ bss\) of (\d+) B "
+    r"\(([\d.]+)%, goal <= 80%: (\w+)\) \[(.+)\]$",
+    re.M,
+)
+
+
+def _make(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        ["make", "-C", str(fwsim.FIRMWARE), "-j2", *args],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=timeout,
+    )
+
+
+@pytest.fixture(scope="module")
+def four_build(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """Both sketches built for the four-tendon config into a temporary directory, and the build's output."""
+    build = tmp_path_factory.mktemp("four_tendon")
+    proc = _make(f"RIG_CONFIG={FOUR}", f"BUILD={build}", "firmware", "size")
+    if proc.returncode != 0:
+        pytest.fail(f"four-tendon build failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}", pytrace=False)
+    return build, proc.stdout
+
+
+def ram_lines(output: str) -> dict[str, tuple[int, int, float, str, str]]:
+    return {m[0]: (int(m[1]), int(m[2]), float(m[3]), m[4], m[5]) for m in _RAM.findall(output)}
+
+
+def test_ram_budgets_printed_and_within_goal(four_build: tuple[Path, str], firmware_build: None) -> None:
+    _, out = four_build
+    four = ram_lines(out)
+    paper = ram_lines(_make("size").stdout)
+    for name, lines in (("four-tendon", four), ("paper", paper)):
+        assert set(lines) == {"daq_mega", "stepper_uno"}, f"{name}: RAM budget lines missing"
+        for board, (used, ram, pct, verdict, _) in lines.items():
+            assert ram == {"daq_mega": 8192, "stepper_uno": 2048}[board]
+            assert abs(pct - 100.0 * used / ram) < 0.06
+            assert pct <= 80.0 and verdict == "met", f"{name} {board}: {used} B of {ram} B"
+        print(
+            f"{name}: " + ", ".join(f"{b} {u} B ({p:.1f} %)" for b, (u, _, p, _, _) in sorted(lines.items()))
+        )
+    assert (
+        four["stepper_uno"][4] == "rig_config_four_tendon.h"
+        and paper["stepper_uno"][4] == "rig_config_paper.h"
+    )
+    # four axes and four channels cost RAM: the tables grow with the config
+    assert four["stepper_uno"][0] > paper["stepper_uno"][0] and four["daq_mega"][0] > paper["daq_mega"][0]
+
+
+def _header(**changes: str) -> str:
+    text = FOUR.read_text()
+    for name, value in changes.items():
+        if value == "":
+            text = re.sub(rf"^#define {name} .*$", "", text, flags=re.M)
+        else:
+            text, n = re.subn(rf"^#define {name} .*$", f"#define {name} {value}", text, flags=re.M)
+            assert n == 1, name
+    return text
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"RIG_PROGRAMME_MAX": "200"}, "does not fit the Uno's RAM"),
+        ({"RIG_AXES": "5"}, "RIG_AXES must be 1-4"),
+        ({"RIG_HASH": ""}, "RIG_HASH, RIG_NAME, RIG_AXES and RIG_CHANNELS are required"),
+        ({"RIG_AXIS_TRAVEL_STEPS": "{156, 156}"}, "RIG_AXIS_TRAVEL_STEPS needs RIG_AXES values"),
+        ({"RIG_MIN_INTERVAL_US": "100"}, "step intervals must satisfy"),
+    ],
+)
+def test_config_refused_at_compile_time(tmp_path: Path, changes: dict, message: str) -> None:
+    header = tmp_path / "bad_rig.h"
+    header.write_text(_header(**changes))
+    build = tmp_path / "build"
+    proc = _make(f"RIG_CONFIG={header}", f"BUILD={build}", f"{build}/stepper_uno/stepper_uno.o", timeout=120)
+    assert proc.returncode != 0
+    assert message in proc.stderr, proc.stderr[-2000:]
+
+
+def test_make_rig_generates_the_header_then_builds_with_it(tmp_path: Path) -> None:
+    """``make RIG=rigfile`` runs ``$(PYTHON) -m helpers.rigfile.firmware_header RIG -o $(BUILD)/rig_config.h``
+    from the repository root (a stand-in interpreter here records its arguments and writes the header)."""
+    rig = tmp_path / "rig.json"
+    rig.write_text("{}")
+    log = tmp_path / "args.txt"
+    fake = tmp_path / "fakepython"
+    fake.write_text(
+        f'#!/bin/sh\necho "$PWD $@" > {log}\nwhile [ "$1" != "-o" ]; do shift; done\ncp {FOUR} "$2"\n'
+    )
+    fake.chmod(0o755)
+    build = tmp_path / "build"
+    target = f"{build}/stepper_uno/stepper_uno.o"
+    proc = _make(f"RIG={rig}", f"PYTHON={fake}", f"BUILD={build}", target, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    cwd, *args = log.read_text().split()
+    assert Path(cwd) == fwsim.REPO
+    assert args == ["-m", "helpers.rigfile.firmware_header", str(rig), "-o", f"{build}/rig_config.h.tmp"]
+    assert (build / "rig_config.h").read_text() == FOUR.read_text()
+    assert (build / "rig_config.path").read_text().strip() == str(build / "rig_config.h")
+    assert Path(target).stat().st_size > 0
+    # a generator that fails stops the build
+    fake.write_text("#!/bin/sh\necho 'rig file: bad tendon count' >&2\nexit 2\n")
+    proc = _make(f"RIG={rig}", f"PYTHON={fake}", f"BUILD={tmp_path / 'b2'}", "firmware", timeout=120)
+    assert proc.returncode != 0 and "bad tendon count" in proc.stderr
+
+
+def _stepper(build: Path, cmds: list[str], duration: float, spacing: float = 0.02) -> fwsim.SimRun:
+    times = [0.05 + spacing * i for i in range(len(cmds))]
+    watch = [p for pair in UNO_AXES for p in pair] + ["D7"]
+    script = list(zip(times, (fwsim.command(c) for c in cmds), strict=True))
+    return fwsim.run("stepper", script, duration, watch=watch, elf=build / "stepper_uno.elf")
+
+
+def _rising(run: fwsim.SimRun, pin: str) -> list[int]:
+    return [c for c, p, lv in run.pins if p == pin and lv == 1]
+
+
+def _level_at(run: fwsim.SimRun, pin: str, cycle: int) -> int:
+    level = 0
+    for c, p, lv in run.pins:
+        if p == pin and c <= cycle:
+            level = lv
+    return level
+
+
+PROGRAMME = [  # (window_us, steps of axes 0-3): coincident steps, one idle axis, a lone axis, returns
+    (100_000, (10, 7, 3, 0)),
+    (40_000, (20, 20, 1, 40)),
+    (156_000, (-30, -27, -4, -40)),
+]
+
+
+def test_four_axis_programme_steps_within_one_tick(
+    four_build: tuple[Path, str], firmware_build: None
+) -> None:
+    build, _ = four_build
+    cmds = ["PING", "CONFIG", "EN 1"] + [f"MSEG {w} " + " ".join(map(str, n)) for w, n in PROGRAMME] + ["GO"]
+    run = _stepper(build, cmds, 0.2 + sum(w for w, _ in PROGRAMME) / 1e6 + 0.1)
+    bodies = [ln.body for ln in run.lines]
+    assert all(ln.checksum_ok for ln in run.lines)
+    assert bodies[:8] == [
+        "HELLO stepper 2.2.0+00000004",
+        "PONG stepper 2.2.0+00000004",
+        "OK CONFIG 4 64 639 1000000 156 156 156 156",
+        "OK EN 1",
+        "OK MSEG 1",
+        "OK MSEG 2",
+        "OK MSEG 3",
+        "OK GO 3",
+    ]
+    assert bodies[8:] == ["DONE 0 0 0 0"]
+    # PROTOCOL.md: step k of n in a window of W ticks falls on the first tick at or after k * W / n from the
+    # window's start (the exact time); its STEP edge follows the tick by a constant lead (16 us, four axes)
+    expected: list[list[tuple[int, float, int]]] = [[] for _ in UNO_AXES]  # (tick, exact tick, pull)
+    t0 = 0
+    for window, steps in PROGRAMME:
+        w = 2 * window
+        for a, n in enumerate(steps):
+            m = abs(n)
+            expected[a] += [(t0 - (-k * w // m), t0 + k * w / m, int(n > 0)) for k in range(1, m + 1)]
+        t0 += w
+    edges = [_rising(run, step) for step, _ in UNO_AXES]
+    for a, (exp, got) in enumerate(zip(expected, edges, strict=True)):
+        assert len(got) == len(exp), f"axis {a}: {len(got)} steps, expected {len(exp)}"
+    # GO on the simulated clock, from the median offset of the edges from their ticks (the edges jitter by
+    # the busy-wait's granularity on TCNT1, up to one tick)
+    offsets = sorted(
+        c - 128 - t * TICK_CYCLES
+        for exp, got in zip(expected, edges, strict=True)
+        for (t, _, _), c in zip(exp, got, strict=True)
+    )
+    origin = offsets[len(offsets) // 2]
+    worst = 0.0
+    for a, (exp, got) in enumerate(zip(expected, edges, strict=True)):
+        for (tick, exact, pull), cycle in zip(exp, got, strict=True):
+            at = cycle - 128 - origin  # cycles from GO, less the lead
+            assert abs(at - tick * TICK_CYCLES) <= TICK_CYCLES, (
+                f"axis {a}: step at tick {at / 8:.2f}, not {tick}"
+            )
+            worst = max(worst, abs(at - exact * TICK_CYCLES))
+            assert _level_at(run, UNO_AXES[a][1], cycle) == pull, f"axis {a}: DIR wrong at tick {tick}"
+            assert _level_at(run, UNO_AXES[a][1], cycle - 600 * 16) == pull  # DIR set up early enough
+    spread = offsets[-1] - offsets[0]
+    assert spread <= TICK_CYCLES  # every step on its tick within one tick (as the streaming tests measure)
+    print(
+        f"four axes, {len(offsets)} steps: edge-minus-tick spread {spread} cycles ({spread / 16:.3f} us), "
+        f"|edge - exact programme| <= {worst / 16:.3f} us"
+    )
+    assert _level_at(run, "D7", edges[0][0]) == 0  # ENA LOW (enabled) while stepping
+
+
+DENSE = [  # nearly equal step counts at the top speed: steps of different axes 8 ticks (4 us) apart
+    (99_684, (156, 155, 154, 153)),
+    (99_684, (-156, -155, -154, -153)),
+]
+
+
+def test_dense_four_axis_programme(four_build: tuple[Path, str], firmware_build: None) -> None:
+    """Steps of different axes a few ticks apart are each raised at their own tick (one interrupt serves a
+    cluster); only the third of three steps within about 10 ticks can be up to 3 ticks late."""
+    build, _ = four_build
+    cmds = ["EN 1"] + [f"MSEG {w} " + " ".join(map(str, n)) for w, n in DENSE] + ["GO"]
+    run = _stepper(build, cmds, 0.1 + sum(w for w, _ in DENSE) / 1e6 + 0.1)
+    assert [ln.body for ln in run.lines][-1] == "DONE 0 0 0 0"
+    ticks: list[list[int]] = [[] for _ in UNO_AXES]
+    t0 = 0
+    for window, steps in DENSE:
+        w = 2 * window
+        for a, n in enumerate(steps):
+            ticks[a] += [t0 - (-k * w // abs(n)) for k in range(1, abs(n) + 1)]
+        t0 += w
+    edges = [_rising(run, step) for step, _ in UNO_AXES]
+    assert [len(e) for e in edges] == [len(t) for t in ticks] == [312, 310, 308, 306]
+    offsets = sorted(
+        c - 128 - t * TICK_CYCLES
+        for ts, es in zip(ticks, edges, strict=True)
+        for t, c in zip(ts, es, strict=True)
+    )
+    origin = offsets[len(offsets) // 2]
+    late = [o - origin for o in offsets]
+    within_one = sum(1 for o in late if abs(o) <= TICK_CYCLES)
+    print(
+        f"dense: {len(late)} steps, {within_one} within one tick of their tick, the others at most "
+        f"{max(late) / 16:.3f} us late"
+    )
+    assert min(late) >= -TICK_CYCLES and max(late) <= 4 * TICK_CYCLES
+    assert within_one >= 0.98 * len(late)
+
+
+def random_programme(rnd: random.Random) -> tuple[list[str], list[list[int]], list[int], float]:
+    """A random four-axis programme within the limits: commands, each axis's step ticks (PROTOCOL.md's rule,
+    from GO), the final positions and the duration (s)."""
+    pos = [0, 0, 0, 0]
+    cmds, ticks, t0 = ["EN 1"], [[] for _ in UNO_AXES], 0
+    for _ in range(rnd.randint(2, 6)):
+        if rnd.random() < 0.2 and any(ticks):  # a dwell (after some motion)
+            ms = rnd.randint(0, 30)
+            cmds.append(f"WAIT {ms}")
+            t0 += 2000 * ms
+            continue
+        steps = [0 if rnd.random() < 0.2 else rnd.randint(max(-p, -60), min(TRAVEL - p, 60)) for p in pos]
+        if not any(steps):
+            steps[0] = 1 if pos[0] < TRAVEL else -1
+        fastest, slowest = max(map(abs, steps)), min(abs(n) for n in steps if n)
+        window = rnd.randint(fastest * 639, min(slowest * 1_000_000, fastest * 639 * 3 + 5000))
+        cmds.append(f"MSEG {window} " + " ".join(map(str, steps)))
+        for a, n in enumerate(steps):
+            ticks[a] += [t0 - (-k * 2 * window // abs(n)) for k in range(1, abs(n) + 1)]
+            pos[a] += n
+        t0 += 2 * window
+    return cmds + ["GO"], ticks, pos, t0 / 2e6
+
+
+def _check_random(build: Path, seed: int) -> tuple[int, int]:
+    cmds, ticks, pos, duration = random_programme(random.Random(seed))
+    run = _stepper(build, cmds, 0.07 + 0.02 * len(cmds) + duration)
+    assert [ln.body for ln in run.lines][-1] == "DONE " + " ".join(map(str, pos)), seed
+    edges = [_rising(run, step) for step, _ in UNO_AXES]
+    assert [len(e) for e in edges] == [len(t) for t in ticks], seed
+    offsets = sorted(
+        c - 128 - t * TICK_CYCLES
+        for ts, es in zip(ticks, edges, strict=True)
+        for t, c in zip(ts, es, strict=True)
+    )
+    spread = offsets[-1] - offsets[0]
+    assert spread <= TICK_CYCLES, f"seed {seed}: edge-minus-tick spread {spread} cycles"
+    return len(offsets), spread
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_random_four_axis_programmes(four_build: tuple[Path, str], firmware_build: None, seed: int) -> None:
+    """Random programmes (2-6 items, dwells, 0-60 steps per axis and item, windows from the top speed up):
+    every step issued, each on its tick within one tick, the positions in DONE."""
+    _check_random(four_build[0], seed)
+
+
+@pytest.mark.slow
+def test_many_random_four_axis_programmes(four_build: tuple[Path, str], firmware_build: None) -> None:
+    results = [_check_random(four_build[0], seed) for seed in range(100, 160)]
+    print(
+        f"60 random four-axis programmes, {sum(n for n, _ in results)} steps: edge-minus-tick spread at most "
+        f"{max(s for _, s in results)} cycles"
+    )
+
+
+def test_per_axis_limits_refused_before_moving(four_build: tuple[Path, str], firmware_build: None) -> None:
+    build, _ = four_build
+    cmds = [
+        "EN 1",
+        "MSEG 100000 10 7 157 0",  # axis 2 past its travel in one item
+        "MSEG 10000 0 16 0 0",  # axis 1 faster than 639 us per step
+        "MSEG 10000000 0 0 0 5",  # axis 3 slower than one step per second
+        "MSEG 100000 0 0 0",  # one number short
+        "MSEG 100000 0 0 0 0",  # nothing moves
+        "MSEG 200000 100 100 100 100",
+        "MSEG 200000 50 50 50 57",  # axis 3 would reach 157
+        "GO",
+        "POS",
+        "SEG 1 157 1000",  # the one-axis command keeps axis 0's limits and texts
+    ]
+    run = _stepper(build, cmds, 0.05 + 0.02 * len(cmds) + 0.05)
+    assert [ln.body for ln in run.lines][1:] == [
+        "OK EN 1",
+        "ERR RANGE axis 2 steps -156..156",
+        "ERR RANGE axis 1 interval 639-1000000 us",
+        "ERR RANGE axis 3 interval 639-1000000 us",
+        "ERR ARG MSEG needs 5 integers",
+        "ERR RANGE no axis moves (a dwell is WAIT)",
+        "OK MSEG 1",
+        "OK MSEG 2",
+        "ERR RANGE axis 3 travel 0-156 steps",
+        "OK POS 0 0 0 0",
+        "ERR RANGE n_steps 1-156",
+    ]
+    for step, _ in UNO_AXES:
+        assert _rising(run, step) == [], f"{step} moved"
+
+
+def test_one_axis_commands_drive_axis_zero(four_build: tuple[Path, str], firmware_build: None) -> None:
+    build, _ = four_build
+    run = _stepper(build, ["EN 1", "SEG 1 5 1000", "WAIT 10", "SEG -1 2 700", "GO", "POS", "ABORT"], 0.25)
+    assert [ln.body for ln in run.lines][1:] == [
+        "OK EN 1",
+        "OK SEG 1",
+        "OK WAIT 2",
+        "OK SEG 3",
+        "OK GO 3",
+        "DONE 3 0 0 0",
+        "OK POS 3 0 0 0",
+        "ABORTED 3 0 0 0",
+    ]
+    got = _rising(run, "D5")
+    assert len(got) == 7 and [len(_rising(run, s)) for s, _ in UNO_AXES[1:]] == [0, 0, 0]
+    gaps_us = [(b - a) / 16 for a, b in zip(got, got[1:], strict=False)]
+    expected = [1000.0] * 4 + [10_000 + 700.0, 700.0]
+    assert all(abs(g - e) <= 0.5 for g, e in zip(gaps_us, expected, strict=True)), gaps_us
+
+
+def test_stream_drives_axis_zero_of_four(four_build: tuple[Path, str], firmware_build: None) -> None:
+    build, _ = four_build
+    cmds = ["SHAPER 1 0", "IMP 0 4096 0", "EN 1", "STREAM"] + ["V 1000"] * 10 + ["END"]
+    run = _stepper(build, cmds, 0.5, spacing=0.01)
+    assert [ln.body for ln in run.lines][-1] == "DONE 95 0 0 0"
+    # ten 10 ms periods at 1000 x 2^-16 step per 16 us: 95.37 steps, of which the count issues the whole ones
+    assert len(_rising(run, "D5")) == math.floor(10 * 1000 * 625 / 2**16) == 95
+    assert [len(_rising(run, s)) for s, _ in UNO_AXES[1:]] == [0, 0, 0]
+
+
+def _mv(t: float, ch: int) -> float:
+    """Four distinct waveforms (mV): ramps and a triangle, within 0-5 V."""
+    return [500 + 4000 * t, 4500 - 3000 * t, 2500 + 2000 * abs(((4 * t) % 2) - 1) - 1000, 300 + 4200 * t * t][
+        ch
+    ]
+
+
+def test_four_channel_daq_frames(four_build: tuple[Path, str], firmware_build: None) -> None:
+    build, _ = four_build
+    wave = [(k / 200, *(_mv(k / 200, c) for c in range(4))) for k in range(201)]
+    # each axis: a DIR level, then pulses 0.5 ms after every other sample instant (away from them)
+    edges: list[tuple[float, str, int]] = []
+    pulses: list[list[tuple[float, int]]] = [[] for _ in MEGA_AXES]
+    for a, (step, dirpin) in enumerate(MEGA_AXES):
+        sign = 1 if a % 2 == 0 else -1
+        edges.append((0.06, dirpin, 1 if sign > 0 else 0))
+        for k in range(5 * (a + 1)):
+            t = 0.1005 + 0.002 * k + 0.03 * a
+            edges += [(t, step, 1), (t + 10e-6, step, 0)]
+            pulses[a].append((t, sign))
+    edges.sort(key=lambda e: e[0])
+    cmds = [(0.02, fwsim.command("CONFIG")), (0.03, fwsim.command("START")), (0.6, fwsim.command("STOP"))]
+    run = fwsim.run("daq", cmds, 0.7, wave=wave, edges=edges, elf=build / "daq_mega.elf")
+    assert all(ln.checksum_ok for ln in run.lines)
+    replies = [ln.body for ln in run.replies()]
+    data = [ln.body.split(",")[1:] for ln in run.lines if ln.body.startswith("D,")]
+    assert replies[1:3] == ["OK CONFIG 4 4 100 2000", "OK START 1000"]
+    assert replies[3:] == [f"OK STOP {len(data)}"]  # no W,OVERRUN: every period a data line
+    assert len(data) >= 560 and all(len(f) == 10 for f in data)
+    rows = [[int(x) for x in f] for f in data]
+    assert [r[0] for r in rows] == list(range(len(rows)))
+    assert all(b[1] - a[1] == 1000 for a, b in zip(rows, rows[1:], strict=False))  # t_us 1 ms apart
+    # the ADC log: one conversion start per channel, channel c the c-th of each sample
+    convs = run.adc[-4 * len(rows) :] if len(run.adc) >= 4 * len(rows) else run.adc
+    starts = [c for c, _ in convs[::4]]
+    assert len(starts) == len(rows)
+    for i, row in enumerate(rows):
+        for c in range(4):
+            mv = convs[4 * i + c][1][c]
+            assert abs(row[2 + c] - math.floor(mv * 1023 / 5000)) <= 1, (i, c, row)
+        for a in range(4):
+            t_sample = starts[i] / F
+            count = sum(s for t, s in pulses[a] if t < t_sample)
+            assert row[6 + a] == count, f"sample {i} axis {a}: {row[6 + a]} steps, expected {count}"
+    assert rows[-1][6:] == [5, -10, 15, -20]
+    longest = max(len(ln.raw) + 1 for ln in run.lines if ln.body.startswith("D,"))
+    print(f"four channels at 1 kHz: {len(rows)} frames, 0 overruns, longest {longest} bytes")
+
+
+@pytest.mark.slow
+def test_link_budget_four_channels_through_pty(four_build: tuple[Path, str], firmware_build: None) -> None:
+    """60 s of device time at 1 kHz, four channels, 1 Mbaud, read through the harness's pseudo-terminal."""
+    serial = pytest.importorskip("serial")
+    build, _ = four_build
+    proc = subprocess.Popen(
+        [str(fwsim.HARNESS), "-m", "atmega2560", "-p", "-s", "0", str(build / "daq_mega.elf")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        assert proc.stdout is not None
+        port = proc.stdout.readline().decode().split()[1]
+        link = serial.Serial(port, 1_000_000, timeout=0.2)
+        buf = b""
+        while b"PONG daq" not in buf:  # synchronise (the boot banner may be gone)
+            link.write(fwsim.command("PING"))
+            buf += link.read(200)
+        link.write(fwsim.command("START"))
+        seq = last = None
+        frames = drops = bad = overruns = 0
+        t_first = t_last = None
+        buf = b""
+        deadline = time.monotonic() + 600  # a guard against a hung harness only: nothing is timed
+        while (t_last is None or t_last - t_first < 60_000_000) and time.monotonic() < deadline:
+            buf += link.read(4096)
+            *lines, buf = buf.split(b"\n")
+            for raw in lines:
+                body, star, given = raw.decode("ascii", "replace").rpartition("*")
+                if not star or given != fwsim.checksum(body.encode("ascii", "replace")):
+                    bad += 1
+                    continue
+                if body.startswith("W,OVERRUN"):
+                    overruns += int(body.split(",")[2])
+                if not body.startswith("D,"):
+                    continue
+                f = [int(x) for x in body.split(",")[1:]]
+                seq = f[0]
+                drops += 0 if last is None else seq - last - 1
+                last = seq
+                frames += 1
+                t_first = f[1] if t_first is None else t_first
+                t_last = f[1]
+        link.write(fwsim.command("STOP"))
+        link.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+    print(
+        f"pty link, 4 channels at 1 kHz, 1 Mbaud: {frames} frames over {(t_last - t_first) / 1e6:.3f} s "
+        f"of device time, {drops} dropped, {bad} corrupted, {overruns} overruns"
+    )
+    assert t_last - t_first >= 60_000_000
+    assert (drops, bad, overruns) == (0, 0, 0)
+    assert frames >= 60_000
