@@ -34,6 +34,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
     "virtual-rig": ("helpers.rig_studies", "check or re-tune the virtual rig; rewrite its evidence tables"),
     "sweep": ("helpers.sweep.command", "parameter sweeps on the virtual rig (Dask); the robustness atlas"),
+    "rig": ("helpers.rig_command", "check a rig file (limits, ADC range, predicted modes); write a template"),
 }
 """command name -> (module, one-line help)."""
 
