@@ -222,3 +222,18 @@ def test_dataclasses_are_frozen():
     rig = rigfile.default_rig()
     with pytest.raises(dataclasses.FrozenInstanceError):
         rig.hardware.travel_mm = 80.0  # type: ignore[misc]
+
+
+def test_docs_name_every_key_and_macro():
+    from helpers.paths import REPO_ROOT
+    from helpers.rigfile import firmware_header, schema
+
+    doc = (REPO_ROOT / "docs" / "rig_file.md").read_text()
+    keys = [
+        k.name
+        for table in (schema.TOP, schema.HARDWARE, schema.ARM, schema.BOARDS, schema.TENDON)
+        for k in table
+    ]
+    missing = [k for k in keys if f"`{k}`" not in doc]
+    missing += [m for m in firmware_header.MACROS if f"`{m}`" not in doc]
+    assert not missing, f"docs/rig_file.md does not document {missing}"
