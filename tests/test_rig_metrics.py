@@ -50,3 +50,24 @@ def test_two_rigs_in_one_table_are_refused_unless_asked():
     with pytest.raises(ValueError, match=r"2 rigs in one table \(long-arm, paper\)"):
         metrics.metrics_by_run(mixed)
     assert len(metrics.metrics_by_run(mixed, mix_rigs=True)) == 4
+
+
+def test_metrics_command_refuses_two_rigs_unless_asked(tmp_path, capsys):
+    import json
+    import shutil
+
+    from helpers.__main__ import main
+    from helpers.paths import DATA_DIR
+
+    for stem in ("zv_v200_x10_r2", "zv_v200_x20_r2"):
+        for ext in (".csv", ".json"):
+            shutil.copy(DATA_DIR / "experiments" / f"{stem}{ext}", tmp_path / f"{stem}{ext}")
+    meta_path = tmp_path / "zv_v200_x20_r2.json"
+    meta = json.loads(meta_path.read_text())
+    meta["schema_version"] = 2
+    meta["rig"] = recordings.rig_section(rigfile.load(rigfile.RIGS_DIR / "long-arm.toml"))
+    meta_path.write_text(json.dumps(meta))
+    assert main(["metrics", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "2 rigs in one table (long-arm, paper)" in err and "--mix-rigs" in err
+    assert main(["metrics", str(tmp_path), "--mix-rigs"]) == 0
