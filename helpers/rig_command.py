@@ -25,6 +25,7 @@ import numpy as np
 from helpers import rigfile
 from helpers.jsonfile import DataFileError
 from helpers.rigfile import RigFile, RigFileError
+from helpers.rigfile.firmware_header import firmware_problem
 from helpers.rigfile.template import template_text
 from helpers.virtual import statics
 from helpers.virtual.from_rig import rig_parameters
@@ -127,6 +128,7 @@ def report(rig: RigFile, points: int = 5) -> dict[str, Any]:
         "rod_mass_kg": p.rod_mass, "disc_mass_kg": p.disc_mass, "disc_inertia_kg_m2": p.disc_inertia,
         "total_mass_kg": p.total_mass, "gravity_direction": list(a.gravity_direction),
     }  # fmt: skip
+    out["firmware"] = firmware_problem(rig) or "fits the boards (python -m helpers.rigfile.firmware_header)"
     out.update(predicted_modes(rig, points))
     top = out["across_travel"][-1]["static_tension_n"]
     out["static_tension_at_travel_n"] = top
@@ -152,6 +154,7 @@ def _text(r: dict[str, Any]) -> str:
         f"  speed limit {r['speed_limit_mm_s']:g} mm/s: fastest step "
         + ", ".join(f"{s:.0f} steps/s" for s in r["max_step_rate_hz"])
         + f"; step interval {r['min_interval_us']}-{r['max_interval_us']} us",
+        f"  firmware: {r['firmware']}",
         f"  ADC: 0-{r['adc_max_counts']} counts, zero load at {r['adc_offset_counts']:.2f} counts, "
         "clipped at "
         f"<= {r['adc_clip_low_counts']} and >= {r['adc_clip_high_counts']}",

@@ -205,7 +205,7 @@ def test_a_new_rig_file_is_written_and_checked(newcomer, capsys):
     argv = [sys.executable, "-m", "helpers.rigfile.firmware_header", "my_rig.toml", "-o", "rig_config.h"]
     proc = subprocess.run(argv, cwd=newcomer, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    assert "#define RIG_MIN_INTERVAL_US 639UL" in (newcomer / "rig_config.h").read_text()
+    assert "#define RIG_MIN_INTERVAL_US 639\n" in (newcomer / "rig_config.h").read_text()
 
 
 def test_jupyter_lab_is_installed_with_the_widget_extension():

@@ -43,7 +43,8 @@ def test_check_json_of_the_paper_rig(capsys):
 def test_check_text_of_the_second_rig(capsys):
     status, out, _ = _run(["rig", "check", str(rigfile.RIGS_DIR / "long-arm.toml"), "--points", "2"], capsys)
     assert status == 0
-    assert "0.07854 mm" in out and "318 steps" in out and "524-1000000 us" in out
+    assert "0.07854 mm" in out and "254 steps" in out and "524-1000000 us" in out
+    assert "firmware: fits the boards" in out
     assert "predicted modes at rest" in out
 
 
@@ -84,12 +85,12 @@ def test_header_of_the_paper_rig(tmp_path):
     digest = hashlib.sha256(rigfile.DEFAULT_RIG.read_bytes()).hexdigest()[:8]
     assert m["RIG_HASH"] == f'"{digest}"' and m["RIG_NAME"] == '"paper"'
     assert (m["RIG_AXES"], m["RIG_CHANNELS"], m["RIG_PROGRAMME_MAX"]) == ("1", "1", "64")
-    assert (m["RIG_MIN_INTERVAL_US"], m["RIG_MAX_INTERVAL_US"]) == ("639UL", "1000000UL")
-    assert m["RIG_AXIS_TRAVEL_STEPS"] == "{156L}"
+    assert (m["RIG_MIN_INTERVAL_US"], m["RIG_MAX_INTERVAL_US"]) == ("639", "1000000L")
+    assert m["RIG_AXIS_TRAVEL_STEPS"] == "{156}"
     assert (m["RIG_DAQ_RATE_MIN_HZ"], m["RIG_DAQ_RATE_MAX_HZ"], m["RIG_DAQ_RATE_DEFAULT_HZ"]) == (
-        "100U", "2000U", "1000U",
+        "100", "2000", "1000",
     )  # fmt: skip
-    assert (m["RIG_DAQ_BAUD"], m["RIG_STEPPER_BAUD"]) == ("500000UL", "115200UL")
+    assert (m["RIG_DAQ_BAUD"], m["RIG_STEPPER_BAUD"]) == ("500000L", "115200L")
     assert (m["RIG_ADC_CLIP_LOW_COUNTS"], m["RIG_ADC_CLIP_HIGH_COUNTS"]) == ("116", "628")
 
 
@@ -98,10 +99,10 @@ def test_header_of_a_four_tendon_rig_and_of_the_second_rig(tmp_path):
     assert firmware_header.main(["four-tendon", "-o", str(out)]) == 0
     m = _macros(out.read_text())
     assert (m["RIG_AXES"], m["RIG_CHANNELS"]) == ("4", "4")
-    assert m["RIG_AXIS_TRAVEL_STEPS"] == "{156L, 156L, 156L, 156L}"
+    assert m["RIG_AXIS_TRAVEL_STEPS"] == "{156, 156, 156, 156}"
     assert firmware_header.main(["long-arm", "-o", str(out)]) == 0
     m = _macros(out.read_text())
-    assert (m["RIG_MIN_INTERVAL_US"], m["RIG_AXIS_TRAVEL_STEPS"]) == ("524UL", "{318L}")
+    assert (m["RIG_MIN_INTERVAL_US"], m["RIG_AXIS_TRAVEL_STEPS"]) == ("524", "{254}")
 
 
 def test_header_refuses_a_bad_rig_and_writes_nothing(tmp_path, capsys):
@@ -114,6 +115,17 @@ def test_header_refuses_a_bad_rig_and_writes_nothing(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "ofset_mm" in err and "offset_mm" in err
     assert not out.exists()
+
+
+def test_header_refuses_a_rig_the_boards_cannot_hold(tmp_path, capsys):
+    text = (rigfile.RIGS_DIR / "long-arm.toml").read_text().replace("travel_mm = 20.0", "travel_mm = 25.0")
+    rig_path = tmp_path / "long.toml"
+    rig_path.write_text(text)
+    assert rigfile.derived(rigfile.load(rig_path)).travel_steps == (318,)  # a valid rig file ...
+    out = tmp_path / "h.h"
+    assert firmware_header.main([str(rig_path), "-o", str(out)]) == 2  # ... the boards cannot hold
+    err = capsys.readouterr().err
+    assert "[hardware] travel_mm: 318 steps" in err and "at most 255" in err and not out.exists()
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc (Debian package gcc)")

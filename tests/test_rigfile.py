@@ -95,7 +95,7 @@ def test_second_rig_follows_from_its_numbers():
     assert (rig.arm.length_mm, rig.arm.discs, rig.hardware.load_cell_range_n) == (450.0, 10, 10.0)
     assert d.mm_per_step[0] == pytest.approx(math.pi * 40 / 1600)
     assert d.min_interval_us == 524  # ceil(1e6 / (150 mm/s / 0.07854 mm))
-    assert d.travel_steps == (318,)  # floor(25 / 0.07854)
+    assert d.travel_steps == (254,)  # floor(20 / 0.07854)
     assert d.gain_counts_per_n[0] == pytest.approx(49.152)  # twice the paper's: half the range
 
 

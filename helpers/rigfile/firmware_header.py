@@ -13,9 +13,18 @@ import sys
 import tempfile
 from pathlib import Path
 
-from helpers.rigfile import RigFileError, derived, load, resolve
+from helpers.rigfile import RigFile, RigFileError, derived, load, resolve
 
-__all__ = ["MACROS", "header_text", "main"]
+__all__ = ["MACROS", "header_text", "firmware_problem", "main"]
+
+MAX_TRAVEL_STEPS = 255
+"""Each axis's travel is an 8-bit table entry on the boards."""
+
+MAX_PROGRAMME_ITEMS = 255
+"""The stepper's programme table is indexed by 8 bits."""
+
+MIN_INTERVAL_US = 500
+"""The stepper board's shortest step interval."""
 
 MACROS = (
     "RIG_HASH", "RIG_NAME", "RIG_AXES", "RIG_CHANNELS", "RIG_MIN_INTERVAL_US", "RIG_MAX_INTERVAL_US",
@@ -31,9 +40,41 @@ def _c_string(text: str) -> str:
     return f'"{safe}"'
 
 
+def firmware_problem(rig: RigFile) -> str | None:
+    """Why the boards' firmware cannot be built for ``rig`` (its fixed-size tables and timers), or None.
+
+    The limits of ``firmware/common/rig_config.h``: travel 1-255 steps per axis (8-bit table), a programme
+    of 1-255 items, step intervals 500 us to 1 s, DAQ rates 31-4000 Hz.
+    """
+    d = derived(rig)
+    hw = rig.hardware
+    worst = max(d.travel_steps)
+    if worst > MAX_TRAVEL_STEPS:
+        axis = d.travel_steps.index(worst) + 1
+        return (
+            f"[hardware] travel_mm: {worst} steps on axis {axis}: the boards hold at most {MAX_TRAVEL_STEPS} "
+            f"steps of travel per axis (at most {MAX_TRAVEL_STEPS * d.mm_per_step[axis - 1]:.2f} mm)"
+        )
+    if hw.programme_max_items > MAX_PROGRAMME_ITEMS:
+        return f"[hardware] programme_max_items: at most {MAX_PROGRAMME_ITEMS} on the boards"
+    if d.min_interval_us < MIN_INTERVAL_US:
+        return (
+            f"[hardware] speed_limit_mm_s: the fastest step interval {d.min_interval_us} us is below the "
+            f"firmware's {MIN_INTERVAL_US} us"
+        )
+    if d.max_interval_us > 1_000_000:
+        return "[hardware] max_interval_us: at most 1000000 us on the boards"
+    if hw.daq_rate_min_hz < 31 or hw.daq_rate_max_hz > 4000:
+        return "[hardware] daq_rate_*_hz: the DAQ board samples at 31-4000 Hz"
+    return None
+
+
 def header_text(path: str | Path) -> str:
-    """The header for the rig file at ``path`` (checked first)."""
+    """The header for the rig file at ``path`` (checked first, then against the firmware's limits)."""
     rig = load(path)
+    problem = firmware_problem(rig)
+    if problem is not None:
+        raise RigFileError(f"{rig.source}: {problem}")
     d = derived(rig)
     hw = rig.hardware
     values = {
@@ -41,15 +82,15 @@ def header_text(path: str | Path) -> str:
         "RIG_NAME": _c_string(rig.name),
         "RIG_AXES": str(rig.n_tendons),
         "RIG_CHANNELS": str(rig.n_tendons),
-        "RIG_MIN_INTERVAL_US": f"{d.min_interval_us}UL",
-        "RIG_MAX_INTERVAL_US": f"{d.max_interval_us}UL",
-        "RIG_AXIS_TRAVEL_STEPS": "{" + ", ".join(f"{n}L" for n in d.travel_steps) + "}",
+        "RIG_MIN_INTERVAL_US": str(d.min_interval_us),
+        "RIG_MAX_INTERVAL_US": f"{d.max_interval_us}L",
+        "RIG_AXIS_TRAVEL_STEPS": "{" + ", ".join(str(n) for n in d.travel_steps) + "}",
         "RIG_PROGRAMME_MAX": str(hw.programme_max_items),
-        "RIG_DAQ_RATE_MIN_HZ": f"{hw.daq_rate_min_hz}U",
-        "RIG_DAQ_RATE_MAX_HZ": f"{hw.daq_rate_max_hz}U",
-        "RIG_DAQ_RATE_DEFAULT_HZ": f"{hw.daq_rate_default_hz}U",
-        "RIG_DAQ_BAUD": f"{hw.daq_baud}UL",
-        "RIG_STEPPER_BAUD": f"{hw.stepper_baud}UL",
+        "RIG_DAQ_RATE_MIN_HZ": str(hw.daq_rate_min_hz),
+        "RIG_DAQ_RATE_MAX_HZ": str(hw.daq_rate_max_hz),
+        "RIG_DAQ_RATE_DEFAULT_HZ": str(hw.daq_rate_default_hz),
+        "RIG_DAQ_BAUD": f"{hw.daq_baud}L",
+        "RIG_STEPPER_BAUD": f"{hw.stepper_baud}L",
         "RIG_ADC_CLIP_LOW_COUNTS": str(d.clip_low_counts),
         "RIG_ADC_CLIP_HIGH_COUNTS": str(d.clip_high_counts),
     }
