@@ -30,7 +30,7 @@ def _python(code: str, env_rig: str | None) -> subprocess.CompletedProcess:
 
 def test_hardware_follows_the_environment():
     assert _python(_PROBE, None).stdout.split() == ["paper", "639", "156", "0.255254"]
-    assert _python(_PROBE, "long-arm").stdout.split() == ["long-arm", "524", "318", "0.07854"]
+    assert _python(_PROBE, "long-arm").stdout.split() == ["long-arm", "524", "254", "0.07854"]
 
 
 def test_a_bad_rig_in_the_environment_is_one_line():
