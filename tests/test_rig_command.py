@@ -100,6 +100,7 @@ def test_header_of_a_four_tendon_rig_and_of_the_second_rig(tmp_path):
     m = _macros(out.read_text())
     assert (m["RIG_AXES"], m["RIG_CHANNELS"]) == ("4", "4")
     assert m["RIG_AXIS_TRAVEL_STEPS"] == "{156, 156, 156, 156}"
+    assert m["RIG_DAQ_BAUD"] == "1000000L"  # four channels per line need more than 500 kbaud
     assert firmware_header.main(["long-arm", "-o", str(out)]) == 0
     m = _macros(out.read_text())
     assert (m["RIG_MIN_INTERVAL_US"], m["RIG_AXIS_TRAVEL_STEPS"]) == ("524", "{254}")
