@@ -21,6 +21,7 @@ from pathlib import Path
 
 # Only the standard library and helpers.signals (standard library only) load before the signal handlers are
 # in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
+from helpers.rigfile import take_rig_option, use  # standard library only, like the line above
 from helpers.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
 
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -34,6 +35,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
     "virtual-rig": ("helpers.rig_studies", "check or re-tune the virtual rig; rewrite its evidence tables"),
     "sweep": ("helpers.sweep.command", "parameter sweeps on the virtual rig (Dask); the robustness atlas"),
+    "rig": ("helpers.rig_command", "check a rig file (limits, ADC range, predicted modes); write a template"),
 }
 """command name -> (module, one-line help)."""
 
@@ -156,6 +158,13 @@ def _main(argv: list[str]) -> int:
         epilog="exit status: " + "; ".join(f"{k} {v}" for k, v in EXIT_CODES.items()),
     )
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    parser.add_argument("--rig", metavar="FILE", help="the rig file every command follows (anywhere on the "
+                        "line; default $HELPERS_RIG, else rigs/paper.toml; docs/rig_file.md)")  # fmt: skip
+    argv, rig = take_rig_option(argv)  # before any command's module loads: they read the rig on import
+    if rig is not None:
+        chosen_rig, loaded = use(rig), sys.modules.get("helpers.hardware")
+        if loaded is not None and loaded.RIG.hash != chosen_rig.hash:  # in-process callers (tests, notebooks)
+            raise ValueError(f"--rig {rig}: this process runs rig {loaded.RIG.name!r} already (start anew)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")
     chosen = next((a for a in argv if not a.startswith("-")), None)
     for name, (module, help_text) in COMMANDS.items():

@@ -98,7 +98,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="'virtual' (in-process virtual rig), 'auto' (USB discovery), 'DAQ,STEPPER' or the stepper port",
     )
     parser.add_argument(
-        "--rig-name", default="record", type=arg_rig_name, help="name of the in-process virtual rig"
+        "--virtual-instance", "--rig-name", dest="rig_name", default="record", type=arg_rig_name,
+        help="name of the in-process virtual rig instance (--rig-name: its old spelling)",
     )
     parser.add_argument(
         "--confirm-slack",

@@ -51,8 +51,9 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from helpers import hardware, paper
+from helpers import hardware, paper, rigfile
 from helpers.noise import white_noise_std
+from helpers.recordings.rig import recording_rig
 
 FloatArray = NDArray[np.float64]
 
@@ -144,7 +145,7 @@ LOOP_OFFSET_TOLERANCE_COUNTS = 10.0
 paper's current-loop chain; otherwise only the ADC's own rails bound the range."""
 
 
-def clip_limits(calibration: dict[str, Any] | None = None) -> tuple[float, float]:
+def clip_limits(calibration: dict[str, Any] | None = None, rig: Any = None) -> tuple[float, float]:
     """ADC counts at or beyond which a reading is clipped, for a recording's load-cell calibration.
 
     The paper's chain (current loop, 150 ohm, 10-bit ADC): at or below
@@ -152,16 +153,25 @@ def clip_limits(calibration: dict[str, Any] | None = None) -> tuple[float, float
     above :data:`helpers.hardware.CLIP_HIGH_COUNTS` (within the noise margin of its upper saturation, 20.5 mA,
     or the ADC's 1023). A calibration whose zero reading (``offset_counts``) is not the loop's 4 mA (within
     :data:`LOOP_OFFSET_TOLERANCE_COUNTS`) comes from another chain, whose saturation is unknown: then only the
-    ADC's rails, 0 and 1023, bound the range.
+    ADC's rails, 0 and 1023, bound the range. ``rig`` (a :class:`helpers.rigfile.RigFile`, the recording's:
+    :func:`helpers.recordings.recording_rig`) gives that rig's chain instead of the host's
+    (:mod:`helpers.hardware`).
     """
     offset = None if calibration is None else calibration.get("offset_counts")
-    loop_zero = hardware.loop_counts(hardware.LOOP_ZERO_A)
+    if rig is not None:
+        d = rigfile.derived(rig)
+        loop_zero, top, low, high = d.offset_counts, d.adc_max, d.clip_low_counts, d.clip_high_counts
+    else:
+        loop_zero, top = hardware.loop_counts(hardware.LOOP_ZERO_A), hardware.ADC_MAX
+        low, high = hardware.CLIP_LOW_COUNTS, hardware.CLIP_HIGH_COUNTS
     if offset is not None and abs(float(offset) - loop_zero) > LOOP_OFFSET_TOLERANCE_COUNTS:
-        return 0.0, float(hardware.ADC_MAX)
-    return float(hardware.CLIP_LOW_COUNTS), float(hardware.CLIP_HIGH_COUNTS)
+        return 0.0, float(top)
+    return float(low), float(high)
 
 
-def clipped_samples(adc: ArrayLike, calibration: dict[str, Any] | None = None) -> NDArray[np.bool_]:
+def clipped_samples(
+    adc: ArrayLike, calibration: dict[str, Any] | None = None, rig: Any = None
+) -> NDArray[np.bool_]:
     """Which ADC readings are clipped: at or beyond the signal chain's range (:func:`clip_limits`).
 
     The check applies to hardware recordings as to virtual ones.
@@ -172,13 +182,15 @@ def clipped_samples(adc: ArrayLike, calibration: dict[str, Any] | None = None) -
         ADC counts.
     calibration : dict, optional
         The recording's ``calibration`` metadata (``offset_counts`` decides which chain; default the paper's).
+    rig : RigFile, optional
+        The recording's rig (its ADC chain); default the host's (:mod:`helpers.hardware`).
 
     Returns
     -------
     numpy.ndarray of bool
     """
     a = np.asarray(adc, dtype=float)
-    low, high = clip_limits(calibration)
+    low, high = clip_limits(calibration, rig)
     return (a <= low) | (a >= high)
 
 
@@ -463,6 +475,7 @@ def recording_metrics(
     *,
     column: str = "tension_n",
     calibration: dict[str, Any] | None = None,
+    rig: Any = None,
     **kwargs: Any,
 ) -> pd.DataFrame:
     """Table II metrics of one recording: one row per motion (Up, Down).
@@ -478,6 +491,8 @@ def recording_metrics(
         The analysed signal (default the tension in N).
     calibration : dict, optional
         The recording's ``calibration`` metadata, for the range check's limits (:func:`clip_limits`).
+    rig : RigFile, optional
+        The recording's rig, whose ADC chain bounds the range (default the host's).
     **kwargs
         Passed to :func:`motion_metrics`.
 
@@ -500,7 +515,7 @@ def recording_metrics(
     t = frame["t_s"].to_numpy(dtype=float)
     y = frame[column].to_numpy(dtype=float)
     if "clipped" not in kwargs and "adc" in frame.columns:
-        kwargs = {**kwargs, "clipped": clipped_samples(frame["adc"].to_numpy(), calibration)}
+        kwargs = {**kwargs, "clipped": clipped_samples(frame["adc"].to_numpy(), calibration, rig)}
     try:
         m = segment_motions(t, frame["steps"].to_numpy(dtype=float))
     except ValueError as err:
@@ -551,7 +566,12 @@ def _scenario_of(rec: Any, i: int) -> dict[str, Any]:
 
 
 def metrics_by_run(
-    recordings: Iterable[Any], band: float = 0.05, *, include_aborted: bool = False, **kwargs: Any
+    recordings: Iterable[Any],
+    band: float = 0.05,
+    *,
+    include_aborted: bool = False,
+    mix_rigs: bool = False,
+    **kwargs: Any,
 ) -> pd.DataFrame:
     """Metrics of every recording and motion, one row each (the long form behind :func:`scenario_table`).
 
@@ -565,6 +585,9 @@ def metrics_by_run(
     include_aborted : bool
         Also analyse recordings whose ``status`` is not ``complete`` (by default they are left out, and
         listed in ``table.attrs["skipped"]`` with the reason).
+    mix_rigs : bool
+        Accept recordings of different rigs (rig files, ``meta["rig"]``; older recordings are the paper's) in
+        one table; by default that is refused (``ValueError``). Each recording's sensor range is its rig's.
     **kwargs
         Passed to :func:`motion_metrics`.
 
@@ -575,6 +598,7 @@ def metrics_by_run(
     """
     parts = []
     skipped: list[str] = []
+    rigs: dict[str, str] = {}
     for i, rec in enumerate(recordings):
         status = (getattr(rec, "meta", None) or {}).get("status", "complete")
         if status != "complete" and not include_aborted:
@@ -582,7 +606,14 @@ def metrics_by_run(
             continue
         sc = _scenario_of(rec, i)
         meta = getattr(rec, "meta", None) or {}
-        df = recording_metrics(rec.frame, band, calibration=meta.get("calibration"), **kwargs)
+        rig = recording_rig(meta, source=str(getattr(rec, "name", i)))
+        rigs[rig.hash] = rig.name
+        if len(rigs) > 1 and not mix_rigs:
+            raise ValueError(
+                f"recordings of {len(rigs)} rigs in one table ({', '.join(sorted(rigs.values()))}): "
+                "pass mix_rigs=True to mix them"
+            )
+        df = recording_metrics(rec.frame, band, calibration=meta.get("calibration"), rig=rig, **kwargs)
         for key, value in sc.items():
             df[key] = value
         parts.append(df)

@@ -112,7 +112,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="'virtual' (in-process virtual rig), 'auto' (find the boards by USB id) or 'DAQ,STEPPER' "
         "(device paths, e.g. those serve-virtual-rig prints)",
     )
-    parser.add_argument("--rig-name", default="record", type=_name, help="name of the in-process virtual rig")
+    parser.add_argument("--virtual-instance", "--rig-name", dest="rig_name", default="record", type=_name,
+                        help="name of the in-process virtual rig instance (old spelling: --rig-name)")
     parser.add_argument(
         "--seed",
         type=arg_number(0, 2**32 - 1 - 10_000, int),

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from helpers import paper
+from helpers import paper, rigfile
 from helpers.identify import identify
 from helpers.metrics import recording_metrics
 from helpers.paths import STORED_TABLES_DIR
@@ -49,6 +49,7 @@ from helpers.shapers import paper_tdfs
 from helpers.virtual import ArmPlant, RigParameters, SimResult, linearise, simulate
 from helpers.virtual.parameters import KG_CM
 from helpers.virtual.spatial.direction_map import frequency_map_csv
+from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.rig import PRESETS, preset
 from helpers.virtual.statics import stable_max_step
 
@@ -455,8 +456,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument("--max-evaluations", type=int, default=100, help="Nelder-Mead budget of 'tune'")
     parser.add_argument("--only", nargs="*", choices=list(STUDY_FILES), help="'studies': run only these")
-    parser.add_argument("--preset", choices=list(PRESETS), default="paper",
-                        help="'frequency-map': the spatial twin's rig (default: paper)")  # fmt: skip
+    parser.add_argument("--preset", choices=list(PRESETS), default=None,
+                        help="'frequency-map': a built-in spatial rig (default: the rig file)")  # fmt: skip
     parser.add_argument("--directions", default="0:360:15",
                         help="'frequency-map': bend directions, deg from tendon 1 (0,45,90 or a:b:step)")
     parser.add_argument("--bends", default="0:35:5", help="'frequency-map': bend magnitudes, mm of cable")
@@ -469,7 +470,7 @@ def run(args: argparse.Namespace) -> int:
     if args.action == "frequency-map":
         if args.modes < 1:
             raise ValueError(f"--modes must be >= 1, got {args.modes}")
-        rig = preset(args.preset)
+        rig = preset(args.preset) if args.preset is not None else spatial_rig(rigfile.selected())
         directions = "0" if rig.n_tendons == 1 and args.directions == "0:360:15" else args.directions
         print(frequency_map_csv(rig, directions, args.bends, n_modes=args.modes), end="")
         return 0

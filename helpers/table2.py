@@ -30,7 +30,7 @@ from typing import Any
 import pandas as pd
 
 from helpers import metrics, paper
-from helpers.recordings import RESERVED_NAMES, Recording, RecordingError, RecordingExists, load
+from helpers.recordings import RESERVED_NAMES, Recording, RecordingError, RecordingExists, load, recording_rig
 from helpers.tables import to_markdown
 from helpers.validate import DefaultsHelp, arg_number
 
@@ -386,11 +386,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--include-aborted", action="store_true", help="analyse aborted runs too (else skipped)"
     )
+    parser.add_argument(
+        "--mix-rigs", action="store_true", help="accept recordings of different rigs (rig files) in one table"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers metrics``."""
     selection = select(args.paths, include_aborted=args.include_aborted)
+    rigs = {(r.hash, r.name) for r in (recording_rig(rec.meta, rec.name) for rec in selection.recordings)}
+    if len(rigs) > 1 and not getattr(args, "mix_rigs", False):
+        names = ", ".join(sorted(name for _, name in rigs))
+        raise ValueError(f"recordings of {len(rigs)} rigs in one table ({names}): --mix-rigs mixes them")
     runs = run_table(selection, args.band)
     means = mean_table(runs, args.band)
     targets: list[tuple[Path, str]] = []

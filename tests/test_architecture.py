@@ -32,6 +32,7 @@ LAYERS: dict[str, int] = {
     "helpers.signals": 0,
     "helpers.noise": 0,
     "helpers.locks": 0,
+    "helpers.rigfile": 0,
     "helpers.hardware": 1,
     "helpers.modemap": 1,
     "helpers.backbone": 1,
@@ -73,6 +74,7 @@ LAYERS: dict[str, int] = {
     "helpers.reproduce": 11,
     "helpers.benchmarks": 11,
     "helpers.rig_studies": 11,
+    "helpers.rig_command": 11,
     "helpers.__main__": 12,
 }
 """Layer of each module or room (a room's submodules share its layer)."""

@@ -67,6 +67,10 @@ HOW: dict[str, str] = {
     "python -m helpers bench sweep": "slow",
     "python -m helpers bench spatial": "slow",
     "python -m helpers virtual-rig frequency-map --preset hanging --directions 0,45 --bends 10": "quick",
+    "python -m helpers rig new my_rig.toml": "quick",  # test_a_new_rig_file_is_written_and_checked
+    "python -m helpers rig check my_rig.toml": "quick",
+    "python -m helpers rig check long-arm --json": "quick",
+    "python -m helpers.rigfile.firmware_header FILE -o rig_config.h": "quick",
     # hardware only: --help and a dry run
     "python -m helpers record calibration --ports auto": "dry-run",
     "python -m helpers record all --ports auto": "dry-run",
@@ -184,6 +188,24 @@ def test_commands_shown_without_a_run_have_help(command, capsys):
     assert "usage: python -m helpers" in out
     for markup in ("``", ":func:", ":class:", ":data:", ":mod:"):  # help is read in a terminal, not rendered
         assert markup not in out, f"{command} --help shows {markup!r}"
+
+
+def test_a_new_rig_file_is_written_and_checked(newcomer, capsys):
+    shown = readme_commands()
+    new, check = "python -m helpers rig new my_rig.toml", "python -m helpers rig check my_rig.toml"
+    other = "python -m helpers rig check long-arm --json"
+    assert {new, check, other} <= set(shown)
+    assert main(_argv(new)) == 0 and (newcomer / "my_rig.toml").exists()
+    assert main(_argv(check) + ["--points", "2"]) == 0
+    assert "predicted modes at rest" in capsys.readouterr().out
+    assert main(_argv(other) + ["--points", "2"]) == 0
+    assert json.loads(capsys.readouterr().out)["rig"] == "long-arm"
+    header = "python -m helpers.rigfile.firmware_header FILE -o rig_config.h"
+    assert header in shown
+    argv = [sys.executable, "-m", "helpers.rigfile.firmware_header", "my_rig.toml", "-o", "rig_config.h"]
+    proc = subprocess.run(argv, cwd=newcomer, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "#define RIG_MIN_INTERVAL_US 639\n" in (newcomer / "rig_config.h").read_text()
 
 
 def test_jupyter_lab_is_installed_with_the_widget_extension():

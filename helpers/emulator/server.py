@@ -217,7 +217,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="device seconds per wall second, 0-1000 (1 = real time; 0 = as fast as the reader reads)",
     )
     parser.add_argument("--seed", type=arg_number(0, 2**32 - 1, int), default=0, help="sensor noise seed")
-    parser.add_argument("--rig-name", default="pty", type=_rig_name, help="virtual rig's name (provenance)")
+    parser.add_argument("--virtual-instance", "--rig-name", dest="rig_name", default="pty", type=_rig_name,
+                        help="the virtual rig instance's name (provenance; old spelling: --rig-name)")
     parser.add_argument(
         "--load-n",
         type=arg_number(0, 1000),

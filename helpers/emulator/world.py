@@ -24,10 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from helpers import __version__
+from helpers import __version__, rigfile
 from helpers.emulator.boards import DaqEmulator, EmulatedBoard, Faults, StepperEmulator
 from helpers.signals import signals_held
 from helpers.virtual import ArmPlant, LoadCell, RigParameters
+from helpers.virtual.from_rig import rig_parameters
 
 __all__ = ["VirtualWorld", "register_world", "forget_world", "get_world", "default_world", "parameters_dict"]
 
@@ -185,7 +186,10 @@ def get_world(name: str, options: dict[str, str] | None = None) -> VirtualWorld:
 
 
 def default_world(name: str = "default", options: dict[str, str] | None = None) -> VirtualWorld:
-    """Build a world around the tuned virtual rig (``helpers.virtual`` physics, ``RigParameters()``).
+    """Build a world around the virtual rig of the selected rig file (``helpers.virtual`` physics).
+
+    The paper's rig file (the default) gives the tuned rig, ``RigParameters()``; another (``HELPERS_RIG``,
+    ``--rig``) gives its planar twin (``helpers.virtual.from_rig``; untuned unless its file is).
 
     Parameters
     ----------
@@ -197,7 +201,8 @@ def default_world(name: str = "default", options: dict[str, str] | None = None) 
     """
     options = options or {}
     seed = int(options.get("seed", 0))
-    params = RigParameters()
+    chosen = rigfile.selected()
+    params = RigParameters() if chosen.hash == rigfile.default_rig().hash else rig_parameters(chosen)
     plant = ArmPlant(params)
     sensor = LoadCell(params, seed=seed)
     info = {"version": __version__, "parameters": parameters_dict(params), "seed": seed}

@@ -22,6 +22,7 @@ from helpers.recordings.format import (
     validate,
     validate_meta,
 )
+from helpers.recordings.rig import recording_rig, rig_section
 from helpers.recordings.store import (
     RESERVED_NAMES,
     RecordingExists,
@@ -57,7 +58,9 @@ __all__ = [
     "load",
     "recording_path",
     "refuse_existing",
+    "recording_rig",
     "reserve",
+    "rig_section",
     "save",
     "validate",
     "validate_meta",

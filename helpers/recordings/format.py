@@ -8,7 +8,8 @@ derived columns are computed on load from the metadata and never stored:
 - ``tension_n``: ``(adc - offset_counts) * newtons_per_count`` (calibration in the metadata);
 - ``cable_mm``: ``steps * mm_per_step``.
 
-The JSON metadata (``SCHEMA_VERSION`` 1) is described key by key in ``docs/recording_format.md``;
+The JSON metadata (``SCHEMA_VERSION`` 2; 1 is read too) is described key by key in
+``docs/recording_format.md``;
 :func:`validate_meta` checks each key's type and range and :func:`validate` the samples against it, raising
 one :class:`RecordingError` that names the file, the field and the problem.
 """
@@ -25,9 +26,13 @@ import numpy as np
 import pandas as pd
 
 from helpers.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
+from helpers.recordings.rig import validate_rig_section
 
-SCHEMA_VERSION = 1
-"""Version of the metadata layout; :func:`helpers.recordings.load` refuses any other."""
+SCHEMA_VERSION = 2
+"""Version of the metadata layout new recordings get (2: with ``rig``, the rig file)."""
+
+READ_VERSIONS = (1, 2)
+"""Versions :func:`helpers.recordings.load` reads (1: before rig files, the paper's rig); others refused."""
 
 RAW_COLUMNS = ("seq", "t_us", "adc", "steps")
 """The CSV's columns, in order."""
@@ -197,8 +202,8 @@ def validate_meta(meta: Any, path: Path) -> None:
     if not isinstance(meta, dict):
         raise _fail(path, f"metadata is not a JSON object (got {type(meta).__name__})")
     version = meta.get("schema_version")
-    if version != SCHEMA_VERSION or not _is_int(version):
-        raise _fail(path, f"schema_version: unknown {version!r} (this code reads {SCHEMA_VERSION})")
+    if version not in READ_VERSIONS or not _is_int(version):
+        raise _fail(path, f"schema_version: unknown {version!r} (this code reads {READ_VERSIONS})")
     missing = [k for k in REQUIRED_META if k not in meta]
     if missing:
         raise _fail(path, f"metadata lacks {', '.join(missing)}")
@@ -231,6 +236,9 @@ def validate_meta(meta: Any, path: Path) -> None:
         params = source["parameters"]
         if not isinstance(params, dict) or any(isinstance(v, dict | list) for v in params.values()):
             raise _fail(path, "source.parameters: expected an object of flat values")
+    problem = validate_rig_section(meta, path)
+    if problem is not None:
+        raise _fail(path, problem)
     scenario = _section(meta, "scenario", path)
     if not isinstance(scenario.get("kind"), str):
         raise _fail(path, f"scenario.kind: expected text, got {scenario.get('kind')!r}")

@@ -45,12 +45,13 @@ from helpers import __version__ as HELPERS_VERSION
 from helpers import paper, recordings
 from helpers.design import SYSTEMS, Design, as_design, up_down
 from helpers.design.formats import shaper_to_dict
-from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, MAX_PROGRAMME_S
+from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, MAX_PROGRAMME_S, RIG
 from helpers.loadcell import LoadCellCalibration, load_calibration
 from helpers.noise import white_noise_std
 from helpers.paths import DATA_DIR
 from helpers.programmes import Programme, Segment, experiment_programme
 from helpers.recordings import Recording, RecordingError, reserve
+from helpers.recordings.rig import rig_section
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardLink, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.daq import DaqBoard
 from helpers.rig.discovery import find_rig_ports, virtual_source_for
@@ -1169,6 +1170,7 @@ class Rig:
         first_t = int(frame["t_us"].iloc[0]) if len(frame) else None
         meta = {
             "schema_version": recordings.SCHEMA_VERSION,
+            "rig": rig_section(RIG),
             "source": self.source,
             "scenario": scenario,
             "calibration": self.calibration.to_dict(),

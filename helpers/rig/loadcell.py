@@ -15,15 +15,34 @@ from typing import Any
 
 import numpy as np
 
-from helpers import recordings
+from helpers import hardware, recordings
 from helpers.paths import LOADCELL_CALIBRATION
 from helpers.recordings import Recording
 
 G_STANDARD = 9.80665
 """Standard gravity, m/s^2 (weight of a hung mass)."""
 
-CALIBRATION_MASSES_KG = (0.0, 0.2, 0.5, 1.0, 1.5, 1.9)
-"""Masses hung on the load cell (kg): 0 to 18.6 N, the range of Table II's tensions (up to 17.7 N)."""
+PAPER_MASSES_KG = (0.0, 0.2, 0.5, 1.0, 1.5, 1.9)
+"""The paper's rig's masses (kg): 0 to 18.6 N, the range of Table II's tensions (up to 17.7 N), on 20 N."""
+
+PAPER_SPAN_N = 20.0
+"""The load-cell span the paper's masses were chosen for (``rigs/paper.toml``'s ``load_cell_range_n``)."""
+
+
+def calibration_masses_kg(load_cell_range_n: float) -> tuple[float, ...]:
+    """Masses to hang on a load cell of this span (kg): the paper's, scaled down to a smaller span (to 1 g).
+
+    A cell of 20 N or more gets the paper's masses; a smaller one the same fractions of its span (a 10 N
+    cell: 0 to 0.95 kg, 9.3 N), so no load drives the loop into saturation.
+    """
+    if load_cell_range_n >= PAPER_SPAN_N:
+        return PAPER_MASSES_KG
+    scale = load_cell_range_n / PAPER_SPAN_N
+    return tuple(round(m * scale, 3) for m in PAPER_MASSES_KG)
+
+
+CALIBRATION_MASSES_KG = calibration_masses_kg(hardware.RIG.tendons[0].load_cell_range_n)
+"""Masses hung on the load cell (kg) of the rig the host runs: the paper's 0 to 18.6 N on its rig."""
 
 CALIBRATION_DIR = LOADCELL_CALIBRATION.parent
 """Where the calibration recordings go (``load_<grams>g``), beside the calibration file."""

@@ -1,6 +1,6 @@
 """The spatial twin's description: the arm, up to four tendons and the direction of gravity.
 
-A small dataclass layer whose field names are the keys of the rig file to come: one :class:`TendonSpec`
+Dataclasses whose field names are the rig file's keys (``docs/rig_file.md``): one :class:`TendonSpec`
 per ``[[tendon]]`` table (``angle_deg``, ``offset_mm``, ``spool_diameter_mm``, ``steps_per_rev``,
 ``holding_torque_n_m``, ``load_cell_range_n``, ``pretension_n``, ``cable_stiffness_n_m``) and a
 :class:`SpatialRig` holding the arm (the planar rig's :class:`~helpers.virtual.parameters.RigParameters`,

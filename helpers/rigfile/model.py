@@ -1,0 +1,273 @@
+"""A rig file, read and checked: :class:`RigFile` and :func:`load` (standard library and numpy only).
+
+Every problem is one :class:`RigFileError` line naming the file, the key and the problem (an unknown key with
+the nearest known one, a wrong type, a wrong sign or an implausible size that is probably a wrong unit, a
+missing key, more than four tendons, an unsafe or impossible rig: ``helpers.rigfile.derived``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import hashlib
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from helpers.rigfile.derived import check
+from helpers.rigfile.errors import RigFileError
+from helpers.rigfile.schema import (
+    ARM,
+    BOARDS,
+    HARDWARE,
+    MAX_TENDONS,
+    REQUIRED,
+    RIG_SCHEMA_VERSION,
+    TENDON,
+    TOP,
+    Key,
+)
+
+__all__ = ["RigFileError", "Hardware", "Arm", "Boards", "Tendon", "RigFile", "loads", "load", "rig_hash"]
+
+NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}\Z")
+
+
+def rig_hash(data: bytes) -> str:
+    """The rig's short hash: the first 8 hex digits of the sha256 of the file's bytes."""
+    return hashlib.sha256(data).hexdigest()[:8]
+
+
+def _fields(keys: tuple[Key, ...]) -> list[tuple[str, type, Any]]:
+    types = {"float": float, "int": int, "str": str, "vector3": tuple}
+    return [(k.name, types[k.kind]) for k in keys]  # type: ignore[misc]
+
+
+Hardware = dataclasses.make_dataclass("Hardware", _fields(HARDWARE), frozen=True)
+Hardware.__doc__ = "The ``[hardware]`` table, every key resolved (``helpers.rigfile.schema.HARDWARE``)."
+Arm = dataclasses.make_dataclass("Arm", _fields(ARM), frozen=True)
+Arm.__doc__ = "The ``[arm]`` table, every key resolved (``helpers.rigfile.schema.ARM``)."
+Boards = dataclasses.make_dataclass("Boards", _fields(BOARDS), frozen=True)
+Boards.__doc__ = "The ``[boards]`` table (``helpers.rigfile.schema.BOARDS``)."
+
+
+@dataclass(frozen=True)
+class Tendon:
+    """One tendon with its stepper and load cell, every value resolved (absent keys: its tables).
+
+    Units in the names; ``docs/rig_file.md``.
+    """
+
+    angle_deg: float
+    offset_mm: float
+    spool_diameter_mm: float
+    steps_per_rev: int
+    holding_torque_n_m: float
+    load_cell_range_n: float
+    pretension_n: float
+    cable_stiffness_n_m: float
+
+    @property
+    def mm_per_step(self) -> float:
+        """Cable per microstep, mm: ``pi d / steps_per_rev``."""
+        return math.pi * self.spool_diameter_mm / self.steps_per_rev
+
+    @property
+    def pull_out_n(self) -> float:
+        """Largest cable tension its stepper holds, ``T_h / R``, N."""
+        return self.holding_torque_n_m / (0.5e-3 * self.spool_diameter_mm)
+
+
+@dataclass(frozen=True)
+class RigFile:
+    """A checked rig file.
+
+    Attributes
+    ----------
+    name, description : str
+        The rig's name and free text.
+    schema_version : int
+        The file's format version.
+    hardware, arm, boards : Hardware, Arm, Boards
+        The tables, defaults filled in.
+    tendons : tuple of Tendon
+        One to four; a file without ``[[tendon]]`` has one tendon at 0 degrees at the arm's cable offset.
+    explicit_tendons : bool
+        The file has ``[[tendon]]`` tables.
+    text : str
+        The file's content (recordings keep it).
+    source : str
+        Where it came from (a path, or ``<string>``).
+    hash : str
+        :func:`rig_hash` of the file's bytes (UTF-8).
+    """
+
+    name: str
+    description: str
+    schema_version: int
+    hardware: Any
+    arm: Any
+    boards: Any
+    tendons: tuple[Tendon, ...]
+    explicit_tendons: bool
+    text: str = field(repr=False)
+    source: str = "<string>"
+    hash: str = ""
+
+    @property
+    def n_tendons(self) -> int:
+        """Number of tendons (axes and load-cell channels)."""
+        return len(self.tendons)
+
+    @property
+    def mm_per_step(self) -> float:
+        """Tendon 1's (the ``[hardware]`` stepper's) cable per microstep, mm."""
+        return self.tendons[0].mm_per_step
+
+
+def _problem(source: str, where: str, problem: str) -> RigFileError:
+    return RigFileError(f"{source}: {where}: {problem}")
+
+
+def _value(source: str, where: str, key: Key, value: Any) -> Any:
+    """Check one value against its key; return it converted (int -> float for floats, list -> tuple)."""
+    unit = "" if key.unit == "-" else f" {key.unit}"
+    if key.kind == "str":
+        if not isinstance(value, str):
+            raise _problem(source, where, f"must be a string, got {value!r}")
+        return value
+    if key.kind == "vector3":
+        ok = isinstance(value, list) and len(value) == 3
+        ok = ok and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
+        )
+        if not ok or math.sqrt(sum(float(v) ** 2 for v in value)) < 1e-12:
+            raise _problem(source, where, f"must be a nonzero vector of three numbers, got {value!r}")
+        return tuple(float(v) for v in value)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise _problem(source, where, f"must be a number{unit}, got {value!r}")
+    if key.kind == "int":
+        if isinstance(value, float):
+            raise _problem(source, where, f"must be a whole number{unit}, got {value!r}")
+    elif not math.isfinite(value):
+        raise _problem(source, where, f"must be finite, got {value!r}")
+    if key.lo is not None and (value <= key.lo if key.lo_open else value < key.lo):
+        need = f"> {key.lo:g}" if key.lo_open else f">= {key.lo:g}"
+        raise _problem(source, where, f"must be {need}{unit}, got {value!r}")
+    if key.hi is not None and value > key.hi:
+        raise _problem(source, where, f"must be <= {key.hi:g}{unit}, got {value!r}")
+    if key.plausible is not None and not key.plausible[0] <= value <= key.plausible[1]:
+        lo, hi = key.plausible
+        raise _problem(
+            source, where,
+            f"{value!r}{unit} is outside the plausible {lo:g}-{hi:g}{unit}: is it in another unit?",
+        )  # fmt: skip
+    return float(value) if key.kind == "float" else int(value)
+
+
+def _table(source: str, label: str, data: Any, keys: tuple[Key, ...]) -> dict[str, Any]:
+    """Check a table: known keys only (with a suggestion), required keys present, every value valid."""
+    if not isinstance(data, dict):
+        raise _problem(source, label, f"must be a table, got {type(data).__name__}")
+    known = {k.name: k for k in keys}
+    for name in data:
+        if name not in known:
+            near = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+            hint = f" (did you mean {near[0]!r}?)" if near else f" (known: {', '.join(known)})"
+            raise _problem(source, f"{label} {name}", f"unknown key{hint}")
+    out: dict[str, Any] = {}
+    for key in keys:
+        where = f"{label} {key.name}"
+        if key.name not in data:
+            if key.default is REQUIRED:
+                raise _problem(source, where, f"missing ({key.doc}, {key.unit})")
+            default = key.default
+            out[key.name] = tuple(default) if isinstance(default, list) else default
+            continue
+        out[key.name] = _value(source, where, key, data[key.name])
+    return out
+
+
+def loads(text: str, source: str = "<string>") -> RigFile:
+    """Read a rig file from its text and check it (derived limits and refusals included).
+
+    Raises
+    ------
+    RigFileError
+        One line naming ``source``, the key and the problem.
+    """
+    from_bytes = text.encode("utf-8")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise RigFileError(f"{source}: not valid TOML: {exc}") from None
+    allowed = {k.name for k in TOP} | {"hardware", "arm", "boards", "tendon"}
+    for name in data:
+        if name not in allowed:
+            near = difflib.get_close_matches(name, sorted(allowed), n=1, cutoff=0.6)
+            hint = f" (did you mean {near[0]!r}?)" if near else ""
+            raise _problem(source, name, f"unknown key or table{hint}")
+    top = _table(source, "(top level)", {k: v for k, v in data.items() if k in {t.name for t in TOP}}, TOP)
+    if top["schema_version"] != RIG_SCHEMA_VERSION:
+        raise _problem(
+            source, "schema_version",
+            f"{top['schema_version']} is not supported (this version reads {RIG_SCHEMA_VERSION}); "
+            "see docs/rig_file.md",
+        )  # fmt: skip
+    if not NAME.match(top["name"]):
+        raise _problem(source, "name", f"{top['name']!r}: letters, digits, '_', '-', '.' (at most 32)")
+    for required in ("hardware", "arm"):
+        if required not in data:
+            raise _problem(source, f"[{required}]", "missing table")
+    hw = _table(source, "[hardware]", data["hardware"], HARDWARE)
+    arm = _table(source, "[arm]", data["arm"], ARM)
+    boards = _table(source, "[boards]", data.get("boards", {}), BOARDS)
+    raw_tendons = data.get("tendon")
+    explicit = raw_tendons is not None
+    if raw_tendons is None:
+        raw_tendons = [{"angle_deg": 0.0}]
+    if not isinstance(raw_tendons, list) or not all(isinstance(t, dict) for t in raw_tendons):
+        raise _problem(source, "[[tendon]]", "must be an array of tables ([[tendon]] blocks)")
+    if not 1 <= len(raw_tendons) <= MAX_TENDONS:
+        raise _problem(source, "[[tendon]]", f"{len(raw_tendons)} tendons: a rig has 1 to {MAX_TENDONS}")
+    fallback = {
+        "offset_mm": arm["cable_offset_mm"],
+        "spool_diameter_mm": hw["spool_diameter_mm"],
+        "steps_per_rev": hw["steps_per_rev"],
+        "holding_torque_n_m": hw["holding_torque_n_m"],
+        "load_cell_range_n": hw["load_cell_range_n"],
+        "pretension_n": arm["pretension_n"],
+        "cable_stiffness_n_m": arm["cable_stiffness_n_m"],
+    }
+    tendons = []
+    for i, raw in enumerate(raw_tendons):
+        values = _table(source, f"[[tendon]] #{i + 1}", raw, TENDON)
+        resolved = {k: (fallback[k] if v is None else v) for k, v in values.items()}
+        tendons.append(Tendon(**resolved))
+    rig = RigFile(
+        name=top["name"], description=top["description"], schema_version=top["schema_version"],
+        hardware=Hardware(**hw), arm=Arm(**arm), boards=Boards(**boards), tendons=tuple(tendons),
+        explicit_tendons=explicit, text=text, source=source, hash=rig_hash(from_bytes),
+    )  # fmt: skip
+    check(rig)  # the rig as a whole: safe and feasible
+    return rig
+
+
+def load(path: str | Path) -> RigFile:
+    """Read and check the rig file at ``path`` (:func:`loads`); its hash is of the file's bytes."""
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except FileNotFoundError:
+        raise RigFileError(f"{p}: no such rig file") from None
+    except OSError as exc:
+        raise RigFileError(f"{p}: cannot be read ({exc.strerror})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise RigFileError(f"{p}: not UTF-8 text") from None
+    rig = loads(text, source=str(p))
+    return dataclasses.replace(rig, hash=rig_hash(data))
