@@ -32,30 +32,31 @@ import numpy as np
 
 from helpers.crc8 import INIT, crc8, crc8_hex
 from helpers.crc8 import TABLE as _CRC_TABLE
-from helpers.hardware import ADC_MAX
+from helpers.hardware import ADC_MAX, RIG
 
 FW_VERSION = "2.2.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
 
-PAPER_RIG_HASH = "00000000"
-"""The rig hash the paper's one-tendon build reports (``firmware/common/rig_config_paper.h``; a placeholder
-until that header is generated from the rig file)."""
+PAPER_RIG_HASH = "481e87e3"
+"""The rig hash the paper's one-tendon build reports: the hash of ``rigs/paper.toml``, generated into
+``firmware/common/rig_config_paper.h`` (a test checks that the three agree)."""
 
 
-def board_version(rig_hash: str = PAPER_RIG_HASH) -> str:
+def board_version(rig_hash: str | None = None) -> str:
     """The version token of ``HELLO``/``PONG``: ``<FW_VERSION>+<rig hash>`` (semantic-version build metadata).
 
     Parameters
     ----------
-    rig_hash : str
-        The 8 hex characters of the rig config the board was built for.
+    rig_hash : str, optional
+        The 8 hex characters of the rig the board was built for; by default the rig the host runs
+        (``helpers.hardware.RIG``, the emulated boards' build).
 
     Returns
     -------
     str
-        E.g. ``"2.2.0+00000000"``.
+        E.g. ``"2.2.0+481e87e3"``.
     """
-    return f"{FW_VERSION}+{rig_hash}"
+    return f"{FW_VERSION}+{RIG.hash if rig_hash is None else rig_hash}"
 
 
 MAX_LINE = 63

@@ -26,7 +26,7 @@ def test_run_records_the_whole_programme(tmp_path):
     assert back.meta["counts"] == {
         "samples": len(f), "dropped": 0, "corrupted": 0, "overruns": 0, "implausible": 0,
     }  # fmt: skip
-    assert back.meta["firmware"] == {"daq": "2.2.0+00000000", "stepper": "2.2.0+00000000"}
+    assert back.meta["firmware"] == {"daq": "2.2.0+481e87e3", "stepper": "2.2.0+481e87e3"}
     assert back.meta["scenario"]["programme"]["items"][1] == {
         "kind": "SEG",
         "direction": 1,
@@ -86,7 +86,7 @@ def test_sync_by_ping_when_the_board_does_not_reset_on_open():
         timeout=0.5,
         hello_timeout=1.0,
     )
-    assert rig.daq.version == "2.2.0+00000000" and world.daq.received[0] == "PING"
+    assert rig.daq.version == "2.2.0+481e87e3" and world.daq.received[0] == "PING"
     assert world.daq.resets == 1  # only the reset at power-up
 
 
@@ -124,3 +124,30 @@ def test_a_late_reply_is_not_taken_for_the_next_command():
     world.stepper.receive(frame("ABORT"))  # a reply the host never read (its command timed out earlier)
     assert rig.stepper.command("POS") == "OK POS 0"
     assert rig.stepper.unexpected == ["ABORTED 0"]
+
+
+@pytest.mark.parametrize("version", ["2.2.0+deadbeef", "2.2.0+00000000"])
+def test_boards_built_for_another_rig_are_refused_with_the_rebuild_command(monkeypatch, version):
+    import helpers.emulator.boards as emulated
+    from helpers.rig import WrongRig
+
+    monkeypatch.setattr(emulated, "board_version", lambda: version)
+    world = make_world()
+    with pytest.raises(WrongRig) as info:
+        Rig.connect("virtual", rig_name=world.name, calibration=CALIBRATION, timeout=0.5, hello_timeout=1.0)
+    message = str(info.value)
+    assert version.split("+")[1] in message and "481e87e3" in message
+    assert "make -C firmware RIG=" in message and "paper.toml" in message
+    assert not [c for c in world.stepper.received if not c.startswith("PING")]  # nothing but PING was sent
+
+
+def test_a_board_without_a_rig_hash_is_the_paper_rigs(monkeypatch):
+    import helpers.emulator.boards as emulated
+
+    monkeypatch.setattr(emulated, "board_version", lambda: "2.1.0")
+    world = make_world()
+    rig = Rig.connect("virtual", rig_name=world.name, calibration=CALIBRATION, timeout=0.5, hello_timeout=1.0)
+    try:
+        assert rig.daq.version == rig.stepper.version == "2.1.0"
+    finally:
+        rig.close()

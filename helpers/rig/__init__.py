@@ -23,6 +23,7 @@ from helpers.rig.boards import (
     LinkCorrupted,
     OldFirmware,
     PortBusy,
+    WrongRig,
 )
 from helpers.rig.daq import DaqBoard
 from helpers.rig.experiment import Rig, RunAborted
@@ -39,6 +40,7 @@ __all__ = [
     "DaqBoard",
     "LinkCorrupted",
     "OldFirmware",
+    "WrongRig",
     "PortBusy",
     "Rig",
     "RunAborted",

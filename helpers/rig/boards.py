@@ -27,7 +27,8 @@ from collections.abc import Callable
 
 import serial
 
-from helpers.protocol import PROTOCOL_MAJOR, StreamParser, frame
+from helpers.hardware import RIG
+from helpers.protocol import PAPER_RIG_HASH, PROTOCOL_MAJOR, StreamParser, frame
 from helpers.rig.ports import open_port
 from helpers.signals import signals_held
 
@@ -77,6 +78,10 @@ SEND_ATTEMPTS = 3
 """How often a command is sent when the board refused it as damaged in transit or its reply was damaged."""
 
 
+class WrongRig(BoardError):
+    """The board's firmware was built for another rig file than the one the host runs: rebuild it."""
+
+
 class CommandRefused(BoardError):
     """A board answered ``ERR <code> <text>``."""
 
@@ -86,11 +91,27 @@ class CommandRefused(BoardError):
 
 
 def _check_major(kind: str, version: str) -> None:
-    """Raise :class:`OldFirmware` unless ``version`` is of the protocol MAJOR this host speaks."""
+    """Raise unless ``version`` is of this host's protocol MAJOR and the board was built for this host's rig.
+
+    Raises
+    ------
+    OldFirmware
+        The board speaks another protocol MAJOR version.
+    WrongRig
+        The version's build metadata (``+<rig hash>``) names another rig than the one the host runs
+        (``helpers.hardware.RIG``). A version without it (firmware 2.0-2.1) is the paper's rig's.
+    """
     if version.split(".")[0] != str(PROTOCOL_MAJOR):
         raise OldFirmware(
             f"the {kind} board runs firmware {version}; this host speaks protocol {PROTOCOL_MAJOR} "
             f"(firmware {PROTOCOL_MAJOR}.x, CRC-8 checksums): flash the firmware of this repository"
+        )
+    built_for = version.partition("+")[2] or PAPER_RIG_HASH
+    if built_for != RIG.hash:
+        raise WrongRig(
+            f"the {kind} board was built for rig {built_for}, but this host runs rig '{RIG.name}' "
+            f"({RIG.source or 'rig file'}, hash {RIG.hash}): rebuild and flash it with "
+            f"make -C firmware RIG={RIG.source or 'FILE'} upload-{kind} PORT=..."
         )
 
 
