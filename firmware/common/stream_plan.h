@@ -33,13 +33,13 @@
 // The fixed-point ranges (PROTOCOL.md "Fixed point") hold for every rig config the contract allows:
 // the shaped sum of SP_MAX_IMPULSES impulses of |a| <= SP_AMP_MAX on |v| <= SP_V_MAX fits an int32; the clamped
 // speed moves less than one step per DELTA (one crossing per DELTA at most); a 10 ms period holds at most
-// 16 steps (the step queue holds two periods).
+// 32 steps (the stepper's step queue holds two periods: 32 steps, or 64 on a rig finer than 16 a period).
 static_assert((1L << 20) / RIG_MIN_INTERVAL_US <= 32767, "SP_V_MAX must fit an int16");
 static_assert((int64_t)((1L << 20) / RIG_MIN_INTERVAL_US) * SP_AMP_MAX * SP_MAX_IMPULSES < (1LL << 31),
               "the shaped sum would overflow int32");
 static_assert((int64_t)((1L << 20) / RIG_MIN_INTERVAL_US) * SP_AMP_ONE < SP_ONE,
               "the speed limit must stay under one step per DELTA");
-static_assert(10000L / RIG_MIN_INTERVAL_US + 1 <= 16, "more than 16 steps per control period");
+static_assert(10000L / RIG_MIN_INTERVAL_US + 1 <= 32, "more than 32 steps per control period");
 
 enum SpNotice : uint8_t { SP_NOTICE_SPEED = 1, SP_NOTICE_TRAVEL = 2 };
 

@@ -114,7 +114,13 @@ static Item prog[PROGRAMME_MAX];
 // Streaming state (PROTOCOL.md "Streaming"): the planner with its shaper and set-point history, the queue of
 // planned steps and the set-point FIFO. (About 430 bytes: it fits beside the programme table since the boards'
 // constant strings are kept in flash.)
-#define STEP_QUEUE 32  // planned steps not yet emitted: at most 16 per 10 ms period, two periods ahead
+// Planned steps not yet emitted: two periods ahead, a power of two. A 10 ms period holds at most
+// 10000 / RIG_MIN_INTERVAL_US + 1 steps: 16 on the paper's rig (639 us), 20 on a finer one (524 us).
+#if 10000L / RIG_MIN_INTERVAL_US + 1 <= 16
+#define STEP_QUEUE 32
+#else
+#define STEP_QUEUE 64
+#endif
 #define SETPOINT_FIFO 8
 struct StreamMem {
   Planner planner;
