@@ -1,4 +1,4 @@
-"""The firmware built for the second shipped rig (``rigs/long-arm.toml``: a 40 mm spool at 1600 microsteps/rev,
+"""The firmware built for the second shipped rig (``rigs/long-arm.toml``: a 40 mm spool, 1600 microsteps/rev,
 150 mm/s, 20 mm of travel) with ``make -C firmware RIG=FILE`` and the real header generator, in simavr: the
 boards report that rig's hash, and the stepper's limits are that rig's, not the paper's."""
 
