@@ -19,21 +19,37 @@ import sys
 import traceback
 from pathlib import Path
 
-# Only the standard library and helpers.signals (standard library only) load before the signal handlers are
+# Only the standard library and helpers.base.signals (standard library only) load before the signal handlers
+# are
 # in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
-from helpers.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
+from helpers.base.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "reproduce": ("helpers.reproduce", "execute every notebook in order; regenerate figures/ and tables"),
-    "record": ("helpers.record", "record experiments into data/ (hardware or virtual rig)"),
-    "metrics": ("helpers.table2", "Table II metrics (peak, overshoot, settling) of any recordings"),
-    "tune": ("helpers.tune", "measure the modes across configurations, design shapers, verify them"),
-    "home": ("helpers.home", "bring the cable back to position 0 safely"),
-    "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
-    "frame": ("helpers.frame_command", "append the CRC-8 to commands typed by hand (PING -> PING*79)"),
-    "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
-    "virtual-rig": ("helpers.rig_studies", "check or re-tune the virtual rig; rewrite its evidence tables"),
-    "sweep": ("helpers.sweep.command", "parameter sweeps on the virtual rig (Dask); the robustness atlas"),
+    "reproduce": (
+        "helpers.commands.reproduce",
+        "execute every notebook in order; regenerate figures/ and tables",
+    ),
+    "record": ("helpers.commands.record", "record experiments into data/ (hardware or virtual rig)"),
+    "metrics": (
+        "helpers.commands.metrics_report",
+        "Table II metrics (peak, overshoot, settling) of any recordings",
+    ),
+    "tune": ("helpers.research.tune", "measure the modes across configurations, design shapers, verify them"),
+    "home": ("helpers.commands.home", "bring the cable back to position 0 safely"),
+    "serve-virtual-rig": (
+        "helpers.virtual.emulator.server",
+        "serve the virtual rig's boards on pseudo-terminals",
+    ),
+    "frame": ("helpers.commands.frame", "append the CRC-8 to commands typed by hand (PING -> PING*79)"),
+    "bench": ("helpers.commands.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
+    "virtual-rig": (
+        "helpers.virtual.studies",
+        "check or re-tune the virtual rig; rewrite its evidence tables",
+    ),
+    "sweep": (
+        "helpers.research.sweep.command",
+        "parameter sweeps on the virtual rig (Dask); the robustness atlas",
+    ),
 }
 """command name -> (module, one-line help)."""
 
@@ -49,6 +65,17 @@ EXIT_CODES: dict[int, str] = {
     143: "interrupted by SIGTERM",
 }
 """Exit status -> meaning (also in docs/faults.md)."""
+
+EXTRAS: dict[str, str] = {
+    "numba": "virtual",
+    "llvmlite": "virtual",
+    "tqdm": "virtual",
+    "dask": "sweep",
+    "distributed": "sweep",
+    "xarray": "sweep",
+    "pydantic": "sweep",
+}
+"""A package the light install lacks -> the extra of ``pyproject.toml`` that brings it."""
 
 
 def _shown(path: Path | None) -> str:
@@ -101,13 +128,18 @@ def error_line(exc: BaseException) -> tuple[str, int]:
         what = str(exc) if isinstance(exc, Interrupted) else "interrupted by Ctrl-C"
         return f"{what}{_run_outcome(exc)}", EXIT_STATUS.get(signum, 128 + signum)
     first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    missing = exc.name.split(".")[0] if isinstance(exc, ModuleNotFoundError) and exc.name else None
+    if missing in EXTRAS:  # the paper's part runs without them; this command needs one
+        extra = EXTRAS[missing]
+        why = f"this command needs the [{extra}] extra ({missing} is not installed)"
+        return f'error: {why}: pip install -e ".[{extra}]"', 1
     if _is(exc, ("helpers.rig.safety", "SafetyError")):
         status = 3
     elif _is(exc, ("helpers.rig.boards", "BoardError")):
         status = 4
     elif _is(
-        exc, ("helpers.recordings.format", "RecordingError"), ("helpers.jsonfile", "DataFileError"),
-        ("helpers.locks", "FolderBusy"),
+        exc, ("helpers.recordings.format", "RecordingError"), ("helpers.base.jsonfile", "DataFileError"),
+        ("helpers.base.locks", "FolderBusy"),
     ):  # fmt: skip
         status = 5
     elif isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EDQUOT):

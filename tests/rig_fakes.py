@@ -6,9 +6,9 @@ import itertools
 
 import numpy as np
 
-from helpers.emulator.world import VirtualWorld, forget_world, register_world
-from helpers.hardware import MM_PER_STEP
+from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import Rig
+from helpers.virtual.emulator.world import VirtualWorld, forget_world, register_world
 
 K_N_PER_MM = 0.5
 PRETENSION_N = 1.0

@@ -22,7 +22,7 @@ import nbformat
 import pytest
 
 from helpers.__main__ import COMMANDS, main
-from helpers.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 README = (REPO_ROOT / "README.md").read_text()

@@ -14,10 +14,10 @@ import pytest
 from rig_fakes import CALIBRATION, make_world
 
 from helpers import recordings
-from helpers import streaming as hs
-from helpers.emulator.server import serve
-from helpers.programmes import Dwell, Programme, Segment
+from helpers.board import stream_reference as hs
+from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.rig import Rig, StreamStarved
+from helpers.virtual.emulator.server import serve
 
 READY_S = 60.0
 """Deadline (s) for the server and the boards to be ready: waits end on readiness, only a failure takes it."""

@@ -7,9 +7,9 @@ import pytest
 from rig_fakes import CALIBRATION, GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_rig, make_world
 
 from helpers import recordings
-from helpers.hardware import MM_PER_STEP
-from helpers.programmes import Dwell, Programme, Segment, experiment_programme
-from helpers.protocol import frame
+from helpers.board.programmes import Dwell, Programme, Segment, experiment_programme
+from helpers.board.protocol import frame
+from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import Rig
 from helpers.rig.discovery import KNOWN_BOARDS, candidate_ports, find_rig_ports
 

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from helpers.__main__ import main
-from helpers.paths import REPO_ROOT
+from helpers.base.paths import REPO_ROOT
 from helpers.virtual import RigParameters
 from helpers.virtual import statics as planar
 from helpers.virtual.spatial.chain import Control, SpatialChain
@@ -241,7 +241,7 @@ def test_plotting_functions_draw_the_map():
     import matplotlib
 
     matplotlib.use("Agg")
-    from helpers.plotting.spatial import direction_map_polar, mode_splitting, shapes_3d
+    from helpers.virtual.spatial.plots import direction_map_polar, mode_splitting, shapes_3d
 
     rows = [{"direction_deg": d, "bend_mm": b, "omega_d1_rad_s": 25 + 0.1 * b, "torsion1": 0.5,
              "omega_d2_rad_s": 26 - 0.1 * b, "torsion2": 0.0, "dominant_omega_d_rad_s": 26.0}

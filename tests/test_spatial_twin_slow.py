@@ -20,10 +20,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers import paper
-from helpers.metrics import recording_metrics
-from helpers.programmes import experiment_programme
-from helpers.shapers import paper_tdfs
+from helpers.board.programmes import experiment_programme
+from helpers.paper import numbers as paper
+from helpers.paper.metrics import recording_metrics
+from helpers.paper.shapers import paper_tdfs
 from helpers.virtual import RigParameters, simulate
 from helpers.virtual.spatial import _kernel as kern
 from helpers.virtual.spatial.direction_map import bend_equilibrium

@@ -16,8 +16,8 @@ import pytest
 from rig_fakes import make_rig
 
 from helpers import recordings
-from helpers import streaming as hs
-from helpers.hardware import MM_PER_STEP
+from helpers.board import stream_reference as hs
+from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import BoardError, StreamLimit
 
 STEPS_PER_UNIT_PERIOD = 625 / 2**16

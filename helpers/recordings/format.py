@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
+from helpers.paper.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
 
 SCHEMA_VERSION = 1
 """Version of the metadata layout; :func:`helpers.recordings.load` refuses any other."""

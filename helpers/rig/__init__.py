@@ -10,8 +10,9 @@
 - :mod:`helpers.rig.stream`: a stream's set-points, their checks, the pacing and what the recording says;
 - :mod:`helpers.rig.loadcell`: recording the load-cell calibration under known loads.
 
-The line protocol itself is :mod:`helpers.protocol`. Nothing here needs numba or the virtual rig's physics:
-the in-process virtual rig is reached through its ``virtual://`` URL (:mod:`helpers.emulator`).
+The line protocol itself is :mod:`helpers.board.protocol`. Nothing here needs numba or the virtual rig's
+physics:
+the in-process virtual rig is reached through its ``virtual://`` URL (:mod:`helpers.virtual.emulator`).
 """
 
 from helpers.rig.boards import (

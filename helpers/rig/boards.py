@@ -1,7 +1,7 @@
 """The link to one board, shared by both drivers: framed commands, replies, timeouts, resets, disconnects.
 
 Every read goes through :meth:`BoardLink.pump`, which feeds the bytes to a
-:class:`helpers.protocol.StreamParser`: data lines become samples (kept for the DAQ driver), other lines
+:class:`helpers.board.protocol.StreamParser`: data lines become samples (kept for the DAQ driver), other lines
 become messages. Replies (``OK``, ``ERR``, ``PONG``, ``ABORTED``) answer the pending command; unsolicited
 ``DONE`` is remembered; ``HELLO`` means the board rebooted, which is an error whenever it was not expected.
 
@@ -27,9 +27,9 @@ from collections.abc import Callable
 
 import serial
 
-from helpers.protocol import PROTOCOL_MAJOR, StreamParser, frame
+from helpers.base.signals import signals_held
+from helpers.board.protocol import PROTOCOL_MAJOR, StreamParser, frame
 from helpers.rig.ports import open_port
-from helpers.signals import signals_held
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
 

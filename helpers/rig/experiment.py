@@ -12,7 +12,8 @@ hardware and on the virtual rig alike, and the start position is recorded. A pul
 at cable position 0 (``python -m helpers home`` brings it there).
 
 Every run sits in a guard: on any exception (``KeyboardInterrupt``, and SIGTERM/SIGHUP turned into one by
-:mod:`helpers.signals`, included) the stepper is sent ``ABORT`` and ``EN 0`` and the DAQ ``STOP``, and what
+:mod:`helpers.base.signals`, included) the stepper is sent ``ABORT`` and ``EN 0`` and the DAQ ``STOP``, and
+what
 was recorded is saved marked ``aborted``, under a name of its own (``<name>_aborted_<UTC>``), with the
 reason; signals are held while that cleanup and save run. The exception is then re-raised carrying
 ``exc.recording`` (the saved recording, or None if it could not be saved), ``exc.saved_path`` and
@@ -39,18 +40,23 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm.auto import tqdm
 
+try:  # a progress bar where tqdm is installed (the [virtual] extra); the paper's part runs without it
+    from tqdm.auto import tqdm
+except ImportError:  # pragma: no cover - the light environment
+    tqdm = None
 from helpers import __version__ as HELPERS_VERSION
-from helpers import paper, recordings
-from helpers.design import SYSTEMS, Design, as_design, up_down
-from helpers.design.formats import shaper_to_dict
-from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, MAX_PROGRAMME_S
-from helpers.loadcell import LoadCellCalibration, load_calibration
-from helpers.noise import white_noise_std
-from helpers.paths import DATA_DIR
-from helpers.programmes import Programme, Segment, experiment_programme
+from helpers import recordings
+from helpers.base.noise import white_noise_std
+from helpers.base.paths import DATA_DIR
+from helpers.base.signals import Interrupted, run_guard
+from helpers.board.programmes import Programme, Segment, experiment_programme
+from helpers.board.stream_reference import board_shaper
+from helpers.paper import numbers as paper
+from helpers.paper.calibration import LoadCellCalibration, load_calibration
+from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, MAX_PROGRAMME_S
 from helpers.recordings import Recording, RecordingError, reserve
+from helpers.recordings.shaping import pulse_metadata
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardLink, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.daq import DaqBoard
 from helpers.rig.discovery import find_rig_ports, virtual_source_for
@@ -65,8 +71,6 @@ from helpers.rig.stream import (
     StreamRecord,
     StreamStarved,
 )
-from helpers.signals import Interrupted, run_guard
-from helpers.streaming import board_shaper
 
 
 class RunAborted(BoardError):
@@ -108,11 +112,6 @@ class _RunState:
     """Every sample of the run is in: an interrupt from now on cannot make it partial."""
     deviation: str | None = None
     """Why the motion differed from its command (a stream's underruns, clamps), or None."""
-
-
-def _design_system(system: str | None) -> str | None:
-    """``system`` if it can name a design (:data:`helpers.design.SYSTEMS` other than unshaped), else None."""
-    return system if system in SYSTEMS and system != "unshaped" else None
 
 
 def _utc_now() -> str:
@@ -200,10 +199,10 @@ def step_windows(programme: Programme, t_go_us: int, slack_us: int = 2_000) -> t
 
 
 class _DeviceTimeBar:
-    """A tqdm bar of device seconds, updated in 0.1 s increments."""
+    """A tqdm bar of device seconds, updated in 0.1 s increments (none where tqdm is not installed)."""
 
     def __init__(self, total_s: float | None, show: bool, desc: str | None = "device time") -> None:
-        self.bar = tqdm(
+        self.bar = None if tqdm is None else tqdm(
             total=None if total_s is None else round(total_s, 1),
             unit="s",
             desc=desc,
@@ -213,12 +212,13 @@ class _DeviceTimeBar:
         self.shown = 0.0
 
     def show(self, elapsed_s: float) -> None:
-        if elapsed_s - self.shown >= 0.1:
+        if self.bar is not None and elapsed_s - self.shown >= 0.1:
             self.bar.update(round(elapsed_s - self.shown, 1))
             self.shown += round(elapsed_s - self.shown, 1)
 
     def close(self) -> None:
-        self.bar.close()
+        if self.bar is not None:
+            self.bar.close()
 
 
 class Rig:
@@ -231,8 +231,10 @@ class Rig:
     stepper : StepperBoard
         The synchronised stepper driver.
     calibration : LoadCellCalibration or dict, optional
-        The load-cell calibration; default :func:`helpers.loadcell.load_calibration` (which raises a clear
-        error if there is none yet: pass :data:`helpers.loadcell.UNCALIBRATED` to record without one).
+        The load-cell calibration; default :func:`helpers.paper.calibration.load_calibration` (which raises a
+        clear
+        error if there is none yet: pass :data:`helpers.paper.calibration.UNCALIBRATED` to record without
+        one).
     source : dict, optional
         Provenance written into every recording; default ``{"kind": "hardware"}``.
     """
@@ -287,7 +289,7 @@ class Rig:
         rig_name : str
             Name of the in-process virtual rig.
         calibration : LoadCellCalibration or dict, optional
-            Default :func:`helpers.loadcell.load_calibration`.
+            Default :func:`helpers.paper.calibration.load_calibration`.
         timeout, hello_timeout : float
             Command timeout and boot timeout (s).
         daq_options, stepper_options : str
@@ -365,7 +367,7 @@ class Rig:
         allow_offset: bool = False,
         **kwargs: Any,
     ) -> Recording:
-        """Check a pulse request, build its programme (:func:`~helpers.programmes.experiment_programme`), run.
+        """Check a pulse request, build its programme (:func:`~programmes.experiment_programme`), run.
 
         The up move starts at ``paper.PULSE_T_UP_S`` (1 s) and the down move at ``paper.PULSE_T_DOWN_S``
         (8 s) after ``GO``, as in the paper.
@@ -376,10 +378,11 @@ class Rig:
             Speed (mm/s) and displacement (mm); refused with :class:`SafetyError` outside the limits.
         shaper : Shaper, ShaperPair, Schedule or Design, optional
             None for the unshaped pulse; otherwise anything
-            :func:`~helpers.programmes.experiment_programme` accepts (a design of :mod:`helpers.design`: a
+            :func:`~helpers.board.programmes.experiment_programme` accepts (a design of
+            :mod:`helpers.research.design`: a
             shaper for both moves, an Up/Down pair, or a map-following schedule computed for this move).
         system : str, optional
-            A name of :data:`helpers.design.SYSTEMS` (``"unshaped"``, ``"zv"``, ``"zvd"``, ``"ei"``,
+            A name of :data:`helpers.research.design.SYSTEMS` (``"unshaped"``, ``"zv"``, ``"zvd"``, ``"ei"``,
             ``"scheduled"``, ...). Default: a design's own system; for a bare shaper its name.
         path : path-like, optional
             Where to save.
@@ -404,18 +407,11 @@ class Rig:
             programme, report = experiment_programme(v, x, shaper, t_up=t_up, t_down=t_down, t_end=t_end_s)
         except ValueError as exc:
             raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
-        name = getattr(shaper, "name", None)
-        if system is None:
-            system = shaper.system if isinstance(shaper, Design) else None
-        up_shaper, down_shaper = up_down(shaper)
         scenario = {
             "kind": "pulse",
             "v_in_mm_s": v,
             "x_f_mm": x,
-            "system": system or ("unshaped" if shaper is None else str(name or "shaped")),
-            "shaper": None if up_shaper is None else shaper_to_dict(up_shaper),
-            "shaper_down": None if down_shaper is None else shaper_to_dict(down_shaper),
-            "shaping": None if shaper is None else as_design(shaper, _design_system(system)).to_dict(),
+            **pulse_metadata(shaper, system),
             "repetition": int(repetition),
             "t_up_s": t_up,
             "t_down_s": t_down,
@@ -450,7 +446,7 @@ class Rig:
 
         Parameters
         ----------
-        programme : helpers.programmes.Programme
+        programme : helpers.board.programmes.Programme
             Checked against the limits before anything is sent.
         scenario : dict, optional
             Scenario metadata (kind, v_in_mm_s, x_f_mm, system, shaper, repetition, ...); the programme is
@@ -567,7 +563,7 @@ class Rig:
         setpoints : array_like or iterable of float
             Cable speeds (mm/s, + = pull), one per 10 ms period. An array is checked whole before the run; a
             generator or a live source (which must return its present value at once) one value at a time.
-        shaper : helpers.shapers.Shaper, helpers.streaming.StreamShaper or None
+        shaper : helpers.paper.shapers.Shaper, helpers.board.stream_reference.StreamShaper or None
             Loaded on the board (a real shaper is rounded to the board's 16 us and 1/4096); None streams
             unshaped (the unit shaper).
         path : path-like, optional
@@ -789,7 +785,10 @@ class Rig:
         """How to bring this rig's cable home: the command with this rig's ports, or the call in-process."""
         ports = self.source.get("ports", {})
         if str(ports.get("daq", "")).startswith("virtual://"):
-            return "return it with helpers.home.home(rig.stepper) (the in-process rig lives in this process)"
+            return (
+                "return it with helpers.commands.home.home(rig.stepper) "
+                "(the in-process rig lives in this process)"
+            )
         daq, stepper = ports.get("daq", "DAQ"), ports.get("stepper", "STEPPER")
         return f"run `python -m helpers home --ports {daq},{stepper}`"
 
@@ -816,7 +815,8 @@ class Rig:
     def wait_for_rest(self, rate_hz: int = 1000, timeout_s: float = REST_TIMEOUT_S) -> dict[str, Any]:
         """Stream the tension until it is steady: std over ``REST_WINDOW_S`` <= ``REST_FACTOR`` x noise.
 
-        The noise is the white-noise level of the same window (:func:`helpers.noise.white_noise_std`), so a
+        The noise is the white-noise level of the same window (:func:`helpers.base.noise.white_noise_std`),
+        so a
         ringing arm or a drifting amplifier keeps the wait going while sensor noise alone does not.
 
         Returns
@@ -1090,7 +1090,8 @@ class Rig:
     ) -> Recording:
         """Run ``body`` so that every way it ends leaves the boards safe and its recording on disk.
 
-        Signals interrupt only the body (:func:`helpers.signals.run_guard`): the first one raises, every later
+        Signals interrupt only the body (:func:`helpers.base.signals.run_guard`): the first one raises, every
+        later
         one waits until the cleanup and the save are done. A run that had recorded everything when the signal
         came (``state.finished``) is saved whole, as if nothing had happened, and the interrupt is raised
         after the save; so is a run that ended normally and was interrupted just after.

@@ -6,11 +6,11 @@ stream, send set-points, end it; its notices are collected.
 
 from __future__ import annotations
 
-from helpers.hardware import STEPPER_BAUD
-from helpers.programmes import Dwell, Programme, Segment
+from helpers.board.programmes import Dwell, Programme, Segment
+from helpers.board.stream_reference import StreamShaper
+from helpers.paper.hardware import STEPPER_BAUD
 from helpers.rig.boards import SEND_ATTEMPTS, BoardError, BoardLink, CommandRefused, LinkCorrupted
 from helpers.rig.safety import check_programme
-from helpers.streaming import StreamShaper
 
 
 def _last_int(reply: str, what: str) -> int:

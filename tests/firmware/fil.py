@@ -45,15 +45,15 @@ import pandas as pd
 if str(fwsim.REPO) not in sys.path:  # run as a script from anywhere: this repository's helpers
     sys.path.insert(0, str(fwsim.REPO))
 
-from helpers import metrics  # noqa: E402
-from helpers import streaming as hs  # noqa: E402
-from helpers.emulator.world import VirtualWorld, forget_world, parameters_dict, register_world  # noqa: E402
-from helpers.hardware import MM_PER_STEP  # noqa: E402
-from helpers.programmes import Programme, experiment_programme  # noqa: E402
+from helpers.board import stream_reference as hs  # noqa: E402
+from helpers.board.programmes import Programme, experiment_programme  # noqa: E402
+from helpers.paper import metrics  # noqa: E402
+from helpers.paper.hardware import MM_PER_STEP  # noqa: E402
+from helpers.paper.shapers import paper_tdfs  # noqa: E402
 from helpers.rig import DaqBoard, Rig, StepperBoard  # noqa: E402
 from helpers.rig.stream import PERIOD_US, units  # noqa: E402
-from helpers.shapers import paper_tdfs  # noqa: E402
 from helpers.virtual import ArmPlant, LoadCell, RigParameters, simulate  # noqa: E402
+from helpers.virtual.emulator.world import VirtualWorld, forget_world, parameters_dict, register_world  # noqa: E402
 
 F = fwsim.F_CPU
 WAVE_DT_S = 5e-5
@@ -76,7 +76,8 @@ _names = itertools.count()
 
 # --- residual vibration ----------------------------------------------------------------------------------
 def residual_vibration(frame: pd.DataFrame, table: pd.DataFrame) -> dict:
-    """Residual vibration of each move (:func:`helpers.metrics.residual_vibration`: half the peak-to-peak
+    """Residual vibration of each move (:func:`helpers.paper.metrics.residual_vibration`: half the
+    peak-to-peak
     tension from 0.1 s to 1.1 s after the move's last step, in percent of ``yf - y0``).
 
     The last step of a move is the first sample showing the move's last change of the step count.
