@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import errno
 import importlib
-import os
 import sys
 import traceback
 from pathlib import Path
@@ -22,6 +21,7 @@ from pathlib import Path
 # Only the standard library and helpers.base.signals (standard library only) load before the signal handlers
 # are
 # in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
+from helpers.base.paths import shown
 from helpers.base.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
 
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -78,25 +78,15 @@ EXTRAS: dict[str, str] = {
 """A package the light install lacks -> the extra of ``pyproject.toml`` that brings it."""
 
 
-def _shown(path: Path | None) -> str:
-    if path is None:
-        return "?"
-    p = Path(path)
-    try:
-        return os.path.relpath(p)
-    except ValueError:
-        return str(p)
-
-
 def _run_outcome(exc: BaseException) -> str:
     """For a run that ended early: where its data went, and whether the cleanup reached the boards."""
     if not hasattr(exc, "cleanup"):
         return ""
     n = len(exc.recording.frame) if getattr(exc, "recording", None) is not None else 0
     if getattr(exc, "complete", False) and getattr(exc, "saved_path", None) is not None:
-        saved = f"the run had finished: saved whole to {_shown(exc.saved_path)} ({n} samples)"
+        saved = f"the run had finished: saved whole to {shown(exc.saved_path)} ({n} samples)"
     elif getattr(exc, "saved_path", None) is not None:
-        saved = f"partial recording saved to {_shown(exc.saved_path)} ({n} samples)"
+        saved = f"partial recording saved to {shown(exc.saved_path)} ({n} samples)"
     else:
         saved = f"the recording could NOT be saved ({getattr(exc, 'save_error', '?')})"
     cleanup = exc.cleanup
@@ -146,7 +136,7 @@ def error_line(exc: BaseException) -> tuple[str, int]:
         why = {errno.ENOSPC: "no space left on device", errno.EROFS: "read-only file system",
                errno.EACCES: "permission denied", errno.EDQUOT: "disk quota exceeded"}[exc.errno]  # fmt: skip
         where = exc.filename if exc.filename is not None else "?"
-        first, status = f"{_shown(Path(where))}: could not write ({why})", 5
+        first, status = f"{shown(Path(where))}: could not write ({why})", 5
     elif isinstance(exc, ValueError):
         status = 2
     else:

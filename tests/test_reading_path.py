@@ -18,8 +18,8 @@ from helpers.base.paths import REPO_ROOT
 
 PACKAGE = REPO_ROOT / "helpers"
 PAPER_NOTEBOOKS = sorted((REPO_ROOT / "notebooks").glob("0[1-5]_*.ipynb"))
-CODE_LINES_BUDGET = 6_500
-"""Code lines the paper's reading path may reach (measured 6,467 when this budget was set, from 10,807
+CODE_LINES_BUDGET = 6_600
+"""Code lines the paper's reading path may reach (measured 6,495 when this budget was set, from 10,807
 before the core was separated from the wings; the aim is 5,000, which needs the rig's streaming mode out of
 ``Rig``)."""
 WINGS_OUTSIDE = ("helpers.virtual", "helpers.research", "helpers.commands", "helpers.__main__")

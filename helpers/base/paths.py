@@ -80,3 +80,25 @@ def stored_table(name: str) -> Path:
             "`python -m helpers virtual-rig studies`; table2_previous_rig.csv is kept in the repository"
         )
     return path
+
+
+def shown(path: str | os.PathLike | None, root: Path | None = None) -> str:
+    """A path as a message shows it (``"?"`` for None).
+
+    Relative to ``root`` when it lies inside it, else as given; without a ``root``, relative to the working
+    directory where it can be.
+    """
+    if path is None:
+        return "?"
+    p = Path(path)
+    if root is not None:
+        return p.relative_to(root).as_posix() if p.is_relative_to(root) else str(p)
+    try:
+        return os.path.relpath(p)
+    except ValueError:
+        return str(p)
+
+
+def repo_path(path: str | os.PathLike) -> str:
+    """A path as a message shows it: relative to the repository (e.g. ``data/...``) when it lies inside it."""
+    return shown(path, REPO_ROOT)

@@ -29,6 +29,7 @@ from typing import Any
 
 import pandas as pd
 
+from helpers.base.paths import shown
 from helpers.base.tables import to_markdown
 from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.paper import metrics
@@ -60,13 +61,6 @@ class Selection:
 
     recordings: list[Recording] = field(default_factory=list)
     skipped: list[tuple[str, str]] = field(default_factory=list)
-
-
-def _shown(path: Path) -> str:
-    try:
-        return os.path.relpath(path)
-    except ValueError:
-        return str(path)
 
 
 def _stems_in(folder: Path) -> list[Path]:
@@ -151,21 +145,21 @@ def select(paths: list[str], include_aborted: bool = False) -> Selection:
     """
     out = Selection()
     for stem in expand(paths):
-        shown = _shown(stem)
+        label = shown(stem)
         if stem.name.lower() in RESERVED_NAMES:
-            out.skipped.append((shown, "not a recording (a calibration or identification result)"))
+            out.skipped.append((label, "not a recording (a calibration or identification result)"))
             continue
         if stem.suffix and stem.suffix not in (".csv", ".json"):
-            out.skipped.append((shown, "not a recording (expected a .csv/.json pair)"))
+            out.skipped.append((label, "not a recording (expected a .csv/.json pair)"))
             continue
         try:
             rec = load(stem.with_suffix(".csv"))
         except RecordingError as exc:
-            out.skipped.append((shown, str(exc).removeprefix(f"{stem.with_suffix('.csv')}: ")))
+            out.skipped.append((label, str(exc).removeprefix(f"{stem.with_suffix('.csv')}: ")))
             continue
         why = _why_not(rec, include_aborted)
         if why:
-            out.skipped.append((shown, why))
+            out.skipped.append((label, why))
         else:
             out.recordings.append(rec)
     return out
@@ -193,7 +187,7 @@ def run_table(selection: Selection, band: float, **kwargs: Any) -> pd.DataFrame:
     parts = []
     for rec in selection.recordings:
         df = metrics.metrics_by_run([rec], band, include_aborted=True, **kwargs)
-        df.insert(0, "recording", _shown(rec.path.with_suffix("")) if rec.path else rec.name)
+        df.insert(0, "recording", shown(rec.path.with_suffix("")) if rec.path else rec.name)
         df.insert(1, "source", (rec.meta.get("source") or {}).get("kind", "unknown"))
         parts.append(df)
     if not parts:
@@ -349,7 +343,7 @@ def report_markdown(
 def _write(path: Path, text: str, replace: bool) -> Path:
     """Write ``text`` to ``path`` whole (temporary file, then rename); refuse to overwrite unless asked."""
     if path.exists() and not replace:
-        raise RecordingExists(f"{_shown(path)} exists; pass --replace to overwrite it")
+        raise RecordingExists(f"{shown(path)} exists; pass --replace to overwrite it")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     try:
@@ -357,7 +351,7 @@ def _write(path: Path, text: str, replace: bool) -> Path:
         os.replace(tmp, path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
-        raise RecordingError(f"{_shown(path)}: cannot write ({exc.strerror or exc})") from exc
+        raise RecordingError(f"{shown(path)}: cannot write ({exc.strerror or exc})") from exc
     return path
 
 
@@ -407,10 +401,10 @@ def run(args: argparse.Namespace) -> int:
         targets.append((Path(args.markdown), markdown))
     for path, _ in targets:  # refuse before writing any, so that a refusal leaves nothing half-done
         if path.exists() and not args.replace:
-            raise RecordingExists(f"{_shown(path)} exists; pass --replace to overwrite it")
+            raise RecordingExists(f"{shown(path)} exists; pass --replace to overwrite it")
     text = markdown if args.markdown == "-" else report_text(runs, means, selection.skipped, args.band)
     sys.stdout.write(text)
     for path, text in targets:
         _write(path, text, args.replace)
-        print(f"wrote {_shown(path)}", file=sys.stderr)
+        print(f"wrote {shown(path)}", file=sys.stderr)
     return 0

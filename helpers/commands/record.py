@@ -35,7 +35,7 @@ from typing import Any
 
 from helpers.base.jsonfile import MissingDataError
 from helpers.base.locks import folder_lock
-from helpers.base.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR, repo_path
 from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
@@ -213,7 +213,7 @@ def _shapers(args: argparse.Namespace, quiet: bool = False) -> tuple[dict[str, A
         except MissingDataError as exc:  # a data file is missing: status 5, not a usage error
             raise MissingDataError(f"{exc} (or pass --zeta and --omega-d)") from None
         zeta, omega_d = found.zeta, found.omega_d
-        origin = _shown(path)
+        origin = repo_path(path)
     zv, zvd = design_tdfs(omega_d, zeta)
     extra = ei(omega_n_from_damped(omega_d, zeta), zeta)
     if not quiet:
@@ -234,7 +234,7 @@ def _pulse_request(args: argparse.Namespace) -> tuple[str, Any, dict[str, Any] |
         design = load_design(args.design)
         if args.system is not None and args.system != design.system:
             raise ValueError(
-                f"--system {args.system}, but {_shown(args.design)} holds a {design.system!r} design "
+                f"--system {args.system}, but {repo_path(args.design)} holds a {design.system!r} design "
                 "(drop --system, or give the design's own)"
             )
         v, x = args.v_in, args.x_f
@@ -245,7 +245,7 @@ def _pulse_request(args: argparse.Namespace) -> tuple[str, Any, dict[str, Any] |
             raise SystemExit("record pulse needs --v-in and --x-f")
         if isinstance(design.shaping, Schedule):
             design.shaping.check_move(v, x)
-        info = {"origin": _shown(args.design), "system": design.system, "kind": design.kind}
+        info = {"origin": repo_path(args.design), "system": design.system, "kind": design.kind}
         return design.system, design, info, v, x
     if args.v_in is None or args.x_f is None:
         raise SystemExit("record pulse needs --v-in and --x-f")
@@ -272,12 +272,6 @@ def _describe(system: str, shaping: Any) -> str:
     if up is down:
         return f"{up.name} ({len(up.amplitudes)} impulses)"
     return f"{system} (Up {up.name}: {len(up)} impulses; Down {down.name}: {len(down)} impulses)"
-
-
-def _shown(path: Path) -> str:
-    """``path`` relative to the repository when it is inside it."""
-    p = Path(path)
-    return p.relative_to(DATA_DIR.parent).as_posix() if p.is_relative_to(DATA_DIR.parent) else str(p)
 
 
 def record_all(
@@ -324,12 +318,12 @@ def record_all(
         replace=replace,
         noise_seed=seeds.take(),
     )
-    print(f"identification run: {rec.status}, {len(rec.frame)} samples -> {_shown(rec.path)}")
+    print(f"identification run: {rec.status}, {len(rec.frame)} samples -> {repo_path(rec.path)}")
     result = identify_recording(rec, window=run["window_s"], column="adc")
     path = save_identification(result, Path(data_dir) / "identification" / "result.json")
-    print(f"identified zeta = {result.zeta:.4f}, omega_d = {result.omega_d:.3f} rad/s -> {_shown(path)}")
+    print(f"identified zeta = {result.zeta:.4f}, omega_d = {result.omega_d:.3f} rad/s -> {repo_path(path)}")
     zv, zvd = design_tdfs(result.omega_d, result.zeta)
-    design = {"zeta": result.zeta, "omega_d": result.omega_d, "origin": _shown(path)}
+    design = {"zeta": result.zeta, "omega_d": result.omega_d, "origin": repo_path(path)}
     record_table_i(
         rig,
         {"unshaped": None, "zv": zv, "zvd": zvd},
@@ -352,7 +346,7 @@ def _record_calibration(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -
     path = save_calibration(fit, recs, folder / "calibration.json")
     print(
         f"{len(recs)} loads recorded; gain {fit.gain_counts_per_n:.4f} +- {fit.gain_stderr:.4f} "
-        f"counts/N, offset {fit.offset_counts:.3f} +- {fit.offset_stderr:.3f} counts -> {_shown(path)}"
+        f"counts/N, offset {fit.offset_counts:.3f} +- {fit.offset_stderr:.3f} counts -> {repo_path(path)}"
     )
 
 
@@ -377,7 +371,7 @@ def _record_pulse(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None
             replace=args.replace,
             noise_seed=seeds.take(),
         )
-        print(f"{rec.status}: {len(rec.frame)} samples -> {_shown(rec.path)}")
+        print(f"{rec.status}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
 
 
 def _record_table_i(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
@@ -414,7 +408,7 @@ def _record_streams(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> No
     recs = record_streams(rig, args.data_dir / args.group, mode_map, (rest.omega_d, rest.zeta),
                           replace=args.replace, seeds=seeds.take, rate_hz=args.rate)  # fmt: skip
     for rec in recs:
-        print(f"{rec.status}: {len(rec.frame)} samples -> {_shown(rec.path)}")
+        print(f"{rec.status}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
 
 
 RECORDERS: dict[str, Callable[[Rig, argparse.Namespace, NoiseSeeds], None]] = {
@@ -491,7 +485,7 @@ def dry_run(args: argparse.Namespace) -> int:
             target = recording_path(args.group, f"load_{grams:04d}g", args.data_dir)
             if not args.replace:
                 refuse_existing(target)
-            rows.append(f"  {_shown(target)}: {grams} g hung for {args.duration:g} s at {args.rate} Hz")
+            rows.append(f"  {repo_path(target)}: {grams} g hung for {args.duration:g} s at {args.rate} Hz")
     else:
         for group, name, v, x, system, shaper in _planned_pulses(args):
             target = recording_path(group, name, args.data_dir)
@@ -505,7 +499,7 @@ def dry_run(args: argparse.Namespace) -> int:
             check_programme(programme)
             what = _describe(system, shaper)
             rows.append(
-                f"  {_shown(target)}: {x:g} mm at {v:g} mm/s, {what}, {report.n_steps} steps per move, "
+                f"  {repo_path(target)}: {x:g} mm at {v:g} mm/s, {what}, {report.n_steps} steps per move, "
                 f"{programme.duration_s:.1f} s at {args.rate} Hz"
             )
     print(f"dry run: {len(rows)} recording(s) would be made on --ports {args.ports}; nothing was sent:")
@@ -526,7 +520,7 @@ def _refuse_existing_targets(args: argparse.Namespace) -> None:
         target = recording_path(group, name, args.data_dir)
         if target.exists() or target.with_suffix(".json").exists():
             raise RecordingExists(
-                f"{_shown(target)}: a recording of that name exists; {how} or pass --replace to replace it"
+                f"{repo_path(target)}: a recording of that name exists; {how} or pass --replace to replace it"
             )
 
 

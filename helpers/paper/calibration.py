@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from helpers.base.jsonfile import DataFileError, read_json, write_json
-from helpers.base.paths import DATA_DIR, LOADCELL_CALIBRATION
+from helpers.base.paths import LOADCELL_CALIBRATION, repo_path
 from helpers.paper.hardware import ADC_MAX, MM_PER_STEP
 
 if TYPE_CHECKING:  # the recordings are read by their owner; here they are only a type
@@ -237,11 +237,6 @@ def save_calibration(
     return write_json(path, data)
 
 
-def _shown(path: Path) -> str:
-    """``path`` as ``data/...`` when it lies under ``data/``."""
-    return f"data/{path.relative_to(DATA_DIR).as_posix()}" if path.is_relative_to(DATA_DIR) else path.name
-
-
 def load_calibration(path: str | os.PathLike = LOADCELL_CALIBRATION) -> LoadCellCalibration:
     """Read the load-cell calibration (``data/calibration/calibration.json`` by default).
 
@@ -260,7 +255,7 @@ def load_calibration(path: str | os.PathLike = LOADCELL_CALIBRATION) -> LoadCell
             newtons_per_count=data["newtons_per_count"],
             offset_counts=data["offset_counts"],
             mm_per_step=data.get("mm_per_step", MM_PER_STEP),
-            origin=_shown(p),
+            origin=repo_path(p),
             source=(source.get("kind", "unknown") if isinstance(source, dict) else "unknown"),
         )
     except KeyError as exc:

@@ -39,7 +39,14 @@ import numpy as np
 import pandas as pd
 from scipy.interpolate import PchipInterpolator
 
-from helpers.base.jsonfile import DataFileError, MissingDataError, atomic_write, read_json, write_json
+from helpers.base.jsonfile import (
+    DataFileError,
+    MissingDataError,
+    atomic_write,
+    check_versioned,
+    read_json,
+    write_json,
+)
 from helpers.paper.modes import omega_n_from_damped
 
 FORMAT = "continuum-arm-mode-map"
@@ -484,13 +491,7 @@ class ModeMap:
     @classmethod
     def from_dict(cls, data: Any, where: str = "mode map") -> ModeMap:
         """Rebuild a map from :meth:`to_dict`'s document; one ``ValueError`` naming the field otherwise."""
-        if not isinstance(data, dict):
-            raise ValueError(f"{where}: expected a JSON object, got {type(data).__name__}")
-        if data.get("format") != FORMAT:
-            raise ValueError(f"{where}: format: expected {FORMAT!r}, got {data.get('format')!r}")
-        if data.get("version") != FORMAT_VERSION:
-            version = data.get("version")
-            raise ValueError(f"{where}: version: unknown {version!r} (this code reads {FORMAT_VERSION})")
+        data = check_versioned(data, where, FORMAT, FORMAT_VERSION)
         columns = data.get("columns")
         if not isinstance(columns, dict):
             raise ValueError(f"{where}: columns: expected an object of lists")

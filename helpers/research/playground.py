@@ -14,7 +14,7 @@ sliders in JupyterLab and shows a static figure of the same function under nbval
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -28,8 +28,8 @@ from helpers.plotting.playground import (
     DT_S,
     T_END_S,
     T_UP_S,
-    LinearResponse,
-    check_design,
+    LinearPlayground,
+    LinearStudy,
     residual_after,
 )
 from helpers.research import families
@@ -42,49 +42,28 @@ COLOURS = {**SYSTEM_COLOURS, "ei": "C4"}
 
 
 @dataclass
-class Study:
-    """One setting of the sliders and what it leaves.
+class Study(LinearStudy):
+    """One setting of the sliders and what it leaves on the linear model (:class:`LinearStudy`) and the rig.
 
     Attributes
     ----------
-    design_ratio, zeta_error : float
-        The sliders.
-    omega_d_design, zeta_design : float
-        The mode the shapers were designed for (damped rad/s, damping ratio).
-    t : numpy.ndarray
-        Sample times, s.
-    linear, rig : dict of str to numpy.ndarray
-        Tension (N) per system (``unshaped`` and :data:`SHAPERS`) on the linear model and the virtual rig.
-    residual_linear, residual_rig : dict of str to float
-        Residual vibration, % of the step, per system.
-    move_end_s : dict of str to float
-        End of each (shaped) move, s.
+    rig : dict of str to numpy.ndarray
+        Tension (N) per system (``unshaped`` and :data:`SHAPERS`) on the virtual rig.
+    residual_rig : dict of str to float
+        Residual vibration, % of the step, per system, on the virtual rig.
     """
 
-    design_ratio: float
-    zeta_error: float
-    omega_d_design: float
-    zeta_design: float
-    t: np.ndarray
-    linear: dict[str, np.ndarray]
-    rig: dict[str, np.ndarray]
-    residual_linear: dict[str, float]
-    residual_rig: dict[str, float]
-    move_end_s: dict[str, float]
+    rig: dict[str, np.ndarray] = field(default_factory=dict)
+    residual_rig: dict[str, float] = field(default_factory=dict)
 
 
-class ShaperPlayground:
+class ShaperPlayground(LinearPlayground):
     """Residual vibration of mis-designed shapers on the linear model and the virtual rig.
 
     Parameters
     ----------
-    omega_d, zeta : float
-        The identified mode (damped rad/s, damping ratio): the shapers' design at ``design_ratio = 1`` and
-        ``zeta_error = 0``.
-    v_in_mm_s, x_f_mm : float
-        The move.
-    model_params : helpers.paper.model.ArmParameters, optional
-        The linear model (default: :func:`helpers.paper.model.fitted_parameters`).
+    omega_d, zeta, v_in_mm_s, x_f_mm, model_params
+        As :class:`~helpers.plotting.playground.LinearPlayground`.
     rig_params : helpers.virtual.RigParameters, optional
         The virtual rig (default: the tuned rig).
     """
@@ -98,22 +77,17 @@ class ShaperPlayground:
         model_params: model.ArmParameters | None = None,
         rig_params: RigParameters | None = None,
     ) -> None:
-        self.omega_d, self.zeta = float(omega_d), float(zeta)
-        self.v_in_mm_s, self.x_f_mm = float(v_in_mm_s), float(x_f_mm)
-        self.model_params = model.fitted_parameters() if model_params is None else model_params
+        super().__init__(omega_d, zeta, v_in_mm_s, x_f_mm, model_params)
         self.plant = ArmPlant(RigParameters() if rig_params is None else rig_params)
-        self.response = LinearResponse(v_in_mm_s, x_f_mm, self.model_params)
         self.t = self.response.t
-        self.fig: plt.Figure | None = None
         self._unshaped = self._run(None)
 
     def design(self, design_ratio: float, zeta_error: float) -> dict[str, shapers.Shaper]:
-        """The shapers designed for the displaced mode."""
+        """ZV, ZVD (:meth:`LinearPlayground.design`) and EI designed for the displaced mode."""
+        designed = super().design(design_ratio, zeta_error)
         zeta_design = self.zeta + zeta_error
-        check_design(design_ratio, zeta_design)
         omega_n = omega_n_from_damped(design_ratio * self.omega_d, zeta_design)
-        return {"zv": shapers.zv(omega_n, zeta_design), "zvd": shapers.zvd(omega_n, zeta_design),
-                "ei": families.ei(omega_n, zeta_design)}  # fmt: skip
+        return designed | {"ei": families.ei(omega_n, zeta_design)}
 
     def _run(self, shaper: shapers.Shaper | None) -> tuple[np.ndarray, np.ndarray, float]:
         """(linear tension, rig tension, move end) of one move shaped by ``shaper``."""

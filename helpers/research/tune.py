@@ -41,7 +41,7 @@ from tqdm.auto import tqdm
 
 from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
-from helpers.base.paths import DATA_DIR, figure_path
+from helpers.base.paths import DATA_DIR, figure_path, repo_path
 from helpers.base.style import SYSTEM_COLOURS
 from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.paper import numbers as paper
@@ -86,7 +86,8 @@ class Candidates:
     notes: dict[tuple[float, float], dict[str, str]]
 
 
-def _condition_name(v: float, x: float) -> str:
+def condition_name(v: float, x: float) -> str:
+    """The file-name part of a move, e.g. ``v200_x20`` (design files, verification runs)."""
     return f"v{v:g}_x{x:g}".replace(".", "p")
 
 
@@ -178,7 +179,7 @@ def verify(
     ]
     rows = []
     for (v, x), system, d, k in tqdm(jobs, desc="verify", unit="run", disable=not progress):
-        name = f"{system}_{_condition_name(v, x)}_r{k}".replace("-", "_")
+        name = f"{system}_{condition_name(v, x)}_r{k}".replace("-", "_")
         rec = rig.run_pulse(
             v,
             x,
@@ -360,11 +361,6 @@ def write_report(document: dict[str, Any], folder: Path | None = None) -> list[P
     return [csv, md, png]
 
 
-def _shown(path: Path) -> str:
-    p = Path(path)
-    return p.relative_to(DATA_DIR.parent).as_posix() if p.is_relative_to(DATA_DIR.parent) else str(p)
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``python -m helpers tune``."""
     parser.formatter_class = DefaultsHelp
@@ -441,11 +437,11 @@ def run(args: argparse.Namespace) -> int:
         seeds = (lambda: next(counter)) if rig.virtual_world is not None else (lambda: None)
         if not args.reuse_map and map_path.exists() and not args.replace:
             raise RecordingExists(
-                f"{_shown(map_path)} exists; pass --replace to survey again, or --reuse-map"
+                f"{repo_path(map_path)} exists; pass --replace to survey again, or --reuse-map"
             )
         if args.reuse_map:
             mode_map = load_map(map_path)
-            say(f"mode map from {_shown(map_path)} ({len(mode_map)} positions)")
+            say(f"mode map from {repo_path(map_path)} ({len(mode_map)} positions)")
         else:
             say(f"survey: {len(POSITIONS_MM)} positions x {args.survey_repetitions} on {rig.source['kind']}")
             mode_map, _ = survey(
@@ -459,14 +455,14 @@ def run(args: argparse.Namespace) -> int:
                 progress=None if args.quiet else say,
             )
             mode_map.save(map_path)
-            say(f"mode map -> {_shown(map_path)}")
+            say(f"mode map -> {repo_path(map_path)}")
         candidates = design_candidates(
             mode_map, (rest.omega_d, rest.zeta), grid, args.tolerance, args.minimax
         )
         for (v, x), systems in candidates.designs.items():
             for system, d in systems.items():
                 if d is not None:
-                    target = tuning / "designs" / f"{system}_{_condition_name(v, x)}.json"
+                    target = tuning / "designs" / f"{system}_{condition_name(v, x)}.json"
                     target.parent.mkdir(parents=True, exist_ok=True)
                     design.save_design(d, target)
             for system, note in candidates.notes[(v, x)].items():
@@ -492,13 +488,13 @@ def run(args: argparse.Namespace) -> int:
         "grid": args.grid,
         "source": {
             "kind": source,
-            "map": _shown(map_path),
+            "map": repo_path(map_path),
             "repetitions": repetitions,
             "rate_hz": args.rate,
             "t_end_s": T_END_S,
             "seed": args.seed if rig.virtual_world is not None else None,
         },
-        "notes": {_condition_name(v, x): n for (v, x), n in candidates.notes.items()},
+        "notes": {condition_name(v, x): n for (v, x), n in candidates.notes.items()},
         "chosen": {k: v for k, v in chosen.items() if k != "table"},
         "rows": json.loads(rows.to_json(orient="records", double_precision=10)),
     }
@@ -513,7 +509,7 @@ def run(args: argparse.Namespace) -> int:
                 "criterion": chosen["criterion"],
                 "worst_residual_pct": chosen["worst_residual_pct"],
                 "designs": {
-                    _condition_name(v, x): f"designs/{chosen['system']}_{_condition_name(v, x)}.json"
+                    condition_name(v, x): f"designs/{chosen['system']}_{condition_name(v, x)}.json"
                     for v, x in grid
                 },
             },
@@ -521,6 +517,6 @@ def run(args: argparse.Namespace) -> int:
     # the project's figures come from the project's data: a tuning run on other data keeps its report there
     ours = args.data_dir.resolve() == DATA_DIR.resolve()
     for path in write_report(document, None if ours else tuning):
-        say(f"wrote {_shown(path)}")
+        say(f"wrote {repo_path(path)}")
     print(report_markdown(document), end="")
     return 0

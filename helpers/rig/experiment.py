@@ -221,6 +221,41 @@ class _DeviceTimeBar:
             self.bar.close()
 
 
+@dataclass(frozen=True)
+class RunOptions:
+    """The options every run of a rig takes (:meth:`Rig.run`, :meth:`Rig.stream` and what calls them).
+
+    Attributes
+    ----------
+    rate_hz : int
+        DAQ sample rate.
+    done_grace_s : float
+        Device time after the end by which ``DONE`` must have arrived.
+    silence_timeout : float
+        Seconds without a sample after which the DAQ counts as not answering.
+    progress : bool
+        Show a tqdm bar of device time (where tqdm is installed).
+    max_corrupted_fraction : float
+        Abort when more than this fraction of lines (and more than 50) are corrupted.
+    replace : bool
+        Replace a recording of the same name (kept until the new one is complete); otherwise an existing name
+        is refused before anything moves.
+    noise_seed : int, optional
+        In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
+    rest_timeout_s : float
+        Longest wait for the tension to come to rest before the run (device s).
+    """
+
+    rate_hz: int = 1000
+    done_grace_s: float = 1.0
+    silence_timeout: float = 2.0
+    progress: bool = True
+    max_corrupted_fraction: float = 0.05
+    replace: bool = False
+    noise_seed: int | None = None
+    rest_timeout_s: float = REST_TIMEOUT_S
+
+
 class Rig:
     """Both boards of one rig (hardware or virtual) and the calibration that turns counts into newtons.
 
@@ -425,16 +460,9 @@ class Rig:
         programme: Programme,
         scenario: dict[str, Any] | None = None,
         path: str | os.PathLike | None = None,
-        rate_hz: int = 1000,
         margin_s: float = 0.1,
-        done_grace_s: float = 1.0,
-        silence_timeout: float = 2.0,
-        progress: bool = True,
-        max_corrupted_fraction: float = 0.05,
-        replace: bool = False,
-        noise_seed: int | None = None,
-        rest_timeout_s: float = REST_TIMEOUT_S,
         require_zero: bool = False,
+        **options: Any,
     ) -> Recording:
         """Run one programme as one board-timed experiment and return (and save) its recording.
 
@@ -453,32 +481,23 @@ class Rig:
             added.
         path : path-like, optional
             ``data/<group>/<name>``; default ``data/runs/run_<UTC time>``.
-        rate_hz : int
-            DAQ sample rate.
         margin_s : float
             Device time recorded after the programme's end.
-        done_grace_s : float
-            Device time after the end by which ``DONE`` must have arrived.
-        silence_timeout : float
-            Seconds without a sample after which the DAQ counts as not answering.
-        progress : bool
-            Show a tqdm bar of device time.
-        max_corrupted_fraction : float
-            Abort when more than this fraction of lines (and more than 50) are corrupted.
-        replace : bool
-            Replace a recording of the same name (kept until the new one is complete); otherwise an
-            existing name is refused before anything moves.
-        noise_seed : int, optional
-            In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
-        rest_timeout_s : float
-            Longest wait for the tension to come to rest before the run (device s).
         require_zero : bool
             Refuse unless the cable is at position 0.
+        **options
+            The run's options, shared with every run of a rig (:class:`RunOptions`: ``rate_hz``,
+            ``progress``, ``replace``, ``noise_seed``, timeouts).
 
         Returns
         -------
         helpers.recordings.Recording
         """
+        o = RunOptions(**options)
+        rate_hz, done_grace_s, silence_timeout = o.rate_hz, o.done_grace_s, o.silence_timeout
+        progress = o.progress
+        max_corrupted_fraction, replace, noise_seed = o.max_corrupted_fraction, o.replace, o.noise_seed
+        rest_timeout_s = o.rest_timeout_s
         check_programme(programme)
         _check_rate(rate_hz)
         scenario = dict(scenario or {"kind": "programme"})
@@ -531,18 +550,11 @@ class Rig:
         scenario: dict[str, Any] | None = None,
         source_name: str | None = None,
         stream_rate_hz: float = STREAM_RATE_HZ,
-        rate_hz: int = 1000,
         lead_periods: int = 4,
         lead_in_s: float = 1.0,
         tail_s: float = 1.0,
         allow_clamps: bool = False,
-        done_grace_s: float = 1.0,
-        silence_timeout: float = 2.0,
-        progress: bool = True,
-        max_corrupted_fraction: float = 0.05,
-        replace: bool = False,
-        noise_seed: int | None = None,
-        rest_timeout_s: float = REST_TIMEOUT_S,
+        **options: Any,
     ) -> Recording:
         """Stream cable speeds through the stepper board's shaper; return (and save) the recording.
 
@@ -574,28 +586,15 @@ class Rig:
             Where the set-points come from, for the recording (default: ``array`` or the iterable's type).
         stream_rate_hz : float
             The set-points' rate: the board takes one per 10 ms control period, so only 100 is accepted.
-        rate_hz : int
-            DAQ sample rate.
         lead_periods : int
             Periods a set-point waits in the board's FIFO (1-7): latency against tolerance of host jitter.
         lead_in_s, tail_s : float
             Device time recorded before ``STREAM`` and after ``DONE`` (0-60 s).
         allow_clamps : bool
             Go on when the board clamps the shaped motion (the notices are counted in the recording).
-        done_grace_s : float
-            Device time after the stream's expected end by which ``DONE`` must have arrived.
-        silence_timeout : float
-            Seconds without a sample after which the DAQ counts as not answering.
-        progress : bool
-            Show a tqdm bar of device time.
-        max_corrupted_fraction : float
-            Abort when more than this fraction of lines (and more than 50) are corrupted.
-        replace : bool
-            Replace a recording of the same name.
-        noise_seed : int, optional
-            In-process virtual rig: re-seed the sensor noise for this run.
-        rest_timeout_s : float
-            Longest wait for the tension to come to rest before the run (device s).
+        **options
+            The run's options, shared with every run of a rig (:class:`RunOptions`: ``rate_hz``,
+            ``progress``, ``replace``, ``noise_seed``, timeouts).
 
         Returns
         -------
@@ -611,6 +610,11 @@ class Rig:
             A shaper that cannot be loaded (amplitudes not summing to 1, delays beyond 1 s, ...), a rate
             other than 100 Hz, an out-of-range ``lead_periods``, ``lead_in_s`` or ``tail_s``.
         """
+        o = RunOptions(**options)
+        rate_hz, done_grace_s, silence_timeout = o.rate_hz, o.done_grace_s, o.silence_timeout
+        progress = o.progress
+        max_corrupted_fraction, replace, noise_seed = o.max_corrupted_fraction, o.replace, o.noise_seed
+        rest_timeout_s = o.rest_timeout_s
         if stream_rate_hz != STREAM_RATE_HZ:
             raise ValueError(
                 f"the stepper board takes one set-point per 10 ms control period: stream_rate_hz must be "

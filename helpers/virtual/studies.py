@@ -38,7 +38,7 @@ from helpers.paper import numbers as paper
 from helpers.paper.identify import identify
 from helpers.paper.metrics import recording_metrics
 from helpers.paper.shapers import paper_tdfs
-from helpers.virtual import ArmPlant, RigParameters, SimResult, linearise, simulate
+from helpers.virtual import ArmPlant, RigParameters, SimResult, frequency_map, linearise, simulate
 from helpers.virtual.parameters import KG_CM
 from helpers.virtual.spatial.direction_map import frequency_map_csv
 from helpers.virtual.spatial.rig import PRESETS, preset
@@ -73,6 +73,7 @@ STUDY_FILES = {
     "actuator": "virtual_actuator_effects.csv",
     "lag": "virtual_rotor_lag.csv",
     "sensitivity": "virtual_actuator_sensitivity.csv",
+    "convergence": "virtual_convergence.csv",
 }
 """Study name -> the CSV in ``figures/`` that :func:`write_studies` writes and notebook 06 reads."""
 
@@ -423,6 +424,40 @@ def sensitivity_summary(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows).set_index("variant")
 
 
+CONVERGENCE_U_MM = (0.0, 10.0, 20.0, 30.0, 40.0)
+"""Cable displacements of the convergence study, mm."""
+
+
+def _pct(a: pd.Series, b: pd.Series) -> pd.Series:
+    # rounded to the printed digits (+ 0.0 turns -0.0 into 0.0): no sign of a round-off zero in the output
+    return (100 * (a / b - 1)).round(3) + 0.0
+
+
+def convergence(params: RigParameters | None = None) -> pd.DataFrame:
+    """The arc chain against finer rods: static tension and frequencies over the cable displacement.
+
+    The tuned rig (one element per disc interval, with the rod's bowing) against 4 and 8 elements per
+    interval, and the plain arc chain (no bowing) against its 4x finer rod: the static tension, the dominant
+    and the second damped frequency at :data:`CONVERGENCE_U_MM`, and their differences in % (three decimals).
+    """
+    params = RigParameters() if params is None else params
+    u = np.array(CONVERGENCE_U_MM)
+    maps = {m: frequency_map(params.replace(elements_per_disc=m), u) for m in (1, 4, 8)}
+    plain = {m: frequency_map(params.replace(elements_per_disc=m, bowing=False), u) for m in (1, 4)}
+    return pd.DataFrame({
+        "u_mm": u,
+        "bend_deg": maps[4].tip_angle_deg,
+        "tension_m1": maps[1].static_tension_n, "tension_m4": maps[4].static_tension_n,
+        "tension_pct": _pct(maps[1].static_tension_n, maps[4].static_tension_n),
+        "omega_d_m1": maps[1].omega_d_rad_s, "omega_d_m4": maps[4].omega_d_rad_s,
+        "omega_d_pct": _pct(maps[1].omega_d_rad_s, maps[4].omega_d_rad_s),
+        "omega_d_pct_m8": _pct(maps[1].omega_d_rad_s, maps[8].omega_d_rad_s),
+        "omega_d2_pct": _pct(maps[1].omega_d2_rad_s, maps[4].omega_d2_rad_s),
+        "plain_tension_pct": _pct(plain[1].static_tension_n, plain[4].static_tension_n),
+        "plain_omega_d_pct": _pct(plain[1].omega_d_rad_s, plain[4].omega_d_rad_s),
+    })  # fmt: skip
+
+
 def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = True) -> list[Path]:
     """Run the studies and write their CSVs into the repository's ``figures/`` (6 significant digits).
 
@@ -430,7 +465,7 @@ def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = T
     notebooks' output: notebook 06 reads them from there.
     """
     funcs = {"layouts": damping_layouts, "friction": eyelet_friction, "actuator": actuator_effects,
-             "lag": rotor_lag, "sensitivity": actuator_sensitivity}  # fmt: skip
+             "lag": rotor_lag, "sensitivity": actuator_sensitivity, "convergence": convergence}  # fmt: skip
     paths = []
     for name in names:
         t0 = time.perf_counter()

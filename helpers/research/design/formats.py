@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from helpers.base.jsonfile import DataFileError, json_safe, read_json, write_json
+from helpers.base.jsonfile import DataFileError, check_versioned, json_safe, read_json, write_json
 from helpers.board.programmes import shaped_moves
 from helpers.paper.profiles import VelocityProfile, single_pulse
 from helpers.paper.shapers import SUM_TOLERANCE, Shaper
@@ -353,13 +353,7 @@ class Design:
     @classmethod
     def from_dict(cls, doc: Any, where: str = "design") -> Design:
         """Rebuild a design from :meth:`to_dict`'s document; one ``ValueError`` naming the field otherwise."""
-        if not isinstance(doc, dict):
-            raise ValueError(f"{where}: expected a JSON object, got {type(doc).__name__}")
-        if doc.get("format") != DESIGN_FORMAT:
-            raise ValueError(f"{where}: format: expected {DESIGN_FORMAT!r}, got {doc.get('format')!r}")
-        if doc.get("version") != DESIGN_VERSION:
-            version = doc.get("version")
-            raise ValueError(f"{where}: version: unknown {version!r} (this code reads {DESIGN_VERSION})")
+        doc = check_versioned(doc, where, DESIGN_FORMAT, DESIGN_VERSION)
         unknown = sorted(set(doc) - _TOP_KEYS)
         if unknown:
             raise ValueError(f"{where}: {unknown[0]}: unknown key")
