@@ -191,14 +191,17 @@ class LinearPlayground:
         fig.tight_layout()
         return fig
 
-    def _redraw_text(self, study: LinearStudy) -> None:
-        assert self.fig is not None
-        self.fig.suptitle(
+    def title(self, study: LinearStudy) -> str:
+        """The figure's title: the mode the shapers were designed for, and the move."""
+        return (
             f"Shapers designed for omega_d = {study.omega_d_design:.1f} rad/s ({study.design_ratio:.2f} x "
             f"identified), zeta = {study.zeta_design:.3f} ({study.zeta_error:+.3f}); "
-            f"{self.x_f_mm:g} mm at {self.v_in_mm_s:g} mm/s",
-            fontsize=9,
+            f"{self.x_f_mm:g} mm at {self.v_in_mm_s:g} mm/s"
         )
+
+    def _redraw_text(self, study: LinearStudy) -> None:
+        assert self.fig is not None
+        self.fig.suptitle(self.title(study), fontsize=9)
         ax_bar = self.fig.axes[1]
         ax_bar.set_title(f"unshaped: {study.residual_linear['unshaped']:.0f} %", fontsize=9)
         ax_bar.set_ylim(0.0, 1.25 * max(*(study.residual_linear[s] for s in SHAPERS), 5.0))

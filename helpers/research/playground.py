@@ -151,12 +151,7 @@ class ShaperPlayground(LinearPlayground):
 
     def _redraw_text(self, study: Study) -> None:
         assert self.fig is not None
-        self.fig.suptitle(
-            f"Shapers designed for omega_d = {study.omega_d_design:.1f} rad/s ({study.design_ratio:.2f} x "
-            f"identified), zeta = {study.zeta_design:.3f} ({study.zeta_error:+.3f}); "
-            f"{self.x_f_mm:g} mm at {self.v_in_mm_s:g} mm/s",
-            fontsize=9,
-        )
+        self.fig.suptitle(self.title(study), fontsize=9)
         ax_bar = self.fig.axes[2]
         ax_bar.set_title(
             f"unshaped: {study.residual_linear['unshaped']:.0f} % (model), "
