@@ -1,4 +1,5 @@
-"""Rig.stream on the in-process virtual rig (test-double plant): a stream of set-points through the board's
+"""StreamRig.stream on the in-process virtual rig (test-double plant): a stream of set-points through the
+board's
 shaper -> one recording, paced by the device clock, checked before sending, and safe however it ends.
 
 The oracle for what the board does is helpers.board.stream_reference (the firmware's reference, checked
@@ -18,7 +19,8 @@ from rig_fakes import SpyPort, make_rig
 from helpers import recordings
 from helpers.board import stream_reference as hs
 from helpers.paper.hardware import MM_PER_STEP
-from helpers.rig import BoardReset, BoardTimeout, SafetyError, StreamLimit, StreamStarved
+from helpers.rig import BoardReset, BoardTimeout, SafetyError
+from helpers.rig.stream import StreamLimit, StreamStarved
 
 pytestmark = pytest.mark.streaming
 

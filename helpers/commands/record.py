@@ -64,6 +64,7 @@ from helpers.research.modemap import load_map
 from helpers.research.teleop import record_streams
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
+from helpers.rig.stream_rig import StreamRig
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
@@ -514,7 +515,7 @@ def _refuse_existing_targets(args: argparse.Namespace) -> None:
     elif args.what in ("pulse", "table-i", "all"):
         names = [(g, n) for g, n, *_ in _planned_pulses(args, quiet=True)]
     else:
-        return  # streams: each is checked by Rig.stream before anything moves
+        return  # streams: each is checked by StreamRig.stream before anything moves
     how = "choose another --name" if args.what == "pulse" else "choose another --group"
     for group, name in names:
         target = recording_path(group, name, args.data_dir)
@@ -542,7 +543,7 @@ def run(args: argparse.Namespace) -> int:
             stack.enter_context(  # beside the group, so that deleting its folder cannot let a second in
                 folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK, beside=True)
             )
-        rig = Rig.connect(args.ports, rig_name=args.rig_name, calibration=calibration)
+        rig = StreamRig.connect(args.ports, rig_name=args.rig_name, calibration=calibration)
         stack.callback(rig.close)
         print(
             f"connected: daq firmware {rig.daq.version}, stepper firmware {rig.stepper.version}, "

@@ -29,7 +29,6 @@ from helpers.rig.daq import DaqBoard
 from helpers.rig.experiment import Rig, RunAborted
 from helpers.rig.safety import SafetyError, check_programme, check_request
 from helpers.rig.stepper import StepperBoard
-from helpers.rig.stream import StreamLimit, StreamStarved
 
 __all__ = [
     "BoardDisconnected",
@@ -45,8 +44,6 @@ __all__ = [
     "RunAborted",
     "SafetyError",
     "StepperBoard",
-    "StreamLimit",
-    "StreamStarved",
     "check_programme",
     "check_request",
 ]

@@ -1,7 +1,8 @@
 """Streaming a trajectory to the stepper board: the set-points, their checks, the pacing and the record.
 
 The stepper board's streaming mode (``firmware/PROTOCOL.md``) takes one velocity set-point per 10 ms control
-period from an 8-deep FIFO and shapes it with the loaded shaper. :meth:`helpers.rig.Rig.stream` runs a stream
+period from an 8-deep FIFO and shapes it with the loaded shaper.
+:meth:`helpers.rig.stream_rig.StreamRig.stream` runs a stream
 as an experiment; this module holds its parts, none of which touches a port:
 
 - :class:`SetpointSource`: an array, an iterable or a live source of cable speeds (mm/s), turned into board
