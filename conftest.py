@@ -14,7 +14,8 @@ import tempfile
 # An inherited backend (e.g. MPLBACKEND=Agg in CI) would stop the kernels nbval starts from producing
 # inline figures, and the stored "<Figure ...>" outputs would then not match.
 os.environ.pop("MPLBACKEND", None)
-# Notebooks run unattended here: interactive cells show their static figure (helpers.notebook.interactive).
+# Notebooks run unattended here: interactive cells show their static figure
+# (helpers.base.notebook.interactive).
 os.environ["HELPERS_BATCH"] = "1"
 
 if not os.environ.get("HELPERS_FIGURES_DIR"):

@@ -14,28 +14,47 @@ from __future__ import annotations
 import argparse
 import errno
 import importlib
-import os
 import sys
 import traceback
 from pathlib import Path
 
-# Only the standard library and helpers.signals (standard library only) load before the signal handlers are
+# Only the standard library and helpers.base.signals (standard library only) load before the signal handlers
+# are
 # in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
+from helpers.base.paths import shown
+from helpers.base.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
 from helpers.rigfile import take_rig_option, use  # standard library only, like the line above
-from helpers.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
 
 COMMANDS: dict[str, tuple[str, str]] = {
-    "reproduce": ("helpers.reproduce", "execute every notebook in order; regenerate figures/ and tables"),
-    "record": ("helpers.record", "record experiments into data/ (hardware or virtual rig)"),
-    "metrics": ("helpers.table2", "Table II metrics (peak, overshoot, settling) of any recordings"),
-    "tune": ("helpers.tune", "measure the modes across configurations, design shapers, verify them"),
-    "home": ("helpers.home", "bring the cable back to position 0 safely"),
-    "serve-virtual-rig": ("helpers.emulator.server", "serve the virtual rig's boards on pseudo-terminals"),
-    "frame": ("helpers.frame_command", "append the CRC-8 to commands typed by hand (PING -> PING*79)"),
-    "bench": ("helpers.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
-    "virtual-rig": ("helpers.rig_studies", "check or re-tune the virtual rig; rewrite its evidence tables"),
-    "sweep": ("helpers.sweep.command", "parameter sweeps on the virtual rig (Dask); the robustness atlas"),
-    "rig": ("helpers.rig_command", "check a rig file (limits, ADC range, predicted modes); write a template"),
+    "reproduce": (
+        "helpers.commands.reproduce",
+        "execute every notebook in order; regenerate figures/ and tables",
+    ),
+    "record": ("helpers.commands.record", "record experiments into data/ (hardware or virtual rig)"),
+    "metrics": (
+        "helpers.commands.metrics_report",
+        "Table II metrics (peak, overshoot, settling) of any recordings",
+    ),
+    "tune": ("helpers.research.tune", "measure the modes across configurations, design shapers, verify them"),
+    "home": ("helpers.commands.home", "bring the cable back to position 0 safely"),
+    "serve-virtual-rig": (
+        "helpers.virtual.emulator.server",
+        "serve the virtual rig's boards on pseudo-terminals",
+    ),
+    "frame": ("helpers.commands.frame", "append the CRC-8 to commands typed by hand (PING -> PING*79)"),
+    "bench": ("helpers.commands.benchmarks", "print the speed figures (virtual rig, serial I/O)"),
+    "virtual-rig": (
+        "helpers.virtual.studies",
+        "check or re-tune the virtual rig; rewrite its evidence tables",
+    ),
+    "sweep": (
+        "helpers.research.sweep.command",
+        "parameter sweeps on the virtual rig (Dask); the robustness atlas",
+    ),
+    "rig": (
+        "helpers.commands.rig_file",
+        "check a rig file (limits, ADC range, predicted modes); write a template",
+    ),
 }
 """command name -> (module, one-line help)."""
 
@@ -52,15 +71,16 @@ EXIT_CODES: dict[int, str] = {
 }
 """Exit status -> meaning (also in docs/faults.md)."""
 
-
-def _shown(path: Path | None) -> str:
-    if path is None:
-        return "?"
-    p = Path(path)
-    try:
-        return os.path.relpath(p)
-    except ValueError:
-        return str(p)
+EXTRAS: dict[str, str] = {
+    "numba": "virtual",
+    "llvmlite": "virtual",
+    "tqdm": "virtual",
+    "dask": "sweep",
+    "distributed": "sweep",
+    "xarray": "sweep",
+    "pydantic": "sweep",
+}
+"""A package the light install lacks -> the extra of ``pyproject.toml`` that brings it."""
 
 
 def _run_outcome(exc: BaseException) -> str:
@@ -69,9 +89,9 @@ def _run_outcome(exc: BaseException) -> str:
         return ""
     n = len(exc.recording.frame) if getattr(exc, "recording", None) is not None else 0
     if getattr(exc, "complete", False) and getattr(exc, "saved_path", None) is not None:
-        saved = f"the run had finished: saved whole to {_shown(exc.saved_path)} ({n} samples)"
+        saved = f"the run had finished: saved whole to {shown(exc.saved_path)} ({n} samples)"
     elif getattr(exc, "saved_path", None) is not None:
-        saved = f"partial recording saved to {_shown(exc.saved_path)} ({n} samples)"
+        saved = f"partial recording saved to {shown(exc.saved_path)} ({n} samples)"
     else:
         saved = f"the recording could NOT be saved ({getattr(exc, 'save_error', '?')})"
     cleanup = exc.cleanup
@@ -103,20 +123,25 @@ def error_line(exc: BaseException) -> tuple[str, int]:
         what = str(exc) if isinstance(exc, Interrupted) else "interrupted by Ctrl-C"
         return f"{what}{_run_outcome(exc)}", EXIT_STATUS.get(signum, 128 + signum)
     first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    missing = exc.name.split(".")[0] if isinstance(exc, ModuleNotFoundError) and exc.name else None
+    if missing in EXTRAS:  # the paper's part runs without them; this command needs one
+        extra = EXTRAS[missing]
+        why = f"this command needs the [{extra}] extra ({missing} is not installed)"
+        return f'error: {why}: pip install -e ".[{extra}]"', 1
     if _is(exc, ("helpers.rig.safety", "SafetyError")):
         status = 3
     elif _is(exc, ("helpers.rig.boards", "BoardError")):
         status = 4
     elif _is(
-        exc, ("helpers.recordings.format", "RecordingError"), ("helpers.jsonfile", "DataFileError"),
-        ("helpers.locks", "FolderBusy"),
+        exc, ("helpers.recordings.format", "RecordingError"), ("helpers.base.jsonfile", "DataFileError"),
+        ("helpers.base.locks", "FolderBusy"),
     ):  # fmt: skip
         status = 5
     elif isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EDQUOT):
         why = {errno.ENOSPC: "no space left on device", errno.EROFS: "read-only file system",
                errno.EACCES: "permission denied", errno.EDQUOT: "disk quota exceeded"}[exc.errno]  # fmt: skip
         where = exc.filename if exc.filename is not None else "?"
-        first, status = f"{_shown(Path(where))}: could not write ({why})", 5
+        first, status = f"{shown(Path(where))}: could not write ({why})", 5
     elif isinstance(exc, ValueError):
         status = 2
     else:
@@ -162,7 +187,7 @@ def _main(argv: list[str]) -> int:
                         "line; default $HELPERS_RIG, else rigs/paper.toml; docs/rig_file.md)")  # fmt: skip
     argv, rig = take_rig_option(argv)  # before any command's module loads: they read the rig on import
     if rig is not None:
-        chosen_rig, loaded = use(rig), sys.modules.get("helpers.hardware")
+        chosen_rig, loaded = use(rig), sys.modules.get("helpers.paper.hardware")
         if loaded is not None and loaded.RIG.hash != chosen_rig.hash:  # in-process callers (tests, notebooks)
             raise ValueError(f"--rig {rig}: this process runs rig {loaded.RIG.name!r} already (start anew)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")

@@ -1,6 +1,7 @@
 """A table-free CRC in the Rocksoft/Williams parameter model, written from its definition (test reference).
 
-It shifts most-significant bit first and reflects explicitly, unlike the code under test (``helpers.crc8`` and
+It shifts most-significant bit first and reflects explicitly, unlike the code under test
+(``helpers.board.crc8`` and
 ``firmware/common/crc8.cpp``: a right-shifting register with a 256-entry table), and it is anchored to the
 check values that the CRC catalogue (Greg Cook's "Catalogue of parametrised CRC algorithms") publishes for
 well-known 8-bit variants (:data:`CATALOGUE`). The link's variant is :data:`LINK` (firmware/PROTOCOL.md).

@@ -6,9 +6,9 @@ import itertools
 
 import numpy as np
 
-from helpers.emulator.world import VirtualWorld, forget_world, register_world
-from helpers.hardware import MM_PER_STEP
-from helpers.rig import Rig
+from helpers.paper.hardware import MM_PER_STEP
+from helpers.rig.stream_rig import StreamRig
+from helpers.virtual.emulator.world import VirtualWorld, forget_world, register_world
 
 K_N_PER_MM = 0.5
 PRETENSION_N = 1.0
@@ -65,10 +65,13 @@ def make_world(**kwargs) -> VirtualWorld:
     return register_world(VirtualWorld(SpringPlant(), LinearSensor(), name=name, **kwargs))
 
 
-def make_rig(daq_options: str = "", stepper_options: str = "", **world_kwargs) -> tuple[Rig, VirtualWorld]:
-    """A connected Rig on a fresh test-double world; options are URL query strings like '&hang_at=1'."""
+def make_rig(
+    daq_options: str = "", stepper_options: str = "", **world_kwargs
+) -> tuple[StreamRig, VirtualWorld]:
+    """A connected rig (a StreamRig: it streams too) on a fresh test-double world; options are URL query
+    strings like '&hang_at=1'."""
     world = make_world(**world_kwargs)
-    rig = Rig.connect(
+    rig = StreamRig.connect(
         "virtual",
         rig_name=world.name,
         calibration=CALIBRATION,

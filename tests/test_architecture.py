@@ -1,83 +1,60 @@
-"""The package's rooms and their one-way flow, measured from the code's own imports (docs/architecture.md).
+"""The package's wings and their one-way flow, measured from the code's own imports (docs/architecture.md).
 
-Every module of ``helpers`` is given a layer below; a module may import only modules of a lower layer, or of
-its own layer inside the same room (package). No cycles, and no function-local import of the package's own
-modules (a local import is how a cycle is usually hidden); the command line dispatcher is the one place that
-imports command modules by name, so that ``python -m helpers --help`` does not load numba and scipy.
+Every module of ``helpers`` belongs to one wing: the core (the paper's part), the twin (the virtual rig), the
+research beyond the paper, or the commands. Imports point towards the core: the core imports nothing of the
+other wings, the twin only the core, the research the core and the twin, the commands anything. Inside the
+core, ``helpers.base`` needs nothing else, ``helpers.paper`` only ``base``, and the rig's serial I/O imports
+no physics. No cycles, and no function-local import of the package's own modules (a local import is how a
+cycle is usually hidden); the command line dispatcher is the one place that imports command modules by name,
+so that ``python -m helpers --help`` does not load numba and scipy. The one map of the package is
+``docs/architecture.md``: a module it does not name, or a name in it with no module, fails here.
 """
 
 from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from helpers.paths import REPO_ROOT
+from helpers.base.paths import REPO_ROOT
 
 PACKAGE = REPO_ROOT / "helpers"
+MAP = REPO_ROOT / "docs" / "architecture.md"
 
-LAYERS: dict[str, int] = {
-    # 0: base facts and utilities
-    "helpers.paper": 0,
-    "helpers.paths": 0,
-    "helpers.validate": 0,
-    "helpers.modes": 0,
-    "helpers.jsonfile": 0,
-    "helpers.style": 0,
-    "helpers.crc8": 0,
-    "helpers.signals": 0,
-    "helpers.noise": 0,
-    "helpers.locks": 0,
-    "helpers.rigfile": 0,
-    "helpers.hardware": 1,
-    "helpers.modemap": 1,
-    "helpers.backbone": 1,
-    "helpers.notebook": 1,
-    # 2: the linear model, the recording format, the serial protocol
-    "helpers.model": 2,
-    "helpers.recordings": 2,
-    "helpers.protocol": 2,
-    # 3: what is derived from recordings and models
-    "helpers.loadcell": 3,
-    "helpers.identify": 3,
-    "helpers.shapers": 3,
-    "helpers.ringdown": 4,
-    "helpers.streaming": 3,
-    "helpers.profiles": 4,
-    "helpers.design": 4,
-    "helpers.robustness": 4,
-    "helpers.programmes": 5,
-    # 6: the rig and the virtual rig side by side; the emulated boards above the physics
-    "helpers.rig": 6,
-    "helpers.virtual": 6,
-    "helpers.emulator": 7,
-    # 8: analysis
-    "helpers.metrics": 8,
-    "helpers.tables": 8,
-    "helpers.plotting": 9,
-    # 10: procedures that combine the rooms, and the command line
-    "helpers.rig_tuning": 10,
-    "helpers.record": 10,
-    "helpers.home": 10,
-    "helpers.frame_command": 10,
-    "helpers.summary": 10,
-    "helpers.playground": 10,
-    "helpers.survey": 10,
-    "helpers.teleop": 9,
-    "helpers.tune": 11,
-    "helpers.table2": 10,
-    "helpers.sweep": 10,
-    "helpers.reproduce": 11,
-    "helpers.benchmarks": 11,
-    "helpers.rig_studies": 11,
-    "helpers.rig_command": 11,
-    "helpers.__main__": 12,
+WINGS: dict[str, str] = {
+    "helpers.base": "core",
+    "helpers.paper": "core",
+    "helpers.recordings": "core",
+    "helpers.board": "core",
+    "helpers.rig": "core",
+    "helpers.rigfile": "core",
+    "helpers.plotting": "core",
+    "helpers.virtual": "twin",
+    "helpers.research": "research",
+    "helpers.commands": "commands",
+    "helpers.__main__": "commands",
 }
-"""Layer of each module or room (a room's submodules share its layer)."""
+"""Package (or module) -> its wing."""
+
+MAY_IMPORT: dict[str, set[str]] = {
+    "core": {"core"},
+    "twin": {"core", "twin"},
+    "research": {"core", "twin", "research"},
+    "commands": {"core", "twin", "research", "commands"},
+}
+"""Wing -> the wings its modules may import."""
+
+CORE_INSIDE: dict[str, tuple[str, ...]] = {
+    "helpers.base": ("helpers.base",),
+    "helpers.rigfile": ("helpers.rigfile",),
+    "helpers.paper": ("helpers.base", "helpers.rigfile", "helpers.paper"),
+}
+"""Core packages that may import only these (the utilities; the paper's part on the utilities)."""
 
 DISPATCHERS = {"helpers.__main__"}
 """Modules allowed to import package modules by name at run time (the command line)."""
@@ -95,14 +72,14 @@ def _modules() -> dict[str, Path]:
     return {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
 
 
-def _room(name: str) -> str:
-    """The entry of LAYERS that ``name`` belongs to (itself or its package)."""
+def _wing(name: str) -> str | None:
+    """The wing of module ``name`` (None for the package itself or a module outside every wing)."""
     parts = name.split(".")
-    for n in range(len(parts), 0, -1):
-        candidate = ".".join(parts[:n])
-        if candidate in LAYERS:
-            return candidate
-    raise KeyError(name)
+    for n in range(len(parts), 1, -1):
+        wing = WINGS.get(".".join(parts[:n]))
+        if wing is not None:
+            return wing
+    return None
 
 
 def _imports(path: Path, name: str) -> tuple[set[str], list[tuple[int, str]]]:
@@ -127,6 +104,9 @@ def _imports(path: Path, name: str) -> tuple[set[str], list[tuple[int, str]]]:
 
     def visit(node: ast.AST, in_function: bool) -> None:
         for child in ast.iter_child_nodes(node):
+            test = child.test if isinstance(child, ast.If) else None
+            if isinstance(test, ast.Name) and test.id == "TYPE_CHECKING":
+                continue  # an import for type hints only is no dependency at run time
             inner = in_function or isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef)
             for t in targets(child):
                 if t.split(".")[0] == "helpers":
@@ -137,33 +117,77 @@ def _imports(path: Path, name: str) -> tuple[set[str], list[tuple[int, str]]]:
     return {t for t in top if t in modules and t != name}, local
 
 
-def test_every_module_has_a_layer():
-    missing = [m for m in _modules() if m != "helpers" and _safe_room(m) is None]
-    assert not missing, f"add these modules to LAYERS and docs/architecture.md: {missing}"
+def test_every_module_is_in_a_wing():
+    missing = [m for m in _modules() if m != "helpers" and _wing(m) is None]
+    assert not missing, f"add these modules to a wing (WINGS) and to docs/architecture.md: {missing}"
 
 
-def _safe_room(name: str) -> str | None:
-    try:
-        return _room(name)
-    except KeyError:
-        return None
-
-
-def test_imports_flow_one_way():
+def test_imports_point_towards_the_core():
     problems = []
     for name, path in _modules().items():
-        if name == "helpers":
-            continue
-        own_room = _room(name)
+        own = _wing(name)
         for target in _imports(path, name)[0]:
-            if target == "helpers":
-                continue
-            other = _room(target)
-            if other == own_room:
-                continue  # inside one room
-            if LAYERS[other] >= LAYERS[own_room]:
-                problems.append(f"{name} (layer {LAYERS[own_room]}) imports {target} (layer {LAYERS[other]})")
+            if target != "helpers" and _wing(target) not in MAY_IMPORT.get(own, {"core"}):
+                problems.append(f"{name} ({own}) imports {target} ({_wing(target)})")
     assert not problems, "\n".join(problems)
+
+
+@pytest.mark.parametrize("package", sorted(CORE_INSIDE))
+def test_the_core_utilities_and_the_paper_need_only_what_is_below_them(package):
+    problems = []
+    for name, path in _modules().items():
+        if name == package or name.startswith(package + "."):
+            for target in _imports(path, name)[0]:
+                if target != "helpers" and not any(
+                    target == ok or target.startswith(ok + ".") for ok in CORE_INSIDE[package]
+                ):
+                    problems.append(f"{name} imports {target}")
+    assert not problems, "\n".join(problems)
+
+
+def test_the_rig_imports_no_physics():
+    problems = []
+    for name, path in _modules().items():
+        if name == "helpers.rig" or name.startswith("helpers.rig."):
+            physics = [t for t in _imports(path, name)[0] if t.startswith("helpers.virtual")]
+            problems += [f"{name} imports {t}" for t in physics]
+            tree = ast.parse(path.read_text())
+            for node in ast.walk(tree):
+                if isinstance(node, ast.Import | ast.ImportFrom):
+                    is_import = isinstance(node, ast.Import)
+                    mods = [a.name for a in node.names] if is_import else [node.module or ""]
+                    problems += [f"{name} imports {m}" for m in mods if m.split(".")[0] in ("numba", "scipy")]
+    assert not problems, "\n".join(problems)
+
+
+def _mapped_modules() -> list[str]:
+    """The modules named in the first column of the tables under the map's ``## Every module``."""
+    text = MAP.read_text()
+    section = text[text.index("## Every module") :]
+    names = []
+    for line in section.splitlines():
+        cells = line.split("|")
+        if line.startswith("|") and len(cells) > 2:
+            names += re.findall(r"`(helpers[\w.]*)`", cells[1])
+    return names
+
+
+def test_the_map_names_every_module_and_no_other():
+    named = _mapped_modules()
+    modules = set(_modules()) - {"helpers"}
+    assert len(named) == len(set(named)), "a module is named twice in docs/architecture.md"
+    missing = sorted(modules - set(named))
+    stale = sorted(set(named) - modules)
+    assert not missing, f"docs/architecture.md does not name: {missing}"
+    assert not stale, f"docs/architecture.md names modules that do not exist: {stale}"
+
+
+def test_the_package_docstring_points_to_the_map_instead_of_keeping_its_own():
+    import helpers
+
+    assert "docs/architecture.md" in helpers.__doc__
+    table = re.search(r"^\s+\w+(, \w+)+\s{3,}\w", helpers.__doc__, re.M)
+    assert not table, "a table of modules in the package's docstring"
 
 
 def test_no_function_local_imports_of_the_package():
@@ -216,9 +240,10 @@ def _import_without(module: str, blocked: str) -> subprocess.CompletedProcess:
         ("helpers.virtual", "serial"),  # the physics needs no serial port
         ("helpers.rig", "numba"),  # the drivers need no compiler
         ("helpers.rig", "helpers.virtual"),  # ... nor the physics
+        ("helpers.paper.metrics", "helpers.research"),  # the paper's part needs no research
     ],
 )
-def test_rooms_import_without_what_they_do_not_need(module, blocked):
+def test_wings_import_without_what_they_do_not_need(module, blocked):
     proc = _import_without(module, blocked)
     assert proc.returncode == 0, proc.stderr[-1500:]
 
@@ -226,10 +251,10 @@ def test_rooms_import_without_what_they_do_not_need(module, blocked):
 def test_virtual_scheme_is_registered_by_opening_a_port_not_by_importing():
     code = (
         "import serial, helpers.rig\n"
-        "assert 'helpers.emulator' not in serial.protocol_handler_packages, 'registered on import'\n"
+        "assert 'helpers.virtual.emulator' not in serial.protocol_handler_packages, 'registered on import'\n"
         "from helpers.rig.ports import open_port\n"
         "p = open_port('virtual://daq?rig=arch', baudrate=500000, timeout=0.01, write_timeout=1.0)\n"
-        "assert 'helpers.emulator' in serial.protocol_handler_packages\n"
+        "assert 'helpers.virtual.emulator' in serial.protocol_handler_packages\n"
         "p.close()\n"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
@@ -237,18 +262,18 @@ def test_virtual_scheme_is_registered_by_opening_a_port_not_by_importing():
 
 
 ONE_HOME = {
-    "MM_PER_STEP": "helpers.hardware",
-    "LIMITS": "helpers.hardware",
-    "MAX_TRAVEL_MM": "helpers.hardware",
-    "MAX_SPEED_MM_S": "helpers.hardware",
-    "ADC_MAX": "helpers.hardware",
-    "DAQ_RATE_MIN_HZ": "helpers.hardware",
-    "FW_VERSION": "helpers.protocol",
+    "MM_PER_STEP": "helpers.paper.hardware",
+    "LIMITS": "helpers.paper.hardware",
+    "MAX_TRAVEL_MM": "helpers.paper.hardware",
+    "MAX_SPEED_MM_S": "helpers.paper.hardware",
+    "ADC_MAX": "helpers.paper.hardware",
+    "DAQ_RATE_MIN_HZ": "helpers.paper.hardware",
+    "FW_VERSION": "helpers.board.protocol",
     "SCHEMA_VERSION": "helpers.recordings.format",
-    "IDENTIFICATION_RESULT": "helpers.paths",
-    "LOADCELL_CALIBRATION": "helpers.paths",
-    "VIRTUAL_RIG_REGISTRY": "helpers.paths",
-    "E_A228": "helpers.backbone",
+    "IDENTIFICATION_RESULT": "helpers.base.paths",
+    "LOADCELL_CALIBRATION": "helpers.base.paths",
+    "VIRTUAL_RIG_REGISTRY": "helpers.base.paths",
+    "E_A228": "helpers.paper.backbone",
 }
 """Names that may be bound (assigned, not imported) in one module only."""
 
@@ -270,7 +295,8 @@ def test_each_fact_has_one_home():
 
 
 def test_the_spool_and_steps_give_the_cable_per_step():
-    from helpers import hardware, paper
+    from helpers.paper import hardware
+    from helpers.paper import numbers as paper
 
     # 65 mm spool and 800 steps per revolution (the paper): pi * 65 / 800 mm per step
     assert (paper.SPOOL_DIAMETER_M, paper.STEPS_PER_REV) == (0.065, 800)

@@ -11,9 +11,9 @@ import pytest
 from rig_fakes import make_rig
 
 from helpers.__main__ import main
-from helpers.home import home
-from helpers.paths import DATA_DIR
-from helpers.programmes import Dwell, Programme, Segment
+from helpers.base.paths import DATA_DIR
+from helpers.board.programmes import Dwell, Programme, Segment
+from helpers.commands.home import home
 from helpers.rig import SafetyError, check_request, discovery, experiment
 from helpers.rig.experiment import NotAtZero
 
@@ -87,7 +87,7 @@ def test_no_boards_found_by_usb_is_a_board_fault(tmp_path, monkeypatch, capsys):
 
 @pytest.mark.parametrize("what", [errno.ENOSPC, errno.EROFS])
 def test_a_full_or_read_only_disk_names_the_file_and_is_a_data_error(tmp_path, monkeypatch, capsys, what):
-    from helpers import jsonfile
+    from helpers.base import jsonfile
 
     def refuse(*a, **k):
         raise OSError(what, errno.errorcode[what])
@@ -130,7 +130,7 @@ def test_home_stops_a_programme_an_earlier_session_left_running():
 def test_a_pulse_away_from_zero_names_the_way_home_for_these_ports(tmp_path):
     rig, world = make_rig()
     rig.run(Programme((Dwell(50), Segment(1, 10, 1000), Dwell(50))), path=tmp_path / "a", progress=False)
-    with pytest.raises(NotAtZero, match=r"helpers\.home\.home\(rig\.stepper\)"):
+    with pytest.raises(NotAtZero, match=r"helpers\.commands\.home\.home\(rig\.stepper\)"):
         rig.run_pulse(100, 5, path=tmp_path / "b", progress=False)
     rig.source["ports"] = {"daq": "/dev/pts/5", "stepper": "/dev/pts/6"}  # as over serve-virtual-rig
     with pytest.raises(NotAtZero, match="python -m helpers home --ports /dev/pts/5,/dev/pts/6"):

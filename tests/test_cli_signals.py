@@ -14,7 +14,7 @@ import sys
 
 import pytest
 
-from helpers.paths import REPO_ROOT
+from helpers.base.paths import REPO_ROOT
 
 COMMANDS = {
     "metrics": ["metrics", "data/experiments"],

@@ -1,4 +1,5 @@
-"""The link's CRC-8 (``helpers.crc8``, firmware/PROTOCOL.md): variant, choice of polynomial, guarantees, fuzz.
+"""The link's CRC-8 (``helpers.board.crc8``, firmware/PROTOCOL.md): variant, choice of polynomial,
+guarantees, fuzz.
 
 Expected values come from ``crc_reference`` (a table-free implementation anchored to published catalogue
 check values), never from the code under test. The fuzz compares the XOR of protocol 1 with the CRC-8 on
@@ -17,8 +18,8 @@ from pathlib import Path
 import pytest
 from crc_reference import CATALOGUE, LINK, LINK_CHECK, crc_rocksoft, link_hex, xor_hex
 
-from helpers import crc8 as hc
-from helpers.protocol import FramingError, unframe
+from helpers.board import crc8 as hc
+from helpers.board.protocol import FramingError, unframe
 
 HEX = "0123456789ABCDEF"
 Checksum = Callable[[str], str]
@@ -122,7 +123,7 @@ def received(damaged: bytes, checksum: Checksum) -> list[str]:
 
 
 def received_by_the_host(damaged: bytes) -> list[str]:
-    """The same with the code under test (``helpers.protocol.unframe``)."""
+    """The same with the code under test (``helpers.board.protocol.unframe``)."""
     out = []
     for fragment in damaged.split(b"\n"):
         if fragment.strip(b"\r"):

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from helpers.design import (
+from helpers.base.jsonfile import DataFileError
+from helpers.paper.shapers import Shaper
+from helpers.research.design import (
     Design,
     MoveSchedule,
     Schedule,
@@ -26,9 +28,8 @@ from helpers.design import (
     scheduled_pair,
     time_varying_residual,
 )
-from helpers.jsonfile import DataFileError
-from helpers.modemap import ModeMap
-from helpers.shapers import FAMILIES, Shaper
+from helpers.research.families import FAMILIES
+from helpers.research.modemap import ModeMap
 
 SOURCE = {"kind": "virtual-rig", "method": "test map"}
 POS = np.arange(0.0, 40.1, 5.0)

@@ -11,14 +11,15 @@ import numpy as np
 import pytest
 from rig_fakes import make_world
 
-from helpers import record, recordings
-from helpers.design import SYSTEMS, Design, ShaperPair, map_following, save_design
-from helpers.hardware import MM_PER_STEP
-from helpers.jsonfile import DataFileError
-from helpers.modemap import ModeMap
-from helpers.paths import DATA_DIR
-from helpers.programmes import experiment_programme, shaped_moves
-from helpers.shapers import Shaper
+from helpers import recordings
+from helpers.base.jsonfile import DataFileError
+from helpers.base.paths import DATA_DIR
+from helpers.board.programmes import experiment_programme, shaped_moves
+from helpers.commands import record
+from helpers.paper.hardware import MM_PER_STEP
+from helpers.paper.shapers import Shaper
+from helpers.research.design import SYSTEMS, Design, ShaperPair, map_following, save_design
+from helpers.research.modemap import ModeMap
 
 POS = np.arange(0.0, 40.1, 5.0)
 MAP = ModeMap(

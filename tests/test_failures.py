@@ -19,9 +19,9 @@ from pathlib import Path
 import pytest
 
 from helpers import recordings
-from helpers.home import PositionUnknown, home
-from helpers.paths import DATA_DIR, REPO_ROOT
-from helpers.programmes import Programme, Segment
+from helpers.base.paths import DATA_DIR, REPO_ROOT
+from helpers.board.programmes import Programme, Segment
+from helpers.commands.home import PositionUnknown, home
 from helpers.rig import PortBusy, Rig
 from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard

@@ -6,7 +6,7 @@ import pytest
 from rig_fakes import make_rig
 
 from helpers import recordings
-from helpers.programmes import Dwell, Programme, Segment
+from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.rig import BoardDisconnected, BoardReset, BoardTimeout, RunAborted
 
 PROG = Programme((Dwell(100), Segment(1, 40, 1000), Dwell(300), Segment(-1, 40, 1000), Dwell(100)))

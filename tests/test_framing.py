@@ -15,7 +15,7 @@ from crc_reference import link_hex, xor_hex
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from helpers.protocol import (
+from helpers.board.protocol import (
     WRAP_US,
     FramingError,
     LegacyChecksum,
@@ -319,7 +319,7 @@ def test_a_step_while_the_programme_makes_none_is_rejected_and_counted():
 
 
 def test_step_windows_cover_every_step_of_a_programme_and_no_dwell():
-    from helpers.programmes import Dwell, Programme, Segment
+    from helpers.board.programmes import Dwell, Programme, Segment
     from helpers.rig.experiment import GO_LATENCY_US, step_windows
 
     prog = Programme((Dwell(1000), Segment(1, 10, 1000), Dwell(500), Segment(-1, 10, 2000)))

@@ -1,4 +1,5 @@
-"""helpers.identify on synthetic free decays whose mode is known (the paper's zeta = 0.044, omega_d = 25.085).
+"""helpers.paper.identify on synthetic free decays whose mode is known (the paper's zeta = 0.044, omega_d =
+25.085).
 
 The synthetic recording imitates the identification run: a 1 kHz, 12 s record; the release transient starts
 at 8.05 s (after the 50 ms down move) and the 9-10 s window is analysed. The load cell is imitated by an ADC
@@ -12,8 +13,8 @@ import matplotlib
 import numpy as np
 import pytest
 
-from helpers import identify as ident
-from helpers.paper import OMEGA_D, ZETA
+from helpers.paper import identify as ident
+from helpers.paper.numbers import OMEGA_D, ZETA
 
 matplotlib.use("Agg")
 
@@ -246,7 +247,7 @@ def test_result_json_round_trips_through_load_identification(tmp_path):
 
 
 def test_load_identification_names_the_problem(tmp_path):
-    from helpers.jsonfile import DataFileError, MissingDataError
+    from helpers.base.jsonfile import DataFileError, MissingDataError
 
     path = tmp_path / "result.json"
     with pytest.raises(MissingDataError, match="record all"):
@@ -272,10 +273,10 @@ def test_load_identification_names_the_problem(tmp_path):
 
 
 def test_identification_figures_are_written(tmp_path, monkeypatch):
-    import helpers.paths
+    import helpers.base.paths
     from helpers.plotting import identification as plots
 
-    monkeypatch.setattr(helpers.paths, "FIGURES_DIR", tmp_path)
+    monkeypatch.setattr(helpers.base.paths, "FIGURES_DIR", tmp_path)
     y = decay(120.0, seed=11)
     r = ident.identify(T, y, WINDOW)
     fig5 = plots.fig5_force_response(T, y, source="virtual-rig", save=True)
@@ -296,7 +297,7 @@ def test_peak_thinning_breaks_ties_the_same_whatever_the_sort():
     sort, where scipy's find_peaks orders ties by numpy's default sort, which depends on the CPU's SIMD."""
     from scipy import signal
 
-    from helpers.identify import _peaks
+    from helpers.paper.identify import _peaks
 
     y = np.zeros(60)
     y[[10, 14, 40]] = [5.0, 5.0, 3.0]  # two equal peaks 4 samples apart, a lower one far away

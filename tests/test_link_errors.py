@@ -10,7 +10,7 @@ import pytest
 from rig_fakes import make_rig
 
 from helpers import recordings
-from helpers.programmes import Dwell, Programme, Segment
+from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.rig import LinkCorrupted
 
 PROGRAMME = Programme((Dwell(50), Segment(1, 10, 2000), Dwell(50), Segment(-1, 10, 2000), Dwell(50)))

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers.paths import REPO_ROOT
+from helpers.base.paths import REPO_ROOT
 
 
 def test_ruff_clean():

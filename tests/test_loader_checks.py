@@ -12,7 +12,7 @@ import pytest
 
 from helpers import recordings
 from helpers.__main__ import main
-from helpers.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR
 from helpers.recordings import RecordingError
 
 STREAM = DATA_DIR / "streams"

@@ -1,4 +1,4 @@
-"""helpers.metrics on synthetic up-hold-down recordings whose metrics are known in closed form.
+"""helpers.paper.metrics on synthetic up-hold-down recordings whose metrics are known in closed form.
 
 The tension is a step (up at 1 s, down at 8 s) through a second-order system, whose overshoot is
 exp(-zeta pi / sqrt(1 - zeta^2)); settling instants are found independently by brute force on a 10 us grid of
@@ -13,8 +13,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers import metrics
-from helpers.paper import TABLE_I_CONDITIONS, table_ii
+from helpers.paper import metrics
+from helpers.paper.numbers import TABLE_I_CONDITIONS, table_ii
+from helpers.research import residuals
 
 matplotlib.use("Agg")
 
@@ -380,10 +381,10 @@ def test_band_sweep_is_monotonic():
 def test_scenario_figure_is_written(tmp_path, monkeypatch):
     import matplotlib.pyplot as plt
 
-    import helpers.paths
+    import helpers.base.paths
     from helpers.plotting import experiments as plots
 
-    monkeypatch.setattr(helpers.paths, "FIGURES_DIR", tmp_path)
+    monkeypatch.setattr(helpers.base.paths, "FIGURES_DIR", tmp_path)
     recs = [
         fake_recording(v, x, s, r, z)
         for (v, x) in ((200, 20), (200, 10))
@@ -484,7 +485,7 @@ def test_an_unclipped_recording_is_not_flagged():
 
 def test_a_virtual_recording_that_clips_is_flagged_whatever_the_gain():
     """A simulated run read through a chain whose span is set below the run's own peak: it must clip."""
-    from helpers.programmes import experiment_programme
+    from helpers.board.programmes import experiment_programme
     from helpers.virtual import LoadCell, RigParameters, simulate
 
     params = RigParameters()
@@ -585,7 +586,7 @@ def test_move_residuals_match_the_closed_form_after_each_move():
     zeta = 0.15
     rec = fake_recording(200, 20, "zv", 1, zeta)
     rec.frame["tension_n"] += 5.0  # 6 N at rest: the Down transient (62 % of 8 N) stays taut
-    table = metrics.move_residuals(rec.frame)
+    table = residuals.move_residuals(rec.frame)
     assert list(table["motion"]) == ["Up", "Down"]
     for row, t0 in zip(table.itertuples(), (T_UP, T_DOWN), strict=True):
         assert row.move_end_s == pytest.approx(t0 + 0.1, abs=2e-3)  # the step ramp lasts 0.1 s
@@ -596,12 +597,12 @@ def test_move_residuals_match_the_closed_form_after_each_move():
         assert row.residual_pct == pytest.approx(expected, rel=0.01)
         assert row.noise_floor_pct == pytest.approx(0.0, abs=1e-9)  # a noise-free signal at rest
         assert not row.slack and row.reason == ""
-    noisy = metrics.move_residuals(fake_recording(200, 20, "zv", 1, 0.6, noise=0.05).frame)
+    noisy = residuals.move_residuals(fake_recording(200, 20, "zv", 1, 0.6, noise=0.05).frame)
     assert (noisy["noise_floor_pct"] > 0.5).all()  # +-3 sigma of 0.05 N is ~2 % of 8 N
 
 
 def test_a_slack_cable_in_the_residual_window_is_said():
     rec = fake_recording(200, 20, "unshaped", 1, 0.05)
     rec.frame["tension_n"] = rec.frame["tension_n"] - 1.5  # the Down move now dips below 0 N
-    down = metrics.move_residuals(rec.frame).set_index("motion").loc["Down"]
+    down = residuals.move_residuals(rec.frame).set_index("motion").loc["Down"]
     assert down["slack"] and "slack" in down["reason"]

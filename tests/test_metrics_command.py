@@ -1,7 +1,8 @@
 """``python -m helpers metrics``: finds recordings, skips what it cannot analyse (saying why), writes tables.
 
 The metric values themselves are checked against closed forms in ``test_metrics.py``; here the per-run rows
-must equal :func:`helpers.metrics.recording_metrics` of each file, and the means the plain average of those.
+must equal :func:`helpers.paper.metrics.recording_metrics` of each file, and the means the plain average of
+those.
 Everything is written into a temporary folder (recordings copied from ``data/``).
 """
 
@@ -12,9 +13,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers import metrics, recordings, table2
+from helpers import recordings
 from helpers.__main__ import main
-from helpers.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR
+from helpers.commands import metrics_report as table2
+from helpers.paper import metrics
 
 SOURCE = DATA_DIR / "experiments"
 ZV30 = [f"zv_v200_x30_r{k}" for k in (1, 2, 3)]

@@ -1,4 +1,4 @@
-"""Tests of helpers.model: the paper's linear modal model (eqs. 1-13)."""
+"""Tests of helpers.paper.model: the paper's linear modal model (eqs. 1-13)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from scipy import integrate, linalg
 
-from helpers import model, paper
+from helpers.paper import model
+from helpers.paper import numbers as paper
 
 CAL = model.fitted_parameters()
 

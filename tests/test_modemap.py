@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers.jsonfile import DataFileError, MissingDataError
-from helpers.modemap import ModeMap, load_map, mode_at
+from helpers.base.jsonfile import DataFileError, MissingDataError
+from helpers.research.modemap import ModeMap, load_map, mode_at
 
 POS = np.arange(0.0, 40.1, 5.0)
 WD = np.array([25.1, 25.4, 26.3, 27.8, 30.0, 33.3, 37.7, 43.6, 51.5])
@@ -178,8 +178,8 @@ def test_a_map_from_the_virtual_rigs_predicted_table(columns):
 @pytest.mark.slow
 def test_the_virtual_rigs_predicted_map_makes_a_map_and_designs():
     """On the real predicted table (several seconds: the virtual rig compiles and linearises)."""
-    from helpers.design import map_following, scheduled_pair
-    from helpers.programmes import experiment_programme
+    from helpers.board.programmes import experiment_programme
+    from helpers.research.design import map_following, scheduled_pair
     from helpers.virtual.parameters import RigParameters
     from helpers.virtual.statics import frequency_map
 

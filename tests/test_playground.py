@@ -5,8 +5,8 @@ import matplotlib
 import pytest
 
 import helpers
-from helpers.identify import load_identification
-from helpers.playground import SHAPERS, ShaperPlayground
+from helpers.paper.identify import load_identification
+from helpers.research.playground import SHAPERS, ShaperPlayground
 
 matplotlib.use("Agg")
 

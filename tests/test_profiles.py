@@ -1,4 +1,4 @@
-"""Tests of helpers.profiles: the pulse, exact shaped profiles and stepper programmes."""
+"""Tests of helpers.paper.profiles: the pulse, exact shaped profiles and stepper programmes."""
 
 import json
 import math
@@ -9,10 +9,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import modes, paper, profiles, programmes, shapers
-from helpers.hardware import LIMITS, MM_PER_STEP
-from helpers.profiles import VelocityProfile
-from helpers.programmes import Dwell, Programme, Segment
+from helpers.board import programmes
+from helpers.board.programmes import Dwell, Programme, Segment
+from helpers.paper import modes, profiles, shapers
+from helpers.paper import numbers as paper
+from helpers.paper.hardware import LIMITS, MM_PER_STEP
+from helpers.paper.profiles import VelocityProfile
+from helpers.research import families
 
 ZV, ZVD = shapers.paper_tdfs()
 OMEGA_N = modes.omega_n_from_damped(paper.OMEGA_D, paper.ZETA)
@@ -65,12 +68,12 @@ def test_table_i():
 
 
 # -- exact piecewise-constant profiles -------------------------------------------------------------
-@pytest.mark.parametrize("family", list(shapers.FAMILIES))
+@pytest.mark.parametrize("family", list(families.FAMILIES))
 def test_shaped_profile_keeps_displacement(family):
     prof = profiles.single_pulse(200.0, 20.0, 1.0)
-    shaped = prof.shaped(shapers.FAMILIES[family](OMEGA_N, paper.ZETA))
+    shaped = prof.shaped(families.FAMILIES[family](OMEGA_N, paper.ZETA))
     assert shaped.total_displacement == pytest.approx(20.0, rel=1e-12)
-    assert shaped.end == pytest.approx(prof.end + shapers.FAMILIES[family](OMEGA_N, paper.ZETA).duration)
+    assert shaped.end == pytest.approx(prof.end + families.FAMILIES[family](OMEGA_N, paper.ZETA).duration)
 
 
 def test_shaped_profile_is_sum_of_delayed_copies():
@@ -274,12 +277,12 @@ def test_long_hold_is_split_into_legal_dwells():
 @given(
     v=st.floats(20.0, 380.0),
     x=st.floats(1.0, 39.5),
-    family=st.sampled_from([None, *shapers.FAMILIES]),
+    family=st.sampled_from([None, *families.FAMILIES]),
     omega=st.floats(10.0, 80.0),
     zeta=st.floats(0.0, 0.2),
 )
 def test_programme_lands_on_whole_steps(v, x, family, omega, zeta):
-    shaper = None if family is None else shapers.FAMILIES[family](omega, zeta)
+    shaper = None if family is None else families.FAMILIES[family](omega, zeta)
     prog, rep = programmes.experiment_programme(v, x, shaper, t_end=12.0)
     n = round(x / MM_PER_STEP)
     assert rep.n_steps == n

@@ -22,7 +22,7 @@ import nbformat
 import pytest
 
 from helpers.__main__ import COMMANDS, main
-from helpers.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 README = (REPO_ROOT / "README.md").read_text()
@@ -36,6 +36,8 @@ HOW: dict[str, str] = {
     "python -m pip install -r environment.txt": "ci",
     "python -m pytest": "ci",
     "python -m pytest -m slow": "ci",
+    # the light environment's check (.ci/run; tests/test_light_install.py runs it without the extras too)
+    "python -m helpers metrics data/experiments": "ci",
     "sudo apt-get install -y --no-install-recommends gcc-avr avr-libc arduino-core-avr simavr libsimavr-dev "
     "make gcc g++": "ci",
     # the walkthrough

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from helpers import recordings
-from helpers.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR
 
 NOT_RECORDINGS = {"calibration.json", "result.json"}
 

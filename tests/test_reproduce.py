@@ -4,7 +4,7 @@ import nbformat
 import pytest
 from nbformat.v4 import new_code_cell, new_notebook
 
-from helpers import reproduce
+from helpers.commands import reproduce
 
 
 def _write(path, sources, depends_on=None):

@@ -19,15 +19,15 @@ import nbformat
 import numpy as np
 import pytest
 
-from helpers import reproduce
-from helpers.paths import NOTEBOOKS_DIR, REPO_ROOT
+from helpers.base.paths import NOTEBOOKS_DIR, REPO_ROOT
+from helpers.commands import reproduce
 
 SENSITIVE = r"""
 import json
 import numpy as np
 from helpers import recordings
-from helpers.identify import identify_recording
-from helpers.paths import DATA_DIR
+from helpers.paper.identify import identify_recording
+from helpers.base.paths import DATA_DIR
 from helpers.virtual import RigParameters, linearise, statics
 
 p = RigParameters()
@@ -111,13 +111,13 @@ def test_figure_writers_produce_identical_bytes_twice(tmp_path, monkeypatch):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    import helpers.paths
+    import helpers.base.paths
     from helpers import recordings
-    from helpers.identify import identify_recording
-    from helpers.paths import DATA_DIR
+    from helpers.base.paths import DATA_DIR
+    from helpers.paper.identify import identify_recording
+    from helpers.paper.shapers import paper_tdfs
     from helpers.plotting import identification
     from helpers.plotting import shapers as shaper_plots
-    from helpers.shapers import paper_tdfs
 
     rec = recordings.load(DATA_DIR / "identification" / "pulse_v100_x10")
     result = identify_recording(rec, window=(9.0, 10.0), column="adc")
@@ -125,7 +125,7 @@ def test_figure_writers_produce_identical_bytes_twice(tmp_path, monkeypatch):
     for run in ("a", "b"):
         folder = tmp_path / run
         folder.mkdir()
-        monkeypatch.setattr(helpers.paths, "FIGURES_DIR", folder)
+        monkeypatch.setattr(helpers.base.paths, "FIGURES_DIR", folder)
         identification.fig5_force_response(rec.frame["t_s"], rec.frame["adc"], (9.0, 10.0), save=True)
         identification.fig6_logdec_fft(result, rec.frame["t_s"], rec.frame["adc"], save=True)
         zv, zvd = paper_tdfs()

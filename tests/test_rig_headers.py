@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers.protocol import PAPER_RIG_HASH
+from helpers.board.protocol import PAPER_RIG_HASH
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers import metrics, recordings, rigfile
+from helpers import recordings, rigfile
+from helpers.paper import metrics
 
 PAPER_TEXT = (rigfile.RIGS_DIR / "paper.toml").read_text()
 
@@ -57,7 +58,7 @@ def test_metrics_command_refuses_two_rigs_unless_asked(tmp_path, capsys):
     import shutil
 
     from helpers.__main__ import main
-    from helpers.paths import DATA_DIR
+    from helpers.base.paths import DATA_DIR
 
     for stem in ("zv_v200_x10_r2", "zv_v200_x20_r2"):
         for ext in (".csv", ".json"):

@@ -9,8 +9,10 @@ import shutil
 import pytest
 from rig_fakes import GAIN, OFFSET, make_world
 
-from helpers import loadcell, record, recordings
-from helpers.paths import DATA_DIR
+from helpers import recordings
+from helpers.base.paths import DATA_DIR
+from helpers.commands import record
+from helpers.paper import calibration as loadcell
 from helpers.rig import loadcell as loadcell_recording
 
 

@@ -8,7 +8,7 @@ import warnings
 import pytest
 from rig_fakes import SpyPort, make_rig
 
-from helpers.programmes import Dwell, Programme, Segment
+from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.rig import SafetyError, check_request
 
 

@@ -10,8 +10,9 @@ import sys
 import pytest
 from rig_fakes import make_rig
 
-from helpers import hardware, recordings, rigfile
-from helpers.programmes import Dwell, Programme, Segment
+from helpers import recordings, rigfile
+from helpers.board.programmes import Dwell, Programme, Segment
+from helpers.paper import hardware
 from helpers.rigfile import take_rig_option
 
 _PROBE = (
@@ -62,7 +63,7 @@ def test_take_rig_option():
 def test_the_old_rig_name_option_is_the_virtual_instance():
     import argparse
 
-    from helpers import home
+    from helpers.commands import home
 
     parser = argparse.ArgumentParser()
     home.add_arguments(parser)

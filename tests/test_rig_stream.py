@@ -1,7 +1,9 @@
-"""Rig.stream on the in-process virtual rig (test-double plant): a stream of set-points through the board's
+"""StreamRig.stream on the in-process virtual rig (test-double plant): a stream of set-points through the
+board's
 shaper -> one recording, paced by the device clock, checked before sending, and safe however it ends.
 
-The oracle for what the board does is helpers.streaming (the firmware's reference, checked against the
+The oracle for what the board does is helpers.board.stream_reference (the firmware's reference, checked
+against the
 firmware tick for tick in tests/firmware); set-points in board units are computed here from PROTOCOL.md's
 unit (2^-16 step per 16 us = 0.95367431640625 steps/s)."""
 
@@ -15,9 +17,10 @@ import pytest
 from rig_fakes import SpyPort, make_rig
 
 from helpers import recordings
-from helpers import streaming as hs
-from helpers.hardware import MM_PER_STEP
-from helpers.rig import BoardReset, BoardTimeout, SafetyError, StreamLimit, StreamStarved
+from helpers.board import stream_reference as hs
+from helpers.paper.hardware import MM_PER_STEP
+from helpers.rig import BoardReset, BoardTimeout, SafetyError
+from helpers.rig.stream import StreamLimit, StreamStarved
 
 pytestmark = pytest.mark.streaming
 
@@ -249,7 +252,7 @@ def test_the_pacer_keeps_its_lead_when_the_boards_clocks_differ():
 @pytest.mark.slow
 def test_the_example_of_docs_streaming_prints_what_the_page_says(capsys):
     """docs/streaming.md's example, run as it stands on the tuned virtual rig."""
-    from helpers.paths import REPO_ROOT
+    from helpers.base.paths import REPO_ROOT
 
     page = (REPO_ROOT / "docs" / "streaming.md").read_text()
     code = page.split("```python\n")[2].split("```")[0]

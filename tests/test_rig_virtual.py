@@ -7,9 +7,9 @@ import pytest
 from rig_fakes import CALIBRATION, GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_rig, make_world
 
 from helpers import recordings
-from helpers.hardware import MM_PER_STEP
-from helpers.programmes import Dwell, Programme, Segment, experiment_programme
-from helpers.protocol import frame
+from helpers.board.programmes import Dwell, Programme, Segment, experiment_programme
+from helpers.board.protocol import frame
+from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import Rig
 from helpers.rig.discovery import KNOWN_BOARDS, candidate_ports, find_rig_ports
 
@@ -128,7 +128,7 @@ def test_a_late_reply_is_not_taken_for_the_next_command():
 
 @pytest.mark.parametrize("version", ["2.2.0+deadbeef", "2.2.0+00000000"])
 def test_boards_built_for_another_rig_are_refused_with_the_rebuild_command(monkeypatch, version):
-    import helpers.emulator.boards as emulated
+    import helpers.virtual.emulator.boards as emulated
     from helpers.rig import WrongRig
 
     monkeypatch.setattr(emulated, "board_version", lambda: version)
@@ -142,7 +142,7 @@ def test_boards_built_for_another_rig_are_refused_with_the_rebuild_command(monke
 
 
 def test_a_board_without_a_rig_hash_is_the_paper_rigs(monkeypatch):
-    import helpers.emulator.boards as emulated
+    import helpers.virtual.emulator.boards as emulated
 
     monkeypatch.setattr(emulated, "board_version", lambda: "2.1.0")
     world = make_world()

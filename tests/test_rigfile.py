@@ -59,7 +59,7 @@ def test_paper_rig_derives_todays_limits():
 
 
 def test_paper_rig_file_matches_the_virtual_rig_and_the_paper():
-    from helpers import paper
+    from helpers.paper import numbers as paper
     from helpers.virtual.parameters import RigParameters
 
     rig = rigfile.default_rig()
@@ -225,7 +225,7 @@ def test_dataclasses_are_frozen():
 
 
 def test_docs_name_every_key_and_macro():
-    from helpers.paths import REPO_ROOT
+    from helpers.base.paths import REPO_ROOT
     from helpers.rigfile import firmware_header, schema
 
     doc = (REPO_ROOT / "docs" / "rig_file.md").read_text()

@@ -8,10 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from helpers.identify import IdentifiedMode
-from helpers.modemap import ModeMap
-from helpers.paths import STORED_TABLES_DIR
-from helpers.robustness import (
+from helpers.base.paths import STORED_TABLES_DIR
+from helpers.paper.identify import IdentifiedMode
+from helpers.paper.shapers import Shaper, zv, zvd
+from helpers.research.modemap import ModeMap
+from helpers.research.robustness import (
     at_duration,
     linear_residual_pct,
     load_designs,
@@ -22,7 +23,6 @@ from helpers.robustness import (
     tune_family,
     uncertainty_model,
 )
-from helpers.shapers import Shaper, zv, zvd
 
 IDENT = IdentifiedMode(omega_d=25.0, zeta=0.05, omega_d_std=0.0, zeta_std=0.0)
 

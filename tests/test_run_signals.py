@@ -17,11 +17,12 @@ import time
 import pytest
 from rig_fakes import make_rig
 
-from helpers import recordings, signals
-from helpers.programmes import Dwell, Programme, Segment
+from helpers import recordings
+from helpers.base import signals
+from helpers.base.signals import Interrupted, interrupts_from_signals
+from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.recordings import RecordingExists
 from helpers.rig import experiment
-from helpers.signals import Interrupted, interrupts_from_signals
 
 PROGRAMME = Programme((Dwell(50), Segment(1, 10, 2000), Dwell(50), Segment(-1, 10, 2000), Dwell(50)))
 

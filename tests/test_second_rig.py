@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from helpers import rigfile
-from helpers.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR
 from helpers.rig.loadcell import PAPER_MASSES_KG, calibration_masses_kg
 
 
@@ -44,7 +44,8 @@ def test_second_rig_identified_mode_agrees_with_its_prediction(tmp_path):
     predicted = json.loads(_helpers("rig", "check", "long-arm", "--json", "--points", "2", cwd=tmp_path,
                                     env=env).stdout)["dominant_at_rest"]  # fmt: skip
     code = (
-        "import sys, json; from helpers import recordings; from helpers.identify import identify_recording; "
+        "import sys, json; from helpers import recordings; "
+        "from helpers.paper.identify import identify_recording; "
         "rec = recordings.load(sys.argv[1]); r = identify_recording(rec); "
         "print(json.dumps({'rig': rec.meta['rig']['name'], 'omega_d': r.omega_d, 'zeta': r.zeta}))"
     )

@@ -1,4 +1,4 @@
-"""Tests of helpers.shapers against the paper's closed form and the input-shaping literature."""
+"""Tests of helpers.paper.shapers against the paper's closed form and the input-shaping literature."""
 
 import math
 
@@ -7,12 +7,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import modes, paper, shapers
-from helpers.shapers import Shaper
+from helpers.paper import modes, shapers
+from helpers.paper import numbers as paper
+from helpers.paper.shapers import Shaper
+from helpers.research import families
 
 OMEGA = 2 * math.pi * 4.0  # an arbitrary design frequency (rad/s)
 
-ALL = list(shapers.FAMILIES.items())
+ALL = list(families.FAMILIES.items())
 EI_TYPES = {"EI", "2-hump EI", "3-hump EI"}
 
 
@@ -109,14 +111,14 @@ def test_zv_sensitivity_closed_form_undamped():
     [("ZV", 0.06), ("ZVD", 0.29), ("EI", 0.40), ("2-hump EI", 0.73), ("3-hump EI", 0.97)],
 )
 def test_insensitivity_widths_match_literature(name, width):
-    s = shapers.FAMILIES[name](OMEGA, 0.0)
+    s = families.FAMILIES[name](OMEGA, 0.0)
     low, high, measured = s.insensitivity(OMEGA, 0.0, vtol=0.05)
     assert measured == pytest.approx(width, abs=0.015)
     assert low < 1.0 < high
 
 
 def test_insensitivity_orders_the_families():
-    widths = [shapers.FAMILIES[n](OMEGA, 0.044).insensitivity(OMEGA, 0.044)[2] for n in
+    widths = [families.FAMILIES[n](OMEGA, 0.044).insensitivity(OMEGA, 0.044)[2] for n in
               ("ZV", "MZV", "ZVD", "ZVDD")]
     assert widths == sorted(widths)
 
@@ -127,21 +129,21 @@ def test_insensitivity_orders_the_families():
 )
 @pytest.mark.parametrize("zeta", [0.0, 0.044, 0.15])
 def test_durations_in_damped_periods(name, periods, zeta):
-    s = shapers.FAMILIES[name](OMEGA, zeta)
+    s = families.FAMILIES[name](OMEGA, zeta)
     tol = 0.01 if name == "UM-ZV" else 1e-12  # UM-ZV lengthens slightly with damping
     assert s.duration / _damped_period(OMEGA, zeta) == pytest.approx(periods, abs=tol)
 
 
 @pytest.mark.parametrize(("name", "periods"), [("EI", 1.0), ("2-hump EI", 1.5), ("3-hump EI", 2.0)])
 def test_ei_durations_in_periods(name, periods):
-    s = shapers.FAMILIES[name](OMEGA, 0.0)
+    s = families.FAMILIES[name](OMEGA, 0.0)
     assert s.duration / (2 * math.pi / OMEGA) == pytest.approx(periods, abs=1e-3)
 
 
 # -- agreement with the published closed forms (zeta = 0) and firmware conventions -----------------
 def test_ei_undamped_closed_form():
     v = 0.05
-    s = shapers.ei(OMEGA, 0.0, vtol=v)
+    s = families.ei(OMEGA, 0.0, vtol=v)
     period = 2 * math.pi / OMEGA
     np.testing.assert_allclose(s.amplitudes, [(1 + v) / 4, (1 - v) / 2, (1 + v) / 4], atol=1e-3)
     np.testing.assert_allclose(s.times, [0, period / 2, period], atol=1e-3 * period)
@@ -151,7 +153,7 @@ def test_two_hump_ei_undamped_closed_form():
     v = 0.05
     x = (v**2 * (math.sqrt(1 - v**2) + 1)) ** (1 / 3)
     a1 = (3 * x**2 + 2 * x + 3 * v**2) / (16 * x)
-    s = shapers.two_hump_ei(OMEGA, 0.0)
+    s = families.two_hump_ei(OMEGA, 0.0)
     np.testing.assert_allclose(s.amplitudes, [a1, 0.5 - a1, 0.5 - a1, a1], atol=1.5e-3)
     np.testing.assert_allclose(s.times / (2 * math.pi / OMEGA), [0, 0.5, 1, 1.5], atol=3e-3)  # fit accuracy
 
@@ -160,7 +162,7 @@ def test_three_hump_ei_undamped_closed_form():
     v = 0.05
     a1 = (1 + 3 * v + 2 * math.sqrt(2 * v * (v + 1))) / 16
     a2 = (1 - v) / 4
-    s = shapers.three_hump_ei(OMEGA, 0.0)
+    s = families.three_hump_ei(OMEGA, 0.0)
     np.testing.assert_allclose(s.amplitudes, [a1, a2, 1 - 2 * (a1 + a2), a2, a1], atol=1e-3)
     periods = s.times / (2 * math.pi / OMEGA)
     np.testing.assert_allclose(periods, [0, 0.5, 1, 1.5, 2], atol=2e-3)  # the fit's accuracy
@@ -174,7 +176,7 @@ def test_mzv_matches_firmware_formula(zeta):
     k = math.exp(-0.75 * zeta * math.pi / df)
     t_d = 1 / (f * df)
     a = np.array([1 - 1 / math.sqrt(2), (math.sqrt(2) - 1) * k, (1 - 1 / math.sqrt(2)) * k * k])
-    s = shapers.mzv(OMEGA, zeta)
+    s = families.mzv(OMEGA, zeta)
     np.testing.assert_allclose(s.amplitudes, a / a.sum(), rtol=1e-12)
     np.testing.assert_allclose(s.times, [0, 0.375 * t_d, 0.75 * t_d], rtol=1e-12)
 
@@ -195,7 +197,7 @@ def test_zv_zvd_match_firmware_formula(zeta):
 def test_ei_times_close_to_firmware_damped_period_convention():
     # Klipper spaces EI in damped periods, we (like Singhose's fit) in undamped ones: 0.1 % apart here.
     zeta = 0.044
-    s = shapers.ei(OMEGA, zeta)
+    s = families.ei(OMEGA, zeta)
     assert s.duration * OMEGA / (2 * math.pi) == pytest.approx(1.0, abs=1e-12)
     assert s.duration / _damped_period(OMEGA, zeta) == pytest.approx(1.0, abs=1.5e-3)
 
@@ -203,37 +205,37 @@ def test_ei_times_close_to_firmware_damped_period_convention():
 def test_three_tap_with_half_period_is_zvd():
     zeta = 0.07
     omega_d = OMEGA * math.sqrt(1 - zeta**2)
-    assert shapers.three_tap(OMEGA, zeta, math.pi / omega_d).allclose(shapers.zvd(OMEGA, zeta), rtol=1e-12)
+    assert families.three_tap(OMEGA, zeta, math.pi / omega_d).allclose(shapers.zvd(OMEGA, zeta), rtol=1e-12)
 
 
 @pytest.mark.parametrize("delay_frac", [0.2, 0.5, 0.9])
 def test_three_tap_cancels_mode_for_any_delay(delay_frac):
     zeta = 0.044
-    s = shapers.three_tap(OMEGA, zeta, delay_frac * math.pi / OMEGA)
+    s = families.three_tap(OMEGA, zeta, delay_frac * math.pi / OMEGA)
     assert s.vibration(OMEGA, zeta) < 1e-12
 
 
 def test_um_zv_is_unity_magnitude():
-    s = shapers.um_zv(OMEGA, 0.044)
+    s = families.um_zv(OMEGA, 0.044)
     np.testing.assert_array_equal(s.amplitudes, [1, -1, 1])
-    undamped = shapers.um_zv(OMEGA, 0.0)
+    undamped = families.um_zv(OMEGA, 0.0)
     np.testing.assert_allclose(undamped.times / (2 * math.pi / OMEGA), [0, 1 / 6, 1 / 3], atol=1e-10)
 
 
 def test_multihump_refuses_other_tolerances():
     with pytest.raises(ValueError, match="vtol"):
-        shapers.two_hump_ei(OMEGA, 0.05, vtol=0.1)
+        families.two_hump_ei(OMEGA, 0.05, vtol=0.1)
 
 
 # -- hypothesis properties -----------------------------------------------------------------------------------
 @settings(max_examples=60, deadline=None)
 @given(
-    name=st.sampled_from(list(shapers.FAMILIES)),
+    name=st.sampled_from(list(families.FAMILIES)),
     omega=st.floats(1.0, 500.0),
     zeta=st.floats(0.0, 0.3),
 )
 def test_amplitudes_sum_to_one_and_times_sorted(name, omega, zeta):
-    s = shapers.FAMILIES[name](omega, zeta)
+    s = families.FAMILIES[name](omega, zeta)
     assert abs(s.amplitudes.sum() - 1) < 1e-9
     assert s.times[0] == 0
     assert np.all(np.diff(s.times) >= 0)
@@ -243,15 +245,15 @@ def test_amplitudes_sum_to_one_and_times_sorted(name, omega, zeta):
 
 @settings(max_examples=40, deadline=None)
 @given(
-    a=st.sampled_from(list(shapers.FAMILIES)),
-    b=st.sampled_from(list(shapers.FAMILIES)),
+    a=st.sampled_from(list(families.FAMILIES)),
+    b=st.sampled_from(list(families.FAMILIES)),
     wa=st.floats(2.0, 80.0),
     wb=st.floats(2.0, 80.0),
     zeta=st.floats(0.0, 0.3),
     w_eval=st.floats(0.5, 150.0),
 )
 def test_convolution_multiplies_vibrations(a, b, wa, wb, zeta, w_eval):
-    sa, sb = shapers.FAMILIES[a](wa, zeta), shapers.FAMILIES[b](wb, zeta)
+    sa, sb = families.FAMILIES[a](wa, zeta), families.FAMILIES[b](wb, zeta)
     prod = sa * sb
     assert prod.vibration(w_eval, zeta) == pytest.approx(
         sa.vibration(w_eval, zeta) * sb.vibration(w_eval, zeta), rel=1e-7, abs=1e-10
@@ -261,12 +263,12 @@ def test_convolution_multiplies_vibrations(a, b, wa, wb, zeta, w_eval):
 
 def test_multi_mode_cancels_every_mode():
     modes = [(25.0, 0.044), (90.0, 0.02)]
-    s = shapers.multi_mode(modes, shapers.zvd)
+    s = families.multi_mode(modes, shapers.zvd)
     for w, z in modes:
         assert s.vibration(w, z) < 1e-9
     assert len(s) == 9
     with pytest.raises(ValueError, match="mode"):
-        shapers.multi_mode([])
+        families.multi_mode([])
 
 
 # -- applying a shaper to a sampled command ------------------------------------------------------------------
@@ -322,7 +324,7 @@ def test_shaper_is_immutable():
 
 @pytest.mark.parametrize(("omega", "zeta"), [(0.0, 0.1), (float("nan"), 0.1), (10.0, -0.1), (10.0, 1.0)])
 def test_constructors_refuse_bad_modes(omega, zeta):
-    for family in shapers.FAMILIES.values():
+    for family in families.FAMILIES.values():
         with pytest.raises(ValueError):
             family(omega, zeta)
 

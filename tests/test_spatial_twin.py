@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from helpers.__main__ import main
-from helpers.paths import REPO_ROOT
+from helpers.base.paths import REPO_ROOT
 from helpers.virtual import RigParameters
 from helpers.virtual import statics as planar
 from helpers.virtual.spatial.chain import Control, SpatialChain
@@ -209,7 +209,8 @@ def test_bend_command_shares_the_pull_as_cos_and_sin():
 def test_frequency_map_splits_the_modes_with_bend_and_gravity_breaks_the_symmetry(hanging_pulls):
     hang = frequency_map(hanging_rig(), [90.0], [0.0], n_modes=2).iloc[0]
     horiz = linearise(four_tendon_rig()).modes()
-    assert hang.omega_d2_rad_s / hang.omega_d1_rad_s - 1 < 1e-9  # degenerate at rest
+    rel_err = hang.omega_d2_rad_s / hang.omega_d1_rad_s - 1
+    assert rel_err < 1e-9  # degenerate at rest
     bent = hanging_pulls[0.0][1]
     assert bent.omega_d.iloc[1] / bent.omega_d.iloc[0] - 1 > 0.01  # split once bent (5 mm)
     assert horiz.omega_d.iloc[1] / horiz.omega_d.iloc[0] - 1 > 0.01  # the horizontal arm's weight splits them
@@ -241,7 +242,7 @@ def test_plotting_functions_draw_the_map():
     import matplotlib
 
     matplotlib.use("Agg")
-    from helpers.plotting.spatial import direction_map_polar, mode_splitting, shapes_3d
+    from helpers.virtual.spatial.plots import direction_map_polar, mode_splitting, shapes_3d
 
     rows = [{"direction_deg": d, "bend_mm": b, "omega_d1_rad_s": 25 + 0.1 * b, "torsion1": 0.5,
              "omega_d2_rad_s": 26 - 0.1 * b, "torsion2": 0.0, "dominant_omega_d_rad_s": 26.0}

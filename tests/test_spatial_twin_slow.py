@@ -20,10 +20,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers import paper
-from helpers.metrics import recording_metrics
-from helpers.programmes import experiment_programme
-from helpers.shapers import paper_tdfs
+from helpers.board.programmes import experiment_programme
+from helpers.paper import numbers as paper
+from helpers.paper.metrics import recording_metrics
+from helpers.paper.shapers import paper_tdfs
 from helpers.virtual import RigParameters, simulate
 from helpers.virtual.spatial import _kernel as kern
 from helpers.virtual.spatial.direction_map import bend_equilibrium
@@ -229,7 +229,10 @@ def test_one_tendon_frequency_map_over_0_to_40_mm_is_the_planar_rigs():
         in_plane = modes[modes.in_plane > 0.999].reset_index(drop=True)
         dominant = linearise(rig, eq, rotor="free").dominant(0)
         assert abs(eq.tension[0] / row.static_tension_n - 1) < 1e-3
-        assert abs(in_plane.omega_d[0] / row.omega_d_rad_s - 1) < 2e-3
-        assert abs(in_plane.omega_d[1] / row.omega_d2_rad_s - 1) < 2e-3
-        assert abs(dominant[0] / row.dominant_omega_d_rad_s - 1) < 2e-3
+        rel_err = {
+            "omega_d1": abs(in_plane.omega_d[0] / row.omega_d_rad_s - 1),
+            "omega_d2": abs(in_plane.omega_d[1] / row.omega_d2_rad_s - 1),
+            "dominant omega_d": abs(dominant[0] / row.dominant_omega_d_rad_s - 1),
+        }
+        assert max(rel_err.values()) < 2e-3, rel_err
         assert abs(dominant[1] / row.dominant_zeta - 1) < 2e-3

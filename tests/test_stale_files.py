@@ -11,9 +11,9 @@ import pytest
 
 from helpers import recordings
 from helpers.__main__ import main
-from helpers.jsonfile import write_temp
-from helpers.locks import FolderBusy, folder_lock
-from helpers.paths import REPO_ROOT
+from helpers.base.jsonfile import write_temp
+from helpers.base.locks import FolderBusy, folder_lock
+from helpers.base.paths import REPO_ROOT
 from helpers.recordings import Recording
 
 CAL = {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.25525, "origin": "test"}

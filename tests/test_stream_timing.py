@@ -16,9 +16,10 @@ import pytest
 from rig_fakes import make_rig
 
 from helpers import recordings
-from helpers import streaming as hs
-from helpers.hardware import MM_PER_STEP
-from helpers.rig import BoardError, StreamLimit
+from helpers.board import stream_reference as hs
+from helpers.paper.hardware import MM_PER_STEP
+from helpers.rig import BoardError
+from helpers.rig.stream import StreamLimit
 
 STEPS_PER_UNIT_PERIOD = 625 / 2**16
 """Steps one set-point unit moves in one period (PROTOCOL.md: 2^-16 step per 16 us, 625 x 16 us)."""

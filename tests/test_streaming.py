@@ -1,4 +1,5 @@
-"""``helpers.streaming``, the reference of the stepper board's streaming shaper: its steps follow the exact
+"""``helpers.board.stream_reference``, the reference of the stepper board's streaming shaper: its steps
+follow the exact
 shaped trajectory within one step at every instant, each step at the first tick after its exact crossing;
 the fixed-point representation and the board's rules for set-points, the watchdog and END."""
 
@@ -9,7 +10,7 @@ import random
 import numpy as np
 import pytest
 
-from helpers import streaming as hs
+from helpers.board import stream_reference as hs
 
 pytestmark = pytest.mark.streaming
 

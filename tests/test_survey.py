@@ -7,10 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers.hardware import MAX_TRAVEL_MM, MM_PER_STEP
+from helpers.paper.hardware import MAX_TRAVEL_MM, MM_PER_STEP
+from helpers.research.ringdown import fit_two_modes
+from helpers.research.survey import KICK_MM, map_from_rows, survey_plan
 from helpers.rig import check_programme
-from helpers.ringdown import fit_two_modes
-from helpers.survey import KICK_MM, map_from_rows, survey_plan
 
 FS = 1000.0
 

@@ -14,10 +14,10 @@ import pytest
 import xarray as xr
 
 from helpers.__main__ import main
-from helpers.locks import folder_lock
-from helpers.sweep import execute
-from helpers.sweep.definition import SweepDefinition
-from helpers.sweep.execute import probe_scheduler, run_sweep
+from helpers.base.locks import folder_lock
+from helpers.research.sweep import execute
+from helpers.research.sweep.definition import SweepDefinition
+from helpers.research.sweep.execute import probe_scheduler, run_sweep
 
 SHORT_RUN = {"t_end_s": 4.0, "t_up_s": 0.3, "t_down_s": 1.8}
 

@@ -2,7 +2,7 @@ import math
 
 import pandas as pd
 
-from helpers import tables
+from helpers.base import tables
 
 
 def test_markdown_has_fixed_precision_and_nan():

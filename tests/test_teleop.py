@@ -4,10 +4,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers import teleop
-from helpers.hardware import MM_PER_STEP
-from helpers.modemap import ModeMap
-from helpers.streaming import STEPS_PER_S_PER_UNIT
+from helpers.board.stream_reference import STEPS_PER_S_PER_UNIT
+from helpers.paper.hardware import MM_PER_STEP
+from helpers.research import teleop
+from helpers.research.modemap import ModeMap
 
 UNIT = MM_PER_STEP * STEPS_PER_S_PER_UNIT
 SOURCE = {"kind": "virtual-rig", "method": "test"}

@@ -6,12 +6,12 @@ import shutil
 import pandas as pd
 import pytest
 
-import helpers.paths
-from helpers import tune
+import helpers.base.paths
 from helpers.__main__ import main
-from helpers.modemap import ModeMap
-from helpers.paths import DATA_DIR
-from helpers.shapers import design_tdfs
+from helpers.base.paths import DATA_DIR
+from helpers.paper.shapers import design_tdfs
+from helpers.research import tune
+from helpers.research.modemap import ModeMap
 
 
 def summary(rows):
@@ -52,7 +52,7 @@ def test_tune_runs_end_to_end_on_the_virtual_rig(tmp_path, monkeypatch):
     for group, name in (("calibration", "calibration.json"), ("identification", "result.json")):
         (tmp_path / group).mkdir()
         shutil.copy(DATA_DIR / group / name, tmp_path / group / name)
-    monkeypatch.setattr(helpers.paths, "FIGURES_DIR", tmp_path / "figures")
+    monkeypatch.setattr(helpers.base.paths, "FIGURES_DIR", tmp_path / "figures")
 
     assert main(["tune", "--data-dir", str(tmp_path), "--repetitions", "1", "--quiet"]) == 0
     tuning = tmp_path / "tuning"

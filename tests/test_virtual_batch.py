@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from helpers.programmes import experiment_programme
+from helpers.board.programmes import experiment_programme
 from helpers.virtual import RigParameters, simulate
 from helpers.virtual.batch import BatchRun, PlantPool, run_batch
 

@@ -7,11 +7,11 @@ import pytest
 import serial
 from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
 
-from helpers import streaming as hs
-from helpers.emulator.boards import Faults
-from helpers.hardware import MM_PER_STEP
-from helpers.protocol import StreamParser, checksum, frame
+from helpers.board import stream_reference as hs
+from helpers.board.protocol import StreamParser, checksum, frame
+from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig.ports import open_port
+from helpers.virtual.emulator.boards import Faults
 
 
 def talk(board, *commands, checksum=True):
@@ -192,7 +192,8 @@ def test_calibration_fixture_is_read_instead_of_the_cable():
         w.hang_load(float("nan"))
 
 
-# --- the stepper's streaming mode (helpers.streaming is the oracle) --------------------------------------
+# --- the stepper's streaming mode (helpers.board.stream_reference is the oracle)
+# --------------------------------------
 def _stream_world():
     w = make_world()
     w.daq.take_output(), w.stepper.take_output()

@@ -1,4 +1,4 @@
-// The streaming planner (see stream_plan.h). Mirrors helpers/streaming.py's Planner line for line.
+// The streaming planner (see stream_plan.h). Mirrors helpers/board/stream_reference.py's Planner line for line.
 #include "stream_plan.h"
 
 // ceil(32 * rem / s) for 0 <= rem < s: five steps of long division (no library division per step).

@@ -1,5 +1,5 @@
 // The stepper board's streaming input shaper: plans the steps of one control period at a time (PROTOCOL.md,
-// "Streaming"). Board-independent integer arithmetic, also compiled for the host: helpers/streaming.py is the
+// "Streaming"). Board-independent integer arithmetic, also compiled for the host: helpers/board/stream_reference.py is the
 // same algorithm in Python and the tests compare the two tick for tick.
 //
 // Units: timer tick 0.5 us; DELTA = 32 ticks (16 us), the unit of delays and the time base of velocities;

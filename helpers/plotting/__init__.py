@@ -1,7 +1,7 @@
 """The paper's figures, one function each, saved under ``figures/`` with the paper's number.
 
 Submodules group the figures by the stage of the pipeline they show; this module holds the save function
-(the style is :mod:`helpers.style`).
+(the style is :mod:`helpers.base.style`).
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 
-from helpers.paths import figure_path
-from helpers.style import STYLE, SYSTEM_COLOURS, apply_style
+from helpers.base.paths import figure_path
+from helpers.base.style import STYLE, SYSTEM_COLOURS, apply_style
 
 __all__ = ["STYLE", "SYSTEM_COLOURS", "apply_style", "save"]
 

@@ -8,8 +8,8 @@ from typing import Any
 import matplotlib.pyplot as plt
 import numpy as np
 
-from helpers import paper
-from helpers.metrics import clipped_samples
+from helpers.paper import numbers as paper
+from helpers.paper.metrics import clipped_samples
 from helpers.plotting import SYSTEM_COLOURS
 from helpers.plotting import save as save_figure
 
@@ -79,7 +79,8 @@ def fig_scenario(
     One row per system, so that no trace hides another: the mean over the repetitions as a line and the range
     between their lowest and highest value as a band; the cable displacement of each system underneath.
     Recordings of other conditions are ignored. Samples the sensor clipped
-    (:func:`helpers.metrics.clipped_samples`, on the ``adc`` column) are marked with black crosses: their
+    (:func:`helpers.paper.metrics.clipped_samples`, on the ``adc`` column) are marked with black crosses:
+    their
     tension is only a bound.
 
     Parameters

@@ -8,14 +8,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 from numpy.typing import ArrayLike
 
-from helpers import paper
-from helpers.identify import IdentificationResult
+from helpers.paper import numbers as paper
+from helpers.paper.identify import IdentificationResult
 from helpers.plotting import save as save_figure
 
 FIG5_NAME = "fig5_force_response.png"
 FIG6_NAME = "fig6_logdec_fft.png"
 METHOD_NAMES = {"fit": "damped-sine fit", "logdec": "log decrement", "fft": "FFT"}
-"""How the titles name the identification methods of :data:`helpers.identify.METHODS`."""
+"""How the titles name the identification methods of :data:`helpers.paper.identify.METHODS`."""
 
 
 def _source_note(source: str | None) -> str:
@@ -132,7 +132,7 @@ def fig6_logdec_fft(
     Parameters
     ----------
     result : IdentificationResult
-        From :func:`helpers.identify.identify` on (a window of) ``t, y``.
+        From :func:`helpers.paper.identify.identify` on (a window of) ``t, y``.
     t, y : array_like
         The signal; only ``result.window`` is drawn when it is set.
     unit : str

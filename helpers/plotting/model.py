@@ -10,10 +10,11 @@ from dataclasses import dataclass
 import matplotlib.pyplot as plt
 import numpy as np
 
-from helpers import model, paper
+from helpers.paper import model
+from helpers.paper import numbers as paper
+from helpers.paper.profiles import velocity_pulse
+from helpers.paper.shapers import paper_tdfs
 from helpers.plotting import SYSTEM_COLOURS, save
-from helpers.profiles import velocity_pulse
-from helpers.shapers import paper_tdfs
 
 FIG12_NAME = "fig12_model_shaping.png"
 """File name of the paper's Fig. 12 under ``figures/``."""
@@ -61,7 +62,7 @@ def pole_zero_map(params: model.ArmParameters, zoom: float = 60.0) -> plt.Figure
 
     Parameters
     ----------
-    params : helpers.model.ArmParameters
+    params : helpers.paper.model.ArmParameters
         The model (finite ``k``).
     zoom : float
         The right panel shows ``-zoom <= Re s <= 0.15 zoom`` (1/s) and ``|Im s| <= 1.1 omega_2``.
@@ -139,13 +140,15 @@ def shaping_response(
 ) -> ShapingResponse:
     """Simulate the model's response to the paper's velocity pulse, unshaped and with both TDFs.
 
-    The pulse is :func:`helpers.profiles.velocity_pulse` (up at 1 s, down at 8 s); the shaped commands are
-    the pulse convolved with the impulses of :func:`helpers.shapers.paper_tdfs` (designed from the paper's
+    The pulse is :func:`helpers.paper.profiles.velocity_pulse` (up at 1 s, down at 8 s); the shaped commands
+    are
+    the pulse convolved with the impulses of :func:`helpers.paper.shapers.paper_tdfs` (designed from the
+    paper's
     identified zeta = 0.044, omega_d = 25.085 rad/s), via ``Shaper.apply``.
 
     Parameters
     ----------
-    params : helpers.model.ArmParameters
+    params : helpers.paper.model.ArmParameters
         The model.
     v_in_mm_s, x_f_mm : float
         Pulse velocity (mm/s) and cable displacement (mm).
@@ -190,8 +193,8 @@ def fig12(
 
     Parameters
     ----------
-    params : helpers.model.ArmParameters, optional
-        The model; default :func:`helpers.model.fitted_parameters`.
+    params : helpers.paper.model.ArmParameters, optional
+        The model; default :func:`helpers.paper.model.fitted_parameters`.
     v_in_mm_s, x_f_mm : float
         The pulse (default 200 mm/s, 20 mm; the paper does not say which it used).
     response : ShapingResponse, optional

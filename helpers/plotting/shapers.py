@@ -10,12 +10,12 @@ from collections.abc import Mapping, Sequence
 import matplotlib.pyplot as plt
 import numpy as np
 
-from helpers import paper
-from helpers.hardware import MM_PER_STEP
+from helpers.board.programmes import Programme
+from helpers.paper import numbers as paper
+from helpers.paper.hardware import MM_PER_STEP
+from helpers.paper.profiles import VelocityProfile
+from helpers.paper.shapers import Shaper
 from helpers.plotting import SYSTEM_COLOURS, save
-from helpers.profiles import VelocityProfile
-from helpers.programmes import Programme
-from helpers.shapers import Shaper
 
 SENSITIVITY_NAME = "shaper_sensitivity.png"
 IMPULSES_NAME = "shaper_impulses.png"

@@ -22,7 +22,6 @@ from helpers.recordings.format import (
     validate,
     validate_meta,
 )
-from helpers.recordings.rig import recording_rig, rig_section
 from helpers.recordings.store import (
     RESERVED_NAMES,
     RecordingExists,
@@ -36,6 +35,7 @@ from helpers.recordings.store import (
     reserve,
     save,
 )
+from helpers.rigfile.recorded import recording_rig, rig_section
 
 __all__ = [
     "DERIVED_COLUMNS",

@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
-from helpers.recordings.rig import validate_rig_section
+from helpers.paper.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
+from helpers.rigfile.recorded import validate_rig_section
 
 SCHEMA_VERSION = 2
 """Version of the metadata layout new recordings get (2: with ``rig``, the rig file)."""

@@ -8,7 +8,8 @@
 - **Pairs are never torn**: the CSV goes first, the JSON (holding the CSV's sha256) last, each written to a
   temporary file and renamed into place. A CSV without its JSON is an incomplete run; :func:`load` and
   :func:`catalogue` call it that.
-- **One writer per folder**: saving holds the folder's lock (:mod:`helpers.locks`); a reader holds it shared,
+- **One writer per folder**: saving holds the folder's lock (:mod:`helpers.base.locks`); a reader holds it
+shared,
   so it never sees a pair in the middle of a replacement. The kernel releases the lock when a process dies.
 - **Aborted runs never take a complete run's name**: :func:`aborted_path` gives them their own.
 - **A full disk** (or any error while writing) removes the temporary files and raises one
@@ -33,9 +34,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.jsonfile import dumps, process_alive, remove_stale_temporaries, write_temp
-from helpers.locks import LOCK_NAME, FolderBusy, folder_lock
-from helpers.paths import DATA_DIR
+from helpers.base.jsonfile import dumps, process_alive, remove_stale_temporaries, write_temp
+from helpers.base.locks import LOCK_NAME, FolderBusy, folder_lock
+from helpers.base.paths import DATA_DIR
+from helpers.base.signals import signals_held
 from helpers.recordings.format import (
     RAW_COLUMNS,
     REQUIRED_META,
@@ -45,7 +47,6 @@ from helpers.recordings.format import (
     validate,
     validate_meta,
 )
-from helpers.signals import signals_held
 
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}\Z")
 """A recording's name, or one component of a group."""
@@ -219,7 +220,7 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
         The name exists and ``replace`` is False.
     RecordingError
         An invalid name, incomplete metadata, or the files could not be written (e.g. a full disk).
-    helpers.locks.FolderBusy
+    helpers.base.locks.FolderBusy
         Another process kept saving into the folder for longer than :data:`SAVE_WAIT_S`.
     """
     target = _csv_path(path if path is not None else recording.path or "")
@@ -259,7 +260,8 @@ _BACKUP = re.compile(r"\.(?P<name>.+)\.replaced-(?P<pid>\d+)\.tmp\Z")
 def tidy_folder(folder: Path) -> None:
     """What writers that died left in ``folder``: called by a writer holding the folder's lock.
 
-    Their temporary files go (:func:`helpers.jsonfile.remove_stale_temporaries`). A pair a dead writer was
+    Their temporary files go (:func:`helpers.base.jsonfile.remove_stale_temporaries`). A pair a dead writer
+    was
     replacing is made whole again: if the new pair is complete, the old one's set-aside files go; if not,
     the new part goes and the old pair is put back. A live writer's files are never touched.
     """

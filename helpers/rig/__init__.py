@@ -10,8 +10,9 @@
 - :mod:`helpers.rig.stream`: a stream's set-points, their checks, the pacing and what the recording says;
 - :mod:`helpers.rig.loadcell`: recording the load-cell calibration under known loads.
 
-The line protocol itself is :mod:`helpers.protocol`. Nothing here needs numba or the virtual rig's physics:
-the in-process virtual rig is reached through its ``virtual://`` URL (:mod:`helpers.emulator`).
+The line protocol itself is :mod:`helpers.board.protocol`. Nothing here needs numba or the virtual rig's
+physics:
+the in-process virtual rig is reached through its ``virtual://`` URL (:mod:`helpers.virtual.emulator`).
 """
 
 from helpers.rig.boards import (
@@ -29,7 +30,6 @@ from helpers.rig.daq import DaqBoard
 from helpers.rig.experiment import Rig, RunAborted
 from helpers.rig.safety import SafetyError, check_programme, check_request
 from helpers.rig.stepper import StepperBoard
-from helpers.rig.stream import StreamLimit, StreamStarved
 
 __all__ = [
     "BoardDisconnected",
@@ -46,8 +46,6 @@ __all__ = [
     "RunAborted",
     "SafetyError",
     "StepperBoard",
-    "StreamLimit",
-    "StreamStarved",
     "check_programme",
     "check_request",
 ]

@@ -1,7 +1,7 @@
 """The link to one board, shared by both drivers: framed commands, replies, timeouts, resets, disconnects.
 
 Every read goes through :meth:`BoardLink.pump`, which feeds the bytes to a
-:class:`helpers.protocol.StreamParser`: data lines become samples (kept for the DAQ driver), other lines
+:class:`helpers.board.protocol.StreamParser`: data lines become samples (kept for the DAQ driver), other lines
 become messages. Replies (``OK``, ``ERR``, ``PONG``, ``ABORTED``) answer the pending command; unsolicited
 ``DONE`` is remembered; ``HELLO`` means the board rebooted, which is an error whenever it was not expected.
 
@@ -27,10 +27,10 @@ from collections.abc import Callable
 
 import serial
 
-from helpers.hardware import RIG
-from helpers.protocol import PAPER_RIG_HASH, PROTOCOL_MAJOR, StreamParser, frame
+from helpers.base.signals import signals_held
+from helpers.board.protocol import PAPER_RIG_HASH, PROTOCOL_MAJOR, StreamParser, frame
+from helpers.paper.hardware import RIG
 from helpers.rig.ports import open_port
-from helpers.signals import signals_held
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
 
@@ -99,7 +99,7 @@ def _check_major(kind: str, version: str) -> None:
         The board speaks another protocol MAJOR version.
     WrongRig
         The version's build metadata (``+<rig hash>``) names another rig than the one the host runs
-        (``helpers.hardware.RIG``). A version without it (firmware 2.0-2.1) is the paper's rig's.
+        (``helpers.paper.hardware.RIG``). A version without it (firmware 2.0-2.1) is the paper's rig's.
     """
     if version.split(".")[0] != str(PROTOCOL_MAJOR):
         raise OldFirmware(

@@ -6,8 +6,14 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from helpers.hardware import DAQ_BAUD, DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_STEP_RATE_HZ
-from helpers.protocol import StreamParser, StreamStats
+from helpers.board.protocol import StreamParser, StreamStats
+from helpers.paper.hardware import (
+    DAQ_BAUD,
+    DAQ_RATE_DEFAULT_HZ,
+    DAQ_RATE_MAX_HZ,
+    DAQ_RATE_MIN_HZ,
+    MAX_STEP_RATE_HZ,
+)
 from helpers.rig.boards import BoardError, BoardLink, BoardTimeout
 
 RATE_MIN_HZ, RATE_MAX_HZ = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ
@@ -16,7 +22,8 @@ RATE_MIN_HZ, RATE_MAX_HZ = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ
 class DaqBoard(BoardLink):
     """The DAQ board: samples (``seq``, ``t_us`` unwrapped, ``adc``, ``steps``) with exact fault counts.
 
-    ``stats`` (a :class:`helpers.protocol.StreamStats`) counts, since the last :meth:`start`: ``dropped``
+    ``stats`` (a :class:`helpers.board.protocol.StreamStats`) counts, since the last :meth:`start`:
+    ``dropped``
     sequence numbers (lines lost or destroyed in transport, including any lost after the last one received,
     known once :meth:`stop` reports how many were sent), ``overruns`` (sample periods the board reports it
     missed) and ``corrupted`` lines. Nothing here raises on garbage.

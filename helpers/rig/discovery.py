@@ -29,7 +29,7 @@ from typing import Any
 
 from serial.tools import list_ports
 
-from helpers.paths import VIRTUAL_RIG_REGISTRY
+from helpers.base.paths import VIRTUAL_RIG_REGISTRY
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, OldFirmware
 from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard

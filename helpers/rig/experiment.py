@@ -12,7 +12,8 @@ hardware and on the virtual rig alike, and the start position is recorded. A pul
 at cable position 0 (``python -m helpers home`` brings it there).
 
 Every run sits in a guard: on any exception (``KeyboardInterrupt``, and SIGTERM/SIGHUP turned into one by
-:mod:`helpers.signals`, included) the stepper is sent ``ABORT`` and ``EN 0`` and the DAQ ``STOP``, and what
+:mod:`helpers.base.signals`, included) the stepper is sent ``ABORT`` and ``EN 0`` and the DAQ ``STOP``, and
+what
 was recorded is saved marked ``aborted``, under a name of its own (``<name>_aborted_<UTC>``), with the
 reason; signals are held while that cleanup and save run. The exception is then re-raised carrying
 ``exc.recording`` (the saved recording, or None if it could not be saved), ``exc.saved_path`` and
@@ -20,7 +21,8 @@ reason; signals are held while that cleanup and save run. The exception is then 
 overwrites a recording unless asked (``replace=True``). Requests outside the safety limits raise
 :class:`helpers.rig.safety.SafetyError` before any byte is sent.
 
-:meth:`Rig.stream` streams velocity set-points through the stepper board's shaper (its parts, which touch no
+:meth:`StreamRig.stream` streams velocity set-points through the stepper board's shaper (its parts, which
+touch no
 port, are :mod:`helpers.rig.stream`) with the same guarantees: it starts at rest, checks what it can before
 sending, runs in the same guard and reads the device time the same way (its pacing follows the DAQ's clock,
 so the in-process virtual rig streams faster than real time, deterministically).
@@ -39,35 +41,28 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm.auto import tqdm
 
+try:  # a progress bar where tqdm is installed (the [virtual] extra); the paper's part runs without it
+    from tqdm.auto import tqdm
+except ImportError:  # pragma: no cover - the light environment
+    tqdm = None
 from helpers import __version__ as HELPERS_VERSION
-from helpers import paper, recordings
-from helpers.design import SYSTEMS, Design, as_design, up_down
-from helpers.design.formats import shaper_to_dict
-from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, MAX_PROGRAMME_S, RIG
-from helpers.loadcell import LoadCellCalibration, load_calibration
-from helpers.noise import white_noise_std
-from helpers.paths import DATA_DIR
-from helpers.programmes import Programme, Segment, experiment_programme
+from helpers import recordings
+from helpers.base.noise import white_noise_std
+from helpers.base.paths import DATA_DIR
+from helpers.base.signals import Interrupted, run_guard
+from helpers.board.programmes import Programme, Segment, experiment_programme
+from helpers.paper import numbers as paper
+from helpers.paper.calibration import LoadCellCalibration, load_calibration
+from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_PROGRAMME_S, RIG
 from helpers.recordings import Recording, RecordingError, reserve
-from helpers.recordings.rig import rig_section
-from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardLink, BoardTimeout, CommandRefused, Waiter
+from helpers.recordings.shaping import pulse_metadata
+from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardLink, BoardTimeout, Waiter
 from helpers.rig.daq import DaqBoard
 from helpers.rig.discovery import find_rig_ports, virtual_source_for
 from helpers.rig.safety import SafetyError, check_programme, check_request
 from helpers.rig.stepper import StepperBoard
-from helpers.rig.stream import (
-    STREAM_RATE_HZ,
-    Pacer,
-    SetpointSource,
-    ShapedCheck,
-    StreamLimit,
-    StreamRecord,
-    StreamStarved,
-)
-from helpers.signals import Interrupted, run_guard
-from helpers.streaming import board_shaper
+from helpers.rigfile.recorded import rig_section
 
 
 class RunAborted(BoardError):
@@ -111,11 +106,6 @@ class _RunState:
     """Why the motion differed from its command (a stream's underruns, clamps), or None."""
 
 
-def _design_system(system: str | None) -> str | None:
-    """``system`` if it can name a design (:data:`helpers.design.SYSTEMS` other than unshaped), else None."""
-    return system if system in SYSTEMS and system != "unshaped" else None
-
-
 def _utc_now() -> str:
     return _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
@@ -124,50 +114,12 @@ def _is_virtual_url(url: str) -> bool:
     return str(url).startswith("virtual://")
 
 
-STREAM_FIRMWARE = (2, 1)
-"""The oldest stepper firmware that streams: 2.0.x held the last set-point through a period without one."""
-
-
-def _check_stream_firmware(version: str | None) -> None:
-    """Refuse a stream on a stepper board whose firmware holds the last set-point when the host is late."""
-    try:
-        major, minor = (int(x) for x in str(version).split(".")[:2])
-    except ValueError:
-        major, minor = -1, -1
-    if (major, minor) < STREAM_FIRMWARE:
-        raise BoardError(
-            f"the stepper board runs firmware {version}, whose streams hold the last set-point through a "
-            "period the host was late for (the cable then goes further than commanded): flash firmware "
-            f"{STREAM_FIRMWARE[0]}.{STREAM_FIRMWARE[1]} or later to stream (make -C firmware upload-stepper)"
-        )
-
-
 def _check_rate(rate_hz: Any) -> None:
     ok = isinstance(rate_hz, int) and not isinstance(rate_hz, bool)
     if not (ok and DAQ_RATE_MIN_HZ <= rate_hz <= DAQ_RATE_MAX_HZ):
         raise SafetyError(
             f"DAQ rate must be an integer in {DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ} Hz, got {rate_hz!r}"
         )
-
-
-_FEED_READ_S = 0.005
-"""During a stream the DAQ is read with this timeout (s): device time advances in steps under a control period
-(on the in-process virtual rig a read that finds nothing moves the device clock by its timeout)."""
-
-
-def _shaper_meta(shaper: Any) -> dict[str, Any]:
-    """A shaper as the recording's ``scenario.shaper`` states it: ``name``, ``amplitudes``, ``times`` (s)."""
-    if hasattr(shaper, "delays_us"):  # a board shaper given as it is
-        return {
-            "name": "board",
-            "amplitudes": [a / 4096 for a in shaper.amplitudes],
-            "times": [d * 1e-6 for d in shaper.delays_us],
-        }
-    return {
-        "name": getattr(shaper, "name", None),
-        "amplitudes": [float(a) for a in shaper.amplitudes],
-        "times": [float(t) for t in shaper.times],
-    }
 
 
 GO_LATENCY_US = 50_000
@@ -201,10 +153,10 @@ def step_windows(programme: Programme, t_go_us: int, slack_us: int = 2_000) -> t
 
 
 class _DeviceTimeBar:
-    """A tqdm bar of device seconds, updated in 0.1 s increments."""
+    """A tqdm bar of device seconds, updated in 0.1 s increments (none where tqdm is not installed)."""
 
     def __init__(self, total_s: float | None, show: bool, desc: str | None = "device time") -> None:
-        self.bar = tqdm(
+        self.bar = None if tqdm is None else tqdm(
             total=None if total_s is None else round(total_s, 1),
             unit="s",
             desc=desc,
@@ -214,12 +166,48 @@ class _DeviceTimeBar:
         self.shown = 0.0
 
     def show(self, elapsed_s: float) -> None:
-        if elapsed_s - self.shown >= 0.1:
+        if self.bar is not None and elapsed_s - self.shown >= 0.1:
             self.bar.update(round(elapsed_s - self.shown, 1))
             self.shown += round(elapsed_s - self.shown, 1)
 
     def close(self) -> None:
-        self.bar.close()
+        if self.bar is not None:
+            self.bar.close()
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """The options every run of a rig takes (:meth:`Rig.run`, :meth:`StreamRig.stream` and what calls them).
+
+    Attributes
+    ----------
+    rate_hz : int
+        DAQ sample rate.
+    done_grace_s : float
+        Device time after the end by which ``DONE`` must have arrived.
+    silence_timeout : float
+        Seconds without a sample after which the DAQ counts as not answering.
+    progress : bool
+        Show a tqdm bar of device time (where tqdm is installed).
+    max_corrupted_fraction : float
+        Abort when more than this fraction of lines (and more than 50) are corrupted.
+    replace : bool
+        Replace a recording of the same name (kept until the new one is complete); otherwise an existing name
+        is refused before anything moves.
+    noise_seed : int, optional
+        In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
+    rest_timeout_s : float
+        Longest wait for the tension to come to rest before the run (device s).
+    """
+
+    rate_hz: int = 1000
+    done_grace_s: float = 1.0
+    silence_timeout: float = 2.0
+    progress: bool = True
+    max_corrupted_fraction: float = 0.05
+    replace: bool = False
+    noise_seed: int | None = None
+    rest_timeout_s: float = REST_TIMEOUT_S
 
 
 class Rig:
@@ -232,8 +220,10 @@ class Rig:
     stepper : StepperBoard
         The synchronised stepper driver.
     calibration : LoadCellCalibration or dict, optional
-        The load-cell calibration; default :func:`helpers.loadcell.load_calibration` (which raises a clear
-        error if there is none yet: pass :data:`helpers.loadcell.UNCALIBRATED` to record without one).
+        The load-cell calibration; default :func:`helpers.paper.calibration.load_calibration` (which raises a
+        clear
+        error if there is none yet: pass :data:`helpers.paper.calibration.UNCALIBRATED` to record without
+        one).
     source : dict, optional
         Provenance written into every recording; default ``{"kind": "hardware"}``.
     """
@@ -288,7 +278,7 @@ class Rig:
         rig_name : str
             Name of the in-process virtual rig.
         calibration : LoadCellCalibration or dict, optional
-            Default :func:`helpers.loadcell.load_calibration`.
+            Default :func:`helpers.paper.calibration.load_calibration`.
         timeout, hello_timeout : float
             Command timeout and boot timeout (s).
         daq_options, stepper_options : str
@@ -366,7 +356,7 @@ class Rig:
         allow_offset: bool = False,
         **kwargs: Any,
     ) -> Recording:
-        """Check a pulse request, build its programme (:func:`~helpers.programmes.experiment_programme`), run.
+        """Check a pulse request, build its programme (:func:`~programmes.experiment_programme`), run.
 
         The up move starts at ``paper.PULSE_T_UP_S`` (1 s) and the down move at ``paper.PULSE_T_DOWN_S``
         (8 s) after ``GO``, as in the paper.
@@ -377,10 +367,11 @@ class Rig:
             Speed (mm/s) and displacement (mm); refused with :class:`SafetyError` outside the limits.
         shaper : Shaper, ShaperPair, Schedule or Design, optional
             None for the unshaped pulse; otherwise anything
-            :func:`~helpers.programmes.experiment_programme` accepts (a design of :mod:`helpers.design`: a
+            :func:`~helpers.board.programmes.experiment_programme` accepts (a design of
+            :mod:`helpers.research.design`: a
             shaper for both moves, an Up/Down pair, or a map-following schedule computed for this move).
         system : str, optional
-            A name of :data:`helpers.design.SYSTEMS` (``"unshaped"``, ``"zv"``, ``"zvd"``, ``"ei"``,
+            A name of :data:`helpers.research.design.SYSTEMS` (``"unshaped"``, ``"zv"``, ``"zvd"``, ``"ei"``,
             ``"scheduled"``, ...). Default: a design's own system; for a bare shaper its name.
         path : path-like, optional
             Where to save.
@@ -405,18 +396,11 @@ class Rig:
             programme, report = experiment_programme(v, x, shaper, t_up=t_up, t_down=t_down, t_end=t_end_s)
         except ValueError as exc:
             raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
-        name = getattr(shaper, "name", None)
-        if system is None:
-            system = shaper.system if isinstance(shaper, Design) else None
-        up_shaper, down_shaper = up_down(shaper)
         scenario = {
             "kind": "pulse",
             "v_in_mm_s": v,
             "x_f_mm": x,
-            "system": system or ("unshaped" if shaper is None else str(name or "shaped")),
-            "shaper": None if up_shaper is None else shaper_to_dict(up_shaper),
-            "shaper_down": None if down_shaper is None else shaper_to_dict(down_shaper),
-            "shaping": None if shaper is None else as_design(shaper, _design_system(system)).to_dict(),
+            **pulse_metadata(shaper, system),
             "repetition": int(repetition),
             "t_up_s": t_up,
             "t_down_s": t_down,
@@ -430,16 +414,9 @@ class Rig:
         programme: Programme,
         scenario: dict[str, Any] | None = None,
         path: str | os.PathLike | None = None,
-        rate_hz: int = 1000,
         margin_s: float = 0.1,
-        done_grace_s: float = 1.0,
-        silence_timeout: float = 2.0,
-        progress: bool = True,
-        max_corrupted_fraction: float = 0.05,
-        replace: bool = False,
-        noise_seed: int | None = None,
-        rest_timeout_s: float = REST_TIMEOUT_S,
         require_zero: bool = False,
+        **options: Any,
     ) -> Recording:
         """Run one programme as one board-timed experiment and return (and save) its recording.
 
@@ -451,39 +428,30 @@ class Rig:
 
         Parameters
         ----------
-        programme : helpers.programmes.Programme
+        programme : helpers.board.programmes.Programme
             Checked against the limits before anything is sent.
         scenario : dict, optional
             Scenario metadata (kind, v_in_mm_s, x_f_mm, system, shaper, repetition, ...); the programme is
             added.
         path : path-like, optional
             ``data/<group>/<name>``; default ``data/runs/run_<UTC time>``.
-        rate_hz : int
-            DAQ sample rate.
         margin_s : float
             Device time recorded after the programme's end.
-        done_grace_s : float
-            Device time after the end by which ``DONE`` must have arrived.
-        silence_timeout : float
-            Seconds without a sample after which the DAQ counts as not answering.
-        progress : bool
-            Show a tqdm bar of device time.
-        max_corrupted_fraction : float
-            Abort when more than this fraction of lines (and more than 50) are corrupted.
-        replace : bool
-            Replace a recording of the same name (kept until the new one is complete); otherwise an
-            existing name is refused before anything moves.
-        noise_seed : int, optional
-            In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
-        rest_timeout_s : float
-            Longest wait for the tension to come to rest before the run (device s).
         require_zero : bool
             Refuse unless the cable is at position 0.
+        **options
+            The run's options, shared with every run of a rig (:class:`RunOptions`: ``rate_hz``,
+            ``progress``, ``replace``, ``noise_seed``, timeouts).
 
         Returns
         -------
         helpers.recordings.Recording
         """
+        o = RunOptions(**options)
+        rate_hz, done_grace_s, silence_timeout = o.rate_hz, o.done_grace_s, o.silence_timeout
+        progress = o.progress
+        max_corrupted_fraction, replace, noise_seed = o.max_corrupted_fraction, o.replace, o.noise_seed
+        rest_timeout_s = o.rest_timeout_s
         check_programme(programme)
         _check_rate(rate_hz)
         scenario = dict(scenario or {"kind": "programme"})
@@ -527,270 +495,14 @@ class Rig:
 
         return self._guarded(body, scenario, target, rate_hz, replace=replace)
 
-    def stream(
-        self,
-        setpoints: Any,
-        shaper: Any = None,
-        *,
-        path: str | os.PathLike | None = None,
-        scenario: dict[str, Any] | None = None,
-        source_name: str | None = None,
-        stream_rate_hz: float = STREAM_RATE_HZ,
-        rate_hz: int = 1000,
-        lead_periods: int = 4,
-        lead_in_s: float = 1.0,
-        tail_s: float = 1.0,
-        allow_clamps: bool = False,
-        done_grace_s: float = 1.0,
-        silence_timeout: float = 2.0,
-        progress: bool = True,
-        max_corrupted_fraction: float = 0.05,
-        replace: bool = False,
-        noise_seed: int | None = None,
-        rest_timeout_s: float = REST_TIMEOUT_S,
-    ) -> Recording:
-        """Stream cable speeds through the stepper board's shaper; return (and save) the recording.
-
-        The board shapes the set-points with ``shaper`` and enforces its limits on the shaped motion
-        (``firmware/PROTOCOL.md``, streaming mode). The run: check everything that can be checked before a
-        byte is sent (the set-points, the shaper; for an array, the whole shaped motion from the cable's
-        present position, with the board's own planner, :class:`~helpers.rig.stream.ShapedCheck`), wait
-        until the tension is at rest, load the shaper, start the DAQ, record ``lead_in_s``, enable the
-        driver and ``STREAM``, feed the set-points at 100 Hz of device time
-        (:class:`~helpers.rig.stream.Pacer`), ``END``, wait for ``DONE``, record ``tail_s`` more, stop the
-        DAQ and disable the driver. It runs in the same guard as :meth:`run`: any exception, Ctrl-C or
-        SIGTERM, a board reset or silence, the stream's watchdog (:class:`~helpers.rig.stream.StreamStarved`)
-        and, unless ``allow_clamps``, a clamp the board reports (:class:`~helpers.rig.stream.StreamLimit`)
-        abort the stepper, disable the driver, stop the DAQ and save what was recorded under an aborted name.
-
-        Parameters
-        ----------
-        setpoints : array_like or iterable of float
-            Cable speeds (mm/s, + = pull), one per 10 ms period. An array is checked whole before the run; a
-            generator or a live source (which must return its present value at once) one value at a time.
-        shaper : helpers.shapers.Shaper, helpers.streaming.StreamShaper or None
-            Loaded on the board (a real shaper is rounded to the board's 16 us and 1/4096); None streams
-            unshaped (the unit shaper).
-        path : path-like, optional
-            ``data/<group>/<name>``; default ``data/runs/run_<UTC time>``.
-        scenario : dict, optional
-            More scenario metadata; ``kind`` is ``"stream"``.
-        source_name : str, optional
-            Where the set-points come from, for the recording (default: ``array`` or the iterable's type).
-        stream_rate_hz : float
-            The set-points' rate: the board takes one per 10 ms control period, so only 100 is accepted.
-        rate_hz : int
-            DAQ sample rate.
-        lead_periods : int
-            Periods a set-point waits in the board's FIFO (1-7): latency against tolerance of host jitter.
-        lead_in_s, tail_s : float
-            Device time recorded before ``STREAM`` and after ``DONE`` (0-60 s).
-        allow_clamps : bool
-            Go on when the board clamps the shaped motion (the notices are counted in the recording).
-        done_grace_s : float
-            Device time after the stream's expected end by which ``DONE`` must have arrived.
-        silence_timeout : float
-            Seconds without a sample after which the DAQ counts as not answering.
-        progress : bool
-            Show a tqdm bar of device time.
-        max_corrupted_fraction : float
-            Abort when more than this fraction of lines (and more than 50) are corrupted.
-        replace : bool
-            Replace a recording of the same name.
-        noise_seed : int, optional
-            In-process virtual rig: re-seed the sensor noise for this run.
-        rest_timeout_s : float
-            Longest wait for the tension to come to rest before the run (device s).
-
-        Returns
-        -------
-        helpers.recordings.Recording
-            Its ``scenario.stream`` describes the stream (``docs/recording_format.md``).
-
-        Raises
-        ------
-        SafetyError
-            Before anything moves: a set-point that is not finite or beyond the speed limit, an array whose
-            shaped motion would clamp at the travel or speed limit, a stream over 600 s.
-        ValueError
-            A shaper that cannot be loaded (amplitudes not summing to 1, delays beyond 1 s, ...), a rate
-            other than 100 Hz, an out-of-range ``lead_periods``, ``lead_in_s`` or ``tail_s``.
-        """
-        if stream_rate_hz != STREAM_RATE_HZ:
-            raise ValueError(
-                f"the stepper board takes one set-point per 10 ms control period: stream_rate_hz must be "
-                f"{STREAM_RATE_HZ}, got {stream_rate_hz!r} (resample the trajectory)"
-            )
-        for name, value in (("lead_in_s", lead_in_s), ("tail_s", tail_s)):
-            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 60:
-                raise ValueError(f"{name} must be a number of seconds in 0-60, got {value!r}")
-        _check_rate(rate_hz)
-        board = board_shaper(shaper)
-        Pacer(0, lead_periods)  # refuses a bad lead before anything is sent
-        source = SetpointSource(setpoints, source_name)
-        units = source.check_all() if source.sized else None
-        target = self._target(path)
-        _check_stream_firmware(self.stepper.version)
-        with reserve(target, replace):  # a second run to this name is refused now, not after this one
-            return self._stream(board, source, units, shaper, target, scenario, rate_hz, lead_periods,
-                                lead_in_s, tail_s, allow_clamps, done_grace_s, silence_timeout, progress,
-                                max_corrupted_fraction, replace, noise_seed, rest_timeout_s)  # fmt: skip
-
-    def _stream(
-        self, board: Any, source: SetpointSource, units: np.ndarray | None, shaper: Any, target: Path,
-        scenario: dict[str, Any] | None, rate_hz: int, lead_periods: int, lead_in_s: float, tail_s: float,
-        allow_clamps: bool, done_grace_s: float, silence_timeout: float, progress: bool,
-        max_corrupted_fraction: float, replace: bool, noise_seed: int | None, rest_timeout_s: float,
-    ) -> Recording:  # fmt: skip
-        self.stepper.check_reset()
-        self.daq.check_reset()
-        position = self.stepper.position()
-        if units is not None:
-            whole = ShapedCheck(board, position, refuse=not allow_clamps)
-            for u in units.tolist():
-                whole.setpoint(u)
-            whole.end()
-            reach = whole.reach()
-        else:
-            reach = (0, LIMITS.max_position_steps)
-        # the prediction that follows the board period by period as the set-points go out (module docstring)
-        check = ShapedCheck(board, position, refuse=not allow_clamps)
-        record = StreamRecord(board, source.name, lead_periods)
-        record.data.update({"lead_in_s": float(lead_in_s), "tail_s": float(tail_s)})
-        scenario = {**(scenario or {}), "kind": "stream"}
-        scenario["shaper"] = None if shaper is None else _shaper_meta(shaper)
-        scenario["start_position_steps"] = position
-        scenario["stream"] = record.data
-        self._seed_noise(noise_seed, scenario)
-        feed = iter(units.tolist()) if units is not None else source
-        expected_s = None if units is None else len(units) / STREAM_RATE_HZ + board.duration_s + tail_s + 0.05
-
-        def body(state: _RunState) -> None:
-            scenario["rest"] = self.wait_for_rest(rate_hz, rest_timeout_s)
-            self.stepper.abort()  # whatever an earlier session left running stops; driver off
-            self.daq.stop()
-            self.stepper.load_shaper(board)
-            self.daq.set_rate(rate_hz)
-            self.daq.zero()
-            self.daq.start()
-            self.daq.expect_steps(reach[0] - position, reach[1] - position)
-            timeout = self.daq.port.timeout
-            self.daq.port.timeout = min(timeout or _FEED_READ_S, _FEED_READ_S)  # device time in small steps
-            bar = _DeviceTimeBar(expected_s, progress)
-            try:
-                self._feed(state, feed, check, record, lead_periods, lead_in_s, tail_s, allow_clamps,
-                           done_grace_s, silence_timeout, max_corrupted_fraction, bar, position)  # fmt: skip
-            finally:
-                self.daq.port.timeout = timeout
-                bar.close()
-            state.deviation = record.deviation()
-            state.finished = True
-            self.daq.stop()
-            self.stepper.enable(False)
-
-        return self._guarded(body, scenario, target, rate_hz, replace=replace)
-
-    def _feed(
-        self,
-        state: _RunState,
-        feed: Any,
-        check: ShapedCheck,
-        record: StreamRecord,
-        lead_periods: int,
-        lead_in_s: float,
-        tail_s: float,
-        allow_clamps: bool,
-        done_grace_s: float,
-        silence_timeout: float,
-        max_corrupted_fraction: float,
-        bar: _DeviceTimeBar,
-        position: int,
-    ) -> None:
-        """The lead-in, ``STREAM``, the set-points as they fall due, ``END``, ``DONE``, the tail.
-
-        Every set-point is planned with the board's own planner before it is sent (``check``), and planned
-        again where the board put it if the board ran short meanwhile: a clamp the board would make is
-        refused before it happens, whatever the host's timing.
-        """
-        silence = self.daq.waiter(silence_timeout)
-        while not self.daq.rows or self.daq.rows[-1][1] - self.daq.rows[0][1] < lead_in_s * 1e6:
-            _, silence = self._read_both(silence, max_corrupted_fraction)
-        self.stepper.enable(True)
-        state.go_sent = True
-        self.stepper.start_stream()
-        self.daq.pump(block=False)
-        state.t_go_us = now = self.daq.rows[-1][1]  # STREAM's device time, as GO's in run()
-        pacer = Pacer(now, lead_periods)
-        pending: int | None = None  # a set-point the board refused with ERR FULL, to send again
-        exhausted = False
-        end_period = finish_due = done_at = None
-        noticed = 0
-
-        def take_notices() -> None:
-            nonlocal noticed
-            for line in self.stepper.notices[noticed:]:
-                noticed += 1
-                record.notice(line)
-                if line.startswith("N,WATCHDOG"):
-                    raise StreamStarved(
-                        f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a "
-                        "set-point (the host fell behind)"
-                    )
-                if not allow_clamps:
-                    raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
-
-        while True:
-            take_notices()
-            while end_period is None and not exhausted and pacer.due(now):
-                if pending is None:
-                    try:
-                        pending = next(feed)
-                    except StopIteration:
-                        exhausted = True
-                        break
-                planned = check.checkpoint()
-                check.setpoint(pending)  # StreamLimit before the byte is sent if the board would clamp
-                try:
-                    period = self.stepper.set_point(pending)
-                except CommandRefused:
-                    take_notices()  # a stream the board has ended (the watchdog) refuses V: say why
-                    raise
-                self.daq.pump(block=False)  # device time went on while the source and the board were asked
-                now = self.daq.rows[-1][1]
-                if period is None:
-                    check.rollback(planned)
-                    pacer.refused_full(now)
-                else:
-                    record.sent(pending, period)
-                    if check.confirm(planned, pending, period):  # the board ran short: planned where it went
-                        self.daq.expect_steps(-position, LIMITS.max_position_steps - position)
-                    pacer.accepted(period, now)
-                    pending = None
-                record.counts(pacer)
-            if exhausted and end_period is None:
-                end_period = self.stepper.end_stream()
-                record.data["end_period"] = end_period
-                finish_due = pacer.finish_due_us(end_period, record.shaper_q_max, done_grace_s * 1e6)
-            if self.stepper.done_position is not None:
-                if end_period is None:
-                    raise BoardError(f"the stepper board ended the stream before END (DONE at {now} us)")
-                done_at = now if done_at is None else done_at
-                if now - done_at >= tail_s * 1e6:
-                    return
-            elif finish_due is not None and now > finish_due:
-                raise BoardTimeout(
-                    f"the stepper board did not report DONE within {done_grace_s:.1f} s of device time after "
-                    "the stream's end (it stopped answering)"
-                )
-            _, silence = self._read_both(silence, max_corrupted_fraction)
-            now = self.daq.rows[-1][1]
-            bar.show((now - state.t_go_us) / 1e6)
-
     def _home_hint(self) -> str:
         """How to bring this rig's cable home: the command with this rig's ports, or the call in-process."""
         ports = self.source.get("ports", {})
         if str(ports.get("daq", "")).startswith("virtual://"):
-            return "return it with helpers.home.home(rig.stepper) (the in-process rig lives in this process)"
+            return (
+                "return it with helpers.commands.home.home(rig.stepper) "
+                "(the in-process rig lives in this process)"
+            )
         daq, stepper = ports.get("daq", "DAQ"), ports.get("stepper", "STEPPER")
         return f"run `python -m helpers home --ports {daq},{stepper}`"
 
@@ -817,7 +529,8 @@ class Rig:
     def wait_for_rest(self, rate_hz: int = 1000, timeout_s: float = REST_TIMEOUT_S) -> dict[str, Any]:
         """Stream the tension until it is steady: std over ``REST_WINDOW_S`` <= ``REST_FACTOR`` x noise.
 
-        The noise is the white-noise level of the same window (:func:`helpers.noise.white_noise_std`), so a
+        The noise is the white-noise level of the same window (:func:`helpers.base.noise.white_noise_std`),
+        so a
         ringing arm or a drifting amplifier keeps the wait going while sensor noise alone does not.
 
         Returns
@@ -1091,7 +804,8 @@ class Rig:
     ) -> Recording:
         """Run ``body`` so that every way it ends leaves the boards safe and its recording on disk.
 
-        Signals interrupt only the body (:func:`helpers.signals.run_guard`): the first one raises, every later
+        Signals interrupt only the body (:func:`helpers.base.signals.run_guard`): the first one raises, every
+        later
         one waits until the cleanup and the save are done. A run that had recorded everything when the signal
         came (``state.finished``) is saved whole, as if nothing had happened, and the interrupt is raised
         after the save; so is a run that ended normally and was interrupted just after.

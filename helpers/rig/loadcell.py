@@ -2,8 +2,8 @@
 
 Procedure (hardware): detach the cable from the load cell, hang each known mass from it in turn, and record
 ``duration_s`` seconds of samples per mass. On the virtual rig the same code path runs, and the loads are hung
-by the VIRTUAL calibration fixture (``VirtualWorld.hang_load`` of :mod:`helpers.emulator.world`); such
-recordings say ``virtual-rig`` in their metadata. The fit and the file are :mod:`helpers.loadcell`'s.
+by the VIRTUAL calibration fixture (``VirtualWorld.hang_load`` of :mod:`helpers.virtual.emulator.world`); such
+recordings say ``virtual-rig`` in their metadata. The fit and the file are :mod:`helpers.paper.calibration`'s.
 """
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from helpers import hardware, recordings
-from helpers.paths import LOADCELL_CALIBRATION
+from helpers import recordings
+from helpers.base.paths import LOADCELL_CALIBRATION
+from helpers.paper import hardware
 from helpers.recordings import Recording
 
 G_STANDARD = 9.80665

@@ -1,7 +1,9 @@
 """Opening a serial port: a device path, a pyserial URL, or the in-process virtual rig (``virtual://``).
 
-The ``virtual://`` scheme is served by :mod:`helpers.emulator.protocol_virtual`. pyserial finds URL handlers
-by package name in ``serial.protocol_handler_packages``; :func:`open_port` adds ``"helpers.emulator"`` there
+The ``virtual://`` scheme is served by :mod:`helpers.virtual.emulator.protocol_virtual`. pyserial finds URL
+handlers
+by package name in ``serial.protocol_handler_packages``; :func:`open_port` adds
+``"helpers.virtual.emulator"`` there
 when, and only when, it is asked to open a ``virtual://`` URL (importing :mod:`helpers.rig` registers
 nothing).
 """
@@ -11,7 +13,7 @@ from __future__ import annotations
 import serial
 
 VIRTUAL_SCHEME = "virtual://"
-EMULATOR_PACKAGE = "helpers.emulator"
+EMULATOR_PACKAGE = "helpers.virtual.emulator"
 """The package holding ``protocol_virtual`` (pyserial imports ``<package>.protocol_<scheme>`` by name)."""
 
 

@@ -1,6 +1,6 @@
 """Safety limits checked on the host before any byte is sent (``docs/safety.md``).
 
-The limits are the stepper board's compiled-in ones (:mod:`helpers.hardware`, the same numbers as
+The limits are the stepper board's compiled-in ones (:mod:`helpers.paper.hardware`, the same numbers as
 ``firmware/PROTOCOL.md``): cable travel 0-40 mm from zero (156 steps), speed <= 400 mm/s and step rate
 <= 2000 steps/s (minimum step interval 639 us), programme length <= 64 items, dwells <= 60 s. The host adds
 one of its own: a programme may last at most ``MAX_PROGRAMME_S`` (a recording is held in memory).
@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from helpers.hardware import (
+from helpers.board.programmes import Programme
+from helpers.paper.hardware import (
     LIMITS,
     MAX_PROGRAMME_S,
     MAX_PULSE_MM,
@@ -20,7 +21,6 @@ from helpers.hardware import (
     MAX_TRAVEL_MM,
     MM_PER_STEP,
 )
-from helpers.programmes import Programme
 
 
 class SafetyError(ValueError):
@@ -83,7 +83,7 @@ def check_programme(programme: Any, start_position: int = 0) -> None:
 
     Parameters
     ----------
-    programme : helpers.programmes.Programme
+    programme : helpers.board.programmes.Programme
         The programme.
     start_position : int
         Motor position (steps) when ``GO`` is sent.
@@ -95,7 +95,7 @@ def check_programme(programme: Any, start_position: int = 0) -> None:
         dwell too long, travel outside 0-40 mm, or longer than :data:`MAX_PROGRAMME_S`.
     """
     if not isinstance(programme, Programme):
-        raise SafetyError(f"expected a helpers.programmes.Programme, got {type(programme).__name__}")
+        raise SafetyError(f"expected a helpers.board.programmes.Programme, got {type(programme).__name__}")
     try:
         programme.check_limits(start_position=start_position, limits=LIMITS)
     except ValueError as exc:

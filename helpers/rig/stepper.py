@@ -6,11 +6,15 @@ stream, send set-points, end it; its notices are collected.
 
 from __future__ import annotations
 
-from helpers.hardware import STEPPER_BAUD
-from helpers.programmes import Dwell, Programme, Segment
+from typing import TYPE_CHECKING
+
+from helpers.board.programmes import Dwell, Programme, Segment
+from helpers.paper.hardware import STEPPER_BAUD
 from helpers.rig.boards import SEND_ATTEMPTS, BoardError, BoardLink, CommandRefused, LinkCorrupted
 from helpers.rig.safety import check_programme
-from helpers.streaming import StreamShaper
+
+if TYPE_CHECKING:  # a type only: the streaming reference loads where a stream runs
+    from helpers.board.stream_reference import StreamShaper
 
 
 def _last_int(reply: str, what: str) -> int:

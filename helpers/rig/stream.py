@@ -1,12 +1,14 @@
 """Streaming a trajectory to the stepper board: the set-points, their checks, the pacing and the record.
 
 The stepper board's streaming mode (``firmware/PROTOCOL.md``) takes one velocity set-point per 10 ms control
-period from an 8-deep FIFO and shapes it with the loaded shaper. :meth:`helpers.rig.Rig.stream` runs a stream
+period from an 8-deep FIFO and shapes it with the loaded shaper.
+:meth:`helpers.rig.stream_rig.StreamRig.stream` runs a stream
 as an experiment; this module holds its parts, none of which touches a port:
 
 - :class:`SetpointSource`: an array, an iterable or a live source of cable speeds (mm/s), turned into board
   units one at a time and checked (finite, within the speed limit) before anything is sent;
-- :class:`ShapedCheck`: the board's own planner (:mod:`helpers.streaming`) run ahead of the board on what the
+- :class:`ShapedCheck`: the board's own planner (:mod:`helpers.board.stream_reference`) run ahead of the
+board on what the
   host is about to send, so that a set-point that would make the board clamp (travel, speed) is refused before
   it is sent: an array as a whole before the run starts, an iterable set-point by set-point;
 - :class:`Pacer`: when to send the next set-point, from the device clock, so that the FIFO holds about
@@ -25,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from helpers import streaming as hs
-from helpers.hardware import MAX_PROGRAMME_S, MM_PER_STEP
+from helpers.board import stream_reference as hs
+from helpers.paper.hardware import MAX_PROGRAMME_S, MM_PER_STEP
 from helpers.rig.boards import BoardError
 from helpers.rig.safety import SafetyError
 
@@ -156,7 +158,7 @@ class ShapedCheck:
 
     Parameters
     ----------
-    shaper : helpers.streaming.StreamShaper
+    shaper : helpers.board.stream_reference.StreamShaper
     position : int
         The step count at ``STREAM``.
     refuse : bool

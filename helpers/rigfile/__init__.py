@@ -79,7 +79,7 @@ def shipped() -> dict[str, Path]:
 def use(name_or_path: str | os.PathLike[str]) -> RigFile:
     """Select a rig for this process and the processes it starts: check it, then set ``$HELPERS_RIG``.
 
-    Call before the modules that read the rig load (``helpers.hardware`` reads it once, on import).
+    Call before the modules that read the rig load (``helpers.paper.hardware`` reads it once, on import).
     """
     path = resolve(name_or_path)
     rig = load(path)

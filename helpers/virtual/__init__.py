@@ -2,8 +2,8 @@
 
 Physics only (parameters, plant, sensor, statics, simulation, the ``solve_ivp`` reference); it imports
 neither pyserial nor anything of the serial side. The emulated boards that put it behind the firmware's
-protocol live in :mod:`helpers.emulator`, and the procedure that tunes its unknown parameters in
-:mod:`helpers.rig_tuning`. ``RigParameters()`` is the tuned rig. See ``docs/virtual_rig.md`` for every
+protocol live in :mod:`helpers.virtual.emulator`, and the procedure that tunes its unknown parameters in
+:mod:`helpers.virtual.tuning`. ``RigParameters()`` is the tuned rig. See ``docs/virtual_rig.md`` for every
 assumption and the validation.
 """
 

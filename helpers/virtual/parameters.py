@@ -3,9 +3,11 @@
 Every field says its unit, its value and where the value comes from: *paper* (stated in the paper),
 *handbook* (a material constant), *datasheet* (a typical catalogue value of the part the paper names),
 *assumed* (a plausible value nobody measured, with the reason), *tuned* (chosen by the rig tuning,
-:mod:`helpers.rig_tuning`, so that the simulated rig reproduces the paper's identified mode and its unshaped
+:mod:`helpers.virtual.tuning`, so that the simulated rig reproduces the paper's identified mode and its
+unshaped
 Table II rows) or *numerical* (a discretisation choice, checked by a convergence study). ``RigParameters()``
-is the tuned rig. The backbone's fields come from :class:`helpers.backbone.Backbone`, shared with the linear
+is the tuned rig. The backbone's fields come from :class:`helpers.paper.backbone.Backbone`, shared with the
+linear
 model. ``docs/virtual_rig.md`` carries the same table with more words; :func:`parameter_table` prints it.
 """
 
@@ -19,9 +21,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers import hardware, paper
-from helpers.backbone import SOURCES as BACKBONE_SOURCES
-from helpers.backbone import Backbone
+from helpers.paper import hardware
+from helpers.paper import numbers as paper
+from helpers.paper.backbone import SOURCES as BACKBONE_SOURCES
+from helpers.paper.backbone import Backbone
 
 __all__ = ["RigParameters", "TUNED", "ACTUATORS", "KG_CM", "parameter_table"]
 
@@ -57,7 +60,7 @@ class RigParameters(Backbone):
     """Parameters of the arm, its cable, the stepper, the load-cell carriage and the sensor chain (SI units).
 
     The defaults are the tuned virtual rig. The backbone (``E``, ``rho``, ``d``, ``L``, ``n_discs``) is
-    :class:`helpers.backbone.Backbone`'s. Units and sources of every field: :func:`parameter_table`.
+    :class:`helpers.paper.backbone.Backbone`'s. Units and sources of every field: :func:`parameter_table`.
 
     Attributes
     ----------
@@ -424,7 +427,9 @@ _SOURCES: dict[str, tuple[str, str, str]] = {
         "numerical",
         "the rod bows away from the straight cable between eyelets: compliance in series with the cable",
     ),
-    "disc_mass": ("kg", "tuned", "identification run gives omega_d = 25.085 rad/s via helpers.identify"),
+    "disc_mass": (
+        "kg", "tuned", "identification run gives omega_d = 25.085 rad/s via helpers.paper.identify"
+    ),
     "disc_radius": ("m", "assumed", "eyelets at r need a disc of >= 10 mm radius; 1 g of PLA is ~24 x 2 mm"),
     "disc_thickness": ("m", "assumed", "printed disc; its term is 3 % of the disc's rotary inertia"),
     "disc_mass_uniform": ("-", "numerical", "False: discs at their stations (True: validation only)"),

@@ -7,11 +7,12 @@ that output into ADC counts::
     I = 4 mA + 16 mA * output / span_n,   clipped to the loop's linear range [3.8, 20.5] mA
     counts = clip(round(1024 * I * 150 ohm / 5 V + noise), 0, 1023)
 
-The loop, the shunt (paper) and the ADC reference are in :mod:`helpers.hardware`; ``span_n`` (20 N) and the
+The loop, the shunt (paper) and the ADC reference are in :mod:`helpers.paper.hardware`; ``span_n`` (20 N) and
+the
 noise (0.5 count rms) are :class:`~helpers.virtual.parameters.RigParameters` fields. With the defaults: 24.58
 counts per N (0.041 N per count), 122.9 counts at 0 N, saturation at 20.6 N (629.8 counts): the paper's
 largest tension, 17.7 N, reads 558 counts. A reading at or beyond the loop's saturation (or the ADC's rails)
-is *clipped*; :func:`helpers.metrics.clipped_samples` flags it, for hardware recordings too.
+is *clipped*; :func:`helpers.paper.metrics.clipped_samples` flags it, for hardware recordings too.
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from helpers import hardware
-from helpers.hardware import ADC_MAX
+from helpers.paper import hardware
+from helpers.paper.hardware import ADC_MAX
 from helpers.virtual.parameters import RigParameters
 
 __all__ = ["LoadCell", "GAIN_COUNTS_PER_N", "OFFSET_COUNTS"]

@@ -81,7 +81,7 @@ class SimResult:
         return x[:, -1], y[:, -1]
 
     def frame(self, signal: str = "output") -> pd.DataFrame:
-        """The run as a recording-like frame ``t_s``, ``steps``, ``adc``, ``tension_n`` (for helpers.metrics).
+        """The run as a recording-like frame ``t_s``, ``steps``, ``adc``, ``tension_n`` (for the metrics).
 
         Parameters
         ----------
@@ -104,8 +104,9 @@ class SimResult:
 def programme_steps(programme: Any) -> tuple[np.ndarray, np.ndarray, float]:
     """Step times (s from GO), signs and duration (s) of a programme.
 
-    Accepts a :class:`helpers.programmes.Programme` (``step_times()``, ``duration_s``), the tuple that
-    ``helpers.programmes.experiment_programme`` returns (programme, report), or ``(times_s, signs)`` arrays.
+    Accepts a :class:`helpers.board.programmes.Programme` (``step_times()``, ``duration_s``), the tuple that
+    ``helpers.board.programmes.experiment_programme`` returns (programme, report), or ``(times_s, signs)``
+    arrays.
     """
     if isinstance(programme, tuple) and len(programme) == 2 and hasattr(programme[0], "step_times"):
         programme = programme[0]

@@ -45,15 +45,16 @@ import pandas as pd
 if str(fwsim.REPO) not in sys.path:  # run as a script from anywhere: this repository's helpers
     sys.path.insert(0, str(fwsim.REPO))
 
-from helpers import metrics  # noqa: E402
-from helpers import streaming as hs  # noqa: E402
-from helpers.emulator.world import VirtualWorld, forget_world, parameters_dict, register_world  # noqa: E402
-from helpers.hardware import MM_PER_STEP  # noqa: E402
-from helpers.programmes import Programme, experiment_programme  # noqa: E402
-from helpers.rig import DaqBoard, Rig, StepperBoard  # noqa: E402
+from helpers.board import stream_reference as hs  # noqa: E402
+from helpers.board.programmes import Programme, experiment_programme  # noqa: E402
+from helpers.paper import metrics  # noqa: E402
+from helpers.paper.hardware import MM_PER_STEP  # noqa: E402
+from helpers.paper.shapers import paper_tdfs  # noqa: E402
+from helpers.rig import DaqBoard, StepperBoard  # noqa: E402
 from helpers.rig.stream import PERIOD_US, units  # noqa: E402
-from helpers.shapers import paper_tdfs  # noqa: E402
+from helpers.rig.stream_rig import StreamRig  # noqa: E402
 from helpers.virtual import ArmPlant, LoadCell, RigParameters, simulate  # noqa: E402
+from helpers.virtual.emulator.world import VirtualWorld, forget_world, parameters_dict, register_world  # noqa: E402
 
 F = fwsim.F_CPU
 WAVE_DT_S = 5e-5
@@ -76,7 +77,8 @@ _names = itertools.count()
 
 # --- residual vibration ----------------------------------------------------------------------------------
 def residual_vibration(frame: pd.DataFrame, table: pd.DataFrame) -> dict:
-    """Residual vibration of each move (:func:`helpers.metrics.residual_vibration`: half the peak-to-peak
+    """Residual vibration of each move (:func:`helpers.paper.metrics.residual_vibration`: half the
+    peak-to-peak
     tension from 0.1 s to 1.1 s after the move's last step, in percent of ``yf - y0``).
 
     The last step of a move is the first sample showing the move's last change of the step count.
@@ -249,7 +251,7 @@ def record(wave: Waveform, action: str, kwargs: dict[str, Any], tmp: Path, pace:
             "via": "firmware in the loop (both sketches in simavr, plant from helpers.virtual)",
             "parameters": parameters_dict(wave.params),
         }
-        rig = Rig(daq, stepper, calibration=_truth(wave.params, wave.sensor), source=source)
+        rig = StreamRig(daq, stepper, calibration=_truth(wave.params, wave.sensor), source=source)
         try:
             rec = getattr(rig, action)(**kwargs, path=tmp / f"fil_{action}", progress=False)
         finally:
@@ -402,7 +404,7 @@ def in_process(action: str, kwargs: dict[str, Any], tmp: Path, params: RigParame
     info = {"parameters": parameters_dict(params), "note": "noise-free load cell, for the FIL comparison"}
     register_world(VirtualWorld(ArmPlant(params), sensor, name=name, info=info))
     try:
-        rig = Rig.connect("virtual", rig_name=name, calibration=_truth(params, sensor))
+        rig = StreamRig.connect("virtual", rig_name=name, calibration=_truth(params, sensor))
         try:
             return getattr(rig, action)(**kwargs, path=tmp / f"inproc_{action}", progress=False)
         finally:
@@ -421,7 +423,7 @@ def table_i_case(v_mm_s: float = 200.0, x_mm: float = 20.0, t_end_s: float = 10.
 
 
 def stream_case(v_mm_s: float = 200.0, move_periods: int = 10, hold_s: float = 4.0):
-    """A streamed up-hold-down move through the board-loaded ZV shaper: set-points and ``Rig.stream``'s
+    """A streamed up-hold-down move through the board-loaded ZV shaper: set-points and ``StreamRig.stream``'s
     arguments."""
     zv, _ = paper_tdfs()
     hold = round(hold_s * 100)

@@ -1,9 +1,11 @@
-"""Streams for the stepper firmware in simavr, and their comparison with ``helpers.streaming`` (test support).
+"""Streams for the stepper firmware in simavr, and their comparison with ``helpers.board.stream_reference``
+(test support).
 
 A session is a list of :class:`StreamSpec` run back to back in one harness run: each loads its shaper, sends
 ``STREAM``, its set-points at the given times, and ``END`` (or nothing, so that the watchdog ends it). The
 replies tell which period each set-point drives (``OK V <period>``, ``OK END <period>``); from them
-:func:`helpers.streaming.simulate` gives the steps the board must make, to be set beside the STEP/DIR edges
+:func:`helpers.board.stream_reference.simulate` gives the steps the board must make, to be set beside the
+STEP/DIR edges
 logged from the pins.
 """
 
@@ -15,7 +17,7 @@ from dataclasses import dataclass, field
 import fwsim
 import numpy as np
 
-from helpers import streaming as hs
+from helpers.board import stream_reference as hs
 
 F = fwsim.F_CPU
 CYCLES_PER_TICK = 8

@@ -1,5 +1,5 @@
 """Conformance: the same command scripts sent to the firmware (in simavr) and to the emulated boards of
-helpers.emulator (through ``virtual://`` pyserial URLs) give the same replies.
+helpers.virtual.emulator (through ``virtual://`` pyserial URLs) give the same replies.
 
 Compared: every line except data lines, in order, grouped by the command window it arrived in (so an
 unsolicited ``DONE`` or notice must come in the same window too). ``ERR`` lines are compared by their code
@@ -31,7 +31,7 @@ serial = pytest.importorskip("serial")
 
 
 def _boards_module():
-    return pytest.importorskip("helpers.emulator.world", reason="the emulated boards are missing")
+    return pytest.importorskip("helpers.virtual.emulator.world", reason="the emulated boards are missing")
 
 
 def _open(url: str, timeout: float):

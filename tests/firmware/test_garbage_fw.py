@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from rig_fakes import make_world
 
-from helpers.protocol import frame
+from helpers.board.protocol import frame
 from helpers.rig.daq import DaqBoard
 
 BAUD = {"daq": 500_000, "stepper": 115_200}

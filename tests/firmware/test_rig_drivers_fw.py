@@ -16,7 +16,7 @@ import pytest
 pytestmark = pytest.mark.firmware
 
 rig = pytest.importorskip("helpers.rig", reason="helpers.rig (the host drivers) is not importable")
-programmes = pytest.importorskip("helpers.programmes")
+programmes = pytest.importorskip("helpers.board.programmes")
 
 READY_S = 60.0
 """Deadline (s) for a board's greeting or reply: the waits end on readiness, so only a failure takes it

@@ -1,5 +1,6 @@
 """The stepper firmware's streaming input shaper in simavr: commands and errors, the watchdog, the limits on
-the shaped output, and random streams whose STEP/DIR edges must match ``helpers.streaming`` to one tick."""
+the shaped output, and random streams whose STEP/DIR edges must match ``helpers.board.stream_reference`` to
+one tick."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import pytest
 import streamsim
 from crc_reference import link_hex
 
-from helpers import streaming as hs
+from helpers.board import stream_reference as hs
 
 pytestmark = [pytest.mark.firmware, pytest.mark.streaming]
 

@@ -1,5 +1,6 @@
 """The firmware's streaming planner (firmware/common/stream_plan.cpp), compiled for the host with g++, against
-``helpers.streaming.Planner`` on random shapers and set-point sequences: the same step ticks, directions,
+``helpers.board.stream_reference.Planner`` on random shapers and set-point sequences: the same step ticks,
+directions,
 notices and final state, integer for integer (fast; the simavr tests check the board itself)."""
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import subprocess
 import fwsim
 import pytest
 
-from helpers import streaming as hs
+from helpers.board import stream_reference as hs
 
 pytestmark = [pytest.mark.firmware, pytest.mark.streaming]
 

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers import hardware
+from helpers.paper import hardware
 from helpers.virtual.parameters import RigParameters
 
 __all__ = [

@@ -122,7 +122,8 @@ def simulate_spatial(
     Parameters
     ----------
     programmes : sequence
-        Tendon ``i``'s programme (a :class:`helpers.programmes.Programme`, ``(times_s, signs)`` or ``None``).
+        Tendon ``i``'s programme (a :class:`helpers.board.programmes.Programme`, ``(times_s, signs)`` or
+        ``None``).
     rig : SpatialRig, optional
         Default: the plant's, or the paper's rig.
     rate_hz : float

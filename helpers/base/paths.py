@@ -1,0 +1,104 @@
+"""Where the project's folders are, so that no notebook or module hard-codes a relative path."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+REPO_ROOT: Path = Path(__file__).resolve().parents[2]
+"""The repository's top folder (the package is installed editable from it)."""
+
+DATA_DIR: Path = REPO_ROOT / "data"
+"""Recordings, calibration and identification results."""
+
+FIGURES_ENV = "HELPERS_FIGURES_DIR"
+"""Environment variable that sends figures and tables elsewhere (the test suite points it at a temporary
+folder, so that running the tests writes nothing into the working tree)."""
+
+FIGURES_DIR: Path = Path(os.environ.get(FIGURES_ENV) or REPO_ROOT / "figures")
+"""Regenerated figures and tables: ``figures/``, or the folder named by ``HELPERS_FIGURES_DIR``."""
+
+STORED_TABLES_DIR: Path = REPO_ROOT / "figures"
+"""The repository's own ``figures/`` folder, never redirected: the tables that commands store there for the
+notebooks to *read* (the previous virtual rig's Table II, the virtual rig's study tables). Notebooks write
+through :func:`figure_path`; they read these through :func:`stored_table`."""
+
+NOTEBOOKS_DIR: Path = REPO_ROOT / "notebooks"
+"""The numbered notebooks."""
+
+IDENTIFICATION_RESULT: Path = DATA_DIR / "identification" / "result.json"
+"""The identified dominant mode: written by ``helpers.paper.identify.save_identification`` (notebook 02's
+live cell
+and ``python -m helpers record all``), read by ``helpers.paper.identify.load_identification`` (notebook 03
+onwards,
+``record``)."""
+
+LOADCELL_CALIBRATION: Path = DATA_DIR / "calibration" / "calibration.json"
+"""The load-cell calibration: written by ``helpers.paper.calibration.save_calibration`` (``python -m helpers
+record
+calibration``), read by ``helpers.paper.calibration.load_calibration`` (every recording run)."""
+
+FIRMWARE_DIR: Path = REPO_ROOT / "firmware"
+"""Arduino sketches, the Makefile and the simavr harness."""
+
+VIRTUAL_RIG_REGISTRY: Path = Path(tempfile.gettempdir()) / "helpers-virtual-rigs"
+"""Where ``python -m helpers serve-virtual-rig`` announces its pseudo-terminals, so that recordings made
+through them are labelled ``virtual-rig``, never ``hardware`` (read by
+``helpers.rig.discovery.announced_virtual_rigs``)."""
+
+
+def figure_path(name: str) -> Path:
+    """Return ``figures/<name>``, creating the folder if needed.
+
+    Parameters
+    ----------
+    name : str
+        File name, e.g. ``"fig12_model_shaping.png"``.
+
+    Returns
+    -------
+    pathlib.Path
+        The full path.
+    """
+    FIGURES_DIR.mkdir(parents=True, exist_ok=True)
+    return FIGURES_DIR / name
+
+
+def stored_table(name: str) -> Path:
+    """Return ``figures/<name>`` in the repository (not redirected by ``HELPERS_FIGURES_DIR``), for reading.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the table is not there, naming the command that makes it.
+    """
+    path = STORED_TABLES_DIR / name
+    if not path.exists():
+        raise FileNotFoundError(
+            f"{path} is missing: the virtual rig's study tables are written by "
+            "`python -m helpers virtual-rig studies`; table2_previous_rig.csv is kept in the repository"
+        )
+    return path
+
+
+def shown(path: str | os.PathLike | None, root: Path | None = None) -> str:
+    """A path as a message shows it (``"?"`` for None).
+
+    Relative to ``root`` when it lies inside it, else as given; without a ``root``, relative to the working
+    directory where it can be.
+    """
+    if path is None:
+        return "?"
+    p = Path(path)
+    if root is not None:
+        return p.relative_to(root).as_posix() if p.is_relative_to(root) else str(p)
+    try:
+        return os.path.relpath(p)
+    except ValueError:
+        return str(p)
+
+
+def repo_path(path: str | os.PathLike) -> str:
+    """A path as a message shows it: relative to the repository (e.g. ``data/...``) when it lies inside it."""
+    return shown(path, REPO_ROOT)

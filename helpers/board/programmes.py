@@ -1,0 +1,683 @@
+"""Stepper programmes: the board's command format, its limits, and the quantiser that makes whole steps.
+
+The stepper board runs a :class:`Programme` of :class:`Segment` (n steps, one every ``interval_us``) and
+:class:`Dwell` (ms) items, with the timing of ``firmware/PROTOCOL.md``: step k (k = 1..n) of a segment at
+``t0 + k * interval_us``. :func:`experiment_programme` turns a whole Up-hold-Down experiment (a
+:class:`helpers.paper.profiles.VelocityProfile` per move) into one such programme and reports every rounding
+it made (:class:`QuantisationReport`). The board's compiled-in limits are
+:data:`helpers.paper.hardware.LIMITS`.
+
+The quantiser takes the moves it quantises: the paper's pulse shaped by one shaper (or none), or the moves
+of any shaping that makes its own (:class:`ShapesMoves`: the research wing's designs), never a design type.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import pandas as pd
+
+from helpers.base.validate import check_int, check_time
+from helpers.paper import numbers as paper
+from helpers.paper.hardware import LIMITS, MM_PER_STEP, Limits
+from helpers.paper.profiles import VelocityProfile, pulse_time, single_pulse
+from helpers.paper.shapers import Shaper
+
+__all__ = [
+    "Segment",
+    "Dwell",
+    "Item",
+    "Programme",
+    "QuantisationReport",
+    "ShapesMoves",
+    "MIN_PIECE_S",
+    "experiment_programme",
+    "shaped_moves",
+    "table_i_programmes",
+    "programmes_table",
+]
+
+@runtime_checkable
+class ShapesMoves(Protocol):
+    """A shaping that makes the Up and Down moves of a pulse experiment itself (e.g. an Up/Down pair)."""
+
+    def moves(
+        self, v_in_mm_s: float, x_f_mm: float, t_up: float, t_down: float
+    ) -> tuple[VelocityProfile, VelocityProfile]:
+        """The exact Up move (positive velocities, from ``t_up``) and Down move (negative, ``t_down``)."""
+        ...
+
+
+MIN_PIECE_S = 2e-3
+"""Pieces of a shaped move shorter than this are merged into a neighbour before quantisation."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    """``SEG <direction> <n_steps> <interval_us>``: ``n_steps`` steps, step k at ``t0 + k * interval_us``.
+
+    Parameters
+    ----------
+    direction : int
+        +1 pull (position increases), -1 release.
+    n_steps : int
+        Number of steps, >= 1.
+    interval_us : int
+        Time between steps (us), >= 1 (the board's range is checked by :meth:`Programme.check_limits`).
+    """
+
+    direction: int
+    n_steps: int
+    interval_us: int
+
+    def __post_init__(self) -> None:
+        direction = check_int(self.direction, "direction")
+        if direction not in (1, -1):
+            raise ValueError(f"direction must be 1 (pull) or -1 (release), got {direction}")
+        object.__setattr__(self, "direction", direction)
+        object.__setattr__(self, "n_steps", check_int(self.n_steps, "n_steps", 1))
+        object.__setattr__(self, "interval_us", check_int(self.interval_us, "interval_us", 1))
+
+    @property
+    def duration_us(self) -> int:
+        """``n_steps * interval_us``."""
+        return self.n_steps * self.interval_us
+
+    def command(self) -> str:
+        """The protocol line, e.g. ``SEG 1 78 1282``."""
+        return f"SEG {self.direction} {self.n_steps} {self.interval_us}"
+
+
+@dataclass(frozen=True)
+class Dwell:
+    """``WAIT <ms>``: no steps for ``ms`` milliseconds.
+
+    Parameters
+    ----------
+    ms : int
+        Duration in ms, >= 0 (the board's maximum is checked by :meth:`Programme.check_limits`).
+    """
+
+    ms: int
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "ms", check_int(self.ms, "dwell ms", 0))
+
+    @property
+    def duration_us(self) -> int:
+        """``ms * 1000``."""
+        return self.ms * 1000
+
+    def command(self) -> str:
+        """The protocol line, e.g. ``WAIT 1000``."""
+        return f"WAIT {self.ms}"
+
+
+Item = Segment | Dwell
+
+
+@dataclass(frozen=True)
+class Programme:
+    """A stepper programme: items run back to back from ``GO`` (timing as in ``firmware/PROTOCOL.md``).
+
+    Parameters
+    ----------
+    items : tuple of Segment and Dwell
+        The programme, in order.
+    """
+
+    items: tuple[Item, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        items = tuple(self.items)
+        for i, item in enumerate(items):
+            if not isinstance(item, Segment | Dwell):
+                raise ValueError(f"programme item {i} must be a Segment or a Dwell, got {item!r}")
+        object.__setattr__(self, "items", items)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    @property
+    def duration_us(self) -> int:
+        """Total duration (us): the sum of the items' durations."""
+        return sum(item.duration_us for item in self.items)
+
+    @property
+    def duration_s(self) -> float:
+        """Total duration (s)."""
+        return self.duration_us / 1e6
+
+    @property
+    def net_steps(self) -> int:
+        """Signed sum of all steps (the position change)."""
+        return sum(item.direction * item.n_steps for item in self.items if isinstance(item, Segment))
+
+    @property
+    def n_steps(self) -> int:
+        """Total number of steps, either direction."""
+        return sum(item.n_steps for item in self.items if isinstance(item, Segment))
+
+    def item_starts_us(self) -> np.ndarray:
+        """Start time (us from ``GO``) of every item."""
+        durations = np.array([item.duration_us for item in self.items], dtype=np.int64)
+        return np.concatenate([[0], np.cumsum(durations)[:-1]]).astype(np.int64)
+
+    def step_times_us(self) -> tuple[np.ndarray, np.ndarray]:
+        """Step instants in whole microseconds from ``GO`` and their signs (+1/-1), exactly."""
+        times: list[np.ndarray] = []
+        signs: list[np.ndarray] = []
+        for start, item in zip(self.item_starts_us(), self.items, strict=True):
+            if isinstance(item, Segment):
+                k = np.arange(1, item.n_steps + 1, dtype=np.int64)
+                times.append(int(start) + k * item.interval_us)
+                signs.append(np.full(item.n_steps, item.direction, dtype=np.int8))
+        if not times:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int8)
+        return np.concatenate(times), np.concatenate(signs)
+
+    def step_times(self) -> tuple[np.ndarray, np.ndarray]:
+        """Step instants (s from ``GO``) and signs (+1 pull, -1 release).
+
+        Returns
+        -------
+        times_s : numpy.ndarray
+            Non-decreasing step times in s.
+        signs : numpy.ndarray
+            +1 or -1 per step (int8).
+        """
+        t_us, signs = self.step_times_us()
+        return t_us / 1e6, signs
+
+    def position_steps(self, t: np.ndarray | float, start_position: int = 0) -> np.ndarray:
+        """Motor position (steps) at times ``t`` (s from ``GO``); a step counts from its instant on."""
+        t_s, signs = self.step_times()
+        cum = np.concatenate([[0], np.cumsum(signs.astype(np.int64))])
+        return start_position + cum[np.searchsorted(t_s, np.asarray(t, dtype=float), side="right")]
+
+    def commands(self) -> list[str]:
+        """The lines that load the programme: ``CLEAR``, then one ``SEG``/``WAIT`` per item (no ``GO``)."""
+        return ["CLEAR", *(item.command() for item in self.items)]
+
+    def check_limits(self, start_position: int = 0, limits: Limits = LIMITS) -> None:
+        """Raise ``ValueError`` naming the first limit the programme violates (see :class:`Limits`).
+
+        Parameters
+        ----------
+        start_position : int
+            Motor position (steps from zero) when ``GO`` is sent.
+        limits : Limits
+            The board's limits.
+
+        Raises
+        ------
+        ValueError
+            Empty programme, programme length, interval (speed), dwell length, or travel.
+        """
+        start_position = check_int(start_position, "start_position")
+        if not self.items:
+            raise ValueError("programme length: the programme is empty (the board refuses GO)")
+        if len(self.items) > limits.max_items:
+            raise ValueError(
+                f"programme length: {len(self.items)} items exceed the maximum of {limits.max_items} items"
+            )
+        position = start_position
+        if not limits.min_position_steps <= position <= limits.max_position_steps:
+            raise ValueError(
+                f"travel limit: start position {position} steps is outside "
+                f"{limits.min_position_steps}..{limits.max_position_steps} steps"
+            )
+        for i, item in enumerate(self.items):
+            if isinstance(item, Dwell):
+                if item.ms > limits.max_dwell_ms:
+                    raise ValueError(
+                        f"dwell limit: item {i} ({item.command()}) exceeds the maximum dwell of "
+                        f"{limits.max_dwell_ms} ms"
+                    )
+                continue
+            if item.interval_us < limits.min_interval_us:
+                speed = MM_PER_STEP / item.interval_us * 1e6
+                raise ValueError(
+                    f"interval limit: item {i} ({item.command()}) steps every {item.interval_us} us "
+                    f"({speed:.0f} mm/s), below the minimum interval of {limits.min_interval_us} us "
+                    f"({limits.max_speed_mm_s:.0f} mm/s)"
+                )
+            if item.interval_us > limits.max_interval_us:
+                raise ValueError(
+                    f"interval limit: item {i} ({item.command()}) steps every {item.interval_us} us, above "
+                    f"the maximum interval of {limits.max_interval_us} us"
+                )
+            position += item.direction * item.n_steps
+            if not limits.min_position_steps <= position <= limits.max_position_steps:
+                raise ValueError(
+                    f"travel limit: item {i} ({item.command()}) takes the position to {position} steps "
+                    f"({position * MM_PER_STEP:.2f} mm), outside {limits.min_position_steps}.."
+                    f"{limits.max_position_steps} steps (40 mm)"
+                )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description for a recording's metadata (:meth:`from_dict` reads it back)."""
+        items: list[dict[str, Any]] = []
+        for item in self.items:
+            if isinstance(item, Segment):
+                items.append(
+                    {"kind": "SEG", "direction": item.direction, "n_steps": item.n_steps,
+                     "interval_us": item.interval_us}
+                )
+            else:
+                items.append({"kind": "WAIT", "ms": item.ms})
+        return {"items": items, "duration_s": self.duration_s, "net_steps": self.net_steps}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Programme:
+        """Rebuild a programme from :meth:`to_dict` output (``duration_s``/``net_steps`` are checked).
+
+        Parameters
+        ----------
+        data : dict
+            ``{"items": [{"kind": "SEG", ...} | {"kind": "WAIT", "ms": ...}, ...], ...}``.
+
+        Returns
+        -------
+        Programme
+        """
+        if not isinstance(data, dict) or not isinstance(data.get("items"), list):
+            raise ValueError("a programme dict needs an 'items' list")
+        items: list[Item] = []
+        for i, d in enumerate(data["items"]):
+            kind = d.get("kind") if isinstance(d, dict) else None
+            if kind == "SEG":
+                items.append(Segment(d.get("direction"), d.get("n_steps"), d.get("interval_us")))
+            elif kind == "WAIT":
+                items.append(Dwell(d.get("ms")))
+            else:
+                raise ValueError(f"programme item {i}: unknown kind {kind!r} (expected 'SEG' or 'WAIT')")
+        prog = cls(tuple(items))
+        if "net_steps" in data and data["net_steps"] != prog.net_steps:
+            raise ValueError(
+                f"programme dict says net_steps={data['net_steps']}, its items give {prog.net_steps}"
+            )
+        if "duration_s" in data and abs(float(data["duration_s"]) - prog.duration_s) > 1e-9:
+            raise ValueError(
+                f"programme dict says duration_s={data['duration_s']}, its items give {prog.duration_s}"
+            )
+        return prog
+
+
+# -- quantisation of an experiment ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class QuantisationReport:
+    """What :func:`experiment_programme` rounded, and by how much.
+
+    Attributes
+    ----------
+    n_steps : int
+        Steps per move, ``N = round(x_f / MM_PER_STEP)``.
+    requested_mm, realised_mm : float
+        ``x_f`` and ``N * MM_PER_STEP``.
+    pieces : pandas.DataFrame
+        One row per piece of each move: ``move``, ``piece``, ``item`` (SEG/WAIT), nominal ``t_start_s``,
+        ``t_end_s``, ``v_mm_s``, ``requested_mm``; realised ``steps`` (signed), ``interval_us``,
+        ``realised_v_mm_s``, ``realised_end_s``, ``timing_error_us`` (realised minus nominal end).
+    dwells : pandas.DataFrame
+        The dwells between moves: ``dwell``, ``requested_s``, ``ms``, ``error_us``.
+    down_start_error_s : float
+        When the down move starts minus ``t_down``.
+    merged_pieces : int
+        Pieces shorter than :data:`MIN_PIECE_S` merged into a neighbour.
+    carried_steps : int
+        Steps moved to a neighbouring piece because rounding asked a short piece for more than the
+        maximum step rate.
+    """
+
+    n_steps: int
+    requested_mm: float
+    realised_mm: float
+    pieces: pd.DataFrame
+    dwells: pd.DataFrame
+    down_start_error_s: float
+    merged_pieces: int = 0
+    carried_steps: int = 0
+
+    @property
+    def displacement_error_mm(self) -> float:
+        """``realised_mm - requested_mm``."""
+        return self.realised_mm - self.requested_mm
+
+    @property
+    def max_timing_error_us(self) -> float:
+        """Largest absolute piece-end timing error (us)."""
+        return float(np.max(np.abs(self.pieces["timing_error_us"]))) if len(self.pieces) else 0.0
+
+    def summary(self) -> pd.DataFrame:
+        """One-row table of the headline numbers."""
+        return pd.DataFrame(
+            [
+                {
+                    "N_steps": self.n_steps,
+                    "requested_mm": self.requested_mm,
+                    "realised_mm": self.realised_mm,
+                    "error_mm": self.displacement_error_mm,
+                    "max_piece_timing_error_us": self.max_timing_error_us,
+                    "down_start_error_ms": 1e3 * self.down_start_error_s,
+                }
+            ]
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary for a recording's metadata."""
+        return {
+            "n_steps": self.n_steps,
+            "requested_mm": self.requested_mm,
+            "realised_mm": self.realised_mm,
+            "max_timing_error_us": self.max_timing_error_us,
+            "down_start_error_s": self.down_start_error_s,
+            "merged_pieces": self.merged_pieces,
+            "carried_steps": self.carried_steps,
+        }
+
+
+def _merge_short_pieces(
+    b: np.ndarray, disp: np.ndarray, min_piece_s: float
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Merge pieces shorter than ``min_piece_s`` into their successor (the last one into its predecessor)."""
+    b, disp = list(b), list(disp)
+    merged = 0
+    k = 0
+    while len(disp) > 1 and k < len(disp):
+        if b[k + 1] - b[k] >= min_piece_s:
+            k += 1
+            continue
+        if k < len(disp) - 1:  # into the successor: drop breakpoint k+1
+            disp[k + 1] += disp[k]
+            del disp[k], b[k + 1]
+        else:  # last piece: into the predecessor
+            disp[k - 1] += disp[k]
+            del disp[k], b[k]
+        merged += 1
+    return np.array(b), np.array(disp), merged
+
+
+class _Builder:
+    """Accumulates programme items while keeping the realised clock in whole microseconds."""
+
+    def __init__(self, limits: Limits) -> None:
+        self.items: list[Item] = []
+        self.clock_us = 0
+        self.limits = limits
+        self.piece_rows: list[dict[str, Any]] = []
+
+    def dwell_until(self, target_s: float) -> int:
+        """Append dwells (split at the maximum) ending as close as 1 ms allows to ``target_s``."""
+        ms = int(round((target_s * 1e6 - self.clock_us) / 1000.0))
+        if ms < 0:
+            raise ValueError(
+                f"cannot dwell until {target_s:.6f} s: the programme already runs to "
+                f"{self.clock_us / 1e6:.6f} s"
+            )
+        remaining = ms
+        while remaining > self.limits.max_dwell_ms:
+            self.items.append(Dwell(self.limits.max_dwell_ms))
+            remaining -= self.limits.max_dwell_ms
+        if remaining > 0 or ms == 0:
+            self.items.append(Dwell(remaining))
+        self.clock_us += ms * 1000
+        return ms
+
+    def move(self, name: str, profile: VelocityProfile, direction: int, n_total: int) -> tuple[int, int]:
+        """Quantise one move (all its pieces) so that it ends exactly ``n_total`` steps further on.
+
+        Returns the number of merged short pieces and of steps carried to a neighbouring piece because
+        rounding would have asked a short piece for a step rate above the limit.
+        """
+        b, disp, merged = _merge_short_pieces(profile.breakpoints, profile.piece_displacements, MIN_PIECE_S)
+        cum_mm = np.concatenate([[0.0], np.cumsum(disp)]) * direction
+        cum_steps = np.rint(cum_mm / MM_PER_STEP).astype(np.int64)
+        cum_steps[-1] = n_total
+        cum_steps[0] = 0
+        min_iv = self.limits.min_interval_us
+        carried = 0
+        # the last piece cannot pass steps on: hand its excess back to its predecessor (1 us of margin)
+        if disp.size > 1:
+            n_last = int(cum_steps[-1] - cum_steps[-2])
+            cap = int((b[-1] - b[-2]) * 1e6 // (min_iv + 1))
+            if abs(n_last) > cap:
+                cum_steps[-2] = cum_steps[-1] - np.sign(n_last) * cap
+                carried += abs(n_last) - cap
+        for k in range(disp.size):
+            n_k = int(cum_steps[k + 1] - cum_steps[k])
+            end_us = b[k + 1] * 1e6
+            cap = max(0, int((end_us - self.clock_us) // min_iv))
+            if abs(n_k) > cap and k < disp.size - 1:  # too fast for the board: pass the excess on
+                cum_steps[k + 1] = cum_steps[k] + np.sign(n_k) * cap
+                carried += abs(n_k) - cap
+                n_k = int(cum_steps[k + 1] - cum_steps[k])
+            row = {
+                "move": name,
+                "piece": k,
+                "t_start_s": b[k],
+                "t_end_s": b[k + 1],
+                "v_mm_s": disp[k] / (b[k + 1] - b[k]),
+                "requested_mm": disp[k],
+            }
+            if n_k == 0:  # a dwell in whole ms (none if already late: the next piece catches up)
+                ms = max(0, int(round((end_us - self.clock_us) / 1000.0)))
+                if ms > 0:
+                    self.items.append(Dwell(ms))
+                self.clock_us += ms * 1000
+                row.update(item="WAIT", steps=0, interval_us=0, realised_v_mm_s=0.0)
+            else:
+                # never faster than the board allows: a piece that cannot fit ends late (reported)
+                interval = max(min_iv, int(round((end_us - self.clock_us) / abs(n_k))))
+                sign = direction * (1 if n_k > 0 else -1)
+                self.items.append(Segment(sign, abs(n_k), interval))
+                self.clock_us += abs(n_k) * interval
+                row.update(
+                    item="SEG",
+                    steps=n_k * direction,
+                    interval_us=interval,
+                    realised_v_mm_s=sign * MM_PER_STEP / interval * 1e6,
+                )
+            row.update(realised_end_s=self.clock_us / 1e6, timing_error_us=self.clock_us - end_us)
+            self.piece_rows.append(row)
+        return merged, carried
+
+
+def experiment_programme(
+    v_in_mm_s: float,
+    x_f_mm: float,
+    shaper: Shaper | ShapesMoves | None = None,
+    t_up: float = paper.PULSE_T_UP_S,
+    t_down: float = paper.PULSE_T_DOWN_S,
+    t_end: float = 12.0,
+    limits: Limits = LIMITS,
+) -> tuple[Programme, QuantisationReport]:
+    """The whole Up-hold-Down experiment as one board-timed programme, quantised to whole steps.
+
+    Lead-in dwell to ``t_up``; the up move (each constant piece of the shaped velocity becomes a segment,
+    a piece with no step a dwell); a hold dwell to ``t_down``; the down move (direction -1: the mirror image
+    for one shaper, the Down shaper of a pair, the Down sub-moves of a schedule); a trailing dwell to
+    ``t_end``. Each move lands exactly on ``N = round(x_f / MM_PER_STEP)`` steps:
+    the steps of each piece are the differences of the cumulative displacement at the piece boundaries,
+    rounded to whole steps. Each piece's integer interval is chosen so that it ends as close as possible to
+    its nominal end on the realised clock, so rounding never accumulates (dwells are whole ms; the next
+    segment absorbs their rounding). Pieces shorter than 2 ms (an edge of the pulse falling within 2 ms of an
+    impulse time) are merged into a neighbour, and a step that rounding would ask of a short piece faster
+    than the board's maximum step rate is carried to the neighbouring piece (both are counted in the
+    report); a piece that still cannot fit runs at the maximum step rate and ends late (reported as its
+    timing error). Commands faster than the speed limit are refused.
+
+    Note the protocol puts step k of a segment at ``t0 + k*interval``: the staircase trails the continuous
+    ramp by half an interval on average (0.6-0.7 ms at 200 mm/s).
+
+    Parameters
+    ----------
+    v_in_mm_s, x_f_mm : float
+        Cable speed (mm/s) and displacement (mm) of the pulse.
+    shaper : Shaper, ShapesMoves or None, optional
+        None for the unshaped pulse; a :class:`~helpers.paper.shapers.Shaper` shapes both moves; a shaping
+        that makes its own moves (:class:`ShapesMoves`: the research wing's Up/Down pair, map-following
+        schedule computed for this ``v_in_mm_s`` and ``x_f_mm``, or a design) gives them.
+    t_up, t_down, t_end : float
+        Start of the up move, start of the down move, end of the programme (s from ``GO``).
+    limits : Limits
+        Board limits the result is checked against.
+
+    Returns
+    -------
+    (Programme, QuantisationReport)
+
+    Raises
+    ------
+    ValueError
+        Bad arguments, or a programme outside the board's limits (the message names the limit).
+    """
+    t_up, t_down, t_end = check_time(t_up, "t_up"), check_time(t_down, "t_down"), check_time(t_end, "t_end")
+    up, down, n_total = _shaped_moves(v_in_mm_s, x_f_mm, shaper, t_up, t_down, t_end, limits)
+    build = _Builder(limits)
+    dwell_rows: list[dict[str, Any]] = []
+
+    def dwell(name: str, target_s: float) -> None:
+        ms = build.dwell_until(target_s)
+        dwell_rows.append(
+            {"dwell": name, "requested_s": target_s, "ms": ms, "error_us": build.clock_us - target_s * 1e6}
+        )
+
+    dwell("lead-in", t_up)
+    merged_up, carried_up = build.move("up", up, +1, n_total)
+    dwell("hold", t_down)
+    down_start_error = build.clock_us / 1e6 - t_down
+    merged_down, carried_down = build.move("down", down, -1, n_total)
+    dwell("trailing", t_end)
+
+    programme = Programme(tuple(build.items))
+    programme.check_limits(limits=limits)
+    report = QuantisationReport(
+        n_steps=n_total,
+        requested_mm=float(x_f_mm),
+        realised_mm=n_total * MM_PER_STEP,
+        pieces=pd.DataFrame(build.piece_rows)[
+            ["move", "piece", "item", "t_start_s", "t_end_s", "v_mm_s", "requested_mm", "steps",
+             "interval_us", "realised_v_mm_s", "realised_end_s", "timing_error_us"]
+        ],
+        dwells=pd.DataFrame(dwell_rows),
+        down_start_error_s=down_start_error,
+        merged_pieces=merged_up + merged_down,
+        carried_steps=carried_up + carried_down,
+    )  # fmt: skip
+    return programme, report
+
+
+def shaped_moves(
+    v_in_mm_s: float,
+    x_f_mm: float,
+    shaping: Shaper | ShapesMoves | None,
+    t_up: float = paper.PULSE_T_UP_S,
+    t_down: float = paper.PULSE_T_DOWN_S,
+) -> tuple[VelocityProfile, VelocityProfile]:
+    """The exact shaped Up and Down moves of a pulse experiment, before quantisation.
+
+    Parameters
+    ----------
+    v_in_mm_s, x_f_mm : float
+        The move.
+    shaping : Shaper, ShapesMoves or None
+        As :func:`experiment_programme`'s ``shaper``.
+    t_up, t_down : float
+        When the moves start (s).
+
+    Returns
+    -------
+    (VelocityProfile, VelocityProfile)
+        The Up move (positive velocities) and the Down move (negative).
+    """
+    if shaping is None or isinstance(shaping, Shaper):
+        up = single_pulse(v_in_mm_s, x_f_mm, t_up, +1).shaped(shaping)
+        down = single_pulse(v_in_mm_s, x_f_mm, t_down, -1).shaped(shaping)
+        return up, down
+    if isinstance(shaping, ShapesMoves):
+        return shaping.moves(v_in_mm_s, x_f_mm, t_up, t_down)
+    raise ValueError(f"shaper must be a Shaper, ShaperPair, Schedule, Design or None, got {shaping!r}")
+
+
+def _shaped_moves(
+    v_in_mm_s: float, x_f_mm: float, shaper: Shaper | ShapesMoves | None, t_up: float,
+    t_down: float, t_end: float, limits: Limits,
+) -> tuple[VelocityProfile, VelocityProfile, int]:  # fmt: skip
+    """The shaped up and down moves and their whole number of steps, checked against the limits and times."""
+    pulse_time(v_in_mm_s, x_f_mm)
+    n_total = int(round(x_f_mm / MM_PER_STEP))
+    if n_total < 1:
+        raise ValueError(f"x_f_mm = {x_f_mm} mm is less than half a step ({MM_PER_STEP:.5f} mm)")
+    up, down = shaped_moves(v_in_mm_s, x_f_mm, shaper, t_up, t_down)
+    peak = max(float(np.max(np.abs(up.velocities))), float(np.max(np.abs(down.velocities))))
+    if peak > limits.max_speed_mm_s:
+        raise ValueError(
+            f"interval limit: the command's peak speed {peak:.1f} mm/s needs steps faster than the minimum "
+            f"interval of {limits.min_interval_us} us ({limits.max_speed_mm_s:.0f} mm/s)"
+        )
+    if up.end > t_down:
+        raise ValueError(f"the shaped up move ends at {up.end:.4f} s, after t_down = {t_down} s")
+    if down.end > t_end:
+        raise ValueError(f"the shaped down move ends at {down.end:.4f} s, after t_end = {t_end} s")
+    return up, down, n_total
+
+
+def table_i_programmes(
+    shapers: dict[str, Shaper | None], t_end: float = 12.0
+) -> dict[tuple[str, float, float], tuple[Programme, QuantisationReport]]:
+    """Programmes of every Table I scenario.
+
+    Parameters
+    ----------
+    shapers : dict
+        System name -> shaper (None for ``unshaped``), e.g. ``{"unshaped": None, "zv": zv, "zvd": zvd}``.
+    t_end : float
+        End of each programme (s).
+
+    Returns
+    -------
+    dict
+        ``(system, v_in_mm_s, x_f_mm) -> (Programme, QuantisationReport)``.
+    """
+    out = {}
+    for system, shaper in shapers.items():
+        for v, x in paper.TABLE_I_CONDITIONS:
+            out[(system, v, x)] = experiment_programme(v, x, shaper, t_end=t_end)
+    return out
+
+
+def programmes_table(
+    programmes: Iterable[tuple[Sequence[Any], tuple[Programme, QuantisationReport]]],
+) -> pd.DataFrame:
+    """Summarise programmes: key columns, items, steps, duration and the quantisation headline numbers.
+
+    Parameters
+    ----------
+    programmes : iterable of (key, (Programme, QuantisationReport))
+        E.g. ``table_i_programmes(...).items()`` with keys ``(system, v_in, x_f)``.
+
+    Returns
+    -------
+    pandas.DataFrame
+    """
+    rows = []
+    for key, (prog, rep) in programmes:
+        system, v, x = key
+        rows.append(
+            {
+                "system": system,
+                "v_in_mm_s": v,
+                "x_f_mm": x,
+                "items": len(prog),
+                "N_steps": rep.n_steps,
+                "realised_mm": rep.realised_mm,
+                "max_timing_error_us": rep.max_timing_error_us,
+                "down_start_error_ms": 1e3 * rep.down_start_error_s,
+                "duration_s": prog.duration_s,
+            }
+        )
+    return pd.DataFrame(rows)

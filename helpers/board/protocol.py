@@ -1,0 +1,437 @@
+"""The serial protocol of both boards (``firmware/PROTOCOL.md``): framing, checksums, line splitting, parsing.
+
+The host drivers (``helpers.rig``) and the emulated boards (``helpers.virtual.emulator``) both speak it
+through this
+module. Every line a board sends ends in ``*hh``, the CRC-8 of all bytes before the ``*``
+(:mod:`helpers.board.crc8`) as two upper-case hex digits. This module turns a byte stream into classified
+lines and
+never raises on garbage: a line that fails any check (non-ASCII, missing or wrong checksum, too long,
+malformed data fields) is reported as corrupted. A line whose checksum is the XOR of protocol 1 (firmware 1.x)
+is also corrupted, and when it is such a board's ``HELLO``, ``PONG`` or ``ERR CHECKSUM``,
+:attr:`StreamParser.legacy` keeps it so that the driver can stop with one clear error (there is no fallback to
+XOR).
+
+:class:`StreamParser` is the one place where the DAQ stream's bookkeeping happens: it counts exactly
+
+- ``dropped``: sequence numbers missing between consecutive data lines that arrived intact (lines lost in
+  transport or destroyed by corruption; a corrupted data line's ``seq`` is therefore also counted as dropped),
+- ``overruns``: sample periods the board itself reports as missed (``W,OVERRUN,<n>``),
+- ``corrupted``: non-blank lines that failed a check,
+- ``implausible``: data lines that passed every check but describe the impossible: a step count that changed
+  faster than the step-rate limit allows, left the range the running programme can reach
+  (:attr:`StreamParser.steps_range`), or changed while the programme makes no step
+  (:attr:`StreamParser.step_windows`); they are rejected (their ``seq`` then counts as dropped too),
+
+and unwraps the board's 32-bit microsecond clock.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from helpers.board.crc8 import INIT, crc8, crc8_hex
+from helpers.board.crc8 import TABLE as _CRC_TABLE
+from helpers.paper.hardware import ADC_MAX, RIG
+
+FW_VERSION = "2.2.0"
+"""The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
+
+PAPER_RIG_HASH = "481e87e3"
+"""The rig hash the paper's one-tendon build reports: the hash of ``rigs/paper.toml``, generated into
+``firmware/common/rig_config_paper.h`` (a test checks that the three agree)."""
+
+
+def board_version(rig_hash: str | None = None) -> str:
+    """The version token of ``HELLO``/``PONG``: ``<FW_VERSION>+<rig hash>`` (semantic-version build metadata).
+
+    Parameters
+    ----------
+    rig_hash : str, optional
+        The 8 hex characters of the rig the board was built for; by default the rig the host runs
+        (``helpers.paper.hardware.RIG``, the emulated boards' build).
+
+    Returns
+    -------
+    str
+        E.g. ``"2.2.0+481e87e3"``.
+    """
+    return f"{FW_VERSION}+{RIG.hash if rig_hash is None else rig_hash}"
+
+
+MAX_LINE = 63
+"""Characters a line may hold before its ``\\n`` (PROTOCOL.md)."""
+
+WRAP_US = 1 << 32
+"""The boards' ``micros()`` wraps after 2**32 microseconds."""
+
+PROTOCOL_MAJOR = int(FW_VERSION.split(".")[0])
+"""The MAJOR firmware version this host speaks (CRC-8 framing); a board reporting another is refused."""
+
+MAX_PENDING = 4 * (MAX_LINE + 1)
+"""Bytes of an unterminated line kept before it is declared corrupted (garbage without newlines)."""
+
+_HEX = "0123456789ABCDEF"
+_INT = re.compile(r"-?[0-9]+\Z")
+_UINT = re.compile(r"[0-9]+\Z")
+_FAST_DATA = re.compile(rb"D,([0-9]{1,10}),([0-9]{1,10}),([0-9]{1,4}),(-?[0-9]{1,10})\*([0-9A-F]{2})")
+_LEGACY_BODY = re.compile(r"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
+
+
+class FramingError(ValueError):
+    """A line failed a framing check; the message names the check."""
+
+
+class LegacyChecksum(FramingError):
+    """The line's CRC-8 is wrong but its ``*hh`` is the XOR checksum of protocol 1 (firmware 1.x)."""
+
+
+def _xor(data: bytes) -> int:
+    x = 0
+    for b in data:
+        x ^= b
+    return x
+
+
+def checksum(body: bytes | str) -> str:
+    """Return the two upper-case hex digits of the CRC-8 of ``body``'s bytes (:func:`~.crc8.crc8`).
+
+    Parameters
+    ----------
+    body : bytes or str
+        The line's bytes before the ``*`` (str is encoded as ASCII).
+
+    Returns
+    -------
+    str
+        E.g. ``"FD"`` for ``b"PONG daq 2.0.0"``.
+    """
+    return crc8_hex(body)
+
+
+def frame(body: str) -> bytes:
+    r"""Return ``body`` as a complete line with its checksum: ``b"<body>*hh\\n"``.
+
+    Raises
+    ------
+    ValueError
+        If ``body`` is not printable ASCII, contains ``*`` or a newline, or is longer than the protocol
+        allows.
+    """
+    if not body.isascii() or not body.isprintable() or "*" in body:
+        raise ValueError(f"cannot frame {body!r}: only printable ASCII without '*' is allowed")
+    line = f"{body}*{checksum(body)}"
+    if len(line) > MAX_LINE:
+        raise ValueError(f"line {line!r} has {len(line)} characters; the protocol allows {MAX_LINE}")
+    return (line + "\n").encode("ascii")
+
+
+_HEX2 = [f"{x:02X}" for x in range(256)]
+
+
+def frame_many(bodies: list[str]) -> bytes:
+    """Return every body framed as by :func:`frame`, joined (the CRC-8s of all bodies at once; no checks)."""
+    if not bodies:
+        return b""
+    lens = np.fromiter(map(len, bodies), dtype=np.int64, count=len(bodies))
+    flat = np.frombuffer("".join(bodies).encode("ascii") + b"\0", dtype=np.uint8)
+    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
+    cols = np.arange(int(lens.max()))
+    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
+    live = cols[None, :] < lens[:, None]
+    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
+    crc = np.full(len(bodies), INIT, dtype=np.uint8)
+    for j in range(len(cols)):  # one byte column at a time
+        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
+    return "".join(f"{b}*{_HEX2[x]}\n" for b, x in zip(bodies, crc.tolist(), strict=True)).encode("ascii")
+
+
+def unframe(line: bytes, require_checksum: bool = True) -> str:
+    r"""Check one line (without its ``\\n``) and return its body.
+
+    Parameters
+    ----------
+    line : bytes
+        The raw line; a trailing ``\\r`` is ignored.
+    require_checksum : bool
+        Every line of protocol 2.0.0 carries one, commands included; False accepts a line without it.
+
+    Returns
+    -------
+    str
+        The text before ``*hh``.
+
+    Raises
+    ------
+    FramingError
+        Non-ASCII or control bytes, too long, missing or malformed or wrong checksum
+        (:class:`LegacyChecksum` when the wrong checksum is the XOR of protocol 1).
+    """
+    if line.endswith(b"\r"):
+        line = line[:-1]
+    if len(line) > MAX_LINE:
+        raise FramingError(f"line of {len(line)} characters exceeds {MAX_LINE}")
+    try:
+        text = line.decode("ascii")
+    except UnicodeDecodeError:
+        raise FramingError("non-ASCII bytes") from None
+    if not text.isprintable():
+        raise FramingError("control characters")
+    star = text.rfind("*")
+    if star < 0:
+        if require_checksum:
+            raise FramingError("missing checksum")
+        return text
+    body, given = text[:star], text[star + 1 :]
+    if "*" in body:
+        raise FramingError("more than one '*'")
+    if len(given) != 2 or any(c not in _HEX for c in given):
+        raise FramingError(f"malformed checksum {given!r}")
+    x = crc8(body)
+    if x != int(given, 16):
+        if _xor(body.encode("ascii")) == int(given, 16):
+            raise LegacyChecksum(f"checksum {given} is the XOR of protocol 1 (firmware 1.x), not the CRC-8")
+        raise FramingError(f"checksum {given} does not match {_HEX[x >> 4] + _HEX[x & 15]}")
+    return body
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One data line ``D,<seq>,<t_us>,<adc>,<steps>`` (``t_us`` as sent, before unwrapping)."""
+
+    seq: int
+    t_us: int
+    adc: int
+    steps: int
+
+
+@dataclass(frozen=True)
+class Overrun:
+    """``W,OVERRUN,<n>``: the board missed ``n`` sample periods."""
+
+    n: int
+
+
+def parse_body(body: str) -> Sample | Overrun | str:
+    """Classify a checked line body.
+
+    Returns
+    -------
+    Sample, Overrun or str
+        A data line, an overrun warning, or any other message (replies, ``HELLO``, ``DONE``) as text.
+
+    Raises
+    ------
+    FramingError
+        A body starting with ``D,`` or ``W,`` whose fields are malformed or out of range.
+    """
+    if body.startswith("D,"):
+        parts = body.split(",")
+        if len(parts) != 5:
+            raise FramingError(f"data line with {len(parts)} fields, expected 5")
+        seq_s, t_s, adc_s, steps_s = parts[1:]
+        if not (_UINT.match(seq_s) and _UINT.match(t_s) and _UINT.match(adc_s) and _INT.match(steps_s)):
+            raise FramingError("data line with a non-integer field")
+        seq, t_us, adc = int(seq_s), int(t_s), int(adc_s)
+        if t_us >= WRAP_US or adc > ADC_MAX:
+            raise FramingError("data line field out of range")
+        return Sample(seq, t_us, adc, int(steps_s))
+    if body.startswith("W,"):
+        parts = body.split(",")
+        if len(parts) != 3 or parts[1] != "OVERRUN" or not _UINT.match(parts[2]):
+            raise FramingError(f"malformed warning {body!r}")
+        return Overrun(int(parts[2]))
+    return body
+
+
+class LineSplitter:
+    r"""Split a byte stream into lines; a run of bytes without ``\\n`` longer than allowed is cut off.
+
+    ``feed(data)`` returns the complete lines (without ``\\n``); an over-long fragment is returned as one
+    line (so it is flagged corrupted) and the rest of it up to the next ``\\n`` is discarded into a second
+    corrupted line at most.
+    """
+
+    def __init__(self, max_pending: int = MAX_PENDING) -> None:
+        self._buf = bytearray()
+        self._max = max_pending
+
+    def feed(self, data: bytes) -> list[bytes]:
+        """Append ``data`` and return the complete lines it finishes."""
+        self._buf += data
+        if b"\n" not in data and len(self._buf) <= self._max:
+            return []
+        parts = self._buf.split(b"\n")
+        rest = parts.pop()
+        lines = [bytes(p) for p in parts]
+        if len(rest) > self._max:
+            lines.append(bytes(rest))
+            rest = b""
+        self._buf = bytearray(rest)
+        return lines
+
+    @property
+    def pending(self) -> int:
+        """Bytes of an unfinished line held back."""
+        return len(self._buf)
+
+
+@dataclass
+class StreamStats:
+    """Exact counts of what went wrong in a stream."""
+
+    dropped: int = 0
+    overruns: int = 0
+    corrupted: int = 0
+    implausible: int = 0
+    samples: int = 0
+    corrupted_examples: list[str] = field(default_factory=list)
+
+
+class StreamParser:
+    """Turn DAQ bytes into samples, messages and exact fault counts; never raises on garbage.
+
+    ``feed(data)`` returns ``(samples, messages)``: the new samples as tuples ``(seq, t_us_unwrapped, adc,
+    steps)`` and the other lines' bodies (replies, ``HELLO ...``). ``stats`` holds the counts.
+    A data line whose ``seq`` does not increase is counted as corrupted (it cannot be placed).
+    """
+
+    def __init__(self, max_step_rate_hz: float | None = None) -> None:
+        self.splitter = LineSplitter()
+        self.stats = StreamStats()
+        self.legacy: str | None = None
+        """The first line from a protocol-1 board (XOR-framed ``HELLO``/``PONG`` 1.x or ``ERR CHECKSUM``)."""
+        self.max_step_rate_hz = max_step_rate_hz
+        """Step-rate limit used to reject impossible step counts (None: no check)."""
+        self.steps_range: tuple[int, int] | None = None
+        """The step counts the running programme can reach (from ``ZERO``), or None (no check)."""
+        self.step_windows: tuple[np.ndarray, np.ndarray] | None = None
+        """Sorted, disjoint ``(starts, ends)`` in device us where the programme makes steps, or None (no
+        check): a count that changes outside them is impossible."""
+        self.last_seq: int | None = None
+        self._last_raw_t: int | None = None
+        self._t_offset = 0
+        self._last_sample: tuple[int, int] | None = None  # (t_us unwrapped, steps) of the last accepted one
+
+    def restart(self) -> None:
+        """Forget the sequence and clock state (after ``START``, whose ``seq`` restarts at 0)."""
+        self.last_seq = None
+        self._last_raw_t = None
+        self._t_offset = 0
+        self._last_sample = None
+
+    def _plausible(self, t_us: int, steps: int) -> bool:
+        """A step count the motor can have reached: within the programme's range, no faster than allowed."""
+        rng = self.steps_range
+        if rng is not None and not rng[0] <= steps <= rng[1]:
+            return False
+        last = self._last_sample
+        if last is not None and self.max_step_rate_hz is not None:
+            dt = max(t_us - last[0], 0)
+            if abs(steps - last[1]) > self.max_step_rate_hz * dt * 1e-6 + 1:
+                return False
+        windows = self.step_windows
+        if windows is not None and last is not None and steps != last[1]:
+            # the count changed in (last t, t]: some window must overlap that interval
+            i = int(np.searchsorted(windows[0], t_us, side="right")) - 1
+            if i < 0 or windows[1][i] < last[0]:
+                return False
+        return True
+
+    def _accept(self, seq: int, t_raw: int, adc: int, steps: int, line: bytes, out: list) -> None:
+        """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
+        t_us = self._unwrapped(t_raw)
+        if not self._plausible(t_us, steps):
+            self.stats.implausible += 1
+            if len(self.stats.corrupted_examples) < 5:
+                self.stats.corrupted_examples.append(f"{line[:40]!r}: implausible step count {steps}")
+            return
+        self.unwrap(t_raw)
+        stats = self.stats
+        stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
+        self.last_seq = seq
+        stats.samples += 1
+        self._last_sample = (t_us, steps)
+        out.append((seq, t_us, adc, steps))
+
+    def _corrupt(self, line: bytes, why: str) -> None:
+        self.stats.corrupted += 1
+        if len(self.stats.corrupted_examples) < 5:
+            self.stats.corrupted_examples.append(f"{line[:40]!r}: {why}")
+
+    def _unwrapped(self, t_raw: int) -> int:
+        """``t_raw`` unwrapped as :meth:`unwrap` would, without moving the clock state."""
+        wrapped = self._last_raw_t is not None and t_raw < self._last_raw_t
+        return t_raw + self._t_offset + (WRAP_US if wrapped else 0)
+
+    def unwrap(self, t_raw: int) -> int:
+        """Return ``t_raw`` with the 32-bit wraps before it added back."""
+        if self._last_raw_t is not None and t_raw < self._last_raw_t:
+            self._t_offset += WRAP_US
+        self._last_raw_t = t_raw
+        return t_raw + self._t_offset
+
+    def feed(self, data: bytes) -> tuple[list[tuple[int, int, int, int]], list[str]]:
+        """Parse ``data`` (any chunking) and return the samples and messages it completes."""
+        samples: list[tuple[int, int, int, int]] = []
+        messages: list[str] = []
+        lines = self.splitter.feed(data)
+        if not lines:
+            return samples, messages
+        crcs = _body_crcs(lines)
+        stats = self.stats
+        for line, x in zip(lines, crcs, strict=True):
+            m = _FAST_DATA.fullmatch(line)
+            if m is not None and int(m[5], 16) == x:  # the common case: a well-formed data line
+                seq, t_raw, adc = int(m[1]), int(m[2]), int(m[3])
+                if adc <= ADC_MAX and t_raw < WRAP_US and (self.last_seq is None or seq > self.last_seq):
+                    self._accept(seq, t_raw, adc, int(m[4]), line, samples)
+                    continue
+            if not line.strip(b"\r"):
+                continue
+            try:
+                item = parse_body(unframe(line))
+            except FramingError as exc:
+                self._corrupt(line, str(exc))
+                if isinstance(exc, LegacyChecksum) and self.legacy is None:
+                    body = line.rstrip(b"\r").rpartition(b"*")[0].decode("ascii")
+                    if _LEGACY_BODY.fullmatch(body):
+                        self.legacy = body
+                continue
+            if isinstance(item, Sample):
+                if self.last_seq is not None and item.seq <= self.last_seq:
+                    self._corrupt(line, f"seq {item.seq} after {self.last_seq}")
+                    continue
+                self._accept(item.seq, item.t_us, item.adc, item.steps, line, samples)
+            elif isinstance(item, Overrun):
+                stats.overruns += item.n
+            else:
+                messages.append(item)
+        return samples, messages
+
+
+def _body_crcs(lines: list[bytes]) -> list[int]:
+    """CRC-8 of each line's bytes except its last three (the ``*hh`` of a well-formed line), vectorised.
+
+    Lines shorter than 4 bytes get -1 (they take the slow path).
+    """
+    if len(lines) < 24:  # numpy's call overhead dominates for a few lines
+        return [crc8(line[:-3]) if len(line) >= 4 else -1 for line in lines]
+    lens = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
+    body_lens = lens - 3
+    width = int(body_lens.max())
+    if width < 1:
+        return [-1] * len(lines)
+    # One row per line, its body left-aligned; the register advances only while a row has bytes left.
+    flat = np.frombuffer(b"".join(lines), dtype=np.uint8)
+    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
+    cols = np.arange(width)
+    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
+    live = cols[None, :] < body_lens[:, None]
+    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
+    crc = np.full(len(lines), INIT, dtype=np.uint8)
+    for j in range(width):
+        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
+    return np.where(body_lens >= 1, crc.astype(np.int64), -1).tolist()

@@ -1,0 +1,56 @@
+"""``python -m helpers bench``: the project's speed figures, printed, never asserted in unit tests.
+
+- ``plant``: simulated seconds per wall second of the virtual rig's plant (and of a plain ``solve_ivp``
+  implementation of the same equations, measured in the same run);
+- ``serial``: sustained DAQ rate over the pseudo-terminal server and the wall time to record one scenario on
+  the in-process virtual rig;
+- ``playground``: CPU time of one update of notebook 03's interactive shaper study (target <= 0.3 s);
+- ``sweep``: runs per second of a sweep's tasks on 1 and 2 workers of a local Dask cluster, the scaling
+  ratio, Dask's overhead against a bare loop, the per-run overhead outside the integration;
+- ``spatial``: simulated seconds per wall second of the spatial twin, a 12 s four-tendon scenario and the
+  paper's one tendon beside the planar plant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+from collections.abc import Callable
+from typing import Any
+
+from helpers.commands.benchmarks.plant import run_plant_benchmark
+from helpers.commands.benchmarks.playground import run_playground_benchmark
+from helpers.commands.benchmarks.serial import run_serial_benchmark
+from helpers.commands.benchmarks.spatial import run_spatial_benchmark
+from helpers.commands.benchmarks.sweep import run_sweep_benchmark
+
+SUITES: dict[str, Callable[[], dict[str, Any]]] = {
+    "plant": run_plant_benchmark,
+    "playground": run_playground_benchmark,
+    "serial": run_serial_benchmark,
+    "sweep": run_sweep_benchmark,
+    "spatial": run_spatial_benchmark,
+}
+"""suite name -> function; each prints its figures and returns them as a dict."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``bench`` command's options."""
+    parser.add_argument(
+        "suites", nargs="*", metavar="suite", help=f"any of {', '.join(SUITES)} (default: all)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the chosen benchmark suites and print their figures."""
+    chosen = args.suites or list(SUITES)
+    unknown = sorted(set(chosen) - set(SUITES))
+    if unknown:
+        print(f"unknown benchmark suite(s): {', '.join(unknown)}; choose from {', '.join(SUITES)}")
+        return 2
+    print(f"python {platform.python_version()} on {platform.machine()}, {time.strftime('%Y-%m-%d')}")
+    for name in chosen:
+        print(f"\n== {name} ==")
+        SUITES[name]()
+    return 0

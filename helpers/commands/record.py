@@ -1,0 +1,556 @@
+"""``python -m helpers record``: record experiments into ``data/`` through :class:`helpers.rig.Rig`.
+
+A procedure on top of the rig: it combines the drivers (:mod:`helpers.rig`), the identification
+(:mod:`helpers.paper.identify`), the shaper design (:mod:`helpers.paper.shapers`) and the load-cell
+calibration
+(:mod:`helpers.paper.calibration`).
+
+The same code path serves the hardware (``--ports auto`` or ``--ports DAQ,STEPPER``) and the virtual rig
+(``--ports virtual``, the default: in-process; or the device paths printed by ``serve-virtual-rig``).
+
+Commands::
+
+    python -m helpers record calibration                     # known loads -> data/calibration/, fit, save
+    python -m helpers record pulse --v-in 250 --x-f 25 --system zvd --repetitions 3 --group mine
+    python -m helpers record pulse --v-in 200 --x-f 20 --design my_design.json   # a saved design
+    python -m helpers record table-i --repetitions 3         # 12 scenarios x 3
+    python -m helpers record all                             # identification + result.json + Table I x 3
+
+``table-i`` and pulses with ``--system zv``, ``zvd`` or ``ei`` design the shapers from
+``data/identification/result.json`` (written by ``record all`` or notebook 02's live cell) unless ``--zeta``
+and ``--omega-d`` are given. A pulse with ``--design FILE`` runs a design saved by
+:func:`helpers.research.design.save_design` (a shaper, an Up/Down pair or a map-following schedule; the
+designs of a
+mode map, ``docs/shaper_design.md``) under the design's system. A recording that exists is never
+overwritten unless ``--replace`` is given; two recorders cannot write into one group at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from helpers.base.jsonfile import MissingDataError
+from helpers.base.locks import folder_lock
+from helpers.base.paths import DATA_DIR, repo_path
+from helpers.base.validate import DefaultsHelp, arg_number
+from helpers.board.programmes import experiment_programme
+from helpers.paper import numbers as paper
+from helpers.paper.calibration import (
+    UNCALIBRATED,
+    LoadCellCalibration,
+    fit_calibration,
+    load_calibration,
+    save_calibration,
+)
+from helpers.paper.hardware import (
+    DAQ_RATE_DEFAULT_HZ,
+    DAQ_RATE_MAX_HZ,
+    DAQ_RATE_MIN_HZ,
+    MAX_PROGRAMME_S,
+    MAX_PULSE_MM,
+    MAX_SPEED_MM_S,
+)
+from helpers.paper.identify import identify_recording, load_identification, save_identification
+from helpers.paper.modes import omega_n_from_damped
+from helpers.paper.shapers import Shaper, design_tdfs
+from helpers.recordings import RecordingExists, check_group, check_name, recording_path, refuse_existing
+from helpers.research.design import SYSTEMS, Design, Schedule, load_design, up_down
+from helpers.research.families import ei
+from helpers.research.modemap import load_map
+from helpers.research.teleop import record_streams
+from helpers.rig import Rig, SafetyError, check_programme, check_request
+from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
+from helpers.rig.stream_rig import StreamRig
+from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
+
+IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
+"""Systems ``record`` designs itself from one identified mode (the others come from a --design file)."""
+
+DESIGN_SYSTEMS = tuple(s for s in SYSTEMS if s not in ("unshaped", *IDENTIFIED_SYSTEMS))
+"""Systems that need a saved design (``--design FILE``)."""
+
+SYSTEM_HELP = (
+    "unshaped = the paper's pulse; zv = the paper's non-robust TDF (ZV shaper); "
+    "zvd = the paper's robust TDF (ZVD shaper); ei = an EI shaper (these three are designed from the "
+    "identified mode, or taken from --design); " + ", ".join(DESIGN_SYSTEMS) + " = designs from a mode map, "
+    "run with --design FILE (docs/shaper_design.md). Default: unshaped, or the design file's system"
+)
+DEFAULT_GROUPS = {
+    "calibration": "calibration", "pulse": "runs", "table-i": "experiments", "all": "experiments",
+    "streams": "streams",
+}  # fmt: skip
+SESSION_LOCK = ".recording.lock"
+"""The lock a recorder holds on its group for the whole session (another recorder is refused)."""
+
+
+def _name(text: str) -> str:
+    try:
+        return check_name(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _group(text: str) -> str:
+    try:
+        return check_group(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``record`` options (every default and accepted range is shown by ``--help``)."""
+    parser.formatter_class = DefaultsHelp
+    parser.add_argument(
+        "what",
+        choices=["calibration", "pulse", "table-i", "all", "streams"],  # the keys of RECORDERS
+        help="calibration: known loads; pulse: one up-hold-down move; table-i: the paper's 12 scenarios; "
+        "all: the identification run, its analysis, then Table I; streams: notebook 08's two arbitrary "
+        "motions, unshaped, zv, zvd and scheduled (needs tuning/mode_map.json from `tune`)",
+    )
+    parser.add_argument(
+        "--ports",
+        default="virtual",
+        help="'virtual' (in-process virtual rig), 'auto' (find the boards by USB id) or 'DAQ,STEPPER' "
+        "(device paths, e.g. those serve-virtual-rig prints)",
+    )
+    parser.add_argument("--virtual-instance", "--rig-name", dest="rig_name", default="record", type=_name,
+                        help="name of the in-process virtual rig instance (old spelling: --rig-name)")
+    parser.add_argument(
+        "--seed",
+        type=arg_number(0, 2**32 - 1 - 10_000, int),
+        default=0,
+        help="in-process virtual rig: noise seed of the first run; run k gets seed + k (recorded)",
+    )
+    parser.add_argument(
+        "--v-in", type=arg_number(0, MAX_SPEED_MM_S, lo_open=True),
+        help="pulse speed, mm/s, in (0, 400]; required for pulse",  # fmt: skip
+    )
+    parser.add_argument(
+        "--x-f", type=arg_number(0, round(MAX_PULSE_MM, 2), lo_open=True),
+        help=f"pulse displacement, mm, in (0, {MAX_PULSE_MM:.2f}] (the travel, 156 steps); needed for pulse",
+    )  # fmt: skip
+    parser.add_argument("--system", choices=list(SYSTEMS), default=None, help=SYSTEM_HELP)
+    parser.add_argument(
+        "--design",
+        type=Path,
+        default=None,
+        help="pulse: run this saved design (JSON of helpers.research.design.save_design: a shaper, an "
+        "Up/Down pair or a map-following schedule, which also sets --v-in and --x-f); default: none, design "
+        "from --system",
+    )
+    parser.add_argument(
+        "--zeta", type=arg_number(0, 1, lo_open=True),
+        help="design the shapers from this damping ratio (default: the identification result's)",
+    )
+    parser.add_argument(
+        "--omega-d", type=arg_number(0, 1e4, lo_open=True),
+        help="... and this damped frequency, rad/s (default: the identification result's)",
+    )
+    parser.add_argument(
+        "--identification",
+        default=None,
+        help="identification result JSON (default: identification/result.json in the data folder)",
+    )
+    parser.add_argument(
+        "--repetitions",
+        type=arg_number(1, 100, int),
+        default=None,
+        help="runs per scenario, 1-100 (default: 1 for pulse, 3 for table-i and all)",
+    )
+    parser.add_argument(
+        "--t-end",
+        type=arg_number(0, MAX_PROGRAMME_S, lo_open=True),
+        default=12.0,
+        help=f"programme (and recording) length, s, in (0, {MAX_PROGRAMME_S:.0f}]",
+    )
+    parser.add_argument(
+        "--rate",
+        type=arg_number(DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, int),
+        default=DAQ_RATE_DEFAULT_HZ,
+        help=f"DAQ sample rate, Hz, {DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ}",
+    )
+    parser.add_argument(
+        "--group",
+        type=_group,
+        default=None,
+        help="folder under the data folder (default: calibration, runs for pulse, experiments)",
+    )
+    parser.add_argument(
+        "--name", type=_name, default=None,
+        help="pulse: file name; repetitions add _r<k> (default: <system>_v<v-in>_x<x-f>)",
+    )
+    parser.add_argument(
+        "--replace",
+        action="store_true",
+        help="replace recordings of the same names (each kept until the new one is whole)",
+    )
+    parser.add_argument(
+        "--duration",
+        type=arg_number(0, MAX_PROGRAMME_S, lo_open=True),
+        default=1.0,
+        help="calibration: seconds per load",
+    )
+    parser.add_argument("--data-dir", type=Path, default=DATA_DIR, help="the data folder")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check everything and print the recordings that would be made, without opening a port",
+    )
+
+
+def _shapers(args: argparse.Namespace, quiet: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
+    if (args.zeta is None) != (args.omega_d is None):
+        raise SystemExit("give both --zeta and --omega-d, or neither (then result.json is used)")
+    if args.zeta is not None:
+        zeta, omega_d, origin = args.zeta, args.omega_d, "command line"
+    else:
+        path = Path(args.identification or args.data_dir / "identification" / "result.json")
+        try:
+            found = load_identification(path)
+        except MissingDataError as exc:  # a data file is missing: status 5, not a usage error
+            raise MissingDataError(f"{exc} (or pass --zeta and --omega-d)") from None
+        zeta, omega_d = found.zeta, found.omega_d
+        origin = repo_path(path)
+    zv, zvd = design_tdfs(omega_d, zeta)
+    extra = ei(omega_n_from_damped(omega_d, zeta), zeta)
+    if not quiet:
+        print(f"shapers designed from zeta = {zeta:.4f}, omega_d = {omega_d:.3f} rad/s ({origin})")
+    shapers = {"unshaped": None, "zv": zv, "zvd": zvd, "ei": Shaper(extra.amplitudes, extra.times, "ei")}
+    return shapers, {"zeta": zeta, "omega_d": omega_d, "origin": origin}
+
+
+def _pulse_request(args: argparse.Namespace) -> tuple[str, Any, dict[str, Any] | None, float, float]:
+    """What ``record pulse`` runs: ``(system, shaping, design info, v_in, x_f)``.
+
+    The shaping is None (unshaped), a shaper designed from the identified mode (zv, zvd, ei), or the design
+    of ``--design``; a map-following schedule supplies the move if ``--v-in``/``--x-f`` are not given.
+    """
+    if args.design is not None:
+        if args.zeta is not None or args.omega_d is not None:
+            raise ValueError("--design and --zeta/--omega-d exclude each other: a design file is complete")
+        design = load_design(args.design)
+        if args.system is not None and args.system != design.system:
+            raise ValueError(
+                f"--system {args.system}, but {repo_path(args.design)} holds a {design.system!r} design "
+                "(drop --system, or give the design's own)"
+            )
+        v, x = args.v_in, args.x_f
+        if isinstance(design.shaping, Schedule):
+            v = design.shaping.v_in_mm_s if v is None else v
+            x = design.shaping.x_f_mm if x is None else x
+        if v is None or x is None:
+            raise SystemExit("record pulse needs --v-in and --x-f")
+        if isinstance(design.shaping, Schedule):
+            design.shaping.check_move(v, x)
+        info = {"origin": repo_path(args.design), "system": design.system, "kind": design.kind}
+        return design.system, design, info, v, x
+    if args.v_in is None or args.x_f is None:
+        raise SystemExit("record pulse needs --v-in and --x-f")
+    system = args.system or "unshaped"
+    if system == "unshaped":
+        return system, None, None, args.v_in, args.x_f
+    if system in DESIGN_SYSTEMS:
+        raise ValueError(
+            f"--system {system} needs --design FILE: a design saved with helpers.research.design.save_design "
+            "from a mode map (docs/shaper_design.md)"
+        )
+    shapers, design_info = _shapers(args)
+    return system, shapers[system], design_info, args.v_in, args.x_f
+
+
+def _describe(system: str, shaping: Any) -> str:
+    """A short description of a pulse's shaping for the dry run."""
+    if shaping is None:
+        return "unshaped"
+    inner = shaping.shaping if isinstance(shaping, Design) else shaping
+    if isinstance(inner, Schedule):
+        return f"{system} (schedule: {len(inner.up.sub_moves)} + {len(inner.down.sub_moves)} sub-moves)"
+    up, down = up_down(inner)
+    if up is down:
+        return f"{up.name} ({len(up.amplitudes)} impulses)"
+    return f"{system} (Up {up.name}: {len(up)} impulses; Down {down.name}: {len(down)} impulses)"
+
+
+def record_all(
+    rig: Any,
+    repetitions: int = 3,
+    t_end_s: float = 12.0,
+    rate_hz: int = 1000,
+    data_dir: Path = DATA_DIR,
+    group: str = "experiments",
+    replace: bool = False,
+    seeds: NoiseSeeds | None = None,
+) -> None:
+    """Regenerate every recording of the paper's experiment, in the order the analysis needs them.
+
+    1. the identification run (100 mm/s, 10 mm) into ``identification/pulse_v100_x10``;
+    2. its identification on the 9-10 s window with :func:`helpers.paper.identify.identify_recording`, saved
+    to
+       ``identification/result.json`` (what notebook 02's live cell does too);
+    3. the twelve Table I scenarios x ``repetitions``, with the TDFs designed from that result, into
+       ``group``.
+
+    Parameters
+    ----------
+    rig : helpers.rig.Rig
+        A connected rig.
+    repetitions, t_end_s, rate_hz, replace, seeds
+        As :func:`record_table_i`.
+    data_dir : pathlib.Path
+        The data folder.
+    group : str
+        Folder of the Table I recordings under ``data_dir``.
+    """
+    seeds = seeds or NoiseSeeds(None)
+    run = paper.IDENTIFICATION_RUN
+    rec = rig.run_pulse(
+        run["v_in_mm_s"],
+        run["x_f_mm"],
+        None,
+        system="unshaped",
+        path=Path(data_dir) / "identification" / "pulse_v100_x10",
+        t_end_s=t_end_s,
+        rate_hz=rate_hz,
+        progress=False,
+        replace=replace,
+        noise_seed=seeds.take(),
+    )
+    print(f"identification run: {rec.status}, {len(rec.frame)} samples -> {repo_path(rec.path)}")
+    result = identify_recording(rec, window=run["window_s"], column="adc")
+    path = save_identification(result, Path(data_dir) / "identification" / "result.json")
+    print(f"identified zeta = {result.zeta:.4f}, omega_d = {result.omega_d:.3f} rad/s -> {repo_path(path)}")
+    zv, zvd = design_tdfs(result.omega_d, result.zeta)
+    design = {"zeta": result.zeta, "omega_d": result.omega_d, "origin": repo_path(path)}
+    record_table_i(
+        rig,
+        {"unshaped": None, "zv": zv, "zvd": zvd},
+        design,
+        repetitions=repetitions,
+        group=Path(data_dir) / group,
+        t_end_s=t_end_s,
+        rate_hz=rate_hz,
+        replace=replace,
+        seeds=seeds,
+    )
+
+
+def _record_calibration(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
+    folder = args.data_dir / args.group
+    recs = record_calibration(
+        rig, duration_s=args.duration, folder=folder, rate_hz=args.rate, replace=args.replace
+    )
+    fit = fit_calibration(recs)
+    path = save_calibration(fit, recs, folder / "calibration.json")
+    print(
+        f"{len(recs)} loads recorded; gain {fit.gain_counts_per_n:.4f} +- {fit.gain_stderr:.4f} "
+        f"counts/N, offset {fit.offset_counts:.3f} +- {fit.offset_stderr:.3f} counts -> {repo_path(path)}"
+    )
+
+
+def _record_pulse(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
+    request = getattr(args, "pulse_request", None)
+    system, shaping, design, v_in, x_f = request if request is not None else _pulse_request(args)
+    base = args.name or scenario_name(system, v_in, x_f)
+    reps = args.repetitions or 1
+    for rep in range(1, reps + 1):
+        name = base if reps == 1 else f"{base}_r{rep}"
+        rec = rig.run_pulse(
+            v_in,
+            x_f,
+            shaping,
+            system=system,
+            path=args.data_dir / args.group / name,
+            repetition=rep,
+            t_end_s=args.t_end,
+            rate_hz=args.rate,
+            progress=not args.quiet,
+            scenario_extra=None if design is None else {"design": design},
+            replace=args.replace,
+            noise_seed=seeds.take(),
+        )
+        print(f"{rec.status}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
+
+
+def _record_table_i(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
+    shapers, design = _shapers(args)
+    record_table_i(
+        rig,
+        shapers,
+        design,
+        repetitions=args.repetitions or 3,
+        group=args.data_dir / args.group,
+        t_end_s=args.t_end,
+        rate_hz=args.rate,
+        replace=args.replace,
+        seeds=seeds,
+    )
+
+
+def _record_all(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
+    record_all(
+        rig,
+        repetitions=args.repetitions or 3,
+        t_end_s=args.t_end,
+        rate_hz=args.rate,
+        data_dir=args.data_dir,
+        group=args.group,
+        replace=args.replace,
+        seeds=seeds,
+    )
+
+
+def _record_streams(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
+    mode_map = load_map(args.data_dir / "tuning" / "mode_map.json")
+    rest = load_identification(args.data_dir / "identification" / "result.json")
+    recs = record_streams(rig, args.data_dir / args.group, mode_map, (rest.omega_d, rest.zeta),
+                          replace=args.replace, seeds=seeds.take, rate_hz=args.rate)  # fmt: skip
+    for rec in recs:
+        print(f"{rec.status}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
+
+
+RECORDERS: dict[str, Callable[[Rig, argparse.Namespace, NoiseSeeds], None]] = {
+    "calibration": _record_calibration,
+    "pulse": _record_pulse,
+    "table-i": _record_table_i,
+    "all": _record_all,
+    "streams": _record_streams,
+}
+"""What ``record`` can record -> the function that does it."""
+
+
+def _calibration_for(what: str, data_dir: Path) -> LoadCellCalibration | None:
+    """The load-cell calibration a run uses: the saved one; recording a new one may start without any."""
+    path = data_dir / "calibration" / "calibration.json"
+    try:
+        return load_calibration(path)
+    except MissingDataError:
+        if what == "calibration":
+            return UNCALIBRATED
+        raise
+
+
+def _planned_pulses(
+    args: argparse.Namespace, quiet: bool = False
+) -> list[tuple[str, str, float, float, str, Any]]:
+    """(group, name, v_in, x_f, system, shaping) of every pulse ``args`` asks for, in recording order."""
+    if args.what == "pulse":
+        system, shaping, _, v_in, x_f = getattr(args, "pulse_request", None) or _pulse_request(args)
+        base = args.name or scenario_name(system, v_in, x_f)
+        reps = args.repetitions or 1
+        return [
+            (args.group, base if reps == 1 else f"{base}_r{rep}", v_in, x_f, system, shaping)
+            for rep in range(1, reps + 1)
+        ]
+    planned = []
+    if args.what == "all":
+        run = paper.IDENTIFICATION_RUN
+        v, x = run["v_in_mm_s"], run["x_f_mm"]
+        planned.append(("identification", "pulse_v100_x10", v, x, "unshaped", None))
+        if not quiet:
+            print("dry run: the shapers of Table I are designed from the identification run once recorded;")
+            print("         the plan below checks them with the current identification result")
+    shapers, _ = _shapers(args, quiet=quiet)
+    reps = args.repetitions or 3
+    for system in paper.SYSTEMS:
+        for v, x in paper.TABLE_I_CONDITIONS:
+            for rep in range(1, reps + 1):
+                planned.append((args.group, scenario_name(system, v, x, rep), v, x, system, shapers[system]))
+    return planned
+
+
+def dry_run(args: argparse.Namespace) -> int:
+    """Check a ``record`` request completely and print what it would record; no port is opened.
+
+    Every pulse is quantised into its stepper programme and checked against the safety limits, every target
+    file against existing recordings (unless ``--replace``), and the load-cell calibration is looked up, as
+    the real run does before it moves anything.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed ``record`` arguments (``args.group`` already resolved).
+
+    Returns
+    -------
+    int
+        0 when the run would start; otherwise an exception names the first problem.
+    """
+    _calibration_for(args.what, args.data_dir)
+    rows = []
+    if args.what == "calibration":
+        for grams in (round(1000 * m) for m in CALIBRATION_MASSES_KG):
+            target = recording_path(args.group, f"load_{grams:04d}g", args.data_dir)
+            if not args.replace:
+                refuse_existing(target)
+            rows.append(f"  {repo_path(target)}: {grams} g hung for {args.duration:g} s at {args.rate} Hz")
+    else:
+        for group, name, v, x, system, shaper in _planned_pulses(args):
+            target = recording_path(group, name, args.data_dir)
+            if not args.replace:
+                refuse_existing(target)
+            v, x = check_request(v, x)
+            try:
+                programme, report = experiment_programme(v, x, shaper, t_end=args.t_end)
+            except ValueError as exc:
+                raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
+            check_programme(programme)
+            what = _describe(system, shaper)
+            rows.append(
+                f"  {repo_path(target)}: {x:g} mm at {v:g} mm/s, {what}, {report.n_steps} steps per move, "
+                f"{programme.duration_s:.1f} s at {args.rate} Hz"
+            )
+    print(f"dry run: {len(rows)} recording(s) would be made on --ports {args.ports}; nothing was sent:")
+    print("\n".join(rows))
+    return 0
+
+
+def _refuse_existing_targets(args: argparse.Namespace) -> None:
+    """Refuse a request whose recordings exist already, naming the options that avoid it."""
+    if args.what == "calibration":
+        names = [(args.group, f"load_{round(1000 * m):04d}g") for m in CALIBRATION_MASSES_KG]
+    elif args.what in ("pulse", "table-i", "all"):
+        names = [(g, n) for g, n, *_ in _planned_pulses(args, quiet=True)]
+    else:
+        return  # streams: each is checked by StreamRig.stream before anything moves
+    how = "choose another --name" if args.what == "pulse" else "choose another --group"
+    for group, name in names:
+        target = recording_path(group, name, args.data_dir)
+        if target.exists() or target.with_suffix(".json").exists():
+            raise RecordingExists(
+                f"{repo_path(target)}: a recording of that name exists; {how} or pass --replace to replace it"
+            )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``python -m helpers record`` (errors are turned into one line by ``python -m helpers``)."""
+    args.group = args.group or DEFAULT_GROUPS[args.what]
+    if args.what != "pulse" and args.design is not None:
+        raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
+    if args.dry_run:
+        return dry_run(args)
+    if args.what == "pulse":  # refuse a bad request before any port is opened
+        args.pulse_request = _pulse_request(args)
+    groups = {args.group, "identification"} if args.what == "all" else {args.group}
+    calibration = _calibration_for(args.what, args.data_dir)
+    if not args.replace:  # before any port is opened (opening one resets an Arduino)
+        _refuse_existing_targets(args)
+    with contextlib.ExitStack() as stack:
+        for g in sorted(groups):  # one recorder per group at a time
+            stack.enter_context(  # beside the group, so that deleting its folder cannot let a second in
+                folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK, beside=True)
+            )
+        rig = StreamRig.connect(args.ports, rig_name=args.rig_name, calibration=calibration)
+        stack.callback(rig.close)
+        print(
+            f"connected: daq firmware {rig.daq.version}, stepper firmware {rig.stepper.version}, "
+            f"source {rig.source['kind']}"
+        )
+        seeds = NoiseSeeds(args.seed if rig.virtual_world is not None else None)
+        RECORDERS[args.what](rig, args, seeds)
+    return 0
+

@@ -1,0 +1,158 @@
+"""The emulated stepper's streaming mode (``SHAPER``, ``IMP``, ``STREAM``, ``V``, ``END``) in device time.
+
+Every rule and every number comes from :mod:`helpers.board.stream_reference`, the reference of the firmware's
+streaming
+shaper: the impulse checks (:func:`~helpers.board.stream_reference.impulse_problem`), the set-point FIFO,
+``V``, ``END``,
+the watchdog and the control tick (:class:`~helpers.board.stream_reference.StreamSession`), the step times
+(:class:`~helpers.board.stream_reference.Planner`). This module only loads the shaper as the firmware's
+``IMP`` handler
+does, runs the control ticks on the world's device clock (tick k at ``STREAM`` + k x 10 ms) and words the
+replies and notices as the firmware does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from helpers.board import stream_reference as hs
+
+STEP_EDGE_S = 16e-6
+"""A streamed STEP edge follows its planned tick by 16 us (the firmware's ``STREAM_STEP_LEAD_TICKS``)."""
+
+PERIOD_S = hs.PERIOD_TICKS * hs.TICK_S
+"""The control period (10 ms)."""
+
+_RANGE_TEXT = {
+    "amplitude": "ERR RANGE amplitude -16384..16384 (>= 0 unless allowed)",
+    "delay": "ERR RANGE delay: 0 first, rising, 16 us units, <= 1 s",
+}
+
+
+class ShaperLoader:
+    """``SHAPER <n> <neg>`` then ``IMP <i> <a> <d_us>`` for i = 0 .. n-1, checked impulse by impulse."""
+
+    def __init__(self) -> None:
+        self.ready: hs.StreamShaper | None = None
+        """The loaded shaper (None until a complete, valid one has been loaded)."""
+        self._expect = 0
+        self._amplitudes: list[int] = []
+        self._delays: list[int] = []
+        self._negative = False
+
+    def begin(self, n: int, negative: int) -> str:
+        """``SHAPER``: the reply (the caller has checked the arguments' count and the state)."""
+        if not 1 <= n <= hs.MAX_IMPULSES:
+            return f"ERR RANGE 1-{hs.MAX_IMPULSES} impulses"
+        if negative not in (0, 1):
+            return "ERR RANGE negative amplitudes 0 or 1"
+        self.ready = None  # SHAPER discards the loaded shaper
+        self._expect, self._negative = n, bool(negative)
+        self._amplitudes, self._delays = [], []
+        return f"OK SHAPER {n}"
+
+    def impulse(self, index: int, amplitude: int, delay_us: int) -> str:
+        """``IMP``: the reply; after the last impulse the shaper is :attr:`ready` if it sums to 1."""
+        i = len(self._amplitudes)
+        if not self._expect or index != i:
+            return "ERR STATE SHAPER first, impulses in order"
+        previous = self._delays[-1] if self._delays else -1
+        problem = hs.impulse_problem(i, amplitude, delay_us, previous, self._negative)
+        if problem is not None:
+            self._expect = 0  # the shaper is discarded: start again with SHAPER
+            return _RANGE_TEXT[problem]
+        self._amplitudes.append(amplitude)
+        self._delays.append(delay_us)
+        if len(self._amplitudes) == self._expect:
+            self._expect = 0
+            if sum(self._amplitudes) != hs.AMP_ONE:
+                return f"ERR RANGE amplitudes must sum to {hs.AMP_ONE}"
+            self.ready = hs.StreamShaper(tuple(self._amplitudes), tuple(self._delays), self._negative)
+        return f"OK IMP {i}"
+
+
+class StreamMode:
+    """One stream of the emulated stepper, on the world's device clock.
+
+    Parameters
+    ----------
+    shaper : helpers.board.stream_reference.StreamShaper
+        The loaded shaper.
+    position : int
+        The step count at ``STREAM``.
+    t0 : float
+        Device time of ``STREAM`` (s): control tick k falls at ``t0 + k * PERIOD_S``.
+    send : callable
+        Queues one line from the board (notices).
+    """
+
+    def __init__(
+        self, shaper: hs.StreamShaper, position: int, t0: float, send: Callable[[str], None]
+    ) -> None:
+        self.session = hs.StreamSession(shaper, position)
+        self.t0 = t0
+        self._send = send
+        self._planned = 0  # planned steps already moved to the pending arrays
+        self._noticed = 0
+        self._times = np.zeros(0)
+        self._signs = np.zeros(0, dtype=np.int64)
+        self.finished = False
+        """True once the stream has stopped (``DONE`` is due)."""
+
+    @property
+    def next_tick(self) -> float:
+        """Device time of the next control tick (s)."""
+        return self.t0 + self.session.next_period * PERIOD_S
+
+    def setpoint(self, v: int) -> str:
+        """``V``: the reply."""
+        try:
+            return f"OK V {self.session.setpoint(v)}"
+        except hs.StreamRefused as exc:
+            return str(exc)
+
+    def end(self) -> str:
+        """``END``: the reply."""
+        try:
+            return f"OK END {self.session.end()}"
+        except hs.StreamRefused as exc:
+            return str(exc)
+
+    def _take(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        j = int(np.searchsorted(self._times, t + 1e-12, side="right"))
+        times, signs = self._times[:j], self._signs[:j]
+        self._times, self._signs = self._times[j:], self._signs[j:]
+        return times, signs
+
+    def _tick(self) -> None:
+        alive = self.session.tick()
+        run = self.session.run
+        for n in run.notices[self._noticed :]:
+            self._send(f"N,{n.kind},{n.value}")
+        self._noticed = len(run.notices)
+        planner = run.planner
+        if len(planner.ticks) > self._planned:
+            ticks = np.asarray(planner.ticks[self._planned :], dtype=np.int64)
+            new_times = self.t0 + ticks * hs.TICK_S + STEP_EDGE_S
+            self._times = np.concatenate([self._times, new_times])
+            self._signs = np.concatenate([self._signs, np.asarray(planner.dirs[self._planned :], np.int64)])
+            self._planned = len(planner.ticks)
+        self.finished = not alive
+
+    def steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        """Run the control ticks due by ``t1`` and take the steps due by ``t1`` (times in s, signs).
+
+        Stops at the tick where the stream finishes (:attr:`finished`): every step it planned is due by then.
+        """
+        times, signs = [], []
+        while not self.finished and self.next_tick <= t1 + 1e-12:
+            due = self._take(self.next_tick)
+            times.append(due[0])
+            signs.append(due[1])
+            self._tick()
+        due = self._take(t1)
+        times.append(due[0])
+        signs.append(due[1])
+        return np.concatenate(times), np.concatenate(signs)

@@ -1,0 +1,140 @@
+"""The paper's reading path: what a reader of notebooks 01-05 reaches by following their imports.
+
+Every ``helpers`` import in the code cells of notebooks 01-05 (live cells included) is followed through the
+package, module by module (importing ``a.b.c`` imports ``a`` and ``a.b`` too). What is reached must hold none
+of the twin or the research, and stay within a budget of code lines (docstrings, comments and blank lines not
+counted): the paper's part can be read on its own.
+"""
+
+from __future__ import annotations
+
+import ast
+import io
+import json
+import tokenize
+from pathlib import Path
+
+from helpers.base.paths import REPO_ROOT
+
+PACKAGE = REPO_ROOT / "helpers"
+PAPER_NOTEBOOKS = sorted((REPO_ROOT / "notebooks").glob("0[1-5]_*.ipynb"))
+CODE_LINES_BUDGET = 6_400
+"""Code lines the paper's reading path may reach: a guard against growth, not the aim. Measured 10,807
+before the core was separated from the wings, 5,664 after, and 6,393 once the hardware's numbers came from
+the rig file (``helpers.rigfile``: about 730 code lines of keys, checks and derived limits); the aim is
+5,000."""
+WINGS_OUTSIDE = ("helpers.virtual", "helpers.research", "helpers.commands", "helpers.__main__")
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = list(path.relative_to(REPO_ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def code_lines(path: Path) -> int:
+    """Lines holding code: not blank, not only a comment, not part of a docstring."""
+    source = path.read_text()
+    docs: set[int] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+            for statement in node.body:
+                value = statement.value if isinstance(statement, ast.Expr) else None
+                if isinstance(value, ast.Constant) and isinstance(value.value, str):
+                    docs.update(range(statement.lineno, statement.end_lineno + 1))
+    skip = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT}
+    skip.add(tokenize.ENDMARKER)
+    lines: set[int] = set()
+    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+        if tok.type not in skip:
+            lines.update(range(tok.start[0], tok.end[0] + 1))
+    return len(lines - docs)
+
+
+def _runtime_nodes(tree: ast.AST) -> list[ast.AST]:
+    """Every node but those under ``if TYPE_CHECKING:`` (an import for type hints is not run)."""
+    out, todo = [], [tree]
+    while todo:
+        node = todo.pop()
+        out.append(node)
+        for child in ast.iter_child_nodes(node):
+            test = child.test if isinstance(child, ast.If) else None
+            if not (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING"):
+                todo.append(child)
+    return out
+
+
+def imported(tree: ast.AST, package: str) -> set[str]:
+    """The package's modules an AST imports (with every parent package of each)."""
+    names = set()
+    for node in _runtime_nodes(tree):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(parts + ([base] if base else []))
+            names.add(base)
+            names.update(f"{base}.{a.name}" for a in node.names)
+    out = set()
+    for name in names:
+        parts = name.split(".")
+        out.update(".".join(parts[:n]) for n in range(1, len(parts) + 1) if ".".join(parts[:n]) in MODULES)
+    return out
+
+
+def notebook_imports(path: Path) -> set[str]:
+    """The package's modules the code cells of a notebook import (IPython magics and shell lines dropped)."""
+    out = set()
+    for cell in json.loads(path.read_text())["cells"]:
+        if cell["cell_type"] == "code":
+            lines = "".join(cell["source"]).splitlines()
+            code = "\n".join(line for line in lines if not line.lstrip().startswith(("%", "!")))
+            out |= imported(ast.parse(code), "helpers")
+    return out
+
+
+def reached(start: set[str]) -> set[str]:
+    seen: set[str] = set()
+    todo = list(start)
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        path = MODULES[name]
+        package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+        todo += imported(ast.parse(path.read_text()), package) - seen
+    return seen
+
+
+def _path() -> set[str]:
+    assert len(PAPER_NOTEBOOKS) == 5, PAPER_NOTEBOOKS
+    return reached(set().union(*(notebook_imports(nb) for nb in PAPER_NOTEBOOKS)))
+
+
+def test_the_code_line_count_skips_docstrings_comments_and_blank_lines(tmp_path):
+    module = tmp_path / "m.py"
+    module.write_text('"""Doc\n\nstring."""\n\n# comment\nx = (1,\n     2)  # trailing\n\n\ndef f():\n'
+                      '    """Doc."""\n    return x\n')  # fmt: skip
+    assert code_lines(module) == 4  # x = (1, / 2) / def f(): / return x
+
+
+def test_the_paper_notebooks_reach_no_twin_and_no_research():
+    outside = sorted(m for m in _path() if m.startswith(WINGS_OUTSIDE))
+    assert not outside, f"notebooks 01-05 reach modules outside the core: {outside}"
+
+
+def test_the_paper_notebooks_reach_a_core_one_can_read():
+    path = _path()
+    total = sum(code_lines(MODULES[m]) for m in path)
+    assert "helpers.paper.identify" in path and "helpers.paper.metrics" in path  # the measure follows imports
+    assert total <= CODE_LINES_BUDGET, f"{len(path)} modules, {total} code lines"
