@@ -16,7 +16,7 @@ from helpers.paper import hardware
 from helpers.rigfile import take_rig_option
 
 _PROBE = (
-    "from helpers import hardware as h; "
+    "from helpers.paper import hardware as h; "
     "print(h.RIG.name, h.LIMITS.min_interval_us, h.LIMITS.max_position_steps, round(h.MM_PER_STEP, 6))"
 )
 
@@ -43,7 +43,7 @@ def test_rig_option_sets_the_rig_before_the_command_loads():
     code = (
         "from helpers.__main__ import main; "
         "status = main(['rig', 'check', '--rig', 'long-arm', 'paper', '--json', '--points', '2']); "
-        "from helpers import hardware; print(status, hardware.RIG.name)"
+        "from helpers.paper import hardware; print(status, hardware.RIG.name)"
     )
     proc = _python(code, None)
     assert proc.returncode == 0, proc.stderr
