@@ -31,7 +31,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from helpers import paper
+from helpers import paper, scenarios
 from helpers.design import SYSTEMS, Design, Schedule, load_design, up_down
 from helpers.hardware import (
     DAQ_RATE_DEFAULT_HZ,
@@ -277,8 +277,8 @@ def _shown(path: Path) -> str:
 
 
 def scenario_name(system: str, v_in: float, x_f: float, repetition: int | None = None) -> str:
-    """File name of a pulse scenario, e.g. ``zvd_v200_x20_r1``."""
-    base = f"{system}_v{v_in:g}_x{x_f:g}"
+    """File name of a pulse scenario, e.g. ``zvd_v200_x20_r1`` (a decimal point is ``p``: ``x6p6``)."""
+    base = f"{system}_v{v_in:g}_x{x_f:g}".replace(".", "p")
     return base if repetition is None else f"{base}_r{repetition}"
 
 
@@ -337,7 +337,7 @@ def record_table_i(
     seeds = seeds or _Seeds(None)
     paths = []
     for system in paper.SYSTEMS:
-        for v, x in paper.TABLE_I_CONDITIONS:
+        for v, x in scenarios.table_i_conditions():
             for rep in range(1, repetitions + 1):
                 path = Path(group) / scenario_name(system, v, x, rep)
                 rec = rig.run_pulse(
@@ -371,7 +371,8 @@ def record_all(
 ) -> None:
     """Regenerate every recording of the paper's experiment, in the order the analysis needs them.
 
-    1. the identification run (100 mm/s, 10 mm) into ``identification/pulse_v100_x10``;
+    1. the identification run (100 mm/s, 10 mm; :mod:`helpers.scenarios` scales it on a rig it does not
+       fit) into ``identification/pulse_v100_x10``;
     2. its identification on the 9-10 s window with :func:`helpers.identify.identify_recording`, saved to
        ``identification/result.json`` (what notebook 02's live cell does too);
     3. the twelve Table I scenarios x ``repetitions``, with the TDFs designed from that result, into
@@ -389,13 +390,13 @@ def record_all(
         Folder of the Table I recordings under ``data_dir``.
     """
     seeds = seeds or _Seeds(None)
-    run = paper.IDENTIFICATION_RUN
+    run = scenarios.identification_run()
     rec = rig.run_pulse(
         run["v_in_mm_s"],
         run["x_f_mm"],
         None,
         system="unshaped",
-        path=Path(data_dir) / "identification" / "pulse_v100_x10",
+        path=Path(data_dir) / "identification" / scenarios.identification_name(),
         t_end_s=t_end_s,
         rate_hz=rate_hz,
         progress=False,
@@ -529,17 +530,21 @@ def _planned_pulses(
             for rep in range(1, reps + 1)
         ]
     planned = []
+    scenarios.announce()
     if args.what == "all":
-        run = paper.IDENTIFICATION_RUN
+        run = scenarios.identification_run()
         v, x = run["v_in_mm_s"], run["x_f_mm"]
-        planned.append(("identification", "pulse_v100_x10", v, x, "unshaped", None))
+        planned.append(("identification", scenarios.identification_name(), v, x, "unshaped", None))
         if not quiet:
             print("dry run: the shapers of Table I are designed from the identification run once recorded;")
             print("         the plan below checks them with the current identification result")
-    shapers, _ = _shapers(args, quiet=quiet)
+    if args.what == "all" and quiet:  # names only (the existence check): `all` designs its shapers itself
+        shapers: dict[str, Any] = dict.fromkeys(paper.SYSTEMS)
+    else:
+        shapers, _ = _shapers(args, quiet=quiet)
     reps = args.repetitions or 3
     for system in paper.SYSTEMS:
-        for v, x in paper.TABLE_I_CONDITIONS:
+        for v, x in scenarios.table_i_conditions():
             for rep in range(1, reps + 1):
                 planned.append((args.group, scenario_name(system, v, x, rep), v, x, system, shapers[system]))
     return planned
@@ -613,6 +618,8 @@ def run(args: argparse.Namespace) -> int:
     args.group = args.group or DEFAULT_GROUPS[args.what]
     if args.what != "pulse" and args.design is not None:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
+    if args.what in ("table-i", "all"):
+        scenarios.announce()  # once: which of the paper's scenarios this rig scales, and to what
     if args.dry_run:
         return dry_run(args)
     if args.what == "pulse":  # refuse a bad request before any port is opened

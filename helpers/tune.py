@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from helpers import design, metrics, paper
+from helpers import design, metrics, paper, scenarios
 from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
 from helpers.identify import load_identification
 from helpers.jsonfile import write_json
@@ -66,6 +66,18 @@ GRIDS = {
 }
 """(v_in mm/s, x_f mm) of each grid. The wide grid stops at 39 mm: 40 mm is 157 whole steps, one past the
 travel limit."""
+
+
+def rig_grid(name: str) -> tuple[tuple[float, float], ...]:
+    """The grid ``name`` on the selected rig: :data:`GRIDS`, scaled where it does not fit."""
+    return scenarios.scale_conditions(GRIDS[name])
+
+
+def rig_positions() -> tuple[float, ...]:
+    """The survey positions on the selected rig: ``POSITIONS_MM``, spread over a shorter travel."""
+    return scenarios.survey_positions(POSITIONS_MM)
+
+
 REPETITIONS = {"table-i": 3, "wide": 1}
 """Default runs per condition and candidate."""
 RATE_HZ = 500
@@ -425,7 +437,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers tune``."""
-    grid = GRIDS[args.grid]
+    grid = rig_grid(args.grid)
+    positions = rig_positions()
+    scenarios.announce({f"tune {args.grid} grid": GRIDS[args.grid]}, POSITIONS_MM)
     repetitions = args.repetitions or REPETITIONS[args.grid]
     tuning = args.data_dir / "tuning"
     map_path = tuning / "mode_map.json"
@@ -445,11 +459,11 @@ def run(args: argparse.Namespace) -> int:
             mode_map = load_map(map_path)
             say(f"mode map from {_shown(map_path)} ({len(mode_map)} positions)")
         else:
-            say(f"survey: {len(POSITIONS_MM)} positions x {args.survey_repetitions} on {rig.source['kind']}")
+            say(f"survey: {len(positions)} positions x {args.survey_repetitions} on {rig.source['kind']}")
             mode_map, _ = survey(
                 rig,
                 tuning / "survey",
-                POSITIONS_MM,
+                positions,
                 args.survey_repetitions,
                 rate_hz=args.rate,
                 replace=args.replace,

@@ -34,6 +34,7 @@ LAYERS: dict[str, int] = {
     "helpers.locks": 0,
     "helpers.rigfile": 0,
     "helpers.hardware": 1,
+    "helpers.scenarios": 2,
     "helpers.modemap": 1,
     "helpers.backbone": 1,
     "helpers.notebook": 1,
