@@ -62,6 +62,7 @@ LAYERS: dict[str, int] = {
     "helpers.plotting": 9,
     # 10: procedures that combine the rooms, and the command line
     "helpers.rig_tuning": 10,
+    "helpers.rig_file_tuning": 11,
     "helpers.record": 10,
     "helpers.home": 10,
     "helpers.frame_command": 10,
@@ -74,7 +75,7 @@ LAYERS: dict[str, int] = {
     "helpers.sweep": 10,
     "helpers.reproduce": 11,
     "helpers.benchmarks": 11,
-    "helpers.rig_studies": 11,
+    "helpers.rig_studies": 12,
     "helpers.rig_command": 11,
     "helpers.__main__": 12,
 }
