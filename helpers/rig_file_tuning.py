@@ -39,6 +39,7 @@ from helpers.jsonfile import DataFileError
 from helpers.metrics import MOTIONS, recording_metrics, scenario_table
 from helpers.paths import REPO_ROOT
 from helpers.programmes import experiment_programme
+from helpers.recordings.rig import refuse_other_rig
 from helpers.rig_tuning import calibrate_mode
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import ROTOR_TEETH
@@ -100,12 +101,7 @@ def load_targets(rig: RigFile, data_dir: Path) -> Targets:
 
 
 def _check_rig(meta: dict[str, Any], rig: RigFile, path: Path) -> None:
-    kept = recordings.recording_rig(meta, source=str(path))
-    if kept.hash != rig.hash:
-        raise DataFileError(
-            f"{path}: recorded on rig {kept.name!r} (hash {kept.hash}), not on {rig.source} ({rig.hash}); "
-            "tune a rig on its own recordings"
-        )
+    refuse_other_rig(meta, rig, path, what="tune a rig on")
 
 
 def simulated_table(

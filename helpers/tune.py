@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from helpers import design, metrics, paper, scenarios
+from helpers import design, hardware, metrics, paper, recordings, scenarios
 from helpers.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
 from helpers.identify import load_identification
 from helpers.jsonfile import write_json
@@ -47,6 +47,7 @@ from helpers.locks import folder_lock
 from helpers.modemap import ModeMap, load_map
 from helpers.paths import DATA_DIR, figure_path
 from helpers.recordings import RecordingExists
+from helpers.recordings.rig import refuse_other_rig
 from helpers.rig import Rig
 from helpers.shapers import design_tdfs
 from helpers.style import SYSTEM_COLOURS
@@ -444,6 +445,9 @@ def run(args: argparse.Namespace) -> int:
     tuning = args.data_dir / "tuning"
     map_path = tuning / "mode_map.json"
     rest = load_identification(args.data_dir / "identification" / "result.json")
+    rest_run = args.data_dir / "identification" / f"{rest.recording}.csv"
+    if rest.recording and rest_run.exists():  # the mode at rest must be this rig's
+        refuse_other_rig(recordings.load(rest_run, derive=False).meta, hardware.RIG, rest_run, what="tune on")
     calibration = load_calibration(args.data_dir / "calibration" / "calibration.json")
     say = (lambda _line: None) if args.quiet else (lambda line: print(line, file=sys.stderr))
     with contextlib.ExitStack() as stack:
