@@ -7,9 +7,7 @@ import os
 import subprocess
 import sys
 
-import pytest
-
-from helpers import paper, rigfile, scenarios
+from helpers import paper, rigfile, scenarios, survey, tune
 
 
 def _python(code: str, env_rig: str | None) -> subprocess.CompletedProcess:
@@ -32,7 +30,9 @@ def test_the_paper_rig_keeps_the_paper_scenarios():
     # in this process the selected rig is the paper's
     assert scenarios.table_i_conditions() == paper.TABLE_I_CONDITIONS
     assert scenarios.identification_name() == "pulse_v100_x10"
-    assert scenarios.scaling_notes() == []
+    assert scenarios.survey_positions(survey.POSITIONS_MM) == (0, 5, 10, 15, 20, 25, 30, 35, 40)
+    assert tune.rig_grid("wide") == tune.GRIDS["wide"] and (400.0, 39.0) in tune.rig_grid("wide")
+    assert scenarios.scaling_notes({"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM) == []
 
 
 def test_the_rule_scales_a_whole_set_and_keeps_what_fits():
@@ -48,21 +48,15 @@ def test_the_rule_scales_a_whole_set_and_keeps_what_fits():
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("rig", ["paper", "long-arm"])
-def test_scenarios_follow_the_selected_rig(rig):
-    proc = _python(_PROBE, rig)
+def test_scenarios_follow_the_selected_rig():
+    proc = _python(_PROBE, "long-arm")
     assert proc.returncode == 0, proc.stderr
     got = json.loads(proc.stdout)
-    if rig == "paper":
-        assert [tuple(c) for c in got["table_i"]] == list(paper.TABLE_I_CONDITIONS)
-        assert got["survey"] == [0, 5, 10, 15, 20, 25, 30, 35, 40]
-        assert got["notes"] == []
-        assert len(got["wide"]) == 16 and [400.0, 39.0] in got["wide"]
-    else:  # 150 mm/s, 254 steps of 0.07854 mm (19.95 mm)
-        assert [tuple(c) for c in got["table_i"]] == [(100, 6.6), (100, 13.2), (100, 19.9), (150, 13.2)]
-        assert got["ident"] == "pulse_v100_x10"  # 100 mm/s, 10 mm fit: unscaled
-        assert got["survey"] == [0, 2.5, 5, 7.5, 10, 12.5, 15, 17.5, 20]
-        assert max(v for v, _ in got["wide"]) <= 150 and max(x for _, x in got["wide"]) <= 19.95
-        text = "\n".join(got["notes"])
-        assert "Table I: speeds 200, 300 -> 100, 150 mm/s; distances 10, 20, 30 -> 6.6, 13.2, 19.9 mm" in text
-        assert "survey positions" in text and "identification" not in text
+    # long-arm: 150 mm/s, 254 steps of 0.07854 mm (19.95 mm)
+    assert [tuple(c) for c in got["table_i"]] == [(100, 6.6), (100, 13.2), (100, 19.9), (150, 13.2)]
+    assert got["ident"] == "pulse_v100_x10"  # 100 mm/s, 10 mm fit: unscaled
+    assert got["survey"] == [0, 2.5, 5, 7.5, 10, 12.5, 15, 17.5, 20]
+    assert max(v for v, _ in got["wide"]) <= 150 and max(x for _, x in got["wide"]) <= 19.95
+    text = "\n".join(got["notes"])
+    assert "Table I: speeds 200, 300 -> 100, 150 mm/s; distances 10, 20, 30 -> 6.6, 13.2, 19.9 mm" in text
+    assert "survey positions" in text and "identification" not in text
