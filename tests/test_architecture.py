@@ -51,7 +51,7 @@ MAY_IMPORT: dict[str, set[str]] = {
 
 CORE_INSIDE: dict[str, tuple[str, ...]] = {
     "helpers.base": ("helpers.base",),
-    "helpers.rigfile": ("helpers.rigfile",),
+    "helpers.rigfile": ("helpers.base", "helpers.rigfile"),
     "helpers.paper": ("helpers.base", "helpers.rigfile", "helpers.paper"),
 }
 """Core packages that may import only these (the utilities; the paper's part on the utilities)."""

@@ -73,6 +73,12 @@ HOW: dict[str, str] = {
     "python -m helpers rig check my_rig.toml": "quick",
     "python -m helpers rig check long-arm --json": "quick",
     "python -m helpers.rigfile.firmware_header FILE -o rig_config.h": "quick",
+    # the second rig end to end: tests/test_rig_file_tuning.py::test_second_rig_end_to_end_on_its_twin
+    "python -m helpers record calibration --rig long-arm --data-dir my_data": "slow",
+    "python -m helpers record all --rig long-arm --data-dir my_data --repetitions 1": "slow",
+    "python -m helpers metrics my_data/experiments": "slow",
+    "python -m helpers tune --rig long-arm --data-dir my_data --repetitions 1": "slow",
+    "python -m helpers virtual-rig tune --rig long-arm --data-dir my_data --out long-arm-tuned.toml": "slow",
     # hardware only: --help and a dry run
     "python -m helpers record calibration --ports auto": "dry-run",
     "python -m helpers record all --ports auto": "dry-run",

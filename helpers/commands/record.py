@@ -39,6 +39,7 @@ from helpers.base.paths import DATA_DIR, repo_path
 from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
+from helpers.paper import scenarios
 from helpers.paper.calibration import (
     UNCALIBRATED,
     LoadCellCalibration,
@@ -288,7 +289,8 @@ def record_all(
 ) -> None:
     """Regenerate every recording of the paper's experiment, in the order the analysis needs them.
 
-    1. the identification run (100 mm/s, 10 mm) into ``identification/pulse_v100_x10``;
+    1. the identification run (100 mm/s, 10 mm; :mod:`helpers.paper.scenarios` scales it on a rig it does not
+       fit) into ``identification/pulse_v100_x10``;
     2. its identification on the 9-10 s window with :func:`helpers.paper.identify.identify_recording`, saved
     to
        ``identification/result.json`` (what notebook 02's live cell does too);
@@ -307,13 +309,13 @@ def record_all(
         Folder of the Table I recordings under ``data_dir``.
     """
     seeds = seeds or NoiseSeeds(None)
-    run = paper.IDENTIFICATION_RUN
+    run = scenarios.identification_run()
     rec = rig.run_pulse(
         run["v_in_mm_s"],
         run["x_f_mm"],
         None,
         system="unshaped",
-        path=Path(data_dir) / "identification" / "pulse_v100_x10",
+        path=Path(data_dir) / "identification" / scenarios.identification_name(),
         t_end_s=t_end_s,
         rate_hz=rate_hz,
         progress=False,
@@ -447,17 +449,21 @@ def _planned_pulses(
             for rep in range(1, reps + 1)
         ]
     planned = []
+    scenarios.announce()
     if args.what == "all":
-        run = paper.IDENTIFICATION_RUN
+        run = scenarios.identification_run()
         v, x = run["v_in_mm_s"], run["x_f_mm"]
-        planned.append(("identification", "pulse_v100_x10", v, x, "unshaped", None))
+        planned.append(("identification", scenarios.identification_name(), v, x, "unshaped", None))
         if not quiet:
             print("dry run: the shapers of Table I are designed from the identification run once recorded;")
             print("         the plan below checks them with the current identification result")
-    shapers, _ = _shapers(args, quiet=quiet)
+    if args.what == "all" and quiet:  # names only (the existence check): `all` designs its shapers itself
+        shapers: dict[str, Any] = dict.fromkeys(paper.SYSTEMS)
+    else:
+        shapers, _ = _shapers(args, quiet=quiet)
     reps = args.repetitions or 3
     for system in paper.SYSTEMS:
-        for v, x in paper.TABLE_I_CONDITIONS:
+        for v, x in scenarios.table_i_conditions():
             for rep in range(1, reps + 1):
                 planned.append((args.group, scenario_name(system, v, x, rep), v, x, system, shapers[system]))
     return planned
@@ -531,6 +537,8 @@ def run(args: argparse.Namespace) -> int:
     args.group = args.group or DEFAULT_GROUPS[args.what]
     if args.what != "pulse" and args.design is not None:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
+    if args.what in ("table-i", "all"):
+        scenarios.announce()  # once: which of the paper's scenarios this rig scales, and to what
     if args.dry_run:
         return dry_run(args)
     if args.what == "pulse":  # refuse a bad request before any port is opened

@@ -25,8 +25,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from helpers import rigfile
 from helpers.paper.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
-from helpers.rigfile.recorded import validate_rig_section
+from helpers.paper.hardware import RIG as HW_RIG
+from helpers.rigfile.recorded import recording_rig, validate_rig_section
 
 SCHEMA_VERSION = 2
 """Version of the metadata layout new recordings get (2: with ``rig``, the rig file)."""
@@ -345,6 +347,24 @@ SAMPLE_TIME_TOLERANCE = 0.1
 periods): closer than this fraction of a period less is impossible."""
 
 
+def _rig_limits(meta: dict[str, Any]) -> tuple[int, float]:
+    """Travel (steps) and step-rate cap (steps/s) of the rig a recording was made with (its ``rig``).
+
+    The selected rig's limits when the recording carries the selected rig (or none: the paper's rig made
+    it, and the paper's is selected); otherwise the kept rig file's, so that a recording made on another rig
+    is checked against that rig, not this process's.
+    """
+    section = meta.get("rig")
+    if section is None or section.get("hash") == HW_RIG.hash:
+        if section is None and HW_RIG.hash != rigfile.default_rig().hash:
+            rig = rigfile.default_rig()
+        else:
+            return LIMITS.max_position_steps, LIMITS.max_step_rate_hz
+    else:
+        rig = recording_rig(meta)
+    return max(rigfile.derived(rig).travel_steps), float(rig.hardware.step_rate_cap_hz)
+
+
 def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
     """Refuse contents no rig can produce, whatever the checksum says.
 
@@ -365,16 +385,16 @@ def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> Non
             f"t_us: samples {dt[i]} us apart at row {i + 1}, less than the period of rate_hz "
             f"{meta['rate_hz']} ({period_us:g} us): not what the board records",
         )
-    travel = LIMITS.max_position_steps
+    travel, max_rate = _rig_limits(meta)
     if np.abs(steps).max() > travel:
         i = int(np.argmax(np.abs(steps) > travel))
         raise _fail(path, f"steps: {steps[i]} at row {i} is beyond the travel of {travel} steps")
-    allowed = np.floor(LIMITS.max_step_rate_hz * dt * 1e-6) + 1  # steps possible between two samples
+    allowed = np.floor(max_rate * dt * 1e-6) + 1  # steps possible between two samples
     jump = np.abs(np.diff(steps)) > allowed
     if np.any(jump):
         i = int(np.argmax(jump))
         raise _fail(
             path,
             f"steps: changes by {steps[i + 1] - steps[i]} in {dt[i]} us at row {i + 1}, faster than the "
-            f"stepper's {LIMITS.max_step_rate_hz:g} steps/s",
+            f"stepper's {max_rate:g} steps/s",
         )

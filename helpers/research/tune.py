@@ -44,12 +44,15 @@ from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, figure_path, repo_path
 from helpers.base.style import SYSTEM_COLOURS
 from helpers.base.validate import DefaultsHelp, arg_number
+from helpers.paper import hardware, scenarios
 from helpers.paper import numbers as paper
 from helpers.paper.calibration import load_calibration
 from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
 from helpers.paper.identify import load_identification
 from helpers.paper.shapers import design_tdfs
+from helpers import recordings
 from helpers.recordings import RecordingExists
+from helpers.rigfile.recorded import refuse_other_rig
 from helpers.research import design, residuals
 from helpers.research.modemap import ModeMap, load_map
 from helpers.research.survey import POSITIONS_MM, survey
@@ -68,6 +71,17 @@ GRIDS = {
 }
 """(v_in mm/s, x_f mm) of each grid. The wide grid stops at 39 mm: 40 mm is 157 whole steps, one past the
 travel limit."""
+
+
+def rig_grid(name: str) -> tuple[tuple[float, float], ...]:
+    """The grid ``name`` on the selected rig: :data:`GRIDS`, scaled where it does not fit."""
+    return scenarios.scale_conditions(GRIDS[name])
+
+
+def rig_positions() -> tuple[float, ...]:
+    """The survey positions on the selected rig: ``POSITIONS_MM``, spread over a shorter travel."""
+    return scenarios.survey_positions(POSITIONS_MM)
+
 REPETITIONS = {"table-i": 3, "wide": 1}
 """Default runs per condition and candidate."""
 RATE_HZ = 500
@@ -423,11 +437,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers tune``."""
-    grid = GRIDS[args.grid]
+    grid = rig_grid(args.grid)
+    positions = rig_positions()
+    scenarios.announce({f"tune {args.grid} grid": GRIDS[args.grid]}, POSITIONS_MM)
     repetitions = args.repetitions or REPETITIONS[args.grid]
     tuning = args.data_dir / "tuning"
     map_path = tuning / "mode_map.json"
     rest = load_identification(args.data_dir / "identification" / "result.json")
+    rest_run = args.data_dir / "identification" / f"{rest.recording}.csv"
+    if rest.recording and rest_run.exists():  # the mode at rest must be this rig's
+        refuse_other_rig(recordings.load(rest_run, derive=False).meta, hardware.RIG, rest_run, what="tune on")
     calibration = load_calibration(args.data_dir / "calibration" / "calibration.json")
     say = (lambda _line: None) if args.quiet else (lambda line: print(line, file=sys.stderr))
     with contextlib.ExitStack() as stack:
@@ -443,11 +462,11 @@ def run(args: argparse.Namespace) -> int:
             mode_map = load_map(map_path)
             say(f"mode map from {repo_path(map_path)} ({len(mode_map)} positions)")
         else:
-            say(f"survey: {len(POSITIONS_MM)} positions x {args.survey_repetitions} on {rig.source['kind']}")
+            say(f"survey: {len(positions)} positions x {args.survey_repetitions} on {rig.source['kind']}")
             mode_map, _ = survey(
                 rig,
                 tuning / "survey",
-                POSITIONS_MM,
+                positions,
                 args.survey_repetitions,
                 rate_hz=args.rate,
                 replace=args.replace,

@@ -1,7 +1,8 @@
 """The paper's experiment on a rig: the twelve scenarios of Table I, each repeated, recorded into ``data/``.
 
 The procedure of notebook 04's live cell and of ``python -m helpers record table-i``: for each system
-(unshaped, the non-robust TDF, the robust TDF) and each condition of Table I, one
+(unshaped, the non-robust TDF, the robust TDF) and each condition of Table I (scaled by
+:mod:`helpers.paper.scenarios` on a rig it does not fit), one
 :meth:`helpers.rig.Rig.run_pulse` per repetition, saved as ``<system>_v<v_in>_x<x_f>_r<n>``.
 """
 
@@ -12,11 +13,12 @@ from typing import Any
 
 from helpers.base.paths import DATA_DIR
 from helpers.paper import numbers as paper
+from helpers.paper import scenarios
 
 
 def scenario_name(system: str, v_in: float, x_f: float, repetition: int | None = None) -> str:
-    """File name of a pulse scenario, e.g. ``zvd_v200_x20_r1``."""
-    base = f"{system}_v{v_in:g}_x{x_f:g}"
+    """File name of a pulse scenario, e.g. ``zvd_v200_x20_r1`` (a decimal point is ``p``: ``x6p6``)."""
+    base = f"{system}_v{v_in:g}_x{x_f:g}".replace(".", "p")
     return base if repetition is None else f"{base}_r{repetition}"
 
 
@@ -76,7 +78,7 @@ def record_table_i(
     seeds = seeds or NoiseSeeds(None)
     paths = []
     for system in paper.SYSTEMS:
-        for v, x in paper.TABLE_I_CONDITIONS:
+        for v, x in scenarios.table_i_conditions():
             for rep in range(1, repetitions + 1):
                 path = Path(group) / scenario_name(system, v, x, rep)
                 rec = rig.run_pulse(

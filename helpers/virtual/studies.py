@@ -33,13 +33,13 @@ import numpy as np
 import pandas as pd
 
 from helpers import rigfile
-from helpers.base.paths import STORED_TABLES_DIR
+from helpers.base.paths import DATA_DIR, STORED_TABLES_DIR
 from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
 from helpers.paper.identify import identify
 from helpers.paper.metrics import recording_metrics
 from helpers.paper.shapers import paper_tdfs
-from helpers.virtual import ArmPlant, RigParameters, SimResult, frequency_map, linearise, simulate
+from helpers.virtual import ArmPlant, RigParameters, SimResult, frequency_map, linearise, rig_file_tuning, simulate
 from helpers.virtual.parameters import KG_CM
 from helpers.virtual.spatial.direction_map import frequency_map_csv
 from helpers.virtual.spatial.from_rig import spatial_rig
@@ -493,6 +493,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
              "(docs/spatial_twin.md; about a second per row)",
     )  # fmt: skip
     parser.add_argument("--max-evaluations", type=int, default=100, help="Nelder-Mead budget of 'tune'")
+    parser.add_argument("--data-dir", type=Path, default=None,
+                        help="'tune': tune the selected rig file's twin on this data folder's identification "
+                             "result and unshaped recordings, written as a new rig file (docs/rig_file.md); "
+                             "default for a rig other than the paper's: data/")  # fmt: skip
+    parser.add_argument("--out", type=Path, default=None,
+                        help="'tune' with a rig file: the new rig file (default NAME-tuned.toml here)")
     parser.add_argument("--only", nargs="*", choices=list(STUDY_FILES), help="'studies': run only these")
     parser.add_argument("--preset", choices=list(PRESETS), default=None,
                         help="'frequency-map': a built-in spatial rig (default: the rig file)")  # fmt: skip
@@ -515,6 +521,10 @@ def run(args: argparse.Namespace) -> int:
     if args.action == "studies":
         write_studies(tuple(args.only) if args.only else tuple(STUDY_FILES))
         return 0
+    own_rig = rigfile.selected().hash != rigfile.default_rig().hash
+    if args.action == "tune" and (args.data_dir is not None or own_rig):
+        data_dir = args.data_dir if args.data_dir is not None else DATA_DIR
+        return rig_file_tuning.run_tune(data_dir, args.out, args.max_evaluations)
     if args.action == "tune":
         params, history = tune(max_evaluations=args.max_evaluations, verbose=True)
         print(
