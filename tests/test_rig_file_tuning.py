@@ -10,8 +10,8 @@ import sys
 import pytest
 
 from helpers import rigfile
-from helpers.virtual import rig_file_tuning
 from helpers.base.jsonfile import DataFileError
+from helpers.virtual import rig_file_tuning
 
 LONG_ARM = rigfile.RIGS_DIR / "long-arm.toml"
 

@@ -27,7 +27,14 @@ import sys
 from collections.abc import Sequence
 
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import MAX_PULSE_MM, MAX_SPEED_MM_S, MAX_STEP_RATE_HZ, MAX_TRAVEL_MM, MM_PER_STEP, RIG
+from helpers.paper.hardware import (
+    MAX_PULSE_MM,
+    MAX_SPEED_MM_S,
+    MAX_STEP_RATE_HZ,
+    MAX_TRAVEL_MM,
+    MM_PER_STEP,
+    RIG,
+)
 
 FASTEST_MM_S: float = min(MAX_SPEED_MM_S, MAX_STEP_RATE_HZ * MM_PER_STEP)
 """The fastest cable speed a pulse may ask for, mm/s (the speed limit, or the step-rate cap's speed)."""

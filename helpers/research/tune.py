@@ -39,6 +39,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from helpers import recordings
 from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, figure_path, repo_path
@@ -50,13 +51,12 @@ from helpers.paper.calibration import load_calibration
 from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
 from helpers.paper.identify import load_identification
 from helpers.paper.shapers import design_tdfs
-from helpers import recordings
 from helpers.recordings import RecordingExists
-from helpers.rigfile.recorded import refuse_other_rig
 from helpers.research import design, residuals
 from helpers.research.modemap import ModeMap, load_map
 from helpers.research.survey import POSITIONS_MM, survey
 from helpers.rig import Rig
+from helpers.rigfile.recorded import refuse_other_rig
 
 CANDIDATES = ("zv", "zvd", "ei", "multi-mode", "scheduled", "map-following", "auto")
 """What ``tune`` designs and verifies, by ``scenario.system`` name (``docs/shaper_design.md``): the paper's

@@ -55,7 +55,7 @@ def recording_rig(meta: dict[str, Any], source: str = "recording") -> RigFile:
 
 
 def refuse_other_rig(meta: dict[str, Any], rig: RigFile, path: Path, what: str = "use") -> None:
-    """Refuse (``helpers.base.jsonfile.DataFileError``, one line) a recording made on a rig other than ``rig``."""
+    """Refuse (``DataFileError``, one line) a recording made on a rig other than ``rig``."""
     kept = recording_rig(meta, source=str(path))
     if kept.hash != rig.hash:
         raise DataFileError(

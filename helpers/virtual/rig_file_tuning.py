@@ -34,18 +34,18 @@ import pandas as pd
 from scipy import optimize
 
 from helpers import __version__, recordings, rigfile
-from helpers.paper.identify import load_identification
 from helpers.base.jsonfile import DataFileError
-from helpers.paper.metrics import MOTIONS, recording_metrics, scenario_table
 from helpers.base.paths import REPO_ROOT
 from helpers.board.programmes import experiment_programme
-from helpers.rigfile.recorded import refuse_other_rig
-from helpers.virtual.tuning import calibrate_mode
+from helpers.paper.identify import load_identification
+from helpers.paper.metrics import MOTIONS, recording_metrics, scenario_table
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import ROTOR_TEETH
+from helpers.rigfile.recorded import refuse_other_rig
 from helpers.virtual import ArmPlant, RigParameters, simulate
 from helpers.virtual.from_rig import rig_parameters
 from helpers.virtual.statics import stable_max_step
+from helpers.virtual.tuning import calibrate_mode
 
 TUNED_ARM_KEYS = (
     "disc_mass_g", "cable_offset_mm", "cable_stiffness_n_m", "pretension_n", "damping_alpha_per_s",

@@ -39,7 +39,15 @@ from helpers.paper import numbers as paper
 from helpers.paper.identify import identify
 from helpers.paper.metrics import recording_metrics
 from helpers.paper.shapers import paper_tdfs
-from helpers.virtual import ArmPlant, RigParameters, SimResult, frequency_map, linearise, rig_file_tuning, simulate
+from helpers.virtual import (
+    ArmPlant,
+    RigParameters,
+    SimResult,
+    frequency_map,
+    linearise,
+    rig_file_tuning,
+    simulate,
+)
 from helpers.virtual.parameters import KG_CM
 from helpers.virtual.spatial.direction_map import frequency_map_csv
 from helpers.virtual.spatial.from_rig import spatial_rig
