@@ -22,7 +22,7 @@ def _python(code: str, env_rig: str | None) -> subprocess.CompletedProcess:
 
 
 _PROBE = (
-    "import json; from helpers import scenarios as s, survey, tune; "
+    "import json; from helpers.paper import scenarios as s; from helpers.research import survey, tune; "
     "print(json.dumps({'table_i': s.table_i_conditions(), 'ident': s.identification_name(), "
     "'survey': s.survey_positions(survey.POSITIONS_MM), 'wide': tune.rig_grid('wide'), "
     "'notes': s.scaling_notes({'wide': tune.GRIDS['wide']}, survey.POSITIONS_MM)}))"

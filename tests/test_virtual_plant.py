@@ -589,3 +589,24 @@ def test_the_stored_convergence_study_is_what_the_rig_computes():
     fresh = convergence()
     assert list(stored.columns) == list(fresh.columns)
     np.testing.assert_allclose(stored.to_numpy(float), fresh.to_numpy(float), rtol=1e-5, atol=1e-9)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("study", ["pulses", "spatial"])
+def test_the_stored_pulse_and_spatial_studies_are_what_the_twin_computes(study):
+    # notebook 06 reads figures/virtual_pulse_table.csv and virtual_spatial_map.csv; if this fails, the
+    # twin changed since they were stored: python -m helpers virtual-rig studies --only pulses spatial
+    import pandas as pd
+
+    from helpers.base.paths import stored_table
+    from helpers.virtual.studies import STUDY_FILES, pulse_study, spatial_map
+
+    stored = pd.read_csv(stored_table(STUDY_FILES[study]))
+    fresh = {"pulses": pulse_study, "spatial": spatial_map}[study]()
+    assert list(stored.columns) == list(fresh.columns) and len(stored) == len(fresh)
+    numeric = fresh.select_dtypes("number").columns
+    np.testing.assert_allclose(
+        stored[numeric].to_numpy(float), fresh[numeric].to_numpy(float), rtol=1e-5, atol=1e-9, equal_nan=True
+    )
+    text = [c for c in fresh.columns if c not in numeric]
+    assert (stored[text].astype(str).to_numpy() == fresh[text].astype(str).to_numpy()).all()

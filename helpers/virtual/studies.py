@@ -49,6 +49,7 @@ from helpers.virtual import (
     simulate,
 )
 from helpers.virtual.parameters import KG_CM
+from helpers.virtual.spatial.direction_map import frequency_map as spatial_frequency_map
 from helpers.virtual.spatial.direction_map import frequency_map_csv
 from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.rig import PRESETS, preset
@@ -72,6 +73,8 @@ __all__ = [
     "actuator_sensitivity",
     "sensitivity_summary",
     "SENSITIVITY_VARIANTS",
+    "spatial_map",
+    "pulse_study",
     "write_studies",
     "STUDY_FILES",
     "RETUNED",
@@ -84,6 +87,8 @@ STUDY_FILES = {
     "lag": "virtual_rotor_lag.csv",
     "sensitivity": "virtual_actuator_sensitivity.csv",
     "convergence": "virtual_convergence.csv",
+    "spatial": "virtual_spatial_map.csv",
+    "pulses": "virtual_pulse_table.csv",
 }
 """Study name -> the CSV in ``figures/`` that :func:`write_studies` writes and notebook 06 reads."""
 
@@ -468,6 +473,38 @@ def convergence(params: RigParameters | None = None) -> pd.DataFrame:
     })  # fmt: skip
 
 
+def pulse_study() -> pd.DataFrame:
+    """The tuned rig's unshaped pulses beside Table II's rows (:func:`helpers.virtual.tuning.pulse_table`).
+
+    The twelve unshaped Table I runs on the tuned rig (noise seed 0): what the rig was tuned on (notebook 06,
+    section 2, reads it; about 10 s to compute).
+    """
+    return pulse_table(pulse_runs(RigParameters()))
+
+
+SPATIAL_MAP_RIGS = ("four-tendon", "hanging")
+"""The shipped rig files of the spatial study: the four-tendon arm horizontal (as the paper's) and hanging."""
+SPATIAL_MAP_DIRECTIONS_DEG = tuple(float(d) for d in np.arange(0.0, 360.0, 22.5))
+SPATIAL_MAP_BENDS_MM = (0.0, 10.0, 20.0)
+
+
+def spatial_map() -> pd.DataFrame:
+    """The spatial twin's modes over bend direction and magnitude, for the two four-tendon rig files.
+
+    :func:`helpers.virtual.spatial.direction_map.frequency_map` of ``rigs/four-tendon.toml`` and
+    ``rigs/hanging.toml`` (16 directions, every 22.5 degrees from tendon 1, bends of 0, 10 and 20 mm, four
+    modes with the spools held), with a ``rig`` column: notebook 06 shows how the modes split when the arm
+    bends and how gravity breaks the horizontal arm's symmetry (``docs/spatial_twin.md``, section 5).
+    """
+    frames = []
+    for name in SPATIAL_MAP_RIGS:
+        rig = spatial_rig(rigfile.load(rigfile.shipped()[name]))
+        df = spatial_frequency_map(rig, SPATIAL_MAP_DIRECTIONS_DEG, SPATIAL_MAP_BENDS_MM, n_modes=4)
+        frames.append(df.assign(rig=name))
+    out = pd.concat(frames, ignore_index=True)
+    return out[["rig", *[c for c in out.columns if c != "rig"]]]
+
+
 def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = True) -> list[Path]:
     """Run the studies and write their CSVs into the repository's ``figures/`` (6 significant digits).
 
@@ -475,7 +512,8 @@ def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = T
     notebooks' output: notebook 06 reads them from there.
     """
     funcs = {"layouts": damping_layouts, "friction": eyelet_friction, "actuator": actuator_effects,
-             "lag": rotor_lag, "sensitivity": actuator_sensitivity, "convergence": convergence}  # fmt: skip
+             "lag": rotor_lag, "sensitivity": actuator_sensitivity, "convergence": convergence,
+             "spatial": spatial_map, "pulses": pulse_study}  # fmt: skip
     paths = []
     for name in names:
         t0 = time.perf_counter()
