@@ -13,6 +13,7 @@ so that ``python -m helpers --help`` does not load numba and scipy. The one map 
 from __future__ import annotations
 
 import ast
+import functools
 import os
 import re
 import subprocess
@@ -68,6 +69,7 @@ def _module_name(path: Path) -> str:
     return ".".join(parts)
 
 
+@functools.cache  # the tree does not change during a test run; read it once
 def _modules() -> dict[str, Path]:
     return {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
 
@@ -82,7 +84,8 @@ def _wing(name: str) -> str | None:
     return None
 
 
-def _imports(path: Path, name: str) -> tuple[set[str], list[tuple[int, str]]]:
+@functools.cache
+def _imports(path: Path, name: str) -> tuple[frozenset[str], tuple[tuple[int, str], ...]]:
     """Package modules imported at module level, and (line, module) of function-local ones."""
     tree = ast.parse(path.read_text(), filename=str(path))
     modules = _modules()
@@ -114,7 +117,7 @@ def _imports(path: Path, name: str) -> tuple[set[str], list[tuple[int, str]]]:
             visit(child, inner)
 
     visit(tree, False)
-    return {t for t in top if t in modules and t != name}, local
+    return frozenset(t for t in top if t in modules and t != name), tuple(local)
 
 
 def test_every_module_is_in_a_wing():
