@@ -12,6 +12,7 @@ from helpers.board.protocol import frame
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import Rig
 from helpers.rig.discovery import KNOWN_BOARDS, candidate_ports, find_rig_ports
+from helpers.rig.static import record_static
 
 PROG = Programme((Dwell(100), Segment(1, 20, 1000), Dwell(200), Segment(-1, 20, 1000), Dwell(100)))
 
@@ -93,7 +94,7 @@ def test_sync_by_ping_when_the_board_does_not_reset_on_open():
 def test_static_recording_for_calibration(tmp_path):
     rig, world = make_rig()
     world.hang_load(2.5)
-    rec = rig.record_static(0.3, {"kind": "calibration", "load_n": 2.5}, path=tmp_path / "c", rate_hz=500)
+    rec = record_static(rig, 0.3, {"kind": "calibration", "load_n": 2.5}, path=tmp_path / "c", rate_hz=500)
     assert len(rec.frame) >= 150 and set(rec.frame["adc"]) == {round(OFFSET + GAIN * 2.5)}
     assert rec.meta["rate_hz"] == 500 and world.stepper.received[-1] == "PING"  # the stepper was not touched
 

@@ -37,7 +37,7 @@ onwards,
 LOADCELL_CALIBRATION: Path = DATA_DIR / "calibration" / "calibration.json"
 """The load-cell calibration: written by ``helpers.paper.calibration.save_calibration`` (``python -m helpers
 record
-calibration``), read by ``helpers.paper.calibration.load_calibration`` (every recording run)."""
+calibration``), read by ``helpers.paper.tension.load_calibration`` (every recording run)."""
 
 FIRMWARE_DIR: Path = REPO_ROOT / "firmware"
 """Arduino sketches, the Makefile and the simavr harness."""

@@ -4,29 +4,29 @@
 weighted by each mean's standard error (the scatter of its samples / sqrt(n)), with the standard errors of
 slope and intercept; ``newtons_per_count = 1 / gain`` with the error propagated to first order. The result is
 written to ``data/calibration/calibration.json`` (:data:`helpers.base.paths.LOADCELL_CALIBRATION`), which
-every run
-reads through :func:`load_calibration`. Recording the known loads is :mod:`helpers.rig.loadcell`'s job.
+every run reads through :func:`helpers.paper.tension.load_calibration` (the reader and the calibration's
+type live there, so that a run does not carry the fit). Recording the known loads is
+:mod:`helpers.rig.loadcell`'s job.
 
 (Not to be confused with the virtual rig's *tuning*, :mod:`helpers.virtual.tuning`, or the linear model's
-*fit*,
-:func:`helpers.paper.model.fit_to_mode`.)
+*fit*, :func:`helpers.paper.model.fit_to_mode`.)
 """
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
-from helpers.base.jsonfile import DataFileError, read_json, write_json
-from helpers.base.paths import LOADCELL_CALIBRATION, repo_path
+from helpers.base.jsonfile import write_json
+from helpers.base.paths import LOADCELL_CALIBRATION
 from helpers.paper.hardware import ADC_MAX, MM_PER_STEP
+from helpers.paper.tension import UNCALIBRATED, LoadCellCalibration, load_calibration
 
 if TYPE_CHECKING:  # the recordings are read by their owner; here they are only a type
     from helpers.recordings import Recording
@@ -39,68 +39,9 @@ __all__ = [
     "save_calibration",
     "load_calibration",
 ]
+"""The calibration's whole interface: the fit and the writer here, the reader and its type from
+:mod:`helpers.paper.tension` (which every run imports without the fit)."""
 
-MISSING_HINT = "record it with `python -m helpers record calibration` (add --ports for hardware)"
-
-
-@dataclass(frozen=True)
-class LoadCellCalibration:
-    """What turns a recording's counts and steps into newtons and millimetres (a recording's ``calibration``).
-
-    Attributes
-    ----------
-    newtons_per_count : float
-        Slope, N per ADC count (> 0).
-    offset_counts : float
-        ADC counts at zero tension.
-    mm_per_step : float
-        Cable travel per motor step, mm.
-    origin : str
-        Where it came from (a file under ``data/`` or a note such as ``uncalibrated``).
-    source : str or None
-        ``"hardware"`` or ``"virtual-rig"``: the kind of rig the calibration was recorded on.
-    """
-
-    newtons_per_count: float
-    offset_counts: float
-    mm_per_step: float = MM_PER_STEP
-    origin: str = ""
-    source: str | None = None
-
-    def __post_init__(self) -> None:
-        for name in ("newtons_per_count", "offset_counts", "mm_per_step"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-                raise ValueError(f"load-cell calibration: {name} must be a finite number, got {value!r}")
-        if self.newtons_per_count <= 0 or self.mm_per_step <= 0:
-            raise ValueError("load-cell calibration: newtons_per_count and mm_per_step must be > 0")
-
-    def to_dict(self) -> dict[str, Any]:
-        """The ``calibration`` entry of a recording's metadata."""
-        out: dict[str, Any] = {
-            "newtons_per_count": float(self.newtons_per_count),
-            "offset_counts": float(self.offset_counts),
-            "mm_per_step": float(self.mm_per_step),
-            "origin": self.origin,
-        }
-        if self.source is not None:
-            out["source"] = self.source
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> LoadCellCalibration:
-        """Read a recording's ``calibration`` entry (the keys of :meth:`to_dict`)."""
-        return cls(
-            newtons_per_count=data["newtons_per_count"],
-            offset_counts=data["offset_counts"],
-            mm_per_step=data.get("mm_per_step", MM_PER_STEP),
-            origin=str(data.get("origin", "")),
-            source=data.get("source"),
-        )
-
-
-UNCALIBRATED = LoadCellCalibration(1.0, 0.0, MM_PER_STEP, "uncalibrated: tension_n equals adc counts")
-"""Explicitly no calibration (recording the calibration itself, benchmarks): tension in counts."""
 
 
 @dataclass(frozen=True)
@@ -235,30 +176,3 @@ def save_calibration(
         "started_utc": min(str(r.meta.get("started_utc", "")) for r in recs),
     }
     return write_json(path, data)
-
-
-def load_calibration(path: str | os.PathLike = LOADCELL_CALIBRATION) -> LoadCellCalibration:
-    """Read the load-cell calibration (``data/calibration/calibration.json`` by default).
-
-    Raises
-    ------
-    helpers.base.jsonfile.MissingDataError
-        If there is none yet (the message says how to record it).
-    helpers.base.jsonfile.DataFileError
-        If the file is malformed (a key missing, a value of the wrong type or range).
-    """
-    p = Path(path)
-    data = read_json(p, "load-cell calibration", MISSING_HINT)
-    source = data.get("source")
-    try:
-        return LoadCellCalibration(
-            newtons_per_count=data["newtons_per_count"],
-            offset_counts=data["offset_counts"],
-            mm_per_step=data.get("mm_per_step", MM_PER_STEP),
-            origin=repo_path(p),
-            source=(source.get("kind", "unknown") if isinstance(source, dict) else "unknown"),
-        )
-    except KeyError as exc:
-        raise DataFileError(f"{p}: the load-cell calibration lacks {exc.args[0]!r}") from None
-    except ValueError as exc:
-        raise DataFileError(f"{p}: {exc}") from None

@@ -47,10 +47,10 @@ from helpers.base.style import SYSTEM_COLOURS
 from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.paper import hardware, scenarios
 from helpers.paper import numbers as paper
-from helpers.paper.calibration import load_calibration
 from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
 from helpers.paper.identify import load_identification
 from helpers.paper.shapers import design_tdfs
+from helpers.paper.tension import load_calibration
 from helpers.recordings import RecordingExists
 from helpers.research import design, residuals
 from helpers.research.modemap import ModeMap, load_map

@@ -53,8 +53,8 @@ from helpers.base.paths import DATA_DIR
 from helpers.base.signals import Interrupted, run_guard
 from helpers.board.programmes import Programme, Segment, experiment_programme
 from helpers.paper import numbers as paper
-from helpers.paper.calibration import LoadCellCalibration, load_calibration
 from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_PROGRAMME_S, RIG
+from helpers.paper.tension import LoadCellCalibration, load_calibration
 from helpers.recordings import Recording, RecordingError, reserve
 from helpers.recordings.shaping import pulse_metadata
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardLink, BoardTimeout, Waiter
@@ -220,9 +220,9 @@ class Rig:
     stepper : StepperBoard
         The synchronised stepper driver.
     calibration : LoadCellCalibration or dict, optional
-        The load-cell calibration; default :func:`helpers.paper.calibration.load_calibration` (which raises a
+        The load-cell calibration; default :func:`helpers.paper.tension.load_calibration` (which raises a
         clear
-        error if there is none yet: pass :data:`helpers.paper.calibration.UNCALIBRATED` to record without
+        error if there is none yet: pass :data:`helpers.paper.tension.UNCALIBRATED` to record without
         one).
     source : dict, optional
         Provenance written into every recording; default ``{"kind": "hardware"}``.
@@ -278,7 +278,7 @@ class Rig:
         rig_name : str
             Name of the in-process virtual rig.
         calibration : LoadCellCalibration or dict, optional
-            Default :func:`helpers.paper.calibration.load_calibration`.
+            Default :func:`helpers.paper.tension.load_calibration`.
         timeout, hello_timeout : float
             Command timeout and boot timeout (s).
         daq_options, stepper_options : str
@@ -692,87 +692,6 @@ class Rig:
                     f"the stepper board did not report DONE within {done_grace_s:.1f} s of device time "
                     "after the programme's end (it stopped answering)"
                 )
-
-    def record_static(
-        self,
-        duration_s: float,
-        scenario: dict[str, Any],
-        path: str | os.PathLike | None = None,
-        rate_hz: int = 1000,
-        silence_timeout: float = 2.0,
-        progress: bool = False,
-        replace: bool = False,
-    ) -> Recording:
-        """Record ``duration_s`` of device time with the motor idle (load-cell calibration, noise floor).
-
-        Parameters
-        ----------
-        duration_s : float
-            Device seconds to record (0 < duration <= ``MAX_PROGRAMME_S``).
-        scenario : dict
-            Scenario metadata (e.g. ``{"kind": "calibration", "load_n": 4.9}``).
-        path : path-like, optional
-            Where to save.
-        rate_hz : int
-            DAQ sample rate.
-        silence_timeout : float
-            Seconds without a sample after which the DAQ counts as not answering.
-        progress : bool
-            Show a tqdm bar.
-        replace : bool
-            Replace a recording of the same name.
-        """
-        if (
-            not isinstance(duration_s, int | float)
-            or not math.isfinite(duration_s)
-            or not 0 < duration_s <= MAX_PROGRAMME_S
-        ):
-            raise SafetyError(f"duration must be within (0, {MAX_PROGRAMME_S:.0f}] s, got {duration_s!r}")
-        _check_rate(rate_hz)
-        target = self._target(path)
-        with reserve(target, replace):  # a second run to this name is refused now, not after this one
-            return self._record_static(
-                duration_s, scenario, target, rate_hz, silence_timeout, progress, replace
-            )
-
-    def _record_static(
-        self, duration_s: float, scenario: dict[str, Any], target: Path, rate_hz: int, silence_timeout: float,
-        progress: bool, replace: bool,
-    ) -> Recording:  # fmt: skip
-        def body(state: _RunState) -> None:
-            self.daq.check_reset()
-            self.daq.stop()  # a stream left running by an earlier session stops (OK STOP 0 when idle)
-            self.daq.set_rate(rate_hz)
-            self.daq.start()
-            self.daq.expect_steps(0, 0)  # the motor is idle
-            bar = _DeviceTimeBar(duration_s, progress, desc=None)
-            silence = self.daq.waiter(silence_timeout)
-            try:
-                while True:
-                    before = len(self.daq.rows)
-                    self.daq.pump()
-                    self.daq.check_reset()
-                    rows = self.daq.rows
-                    if len(rows) == before:
-                        silence.idle(self.daq.port.timeout or 0.0)
-                        if silence.expired:
-                            raise BoardTimeout(
-                                f"the daq board sent no sample for {silence_timeout:.1f} s (it stopped "
-                                "answering)"
-                            )
-                        continue
-                    silence = self.daq.waiter(silence_timeout)
-                    if state.t_go_us is None:
-                        state.t_go_us = rows[0][1] - round(1e6 / rate_hz)
-                    bar.show((rows[-1][1] - state.t_go_us) / 1e6)
-                    if rows[-1][1] - state.t_go_us >= duration_s * 1e6:
-                        break
-            finally:
-                bar.close()
-            state.finished = True
-            self.daq.stop()
-
-        return self._guarded(body, dict(scenario), target, rate_hz, stepper_used=False, replace=replace)
 
     # --- the guard -------------------------------------------------------------------------------------
     def _cleanup(self, stepper_used: bool) -> list[str]:

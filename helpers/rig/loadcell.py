@@ -19,6 +19,7 @@ from helpers import recordings
 from helpers.base.paths import LOADCELL_CALIBRATION
 from helpers.paper import hardware
 from helpers.recordings import Recording
+from helpers.rig.static import record_static
 
 G_STANDARD = 9.80665
 """Standard gravity, m/s^2 (weight of a hung mass)."""
@@ -101,7 +102,7 @@ def record_calibration(
                 "fixture": "VIRTUAL known load (simulated)" if rig.is_virtual else "hung mass",
             }
             path = Path(folder) / f"load_{round(m * 1000):04d}g"
-            out.append(rig.record_static(duration_s, scenario, path=path, rate_hz=rate_hz, replace=replace))
+            out.append(record_static(rig, duration_s, scenario, path=path, rate_hz=rate_hz, replace=replace))
     finally:
         if world is not None:
             world.hang_load(None)

@@ -20,6 +20,7 @@ from typing import Any
 from helpers.paper.calibration import UNCALIBRATED
 from helpers.paper.shapers import paper_tdfs
 from helpers.rig import Rig
+from helpers.rig.static import record_static
 
 
 def _start_server(speed: float, timeout: float = 120.0) -> tuple[subprocess.Popen, str, str]:
@@ -55,8 +56,8 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) 
         )
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            rec = rig.record_static(
-                device_s, {"kind": "benchmark"}, path=Path(tmp) / "bench", rate_hz=rate_hz
+            rec = record_static(
+                rig, device_s, {"kind": "benchmark"}, path=Path(tmp) / "bench", rate_hz=rate_hz
             )
             wall = time.perf_counter() - t0
         rig.close()
