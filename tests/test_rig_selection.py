@@ -13,7 +13,7 @@ from rig_fakes import make_rig
 from helpers import recordings, rigfile
 from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.paper import hardware
-from helpers.rigfile import take_rig_option
+from helpers.rigfile.option import take_rig_option
 
 _PROBE = (
     "from helpers.paper import hardware as h; "

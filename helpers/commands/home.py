@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from helpers.base.validate import DefaultsHelp, arg_number, arg_rig_name
+from helpers.base.cli import DefaultsHelp, arg_number, arg_rig_name
 from helpers.board.programmes import Programme, Segment
 from helpers.paper.hardware import MAX_SPEED_MM_S, MM_PER_STEP
 from helpers.rig.boards import BoardError, BoardTimeout

@@ -29,9 +29,9 @@ from typing import Any
 
 import pandas as pd
 
+from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import shown
 from helpers.base.tables import to_markdown
-from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.paper import metrics
 from helpers.paper import numbers as paper
 from helpers.recordings import RESERVED_NAMES, Recording, RecordingError, RecordingExists, load, recording_rig

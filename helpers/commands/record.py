@@ -33,10 +33,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import MissingDataError
 from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, repo_path
-from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
 from helpers.paper import scenarios

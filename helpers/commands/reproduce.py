@@ -23,9 +23,9 @@ import nbformat
 from nbclient import NotebookClient
 from nbclient.exceptions import CellExecutionError
 
+from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.notebook import BATCH_ENV
 from helpers.base.paths import FIGURES_DIR, NOTEBOOKS_DIR, REPO_ROOT
-from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.commands.summary import print_summary
 
 

@@ -40,11 +40,11 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from helpers import recordings
+from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, figure_path, repo_path
 from helpers.base.style import SYSTEM_COLOURS
-from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.paper import hardware, scenarios
 from helpers.paper import numbers as paper
 from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ

@@ -33,7 +33,6 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
-import re
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -51,6 +50,7 @@ from helpers import recordings
 from helpers.base.noise import white_noise_std
 from helpers.base.paths import DATA_DIR
 from helpers.base.signals import Interrupted, run_guard
+from helpers.base.validate import RIG_NAME
 from helpers.board.programmes import Programme, Segment, experiment_programme
 from helpers.paper import numbers as paper
 from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_PROGRAMME_S, RIG
@@ -289,7 +289,7 @@ class Rig:
         Rig
         """
         if ports == "virtual":
-            if not (isinstance(rig_name, str) and re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", rig_name)):
+            if not (isinstance(rig_name, str) and RIG_NAME.match(rig_name)):
                 raise ValueError(
                     f"invalid virtual rig name {rig_name!r}: letters, digits, '_', '-', '.' (at most 64)"
                 )

@@ -20,7 +20,6 @@ __all__ = [
     "RigFile", "RigFileError", "Tendon", "Hardware", "Arm", "Boards", "Derived", "load", "loads", "rig_hash",
     "derived", "check", "hold_tension_n", "loop_counts", "MAX_TENDONS", "RIG_SCHEMA_VERSION", "RIGS_DIR",
     "DEFAULT_RIG", "ENV_VAR", "resolve", "selected_path", "selected", "default_rig", "shipped", "use",
-    "take_rig_option",
 ]  # fmt: skip
 
 RIGS_DIR: Path = Path(__file__).resolve().parents[2] / "rigs"
@@ -85,33 +84,3 @@ def use(name_or_path: str | os.PathLike[str]) -> RigFile:
     rig = load(path)
     os.environ[ENV_VAR] = str(path.resolve())
     return rig
-
-
-def take_rig_option(argv: list[str]) -> tuple[list[str], str | None]:
-    """Remove ``--rig FILE`` (or ``--rig=FILE``) from a command line; return the rest and ``FILE``.
-
-    Arguments after ``--`` are left alone. A ``--rig`` without a value is refused (``ValueError``).
-    """
-    rest: list[str] = []
-    value: str | None = None
-    i = 0
-    while i < len(argv):
-        arg = argv[i]
-        if arg == "--":
-            rest += argv[i:]
-            break
-        if arg == "--rig":
-            if i + 1 >= len(argv) or argv[i + 1].startswith("-"):
-                raise ValueError("--rig needs a rig file (a path, or a shipped rig's name such as paper)")
-            value = argv[i + 1]
-            i += 2
-            continue
-        if arg.startswith("--rig="):
-            value = arg.split("=", 1)[1]
-            if not value:
-                raise ValueError("--rig needs a rig file (a path, or a shipped rig's name such as paper)")
-            i += 1
-            continue
-        rest.append(arg)
-        i += 1
-    return rest, value

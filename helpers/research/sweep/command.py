@@ -22,9 +22,9 @@ import sys
 import time
 from pathlib import Path
 
+from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import DataFileError, write_json
 from helpers.base.paths import DATA_DIR
-from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.research.robustness import robust_designs, save_designs, uncertainty_model
 from helpers.research.sweep.definition import SweepDefinition, load_definition
 from helpers.research.sweep.execute import SweepReport, run_sweep

@@ -37,8 +37,8 @@ from collections import deque
 from pathlib import Path
 from typing import Any
 
+from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import VIRTUAL_RIG_REGISTRY
-from helpers.base.validate import DefaultsHelp, arg_number
 from helpers.virtual.emulator.boards import EmulatedBoard, Faults
 from helpers.virtual.emulator.world import VirtualWorld, default_world
 
