@@ -128,26 +128,6 @@ def frame(body: str) -> bytes:
     return (line + "\n").encode("ascii")
 
 
-_HEX2 = [f"{x:02X}" for x in range(256)]
-
-
-def frame_many(bodies: list[str]) -> bytes:
-    """Return every body framed as by :func:`frame`, joined (the CRC-8s of all bodies at once; no checks)."""
-    if not bodies:
-        return b""
-    lens = np.fromiter(map(len, bodies), dtype=np.int64, count=len(bodies))
-    flat = np.frombuffer("".join(bodies).encode("ascii") + b"\0", dtype=np.uint8)
-    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
-    cols = np.arange(int(lens.max()))
-    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
-    live = cols[None, :] < lens[:, None]
-    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
-    crc = np.full(len(bodies), INIT, dtype=np.uint8)
-    for j in range(len(cols)):  # one byte column at a time
-        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
-    return "".join(f"{b}*{_HEX2[x]}\n" for b, x in zip(bodies, crc.tolist(), strict=True)).encode("ascii")
-
-
 def unframe(line: bytes, require_checksum: bool = True) -> str:
     r"""Check one line (without its ``\\n``) and return its body.
 
@@ -412,26 +392,31 @@ class StreamParser:
         return samples, messages
 
 
+def crc8_many(chunks: list[bytes]) -> np.ndarray:
+    """The CRC-8 (:func:`~helpers.board.crc8.crc8`) of each of ``chunks``, vectorised over the chunks.
+
+    One row per chunk, left-aligned; the register advances one byte column at a time, only while a row has
+    bytes left (the host's parser and the emulated DAQ board both frame or check thousands of lines a second).
+    """
+    lens = np.fromiter(map(len, chunks), dtype=np.int64, count=len(chunks))
+    flat = np.frombuffer(b"".join(chunks) + b"\0", dtype=np.uint8)
+    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
+    cols = np.arange(int(lens.max(initial=0)))
+    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
+    live = cols[None, :] < lens[:, None]
+    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
+    crc = np.full(len(chunks), INIT, dtype=np.uint8)
+    for j in range(cols.size):
+        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
+    return crc
+
+
 def _body_crcs(lines: list[bytes]) -> list[int]:
-    """CRC-8 of each line's bytes except its last three (the ``*hh`` of a well-formed line), vectorised.
+    """CRC-8 of each line's bytes except its last three (the ``*hh`` of a well-formed line).
 
     Lines shorter than 4 bytes get -1 (they take the slow path).
     """
     if len(lines) < 24:  # numpy's call overhead dominates for a few lines
         return [crc8(line[:-3]) if len(line) >= 4 else -1 for line in lines]
-    lens = np.fromiter(map(len, lines), dtype=np.int64, count=len(lines))
-    body_lens = lens - 3
-    width = int(body_lens.max())
-    if width < 1:
-        return [-1] * len(lines)
-    # One row per line, its body left-aligned; the register advances only while a row has bytes left.
-    flat = np.frombuffer(b"".join(lines), dtype=np.uint8)
-    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
-    cols = np.arange(width)
-    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
-    live = cols[None, :] < body_lens[:, None]
-    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
-    crc = np.full(len(lines), INIT, dtype=np.uint8)
-    for j in range(width):
-        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
-    return np.where(body_lens >= 1, crc.astype(np.int64), -1).tolist()
+    crcs = crc8_many([line[:-3] for line in lines]).tolist()
+    return [c if len(line) >= 4 else -1 for line, c in zip(lines, crcs, strict=True)]

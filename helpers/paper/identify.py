@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, signal
 
 from helpers.base.jsonfile import DataFileError, read_json, write_json
+from helpers.base.noise import white_noise_std
 from helpers.base.paths import IDENTIFICATION_RESULT
 from helpers.paper.modes import check_mode, omega_n_from_damped
 
@@ -100,13 +101,6 @@ def _as_window(
             f"{1e3 * dt:.4f} ms (missing samples?); tolerance {100 * UNIFORM_TOLERANCE:.0f} %"
         )
     return t, y, dt
-
-
-def _noise_scale(y: FloatArray) -> float:
-    """Robust standard deviation of white noise on a smooth signal, from its second difference."""
-    d2 = np.diff(y, 2)
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
-    return 1.4826 * mad / math.sqrt(6.0)
 
 
 def _quantum(y: FloatArray) -> float:
@@ -376,7 +370,7 @@ def log_decrement(
         raise ValueError(f"omega_hint must be a positive frequency, got {omega_hint!r}")
     period = 2.0 * math.pi / omega
     if prominence is None:
-        prominence = max(6.0 * _noise_scale(y), 3.0 * _quantum(y), 0.02 * float(np.ptp(y)))
+        prominence = max(6.0 * white_noise_std(y), 3.0 * _quantum(y), 0.02 * float(np.ptp(y)))
     peaks, troughs = _extrema(t, y, dt, period, prominence)
     ext_t = np.concatenate([peaks[:, 0], troughs[:, 0]])
     ext_y = np.concatenate([peaks[:, 1], troughs[:, 1]])

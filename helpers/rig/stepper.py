@@ -1,23 +1,20 @@
 """Driver of the stepper board (Arduino Uno + TB6600, 115200 baud): programmes and streams.
 
-Programme mode: clear, segments, dwells, go, abort, enable, position. Streaming mode: load a shaper, start a
-stream, send set-points, end it; its notices are collected.
+Programme mode: load, go, abort, enable, position. The streaming mode's commands (load a shaper, start a
+stream, send set-points, end it) are :mod:`helpers.rig.stream_rig`'s; the notices of a stream are collected
+here, as they may arrive between any two replies.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-from helpers.board.programmes import Dwell, Programme, Segment
+from helpers.board.programmes import Programme
 from helpers.paper.hardware import STEPPER_BAUD
-from helpers.rig.boards import SEND_ATTEMPTS, BoardError, BoardLink, CommandRefused, LinkCorrupted
+from helpers.rig.boards import SEND_ATTEMPTS, BoardError, BoardLink, LinkCorrupted
 from helpers.rig.safety import check_programme
 
-if TYPE_CHECKING:  # a type only: the streaming reference loads where a stream runs
-    from helpers.board.stream_reference import StreamShaper
 
-
-def _last_int(reply: str, what: str) -> int:
+def last_int(reply: str, what: str) -> int:
+    """The integer a stepper board's reply ends with (``OK SEG 3`` -> 3); ``BoardError`` if it has none."""
     words = reply.split()
     try:
         return int(words[-1])
@@ -45,18 +42,6 @@ class StepperBoard(BoardLink):
         else:
             super()._message(msg)
 
-    def clear(self) -> None:
-        """``CLEAR`` the programme."""
-        self.command("CLEAR")
-
-    def seg(self, direction: int, n_steps: int, interval_us: int) -> int:
-        """Append ``SEG``; return the number of items."""
-        return _last_int(self.command(Segment(direction, n_steps, interval_us).command()), "SEG")
-
-    def wait(self, ms: int) -> int:
-        """Append ``WAIT``; return the number of items."""
-        return _last_int(self.command(Dwell(ms).command()), "WAIT")
-
     def load(self, programme: Programme, start_position: int = 0) -> int:
         """Check ``programme`` against the limits (nothing is sent if it fails), then ``CLEAR`` and load it.
 
@@ -66,18 +51,9 @@ class StepperBoard(BoardLink):
             Items on the board.
         """
         check_programme(programme, start_position)
-        for attempt in range(1, SEND_ATTEMPTS + 1):
-            n = 0
-            try:
-                for line in programme.commands():  # CLEAR first: loading again starts from nothing
-                    reply = self.command(line)
-                    if line != "CLEAR":
-                        n = _last_int(reply, line.split()[0])
-            except LinkCorrupted:
-                if attempt == SEND_ATTEMPTS:
-                    raise
-                continue  # a reply to SEG or WAIT was lost on the link: load the whole programme again
-            break
+        lines = programme.commands()
+        replies = self.send_all(lines)  # CLEAR first: loading again starts from nothing
+        n = [last_int(reply, line.split()[0]) for line, reply in zip(lines[1:], replies[1:], strict=True)][-1]
         if n != len(programme):
             raise BoardError(f"the stepper board holds {n} items, the programme has {len(programme)}")
         return n
@@ -85,11 +61,11 @@ class StepperBoard(BoardLink):
     def go(self) -> int:
         """``GO``: start the loaded programme (``DONE`` arrives when it ends)."""
         self.done_position = None
-        return _last_int(self.command("GO"), "GO")
+        return last_int(self.command("GO"), "GO")
 
     def abort(self, timeout: float | None = None) -> int:
         """``ABORT``: stop at once and disable the driver; return the position."""
-        return _last_int(self.command("ABORT", timeout=timeout), "ABORT")
+        return last_int(self.command("ABORT", timeout=timeout), "ABORT")
 
     def enable(self, on: bool, timeout: float | None = None) -> None:
         """``EN 1`` / ``EN 0`` (``EN 0`` while running aborts first)."""
@@ -97,44 +73,21 @@ class StepperBoard(BoardLink):
 
     def position(self) -> int:
         """``POS``: the present position in steps."""
-        return _last_int(self.command("POS"), "POS")
+        return last_int(self.command("POS"), "POS")
 
     def poll(self) -> None:
         """Read whatever has arrived without waiting (picks up ``DONE``, ``HELLO``)."""
         self.pump(block=False)
 
-    # --- streaming mode (PROTOCOL.md "Stepper board: streaming mode") --------------------------------
-    def load_shaper(self, shaper: StreamShaper) -> None:
-        """``SHAPER`` and one ``IMP`` per impulse: load the shaper the next streams use."""
+    def send_all(self, lines: list[str]) -> list[str]:
+        """Send ``lines`` in order and return the replies; all of them again if a reply was lost on the link.
+
+        The first line (``CLEAR``, ``SHAPER``) makes loading again start from nothing.
+        """
         for attempt in range(1, SEND_ATTEMPTS + 1):
             try:
-                for line in shaper.commands():  # SHAPER first: loading again discards what was loaded
-                    self.command(line)
+                return [self.command(line) for line in lines]
             except LinkCorrupted:
                 if attempt == SEND_ATTEMPTS:
                     raise
-                continue
-            return
-
-    def start_stream(self) -> int:
-        """``STREAM``: start streaming from the present position (returned); the notices list is emptied."""
-        self.done_position = None
-        self.notices.clear()
-        return _last_int(self.command("STREAM"), "STREAM")
-
-    def set_point(self, units: int) -> int | None:
-        """``V <units>``: queue a set-point; return the period it drives, or None if the FIFO was full.
-
-        A full FIFO (``ERR FULL``) drops the set-point: send it again later. Any other refusal raises
-        :class:`helpers.rig.CommandRefused`.
-        """
-        try:
-            return _last_int(self.command(f"V {units}"), "V")
-        except CommandRefused as exc:
-            if exc.code == "FULL":
-                return None
-            raise
-
-    def end_stream(self) -> int:
-        """``END``: the stream ends after the queued set-points; return the first period fed with zero."""
-        return _last_int(self.command("END"), "END")
+        raise AssertionError("unreachable")  # pragma: no cover

@@ -20,6 +20,7 @@ from helpers.paper.hardware import LIMITS
 from helpers.recordings import Recording, reserve
 from helpers.rig.boards import BoardError, BoardTimeout, CommandRefused
 from helpers.rig.experiment import Rig, RunOptions, _check_rate, _DeviceTimeBar, _RunState
+from helpers.rig.stepper import StepperBoard, last_int
 from helpers.rig.stream import (
     STREAM_RATE_HZ,
     Pacer,
@@ -48,6 +49,27 @@ def _check_stream_firmware(version: str | None) -> None:
             "period the host was late for (the cable then goes further than commanded): flash firmware "
             f"{STREAM_FIRMWARE[0]}.{STREAM_FIRMWARE[1]} or later to stream (make -C firmware upload-stepper)"
         )
+
+
+def _start_stream(stepper: StepperBoard) -> int:
+    """``STREAM``: start streaming from the present position (returned); the notices list is emptied."""
+    stepper.done_position = None
+    stepper.notices.clear()
+    return last_int(stepper.command("STREAM"), "STREAM")
+
+
+def _set_point(stepper: StepperBoard, units: int) -> int | None:
+    """``V <units>``: queue a set-point; return the period it drives, or None if the FIFO was full.
+
+    A full FIFO (``ERR FULL``) drops the set-point: send it again later. Any other refusal raises
+    :class:`helpers.rig.CommandRefused`.
+    """
+    try:
+        return last_int(stepper.command(f"V {units}"), "V")
+    except CommandRefused as exc:
+        if exc.code == "FULL":
+            return None
+        raise
 
 
 _FEED_READ_S = 0.005
@@ -201,7 +223,7 @@ class StreamRig(Rig):
             scenario["rest"] = self.wait_for_rest(rate_hz, rest_timeout_s)
             self.stepper.abort()  # whatever an earlier session left running stops; driver off
             self.daq.stop()
-            self.stepper.load_shaper(board)
+            self.stepper.send_all(board.commands())  # SHAPER first: loading again discards it
             self.daq.set_rate(rate_hz)
             self.daq.zero()
             self.daq.start()
@@ -249,7 +271,7 @@ class StreamRig(Rig):
             _, silence = self._read_both(silence, max_corrupted_fraction)
         self.stepper.enable(True)
         state.go_sent = True
-        self.stepper.start_stream()
+        _start_stream(self.stepper)
         self.daq.pump(block=False)
         state.t_go_us = now = self.daq.rows[-1][1]  # STREAM's device time, as GO's in run()
         pacer = Pacer(now, lead_periods)
@@ -283,7 +305,7 @@ class StreamRig(Rig):
                 planned = check.checkpoint()
                 check.setpoint(pending)  # StreamLimit before the byte is sent if the board would clamp
                 try:
-                    period = self.stepper.set_point(pending)
+                    period = _set_point(self.stepper, pending)
                 except CommandRefused:
                     take_notices()  # a stream the board has ended (the watchdog) refuses V: say why
                     raise
@@ -300,7 +322,7 @@ class StreamRig(Rig):
                     pending = None
                 record.counts(pacer)
             if exhausted and end_period is None:
-                end_period = self.stepper.end_stream()
+                end_period = last_int(self.stepper.command("END"), "END")
                 record.data["end_period"] = end_period
                 finish_due = pacer.finish_due_us(end_period, record.shaper_q_max, done_grace_s * 1e6)
             if self.stepper.done_position is not None:

@@ -23,8 +23,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from helpers.board.protocol import MAX_LINE, WRAP_US, board_version, checksum, frame, frame_many
+from helpers.board.protocol import MAX_LINE, WRAP_US, board_version, checksum, frame
 from helpers.paper.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
+from helpers.virtual.emulator.framing import frame_many
 from helpers.virtual.emulator.stream_mode import ShaperLoader, StreamMode
 
 DAQ_RATE_MIN, DAQ_RATE_MAX, DAQ_RATE_DEFAULT = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_DEFAULT_HZ
