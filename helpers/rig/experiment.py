@@ -209,6 +209,13 @@ class RunOptions:
     noise_seed: int | None = None
     rest_timeout_s: float = REST_TIMEOUT_S
 
+    def __post_init__(self) -> None:
+        """Refuse a rate or a seed the run cannot take (``SafetyError``) before anything is sent."""
+        _check_rate(self.rate_hz)
+        seed = self.noise_seed
+        if seed is not None and not (type(seed) is int and 0 <= seed < 2**32):
+            raise SafetyError(f"noise seed must be an integer in 0..2**32-1, got {seed!r}")
+
 
 class Rig:
     """Both boards of one rig (hardware or virtual) and the calibration that turns counts into newtons.
@@ -448,24 +455,16 @@ class Rig:
         helpers.recordings.Recording
         """
         o = RunOptions(**options)
-        rate_hz, done_grace_s, silence_timeout = o.rate_hz, o.done_grace_s, o.silence_timeout
-        progress = o.progress
-        max_corrupted_fraction, replace, noise_seed = o.max_corrupted_fraction, o.replace, o.noise_seed
-        rest_timeout_s = o.rest_timeout_s
         check_programme(programme)
-        _check_rate(rate_hz)
         scenario = dict(scenario or {"kind": "programme"})
         scenario.setdefault("programme", programme.to_dict())
         target = self._target(path)
-        with reserve(target, replace):  # a second run to this name is refused now, not after this one
-            return self._run(programme, scenario, target, rate_hz, margin_s, done_grace_s, silence_timeout,
-                             progress, max_corrupted_fraction, replace, noise_seed, rest_timeout_s,
-                             require_zero)  # fmt: skip
+        with reserve(target, o.replace):  # a second run to this name is refused now, not after this one
+            return self._run(programme, scenario, target, margin_s, require_zero, o)
 
     def _run(
-        self, programme: Programme, scenario: dict[str, Any], target: Path, rate_hz: int, margin_s: float,
-        done_grace_s: float, silence_timeout: float, progress: bool, max_corrupted_fraction: float,
-        replace: bool, noise_seed: int | None, rest_timeout_s: float, require_zero: bool,
+        self, programme: Programme, scenario: dict[str, Any], target: Path, margin_s: float,
+        require_zero: bool, o: RunOptions,
     ) -> Recording:  # fmt: skip
         position = self._checked_start_position(programme)
         if require_zero and position != 0:
@@ -474,26 +473,24 @@ class Rig:
                 f"position): {self._home_hint()} first"
             )
         scenario["start_position_steps"] = position
-        self._seed_noise(noise_seed, scenario)
+        self._seed_noise(o.noise_seed, scenario)
         positions = np.concatenate([[0], np.cumsum(programme.step_times()[1].astype(np.int64))])
 
         def body(state: _RunState) -> None:
-            scenario["rest"] = self.wait_for_rest(rate_hz, rest_timeout_s)
+            scenario["rest"] = self.wait_for_rest(o.rate_hz, o.rest_timeout_s)
             reach = (int(positions.min()), int(positions.max()))
-            self._load_and_go(programme, position, rate_hz, state, reach)
-            bar = _DeviceTimeBar(programme.duration_s + margin_s, progress)
+            self._load_and_go(programme, position, o.rate_hz, state, reach)
+            bar = _DeviceTimeBar(programme.duration_s + margin_s, o.progress)
             try:
-                self._stream_until_done(
-                    state, programme.duration_us, rate_hz, margin_s, done_grace_s, silence_timeout,
-                    max_corrupted_fraction, bar, position + int(positions[-1]),
-                )  # fmt: skip
+                end = position + int(positions[-1])
+                self._stream_until_done(state, programme.duration_us, margin_s, o, bar, end)
             finally:
                 bar.close()
             state.finished = True
             self.daq.stop()
             self.stepper.enable(False)
 
-        return self._guarded(body, scenario, target, rate_hz, replace=replace)
+        return self._guarded(body, scenario, target, o.rate_hz, replace=o.replace)
 
     def _home_hint(self) -> str:
         """How to bring this rig's cable home: the command with this rig's ports, or the call in-process."""
@@ -519,8 +516,6 @@ class Rig:
         """In-process virtual rig: re-seed the sensor noise for this run and record the seed."""
         if noise_seed is None:
             return
-        if not (isinstance(noise_seed, int) and not isinstance(noise_seed, bool) and 0 <= noise_seed < 2**32):
-            raise SafetyError(f"noise seed must be an integer in 0..2**32-1, got {noise_seed!r}")
         world = self.virtual_world
         if world is not None:
             world.reseed(noise_seed)
@@ -645,15 +640,7 @@ class Rig:
         return new, silence
 
     def _stream_until_done(
-        self,
-        state: _RunState,
-        duration_us: int,
-        rate_hz: int,
-        margin_s: float,
-        done_grace_s: float,
-        silence_timeout: float,
-        max_corrupted_fraction: float,
-        bar: _DeviceTimeBar,
+        self, state: _RunState, duration_us: int, margin_s: float, o: RunOptions, bar: _DeviceTimeBar,
         end_position: int,
     ) -> None:
         """Read samples until the programme's end + ``margin_s`` has passed and ``DONE`` has arrived.
@@ -661,11 +648,12 @@ class Rig:
         A ``DONE`` lost to a bit error on the link (a corrupted line came from the stepper instead) is not a
         silent board: ``POS`` then tells whether the programme ended where it should.
         """
-        period_us = round(1e6 / rate_hz)
-        silence = self.daq.waiter(silence_timeout)
+        period_us = round(1e6 / o.rate_hz)
+        done_grace_s = o.done_grace_s
+        silence = self.daq.waiter(o.silence_timeout)
         corrupted = self.stepper.parser.stats.corrupted
         while True:
-            new, silence = self._read_both(silence, max_corrupted_fraction)
+            new, silence = self._read_both(silence, o.max_corrupted_fraction)
             rows = self.daq.rows
             if new and state.t_go_us is None:
                 self._went(state, rows[len(rows) - new][1] - period_us)

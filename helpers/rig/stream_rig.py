@@ -10,6 +10,7 @@ as an experiment, with the parts of :mod:`helpers.rig.stream` and the board's re
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,7 @@ from helpers.board.stream_reference import board_shaper
 from helpers.paper.hardware import LIMITS
 from helpers.recordings import Recording, reserve
 from helpers.rig.boards import BoardError, BoardTimeout, CommandRefused
-from helpers.rig.experiment import Rig, RunOptions, _check_rate, _DeviceTimeBar, _RunState
+from helpers.rig.experiment import Rig, RunOptions, _DeviceTimeBar, _RunState
 from helpers.rig.stepper import StepperBoard, last_int
 from helpers.rig.stream import (
     STREAM_RATE_HZ,
@@ -91,6 +92,19 @@ def _shaper_meta(shaper: Any) -> dict[str, Any]:
         "times": [float(t) for t in shaper.times],
     }
 
+
+
+@dataclass(frozen=True)
+class _Stream:
+    """What one stream is, checked before anything is sent (:meth:`StreamRig.stream`'s own arguments)."""
+
+    board: Any
+    source: SetpointSource
+    units: np.ndarray | None
+    lead_periods: int
+    lead_in_s: float
+    tail_s: float
+    allow_clamps: bool
 
 
 class StreamRig(Rig):
@@ -166,10 +180,6 @@ class StreamRig(Rig):
             other than 100 Hz, an out-of-range ``lead_periods``, ``lead_in_s`` or ``tail_s``.
         """
         o = RunOptions(**options)
-        rate_hz, done_grace_s, silence_timeout = o.rate_hz, o.done_grace_s, o.silence_timeout
-        progress = o.progress
-        max_corrupted_fraction, replace, noise_seed = o.max_corrupted_fraction, o.replace, o.noise_seed
-        rest_timeout_s = o.rest_timeout_s
         if stream_rate_hz != STREAM_RATE_HZ:
             raise ValueError(
                 f"the stepper board takes one set-point per 10 ms control period: stream_rate_hz must be "
@@ -178,24 +188,21 @@ class StreamRig(Rig):
         for name, value in (("lead_in_s", lead_in_s), ("tail_s", tail_s)):
             if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 60:
                 raise ValueError(f"{name} must be a number of seconds in 0-60, got {value!r}")
-        _check_rate(rate_hz)
         board = board_shaper(shaper)
         Pacer(0, lead_periods)  # refuses a bad lead before anything is sent
         source = SetpointSource(setpoints, source_name)
         units = source.check_all() if source.sized else None
         target = self._target(path)
         _check_stream_firmware(self.stepper.version)
-        with reserve(target, replace):  # a second run to this name is refused now, not after this one
-            return self._stream(board, source, units, shaper, target, scenario, rate_hz, lead_periods,
-                                lead_in_s, tail_s, allow_clamps, done_grace_s, silence_timeout, progress,
-                                max_corrupted_fraction, replace, noise_seed, rest_timeout_s)  # fmt: skip
+        stream = _Stream(board, source, units, lead_periods, lead_in_s, tail_s, allow_clamps)
+        with reserve(target, o.replace):  # a second run to this name is refused now, not after this one
+            return self._stream(stream, shaper, target, scenario, o)
 
     def _stream(
-        self, board: Any, source: SetpointSource, units: np.ndarray | None, shaper: Any, target: Path,
-        scenario: dict[str, Any] | None, rate_hz: int, lead_periods: int, lead_in_s: float, tail_s: float,
-        allow_clamps: bool, done_grace_s: float, silence_timeout: float, progress: bool,
-        max_corrupted_fraction: float, replace: bool, noise_seed: int | None, rest_timeout_s: float,
-    ) -> Recording:  # fmt: skip
+        self, stream: _Stream, shaper: Any, target: Path, scenario: dict[str, Any] | None, o: RunOptions
+    ) -> Recording:
+        board, source, units, lead_periods = stream.board, stream.source, stream.units, stream.lead_periods
+        lead_in_s, tail_s, allow_clamps = stream.lead_in_s, stream.tail_s, stream.allow_clamps
         self.stepper.check_reset()
         self.daq.check_reset()
         position = self.stepper.position()
@@ -215,25 +222,24 @@ class StreamRig(Rig):
         scenario["shaper"] = None if shaper is None else _shaper_meta(shaper)
         scenario["start_position_steps"] = position
         scenario["stream"] = record.data
-        self._seed_noise(noise_seed, scenario)
+        self._seed_noise(o.noise_seed, scenario)
         feed = iter(units.tolist()) if units is not None else source
         expected_s = None if units is None else len(units) / STREAM_RATE_HZ + board.duration_s + tail_s + 0.05
 
         def body(state: _RunState) -> None:
-            scenario["rest"] = self.wait_for_rest(rate_hz, rest_timeout_s)
+            scenario["rest"] = self.wait_for_rest(o.rate_hz, o.rest_timeout_s)
             self.stepper.abort()  # whatever an earlier session left running stops; driver off
             self.daq.stop()
             self.stepper.send_all(board.commands())  # SHAPER first: loading again discards it
-            self.daq.set_rate(rate_hz)
+            self.daq.set_rate(o.rate_hz)
             self.daq.zero()
             self.daq.start()
             self.daq.expect_steps(reach[0] - position, reach[1] - position)
             timeout = self.daq.port.timeout
             self.daq.port.timeout = min(timeout or _FEED_READ_S, _FEED_READ_S)  # device time in small steps
-            bar = _DeviceTimeBar(expected_s, progress)
+            bar = _DeviceTimeBar(expected_s, o.progress)
             try:
-                self._feed(state, feed, check, record, lead_periods, lead_in_s, tail_s, allow_clamps,
-                           done_grace_s, silence_timeout, max_corrupted_fraction, bar, position)  # fmt: skip
+                self._feed(state, feed, check, record, stream, o, bar, position)
             finally:
                 self.daq.port.timeout = timeout
                 bar.close()
@@ -242,23 +248,11 @@ class StreamRig(Rig):
             self.daq.stop()
             self.stepper.enable(False)
 
-        return self._guarded(body, scenario, target, rate_hz, replace=replace)
+        return self._guarded(body, scenario, target, o.rate_hz, replace=o.replace)
 
     def _feed(
-        self,
-        state: _RunState,
-        feed: Any,
-        check: ShapedCheck,
-        record: StreamRecord,
-        lead_periods: int,
-        lead_in_s: float,
-        tail_s: float,
-        allow_clamps: bool,
-        done_grace_s: float,
-        silence_timeout: float,
-        max_corrupted_fraction: float,
-        bar: _DeviceTimeBar,
-        position: int,
+        self, state: _RunState, feed: Any, check: ShapedCheck, record: StreamRecord, stream: _Stream,
+        o: RunOptions, bar: _DeviceTimeBar, position: int,
     ) -> None:
         """The lead-in, ``STREAM``, the set-points as they fall due, ``END``, ``DONE``, the tail.
 
@@ -266,7 +260,11 @@ class StreamRig(Rig):
         again where the board put it if the board ran short meanwhile: a clamp the board would make is
         refused before it happens, whatever the host's timing.
         """
-        silence = self.daq.waiter(silence_timeout)
+        lead_periods, lead_in_s, tail_s, allow_clamps = (
+            stream.lead_periods, stream.lead_in_s, stream.tail_s, stream.allow_clamps
+        )
+        done_grace_s, max_corrupted_fraction = o.done_grace_s, o.max_corrupted_fraction
+        silence = self.daq.waiter(o.silence_timeout)
         while not self.daq.rows or self.daq.rows[-1][1] - self.daq.rows[0][1] < lead_in_s * 1e6:
             _, silence = self._read_both(silence, max_corrupted_fraction)
         self.stepper.enable(True)
