@@ -701,22 +701,10 @@ class IdentificationResult:
         ``omega_n``, ``n_cycles`` and ``estimates`` (each method's ``zeta``/``omega_d`` for comparison).
         Use :func:`dataclasses.replace` to set the provenance of a result from :func:`identify`.
         """
-        estimates: dict[str, dict[str, float | None]] = {
-            "logdec": {
-                "zeta": float(self.logdec.zeta),
-                "zeta_std": _json_float(self.logdec.zeta_std),
-                "omega_d": float(self.logdec.omega_d),
-                "omega_d_std": _json_float(self.logdec.omega_d_std),
-            },
-            "fft": {"zeta": None, "zeta_std": None, "omega_d": float(self.fft.omega_d), "omega_d_std": None},
-        }
+        fft = {"zeta": None, "zeta_std": None, "omega_d": float(self.fft.omega_d), "omega_d_std": None}
+        estimates = {"logdec": _estimate(self.logdec), "fft": fft}
         if self.fit is not None:
-            estimates["fit"] = {
-                "zeta": float(self.fit.zeta),
-                "zeta_std": _json_float(self.fit.zeta_std),
-                "omega_d": float(self.fit.omega_d),
-                "omega_d_std": _json_float(self.fit.omega_d_std),
-            }
+            estimates["fit"] = _estimate(self.fit)
         return {
             "zeta": float(self.zeta),
             "omega_d": float(self.omega_d),
@@ -761,6 +749,16 @@ def _pm(x: float, digits: int) -> str:
 
 def _json_float(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
+
+
+def _estimate(result: LogDecrementResult | DampedSineFit) -> dict[str, float | None]:
+    """One method's estimate as :meth:`IdentificationResult.to_dict` lists it."""
+    return {
+        "zeta": float(result.zeta),
+        "zeta_std": _json_float(result.zeta_std),
+        "omega_d": float(result.omega_d),
+        "omega_d_std": _json_float(result.omega_d_std),
+    }
 
 
 def identify(
@@ -816,14 +814,11 @@ def identify(
         if method == "fit":
             raise
         fit = None
-    if method == "fit":
-        assert fit is not None
-        zeta, zeta_std, omega_d, omega_d_std = fit.zeta, fit.zeta_std, fit.omega_d, fit.omega_d_std
-    elif method == "logdec":
-        zeta, zeta_std = logdec.zeta, logdec.zeta_std
-        omega_d, omega_d_std = logdec.omega_d, logdec.omega_d_std
-    else:
-        zeta, zeta_std = logdec.zeta, logdec.zeta_std
+    chosen = fit if method == "fit" else logdec  # the FFT gives no damping: the log decrement's
+    assert chosen is not None
+    zeta, zeta_std = chosen.zeta, chosen.zeta_std
+    omega_d, omega_d_std = chosen.omega_d, chosen.omega_d_std
+    if method == "fft":
         omega_d, omega_d_std = fft.omega_d, math.nan
     return IdentificationResult(
         zeta=zeta,

@@ -458,21 +458,10 @@ def _catalogue_row(root: Path, csv_path: Path) -> dict[str, Any]:
         return value if isinstance(value, dict) else {}
 
     sc, counts, source = section("scenario"), section("counts"), section("source")
-    row.update(
-        source=source.get("kind"),
-        kind=sc.get("kind"),
-        system=sc.get("system"),
-        v_in_mm_s=sc.get("v_in_mm_s"),
-        x_f_mm=sc.get("x_f_mm"),
-        repetition=sc.get("repetition"),
-        status=meta.get("status"),
-        samples=counts.get("samples"),
-        dropped=counts.get("dropped"),
-        corrupted=counts.get("corrupted"),
-        overruns=counts.get("overruns"),
-        rate_hz=meta.get("rate_hz"),
-        started_utc=meta.get("started_utc"),
-    )
+    row.update({key: sc.get(key) for key in ("kind", "system", "v_in_mm_s", "x_f_mm", "repetition")})
+    row.update({key: counts.get(key) for key in ("samples", "dropped", "corrupted", "overruns")})
+    row.update({key: meta.get(key) for key in ("status", "rate_hz", "started_utc")})
+    row["source"] = source.get("kind")
     return row
 
 

@@ -43,11 +43,11 @@ from helpers.base.jsonfile import (
     DataFileError,
     MissingDataError,
     atomic_write,
-    check_versioned,
     read_json,
     write_json,
 )
 from helpers.paper.modes import omega_n_from_damped
+from helpers.research.versioned import check_versioned
 
 FORMAT = "continuum-arm-mode-map"
 """The ``format`` tag of a mode-map JSON file."""

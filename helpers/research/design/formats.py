@@ -31,11 +31,12 @@ from typing import Any
 
 import numpy as np
 
-from helpers.base.jsonfile import DataFileError, check_versioned, json_safe, read_json, write_json
+from helpers.base.jsonfile import DataFileError, json_safe, read_json, write_json
 from helpers.board.programmes import shaped_moves
 from helpers.paper.profiles import VelocityProfile, single_pulse
 from helpers.paper.shapers import SUM_TOLERANCE, Shaper
 from helpers.recordings.shaping import DESIGN_FORMAT, DESIGN_VERSION, SYSTEMS, shaper_to_dict
+from helpers.research.versioned import check_versioned
 
 PAPER_SYSTEMS = ("unshaped", "zv", "zvd")
 """The paper's three systems (Table I)."""
