@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from helpers.board import programmes
 from helpers.board.programmes import Dwell, Programme, Segment
-from helpers.paper import modes, profiles, shapers
+from helpers.paper import hardware, modes, profiles, shapers
 from helpers.paper import numbers as paper
 from helpers.paper.hardware import LIMITS, MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile
@@ -22,7 +22,7 @@ OMEGA_N = modes.omega_n_from_damped(paper.OMEGA_D, paper.ZETA)
 SYSTEMS = {"unshaped": None, "zv": ZV, "zvd": ZVD}
 
 
-def test_mm_per_step_from_spool_and_steps():
+def test_mm_per_step_from_spool_and_steps():  # paper-only: the paper's published spool and steps
     assert MM_PER_STEP == pytest.approx(math.pi * paper.SPOOL_DIAMETER_M * 1e3 / paper.STEPS_PER_REV)
     assert f"{MM_PER_STEP:.5f}" == "0.25525"
 
@@ -140,39 +140,81 @@ def test_bad_items_refused(bad):
         bad()
 
 
-@pytest.mark.parametrize(
-    ("items", "limit"),
-    [
-        ((Segment(1, 10, LIMITS.min_interval_us - 1),), "interval"),
-        ((Segment(1, 1, LIMITS.max_interval_us + 1),), "interval"),
-        ((Segment(1, LIMITS.max_position_steps + 1, 1000),), "travel"),
-        ((Segment(1, 5, 1000), Segment(-1, 6, 1000)), "travel"),
-        ((Dwell(LIMITS.max_dwell_ms + 1),), "dwell"),
-        (tuple(Dwell(1) for _ in range(LIMITS.max_items + 1)), "programme length"),
-        ((), "programme length"),
-    ],
-)
-def test_limits_refused_with_named_limit(items, limit):
+def test_host_limits_follow_the_rig_file(shipped_rig):  # rig-parametrised (tests/conftest.py)
+    r = shipped_rig
+    assert hardware.RIG.hash == r.hash
+    assert MM_PER_STEP == pytest.approx(r.mm_per_step, rel=1e-12)
+    assert (LIMITS.min_interval_us, LIMITS.max_interval_us) == (r.min_interval_us, r.hw("max_interval_us"))
+    assert (LIMITS.max_position_steps, LIMITS.max_items) == (r.travel_steps, r.hw("programme_max_items"))
+    assert (LIMITS.max_dwell_ms, LIMITS.max_speed_mm_s) == (r.hw("max_dwell_ms"), r.hw("speed_limit_mm_s"))
+    assert hardware.MAX_PULSE_MM == pytest.approx(r.travel_steps * r.mm_per_step, rel=1e-12)
+    assert (hardware.CLIP_LOW_COUNTS, hardware.CLIP_HIGH_COUNTS) == r.clip_counts
+    rates = (hardware.DAQ_RATE_MIN_HZ, hardware.DAQ_RATE_MAX_HZ)
+    assert rates == (r.hw("daq_rate_min_hz"), r.hw("daq_rate_max_hz"))
+    # the fastest step never exceeds the speed limit or the step-rate cap, and one microsecond less would
+    assert r.mm_per_step / r.min_interval_us * 1e6 <= r.hw("speed_limit_mm_s") + 1e-9
+    assert 1e6 / r.min_interval_us <= r.hw("step_rate_cap_hz")
+    assert (r.mm_per_step / (r.min_interval_us - 1) * 1e6 > r.hw("speed_limit_mm_s")
+            or 1e6 / (r.min_interval_us - 1) > r.hw("step_rate_cap_hz"))  # fmt: skip
+    assert r.travel_steps * r.mm_per_step <= r.hw("travel_mm") < (r.travel_steps + 1) * r.mm_per_step
+
+
+LIMIT_CASES = {
+    "too fast": (lambda r: (Segment(1, 10, r.min_interval_us - 1),), "interval"),
+    "too slow": (lambda r: (Segment(1, 1, r.hw("max_interval_us") + 1),), "interval"),
+    "beyond the travel": (lambda r: (Segment(1, r.travel_steps + 1, 1000),), "travel"),
+    "below zero": (lambda r: (Segment(1, 5, 1000), Segment(-1, 6, 1000)), "travel"),
+    "long dwell": (lambda r: (Dwell(r.hw("max_dwell_ms") + 1),), "dwell"),
+    "too many items": (
+        lambda r: tuple(Dwell(1) for _ in range(r.hw("programme_max_items") + 1)),
+        "programme length",
+    ),
+    "empty": (lambda r: (), "programme length"),
+}
+
+
+@pytest.mark.parametrize("case", list(LIMIT_CASES))
+def test_limits_refused_with_named_limit(shipped_rig, case):  # rig-parametrised
+    items, limit = LIMIT_CASES[case]
     with pytest.raises(ValueError, match=limit):
-        Programme(items).check_limits()
+        Programme(items(shipped_rig)).check_limits()
 
 
-def test_limits_accept_the_extremes():
+def test_limits_accept_the_extremes(shipped_rig):  # rig-parametrised
+    r = shipped_rig
     Programme(
-        (Segment(1, LIMITS.max_position_steps, LIMITS.min_interval_us), Dwell(LIMITS.max_dwell_ms),
-         Segment(-1, LIMITS.max_position_steps, LIMITS.max_interval_us))
-        + tuple(Dwell(0) for _ in range(LIMITS.max_items - 3))
-    ).check_limits()
-    assert MM_PER_STEP / LIMITS.min_interval_us * 1e6 <= LIMITS.max_speed_mm_s
-    assert 1e6 / LIMITS.min_interval_us <= LIMITS.max_step_rate_hz
-    assert LIMITS.max_position_steps * MM_PER_STEP <= 40.0
+        (Segment(1, r.travel_steps, r.min_interval_us), Dwell(r.hw("max_dwell_ms")),
+         Segment(-1, r.travel_steps, r.hw("max_interval_us")))
+        + tuple(Dwell(0) for _ in range(r.hw("programme_max_items") - 3))
+    ).check_limits()  # fmt: skip
 
 
-def test_travel_checked_from_start_position():
+def test_travel_checked_from_start_position(shipped_rig):  # rig-parametrised
     prog = Programme((Segment(1, 10, 1000),))
-    prog.check_limits(start_position=LIMITS.max_position_steps - 10)
+    prog.check_limits(start_position=shipped_rig.travel_steps - 10)
     with pytest.raises(ValueError, match="travel"):
-        prog.check_limits(start_position=LIMITS.max_position_steps - 9)
+        prog.check_limits(start_position=shipped_rig.travel_steps - 9)
+
+
+def test_the_quantiser_lands_on_whole_steps_of_the_rig(shipped_rig):  # rig-parametrised
+    r = shipped_rig
+    moves = ((100.0, 10.0, ZV), (r.fastest_mm_s, r.longest_mm, None), (50.0, 0.6 * r.mm_per_step, None))
+    for v, x, shaper in moves:
+        prog, rep = programmes.experiment_programme(v, x, shaper)
+        n = round(x / r.mm_per_step)
+        assert rep.n_steps == n and rep.realised_mm == pytest.approx(n * r.mm_per_step, rel=1e-12)
+        t, signs = prog.step_times()
+        pos = np.cumsum(signs.astype(int))
+        assert pos.max() == n <= r.travel_steps and pos[-1] == 0
+        assert min(it.interval_us for it in prog.items if isinstance(it, Segment)) >= r.min_interval_us
+
+
+def test_a_request_faster_than_the_rig_is_refused(shipped_rig):  # rig-parametrised
+    r = shipped_rig
+    with pytest.raises(ValueError, match=f"interval limit.*{r.min_interval_us} us"):
+        programmes.experiment_programme(r.hw("speed_limit_mm_s") + 1.0, 5.0)
+    with pytest.raises(ValueError, match="travel"):
+        programmes.experiment_programme(50.0, r.longest_mm + r.mm_per_step)
 
 
 def test_to_dict_round_trip_through_json():
@@ -250,7 +292,7 @@ def test_zero_velocity_pieces_become_dwells():
     assert prog.items[2].ms == round((ZV.times[1] - 0.05) * 1e3)
 
 
-def test_experiment_refuses_out_of_limits():
+def test_experiment_refuses_out_of_limits():  # paper-only: the paper rig's 400 mm/s and 40 mm
     with pytest.raises(ValueError, match="interval"):
         programmes.experiment_programme(450.0, 20.0)
     with pytest.raises(ValueError, match="travel"):
@@ -259,7 +301,7 @@ def test_experiment_refuses_out_of_limits():
         programmes.experiment_programme(200.0, 20.0, ZVD, t_end=8.2)
 
 
-def test_near_limit_speed_stays_within_step_rate():
+def test_near_limit_speed_stays_within_step_rate():  # paper-only: its 639 us step
     # 12 steps rounded up from 11.6 in 7.6 ms would need 637 us steps: the board's 639 us is used instead
     prog, rep = programmes.experiment_programme(387.8, 2.96, None)
     prog.check_limits()

@@ -33,6 +33,19 @@ def test_clip_limits_follow_the_rigs_adc_chain():
     assert metrics.clipped_samples(adc).tolist() == [True, True, False, False]  # the host's (paper's) chain
 
 
+def test_the_sensor_range_is_the_rigs(rig_file, shipped_rig):  # rig-parametrised (both fixtures)
+    # a recording's rig (an argument, in this process) and the host's rig (the rig the process runs)
+    low, high = rig_file.clip_counts
+    rig = rigfile.load(rig_file.path)
+    assert metrics.clip_limits(None, rig) == (float(low), float(high))
+    assert metrics.clip_limits() == tuple(float(c) for c in shipped_rig.clip_counts)
+    adc = np.array([low, low + 1, high - 1, high])
+    assert metrics.clipped_samples(adc, None, rig).tolist() == [True, False, False, True]
+    # a recording's calibration with another zero reading: only the ADC's rails bound the range
+    other_chain = {"offset_counts": rig_file.counts(rig_file.hw("loop_zero_ma")) + 50.0}
+    assert metrics.clip_limits(other_chain, rig) == (0.0, float(rig_file.adc_max))
+
+
 def _rec(name: str, rig: rigfile.RigFile | None) -> SimpleNamespace:
     t = np.arange(0.0, 2.0, 0.001)
     frame = pd.DataFrame({"t_s": t, "steps": np.zeros_like(t), "tension_n": np.full_like(t, 2.0),

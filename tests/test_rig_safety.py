@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import warnings
 
 import pytest
@@ -24,54 +25,83 @@ def spied():
     assert len(world.daq.received) == n_daq and len(world.stepper.received) == n_stepper
 
 
-BAD_PULSES = [
-    (401.0, 10.0, "exceeds the limit of 400 mm/s"),  # speed
-    (200.0, 40.5, "travel limit of 40 mm"),  # travel
-    (math.nan, 10.0, "finite"),
-    (200.0, math.inf, "finite"),
-    (-100.0, 10.0, "> 0"),
-    (200.0, -5.0, "> 0"),
-    (0.0, 10.0, "> 0"),
-    (200.0, 0.05, "half a step"),
-    ("fast", 10.0, "number"),
-]
+def _speed(r):
+    return r.hw("speed_limit_mm_s")
 
 
-@pytest.mark.parametrize("v, x, message", BAD_PULSES)
-def test_bad_pulse_requests_are_refused_before_sending(spied, v, x, message, tmp_path):
-    with pytest.raises(SafetyError, match=message):
+BAD_PULSES = {  # (v, x) and the message, each from the rig's own keys
+    "speed": (lambda r: (_speed(r) + 1.0, 5.0), lambda r: f"exceeds the limit of {_speed(r):.0f} mm/s"),
+    "travel": (
+        lambda r: (50.0, r.hw("travel_mm") + 0.5),
+        lambda r: f"travel limit of {r.hw('travel_mm'):.0f} mm",
+    ),
+    "travel in steps": (
+        lambda r: (50.0, (r.travel_steps + 0.6) * r.mm_per_step),
+        lambda r: f"beyond the travel of {r.travel_steps} steps",
+    ),
+    "nan speed": (lambda r: (math.nan, 5.0), lambda r: "finite"),
+    "infinite distance": (lambda r: (100.0, math.inf), lambda r: "finite"),
+    "negative speed": (lambda r: (-100.0, 5.0), lambda r: "> 0"),
+    "negative distance": (lambda r: (100.0, -5.0), lambda r: "> 0"),
+    "zero speed": (lambda r: (0.0, 5.0), lambda r: "> 0"),
+    "half a step": (lambda r: (100.0, 0.4 * r.mm_per_step), lambda r: "half a step"),
+    "not a number": (lambda r: ("fast", 5.0), lambda r: "number"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_PULSES))
+# rig-parametrised (tests/conftest.py)
+def test_bad_pulse_requests_are_refused_before_sending(spied, shipped_rig, case, tmp_path):
+    request, message = BAD_PULSES[case]
+    v, x = request(shipped_rig)
+    with pytest.raises(SafetyError, match=re.escape(message(shipped_rig))):
         spied.run_pulse(v, x, path=tmp_path / "never", progress=False)
     assert not (tmp_path / "never.csv").exists()
 
 
-def test_check_request_accepts_the_paper_conditions():
-    for v, x in [(100, 10), (200, 10), (200, 20), (200, 30), (300, 20)]:
+def test_check_request_accepts_the_rigs_scenarios(shipped_rig):  # rig-parametrised
+    r = shipped_rig
+    paper_sets = [(100, 10), (200, 10), (200, 20), (200, 30), (300, 20)]
+    for v, x in r.scaled(paper_sets) + [(r.fastest_mm_s, r.longest_mm)]:
         assert check_request(v, x) == (float(v), float(x))
 
 
-BAD_PROGRAMMES = [
-    (Programme((Segment(1, 157, 1000),)), "travel limit"),  # beyond 40 mm
-    (Programme((Segment(-1, 1, 1000),)), "travel limit"),  # below zero
-    (Programme((Segment(1, 10, 638),)), "interval limit"),  # 400.0 mm/s: above the speed limit
-    (Programme((Segment(1, 10, 499),)), "interval limit"),  # > 2000 steps/s
-    (Programme((Segment(1, 10, 1_000_001),)), "interval limit"),
-    (Programme(tuple(Dwell(1) for _ in range(65))), "programme length"),  # too many items
-    (Programme(()), "programme length"),  # empty
-    (Programme((Dwell(60_001),)), "dwell limit"),
-    (Programme(tuple(Dwell(60_000) for _ in range(11))), "host's limit"),  # 11 minutes
-]
+def _longer_than_the_host_allows(r):
+    n = math.floor(r.hw("max_programme_s") * 1e3 / r.hw("max_dwell_ms")) + 1
+    return tuple(Dwell(r.hw("max_dwell_ms")) for _ in range(n))
 
 
-@pytest.mark.parametrize("programme, message", BAD_PROGRAMMES)
-def test_bad_programmes_are_refused_before_sending(spied, programme, message, tmp_path):
+BAD_PROGRAMMES = {  # the items and the limit named, each from the rig's own keys
+    "beyond the travel": (lambda r: (Segment(1, r.travel_steps + 1, 1000),), "travel limit"),
+    "below zero": (lambda r: (Segment(-1, 1, 1000),), "travel limit"),
+    "above the speed limit": (lambda r: (Segment(1, 10, r.min_interval_us - 1),), "interval limit"),
+    "above the step-rate cap": (
+        lambda r: (Segment(1, 10, math.ceil(1e6 / r.hw("step_rate_cap_hz")) - 1),),
+        "interval limit",
+    ),
+    "too slow": (lambda r: (Segment(1, 10, r.hw("max_interval_us") + 1),), "interval limit"),
+    "too many items": (
+        lambda r: tuple(Dwell(1) for _ in range(r.hw("programme_max_items") + 1)),
+        "programme length",
+    ),
+    "empty": (lambda r: (), "programme length"),
+    "long dwell": (lambda r: (Dwell(r.hw("max_dwell_ms") + 1),), "dwell limit"),
+    "longer than the host allows": (_longer_than_the_host_allows, "host's limit"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_PROGRAMMES))
+def test_bad_programmes_are_refused_before_sending(spied, shipped_rig, case, tmp_path):  # rig-parametrised
+    items, message = BAD_PROGRAMMES[case]
     with pytest.raises(SafetyError, match=message):
-        spied.run(programme, path=tmp_path / "never", progress=False)
+        spied.run(Programme(items(shipped_rig)), path=tmp_path / "never", progress=False)
 
 
-@pytest.mark.parametrize("rate", [99, 2001, 1000.0, True])
-def test_bad_sample_rates_are_refused_before_sending(spied, rate, tmp_path):
-    with pytest.raises(SafetyError, match="rate"):
-        spied.run(Programme((Dwell(10),)), rate_hz=rate, path=tmp_path / "never", progress=False)
+def test_bad_sample_rates_are_refused_before_sending(spied, shipped_rig, tmp_path):  # rig-parametrised
+    low, high = shipped_rig.hw("daq_rate_min_hz"), shipped_rig.hw("daq_rate_max_hz")
+    for rate in (low - 1, high + 1, float(low), True):
+        with pytest.raises(SafetyError, match="rate"):
+            spied.run(Programme((Dwell(10),)), rate_hz=rate, path=tmp_path / "never", progress=False)
 
 
 def test_not_a_programme(spied):

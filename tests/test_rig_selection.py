@@ -12,7 +12,6 @@ from rig_fakes import make_rig
 
 from helpers import recordings, rigfile
 from helpers.board.programmes import Dwell, Programme, Segment
-from helpers.paper import hardware
 from helpers.rigfile.option import take_rig_option
 
 _PROBE = (
@@ -87,20 +86,23 @@ def test_old_recordings_load_as_the_paper_rig():
     assert recordings.recording_rig(meta).hash == rigfile.default_rig().hash
 
 
-def test_a_recordings_rig_section_round_trips():
-    rig = rigfile.load(rigfile.RIGS_DIR / "long-arm.toml")
+def test_a_recordings_rig_section_round_trips(rig_file):  # rig-parametrised (tests/conftest.py)
+    rig = rigfile.load(rig_file.path)
     section = recordings.rig_section(rig)
     assert json.loads(json.dumps(section)) == section
     back = recordings.recording_rig({"rig": section})
-    assert (back.name, back.hash, rigfile.derived(back).min_interval_us) == ("long-arm", rig.hash, 524)
+    assert (back.name, back.hash) == (rig_file.data["name"], rig_file.hash)
+    assert back.text == rig_file.path.read_text()
+    assert rigfile.derived(back).min_interval_us == rig_file.min_interval_us
 
 
-def test_a_recording_from_the_virtual_rig_keeps_its_rig(tmp_path):
+def test_a_recording_from_the_virtual_rig_keeps_its_rig(tmp_path, shipped_rig):  # rig-parametrised
     rec = _run(tmp_path)
     assert rec.meta["schema_version"] == 2
-    assert rec.meta["rig"]["hash"] == hardware.RIG.hash
+    assert (rec.meta["rig"]["name"], rec.meta["rig"]["hash"]) == (shipped_rig.data["name"], shipped_rig.hash)
     loaded = recordings.load(rec.path)
-    assert recordings.recording_rig(loaded.meta).text == hardware.RIG.text
+    assert recordings.recording_rig(loaded.meta).text == shipped_rig.path.read_text()
+    assert loaded.meta["calibration"]["mm_per_step"] == pytest.approx(shipped_rig.mm_per_step, rel=1e-12)
 
 
 def test_a_tampered_rig_section_is_refused(tmp_path):

@@ -2,34 +2,15 @@
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
+import pytest
 
-from helpers import rigfile
 from helpers.paper import numbers as paper
 from helpers.paper import scenarios
 from helpers.research import survey, tune
+from rigs import SHIPPED, floor_to
 
 
-def _python(code: str, env_rig: str | None) -> subprocess.CompletedProcess:
-    env = dict(os.environ)
-    env.pop(rigfile.ENV_VAR, None)
-    if env_rig is not None:
-        env[rigfile.ENV_VAR] = env_rig
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
-
-
-_PROBE = (
-    "import json; from helpers.paper import scenarios as s; from helpers.research import survey, tune; "
-    "print(json.dumps({'table_i': s.table_i_conditions(), 'ident': s.identification_name(), "
-    "'survey': s.survey_positions(survey.POSITIONS_MM), 'wide': tune.rig_grid('wide'), "
-    "'notes': s.scaling_notes({'wide': tune.GRIDS['wide']}, survey.POSITIONS_MM)}))"
-)
-
-
-def test_the_paper_rig_keeps_the_paper_scenarios():
+def test_the_paper_rig_keeps_the_paper_scenarios():  # paper-only: the paper's published scenarios
     # in this process the selected rig is the paper's
     assert scenarios.table_i_conditions() == paper.TABLE_I_CONDITIONS
     assert scenarios.identification_name() == "pulse_v100_x10"
@@ -51,15 +32,29 @@ def test_the_rule_scales_a_whole_set_and_keeps_what_fits():
     )  # fmt: skip
 
 
-def test_scenarios_follow_the_selected_rig():
-    proc = _python(_PROBE, "long-arm")
-    assert proc.returncode == 0, proc.stderr
-    got = json.loads(proc.stdout)
-    # long-arm: 150 mm/s, 254 steps of 0.07854 mm (19.95 mm)
-    assert [tuple(c) for c in got["table_i"]] == [(100, 6.6), (100, 13.2), (100, 19.9), (150, 13.2)]
-    assert got["ident"] == "pulse_v100_x10"  # 100 mm/s, 10 mm fit: unscaled
-    assert got["survey"] == [0, 2.5, 5, 7.5, 10, 12.5, 15, 17.5, 20]
-    assert max(v for v, _ in got["wide"]) <= 150 and max(x for _, x in got["wide"]) <= 19.95
-    text = "\n".join(got["notes"])
-    assert "Table I: speeds 200, 300 -> 100, 150 mm/s; distances 10, 20, 30 -> 6.6, 13.2, 19.9 mm" in text
-    assert "survey positions" in text and "identification" not in text
+def test_scenarios_follow_the_selected_rig(shipped_rig):  # rig-parametrised (tests/conftest.py)
+    r = shipped_rig
+    assert scenarios.table_i_conditions() == tuple(r.scaled(list(paper.TABLE_I_CONDITIONS)))
+    assert all(v <= r.fastest_mm_s and x <= r.longest_mm for v, x in scenarios.table_i_conditions())
+    run = paper.IDENTIFICATION_RUN
+    ((v, x),) = r.scaled([(run["v_in_mm_s"], run["x_f_mm"])])
+    assert scenarios.identification_name() == f"pulse_v{v:g}_x{x:g}".replace(".", "p")
+    # the survey's positions: the paper's 0-40 mm every 5, spread over a shorter travel in as many steps
+    n = len(survey.POSITIONS_MM) - 1
+    top = min(r.hw("travel_mm"), max(survey.POSITIONS_MM))
+    expected = tuple(floor_to(top * k / n, 0.1) for k in range(n + 1))
+    assert scenarios.survey_positions(survey.POSITIONS_MM) == pytest.approx(expected, abs=1e-9)
+    wide = tune.rig_grid("wide")
+    assert list(wide) == r.scaled(list(tune.GRIDS["wide"]))
+    notes = "\n".join(scenarios.scaling_notes({"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM))
+    fits = scenarios.table_i_conditions() == paper.TABLE_I_CONDITIONS
+    assert ("Table I:" in notes) == (not fits)  # a scaled set is said, an unscaled one is not
+    if not fits:
+        speeds = ", ".join(f"{v:g}" for v in sorted({v for v, _ in scenarios.table_i_conditions()}))
+        assert f"-> {speeds} mm/s" in notes
+
+
+def test_the_second_rigs_scaled_scenarios_are_the_documented_ones():  # the table in docs/rig_file.md
+    r = SHIPPED["long-arm"]
+    assert r.scaled(list(paper.TABLE_I_CONDITIONS)) == [(100, 6.6), (100, 13.2), (100, 19.9), (150, 13.2)]
+    assert r.scaled([(100.0, 10.0)]) == [(100.0, 10.0)]  # the identification run fits: unscaled

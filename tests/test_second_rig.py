@@ -12,14 +12,20 @@ import pytest
 
 from helpers import rigfile
 from helpers.base.paths import DATA_DIR
-from helpers.rig.loadcell import PAPER_MASSES_KG, calibration_masses_kg
+from helpers.rig.loadcell import CALIBRATION_MASSES_KG, PAPER_MASSES_KG, calibration_masses_kg
 
 
-def test_calibration_masses_follow_the_load_cell():
+def test_calibration_masses_follow_the_load_cell(shipped_rig):  # rig-parametrised (tests/conftest.py)
     assert calibration_masses_kg(20.0) == PAPER_MASSES_KG == (0.0, 0.2, 0.5, 1.0, 1.5, 1.9)
     assert calibration_masses_kg(10.0) == (0.0, 0.1, 0.25, 0.5, 0.75, 0.95)
-    range_n = rigfile.load(rigfile.RIGS_DIR / "long-arm.toml").hardware.load_cell_range_n
-    assert max(calibration_masses_kg(range_n)) * 9.80665 < range_n
+    # the host's masses (record calibration) are its rig's: within the load cell's range, below saturation
+    assert CALIBRATION_MASSES_KG == shipped_rig.calibration_masses_kg
+    range_n = shipped_rig.hw("load_cell_range_n")
+    assert max(CALIBRATION_MASSES_KG) * 9.80665 < range_n
+    top_counts = shipped_rig.counts(shipped_rig.hw("loop_zero_ma")) + max(CALIBRATION_MASSES_KG) * 9.80665 * (
+        shipped_rig.gain_counts_per_n
+    )
+    assert top_counts < shipped_rig.clip_counts[1]
 
 
 def _helpers(*argv: str, cwd, env) -> subprocess.CompletedProcess:

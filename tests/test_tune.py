@@ -1,7 +1,10 @@
 """``python -m helpers tune``: candidates, the choice, the report; end to end on the virtual rig (slow)."""
 
+import hashlib
 import json
 import shutil
+import tomllib
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -9,9 +12,11 @@ import pytest
 import helpers.base.paths
 from helpers.__main__ import main
 from helpers.base.paths import DATA_DIR
+from helpers.paper import hardware
 from helpers.paper.shapers import design_tdfs
 from helpers.research import tune
-from helpers.research.modemap import ModeMap
+from helpers.research.modemap import ModeMap, load_map, map_rig
+from helpers.rigfile import RIGS_DIR
 
 
 def summary(rows):
@@ -68,3 +73,37 @@ def test_tune_runs_end_to_end_on_the_virtual_rig(tmp_path, monkeypatch):
     assert report <= {p.name for p in tuning.iterdir()}
     assert not (tmp_path / "figures").exists()
     assert main(["tune", "--data-dir", str(tmp_path), "--quiet"]) == 5  # the map exists: refused, kept
+
+
+def _rig_of(path):
+    """(name, hash) of a rig file; the hash as docs/rig_file.md defines it (SHA-256 of the file, 8 digits)."""
+    text = Path(path).read_bytes()
+    return tomllib.loads(text.decode())["name"], hashlib.sha256(text).hexdigest()[:8]
+
+
+def test_reuse_map_refuses_a_map_of_another_rig_before_any_port_opens(tmp_path, capsys, monkeypatch):
+    for group, name in (("calibration", "calibration.json"), ("identification", "result.json")):
+        (tmp_path / group).mkdir()
+        shutil.copy(DATA_DIR / group / name, tmp_path / group / name)
+    monkeypatch.setattr(tune.Rig, "connect", lambda *a, **k: pytest.fail("a port was opened"))
+    this_name, this_hash = _rig_of(hardware.RIG.source)  # the rig this process runs
+    other = next(p for p in sorted(RIGS_DIR.glob("*.toml")) if _rig_of(p)[1] != this_hash)
+    other_name, other_hash = _rig_of(other)
+    source = {"kind": "virtual-rig", "method": "test", "rig": {"name": other_name, "hash": other_hash}}
+    (tmp_path / "tuning").mkdir()
+    ModeMap.constant(25.0, 0.04, (0.0, 40.0), source=source).save(tmp_path / "tuning" / "mode_map.json")
+    capsys.readouterr()
+    assert main(["tune", "--data-dir", str(tmp_path), "--reuse-map", "--quiet"]) == 5  # docs/faults.md
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert other_hash in err[0] and this_hash in err[0] and "mode_map.json" in err[0]
+    assert repr(other_name) in err[0] and repr(this_name) in err[0]
+
+
+def test_a_map_without_its_rig_is_the_paper_rigs_and_a_survey_map_names_its_rig():
+    legacy = ModeMap.constant(25.0, 0.04, (0.0, 40.0), source={"kind": "virtual-rig", "method": "test"})
+    assert map_rig(legacy) == _rig_of(RIGS_DIR / "paper.toml")
+    with pytest.raises(ValueError, match="source.rig"):
+        ModeMap.constant(25.0, 0.04, (0.0, 40.0), source={"kind": "hardware", "method": "m", "rig": "paper"})
+    stored = load_map(DATA_DIR / "tuning" / "mode_map.json")  # surveyed before rig files: the paper's
+    assert map_rig(stored)[0] == "paper"

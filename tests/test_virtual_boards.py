@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import serial
+from crc_reference import link_hex
 from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
 
 from helpers.board import stream_reference as hs
@@ -24,12 +25,14 @@ def talk(board, *commands, checksum=True):
     return msgs
 
 
-def test_hello_on_reset_and_pong_with_the_documented_checksum():
+def test_hello_on_reset_and_pong_with_the_documented_checksum(shipped_rig):  # rig-parametrised
+    version = f"2.2.0+{shipped_rig.hash}"  # the firmware version and the rig file's hash
     w = make_world()
-    assert w.daq.take_output() == frame("HELLO daq 2.2.0+481e87e3")
+    assert w.daq.take_output() == frame(f"HELLO daq {version}")
     w.daq.receive(b"PING*79\n")
-    assert w.daq.take_output() == b"PONG daq 2.2.0+481e87e3*5A\n"  # tests/crc_reference.py gives 5A
-    assert talk(w.stepper, "PING") == ["HELLO stepper 2.2.0+481e87e3", "PONG stepper 2.2.0+481e87e3"]
+    pong = f"PONG daq {version}"
+    assert w.daq.take_output() == f"{pong}*{link_hex(pong)}\n".encode()  # tests/crc_reference.py's CRC
+    assert talk(w.stepper, "PING") == [f"HELLO stepper {version}", f"PONG stepper {version}"]
 
 
 def test_daq_errors_and_limits():
@@ -84,26 +87,40 @@ def test_overruns_are_reported_never_skipped_silently():
     assert len(rows) + p.stats.overruns == 105
 
 
-def test_stepper_limits():
+def test_stepper_limits(shipped_rig):  # rig-parametrised: the limits from the rig file's keys
+    r = shipped_rig
+    fastest, slowest, travel = r.min_interval_us, r.hw("max_interval_us"), r.travel_steps
     s = make_world().stepper
     s.take_output()
-    assert talk(s, "SEG 1 10 638")[0].startswith("ERR RANGE")  # faster than 400 mm/s
-    assert talk(s, "SEG 1 10 1000001")[0].startswith("ERR RANGE")
+    assert talk(s, f"SEG 1 10 {fastest - 1}")[0].startswith("ERR RANGE")  # faster than the speed limit
+    assert talk(s, f"SEG 1 10 {slowest + 1}")[0].startswith("ERR RANGE")
     assert talk(s, "SEG 2 10 1000")[0].startswith("ERR RANGE")
     assert talk(s, "SEG 1 0 1000")[0].startswith("ERR RANGE")
-    assert talk(s, "WAIT 60001")[0].startswith("ERR RANGE")
+    assert talk(s, f"WAIT {r.hw('max_dwell_ms') + 1}")[0].startswith("ERR RANGE")
     assert talk(s, "WAIT -1")[0].startswith("ERR RANGE")
     assert talk(s, "SEG 1 10")[0].startswith("ERR ARG")
-    assert talk(s, "SEG 1 10 639") == ["OK SEG 1"]
+    assert talk(s, f"SEG 1 10 {fastest}") == ["OK SEG 1"]
     assert talk(s, "GO")[0].startswith("ERR STATE")  # driver disabled
     assert talk(s, "EN 2")[0].startswith("ERR RANGE")
-    assert talk(s, "EN 1", "SEG -1 11 1000", "GO")[-1].startswith("ERR RANGE")  # would leave 0..156
+    assert talk(s, "EN 1", "SEG -1 11 1000", "GO")[-1].startswith("ERR RANGE")  # would leave 0..travel
     talk(s, "CLEAR")
-    for i in range(64):
+    for i in range(r.hw("programme_max_items")):
         assert talk(s, "WAIT 1") == [f"OK WAIT {i + 1}"]
     assert talk(s, "WAIT 1")[0].startswith("ERR FULL")
-    assert talk(s, "CLEAR", "SEG 1 157 1000")[-1].startswith("ERR RANGE")
-    assert talk(s, "SEG 1 100 1000", "SEG 1 57 1000", "GO")[-1].startswith("ERR RANGE")  # 157 steps > 40 mm
+    assert talk(s, "CLEAR", f"SEG 1 {travel + 1} 1000")[-1].startswith("ERR RANGE")
+    assert talk(s, "SEG 1 100 1000", f"SEG 1 {travel - 99} 1000", "GO")[-1].startswith("ERR RANGE")
+    assert talk(s, "CLEAR", "SEG 1 100 1000", f"SEG 1 {travel - 100} {fastest}", "GO")[-1].startswith("OK GO")
+
+
+def test_config_replies_are_the_rigs_limits(shipped_rig):  # rig-parametrised
+    r = shipped_rig
+    w = make_world()
+    w.stepper.take_output(), w.daq.take_output()
+    limits = (r.hw("programme_max_items"), r.min_interval_us, r.hw("max_interval_us"), r.travel_steps)
+    assert talk(w.stepper, "CONFIG") == ["OK CONFIG 1 {} {} {} {}".format(*limits)]  # one axis
+    assert talk(w.daq, "CONFIG") == [f"OK CONFIG 1 1 {r.hw('daq_rate_min_hz')} {r.hw('daq_rate_max_hz')}"]
+    assert talk(w.daq, f"RATE {r.hw('daq_rate_max_hz') + 1}")[0].startswith("ERR RANGE")
+    assert talk(w.daq, f"RATE {r.hw('daq_rate_min_hz')}") == [f"OK RATE {r.hw('daq_rate_min_hz')}"]
 
 
 def test_programme_runs_in_device_time_and_the_daq_counts_its_steps():
@@ -271,7 +288,7 @@ def test_mseg_spreads_its_steps_over_the_window_on_the_firmware_ticks():
     w = make_world()
     s = w.stepper
     s.take_output()
-    assert talk(s, "CONFIG") == ["OK CONFIG 1 64 639 1000000 156"]
+    assert talk(s, "CONFIG")[0].startswith("OK CONFIG 1 ")  # the rig's limits: test_config_replies_...
     assert talk(s, "MSEG 7001 3", "MSEG 2000 -1", "EN 1", "GO")[-1] == "OK GO 2"
     go = w.go_times[-1]
     times, signs = s.steps_until(go + 1.0)
@@ -279,4 +296,3 @@ def test_mseg_spreads_its_steps_over_the_window_on_the_firmware_ticks():
     # (7001 us / 3 = 2333.67 us -> 2334.0; 4667.33 -> 4667.5; the window's end; then 7001 + 2000)
     np.testing.assert_allclose((times - go) * 1e6, [2334.0, 4667.5, 7001.0, 9001.0], atol=1e-3)
     assert list(signs) == [1, 1, 1, -1]
-    assert talk(w.daq, "CONFIG")[-1] == "OK CONFIG 1 1 100 2000"

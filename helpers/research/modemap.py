@@ -6,7 +6,8 @@ mode's damped frequency ``omega_d`` (rad/s) and damping ratio ``zeta`` with thei
 optionally a second mode (``omega_d2``, ``zeta2``) with its **share** ``share2`` of the residual vibration:
 the fraction of the unshaped residual amplitude that the second mode carries (the dominant mode carries
 ``1 - share2``). How the map was obtained travels with it (:attr:`ModeMap.source`: ``kind`` is
-``"virtual-rig"`` or ``"hardware"``, ``method`` says how it was measured or predicted).
+``"virtual-rig"`` or ``"hardware"``, ``method`` says how it was measured or predicted, ``rig`` the rig file's
+``name`` and ``hash``: a map without it was made before rig files, on the paper's rig).
 
 Between measured positions every column is interpolated with a monotone cubic (``scipy``'s PCHIP: no
 overshoot, so interpolated standard errors and shares stay within their neighbours). Outside the measured
@@ -39,6 +40,7 @@ import numpy as np
 import pandas as pd
 from scipy.interpolate import PchipInterpolator
 
+from helpers import rigfile
 from helpers.base.jsonfile import (
     DataFileError,
     MissingDataError,
@@ -547,7 +549,35 @@ def _check_source(source: Any) -> dict[str, Any]:
     method = source.get("method")
     if not isinstance(method, str) or not method.strip():
         raise ValueError("mode map: source.method must say how the map was obtained (a non-empty text)")
+    if "rig" in source:
+        rig = source["rig"]
+        if not (isinstance(rig, Mapping) and all(isinstance(rig.get(k), str) for k in ("name", "hash"))):
+            raise ValueError(f"mode map: source.rig must hold the rig's name and hash, got {rig!r}")
     return dict(source)
+
+
+def map_rig(mode_map: ModeMap) -> tuple[str, str]:
+    """The rig a map was measured on, ``(name, hash)``: ``source["rig"]``, else the paper's rig.
+
+    A map without ``source["rig"]`` was made before rig files, on the paper's rig (as recordings of schema
+    version 1 are).
+    """
+    rig = mode_map.source.get("rig")
+    if rig is None:
+        paper = rigfile.default_rig()
+        return paper.name, paper.hash
+    return str(rig["name"]), str(rig["hash"])
+
+
+def refuse_map_of_other_rig(mode_map: ModeMap, rig: rigfile.RigFile, path: str | os.PathLike) -> None:
+    """Refuse (``DataFileError``, one line naming both rigs' hashes) a map measured on another rig."""
+    name, rig_hash = map_rig(mode_map)
+    if rig_hash != rig.hash:
+        raise DataFileError(
+            f"{path}: mode map measured on rig {name!r} (hash {rig_hash}), not on the selected rig "
+            f"{rig.name!r} (hash {rig.hash}); survey this rig (tune without --reuse-map, with --replace) or "
+            f"select the map's rig file with --rig"
+        )
 
 
 def load_map(path: str | os.PathLike) -> ModeMap:

@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 
 from helpers.board.programmes import Dwell, Programme, Segment
-from helpers.paper.hardware import MAX_TRAVEL_MM, MM_PER_STEP
+from helpers.paper.hardware import MAX_TRAVEL_MM, MM_PER_STEP, RIG
 from helpers.recordings import Recording
 from helpers.research.modemap import ModeMap
 from helpers.research.ringdown import fit_two_modes
@@ -287,5 +287,5 @@ def survey(
     kind = (rig.source or {}).get("kind", "hardware")
     source = {"kind": kind, "method": "survey: kick and ring-down at each position, two-mode fit",
               "kick_mm": KICK_MM, "window_s": list(WINDOW_S), "repetitions": repetitions,
-              "recordings": str(folder.name)}  # fmt: skip
+              "recordings": str(folder.name), "rig": {"name": RIG.name, "hash": RIG.hash}}  # fmt: skip
     return map_from_rows(table, source), table

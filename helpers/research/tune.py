@@ -53,7 +53,7 @@ from helpers.paper.shapers import design_tdfs
 from helpers.paper.tension import load_calibration
 from helpers.recordings import RecordingExists
 from helpers.research import design, residuals
-from helpers.research.modemap import ModeMap, load_map
+from helpers.research.modemap import ModeMap, load_map, refuse_map_of_other_rig
 from helpers.research.survey import POSITIONS_MM, survey
 from helpers.rig import Rig
 from helpers.rigfile.recorded import refuse_other_rig
@@ -448,6 +448,9 @@ def run(args: argparse.Namespace) -> int:
     if rest.recording and rest_run.exists():  # the mode at rest must be this rig's
         refuse_other_rig(recordings.load(rest_run, derive=False).meta, hardware.RIG, rest_run, what="tune on")
     calibration = load_calibration(args.data_dir / "calibration" / "calibration.json")
+    reused = load_map(map_path) if args.reuse_map else None
+    if reused is not None:  # before any port is opened: the map must be this rig's
+        refuse_map_of_other_rig(reused, hardware.RIG, repo_path(map_path))
     say = (lambda _line: None) if args.quiet else (lambda line: print(line, file=sys.stderr))
     with contextlib.ExitStack() as stack:
         stack.enter_context(folder_lock(tuning, what="tuning", name=".tuning.lock"))
@@ -458,8 +461,8 @@ def run(args: argparse.Namespace) -> int:
             raise RecordingExists(
                 f"{repo_path(map_path)} exists; pass --replace to survey again, or --reuse-map"
             )
-        if args.reuse_map:
-            mode_map = load_map(map_path)
+        if reused is not None:
+            mode_map = reused
             say(f"mode map from {repo_path(map_path)} ({len(mode_map)} positions)")
         else:
             say(f"survey: {len(positions)} positions x {args.survey_repetitions} on {rig.source['kind']}")
