@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from helpers import rigfile
 from helpers.rigfile.units import si
 
-RIG: rigfile.RigFile = rigfile.selected()
+RIG: rigfile.RigFile = rigfile.in_use()
 """The rig file these constants come from (checked; its ``hash`` identifies it)."""
 _HW = RIG.hardware
 _DERIVED = rigfile.derived(RIG)

@@ -19,7 +19,8 @@ from helpers.rigfile.schema import MAX_TENDONS, RIG_SCHEMA_VERSION
 __all__ = [
     "RigFile", "RigFileError", "Tendon", "Hardware", "Arm", "Boards", "Derived", "load", "loads", "rig_hash",
     "derived", "check", "hold_tension_n", "loop_counts", "MAX_TENDONS", "RIG_SCHEMA_VERSION", "RIGS_DIR",
-    "DEFAULT_RIG", "ENV_VAR", "resolve", "selected_path", "selected", "default_rig", "shipped", "use",
+    "DEFAULT_RIG", "ENV_VAR", "resolve", "selected_path", "selected", "in_use", "default_rig", "shipped",
+    "use",
 ]  # fmt: skip
 
 RIGS_DIR: Path = Path(__file__).resolve().parents[2] / "rigs"
@@ -65,6 +66,20 @@ def selected() -> RigFile:
     return _load_cached(selected_path())
 
 
+_IN_USE: list[RigFile] = []  # the rig the host's constants were read from, once read
+
+
+def in_use() -> RigFile:
+    """The rig this process runs: :func:`selected` the first time, the same rig ever after.
+
+    ``helpers.paper.hardware`` reads its constants through this on import; from then on :func:`use` refuses
+    another rig, since the constants already loaded would not follow it.
+    """
+    if not _IN_USE:
+        _IN_USE.append(selected())
+    return _IN_USE[0]
+
+
 def default_rig() -> RigFile:
     """The paper's rig (``rigs/paper.toml``)."""
     return _load_cached(DEFAULT_RIG)
@@ -78,9 +93,17 @@ def shipped() -> dict[str, Path]:
 def use(name_or_path: str | os.PathLike[str]) -> RigFile:
     """Select a rig for this process and the processes it starts: check it, then set ``$HELPERS_RIG``.
 
-    Call before the modules that read the rig load (``helpers.paper.hardware`` reads it once, on import).
+    Call before the modules that read the rig load (``helpers.paper.hardware`` reads it once, on import, via
+    :func:`in_use`); once they have, naming another rig raises :class:`RigFileError` (restart the process, or
+    the notebook's kernel, with the new rig).
     """
     path = resolve(name_or_path)
     rig = load(path)
+    if _IN_USE and _IN_USE[0].hash != rig.hash:
+        running = _IN_USE[0]
+        raise RigFileError(
+            f"{path}: this process already runs rig {running.name!r} (hash {running.hash}), read when "
+            f"helpers loaded; restart it (a notebook: restart the kernel) with the new rig selected first"
+        )
     os.environ[ENV_VAR] = str(path.resolve())
     return rig
