@@ -3,6 +3,8 @@ pass it to the command lines they run; a kernel that already runs one rig refuse
 
 from __future__ import annotations
 
+import ast
+import importlib.util
 import json
 import math
 import os
@@ -55,16 +57,38 @@ def test_the_parameters_cell_names_the_rig_and_the_next_cell_selects_it(path: Pa
     assert not any(USE_LINE in s for s in after[1:]), "the rig is selected twice"
 
 
-@pytest.mark.parametrize("path", LIVE_NOTEBOOKS, ids=lambda p: p.name[:2])
-def test_nothing_reads_the_rig_before_the_notebook_selects_it(path: Path) -> None:
-    # run the cells before the selection, and the parameters cell, as a kernel would (a fresh process):
-    # the host's constants (helpers.paper.hardware) must not have been read yet
-    before, params, _ = _parts(path)
-    code = "\n".join([*before, params, "import sys", "print('helpers.paper.hardware' in sys.modules)"])
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=path.parent,
-                         env={**os.environ, "MPLBACKEND": "Agg"}, timeout=120)  # fmt: skip
+def _helpers_imports(code: str) -> set[str]:
+    mods = set()
+    for node in ast.walk(ast.parse(code)):
+        if isinstance(node, ast.Import):
+            mods |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            mods |= {node.module} | {f"{node.module}.{a.name}" for a in node.names}
+    return {m for m in mods if m.split(".")[0] == "helpers"}
+
+
+def test_nothing_reads_the_rig_before_the_notebooks_select_it() -> None:
+    # everything of helpers the cells before the selection import, imported in a fresh process as a kernel
+    # would: the host's constants (helpers.paper.hardware) must not have been read yet
+    imported: set[str] = set()
+    for path in LIVE_NOTEBOOKS:
+        before, params, _ = _parts(path)
+        imported |= _helpers_imports("\n".join([*before, params]))
+    assert "helpers.rigfile" in imported
+    code = "import importlib, sys\n"
+    code += "".join(f"importlib.import_module({m!r})\n" for m in sorted(imported) if _is_module(m))
+    code += "print('helpers.paper.hardware' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip().splitlines()[-1] == "False"
+    assert out.stdout.strip() == "False"
+
+
+def _is_module(name: str) -> bool:
+    # "helpers.base.paths.DATA_DIR" (a name imported from a module) is not a module
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ModuleNotFoundError:
+        return False
 
 
 @pytest.mark.parametrize("path", LIVE_NOTEBOOKS, ids=lambda p: p.name[:2])
