@@ -210,6 +210,7 @@ def test_a_second_client_on_the_same_ports_gets_port_busy(server, data_dir):
         first.close()
 
 
+@pytest.mark.slow  # a disconnect mid-run in-process: tests/test_faults.py (default suite)
 def test_a_server_killed_mid_run_is_reported_and_the_data_kept(own_server, data_dir):
     server = own_server
     proc = _record(data_dir, server.ports, quiet=False)

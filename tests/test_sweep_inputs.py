@@ -98,6 +98,7 @@ def test_an_output_in_use_is_refused(tmp_path, capsys):
     assert not (tmp_path / "d.nc.parts").exists()
 
 
+@pytest.mark.slow  # resuming over undamaged chunks: tests/test_sweep.py (default suite)
 def test_damaged_and_foreign_chunks_are_named_and_computed_again(tmp_path):
     d = SweepDefinition(name="c", shapers=("unshaped", "zv"), chunk_runs=1, run=SHORT_RUN)
     first, _ = run_sweep(d, tmp_path / "c.nc", serial=True, progress=False, keep_parts=True)

@@ -555,6 +555,7 @@ def test_eyelet_friction_only_dissipates():
     assert np.max(np.diff(e)) < 1e-6 * e[0]
 
 
+@pytest.mark.slow  # a sensitivity study of the assumed motor (docs/virtual_rig.md)
 def test_a_weaker_motor_on_the_same_cable_loses_steps_where_the_assumed_one_holds():
     """The actuator assumption that matters (docs/virtual_rig.md): the paper's 4.3 kg cm cannot hold the
     unshaped 300 mm/s pulse, whose peak tension passes the motor's pull-out; the assumed 1.5x holds it."""
