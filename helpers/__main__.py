@@ -23,8 +23,7 @@ from pathlib import Path
 # in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
 from helpers.base.paths import shown
 from helpers.base.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
-from helpers.rigfile import use  # standard library only, like the line above
-from helpers.rigfile.option import take_rig_option
+from helpers.rigfile.option import take_rig_option, use  # standard library only, like the line above
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": (

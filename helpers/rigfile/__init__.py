@@ -19,7 +19,7 @@ from helpers.rigfile.schema import MAX_TENDONS, RIG_SCHEMA_VERSION
 __all__ = [
     "RigFile", "RigFileError", "Tendon", "Hardware", "Arm", "Boards", "Derived", "load", "loads", "rig_hash",
     "derived", "check", "hold_tension_n", "loop_counts", "MAX_TENDONS", "RIG_SCHEMA_VERSION", "RIGS_DIR",
-    "DEFAULT_RIG", "ENV_VAR", "resolve", "selected_path", "selected", "default_rig", "shipped", "use",
+    "DEFAULT_RIG", "ENV_VAR", "resolve", "selected_path", "selected", "default_rig", "shipped",
 ]  # fmt: skip
 
 RIGS_DIR: Path = Path(__file__).resolve().parents[2] / "rigs"
@@ -73,14 +73,3 @@ def default_rig() -> RigFile:
 def shipped() -> dict[str, Path]:
     """The rig files shipped in ``rigs/``: name -> path."""
     return {p.stem: p for p in sorted(RIGS_DIR.glob("*.toml"))}
-
-
-def use(name_or_path: str | os.PathLike[str]) -> RigFile:
-    """Select a rig for this process and the processes it starts: check it, then set ``$HELPERS_RIG``.
-
-    Call before the modules that read the rig load (``helpers.paper.hardware`` reads it once, on import).
-    """
-    path = resolve(name_or_path)
-    rig = load(path)
-    os.environ[ENV_VAR] = str(path.resolve())
-    return rig

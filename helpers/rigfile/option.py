@@ -1,10 +1,14 @@
 """The commands' ``--rig FILE`` option, taken off the command line before any command's module loads.
 
-:mod:`helpers.__main__` calls :func:`take_rig_option` and then :func:`helpers.rigfile.use`, because the
-commands' modules read the selected rig when they are imported. Standard library only.
+:mod:`helpers.__main__` calls :func:`take_rig_option` and then :func:`use`, because the commands' modules
+read the selected rig when they are imported. Standard library and :mod:`helpers.rigfile` only.
 """
 
 from __future__ import annotations
+
+import os
+
+from helpers.rigfile import ENV_VAR, RigFile, load, resolve
 
 
 def take_rig_option(argv: list[str]) -> tuple[list[str], str | None]:
@@ -35,3 +39,14 @@ def take_rig_option(argv: list[str]) -> tuple[list[str], str | None]:
         rest.append(arg)
         i += 1
     return rest, value
+
+
+def use(name_or_path: str | os.PathLike[str]) -> RigFile:
+    """Select a rig for this process and the processes it starts: check it, then set ``$HELPERS_RIG``.
+
+    Call before the modules that read the rig load (``helpers.paper.hardware`` reads it once, on import).
+    """
+    path = resolve(name_or_path)
+    rig = load(path)
+    os.environ[ENV_VAR] = str(path.resolve())
+    return rig
