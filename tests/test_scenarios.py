@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from helpers.paper import numbers as paper
-from helpers.paper import scenarios
+from helpers.paper import scaling_notes, scenarios
 from helpers.research import survey, tune
 from rigs import SHIPPED, floor_to
 
@@ -16,7 +16,7 @@ def test_the_paper_rig_keeps_the_paper_scenarios():  # paper-only: the paper's p
     assert scenarios.identification_name() == "pulse_v100_x10"
     assert scenarios.survey_positions(survey.POSITIONS_MM) == (0, 5, 10, 15, 20, 25, 30, 35, 40)
     assert tune.rig_grid("wide") == tune.GRIDS["wide"] and (400.0, 39.0) in tune.rig_grid("wide")
-    assert scenarios.scaling_notes({"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM) == []
+    assert scaling_notes.scaling_notes({"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM) == []
 
 
 def test_the_rule_scales_a_whole_set_and_keeps_what_fits():
@@ -46,7 +46,7 @@ def test_scenarios_follow_the_selected_rig(shipped_rig):  # rig-parametrised (te
     assert scenarios.survey_positions(survey.POSITIONS_MM) == pytest.approx(expected, abs=1e-9)
     wide = tune.rig_grid("wide")
     assert list(wide) == r.scaled(list(tune.GRIDS["wide"]))
-    notes = "\n".join(scenarios.scaling_notes({"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM))
+    notes = "\n".join(scaling_notes.scaling_notes({"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM))
     fits = scenarios.table_i_conditions() == paper.TABLE_I_CONDITIONS
     assert ("Table I:" in notes) == (not fits)  # a scaled set is said, an unscaled one is not
     if not fits:

@@ -39,7 +39,7 @@ from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, repo_path
 from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
-from helpers.paper import scenarios
+from helpers.paper import scaling_notes, scenarios
 from helpers.paper.calibration import (
     UNCALIBRATED,
     LoadCellCalibration,
@@ -449,7 +449,7 @@ def _planned_pulses(
             for rep in range(1, reps + 1)
         ]
     planned = []
-    scenarios.announce()
+    scaling_notes.announce()
     if args.what == "all":
         run = scenarios.identification_run()
         v, x = run["v_in_mm_s"], run["x_f_mm"]
@@ -538,7 +538,7 @@ def run(args: argparse.Namespace) -> int:
     if args.what != "pulse" and args.design is not None:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
     if args.what in ("table-i", "all"):
-        scenarios.announce()  # once: which of the paper's scenarios this rig scales, and to what
+        scaling_notes.announce()  # once: which of the paper's scenarios this rig scales, and to what
     if args.dry_run:
         return dry_run(args)
     if args.what == "pulse":  # refuse a bad request before any port is opened

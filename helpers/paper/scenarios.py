@@ -16,14 +16,13 @@ rule:
 
 Ratios within a set are kept (to the rounding), so Table I's structure (three distances at one speed, one
 at a faster speed) survives. On the paper's rig nothing is scaled: the values, the scenario names and the
-files are the paper's. :func:`scaling_notes` says which sets were scaled and to what; the commands print it
-once.
+files are the paper's. Which sets were scaled and to what, the commands print once
+(:mod:`helpers.paper.scaling_notes`).
 """
 
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Sequence
 
 from helpers.paper import numbers as paper
@@ -33,7 +32,6 @@ from helpers.paper.hardware import (
     MAX_STEP_RATE_HZ,
     MAX_TRAVEL_MM,
     MM_PER_STEP,
-    RIG,
 )
 
 FASTEST_MM_S: float = min(MAX_SPEED_MM_S, MAX_STEP_RATE_HZ * MM_PER_STEP)
@@ -41,10 +39,8 @@ FASTEST_MM_S: float = min(MAX_SPEED_MM_S, MAX_STEP_RATE_HZ * MM_PER_STEP)
 LONGEST_MM: float = min(MAX_TRAVEL_MM, MAX_PULSE_MM)
 """The longest pulse the rig allows, mm (its travel in whole steps)."""
 
-_announced: set[str] = set()
 
-
-def _scale(values: Sequence[float], limit: float, resolution: float) -> tuple[float, ...]:
+def scale_values(values: Sequence[float], limit: float, resolution: float) -> tuple[float, ...]:
     """``values`` unchanged when they fit ``limit``, else all scaled by ``limit / max`` and floored."""
     top = max(values)
     if top <= limit:
@@ -74,8 +70,8 @@ def scale_conditions(
     tuple of (float, float)
         The conditions, unchanged when they fit; duplicates (after rounding) are kept once.
     """
-    speeds = _scale([v for v, _ in conditions], fastest_mm_s, 1.0)
-    dists = _scale([x for _, x in conditions], longest_mm, 0.1)
+    speeds = scale_values([v for v, _ in conditions], fastest_mm_s, 1.0)
+    dists = scale_values([x for _, x in conditions], longest_mm, 0.1)
     out: list[tuple[float, float]] = []
     for pair in zip(speeds, dists, strict=True):
         if pair not in out:
@@ -107,64 +103,3 @@ def survey_positions(positions_mm: Sequence[float]) -> tuple[float, ...]:
         return tuple(float(p) for p in positions_mm)
     n = len(positions_mm) - 1
     return tuple(round(math.floor(MAX_TRAVEL_MM * k / n * 10 + 1e-9) / 10, 6) for k in range(n + 1))
-
-
-def _mapping(before: Sequence[float], after: Sequence[float], unit: str) -> str:
-    """``"200, 300 -> 100, 150 mm/s"`` (distinct values, in order)."""
-    pairs = dict(zip(before, after, strict=True))
-    return f"{', '.join(f'{b:g}' for b in pairs)} -> {', '.join(f'{a:g}' for a in pairs.values())} {unit}"
-
-
-def _note(name: str, conditions: Sequence[tuple[float, float]]) -> str | None:
-    """How ``conditions`` are scaled on the selected rig, or None when they fit."""
-    speeds, dists = [float(v) for v, _ in conditions], [float(x) for _, x in conditions]
-    new_speeds, new_dists = _scale(speeds, FASTEST_MM_S, 1.0), _scale(dists, LONGEST_MM, 0.1)
-    parts = []
-    if tuple(speeds) != new_speeds:
-        parts.append("speeds " + _mapping(speeds, new_speeds, "mm/s"))
-    if tuple(dists) != new_dists:
-        parts.append("distances " + _mapping(dists, new_dists, "mm"))
-    return f"  {name}: {'; '.join(parts)}" if parts else None
-
-
-def scaling_notes(
-    grids: dict[str, Sequence[tuple[float, float]]] | None = None, positions_mm: Sequence[float] | None = None
-) -> list[str]:
-    """One line per scaled set of the selected rig (none on the paper's rig).
-
-    Parameters
-    ----------
-    grids : dict, optional
-        Further named sets of paper conditions to report (``tune``'s grids).
-    positions_mm : sequence of float, optional
-        Survey positions to report (``tune``'s survey).
-
-    Returns
-    -------
-    list of str
-    """
-    sets: dict[str, Sequence[tuple[float, float]]] = {
-        "identification run": [(paper.IDENTIFICATION_RUN["v_in_mm_s"], paper.IDENTIFICATION_RUN["x_f_mm"])],
-        "Table I": paper.TABLE_I_CONDITIONS,
-        **(grids or {}),
-    }
-    lines = [note for name, conditions in sets.items() if (note := _note(name, conditions)) is not None]
-    if positions_mm is not None and (scaled := survey_positions(positions_mm)) != tuple(positions_mm):
-        lines.append("  survey positions: " + _mapping(positions_mm, scaled, "mm"))
-    if lines:
-        lines.insert(
-            0,
-            f"rig {RIG.name}: the paper's scenarios do not fit (fastest {FASTEST_MM_S:.1f} mm/s, longest "
-            f"pulse {LONGEST_MM:.2f} mm); scaled (docs/rig_file.md, 'Scenarios on another rig'):",
-        )
-    return lines
-
-
-def announce(
-    grids: dict[str, Sequence[tuple[float, float]]] | None = None, positions_mm: Sequence[float] | None = None
-) -> None:
-    """Print :func:`scaling_notes` to stderr, once per process (arguments as there)."""
-    for line in scaling_notes(grids, positions_mm):
-        if line not in _announced:
-            _announced.add(line)
-            print(line, file=sys.stderr)

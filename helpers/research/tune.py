@@ -45,7 +45,7 @@ from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, figure_path, repo_path
 from helpers.base.style import SYSTEM_COLOURS
-from helpers.paper import hardware, scenarios
+from helpers.paper import hardware, scaling_notes, scenarios
 from helpers.paper import numbers as paper
 from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
 from helpers.paper.identify import load_identification
@@ -439,7 +439,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers tune``."""
     grid = rig_grid(args.grid)
     positions = rig_positions()
-    scenarios.announce({f"tune {args.grid} grid": GRIDS[args.grid]}, POSITIONS_MM)
+    scaling_notes.announce({f"tune {args.grid} grid": GRIDS[args.grid]}, POSITIONS_MM)
     repetitions = args.repetitions or REPETITIONS[args.grid]
     tuning = args.data_dir / "tuning"
     map_path = tuning / "mode_map.json"
