@@ -15,9 +15,20 @@ import numpy as np
 import pytest
 
 from helpers import rigfile
+from helpers.__main__ import error_line
 from helpers.board.protocol import frame
-from helpers.virtual.emulator.tendon_boards import TendonDaqEmulator, TendonStepperEmulator, build_limits
+from helpers.rig.boards import WrongRig
+from helpers.rig.safety import SafetyError
+from helpers.rig.tendon_safety import TendonProgramme, check_tendon_programme, slack_tendons
+from helpers.rig.tendons import TendonRig
+from helpers.virtual.emulator.tendon_boards import (
+    BuildLimits,
+    TendonDaqEmulator,
+    TendonStepperEmulator,
+    build_limits,
+)
 from helpers.virtual.emulator.tendon_world import tendon_world
+from helpers.virtual.emulator.world import default_world, forget_world, get_world, register_world
 
 REST_COUNTS = 122.88 + 2.3554 * 491.52 / 20.0
 
@@ -137,3 +148,106 @@ def test_world_drives_each_tendon_from_its_axis(four: rigfile.RigFile) -> None:
     # tendon 3 (pulled 20 steps, 5.1 mm) rises well above its pretension; the others do not move first
     assert data[-1, 5] > REST_COUNTS + 3 * 24.576
     assert np.all(np.abs(data[0, 2:6] - REST_COUNTS) < 3.0)
+
+
+# --- the host: safety per tendon, connecting, running, homing ------------------------------------------
+def _programme(*moves):
+    return TendonProgramme.moves(moves)
+
+
+@pytest.mark.parametrize(
+    ("moves", "message"),
+    [
+        ([(200_000, (100, 0, 0, 0)), (200_000, (57, 0, 0, 0))],
+         "tendon 1, item 2: position 157 steps is past its travel of 0-156 steps (39.8 mm)"),
+        ([(100_000, (0, 0, -1, 0))], "tendon 3, item 1: position -1 steps is past its travel of 0-156 steps"),
+        ([(10_000, (0, 16, 0, 0))],
+         "tendon 2, item 1: 16 steps in 10000 us is a step every 625 us, below the step-interval floor of "
+         "639 us"),
+        ([(100_000, (1, 1, 1))], "item 1: 3 step counts for the rig's 4 tendons"),
+        ([(100_000, (0, 0, 0, 0))], "item 1: no tendon moves"),
+        ([(61_000_000, None)], "item 1: dwell 61000 ms outside 0-60000 ms"),
+    ],
+)  # fmt: skip
+def test_programmes_past_a_tendons_limit_are_refused_in_one_line(four, moves, message) -> None:
+    with pytest.raises(SafetyError) as info:
+        check_tendon_programme(_programme(*moves), four)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert error_line(info.value)[1] == 3  # docs/faults.md: refused by the safety limits
+
+
+def test_a_state_with_every_tendon_slack_is_refused(four) -> None:
+    """With no pretension, pretension + k pull = 0 N at position 0: returning every tendon there leaves the
+    arm on no tendon (71706.96 N/m x 10 steps x 0.255254 mm = 183.0 N while pulled)."""
+    slack = rigfile.loads(four.text.replace("pretension_n = 2.3554", "pretension_n = 0.0"), "slack.toml")
+    ok = _programme((100_000, (10, 0, 0, 0)))
+    assert check_tendon_programme(ok, slack) == (10, 0, 0, 0)
+    refusal = r"tendons 1-4, item 2: every tendon slack at positions \(0, 0, 0, 0\)"
+    with pytest.raises(SafetyError, match=refusal):
+        check_tendon_programme(_programme((100_000, (10, 0, 0, 0)), (100_000, (-10, 0, 0, 0))), slack)
+    assert slack_tendons(slack, (0, 0, 0, 0)) == [True] * 4
+    assert slack_tendons(four, (0, 0, 0, 0)) == [False] * 4  # 2.3554 N each
+    # homing returns to the rest the rig file describes
+    back = _programme((100_000, (-10, 0, 0, 0)))
+    assert check_tendon_programme(back, slack, (10, 0, 0, 0), rest_ok=True) == (0, 0, 0, 0)
+
+
+def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> None:
+    w = tendon_world(four, "tendons-test-two-channels")
+    w.limits = BuildLimits(four.hash, (156, 156, 156, 156), channels=2)
+    w.daq.limits = w.limits
+    register_world(w)
+    try:
+        with pytest.raises(WrongRig) as info:
+            TendonRig.connect("virtual", rig=four, rig_name=w.name)
+    finally:
+        forget_world(w.name)
+    assert str(info.value).startswith(
+        "the daq board reports 2 load-cell channel(s) and 4 step counter(s), but rig 'four-tendon' has 4 "
+        "tendons"
+    )
+    assert "make -C firmware RIG=" in str(info.value) and error_line(info.value)[1] == 4
+
+
+def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
+    register_world(default_world("tendons-test-paper"))  # the paper's boards: one axis, the paper's hash
+    try:
+        with pytest.raises(WrongRig, match="built for rig 481e87e3, but this host runs rig 'four-tendon'"):
+            TendonRig.connect("virtual", rig=four, rig_name="tendons-test-paper")
+    finally:
+        forget_world("tendons-test-paper")
+
+
+@pytest.fixture(scope="module")
+def four_rig(four):
+    register_world(tendon_world(four, "tendons-test-rig"))
+    rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-rig")
+    yield rig
+    rig.close()
+    forget_world("tendons-test-rig")
+
+
+def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(four_rig) -> None:
+    world = get_world("tendons-test-rig")
+    sent = len(world.stepper.received)
+    with pytest.raises(SafetyError, match="tendon 4, item 1: position 157"):
+        four_rig.run(_programme((200_000, (0, 0, 0, 157))))
+    assert len(world.stepper.received) == sent  # refused before any byte
+    # two coordinated moves from zero, then back to one tendon pulled
+    f = four_rig.run(_programme((40_000, (20, 0, 0, 8))), tail_s=0.2)
+    assert four_rig.positions == (20, 0, 0, 8)
+    back = _programme((40_000, (0, 6, 0, -8)), (10_000, None), (40_000, (-20, 0, 0, 0)))
+    f = four_rig.run(back, tail_s=0.3)
+    assert four_rig.positions == (0, 6, 0, 0)
+    assert list(f.columns[:10]) == ["seq", "t_us"] + [f"adc_{i}" for i in range(4)] + [
+        f"steps_{i}" for i in range(4)
+    ]
+    assert (f["t_us"].diff().dropna() == 1000).all()  # 1 kHz
+    first, last = f.iloc[0], f.iloc[-1]
+    assert [first[f"steps_{i}"] for i in range(4)] == [20, 0, 0, 8]  # positions from zero
+    assert [last[f"steps_{i}"] for i in range(4)] == [0, 6, 0, 0]
+    assert last["cable_mm_1"] == pytest.approx(6 * 3.14159265 * 65 / 800)
+    assert f["tension_n_0"].iloc[0] == pytest.approx((first["adc_0"] - 122.88) / 24.576)
+    assert four_rig.home() is not None and four_rig.positions == (0, 0, 0, 0)
+    assert four_rig.stepper.positions() == (0, 0, 0, 0)
+    assert four_rig.home() is None  # nothing to do
