@@ -11,10 +11,12 @@ counts at 0 N and 614.4 at 20 mA: 491.52 counts over the cells' 20 N, 24.576 cou
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
-from helpers import rigfile
+from helpers import recordings, rigfile
 from helpers.__main__ import error_line
 from helpers.board.protocol import frame
 from helpers.rig.boards import WrongRig
@@ -251,3 +253,69 @@ def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(
     assert four_rig.home() is not None and four_rig.positions == (0, 0, 0, 0)
     assert four_rig.stepper.positions() == (0, 0, 0, 0)
     assert four_rig.home() is None  # nothing to do
+
+
+# --- recordings: version 3 for several tendons, version 2 for one ----------------------------------------
+def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
+    meta = {
+        "schema_version": 2, "source": {"kind": "virtual-rig"}, "scenario": {"kind": "programme"},
+        "calibration": {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.25525},
+        "rate_hz": 1000, "status": "complete", "counts": {"dropped": 0},
+    }  # fmt: skip
+    rows = [(s, 1000 * s, 100 + s, s // 4) for s in range(20)]
+    rec = recordings.Recording(recordings.frame_from_rows(rows), meta)
+    path = recordings.save(rec, tmp_path / "g" / "one")
+    assert path.read_text().splitlines()[:2] == ["seq,t_us,adc,steps", "0,0,100,0"]
+    rec = recordings.load(path)
+    assert rec.meta["schema_version"] == 2 and rec.tendons == 1
+    assert list(rec.frame.columns) == ["seq", "t_us", "adc", "steps", "t_s", "tension_n", "cable_mm"]
+    assert rec.frame["tension_n"].iloc[3] == pytest.approx((103 - 60.0) * 0.025)
+
+
+@pytest.fixture(scope="module")
+def tendon_recording_path(four_rig, tmp_path_factory):
+    programme = _programme((40_000, (12, 0, 0, 4)), (40_000, (-12, 3, 0, -4)))
+    frame = four_rig.run(programme, tail_s=0.2)
+    rec = four_rig.recording(frame, programme)
+    path = recordings.save(rec, tmp_path_factory.mktemp("tendon_rec") / "g" / "four")
+    four_rig.home()
+    return path
+
+
+def test_a_four_tendon_recording_round_trips_as_version_3(tendon_recording_path) -> None:
+    path = tendon_recording_path
+    header = "seq,t_us,adc_0,adc_1,adc_2,adc_3,steps_0,steps_1,steps_2,steps_3"
+    assert path.read_text().splitlines()[0] == header  # derived columns are never stored
+    rec = recordings.load(path)
+    assert (rec.meta["schema_version"], rec.meta["tendons"], rec.tendons) == (3, 4, 4)
+    assert rec.meta["rig"]["name"] == "four-tendon"
+    f = rec.frame
+    assert [f"tension_n_{i}" in f and f"cable_mm_{i}" in f for i in range(4)] == [True] * 4
+    np.testing.assert_allclose(f["tension_n_2"], (f["adc_2"] - 122.88) / 24.576)
+    np.testing.assert_allclose(f["cable_mm_1"], f["steps_1"] * 3.14159265358979 * 65 / 800)
+    assert list(f.iloc[-1][[f"steps_{i}" for i in range(4)]]) == [0, 3, 0, 0]
+    np.testing.assert_allclose(f["t_s"].iloc[:3], [0.0, 0.001, 0.002])
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda m: m.update(tendons=3), "calibration.newtons_per_count: expected a list of 3 positive"),
+        (lambda m: (m.update(tendons=3), [m["calibration"][k].pop() for k in ("newtons_per_count",
+                    "offset_counts", "mm_per_step")]), "tendons: 3, but the rig file has 4"),
+        (lambda m: m["calibration"].update(mm_per_step=[0.25, 0.25]),
+         "calibration.mm_per_step: expected a list of 4 positive finite numbers (one per tendon)"),
+        (lambda m: m.pop("rig"), "rig: missing (a recording of several tendons keeps its rig file)"),
+        (lambda m: m.update(schema_version=4), "schema_version: unknown 4 (this code reads (1, 2, 3))"),
+    ],
+)  # fmt: skip
+def test_a_bad_four_tendon_recording_is_refused_in_one_line(tendon_recording_path, tmp_path, change, message):
+    meta = json.loads(tendon_recording_path.with_suffix(".json").read_text())
+    change(meta)
+    target = tmp_path / "bad.json"
+    target.write_text(json.dumps(meta))
+    (tmp_path / "bad.csv").write_bytes(tendon_recording_path.read_bytes())
+    with pytest.raises(recordings.RecordingError) as info:
+        recordings.load(target)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert error_line(info.value)[1] == 5

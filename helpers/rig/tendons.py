@@ -22,14 +22,17 @@ import pandas as pd
 
 from helpers import rigfile
 from helpers.board.tendon_lines import TendonStreamParser
+from helpers.recordings import Recording
+from helpers.recordings.tendons import TENDON_SCHEMA_VERSION, tendon_columns
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardTimeout, CommandRefused, WrongRig
 from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard
 from helpers.rig.tendon_safety import TendonItem, TendonProgramme, check_tendon_programme
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
+from helpers.rigfile.recorded import rig_section
 
-__all__ = ["TendonDaq", "TendonStepper", "TendonRig", "tendon_frame"]
+__all__ = ["TendonDaq", "TendonStepper", "TendonRig", "tendon_frame", "tendon_recording"]
 
 
 def _ints(reply: str, skip: int) -> list[int]:
@@ -269,6 +272,14 @@ class TendonRig:
                 problems.append(f"{what} failed: {type(exc).__name__}: {exc}")
         return problems
 
+    def recording(self, frame: pd.DataFrame, programme: TendonProgramme, rate_hz: int = 1000) -> Recording:
+        """The last run as a recording of ``schema_version`` 3 (:func:`tendon_recording`)."""
+        stats = self.daq.stats
+        counts = {"samples": len(frame), "dropped": stats.dropped, "corrupted": stats.corrupted,
+                  "overruns": stats.overruns}  # fmt: skip
+        scenario = {"kind": "programme", "items": [it.command(self.rig.n_tendons) for it in programme.items]}
+        return tendon_recording(frame, self.rig, rate_hz, counts, self.source, scenario)
+
     def home(self, rate_hz: int = 1000) -> pd.DataFrame | None:
         """Bring every tendon back to zero in one item at half the top speed (None if all are there)."""
         self.positions = self.stepper.positions()[: self.rig.n_tendons]
@@ -306,3 +317,33 @@ def tendon_frame(
     for i in range(n):
         cols[f"cable_mm_{i}"] = cols[f"steps_{i}"] * d.mm_per_step[i]
     return pd.DataFrame(cols)
+
+
+def tendon_recording(
+    frame: pd.DataFrame, rig: RigFile, rate_hz: int, counts: dict[str, int], source: dict[str, Any],
+    scenario: dict[str, Any], status: str = "complete",
+) -> Recording:  # fmt: skip
+    """A recording of several tendons (``docs/recording_format.md``, version 3) of a :func:`tendon_frame`.
+
+    The calibration is the rig file's nominal chain per tendon (``calibration.origin`` says so).
+    """
+    d = derived(rig)
+    n = rig.n_tendons
+    meta = {
+        "schema_version": TENDON_SCHEMA_VERSION,
+        "tendons": n,
+        "rig": rig_section(rig),
+        "source": dict(source),
+        "scenario": dict(scenario),
+        "calibration": {
+            "newtons_per_count": [1.0 / g for g in d.gain_counts_per_n],
+            "offset_counts": [d.offset_counts] * n,
+            "mm_per_step": list(d.mm_per_step),
+            "origin": f"nominal: rig file {rig.name} ({rig.hash}), [hardware] loop and load_cell_range_n",
+        },
+        "rate_hz": int(rate_hz),
+        "status": status,
+        "counts": dict(counts),
+    }
+    raw = frame.loc[:, list(tendon_columns(n))].astype(np.int64).reset_index(drop=True)
+    return Recording(frame=raw, meta=meta).derive()
