@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 from helpers import recordings, rigfile
-from helpers.__main__ import error_line
+from helpers.__main__ import error_line, main
 from helpers.board.protocol import frame
+from helpers.commands.metrics_tendons import tendon_table
 from helpers.rig.boards import WrongRig
 from helpers.rig.safety import SafetyError
 from helpers.rig.tendon_safety import TendonProgramme, check_tendon_programme, slack_tendons
@@ -236,9 +237,9 @@ def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(
         four_rig.run(_programme((200_000, (0, 0, 0, 157))))
     assert len(world.stepper.received) == sent  # refused before any byte
     # two coordinated moves from zero, then back to one tendon pulled
-    f = four_rig.run(_programme((40_000, (20, 0, 0, 8))), tail_s=0.2)
-    assert four_rig.positions == (20, 0, 0, 8)
-    back = _programme((40_000, (0, 6, 0, -8)), (10_000, None), (40_000, (-20, 0, 0, 0)))
+    f = four_rig.run(_programme((40_000, (8, 0, 0, 5))), tail_s=0.2)
+    assert four_rig.positions == (8, 0, 0, 5)
+    back = _programme((40_000, (0, 6, 0, -5)), (10_000, None), (40_000, (-8, 0, 0, 0)))
     f = four_rig.run(back, tail_s=0.3)
     assert four_rig.positions == (0, 6, 0, 0)
     assert list(f.columns[:10]) == ["seq", "t_us"] + [f"adc_{i}" for i in range(4)] + [
@@ -246,7 +247,7 @@ def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(
     ]
     assert (f["t_us"].diff().dropna() == 1000).all()  # 1 kHz
     first, last = f.iloc[0], f.iloc[-1]
-    assert [first[f"steps_{i}"] for i in range(4)] == [20, 0, 0, 8]  # positions from zero
+    assert [first[f"steps_{i}"] for i in range(4)] == [8, 0, 0, 5]  # positions from zero
     assert [last[f"steps_{i}"] for i in range(4)] == [0, 6, 0, 0]
     assert last["cable_mm_1"] == pytest.approx(6 * 3.14159265 * 65 / 800)
     assert f["tension_n_0"].iloc[0] == pytest.approx((first["adc_0"] - 122.88) / 24.576)
@@ -274,7 +275,7 @@ def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
 
 @pytest.fixture(scope="module")
 def tendon_recording_path(four_rig, tmp_path_factory):
-    programme = _programme((40_000, (12, 0, 0, 4)), (40_000, (-12, 3, 0, -4)))
+    programme = _programme((40_000, (5, 0, 0, 4)), (40_000, (-5, 3, 0, -4)))
     frame = four_rig.run(programme, tail_s=0.2)
     rec = four_rig.recording(frame, programme)
     path = recordings.save(rec, tmp_path_factory.mktemp("tendon_rec") / "g" / "four")
@@ -319,3 +320,59 @@ def test_a_bad_four_tendon_recording_is_refused_in_one_line(tendon_recording_pat
         recordings.load(target)
     assert message in str(info.value) and "\n" not in str(info.value)
     assert error_line(info.value)[1] == 5
+
+
+# --- metrics per tendon --------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def pulse_recording_path(four, tmp_path_factory):
+    """Tendons 1 and 2 (0-based 0 and 1) pulled 6 and 4 steps together after 0.6 s, held 1.6 s, released
+    (a rig of its own: the twin at rest)."""
+    register_world(tendon_world(four, "tendons-test-pulse"))
+    four_rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-pulse")
+    pull, hold = (20_000, (6, 4, 0, 0)), (1_600_000, None)
+    programme = _programme((600_000, None), pull, hold, (20_000, (-6, -4, 0, 0)))
+    frame = four_rig.run(programme, tail_s=1.6)
+    path = recordings.save(four_rig.recording(frame, programme), tmp_path_factory.mktemp("pulse") / "g" / "p")
+    four_rig.close()
+    forget_world("tendons-test-pulse")
+    return path
+
+
+def _by_hand(f, i: int) -> dict:
+    """docs/metrics.md, from the frame alone: the motions from steps_i, y0 the median of the 0.5 s before,
+    yf the median of the window's last 1.0 s, the Up peak its maximum and the Down peak its minimum."""
+    t, s, y = f["t_s"].to_numpy(), f[f"steps_{i}"].to_numpy(), f[f"tension_n_{i}"].to_numpy()
+    up = int(np.argmax(s > s[0]))
+    top = int(np.argmax(s == s.max()))
+    down = top + int(np.argmax(s[top:] < s.max()))
+    out = {}
+    for name, a, b in (("Up", up, down), ("Down", down, len(t))):
+        y0 = np.median(y[(t >= t[a] - 0.5) & (t < t[a])])
+        yf = np.median(y[(t >= t[b - 1] - 1.0) & (t < t[b - 1] + 1e-9) & (t >= t[a])])
+        peak = y[a:b].max() if name == "Up" else y[a:b].min()
+        over = 100 * (peak - yf) / (yf - y0) if name == "Up" else 100 * (yf - peak) / (y0 - yf)
+        out[name] = (peak, over)
+    return out
+
+
+def test_metrics_reports_each_tendons_table_ii_metrics(pulse_recording_path, capsys) -> None:
+    assert main(["metrics", str(pulse_recording_path)]) == 0
+    out = capsys.readouterr().out
+    assert "Per tendon (1 recording(s) of several tendons" in out
+    table = tendon_table([recordings.load(pulse_recording_path)], 0.05)
+    assert list(zip(table["tendon"], table["motion"], strict=True)) == [
+        (i, m) for i in range(4) for m in ("Up", "Down")
+    ]
+    f = recordings.load(pulse_recording_path).frame
+    for i in (0, 1):
+        want = _by_hand(f, i)
+        for motion in ("Up", "Down"):
+            row = table[(table["tendon"] == i) & (table["motion"] == motion)].iloc[0]
+            peak, over = want[motion]
+            assert row["peak_n"] == pytest.approx(peak, abs=1e-9)
+            assert row["overshoot_pct"] == pytest.approx(over, rel=1e-6)
+            assert row["settling_ms"] > 0
+    # tendons 3 and 4 never move: no motion to segment, NaN with the reason
+    still = table[table["tendon"] >= 2]
+    assert still["peak_n"].isna().all() and still["reason"].str.startswith("segmentation failed").all()
+    assert "tendon 2 Up: segmentation failed" in out
