@@ -30,7 +30,7 @@ from helpers.virtual.emulator.tendon_boards import (
     TendonStepperEmulator,
     build_limits,
 )
-from helpers.virtual.emulator.tendon_world import tendon_world
+from helpers.virtual.emulator.tendon_world import TendonWorld, tendon_world
 from helpers.virtual.emulator.world import default_world, forget_world, get_world, register_world
 
 REST_COUNTS = 122.88 + 2.3554 * 491.52 / 20.0
@@ -376,3 +376,18 @@ def test_metrics_reports_each_tendons_table_ii_metrics(pulse_recording_path, cap
     still = table[table["tendon"] >= 2]
     assert still["peak_n"].isna().all() and still["reason"].str.startswith("segmentation failed").all()
     assert "tendon 2 Up: segmentation failed" in out
+
+
+def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(monkeypatch, four) -> None:
+    """With the four-tendon rig file selected, ``virtual://`` (and serve-virtual-rig) build its world."""
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    forget_world("tendons-test-url")
+    try:
+        rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-url")
+        try:
+            assert isinstance(get_world("tendons-test-url"), TendonWorld)
+            assert rig.stepper.configure() == (4, (156, 156, 156, 156))
+        finally:
+            rig.close()
+    finally:
+        forget_world("tendons-test-url")
