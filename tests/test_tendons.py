@@ -119,7 +119,7 @@ def world_at_rest(four: rigfile.RigFile):
     w = tendon_world(four, "tendons-test-rest")
     w.daq.take_output()
     w.daq.receive(frame("START"))
-    w.advance_to(0.3)
+    w.advance_to(0.3 + 3 * 104e-6)  # the sample at 0.3 s is complete once its fourth channel is read
     rows = [line.split(b"*")[0].decode().split(",") for line in w.daq.take_output().splitlines()]
     data = np.array([[int(x) for x in r[1:]] for r in rows if r[0] == "D"])
     return w, data
@@ -391,3 +391,34 @@ def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(mon
             rig.close()
     finally:
         forget_world("tendons-test-url")
+
+
+class _ClockPlant:
+    """A plant double whose every output is the time (s) it is read at."""
+
+    t = 0.0
+
+    def advance(self, sample_times, step_times, step_tendons, step_signs):
+        self.t = float(sample_times[-1])
+        return {"output": np.repeat(np.asarray(sample_times, dtype=float)[:, None], 4, axis=1)}
+
+
+class _MicrosecondSensor:
+    def counts(self, output):
+        return np.rint(np.asarray(output) * 1e6).astype(np.int64)
+
+    def reseed(self, seed):
+        pass
+
+
+def test_each_channel_is_read_one_conversion_after_the_previous(four) -> None:
+    """PROTOCOL.md: channel c is converted c x 104 us after channel 0, whose instant is ``t_us``."""
+    w = TendonWorld(_ClockPlant(), [_MicrosecondSensor()] * 4, name="skew", limits=build_limits(four))
+    w.daq.take_output()
+    w.daq.receive(frame("START"))
+    w.advance_to(0.0101)
+    rows = [line.split(b"*")[0].decode().split(",") for line in w.daq.take_output().splitlines()]
+    data = np.array([[int(x) for x in r[1:]] for r in rows if r[0] == "D"])
+    assert list(data[:, 1]) == [1000 * k for k in range(1, 10)]  # 10 ms is complete at 10.312 ms only
+    for c in range(4):
+        assert list(data[:, 2 + c] - data[:, 1]) == [104 * c] * 9

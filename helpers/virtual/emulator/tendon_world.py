@@ -5,7 +5,10 @@ firmware's builds for several tendons (:mod:`helpers.virtual.emulator.tendon_boa
 spatial twin (:class:`helpers.virtual.spatial.plant.SpatialPlant`): each interval of device time takes every
 axis's steps at their firmware ticks, integrates the twin with them (tendon ``a`` is axis ``a``), samples each
 tendon's amplifier output through its own load cell (channel ``c`` is tendon ``c``, its
-``load_cell_range_n``) and each axis's step count at the same instants.
+``load_cell_range_n``, read ``c`` conversions of 104 us after channel 0, as the firmware converts them one
+after the other) and each axis's step count at channel 0's instant (``t_us``). A sample is sent once its last
+channel is read; one still converting when ``STOP`` arrives is not taken (the firmware finishes and sends it:
+a difference within the last 312 us of a stream).
 
 :func:`build_world` builds the world the selected rig file describes: this one for a rig with several
 tendons, the planar virtual rig (:func:`~helpers.virtual.emulator.world.default_world`) for one.
@@ -31,7 +34,11 @@ from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.plant import SpatialPlant
 from helpers.virtual.spatial.statics import stable_max_step
 
-__all__ = ["TendonWorld", "tendon_world", "build_world"]
+__all__ = ["TendonWorld", "tendon_world", "build_world", "ADC_CONVERSION_S"]
+
+ADC_CONVERSION_S = 104e-6
+"""One conversion of the Mega's ADC at clk/128 (13 ADC clocks of 8 us): channel c of a sample is read c of
+them after channel 0 (``firmware/PROTOCOL.md``, *several tendons*)."""
 
 
 @dataclass
@@ -65,15 +72,21 @@ class TendonWorld(VirtualWorld):
 
     def _advance_plain(self, t1: float) -> None:
         daq, stepper = self.daq, self.stepper
+        channels = len(self.sensor)
         step_t, step_a, step_s = stepper.axis_steps_until(t1)
-        slots = daq.sample_slots(self.t, t1)
+        # channel c is converted c conversions after channel 0 (t_us): a sample is complete, and sent, once
+        # its last channel is read
+        lag = np.arange(channels) * ADC_CONVERSION_S
+        slots = daq.sample_slots(self.t, t1 - lag[-1])
         times = daq._t_start + slots / daq.rate
-        plant_times = times if len(times) and times[-1] >= t1 - 1e-12 else np.append(times, t1)
+        reads = (times[:, None] + lag[None, :]).ravel()
+        plant_times = reads if len(reads) and reads[-1] >= t1 - 1e-12 else np.append(reads, t1)
         out = self.plant.advance(plant_times, step_t, step_a, step_s)
         if len(slots):
-            output = np.asarray(out["output"], dtype=float)[: len(times)]
+            every = np.asarray(out["output"], dtype=float)[: reads.size].reshape(len(times), channels, -1)
+            output = every[:, np.arange(channels), np.arange(channels)]  # channel c at its own instant
             if "tip" in out:
-                self.tendon_tip.append(np.asarray(out["tip"])[: len(times)])
+                self.tendon_tip.append(np.asarray(out["tip"])[: reads.size : channels])
             if self.load_n is not None:
                 output = np.full_like(output, self.load_n)
             counts = np.column_stack(
