@@ -19,9 +19,11 @@ import pytest
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
 from helpers.board.protocol import frame
+from helpers.commands.home import home
 from helpers.commands.metrics_tendons import tendon_table
 from helpers.rig.boards import WrongRig
 from helpers.rig.safety import SafetyError
+from helpers.rig.stepper import StepperBoard
 from helpers.rig.tendon_safety import TendonProgramme, check_tendon_programme, slack_tendons
 from helpers.rig.tendons import TendonRig
 from helpers.virtual.emulator.tendon_boards import (
@@ -422,3 +424,23 @@ def test_each_channel_is_read_one_conversion_after_the_previous(four) -> None:
     assert list(data[:, 1]) == [1000 * k for k in range(1, 10)]  # 10 ms is complete at 10.312 ms only
     for c in range(4):
         assert list(data[:, 2 + c] - data[:, 1]) == [104 * c] * 9
+
+
+def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monkeypatch) -> None:
+    """``python -m helpers home``'s routine on a four-axis stepper: every axis back in one MSEG (the farthest,
+    7 steps, at 50 mm/s: 0.255254 / 50 mm/s = 5105 us per step, a 35.7 ms window)."""
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    w = register_world(tendon_world(four, "tendons-test-home"))
+    try:
+        assert _talk(w.stepper, "EN 1", "MSEG 40000 5 3 0 7", "GO")[-1] == "OK GO 1"
+        w.advance_to(0.1)
+        stepper = StepperBoard.open("virtual://stepper?rig=tendons-test-home&reset_on_open=0", rig=four)
+        try:
+            said = home(stepper)
+        finally:
+            stepper.close()
+        assert w.stepper.positions == [0, 0, 0, 0] and not w.stepper.enabled
+        assert said.startswith("moved every tendon back to position 0 (tendon 1 5, tendon 2 3, tendon 4 7")
+        assert "MSEG 35735 -5 -3 0 -7" in w.stepper.received
+    finally:
+        forget_world("tendons-test-home")
