@@ -444,3 +444,15 @@ def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monk
         assert "MSEG 35735 -5 -3 0 -7" in w.stepper.received
     finally:
         forget_world("tendons-test-home")
+
+
+def test_the_one_tendon_rig_refuses_a_rig_file_of_several_tendons(monkeypatch, four) -> None:
+    from helpers.rig import experiment
+    from helpers.virtual.emulator import world as world_module
+
+    monkeypatch.setattr(experiment, "RIG", four)
+    with pytest.raises(ValueError) as info:
+        experiment.Rig.connect("virtual", rig_name="tendons-test-one")
+    assert str(info.value).startswith("rig 'four-tendon' has 4 tendons, but Rig drives one")
+    assert error_line(info.value)[1] == 2
+    assert "tendons-test-one" not in world_module._WORLDS  # no port opened, so no world was made
