@@ -1,5 +1,8 @@
 """``python -m helpers home``: bring the cable back to position 0 safely, from where the stepper says it is.
 
+A stepper built for several tendons (its ``ABORTED`` lists every axis) has every tendon brought back at once,
+in one ``MSEG`` item (the farthest at the home speed), checked against every tendon's limits first.
+
 The stepper board counts its position from zero since it booted; there is no limit switch. So:
 
 - if the board kept running (a pseudo-terminal of ``serve-virtual-rig``, or hardware whose reset-on-open is
@@ -16,6 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number, arg_rig_name
 from helpers.board.programmes import Programme, Segment
 from helpers.paper.hardware import MAX_SPEED_MM_S, MM_PER_STEP
@@ -23,6 +27,7 @@ from helpers.rig.boards import BoardError, BoardTimeout
 from helpers.rig.discovery import find_rig_ports
 from helpers.rig.safety import SafetyError, check_programme
 from helpers.rig.stepper import StepperBoard
+from helpers.rig.tendon_safety import TendonItem, TendonProgramme, check_tendon_programme
 
 HOME_SPEED_MM_S = 50.0
 """Cable speed of the way home, mm/s (gentle: a quarter of the experiments' slowest move)."""
@@ -61,7 +66,14 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
         return "the cable was confirmed slack: the stepper counts from 0 here (driver disabled)"
     # ABORT first: a programme or stream an earlier session left running stops (CLEAR would be refused while
     # it runs), the driver goes off, and the reply says where the cable is
-    position = stepper.abort()
+    reply = stepper.command("ABORT")
+    words = reply.split()[1:]
+    if not words or not all(w.lstrip("-").isdigit() for w in words):
+        raise BoardError(f"the stepper board's reply to ABORT is malformed: {reply!r}")
+    positions = tuple(int(w) for w in words)
+    if len(positions) > 1:  # a build for several tendons: every axis's position, every axis homed at once
+        return _home_every_axis(stepper, positions, speed_mm_s)
+    position = positions[0]
     if position == 0:
         stepper.enable(False)
         return "the cable is at position 0 already (driver disabled)"
@@ -86,6 +98,41 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
     return (
         f"moved {abs(position)} steps ({abs(position) * MM_PER_STEP:.2f} mm) back to position "
         f"{stepper.done_position} at {speed_mm_s:g} mm/s (driver disabled)"
+    )
+
+
+def _home_every_axis(stepper: StepperBoard, positions: tuple[int, ...], speed_mm_s: float) -> str:
+    """Every axis back to 0 in one ``MSEG`` at ``speed_mm_s`` for the farthest one (the others slower)."""
+    if not any(positions):
+        stepper.enable(False)
+        return f"every tendon is at position 0 already ({len(positions)} axes; driver disabled)"
+    interval = max(1, round(MM_PER_STEP / speed_mm_s * 1e6))
+    rig = rigfile.selected()
+    window = interval * max(map(abs, positions))
+    if rig.n_tendons == len(positions):  # the per-tendon limits (docs/safety.md), homing to the rest state
+        back = TendonProgramme((TendonItem(window, tuple(-p for p in positions)),))
+        check_tendon_programme(back, rig, positions, rest_ok=True)
+    stepper.send_all(["CLEAR", f"MSEG {window} " + " ".join(str(-p) for p in positions)])
+    try:
+        stepper.enable(True)
+        stepper.go()
+        wait = stepper.waiter(window * 1e-6 + 2.0)
+        while stepper.done_position is None:
+            stepper.pump()
+            stepper.check_reset()
+            if wait.expired:
+                raise BoardTimeout("the stepper board did not report DONE on its way home")
+            wait.idle(stepper.port.timeout or 0.0)
+    finally:
+        try:
+            stepper.enable(False)
+        except BoardError:
+            pass
+    now = stepper.command("POS").split()[2:]
+    moved = ", ".join(f"tendon {i + 1} {abs(p)}" for i, p in enumerate(positions) if p)
+    return (
+        f"moved every tendon back to position 0 ({moved} steps; the farthest at {speed_mm_s:g} mm/s): "
+        f"positions {' '.join(now)} (driver disabled)"
     )
 
 
@@ -133,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
             "home (a virtual rig that keeps running is serve-virtual-rig's: home --ports DAQ,STEPPER)"
         )
         return 0
-    stepper = StepperBoard.open(_stepper_url(args.ports, args.rig_name))
+    stepper = StepperBoard.open(_stepper_url(args.ports, args.rig_name), rig=rigfile.selected())
     try:
         print(home(stepper, confirm_slack=args.confirm_slack, speed_mm_s=args.speed))
     finally:

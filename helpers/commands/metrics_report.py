@@ -32,6 +32,7 @@ import pandas as pd
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import shown
 from helpers.base.tables import to_markdown
+from helpers.commands.metrics_tendons import tendon_markdown, tendon_table, tendon_text
 from helpers.paper import metrics
 from helpers.paper import numbers as paper
 from helpers.recordings import RESERVED_NAMES, Recording, RecordingError, RecordingExists, load, recording_rig
@@ -120,7 +121,9 @@ def _why_not(rec: Recording, include_aborted: bool) -> str:
     sc = rec.meta.get("scenario") or {}
     if sc.get("kind") == "calibration":
         return "a load-cell calibration run (no motion to analyse)"
-    missing = [k for k in ("v_in_mm_s", "x_f_mm", "system") if sc.get(k) is None]
+    # several tendons: every tendon's motions come from its own step count (metrics_tendons)
+    keys = () if rec.tendons > 1 else ("v_in_mm_s", "x_f_mm", "system")
+    missing = [k for k in keys if sc.get(k) is None]
     if missing:
         return f"its scenario has no {', '.join(missing)}"
     if rec.status != "complete" and not include_aborted:
@@ -394,23 +397,37 @@ def run(args: argparse.Namespace) -> int:
     if len(rigs) > 1 and not getattr(args, "mix_rigs", False):
         names = ", ".join(sorted(name for _, name in rigs))
         raise ValueError(f"recordings of {len(rigs)} rigs in one table ({names}): --mix-rigs mixes them")
-    runs = run_table(selection, args.band)
-    means = mean_table(runs, args.band)
+    several = [rec for rec in selection.recordings if rec.tendons > 1]
+    single = Selection([rec for rec in selection.recordings if rec.tendons == 1], selection.skipped)
+    tendons = tendon_table(several, args.band)
     targets: list[tuple[Path, str]] = []
-    if args.csv is not None:
-        stem = args.csv.with_suffix("") if args.csv.suffix == ".csv" else args.csv
-        targets += [
-            (stem.with_name(f"{stem.name}_runs.csv"), runs.to_csv(index=False, float_format="%.6g")),
-            (stem.with_name(f"{stem.name}_scenarios.csv"), means.to_csv(index=False, float_format="%.6g")),
-        ]
-    markdown = report_markdown(runs, means, selection.skipped, args.band)
+    stem = None if args.csv is None else (args.csv.with_suffix("") if args.csv.suffix == ".csv" else args.csv)
+    if single.recordings or not several:
+        runs = run_table(single, args.band)
+        means = mean_table(runs, args.band)
+        if stem is not None:
+            for suffix, table in (("runs", runs), ("scenarios", means)):
+                csv_text = table.to_csv(index=False, float_format="%.6g")
+                targets.append((stem.with_name(f"{stem.name}_{suffix}.csv"), csv_text))
+        markdown = report_markdown(runs, means, selection.skipped, args.band)
+        text = report_text(runs, means, selection.skipped, args.band)
+    else:
+        markdown = text = ""
+    if several:
+        if stem is not None:
+            targets.append((stem.with_name(f"{stem.name}_tendons.csv"),
+                            tendons.to_csv(index=False, float_format="%.6g")))  # fmt: skip
+        markdown += tendon_markdown(tendons, args.band)
+        text += tendon_text(tendons, args.band)
+        if not single.recordings:
+            markdown += "\n" + _skipped_text(selection.skipped).replace("\n  ", "\n- ") + "\n"
+            text += "\n" + _skipped_text(selection.skipped) + "\n"
     if args.markdown not in (None, "-"):
         targets.append((Path(args.markdown), markdown))
     for path, _ in targets:  # refuse before writing any, so that a refusal leaves nothing half-done
         if path.exists() and not args.replace:
             raise RecordingExists(f"{shown(path)} exists; pass --replace to overwrite it")
-    text = markdown if args.markdown == "-" else report_text(runs, means, selection.skipped, args.band)
-    sys.stdout.write(text)
+    sys.stdout.write(markdown if args.markdown == "-" else text)
     for path, text in targets:
         _write(path, text, args.replace)
         print(f"wrote {shown(path)}", file=sys.stderr)

@@ -28,13 +28,21 @@ import pandas as pd
 from helpers import rigfile
 from helpers.paper.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
 from helpers.paper.hardware import RIG as HW_RIG
+from helpers.recordings.tendons import (
+    TENDON_SCHEMA_VERSION,
+    derive_tendon_columns,
+    tendon_columns,
+    tendon_count,
+    tendon_meta_problem,
+)
 from helpers.rigfile.recorded import recording_rig, validate_rig_section
 
 SCHEMA_VERSION = 2
 """Version of the metadata layout new recordings get (2: with ``rig``, the rig file)."""
 
-READ_VERSIONS = (1, 2)
-"""Versions :func:`helpers.recordings.load` reads (1: before rig files, the paper's rig); others refused."""
+READ_VERSIONS = (1, 2, TENDON_SCHEMA_VERSION)
+"""Versions :func:`helpers.recordings.load` reads (1: before rig files, the paper's rig; 3: several tendons,
+:mod:`helpers.recordings.tendons`); others refused."""
 
 RAW_COLUMNS = ("seq", "t_us", "adc", "steps")
 """The CSV's columns, in order."""
@@ -108,9 +116,17 @@ class Recording:
         """True when the data come from the virtual rig (simulation, not a measurement)."""
         return self.meta.get("source", {}).get("kind") == "virtual-rig"
 
+    @property
+    def tendons(self) -> int:
+        """Number of tendons recorded (1 for versions 1 and 2)."""
+        return tendon_count(self.meta)
+
     def derive(self) -> Recording:
         """Add the derived columns from the metadata's calibration; return ``self``."""
-        self.frame = derive_columns(self.frame, self.meta["calibration"])
+        if self.tendons > 1:
+            self.frame = derive_tendon_columns(self.frame, self.meta)
+        else:
+            self.frame = derive_columns(self.frame, self.meta["calibration"])
         return self
 
     def __repr__(self) -> str:
@@ -145,6 +161,12 @@ def derive_columns(frame: pd.DataFrame, calibration: dict[str, Any]) -> pd.DataF
 def counts_to_newtons(adc: np.ndarray, newtons_per_count: float, offset_counts: float) -> np.ndarray:
     """Tension in N from ADC counts, ``(adc - offset_counts) * newtons_per_count`` (load-cell calibration)."""
     return (np.asarray(adc, dtype=float) - float(offset_counts)) * float(newtons_per_count)
+
+
+def raw_columns(meta: dict[str, Any]) -> tuple[str, ...]:
+    """The CSV's columns of a recording with this metadata (several tendons: ``adc_i``, ``steps_i``)."""
+    n = tendon_count(meta)
+    return RAW_COLUMNS if n == 1 else tendon_columns(n)
 
 
 def empty_frame() -> pd.DataFrame:
@@ -218,9 +240,14 @@ def validate_meta(meta: Any, path: Path) -> None:
     if not (isinstance(sha, str) and _SHA256.match(sha)):
         raise _fail(path, f"csv_sha256: expected 64 lower-case hex digits, got {str(sha)[:20]!r}")
     cal = _section(meta, "calibration", path)
-    _number(cal, "newtons_per_count", "calibration", path, positive=True)
-    _number(cal, "offset_counts", "calibration", path)
-    _number(cal, "mm_per_step", "calibration", path, positive=True)
+    if version == TENDON_SCHEMA_VERSION:
+        problem = tendon_meta_problem(meta)
+        if problem is not None:
+            raise _fail(path, problem)
+    else:
+        _number(cal, "newtons_per_count", "calibration", path, positive=True)
+        _number(cal, "offset_counts", "calibration", path)
+        _number(cal, "mm_per_step", "calibration", path, positive=True)
     rate = meta["rate_hz"]
     if not (_is_int(rate) and DAQ_RATE_MIN_HZ <= rate <= DAQ_RATE_MAX_HZ):
         span = f"{DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ}"
@@ -241,6 +268,10 @@ def validate_meta(meta: Any, path: Path) -> None:
     problem = validate_rig_section(meta, path)
     if problem is not None:
         raise _fail(path, problem)
+    if version == TENDON_SCHEMA_VERSION and recording_rig(meta).n_tendons != meta["tendons"]:
+        raise _fail(
+            path, f"tendons: {meta['tendons']}, but the rig file has {recording_rig(meta).n_tendons}"
+        )
     scenario = _section(meta, "scenario", path)
     if not isinstance(scenario.get("kind"), str):
         raise _fail(path, f"scenario.kind: expected text, got {scenario.get('kind')!r}")
@@ -311,7 +342,8 @@ def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
     within 0-1023; and nothing a rig cannot produce (:func:`_check_physics`), whatever the checksum: samples
     closer than the stated rate, a step count beyond the travel or changing faster than the step rate.
     """
-    for col in RAW_COLUMNS:
+    columns = raw_columns(meta)
+    for col in columns:
         if col not in frame.columns:
             raise _fail(path, f"missing column {col!r}")
         if len(frame) and not pd.api.types.is_integer_dtype(frame[col]):
@@ -336,10 +368,12 @@ def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
         if np.any(dt <= 0):
             i = int(np.argmax(dt <= 0))
             raise _fail(path, f"non-monotonic time at row {i + 1} (t_us {t_us[i]} then {t_us[i + 1]})")
-    adc = frame["adc"].to_numpy(np.int64)
-    if len(adc) and (adc.min() < 0 or adc.max() > ADC_MAX):
-        raise _fail(path, f"adc outside 0-{ADC_MAX}")
-    _check_physics(frame, meta, path)
+    for col in (c for c in columns if c.startswith("adc")):
+        adc = frame[col].to_numpy(np.int64)
+        if len(adc) and (adc.min() < 0 or adc.max() > ADC_MAX):
+            raise _fail(path, f"{col} outside 0-{ADC_MAX}")
+    for col in (c for c in columns if c.startswith("steps")):
+        _check_physics(frame, meta, path, col)
 
 
 SAMPLE_TIME_TOLERANCE = 0.1
@@ -365,7 +399,7 @@ def _rig_limits(meta: dict[str, Any]) -> tuple[int, float]:
     return max(rigfile.derived(rig).travel_steps), float(rig.hardware.step_rate_cap_hz)
 
 
-def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
+def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path, column: str = "steps") -> None:
     """Refuse contents no rig can produce, whatever the checksum says.
 
     Samples closer than the stated rate, a step count beyond the travel, or one that changes faster than the
@@ -374,7 +408,7 @@ def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> Non
     if len(frame) < 2:
         return
     t_us = frame["t_us"].to_numpy(np.int64)
-    steps = frame["steps"].to_numpy(np.int64)
+    steps = frame[column].to_numpy(np.int64)
     period_us = 1e6 / float(meta["rate_hz"])
     dt = np.diff(t_us)
     short = dt < (1.0 - SAMPLE_TIME_TOLERANCE) * period_us
@@ -388,13 +422,13 @@ def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> Non
     travel, max_rate = _rig_limits(meta)
     if np.abs(steps).max() > travel:
         i = int(np.argmax(np.abs(steps) > travel))
-        raise _fail(path, f"steps: {steps[i]} at row {i} is beyond the travel of {travel} steps")
+        raise _fail(path, f"{column}: {steps[i]} at row {i} is beyond the travel of {travel} steps")
     allowed = np.floor(max_rate * dt * 1e-6) + 1  # steps possible between two samples
     jump = np.abs(np.diff(steps)) > allowed
     if np.any(jump):
         i = int(np.argmax(jump))
         raise _fail(
             path,
-            f"steps: changes by {steps[i + 1] - steps[i]} in {dt[i]} us at row {i + 1}, faster than the "
+            f"{column}: changes by {steps[i + 1] - steps[i]} in {dt[i]} us at row {i + 1}, faster than the "
             f"stepper's {max_rate:g} steps/s",
         )

@@ -44,6 +44,7 @@ from helpers.recordings.format import (
     SCHEMA_VERSION,
     Recording,
     RecordingError,
+    raw_columns,
     validate,
     validate_meta,
 )
@@ -186,9 +187,9 @@ def _csv_path(path: str | os.PathLike) -> Path:
 
 
 # -- writing -----------------------------------------------------------------------------------------------
-def _csv_bytes(frame: pd.DataFrame) -> bytes:
+def _csv_bytes(frame: pd.DataFrame, columns: tuple[str, ...] = RAW_COLUMNS) -> bytes:
     buf = io.StringIO()
-    frame.loc[:, list(RAW_COLUMNS)].astype(np.int64).to_csv(buf, index=False, lineterminator="\n")
+    frame.loc[:, list(columns)].astype(np.int64).to_csv(buf, index=False, lineterminator="\n")
     return buf.getvalue().encode("ascii")
 
 
@@ -232,7 +233,7 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
     missing = [k for k in REQUIRED_META if k not in meta and k != "csv_sha256"]
     if missing:
         raise RecordingError(f"{target}: metadata lacks {', '.join(missing)}")
-    data = _csv_bytes(recording.frame)
+    data = _csv_bytes(recording.frame, raw_columns(meta))
     meta["csv_sha256"] = hashlib.sha256(data).hexdigest()
     meta["counts"] = dict(meta["counts"], samples=int(len(recording.frame)))
     text = dumps(meta)
@@ -368,11 +369,11 @@ def _read_pair(csv_path: Path) -> tuple[bytes, Any]:
     return data, meta
 
 
-def _parse_csv(data: bytes, csv_path: Path) -> pd.DataFrame:
+def _parse_csv(data: bytes, csv_path: Path, header: bytes = HEADER) -> pd.DataFrame:
     first, _, _ = data.partition(b"\n")
-    if first.rstrip(b"\r") != HEADER:
+    if first.rstrip(b"\r") != header:
         raise RecordingError(
-            f"{csv_path}: header {first[:60]!r} is not {HEADER.decode()!r} (columns and their order)"
+            f"{csv_path}: header {first[:60]!r} is not {header.decode()!r} (columns and their order)"
         )
     unreadable = (
         pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError, OverflowError,
@@ -416,9 +417,10 @@ def load(path: str | os.PathLike, derive: bool = True) -> Recording:
             f"{csv_path}: checksum mismatch: sha256 {digest[:12]}... but the metadata says "
             f"{str(meta['csv_sha256'])[:12]}..."
         )
-    frame = _parse_csv(data, csv_path)
+    columns = raw_columns(meta)
+    frame = _parse_csv(data, csv_path, ",".join(columns).encode("ascii"))
     validate(frame, meta, csv_path)
-    frame = frame.loc[:, list(RAW_COLUMNS)].astype(np.int64)
+    frame = frame.loc[:, list(columns)].astype(np.int64)
     rec = Recording(frame=frame, meta=meta, path=csv_path)
     return rec.derive() if derive else rec
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import Any
 
 import serial
 
@@ -90,7 +91,7 @@ class CommandRefused(BoardError):
         self.code = code
 
 
-def _check_major(kind: str, version: str) -> None:
+def _check_major(kind: str, version: str, rig: Any = None) -> None:
     """Raise unless ``version`` is of this host's protocol MAJOR and the board was built for this host's rig.
 
     Raises
@@ -99,19 +100,21 @@ def _check_major(kind: str, version: str) -> None:
         The board speaks another protocol MAJOR version.
     WrongRig
         The version's build metadata (``+<rig hash>``) names another rig than the one the host runs
-        (``helpers.paper.hardware.RIG``). A version without it (firmware 2.0-2.1) is the paper's rig's.
+        (``rig``, default ``helpers.paper.hardware.RIG``). A version without it (firmware 2.0-2.1) is the
+        paper's rig's.
     """
+    rig = RIG if rig is None else rig
     if version.split(".")[0] != str(PROTOCOL_MAJOR):
         raise OldFirmware(
             f"the {kind} board runs firmware {version}; this host speaks protocol {PROTOCOL_MAJOR} "
             f"(firmware {PROTOCOL_MAJOR}.x, CRC-8 checksums): flash the firmware of this repository"
         )
     built_for = version.partition("+")[2] or PAPER_RIG_HASH
-    if built_for != RIG.hash:
+    if built_for != rig.hash:
         raise WrongRig(
-            f"the {kind} board was built for rig {built_for}, but this host runs rig '{RIG.name}' "
-            f"({RIG.source or 'rig file'}, hash {RIG.hash}): rebuild and flash it with "
-            f"make -C firmware RIG={RIG.source or 'FILE'} upload-{kind} PORT=..."
+            f"the {kind} board was built for rig {built_for}, but this host runs rig '{rig.name}' "
+            f"({rig.source or 'rig file'}, hash {rig.hash}): rebuild and flash it with "
+            f"make -C firmware RIG={rig.source or 'FILE'} upload-{kind} PORT=..."
         )
 
 
@@ -178,6 +181,8 @@ class BoardLink:
         self.hello_seen = 0
         self.version: str | None = None
         self.sent: list[str] = []
+        self.expected_rig: Any = None
+        """The rig file the board must be built for (None: ``helpers.paper.hardware.RIG``, the host's)."""
         self.booted_on_open = False
         """True when the board rebooted as its port opened (``HELLO``): its state (position too) is new."""
 
@@ -189,6 +194,7 @@ class BoardLink:
         read_timeout: float = 0.05,
         sync: bool = True,
         hello_timeout: float = BOOT_TIMEOUT_S,
+        rig: Any = None,
     ) -> BoardLink:
         """Open ``url`` (a device path or a pyserial URL) and synchronise with the board.
 
@@ -204,6 +210,8 @@ class BoardLink:
             Wait for ``HELLO`` (the board resets when the port opens) or ``PING`` until ``PONG``.
         hello_timeout : float
             Seconds to wait for the board to boot (default :data:`BOOT_TIMEOUT_S`).
+        rig : RigFile, optional
+            The rig the board must be built for (default the host's, ``helpers.paper.hardware.RIG``).
 
         Returns
         -------
@@ -219,6 +227,7 @@ class BoardLink:
                 ) from exc
             raise BoardDisconnected(f"cannot open the {cls.kind} board at {url}: {exc}") from exc
         link = cls(port, timeout=timeout)
+        link.expected_rig = rig
         if sync:
             link.sync(hello_timeout)
         return link
@@ -379,7 +388,7 @@ class BoardLink:
                     if len(words) != 3 or words[1] != self.kind:
                         raise BoardError(f"expected a {self.kind} board on {self.port.port}, got {reply!r}")
                     self.version = words[2]
-                    _check_major(self.kind, words[2])
+                    _check_major(self.kind, words[2], self.expected_rig)
                     break
             else:
                 if wait.expired:
@@ -411,7 +420,7 @@ class BoardLink:
                 f"expected 'PONG {self.kind} <version>' from the {self.kind} board, got {reply!r}"
             )
         self.version = words[2]
-        _check_major(self.kind, words[2])
+        _check_major(self.kind, words[2], self.expected_rig)
         return words[2]
 
     def close(self) -> None:

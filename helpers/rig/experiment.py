@@ -295,6 +295,11 @@ class Rig:
         -------
         Rig
         """
+        if RIG.n_tendons > 1:  # before any port opens
+            raise ValueError(
+                f"rig '{RIG.name}' has {RIG.n_tendons} tendons, but Rig drives one: run its coordinated "
+                "programmes with helpers.rig.tendons.TendonRig"
+            )
         if ports == "virtual":
             if not (isinstance(rig_name, str) and RIG_NAME.match(rig_name)):
                 raise ValueError(

@@ -481,3 +481,83 @@ def test_link_budget_four_channels_through_pty(four_build: tuple[Path, str], fir
     assert t_last - t_first >= 60_000_000
     assert (drops, bad, overruns) == (0, 0, 0)
     assert frames >= 60_000
+
+
+class _Clock:
+    """What an emulated board reads of its world: the device clock, a seed and the GO instants."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+        self.seed = 0
+        self.t0_us = 0
+        self.go_times: list[float] = []
+
+
+def _emulated(board: str, cmds: list[str], duration: float, spacing: float = 0.02):
+    """The emulated four-tendon board (``helpers.virtual.emulator.tendon_boards``) sent the same commands at
+    the same device times as ``_stepper``: its reply bodies, and each axis's step times from GO (s)."""
+    tb = pytest.importorskip("helpers.virtual.emulator.tendon_boards")
+    rigfile = pytest.importorskip("helpers.rigfile")
+    limits = tb.build_limits(rigfile.load(fwsim.REPO / "rigs" / "four-tendon.toml"))
+    clock = _Clock()
+    dev = (tb.TendonStepperEmulator if board == "stepper" else tb.TendonDaqEmulator)(clock, limits)
+    dev.reset()
+    steps: list[list[float]] = [[] for _ in range(limits.axes)]
+    bodies = []
+    for i, c in enumerate([*cmds, None]):
+        t = 0.05 + spacing * i if c is not None else duration
+        if board == "stepper":
+            times, axes, _ = dev.axis_steps_until(t)
+            for ti, a in zip(times.tolist(), axes.tolist(), strict=True):
+                steps[a].append(ti - clock.go_times[-1])
+            dev.finish_if_due(t)
+        clock.t = t
+        if c is not None:
+            dev.receive(fwsim.command(c))
+        bodies += [line.decode().rstrip("\n").rpartition("*")[0] for line in dev.out]
+        dev.out.clear()
+    return bodies, steps
+
+
+def test_emulated_four_axis_stepper_follows_the_firmware_tick_for_tick(
+    four_build: tuple[Path, str], firmware_build: None
+) -> None:
+    """The same four-axis programme (coincident, lone and idle axes, a dwell, SEG on axis 0, a refusal) in
+    simavr and on the emulated board: the same replies (DONE and POS with every axis), and every emulated
+    step on the tick of the firmware's STEP edge (the edge less its constant lead, rounded to the tick)."""
+    build, _ = four_build
+    cmds = ["PING", "CONFIG", "EN 1"] + [f"MSEG {w} " + " ".join(map(str, n)) for w, n in PROGRAMME]
+    cmds += ["WAIT 5", "SEG 1 3 700", "MSEG 10000 0 16 0 0", "GO"]  # axis 1 too fast: refused
+    duration = 0.2 + sum(w for w, _ in PROGRAMME) / 1e6 + 0.1
+    run = _stepper(build, cmds, duration)
+    fw = [ln.body for ln in run.lines]
+    emu, emu_steps = _emulated("stepper", cmds, duration)
+    assert fw == emu
+    assert fw[-3:] == ["ERR RANGE axis 1 interval 639-1000000 us", "OK GO 5", "DONE 3 0 0 0"]
+    edges = [_rising(run, step) for step, _ in UNO_AXES]
+    # by hand from PROGRAMME: 10 + 20 + 30 + 3 (SEG), 7 + 20 + 27, 3 + 1 + 4, 0 + 40 + 40 steps
+    assert [len(e) for e in edges] == [len(s) for s in emu_steps] == [63, 54, 8, 80]
+    offsets = [
+        c - 128 - 8 * round(t * 2e6)
+        for got, want in zip(edges, emu_steps, strict=True)
+        for c, t in zip(got, want, strict=True)
+    ]
+    origin = sorted(offsets)[len(offsets) // 2]  # GO on the simulated clock (as in the tests above)
+    worst = max(abs(o - origin) for o in offsets)
+    print(f"emulated four-axis stepper: {len(offsets)} steps, each within {worst} cycles of the firmware's")
+    assert worst <= TICK_CYCLES
+
+
+def test_emulated_four_channel_daq_replies_as_the_firmware(
+    four_build: tuple[Path, str], firmware_build: None
+) -> None:
+    build, _ = four_build
+    cmds = ["PING", "CONFIG", "RATE 50", "RATE 500", "ZERO", "CONFIG 1"]
+    script = [(0.02 + 0.01 * i, fwsim.command(c)) for i, c in enumerate(cmds)]
+    run = fwsim.run("daq", script, 0.1 + 0.01 * len(cmds), elf=build / "daq_mega.elf")
+    fw = [ln.body for ln in run.lines]
+    emu, _ = _emulated("daq", cmds, 0.2, spacing=0.01)
+    assert [b if not b.startswith("ERR") else b.split()[:2] for b in fw] == [
+        b if not b.startswith("ERR") else b.split()[:2] for b in emu
+    ]
+    assert fw[2] == "OK CONFIG 4 4 100 2000"

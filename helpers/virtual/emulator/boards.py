@@ -116,6 +116,10 @@ class EmulatedBoard:
     """Line handling shared by both boards: framing, checksums, ``TOOLONG``, faults, the output queue."""
 
     kind = "board"
+    max_args = 3
+    """Arguments parsed per command (the firmware's ``PROTO_MAX_ARGS``: 3, or 1 + the axes of a build)."""
+    rig_hash: str | None = None
+    """The rig hash of the build the board emulates (None: the rig the host runs)."""
 
     def __init__(self, world: Any, faults: Faults | None = None) -> None:
         self.world = world
@@ -216,7 +220,7 @@ class EmulatedBoard:
         tokens = text.split(" ")
         bad = any(t == "" for t in tokens)
         args: list[int] = []
-        for tok in tokens[1:4]:
+        for tok in tokens[1 : 1 + self.max_args]:
             if bad:
                 break
             digits = tok[1:] if tok.startswith("-") else tok
@@ -226,8 +230,8 @@ class EmulatedBoard:
             v = int(tok)
             args.append(max(-INT32_MAX - 1, min(INT32_MAX, v)))
         nargs = len(tokens) - 1
-        if nargs > 3:
-            args.extend([0] * (nargs - 3))
+        if nargs > self.max_args:
+            args.extend([0] * (nargs - self.max_args))
         return _Command(tokens[0], args if not bad else [0] * nargs, bad)
 
     def _line(self, line: bytes) -> None:
@@ -239,7 +243,7 @@ class EmulatedBoard:
             return
         self.received.append(" ".join([parsed.word, *map(str, parsed.args)]))
         if parsed.word == "PING":
-            self.send(self._arg_error(parsed, 0) or f"PONG {self.kind} {board_version()}")
+            self.send(self._arg_error(parsed, 0) or f"PONG {self.kind} {self.version_token()}")
             return
         handler = getattr(self, f"cmd_{parsed.word}", None) if parsed.word.isupper() else None
         if handler is None:
@@ -256,6 +260,10 @@ class EmulatedBoard:
             return f"ERR ARG {cmd.word} needs {n} integer{'s' if n != 1 else ''}"
         return None
 
+    def version_token(self) -> str:
+        """``<version>+<rig hash>`` of ``HELLO``/``PONG`` (the build's hash, else the host's rig's)."""
+        return board_version() if self.rig_hash is None else board_version(self.rig_hash)
+
     # --- lifecycle ----------------------------------------------------------------------------------
     def reset(self) -> None:
         """Reboot: forget the state, send ``HELLO``."""
@@ -264,7 +272,7 @@ class EmulatedBoard:
         self._overflow = False
         self._cr = False
         self.hung = False
-        self.send(f"HELLO {self.kind} {board_version()}")
+        self.send(f"HELLO {self.kind} {self.version_token()}")
 
 
 class DaqEmulator(EmulatedBoard):
@@ -344,6 +352,11 @@ class DaqEmulator(EmulatedBoard):
             return np.zeros(0, dtype=np.int64)
         return np.arange(self._next_slot, k_last + 1, dtype=np.int64)
 
+    @staticmethod
+    def payload(counts: np.ndarray, steps: np.ndarray) -> list[str]:
+        """The fields after ``t_us`` of each data line: ``<adc>,<steps>`` (one channel, one axis)."""
+        return [f"{c},{s}" for c, s in zip(counts.tolist(), steps.tolist(), strict=True)]
+
     def emit_samples(
         self, slots: np.ndarray, times: np.ndarray, counts: np.ndarray, steps: np.ndarray
     ) -> None:
@@ -355,11 +368,12 @@ class DaqEmulator(EmulatedBoard):
         t_us = (np.rint(times * 1e6).astype(np.int64) + self.world.t0_us) % WRAP_US
         rng = self._rng
         transport = f.drop > 0 or f.corrupt > 0 or f.garbage > 0
+        payload = self.payload(counts, steps)
         if not (transport or f.overrun_every or self._pending_overrun):  # the common case, vectorised
             seq0 = self.n_sent
             seqs = range(seq0, seq0 + len(slots))
-            columns = zip(seqs, t_us.tolist(), counts.tolist(), steps.tolist(), strict=True)
-            bodies = [f"D,{a},{b},{c},{d}" for a, b, c, d in columns]
+            columns = zip(seqs, t_us.tolist(), payload, strict=True)
+            bodies = [f"D,{a},{b},{c}" for a, b, c in columns]
             self.n_sent = seq0 + len(slots)
             if not (self.hung or self.disconnected):
                 self.out.append(frame_many(bodies))
@@ -374,7 +388,7 @@ class DaqEmulator(EmulatedBoard):
             if self._pending_overrun:
                 lines.append(frame(f"W,OVERRUN,{self._pending_overrun}"))
                 self._pending_overrun = 0
-            body = f"D,{seq},{t_us[i]},{counts[i]},{steps[i]}"
+            body = f"D,{seq},{t_us[i]},{payload[i]}"
             seq += 1
             if transport:
                 if f.garbage and rng.random() < f.garbage:

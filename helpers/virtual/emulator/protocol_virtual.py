@@ -25,6 +25,7 @@ import urllib.parse
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from helpers.virtual.emulator.boards import Disconnected, Faults
+from helpers.virtual.emulator.tendon_world import build_world
 from helpers.virtual.emulator.world import VirtualWorld, get_world
 
 _WORLD_OPTIONS = ("seed", "t0_us", "load_n")
@@ -50,9 +51,8 @@ class Serial(SerialBase):
         if self._port is None:
             raise SerialException("Port must be configured before it can be used.")
         kind, options = self.from_url(self._port)
-        self.world = get_world(
-            options.get("rig", "default"), {k: options[k] for k in _WORLD_OPTIONS if k in options}
-        )
+        world_options = {k: options[k] for k in _WORLD_OPTIONS if k in options}
+        self.world = get_world(options.get("rig", "default"), world_options, build_world)
         board = self.world.daq if kind == "daq" else self.world.stepper
         holder = getattr(board, "port", None)
         if holder is not None and holder is not self and holder.is_open:

@@ -40,7 +40,8 @@ from typing import Any
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import VIRTUAL_RIG_REGISTRY
 from helpers.virtual.emulator.boards import EmulatedBoard, Faults
-from helpers.virtual.emulator.world import VirtualWorld, default_world
+from helpers.virtual.emulator.tendon_world import build_world
+from helpers.virtual.emulator.world import VirtualWorld
 
 CATCH_UP_S = 0.02
 """Wall seconds the server integrates at most before it reads and answers the ports again."""
@@ -250,7 +251,7 @@ def run(args: argparse.Namespace) -> int:
     options = {"seed": str(args.seed)}
     if args.load_n is not None:
         options["load_n"] = str(args.load_n)
-    world = default_world(args.rig_name, options)
+    world = build_world(args.rig_name, options)
     world.daq.faults = _faults(args.daq_faults)
     world.stepper.faults = _faults(args.stepper_faults)
     try:

@@ -170,7 +170,11 @@ def forget_world(name: str) -> None:
     _WORLDS.pop(name, None)
 
 
-def get_world(name: str, options: dict[str, str] | None = None) -> VirtualWorld:
+def get_world(
+    name: str,
+    options: dict[str, str] | None = None,
+    build: Callable[[str, dict[str, str]], VirtualWorld] | None = None,
+) -> VirtualWorld:
     """Return the named world, building it from the virtual rig's calibrated parameters if it is new.
 
     Parameters
@@ -179,9 +183,12 @@ def get_world(name: str, options: dict[str, str] | None = None) -> VirtualWorld:
         The rig name.
     options : dict, optional
         URL query options used only when the world is created: ``seed``, ``t0_us``, ``load_n``.
+    build : callable, optional
+        Builds a new world from ``(name, options)`` (default :func:`default_world`; the URL handler and
+        the server pass :func:`helpers.virtual.emulator.tendon_world.build_world`).
     """
     if name not in _WORLDS:
-        register_world(default_world(name, options or {}))
+        register_world((build or default_world)(name, options or {}))
     return _WORLDS[name]
 
 

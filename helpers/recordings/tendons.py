@@ -1,0 +1,89 @@
+"""Recordings of a rig with several tendons: ``schema_version`` 3 (``docs/recording_format.md``).
+
+The CSV holds ``seq``, ``t_us``, then one ADC column per tendon (``adc_0`` .. ``adc_{n-1}``, the DAQ's
+channels) and one step column per tendon (``steps_0`` .. ``steps_{n-1}``, each axis's position from zero).
+The metadata is version 2's with ``tendons`` (n >= 2) and the calibration per tendon: ``calibration.
+newtons_per_count``, ``offset_counts`` and ``mm_per_step`` are lists of n numbers; ``rig`` (the rig file,
+whose tendon count must be n) is required. Derived on load: ``t_s``, and per tendon ``tension_n_i =
+(adc_i - offset_counts[i]) * newtons_per_count[i]`` and ``cable_mm_i = steps_i * mm_per_step[i]``.
+
+A one-tendon recording stays version 2 (``seq,t_us,adc,steps``), written and read exactly as before.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+TENDON_SCHEMA_VERSION = 3
+"""The metadata version of a recording with several tendons."""
+
+MAX_TENDONS = 4
+
+
+def tendon_columns(n: int) -> tuple[str, ...]:
+    """The CSV's columns of a recording of ``n`` tendons, in order."""
+    return ("seq", "t_us") + tuple(f"adc_{i}" for i in range(n)) + tuple(f"steps_{i}" for i in range(n))
+
+
+def tendon_count(meta: dict[str, Any]) -> int:
+    """``meta["tendons"]`` (1 for a recording of version 1 or 2)."""
+    return int(meta.get("tendons", 1)) if meta.get("schema_version") == TENDON_SCHEMA_VERSION else 1
+
+
+def _numbers(value: Any, n: int, positive: bool) -> bool:
+    return (
+        isinstance(value, list)
+        and len(value) == n
+        and all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in value)
+        and (not positive or all(x > 0 for x in value))
+    )
+
+
+def tendon_meta_problem(meta: dict[str, Any]) -> str | None:
+    """What is wrong with the version-3 keys of ``meta`` (``tendons``, the calibration's lists), or None."""
+    n = meta.get("tendons")
+    if not (isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= MAX_TENDONS):
+        return f"tendons: expected an integer 2-{MAX_TENDONS}, got {n!r}"
+    cal = meta.get("calibration")
+    if not isinstance(cal, dict):
+        return "calibration: expected an object"
+    for key, positive in (("newtons_per_count", True), ("offset_counts", False), ("mm_per_step", True)):
+        if key not in cal:
+            return f"calibration.{key}: missing"
+        if not _numbers(cal[key], n, positive):
+            need = "positive " if positive else ""
+            return f"calibration.{key}: expected a list of {n} {need}finite numbers (one per tendon)"
+    if "rig" not in meta:
+        return "rig: missing (a recording of several tendons keeps its rig file)"
+    return None
+
+
+def derive_tendon_columns(frame: pd.DataFrame, meta: dict[str, Any]) -> pd.DataFrame:
+    """The raw columns of ``frame`` with ``t_s`` and every tendon's ``tension_n_i`` and ``cable_mm_i``."""
+    n = tendon_count(meta)
+    cal = meta["calibration"]
+    out = frame.loc[:, list(tendon_columns(n))].copy()
+    t = out["t_us"].to_numpy(dtype=np.int64)
+    out["t_s"] = (t - t[0]) * 1e-6 if len(t) else np.zeros(0)
+    for i in range(n):
+        adc = out[f"adc_{i}"].to_numpy(dtype=float)
+        out[f"tension_n_{i}"] = (adc - float(cal["offset_counts"][i])) * float(cal["newtons_per_count"][i])
+    for i in range(n):
+        out[f"cable_mm_{i}"] = out[f"steps_{i}"].to_numpy(float) * float(cal["mm_per_step"][i])
+    return out
+
+
+def tendon_frame_view(frame: pd.DataFrame, tendon: int) -> pd.DataFrame:
+    """Tendon ``tendon``'s columns under the one-tendon names, for the analyses written for one tendon.
+
+    ``adc_i``, ``steps_i``, ``tension_n_i``, ``cable_mm_i`` become ``adc``, ``steps``, ``tension_n``,
+    ``cable_mm`` (``seq``, ``t_us``, ``t_s`` kept), as :mod:`helpers.paper.metrics` reads them.
+    """
+    names = {f"adc_{tendon}": "adc", f"steps_{tendon}": "steps", f"tension_n_{tendon}": "tension_n",
+             f"cable_mm_{tendon}": "cable_mm"}  # fmt: skip
+    cols = ["seq", "t_us", "t_s", *names]
+    return frame.loc[:, [c for c in cols if c in frame.columns]].rename(columns=names)

@@ -1,0 +1,458 @@
+"""Several tendons on the host's side: the emulated boards built for four tendons, the world that drives the
+spatial twin from their step streams, the multi-tendon rig and its safety limits, recordings and metrics.
+
+Expected values are worked out by hand from ``rigs/four-tendon.toml``'s keys: the spool of 65 mm at 800 steps
+per revolution gives pi 65 / 800 = 0.255254 mm per step, so the travel of 40 mm is floor(156.7) = 156 steps
+and the speed limit of 400 mm/s is 1567.1 steps/s (under the 2000 steps/s cap): a step at most every
+ceil(638.1) = 639 us. The 4-20 mA loop through 150 ohm on a 10-bit ADC at 5 V reads 1024 x 0.6 / 5 = 122.88
+counts at 0 N and 614.4 at 20 mA: 491.52 counts over the cells' 20 N, 24.576 counts/N; the pretension of
+2.3554 N reads 122.88 + 57.887 = 180.77 counts.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from helpers import recordings, rigfile
+from helpers.__main__ import error_line, main
+from helpers.board.protocol import frame
+from helpers.commands.home import home
+from helpers.commands.metrics_tendons import tendon_table
+from helpers.rig.boards import WrongRig
+from helpers.rig.safety import SafetyError
+from helpers.rig.stepper import StepperBoard
+from helpers.rig.tendon_safety import TendonProgramme, check_tendon_programme, slack_tendons
+from helpers.rig.tendons import TendonRig
+from helpers.virtual.emulator.tendon_boards import (
+    BuildLimits,
+    TendonDaqEmulator,
+    TendonStepperEmulator,
+    build_limits,
+)
+from helpers.virtual.emulator.tendon_world import TendonWorld, tendon_world
+from helpers.virtual.emulator.world import default_world, forget_world, get_world, register_world
+
+REST_COUNTS = 122.88 + 2.3554 * 491.52 / 20.0
+
+
+@pytest.fixture(scope="module")
+def four() -> rigfile.RigFile:
+    return rigfile.load(rigfile.resolve("four-tendon"))
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t, self.seed, self.t0_us, self.go_times = 0.0, 0, 0, []
+
+
+def _talk(board, *cmds: str) -> list[str]:
+    out = []
+    for c in cmds:
+        board.receive(frame(c))
+        out += [line.decode().rstrip("\n").rpartition("*")[0] for line in board.out]
+        board.out.clear()
+    return out
+
+
+def _stepper(four: rigfile.RigFile) -> tuple[TendonStepperEmulator, _Clock]:
+    clock = _Clock()
+    s = TendonStepperEmulator(clock, build_limits(four))
+    s.reset()
+    s.out.clear()
+    return s, clock
+
+
+def test_build_limits_are_the_rig_files(four: rigfile.RigFile) -> None:
+    lim = build_limits(four)
+    assert (lim.axes, lim.channels, lim.travel_steps) == (4, 4, (156, 156, 156, 156))
+    assert (lim.min_interval_us, lim.max_interval_us, lim.programme_max) == (639, 1_000_000, 64)
+    assert lim.rig_hash == four.hash
+
+
+def test_emulated_stepper_replies_per_axis(four: rigfile.RigFile) -> None:
+    s, _ = _stepper(four)
+    assert _talk(s, "PING", "CONFIG") == [
+        f"PONG stepper 2.2.0+{four.hash}",
+        "OK CONFIG 4 64 639 1000000 156 156 156 156",
+    ]
+    assert _talk(s, "EN 1", "MSEG 100000 10 7 157 0", "MSEG 10000 0 16 0 0", "MSEG 100000 0 0 0",
+                 "MSEG 100000 0 0 0 0", "MSEG 200000 100 100 100 100", "MSEG 200000 50 50 50 57", "GO",
+                 "POS") == [
+        "OK EN 1",
+        "ERR RANGE axis 2 steps -156..156",
+        "ERR RANGE axis 1 interval 639-1000000 us",  # 16 steps in 10 ms: 625 us apart
+        "ERR ARG MSEG needs 5 integers",
+        "ERR RANGE no axis moves (a dwell is WAIT)",
+        "OK MSEG 1",
+        "OK MSEG 2",
+        "ERR RANGE axis 3 travel 0-156 steps",  # 100 + 57 = 157
+        "OK POS 0 0 0 0",
+    ]  # fmt: skip
+
+
+def test_emulated_stepper_steps_on_the_firmware_ticks(four: rigfile.RigFile) -> None:
+    s, clock = _stepper(four)
+    assert _talk(s, "EN 1", "MSEG 7001 3 0 1 2", "WAIT 1", "SEG 1 2 1000", "GO")[-1] == "OK GO 3"
+    times, axes, signs = s.axis_steps_until(1.0)
+    # step k of n in W: tick ceil(k 2W / n) (0.5 us): 14002/3 -> 4668, 9335, 14002 ticks; one step at the
+    # window's end; 14002/2 -> 7001, 14002; then the dwell (1 ms) and 1000 us per SEG step
+    want = {0: [2334.0, 4667.5, 7001.0, 9001.0, 10001.0], 2: [7001.0], 3: [3500.5, 7001.0]}
+    for a, us in want.items():
+        np.testing.assert_allclose(times[axes == a] * 1e6, us, atol=1e-6)
+    assert list(signs) == [1] * 8 and 1 not in axes
+    s.finish_if_due(1.0)
+    assert [b.decode().split("*")[0] for b in s.out] == ["DONE 5 0 1 2"]
+
+
+def test_emulated_daq_sends_every_channel_and_axis(four: rigfile.RigFile) -> None:
+    clock = _Clock()
+    d = TendonDaqEmulator(clock, build_limits(four))
+    d.reset()
+    assert _talk(d, "CONFIG", "RATE 50")[1:] == ["OK CONFIG 4 4 100 2000", "ERR RANGE rate 100-2000 Hz"]
+    body = d.payload(np.array([[180, 181, 182, 183]]), np.array([[0, 5, -3, 156]]))
+    assert body == ["180,181,182,183,0,5,-3,156"]
+
+
+@pytest.fixture(scope="module")
+def world_at_rest(four: rigfile.RigFile):
+    w = tendon_world(four, "tendons-test-rest")
+    w.daq.take_output()
+    w.daq.receive(frame("START"))
+    w.advance_to(0.3 + 3 * 104e-6)  # the sample at 0.3 s is complete once its fourth channel is read
+    rows = [line.split(b"*")[0].decode().split(",") for line in w.daq.take_output().splitlines()]
+    data = np.array([[int(x) for x in r[1:]] for r in rows if r[0] == "D"])
+    return w, data
+
+
+def test_twin_at_rest_reads_the_pretension_on_every_channel(world_at_rest) -> None:
+    """At rest every tendon holds its pretension: channels 1 and 3 are mirror images, and 0 and 2 too (the
+    horizontal arm's weight is carried by the rod, the tensions are the pretension at the rest state)."""
+    _, data = world_at_rest
+    assert data.shape[1] == 2 + 4 + 4
+    assert len(data) == 300  # 1 kHz for 0.3 s
+    late = data[100:, 2:6].mean(axis=0)
+    assert np.all(np.abs(late - REST_COUNTS) < 1.0), late
+    assert abs(late[1] - late[3]) < 0.5
+    assert np.all(data[:, 6:] == 0)
+
+
+def test_world_drives_each_tendon_from_its_axis(four: rigfile.RigFile) -> None:
+    w = tendon_world(four, "tendons-test-pull")
+    for b in (w.daq, w.stepper):
+        b.take_output()
+    _talk(w.daq, "START")
+    assert _talk(w.stepper, "EN 1", "MSEG 20000 0 0 0 20", "GO") == ["OK EN 1", "OK MSEG 1", "OK GO 1"]
+    w.advance_to(0.4)
+    rows = [line.split(b"*")[0].decode().split(",") for line in w.daq.take_output().splitlines()]
+    data = np.array([[int(x) for x in r[1:]] for r in rows if r[0] == "D"])
+    assert [b.decode().split("*")[0] for b in w.stepper.out] == ["DONE 0 0 0 20"]
+    assert list(data[-1, 6:]) == [0, 0, 0, 20]
+    # tendon 3 (pulled 20 steps, 5.1 mm) rises well above its pretension; the others do not move first
+    assert data[-1, 5] > REST_COUNTS + 3 * 24.576
+    assert np.all(np.abs(data[0, 2:6] - REST_COUNTS) < 3.0)
+
+
+# --- the host: safety per tendon, connecting, running, homing ------------------------------------------
+def _programme(*moves):
+    return TendonProgramme.moves(moves)
+
+
+@pytest.mark.parametrize(
+    ("moves", "message"),
+    [
+        ([(200_000, (100, 0, 0, 0)), (200_000, (57, 0, 0, 0))],
+         "tendon 1, item 2: position 157 steps is past its travel of 0-156 steps (39.8 mm)"),
+        ([(100_000, (0, 0, -1, 0))], "tendon 3, item 1: position -1 steps is past its travel of 0-156 steps"),
+        ([(10_000, (0, 16, 0, 0))],
+         "tendon 2, item 1: 16 steps in 10000 us is a step every 625 us, below the step-interval floor of "
+         "639 us"),
+        ([(100_000, (1, 1, 1))], "item 1: 3 step counts for the rig's 4 tendons"),
+        ([(100_000, (0, 0, 0, 0))], "item 1: no tendon moves"),
+        ([(61_000_000, None)], "item 1: dwell 61000 ms outside 0-60000 ms"),
+    ],
+)  # fmt: skip
+def test_programmes_past_a_tendons_limit_are_refused_in_one_line(four, moves, message) -> None:
+    with pytest.raises(SafetyError) as info:
+        check_tendon_programme(_programme(*moves), four)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert error_line(info.value)[1] == 3  # docs/faults.md: refused by the safety limits
+
+
+def test_a_state_with_every_tendon_slack_is_refused(four) -> None:
+    """With no pretension, pretension + k pull = 0 N at position 0: returning every tendon there leaves the
+    arm on no tendon (71706.96 N/m x 10 steps x 0.255254 mm = 183.0 N while pulled)."""
+    slack = rigfile.loads(four.text.replace("pretension_n = 2.3554", "pretension_n = 0.0"), "slack.toml")
+    ok = _programme((100_000, (10, 0, 0, 0)))
+    assert check_tendon_programme(ok, slack) == (10, 0, 0, 0)
+    refusal = r"tendons 1-4, item 2: every tendon slack at positions \(0, 0, 0, 0\)"
+    with pytest.raises(SafetyError, match=refusal):
+        check_tendon_programme(_programme((100_000, (10, 0, 0, 0)), (100_000, (-10, 0, 0, 0))), slack)
+    assert slack_tendons(slack, (0, 0, 0, 0)) == [True] * 4
+    assert slack_tendons(four, (0, 0, 0, 0)) == [False] * 4  # 2.3554 N each
+    # homing returns to the rest the rig file describes
+    back = _programme((100_000, (-10, 0, 0, 0)))
+    assert check_tendon_programme(back, slack, (10, 0, 0, 0), rest_ok=True) == (0, 0, 0, 0)
+
+
+def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> None:
+    w = tendon_world(four, "tendons-test-two-channels")
+    w.limits = BuildLimits(four.hash, (156, 156, 156, 156), channels=2)
+    w.daq.limits = w.limits
+    register_world(w)
+    try:
+        with pytest.raises(WrongRig) as info:
+            TendonRig.connect("virtual", rig=four, rig_name=w.name)
+    finally:
+        forget_world(w.name)
+    assert str(info.value).startswith(
+        "the daq board reports 2 load-cell channel(s) and 4 step counter(s), but rig 'four-tendon' has 4 "
+        "tendons"
+    )
+    assert "make -C firmware RIG=" in str(info.value) and error_line(info.value)[1] == 4
+
+
+def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
+    register_world(default_world("tendons-test-paper"))  # the paper's boards: one axis, the paper's hash
+    try:
+        with pytest.raises(WrongRig, match="built for rig 481e87e3, but this host runs rig 'four-tendon'"):
+            TendonRig.connect("virtual", rig=four, rig_name="tendons-test-paper")
+    finally:
+        forget_world("tendons-test-paper")
+
+
+@pytest.fixture(scope="module")
+def four_rig(four):
+    register_world(tendon_world(four, "tendons-test-rig"))
+    rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-rig")
+    yield rig
+    rig.close()
+    forget_world("tendons-test-rig")
+
+
+def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(four_rig) -> None:
+    world = get_world("tendons-test-rig")
+    sent = len(world.stepper.received)
+    with pytest.raises(SafetyError, match="tendon 4, item 1: position 157"):
+        four_rig.run(_programme((200_000, (0, 0, 0, 157))))
+    assert len(world.stepper.received) == sent  # refused before any byte
+    # two coordinated moves from zero, then back to one tendon pulled
+    f = four_rig.run(_programme((40_000, (8, 0, 0, 5))), tail_s=0.2)
+    assert four_rig.positions == (8, 0, 0, 5)
+    back = _programme((40_000, (0, 6, 0, -5)), (10_000, None), (40_000, (-8, 0, 0, 0)))
+    f = four_rig.run(back, tail_s=0.3)
+    assert four_rig.positions == (0, 6, 0, 0)
+    assert list(f.columns[:10]) == ["seq", "t_us"] + [f"adc_{i}" for i in range(4)] + [
+        f"steps_{i}" for i in range(4)
+    ]
+    assert (f["t_us"].diff().dropna() == 1000).all()  # 1 kHz
+    first, last = f.iloc[0], f.iloc[-1]
+    assert [first[f"steps_{i}"] for i in range(4)] == [8, 0, 0, 5]  # positions from zero
+    assert [last[f"steps_{i}"] for i in range(4)] == [0, 6, 0, 0]
+    assert last["cable_mm_1"] == pytest.approx(6 * 3.14159265 * 65 / 800)
+    assert f["tension_n_0"].iloc[0] == pytest.approx((first["adc_0"] - 122.88) / 24.576)
+    assert four_rig.home() is not None and four_rig.positions == (0, 0, 0, 0)
+    assert four_rig.stepper.positions() == (0, 0, 0, 0)
+    assert four_rig.home() is None  # nothing to do
+
+
+# --- recordings: version 3 for several tendons, version 2 for one ----------------------------------------
+def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
+    meta = {
+        "schema_version": 2, "source": {"kind": "virtual-rig"}, "scenario": {"kind": "programme"},
+        "calibration": {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.25525},
+        "rate_hz": 1000, "status": "complete", "counts": {"dropped": 0},
+    }  # fmt: skip
+    rows = [(s, 1000 * s, 100 + s, s // 4) for s in range(20)]
+    rec = recordings.Recording(recordings.frame_from_rows(rows), meta)
+    path = recordings.save(rec, tmp_path / "g" / "one")
+    assert path.read_text().splitlines()[:2] == ["seq,t_us,adc,steps", "0,0,100,0"]
+    rec = recordings.load(path)
+    assert rec.meta["schema_version"] == 2 and rec.tendons == 1
+    assert list(rec.frame.columns) == ["seq", "t_us", "adc", "steps", "t_s", "tension_n", "cable_mm"]
+    assert rec.frame["tension_n"].iloc[3] == pytest.approx((103 - 60.0) * 0.025)
+
+
+@pytest.fixture(scope="module")
+def tendon_recording_path(four_rig, tmp_path_factory):
+    programme = _programme((40_000, (5, 0, 0, 4)), (40_000, (-5, 3, 0, -4)))
+    frame = four_rig.run(programme, tail_s=0.2)
+    rec = four_rig.recording(frame, programme)
+    path = recordings.save(rec, tmp_path_factory.mktemp("tendon_rec") / "g" / "four")
+    four_rig.home()
+    return path
+
+
+def test_a_four_tendon_recording_round_trips_as_version_3(tendon_recording_path) -> None:
+    path = tendon_recording_path
+    header = "seq,t_us,adc_0,adc_1,adc_2,adc_3,steps_0,steps_1,steps_2,steps_3"
+    assert path.read_text().splitlines()[0] == header  # derived columns are never stored
+    rec = recordings.load(path)
+    assert (rec.meta["schema_version"], rec.meta["tendons"], rec.tendons) == (3, 4, 4)
+    assert rec.meta["rig"]["name"] == "four-tendon"
+    f = rec.frame
+    assert [f"tension_n_{i}" in f and f"cable_mm_{i}" in f for i in range(4)] == [True] * 4
+    np.testing.assert_allclose(f["tension_n_2"], (f["adc_2"] - 122.88) / 24.576)
+    np.testing.assert_allclose(f["cable_mm_1"], f["steps_1"] * 3.14159265358979 * 65 / 800)
+    assert list(f.iloc[-1][[f"steps_{i}" for i in range(4)]]) == [0, 3, 0, 0]
+    np.testing.assert_allclose(f["t_s"].iloc[:3], [0.0, 0.001, 0.002])
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda m: m.update(tendons=3), "calibration.newtons_per_count: expected a list of 3 positive"),
+        (lambda m: (m.update(tendons=3), [m["calibration"][k].pop() for k in ("newtons_per_count",
+                    "offset_counts", "mm_per_step")]), "tendons: 3, but the rig file has 4"),
+        (lambda m: m["calibration"].update(mm_per_step=[0.25, 0.25]),
+         "calibration.mm_per_step: expected a list of 4 positive finite numbers (one per tendon)"),
+        (lambda m: m.pop("rig"), "rig: missing (a recording of several tendons keeps its rig file)"),
+        (lambda m: m.update(schema_version=4), "schema_version: unknown 4 (this code reads (1, 2, 3))"),
+    ],
+)  # fmt: skip
+def test_a_bad_four_tendon_recording_is_refused_in_one_line(tendon_recording_path, tmp_path, change, message):
+    meta = json.loads(tendon_recording_path.with_suffix(".json").read_text())
+    change(meta)
+    target = tmp_path / "bad.json"
+    target.write_text(json.dumps(meta))
+    (tmp_path / "bad.csv").write_bytes(tendon_recording_path.read_bytes())
+    with pytest.raises(recordings.RecordingError) as info:
+        recordings.load(target)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert error_line(info.value)[1] == 5
+
+
+# --- metrics per tendon --------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def pulse_recording_path(four, tmp_path_factory):
+    """Tendons 1 and 2 (0-based 0 and 1) pulled 6 and 4 steps together after 0.6 s, held 1.6 s, released
+    (a rig of its own: the twin at rest)."""
+    register_world(tendon_world(four, "tendons-test-pulse"))
+    four_rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-pulse")
+    pull, hold = (20_000, (6, 4, 0, 0)), (1_600_000, None)
+    programme = _programme((600_000, None), pull, hold, (20_000, (-6, -4, 0, 0)))
+    frame = four_rig.run(programme, tail_s=1.6)
+    path = recordings.save(four_rig.recording(frame, programme), tmp_path_factory.mktemp("pulse") / "g" / "p")
+    four_rig.close()
+    forget_world("tendons-test-pulse")
+    return path
+
+
+def _by_hand(f, i: int) -> dict:
+    """docs/metrics.md, from the frame alone: the motions from steps_i, y0 the median of the 0.5 s before,
+    yf the median of the window's last 1.0 s, the Up peak its maximum and the Down peak its minimum."""
+    t, s, y = f["t_s"].to_numpy(), f[f"steps_{i}"].to_numpy(), f[f"tension_n_{i}"].to_numpy()
+    up = int(np.argmax(s > s[0]))
+    top = int(np.argmax(s == s.max()))
+    down = top + int(np.argmax(s[top:] < s.max()))
+    out = {}
+    for name, a, b in (("Up", up, down), ("Down", down, len(t))):
+        y0 = np.median(y[(t >= t[a] - 0.5) & (t < t[a])])
+        yf = np.median(y[(t >= t[b - 1] - 1.0) & (t < t[b - 1] + 1e-9) & (t >= t[a])])
+        peak = y[a:b].max() if name == "Up" else y[a:b].min()
+        over = 100 * (peak - yf) / (yf - y0) if name == "Up" else 100 * (yf - peak) / (y0 - yf)
+        out[name] = (peak, over)
+    return out
+
+
+def test_metrics_reports_each_tendons_table_ii_metrics(pulse_recording_path, capsys) -> None:
+    assert main(["metrics", str(pulse_recording_path)]) == 0
+    out = capsys.readouterr().out
+    assert "Per tendon (1 recording(s) of several tendons" in out
+    table = tendon_table([recordings.load(pulse_recording_path)], 0.05)
+    assert list(zip(table["tendon"], table["motion"], strict=True)) == [
+        (i, m) for i in range(4) for m in ("Up", "Down")
+    ]
+    f = recordings.load(pulse_recording_path).frame
+    for i in (0, 1):
+        want = _by_hand(f, i)
+        for motion in ("Up", "Down"):
+            row = table[(table["tendon"] == i) & (table["motion"] == motion)].iloc[0]
+            peak, over = want[motion]
+            assert row["peak_n"] == pytest.approx(peak, abs=1e-9)
+            assert row["overshoot_pct"] == pytest.approx(over, rel=1e-6)
+            assert row["settling_ms"] > 0
+    # tendons 3 and 4 never move: no motion to segment, NaN with the reason
+    still = table[table["tendon"] >= 2]
+    assert still["peak_n"].isna().all() and still["reason"].str.startswith("segmentation failed").all()
+    assert "tendon 2 Up: segmentation failed" in out
+
+
+def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(monkeypatch, four) -> None:
+    """With the four-tendon rig file selected, ``virtual://`` (and serve-virtual-rig) build its world."""
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    forget_world("tendons-test-url")
+    try:
+        rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-url")
+        try:
+            assert isinstance(get_world("tendons-test-url"), TendonWorld)
+            assert rig.stepper.configure() == (4, (156, 156, 156, 156))
+        finally:
+            rig.close()
+    finally:
+        forget_world("tendons-test-url")
+
+
+class _ClockPlant:
+    """A plant double whose every output is the time (s) it is read at."""
+
+    t = 0.0
+
+    def advance(self, sample_times, step_times, step_tendons, step_signs):
+        self.t = float(sample_times[-1])
+        return {"output": np.repeat(np.asarray(sample_times, dtype=float)[:, None], 4, axis=1)}
+
+
+class _MicrosecondSensor:
+    def counts(self, output):
+        return np.rint(np.asarray(output) * 1e6).astype(np.int64)
+
+    def reseed(self, seed):
+        pass
+
+
+def test_each_channel_is_read_one_conversion_after_the_previous(four) -> None:
+    """PROTOCOL.md: channel c is converted c x 104 us after channel 0, whose instant is ``t_us``."""
+    w = TendonWorld(_ClockPlant(), [_MicrosecondSensor()] * 4, name="skew", limits=build_limits(four))
+    w.daq.take_output()
+    w.daq.receive(frame("START"))
+    w.advance_to(0.0101)
+    rows = [line.split(b"*")[0].decode().split(",") for line in w.daq.take_output().splitlines()]
+    data = np.array([[int(x) for x in r[1:]] for r in rows if r[0] == "D"])
+    assert list(data[:, 1]) == [1000 * k for k in range(1, 10)]  # 10 ms is complete at 10.312 ms only
+    for c in range(4):
+        assert list(data[:, 2 + c] - data[:, 1]) == [104 * c] * 9
+
+
+def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monkeypatch) -> None:
+    """``python -m helpers home``'s routine on a four-axis stepper: every axis back in one MSEG (the farthest,
+    7 steps, at 50 mm/s: 0.255254 / 50 mm/s = 5105 us per step, a 35.7 ms window)."""
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    w = register_world(tendon_world(four, "tendons-test-home"))
+    try:
+        assert _talk(w.stepper, "EN 1", "MSEG 40000 5 3 0 7", "GO")[-1] == "OK GO 1"
+        w.advance_to(0.1)
+        stepper = StepperBoard.open("virtual://stepper?rig=tendons-test-home&reset_on_open=0", rig=four)
+        try:
+            said = home(stepper)
+        finally:
+            stepper.close()
+        assert w.stepper.positions == [0, 0, 0, 0] and not w.stepper.enabled
+        assert said.startswith("moved every tendon back to position 0 (tendon 1 5, tendon 2 3, tendon 4 7")
+        assert "MSEG 35735 -5 -3 0 -7" in w.stepper.received
+    finally:
+        forget_world("tendons-test-home")
+
+
+def test_the_one_tendon_rig_refuses_a_rig_file_of_several_tendons(monkeypatch, four) -> None:
+    from helpers.rig import experiment
+    from helpers.virtual.emulator import world as world_module
+
+    monkeypatch.setattr(experiment, "RIG", four)
+    with pytest.raises(ValueError) as info:
+        experiment.Rig.connect("virtual", rig_name="tendons-test-one")
+    assert str(info.value).startswith("rig 'four-tendon' has 4 tendons, but Rig drives one")
+    assert error_line(info.value)[1] == 2
+    assert "tendons-test-one" not in world_module._WORLDS  # no port opened, so no world was made
