@@ -32,7 +32,6 @@ from helpers.virtual.emulator.world import VirtualWorld, default_world
 from helpers.virtual.sensor import LoadCell
 from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.plant import SpatialPlant
-from helpers.virtual.spatial.statics import stable_max_step
 
 __all__ = ["TendonWorld", "tendon_world", "build_world", "ADC_CONVERSION_S"]
 
@@ -106,9 +105,7 @@ def tendon_world(rig: RigFile, name: str = "default", options: dict[str, str] | 
     options = options or {}
     seed = int(options.get("seed", 0))
     twin = spatial_rig(rig)
-    # the arm's 0.25 ms step is beyond RK4's stability limit of a rig whose tendons stiffen the discs'
-    # rocking (four tendons: 1/6 ms): integrated with it, the twin at rest rings up until tendons go slack
-    plant = SpatialPlant(twin, max_step=min(twin.arm.max_step, stable_max_step(twin)))
+    plant = SpatialPlant(twin)  # at RK4's stable step for this rig (four tendons: 1/6 ms, not 0.25 ms)
     cells = [
         LoadCell(twin.arm, seed=seed if c == 0 else [seed, c], span_n=t.load_cell_range_n)
         for c, t in enumerate(twin.tendons)

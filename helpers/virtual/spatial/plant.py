@@ -19,7 +19,7 @@ import numpy.typing as npt
 
 from helpers.virtual.spatial import _kernel as kern
 from helpers.virtual.spatial.rig import SpatialRig
-from helpers.virtual.spatial.statics import spatial_model
+from helpers.virtual.spatial.statics import spatial_model, stable_max_step
 
 __all__ = ["SpatialKernelArrays", "kernel_arrays", "SpatialPlant"]
 
@@ -125,15 +125,19 @@ class SpatialPlant:
     rig : SpatialRig
         The rig (e.g. :func:`~helpers.virtual.spatial.rig.four_tendon_rig`).
     max_step : float, optional
-        Largest RK4 step, s (default ``rig.arm.max_step``; a rig whose tendons stiffen the tip disc's rocking
-        needs a smaller one: :func:`helpers.virtual.spatial.statics.stable_max_step`).
+        Largest RK4 step, s. Default: ``rig.arm.max_step`` or, where that is beyond RK4's stability limit at
+        rest (a rig whose tendons stiffen the discs' rocking: four tendons need 1/6 ms, not 0.25 ms),
+        :func:`helpers.virtual.spatial.statics.stable_max_step`; integrated beyond it, the twin at rest rings
+        up until tendons go slack.
     """
 
     def __init__(self, rig: SpatialRig, max_step: float | None = None) -> None:
         if not isinstance(rig, SpatialRig):
             raise TypeError(f"rig must be a SpatialRig, got {type(rig).__name__}")
         self.rig = rig
-        self.max_step = float(rig.arm.max_step if max_step is None else max_step)
+        if max_step is None:
+            max_step = min(rig.arm.max_step, stable_max_step(rig)) if rig.n_tendons > 1 else rig.arm.max_step
+        self.max_step = float(max_step)
         if not (math.isfinite(self.max_step) and self.max_step > 0):
             raise ValueError(f"max_step must be positive, got {max_step!r}")
         self._arr = kernel_arrays(rig)
