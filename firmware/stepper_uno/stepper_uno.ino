@@ -36,7 +36,7 @@
 #include "stream_plan.h"
 
 // The version reported in HELLO and PONG: the protocol version, then "+" and the rig config's hash.
-#define FW_VERSION "2.2.0"
+#define FW_VERSION "2.3.0"
 #define FW_ID FW_VERSION "+" RIG_HASH
 
 // Compiled-in limits (PROTOCOL.md table), from the rig config (rig_config.h).
@@ -109,12 +109,12 @@ struct Item {
   uint8_t kind;
 };
 
-static Item prog[PROGRAMME_MAX];
-
-// Streaming state (PROTOCOL.md "Streaming"): the planner with its shaper and set-point history, the queue of
-// planned steps and the set-point FIFO. (About 430 bytes: it fits beside the programme table since the boards'
-// constant strings are kept in flash.)
-// Planned steps not yet emitted: two periods ahead, a power of two. A 10 ms period holds at most
+// Streaming state (PROTOCOL.md "Streaming"): the planner with every axis's position and set-point history, the
+// queue of planned steps of each axis and the set-point FIFO (the shaper, sp_shaper, is kept apart: it stays
+// loaded). One axis: about 350 bytes beside the programme table (the boards' constant strings are kept in
+// flash). Several axes: the stream's state shares its RAM with the programme table (STREAM empties the
+// programme; the programme cannot be edited while streaming).
+// Planned steps not yet emitted, per axis: two periods ahead, a power of two. A 10 ms period holds at most
 // 10000 / RIG_MIN_INTERVAL_US + 1 steps: 16 on the paper's rig (639 us), 20 on a finer one (524 us).
 #if 10000L / RIG_MIN_INTERVAL_US + 1 <= 16
 #define STEP_QUEUE 32
@@ -124,18 +124,30 @@ static Item prog[PROGRAMME_MAX];
 #define SETPOINT_FIFO 8
 struct StreamMem {
   Planner planner;
-  uint16_t step_time[STEP_QUEUE];   // Timer1 value (ticks from STREAM, mod 2^16) of each queued step
-  uint8_t step_up[STEP_QUEUE / 8];  // bit set: the step is a pull (+1)
-  int16_t fifo[SETPOINT_FIFO];      // set-points received and not yet taken by a control tick
+  uint16_t step_time[AXES][STEP_QUEUE];   // Timer1 value (ticks from STREAM, mod 2^16) of each queued step
+  uint8_t step_up[AXES][STEP_QUEUE / 8];  // bit set: the step is a pull (+1)
+  int16_t fifo[SETPOINT_FIFO][AXES];      // set-points received and not yet taken by a control tick
 };
+#if AXES > 1
+static union {
+  Item prog[PROGRAMME_MAX];
+  StreamMem st;
+} mem;
+#define prog mem.prog
+#define st mem.st
+static const uint16_t TABLES_BYTES = sizeof(mem) + sizeof(SpShaper);
+#else
+static Item prog[PROGRAMME_MAX];
 static StreamMem st;
+static const uint16_t TABLES_BYTES = sizeof(prog) + sizeof(StreamMem) + sizeof(SpShaper);
+#endif
 static uint8_t prog_len;
 
 // RAM budget, checked at compile time: the programme table and the streaming state (the tables the rig
 // config sizes) must leave room for the rest of the static data (serial buffers, line buffers, run state:
 // about 520 bytes) and at least 256 bytes of stack (the deepest stack measured in simavr is under 200 bytes).
 static const uint16_t RAM_BYTES = RAMEND + 1 - RAMSTART;
-static_assert(sizeof(prog) + sizeof(StreamMem) + 520 + 256 <= RAM_BYTES,
+static_assert(TABLES_BYTES + 520 + 256 <= RAM_BYTES,
               "rig config: the programme table (RIG_PROGRAMME_MAX x RIG_AXES) does not fit the Uno's RAM");
 
 // Run state (ISR-owned while running).
@@ -428,7 +440,7 @@ enum StreamState : uint8_t { ST_IDLE = 0, ST_ACTIVE, ST_ENDING, ST_WATCHDOG };
 static const uint8_t WATCHDOG_PERIODS = 10;  // 100 ms without a set-point
 
 static volatile uint8_t stream_state;
-static volatile uint8_t sq_head, sq_count;        // the step queue: the control tick adds, compare A takes
+static volatile uint8_t sq_head[AXES], sq_count[AXES];  // each axis's step queue: the control tick adds, compare A takes
 static volatile uint8_t fifo_head, fifo_count;    // the set-point FIFO: V adds, the control tick takes
 static volatile uint32_t next_period;             // the period the next control tick plans
 static volatile uint32_t end_period;              // the first period fed with zero (END or the watchdog)
@@ -440,7 +452,7 @@ static uint8_t finishing;                         // no step can follow: the str
 static uint32_t finish_at;
 
 // shaper loading (SHAPER, then IMP 0 .. IMP n-1)
-static uint8_t shaper_ready;   // a complete, valid shaper is in st.planner
+static uint8_t shaper_ready;   // a complete, valid shaper is in sp_shaper
 static uint8_t shaper_expect;  // impulses announced by SHAPER; 0 when not loading
 static uint8_t shaper_next;    // the index the next IMP must have
 static uint8_t shaper_neg;     // negative amplitudes allowed
@@ -449,7 +461,7 @@ static int32_t shaper_sum;
 // notices, queued by the control tick and sent by the main loop
 enum NoticeKind : uint8_t { NOTICE_SPEED = SP_NOTICE_SPEED, NOTICE_TRAVEL = SP_NOTICE_TRAVEL, NOTICE_WATCHDOG };
 #define NOTICES 4
-static uint8_t notice_kind[NOTICES];
+static uint8_t notice_kind[NOTICES];  // the kind; several axes: the axis in the high nibble
 static int32_t notice_value[NOTICES];
 static volatile uint8_t notice_head, notice_count;
 
@@ -465,29 +477,30 @@ static void push_notice(uint8_t kind, int32_t value) {
   SREG = sreg;
 }
 
-void sp_notice(uint8_t kind, int32_t value) { push_notice(kind, value); }
+void sp_notice(uint8_t kind, uint8_t axis, int32_t value) { push_notice((uint8_t)(kind | (axis << 4)), value); }
 
-static inline uint8_t step_is_up(uint8_t i) { return st.step_up[i >> 3] & (uint8_t)(1 << (i & 7)); }
+static inline uint8_t step_is_up(uint8_t a, uint8_t i) { return st.step_up[a][i >> 3] & (uint8_t)(1 << (i & 7)); }
 
+#if AXES == 1
 static inline void set_dir_for(uint8_t i) {
-  if (step_is_up(i)) PORTD |= DIR_BIT;
+  if (step_is_up(0, i)) PORTD |= DIR_BIT;
   else PORTD &= ~DIR_BIT;
 }
 
 // Queues one planned step (called by the planner from the control tick, interrupts enabled).
-void sp_emit_step(uint32_t tick, int8_t dir) {
+void sp_emit_step(uint8_t, uint32_t tick, int8_t dir) {
   uint8_t sreg = SREG;
   cli();
-  if (sq_count >= STEP_QUEUE) {
+  if (sq_count[0] >= STEP_QUEUE) {
     queue_overflow = 1;
     SREG = sreg;
     return;
   }
-  uint8_t i = (uint8_t)((sq_head + sq_count) & (STEP_QUEUE - 1));
-  st.step_time[i] = (uint16_t)tick;
-  if (dir > 0) st.step_up[i >> 3] |= (uint8_t)(1 << (i & 7));
-  else st.step_up[i >> 3] &= (uint8_t)~(1 << (i & 7));
-  if (sq_count++ == 0) {  // the step generator was idle: arm it (DIR set at least 8 ms before this step)
+  uint8_t i = (uint8_t)((sq_head[0] + sq_count[0]) & (STEP_QUEUE - 1));
+  st.step_time[0][i] = (uint16_t)tick;
+  if (dir > 0) st.step_up[0][i >> 3] |= (uint8_t)(1 << (i & 7));
+  else st.step_up[0][i >> 3] &= (uint8_t)~(1 << (i & 7));
+  if (sq_count[0]++ == 0) {  // the step generator was idle: arm it (DIR set at least 8 ms before this step)
     set_dir_for(i);
     OCR1A = (uint16_t)tick;
     TIFR1 = _BV(OCF1A);
@@ -499,35 +512,141 @@ void sp_emit_step(uint32_t tick, int8_t dir) {
 // Compare A in streaming mode: the step at the head of the queue, its edge 16 us after the compare match.
 static void stream_step_isr() {
   PORTB |= TP_STEP_BIT;
-  uint8_t i = sq_head;
+  uint8_t i = sq_head[0];
   uint16_t edge = OCR1A + STREAM_STEP_LEAD_TICKS;
   while ((int16_t)(TCNT1 - edge) < 0) {
   }
   PORTD |= STEP_BIT;
-  position[0] += step_is_up(i) ? 1 : -1;
+  position[0] += step_is_up(0, i) ? 1 : -1;
   __builtin_avr_delay_cycles(64);  // TB6600 needs >= 2.5 us high
   PORTD &= ~STEP_BIT;
   i = (uint8_t)((i + 1) & (STEP_QUEUE - 1));
-  sq_head = i;
-  if (--sq_count) {
+  sq_head[0] = i;
+  if (--sq_count[0]) {
     set_dir_for(i);  // at least 600 us before its step (steps are 639 us apart or more)
-    OCR1A = st.step_time[i];
+    OCR1A = st.step_time[0][i];
   } else {
     TIMSK1 &= ~_BV(OCIE1A);
   }
   PORTB &= ~TP_STEP_BIT;
 }
+#else
+// Several axes: each axis's steps queue apart (each axis's are in time order); compare A is set to the
+// earliest head of them all.
+
+// The axes (bit a) whose queued head is the earliest at or after `ref` (every head is, within 2^16 ticks),
+// and its time; 0 when no step is queued.
+static inline uint8_t earliest_heads(uint16_t ref, uint16_t *at) {
+  uint16_t best = 0xFFFF;
+  uint8_t axes = 0;
+  for (uint8_t a = 0; a < AXES; a++) {
+    if (!sq_count[a]) continue;
+    uint16_t d = (uint16_t)(st.step_time[a][sq_head[a]] - ref);
+    if (d < best) {
+      best = d;
+      axes = (uint8_t)(1 << a);
+    } else if (d == best) {
+      axes |= (uint8_t)(1 << a);
+    }
+  }
+  *at = (uint16_t)(ref + best);
+  return axes;
+}
+
+// Queues one planned step (called by the planner from the control tick, interrupts enabled).
+void sp_emit_step(uint8_t a, uint32_t tick, int8_t dir) {
+  uint8_t sreg = SREG;
+  cli();
+  if (sq_count[a] >= STEP_QUEUE) {
+    queue_overflow = 1;
+    SREG = sreg;
+    return;
+  }
+  uint8_t i = (uint8_t)((sq_head[a] + sq_count[a]) & (STEP_QUEUE - 1));
+  st.step_time[a][i] = (uint16_t)tick;
+  if (dir > 0) st.step_up[a][i >> 3] |= (uint8_t)(1 << (i & 7));
+  else st.step_up[a][i >> 3] &= (uint8_t)~(1 << (i & 7));
+  if (sq_count[a]++ == 0) set_axis_dir(a, dir > 0);  // the axis was idle: DIR at least 8 ms before this step
+  if (!(TIMSK1 & _BV(OCIE1A))) {  // the step generator was idle: arm it
+    OCR1A = (uint16_t)tick;
+    TIFR1 = _BV(OCF1A);
+    TIMSK1 |= _BV(OCIE1A);
+  } else if (!(TIFR1 & _BV(OCF1A))) {  // (a pending match is served first; it then finds this step)
+    uint16_t now = TCNT1;
+    if ((uint16_t)((uint16_t)tick - now) < (uint16_t)(OCR1A - now)) OCR1A = (uint16_t)tick;  // earlier
+  }
+  SREG = sreg;
+}
+
+static const uint16_t STREAM_CHAIN_TICKS = 24;  // a step closer than this to TCNT1 is raised in this interrupt
+
+// Compare A in streaming mode: the earliest queued steps, their STEP edges (one port write for the axes due at
+// the same tick) 16 us after their tick; steps of other axes due within a few ticks are raised here too, each
+// at its own tick + 16 us, the pulses ending (each at least PULSE_TICKS high) before the next compare is set.
+// (Not inlined into the compare vector: its programme path keeps its register allocation and timing.)
+static void __attribute__((noinline)) stream_step_isr() {
+  PORTB |= TP_STEP_BIT;
+  uint16_t t = OCR1A;
+  uint8_t high = 0, stepped = 0;
+  uint16_t rise = 0;
+  for (;;) {
+    uint16_t next;
+    uint8_t axes = earliest_heads(t, &next);  // next == t
+    uint8_t bits = 0;
+    for (uint8_t a = 0; a < AXES; a++) {
+      if (axes & (1 << a)) bits |= AXIS_STEP_BIT[a];
+    }
+    uint16_t edge = (uint16_t)(t + STREAM_STEP_LEAD_TICKS);
+    while ((int16_t)(TCNT1 - edge) < 0) {
+    }
+    PORTD |= bits;
+    rise = edge;
+    high |= bits;
+    stepped |= axes;
+    for (uint8_t a = 0; a < AXES; a++) {
+      if (!(axes & (1 << a))) continue;
+      uint8_t i = sq_head[a];
+      position[a] += step_is_up(a, i) ? 1 : -1;
+      sq_head[a] = (uint8_t)((i + 1) & (STEP_QUEUE - 1));
+      sq_count[a]--;
+    }
+    axes = earliest_heads(t, &next);
+    // a step too soon to end the pulses and take another interrupt: raised here, the pulses still up
+    if (axes && (int16_t)(next - TCNT1) < (int16_t)(PULSE_TICKS + STREAM_CHAIN_TICKS)) {
+      t = next;
+      continue;
+    }
+    end_pulses(high, rise);
+    high = 0;
+    for (uint8_t a = 0; a < AXES; a++) {  // DIR of each stepped axis's next step (>= 600 us before it)
+      if ((stepped & (1 << a)) && sq_count[a]) set_axis_dir(a, step_is_up(a, sq_head[a]));
+    }
+    stepped = 0;
+    if (!axes) {
+      TIMSK1 &= ~_BV(OCIE1A);
+      break;
+    }
+    if ((int16_t)(next - TCNT1) < (int16_t)STREAM_CHAIN_TICKS) {
+      t = next;
+      continue;
+    }
+    OCR1A = next;
+    break;
+  }
+  PORTB &= ~TP_STEP_BIT;
+}
+#endif
 
 static void stream_stop_timer() {
   timer_stop();
   stream_timer = 0;
   stream_state = ST_IDLE;
   finishing = 0;
-  sq_count = 0;
+  for (uint8_t a = 0; a < AXES; a++) sq_count[a] = 0;
   fifo_count = 0;
 }
 
-// The control tick: takes the set-point of the next period and plans it. Runs with interrupts enabled, so the
+// The control tick: takes the set-points of the next period and plans it. Runs with interrupts enabled, so the
 // step interrupt (and the UART) preempt it; it is the only writer of the planner.
 ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
   if (tick_busy) return;  // cannot happen (a tick takes about 1 ms of its 10 ms), but never re-enter
@@ -539,10 +658,11 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
   // The main loop cannot run during this interrupt and compare A does not touch the FIFO or the counters
   // below, so they need no further protection (the main loop changes them with interrupts off).
   uint32_t k = next_period;
-  int16_t v;
+  int16_t v[AXES];
+  for (uint8_t a = 0; a < AXES; a++) v[a] = 0;
   uint8_t state = stream_state;
   if (fifo_count) {
-    v = st.fifo[fifo_head];
+    for (uint8_t a = 0; a < AXES; a++) v[a] = st.fifo[fifo_head][a];
     fifo_head = (uint8_t)((fifo_head + 1) & (SETPOINT_FIFO - 1));
     fifo_count--;
     underruns = 0;
@@ -550,14 +670,10 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
     if (++underruns > WATCHDOG_PERIODS) {  // the stream stopped: feed zero from now on
       stream_state = state = ST_WATCHDOG;
       end_period = k;
-      v = 0;
       push_notice(NOTICE_WATCHDOG, (int32_t)k);
-    } else {
-      v = 0;  // an underrun: the period moves nothing (2.1.0; 2.0.0 held the last set-point, moving the
-              // cable further than commanded whenever the host was late)
     }
-  } else {
-    v = 0;
+    // else an underrun: the period moves nothing (2.1.0; 2.0.0 held the last set-point, moving the cable
+    // further than commanded whenever the host was late)
   }
   next_period = k + 1;
   if (finishing && k >= finish_at) {  // every planned step has been emitted
@@ -572,9 +688,11 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
     sei();
   } else {
     st.planner.plan_period(k, v);
-    if (v) last_nonzero = k;
+    for (uint8_t a = 0; a < AXES; a++) {
+      if (v[a]) last_nonzero = k;
+    }
     if (!finishing && state != ST_ACTIVE && k >= end_period &&
-        k - last_nonzero >= (uint32_t)st.planner.q_max + 2) {
+        k - last_nonzero >= (uint32_t)sp_shaper.q_max + 2) {
       finishing = 1;  // every impulse now sees zero: the last step is planned
       finish_at = k + 3;
     }
@@ -583,13 +701,15 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
   tick_busy = 0;
 }
 
-static int16_t read_position();
+static int16_t read_position(uint8_t a);
 
 static void stream_start() {
-  st.planner.start(read_position());  // the timer is stopped: nothing else touches the planner
+  int16_t p[AXES];
+  for (uint8_t a = 0; a < AXES; a++) p[a] = read_position(a);
+  st.planner.start(p);  // the timer is stopped: nothing else touches the planner
   cli();
   timer_stop();
-  sq_head = sq_count = 0;
+  for (uint8_t a = 0; a < AXES; a++) sq_head[a] = sq_count[a] = 0;
   fifo_head = fifo_count = 0;
   next_period = 1;
   end_period = 0xFFFFFFFFUL;
@@ -710,6 +830,12 @@ static bool editable() {
     out.err(PSTR("STATE"), PSTR("running"));
     return false;
   }
+#if AXES > 1
+  if (stream_state) {  // the stream's state takes the programme table's RAM
+    out.err(PSTR("STATE"), PSTR("streaming"));
+    return false;
+  }
+#endif
   return true;
 }
 
@@ -722,6 +848,21 @@ static Item *new_item() {
   for (uint8_t a = 0; a < AXES; a++) it->n[a] = 0;
   it->release = 0;
   return it;
+}
+
+// Queues one period's set-points (V, MV) and replies with the period they drive, or ERR FULL.
+static void queue_setpoints(const int16_t *vs, const char *word) {
+  cli();
+  if (fifo_count >= SETPOINT_FIFO) {
+    sei();
+    return out.err(PSTR("FULL"), PSTR("8 set-points queued"));
+  }
+  uint32_t period = next_period + fifo_count;
+  int16_t *slot = st.fifo[(fifo_head + fifo_count) & (SETPOINT_FIFO - 1)];
+  for (uint8_t a = 0; a < AXES; a++) slot[a] = vs[a];
+  fifo_count++;
+  sei();
+  out.word_u32(word, period);
 }
 
 static void handle(Command *cmd) {
@@ -887,14 +1028,14 @@ static void handle(Command *cmd) {
     if (!proto_args_ok(cmd, 3)) return out.err(PSTR("ARG"), PSTR("IMP needs 3 integers"));
     if (stream_state) return out.err(PSTR("STATE"), PSTR("streaming"));
     if (!shaper_expect || cmd->arg[0] != shaper_next) return out.err(PSTR("STATE"), PSTR("SHAPER first, impulses in order"));
-    Planner &pl = st.planner;
+    SpShaper &pl = sp_shaper;
     uint8_t i = shaper_next;
     int32_t previous_us = i ? (int32_t)pl.d[i - 1] * SP_DELAY_UNIT_US : -1;
     uint8_t bad = sp_check_impulse(i, cmd->arg[1], cmd->arg[2], previous_us, shaper_neg);
     if (bad) {
       shaper_expect = 0;  // the shaper is discarded: start again with SHAPER
       if (bad == 1) return out.err(PSTR("RANGE"), PSTR("amplitude -16384..16384 (>= 0 unless allowed)"));
-      return out.err(PSTR("RANGE"), PSTR("delay: 0 first, rising, 16 us units, <= 1 s"));
+      return out.err(PSTR("RANGE"), PSTR(SP_MAX_DELAY_TEXT));
     }
     pl.a[i] = (int16_t)cmd->arg[1];
     pl.d[i] = (uint16_t)(cmd->arg[2] / SP_DELAY_UNIT_US);
@@ -913,23 +1054,47 @@ static void handle(Command *cmd) {
     if (stream_state) return out.err(PSTR("STATE"), PSTR("streaming"));
     if (!shaper_ready) return out.err(PSTR("STATE"), PSTR("no shaper"));
     if (!enabled) return out.err(PSTR("STATE"), PSTR("driver disabled"));
+#if AXES > 1
+    prog_len = 0;  // the stream's state takes the programme table's RAM
+#endif
     out.word_i32(PSTR("OK STREAM"), read_position());  // queued before the stream's first line
     stream_start();
   } else if (proto_is(cmd, PSTR("V"))) {
+    // V <v>: axis 0's set-point (the other axes' zero)
     if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("V needs 1 integer"));
     if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
     int32_t v = cmd->arg[0];
     if (v < -SP_V_MAX || v > SP_V_MAX) return err_range(PSTR("set-point "), -SP_V_MAX, PSTR(".."), SP_V_MAX, PSTR(""));
-    cli();
-    if (fifo_count >= SETPOINT_FIFO) {
-      sei();
-      return out.err(PSTR("FULL"), PSTR("8 set-points queued"));
+    int16_t vs[AXES];
+    vs[0] = (int16_t)v;
+    for (uint8_t a = 1; a < AXES; a++) vs[a] = 0;
+    queue_setpoints(vs, PSTR("OK V"));
+  } else if (proto_is(cmd, PSTR("MV"))) {
+    // MV <v_0> ... <v_{AXES-1}>: every axis's set-point
+    if (!proto_args_ok(cmd, AXES)) {
+      out.begin();
+      out.line.str_P(PSTR("ERR ARG MV needs "));
+      out.line.u32(AXES);
+      out.line.str_P(AXES > 1 ? PSTR(" integers") : PSTR(" integer"));
+      return out.send();
     }
-    uint32_t period = next_period + fifo_count;
-    st.fifo[(fifo_head + fifo_count) & (SETPOINT_FIFO - 1)] = (int16_t)v;
-    fifo_count++;
-    sei();
-    out.word_u32(PSTR("OK V"), period);
+    if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
+    int16_t vs[AXES];
+    for (uint8_t a = 0; a < AXES; a++) {
+      int32_t v = cmd->arg[a];
+      if (v < -SP_V_MAX || v > SP_V_MAX) {
+        out.begin();
+        out.line.str_P(PSTR("ERR RANGE axis "));
+        out.line.u32(a);
+        out.line.str_P(PSTR(" set-point "));
+        out.line.i32(-SP_V_MAX);
+        out.line.str_P(PSTR(".."));
+        out.line.i32(SP_V_MAX);
+        return out.send();
+      }
+      vs[a] = (int16_t)v;
+    }
+    queue_setpoints(vs, PSTR("OK MV"));
   } else if (proto_is(cmd, PSTR("END"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("END takes no argument"));
     if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
@@ -950,7 +1115,7 @@ static void service_done() {
   while (notice_count) {
     cli();
     uint8_t i = notice_head;
-    uint8_t kind = notice_kind[i];
+    uint8_t kind = notice_kind[i] & 0x0F, axis = notice_kind[i] >> 4;
     int32_t value = notice_value[i];
     notice_head = (uint8_t)((i + 1) & (NOTICES - 1));
     notice_count--;
@@ -960,6 +1125,10 @@ static void service_done() {
     else if (kind == NOTICE_TRAVEL) out.line.str_P(PSTR("N,LIMIT,TRAVEL,"));
     else out.line.str_P(PSTR("N,WATCHDOG,"));
     out.line.i32(value);
+    if (axis) {  // several axes: the notices of axes 1.. name their axis
+      out.line.put(',');
+      out.line.u32(axis);
+    }
     out.send();
   }
   if (done_flag) {
