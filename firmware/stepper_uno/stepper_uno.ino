@@ -553,6 +553,9 @@ static inline uint8_t earliest_heads(uint16_t ref, uint16_t *at) {
   return axes;
 }
 
+// The axes (bit a) and their STEP bits due at OCR1A, so that compare A raises them without searching first.
+static uint8_t sq_next_axes, sq_next_bits;
+
 // Queues one planned step (called by the planner from the control tick, interrupts enabled).
 void sp_emit_step(uint8_t a, uint32_t tick, int8_t dir) {
   uint8_t sreg = SREG;
@@ -569,11 +572,20 @@ void sp_emit_step(uint8_t a, uint32_t tick, int8_t dir) {
   if (sq_count[a]++ == 0) set_axis_dir(a, dir > 0);  // the axis was idle: DIR at least 8 ms before this step
   if (!(TIMSK1 & _BV(OCIE1A))) {  // the step generator was idle: arm it
     OCR1A = (uint16_t)tick;
+    sq_next_axes = (uint8_t)(1 << a);
+    sq_next_bits = AXIS_STEP_BIT[a];
     TIFR1 = _BV(OCF1A);
     TIMSK1 |= _BV(OCIE1A);
+  } else if ((uint16_t)tick == OCR1A) {  // due with the armed step
+    sq_next_axes |= (uint8_t)(1 << a);
+    sq_next_bits |= AXIS_STEP_BIT[a];
   } else if (!(TIFR1 & _BV(OCF1A))) {  // (a pending match is served first; it then finds this step)
     uint16_t now = TCNT1;
-    if ((uint16_t)((uint16_t)tick - now) < (uint16_t)(OCR1A - now)) OCR1A = (uint16_t)tick;  // earlier
+    if ((uint16_t)((uint16_t)tick - now) < (uint16_t)(OCR1A - now)) {  // earlier than the armed step
+      OCR1A = (uint16_t)tick;
+      sq_next_axes = (uint8_t)(1 << a);
+      sq_next_bits = AXIS_STEP_BIT[a];
+    }
   }
   SREG = sreg;
 }
@@ -587,15 +599,11 @@ static const uint16_t STREAM_CHAIN_TICKS = 24;  // a step closer than this to TC
 static void __attribute__((noinline)) stream_step_isr() {
   PORTB |= TP_STEP_BIT;
   uint16_t t = OCR1A;
+  uint8_t axes = sq_next_axes, bits = sq_next_bits;
   uint8_t high = 0, stepped = 0;
   uint16_t rise = 0;
   for (;;) {
     uint16_t next;
-    uint8_t axes = earliest_heads(t, &next);  // next == t
-    uint8_t bits = 0;
-    for (uint8_t a = 0; a < AXES; a++) {
-      if (axes & (1 << a)) bits |= AXIS_STEP_BIT[a];
-    }
     uint16_t edge = (uint16_t)(t + STREAM_STEP_LEAD_TICKS);
     while ((int16_t)(TCNT1 - edge) < 0) {
     }
@@ -611,6 +619,10 @@ static void __attribute__((noinline)) stream_step_isr() {
       sq_count[a]--;
     }
     axes = earliest_heads(t, &next);
+    bits = 0;
+    for (uint8_t a = 0; a < AXES; a++) {
+      if (axes & (1 << a)) bits |= AXIS_STEP_BIT[a];
+    }
     // a step too soon to end the pulses and take another interrupt: raised here, the pulses still up
     if (axes && (int16_t)(next - TCNT1) < (int16_t)(PULSE_TICKS + STREAM_CHAIN_TICKS)) {
       t = next;
@@ -631,6 +643,8 @@ static void __attribute__((noinline)) stream_step_isr() {
       continue;
     }
     OCR1A = next;
+    sq_next_axes = axes;
+    sq_next_bits = bits;
     break;
   }
   PORTB &= ~TP_STEP_BIT;
