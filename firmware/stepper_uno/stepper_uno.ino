@@ -531,30 +531,19 @@ static void stream_step_isr() {
   PORTB &= ~TP_STEP_BIT;
 }
 #else
-// Several axes: each axis's steps queue apart (each axis's are in time order); compare A is set to the
-// earliest head of them all.
-
-// The axes (bit a) whose queued head is the earliest at or after `ref` (every head is, within 2^16 ticks),
-// and its time; 0 when no step is queued.
-static inline uint8_t earliest_heads(uint16_t ref, uint16_t *at) {
-  uint16_t best = 0xFFFF;
-  uint8_t axes = 0;
-  for (uint8_t a = 0; a < AXES; a++) {
-    if (!sq_count[a]) continue;
-    uint16_t d = (uint16_t)(st.step_time[a][sq_head[a]] - ref);
-    if (d < best) {
-      best = d;
-      axes = (uint8_t)(1 << a);
-    } else if (d == best) {
-      axes |= (uint8_t)(1 << a);
-    }
-  }
-  *at = (uint16_t)(ref + best);
-  return axes;
-}
-
-// The axes (bit a) and their STEP bits due at OCR1A, so that compare A raises them without searching first.
-static uint8_t sq_next_axes, sq_next_bits;
+// Several axes: each axis's planned steps queue apart (each in time order). Compare A serves a short lookahead of
+// events (a time and the axes stepping then), merged from the axes' queues outside the step edges' timing:
+// the earliest queued steps become the next event, but only steps before `sq_horizon` (every step before it is
+// planned: the control tick plans one axis after another, and a later axis may plan an earlier step).
+#define SEVQ 4  // a power of two
+static uint16_t sev_t[SEVQ];   // the event's tick (ticks from STREAM, mod 2^16)
+static uint8_t sev_axes[SEVQ]; // bit a: axis a steps
+static uint8_t sev_bits[SEVQ]; // their STEP bits (PORTD)
+static uint8_t sev_up[SEVQ];   // bit a: axis a's step is a pull
+static uint8_t sev_head, sev_n;
+static uint16_t sev_last;      // the time of the last event merged (every queued step is at or after it)
+static uint16_t sq_horizon;    // every step before this tick is planned (at most 2 periods after sev_last)
+static uint8_t sev_pend[AXES]; // events in the lookahead with a step of axis a
 
 // Queues one planned step (called by the planner from the control tick, interrupts enabled).
 void sp_emit_step(uint8_t a, uint32_t tick, int8_t dir) {
@@ -569,85 +558,153 @@ void sp_emit_step(uint8_t a, uint32_t tick, int8_t dir) {
   st.step_time[a][i] = (uint16_t)tick;
   if (dir > 0) st.step_up[a][i >> 3] |= (uint8_t)(1 << (i & 7));
   else st.step_up[a][i >> 3] &= (uint8_t)~(1 << (i & 7));
-  if (sq_count[a]++ == 0) set_axis_dir(a, dir > 0);  // the axis was idle: DIR at least 8 ms before this step
-  if (!(TIMSK1 & _BV(OCIE1A))) {  // the step generator was idle: arm it
-    OCR1A = (uint16_t)tick;
-    sq_next_axes = (uint8_t)(1 << a);
-    sq_next_bits = AXIS_STEP_BIT[a];
-    TIFR1 = _BV(OCF1A);
-    TIMSK1 |= _BV(OCIE1A);
-  } else if ((uint16_t)tick == OCR1A) {  // due with the armed step
-    sq_next_axes |= (uint8_t)(1 << a);
-    sq_next_bits |= AXIS_STEP_BIT[a];
-  } else if (!(TIFR1 & _BV(OCF1A))) {  // (a pending match is served first; it then finds this step)
-    uint16_t now = TCNT1;
-    if ((uint16_t)((uint16_t)tick - now) < (uint16_t)(OCR1A - now)) {  // earlier than the armed step
-      OCR1A = (uint16_t)tick;
-      sq_next_axes = (uint8_t)(1 << a);
-      sq_next_bits = AXIS_STEP_BIT[a];
-    }
-  }
+  sq_count[a]++;
   SREG = sreg;
 }
 
-static const uint16_t STREAM_CHAIN_TICKS = 24;  // a step closer than this to TCNT1 is raised in this interrupt
+// Merges the earliest queued steps (before the horizon) into the next event of the lookahead; false if none.
+// Sets an axis's DIR when it has no earlier step in the lookahead (its last pulse is over: called with no
+// pulse up). Interrupts off.
+static bool sev_produce() {
+  uint16_t best = 0xFFFF;
+  uint16_t limit = (uint16_t)(sq_horizon - sev_last);
+  uint8_t axes = 0;
+  for (uint8_t a = 0; a < AXES; a++) {
+    if (!sq_count[a]) continue;
+    uint16_t d = (uint16_t)(st.step_time[a][sq_head[a]] - sev_last);
+    if (d >= limit) continue;
+    if (d < best) {
+      best = d;
+      axes = (uint8_t)(1 << a);
+    } else if (d == best) {
+      axes |= (uint8_t)(1 << a);
+    }
+  }
+  if (!axes) return false;
+  uint8_t e = (uint8_t)((sev_head + sev_n) & (SEVQ - 1));
+  uint8_t bits = 0, up = 0;
+  for (uint8_t a = 0; a < AXES; a++) {
+    if (!(axes & (1 << a))) continue;
+    uint8_t i = sq_head[a];
+    bool pull = step_is_up(a, i);
+    if (pull) up |= (uint8_t)(1 << a);
+    bits |= AXIS_STEP_BIT[a];
+    if (!sev_pend[a]) set_axis_dir(a, pull);
+    sev_pend[a]++;
+    sq_head[a] = (uint8_t)((i + 1) & (STEP_QUEUE - 1));
+    sq_count[a]--;
+  }
+  sev_last = (uint16_t)(sev_last + best);
+  sev_t[e] = sev_last;
+  sev_axes[e] = axes;
+  sev_bits[e] = bits;
+  sev_up[e] = up;
+  sev_n++;
+  return true;
+}
 
-// Compare A in streaming mode: the earliest queued steps, their STEP edges (one port write for the axes due at
-// the same tick) 16 us after their tick; steps of other axes due within a few ticks are raised here too, each
-// at its own tick + 16 us, the pulses ending (each at least PULSE_TICKS high) before the next compare is set.
+// Compare A of a multi-axis stream: the STEP edges follow their ticks by STREAM_LEAD_AXES; events due too soon
+// for another interrupt are raised in this one (each at its own tick + the lead), then the pulses end, each
+// stepped axis's DIR is set for its next event, the lookahead is refilled while the next event is far enough,
+// and compare A is set for it.
+static const uint16_t STREAM_LEAD_AXES = 48;    // 24 us
+static const uint16_t STREAM_CHAIN_TICKS = 24;  // an event closer than this to TCNT1 is raised in this interrupt
+static const uint16_t STREAM_REFILL_TICKS = 100;  // merging one event takes under 40 us (four axes)
+static const uint16_t FOLLOW_TICKS = 16;  // an event this close after another is raised straight after it
+
 // (Not inlined into the compare vector: its programme path keeps its register allocation and timing.)
 static void __attribute__((noinline)) stream_step_isr() {
   PORTB |= TP_STEP_BIT;
-  uint16_t t = OCR1A;
-  uint8_t axes = sq_next_axes, bits = sq_next_bits;
   uint8_t high = 0, stepped = 0;
   uint16_t rise = 0;
   for (;;) {
-    uint16_t next;
-    uint16_t edge = (uint16_t)(t + STREAM_STEP_LEAD_TICKS);
-    while ((int16_t)(TCNT1 - edge) < 0) {
+    // raise the due event and every one due too soon after it (their times and bits are ready)
+    uint8_t h = sev_head, first = h, n = 0;
+    do {
+      uint16_t tt = sev_t[h];
+      uint16_t edge = (uint16_t)(tt + STREAM_LEAD_AXES);
+      uint8_t bits = sev_bits[h];
+      uint8_t h2 = (uint8_t)((h + 1) & (SEVQ - 1));
+      // an event up to FOLLOW_TICKS later: its edges straight after these, at its own edge (no loop between)
+      uint16_t gap = (uint16_t)(sev_t[h2] - tt);
+      uint8_t bits2 = (n + 1 < sev_n && gap <= FOLLOW_TICKS) ? sev_bits[h2] : 0;
+      uint16_t edge2 = (uint16_t)(edge + gap);
+      uint8_t one = gap == 1;
+      while ((int16_t)(TCNT1 - edge) < 0) {
+      }
+      PORTD |= bits;
+      if (bits2) {
+        if (!one) {
+          while ((int16_t)(TCNT1 - edge2) < 0) {
+          }
+        }
+        PORTD |= bits2;  // (one tick later: about 8 cycles after the first write)
+        bits |= bits2;
+        edge = edge2;
+        h = h2;
+        n++;
+      }
+      rise = edge;
+      high |= bits;
+      h = (uint8_t)((h + 1) & (SEVQ - 1));
+      n++;
+    } while (n < sev_n && (int16_t)(sev_t[h] - TCNT1) < (int16_t)STREAM_CHAIN_TICKS);
+    sev_head = h;
+    sev_n = (uint8_t)(sev_n - n);
+    for (uint8_t j = 0; j < n; j++) {  // the positions after these steps
+      uint8_t e = (uint8_t)((first + j) & (SEVQ - 1));
+      uint8_t axes = sev_axes[e], up = sev_up[e];
+      stepped |= axes;
+      for (uint8_t a = 0; a < AXES; a++) {
+        if (!(axes & (1 << a))) continue;
+        position[a] += (up & (1 << a)) ? 1 : -1;
+        sev_pend[a]--;
+      }
     }
-    PORTD |= bits;
-    rise = edge;
-    high |= bits;
-    stepped |= axes;
-    for (uint8_t a = 0; a < AXES; a++) {
-      if (!(axes & (1 << a))) continue;
-      uint8_t i = sq_head[a];
-      position[a] += step_is_up(a, i) ? 1 : -1;
-      sq_head[a] = (uint8_t)((i + 1) & (STEP_QUEUE - 1));
-      sq_count[a]--;
-    }
-    axes = earliest_heads(t, &next);
-    bits = 0;
-    for (uint8_t a = 0; a < AXES; a++) {
-      if (axes & (1 << a)) bits |= AXIS_STEP_BIT[a];
-    }
-    // a step too soon to end the pulses and take another interrupt: raised here, the pulses still up
-    if (axes && (int16_t)(next - TCNT1) < (int16_t)(PULSE_TICKS + STREAM_CHAIN_TICKS)) {
-      t = next;
-      continue;
-    }
+    if (sev_n && (int16_t)(sev_t[h] - TCNT1) < (int16_t)(STREAM_CHAIN_TICKS + PULSE_TICKS)) continue;
     end_pulses(high, rise);
     high = 0;
-    for (uint8_t a = 0; a < AXES; a++) {  // DIR of each stepped axis's next step (>= 600 us before it)
-      if ((stepped & (1 << a)) && sq_count[a]) set_axis_dir(a, step_is_up(a, sq_head[a]));
+    for (uint8_t a = 0; a < AXES; a++) {  // DIR of each stepped axis's next step in the lookahead
+      if (!(stepped & (1 << a)) || !sev_pend[a]) continue;
+      for (uint8_t j = 0; j < sev_n; j++) {
+        uint8_t e = (uint8_t)((sev_head + j) & (SEVQ - 1));
+        if (sev_axes[e] & (1 << a)) {
+          set_axis_dir(a, sev_up[e] & (1 << a));
+          break;
+        }
+      }
     }
     stepped = 0;
-    if (!axes) {
+    while (sev_n < SEVQ && (!sev_n || (int16_t)(sev_t[sev_head] - TCNT1) >= (int16_t)STREAM_REFILL_TICKS)) {
+      if (!sev_produce()) break;
+    }
+    if (!sev_n) {
       TIMSK1 &= ~_BV(OCIE1A);
       break;
     }
-    if ((int16_t)(next - TCNT1) < (int16_t)STREAM_CHAIN_TICKS) {
-      t = next;
-      continue;
-    }
-    OCR1A = next;
-    sq_next_axes = axes;
-    sq_next_bits = bits;
+    if ((int16_t)(sev_t[sev_head] - TCNT1) < (int16_t)STREAM_CHAIN_TICKS) continue;
+    OCR1A = sev_t[sev_head];
     break;
   }
   PORTB &= ~TP_STEP_BIT;
+}
+
+// After the control tick has planned period k: every step before (k + 2) T is planned; an idle step generator
+// starts on the new steps.
+static void stream_planned(uint32_t k) {
+  cli();
+  if (!sev_n) sev_last = (uint16_t)(k * SP_PERIOD_TICKS);  // (no step is queued before (k + 1) T)
+  sq_horizon = (uint16_t)((k + 2) * SP_PERIOD_TICKS);
+  if (!(TIMSK1 & _BV(OCIE1A))) {
+    while (sev_n < SEVQ && sev_produce()) {
+    }
+    if (sev_n) {
+      OCR1A = sev_t[sev_head];
+      TIFR1 = _BV(OCF1A);
+      TIMSK1 |= _BV(OCIE1A);
+    }
+  }
+  sei();
 }
 #endif
 
@@ -702,6 +759,9 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
     sei();
   } else {
     st.planner.plan_period(k, v);
+#if AXES > 1
+    stream_planned(k);
+#endif
     for (uint8_t a = 0; a < AXES; a++) {
       if (v[a]) last_nonzero = k;
     }
@@ -724,6 +784,12 @@ static void stream_start() {
   cli();
   timer_stop();
   for (uint8_t a = 0; a < AXES; a++) sq_head[a] = sq_count[a] = 0;
+#if AXES > 1
+  sev_head = sev_n = 0;
+  sev_last = 0;
+  sq_horizon = SP_PERIOD_TICKS;  // (nothing is planned before 2 T)
+  for (uint8_t a = 0; a < AXES; a++) sev_pend[a] = 0;
+#endif
   fifo_head = fifo_count = 0;
   next_period = 1;
   end_period = 0xFFFFFFFFUL;
