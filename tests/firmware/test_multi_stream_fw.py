@@ -6,12 +6,14 @@ streaming replies and refusals (``MV``, the shorter longest delay, the programme
 
 from __future__ import annotations
 
+import random
 import re
 from pathlib import Path
 
 import fwsim
 import numpy as np
 import pytest
+import streamsim
 
 from helpers.board import stream_reference as hs
 
@@ -41,67 +43,121 @@ def _script(cmds: list[tuple[float, str]]) -> list[tuple[float, bytes]]:
     return [(t, fwsim.command(body)) for t, body in cmds]
 
 
-def _rising(run: fwsim.SimRun, pin: str, after: float) -> np.ndarray:
-    return np.array([c for c, p, lv in run.pins if p == pin and lv == 1 and c >= after], dtype=np.int64)
-
-
-def _level_at(run: fwsim.SimRun, pin: str, cycle: int) -> int:
+def _level_at(edges: list[tuple[int, int]], cycle: int) -> int:
     level = 0
-    for c, p, lv in run.pins:
-        if p == pin and c <= cycle:
-            level = lv
+    for c, lv in edges:
+        if c > cycle:
+            break
+        level = lv
     return level
 
 
-def test_four_axis_stream_matches_the_reference_per_axis(
-    four_build: tuple[Path, str], firmware_build: None
-) -> None:
-    build, _ = four_build
-    sps = setpoints()
-    t_stream = 0.05 + 0.004 * 6
-    cmds = [(0.05 + 0.004 * i, body) for i, body in enumerate(["EN 1", *SHAPER.commands()])]
+def run_stream(
+    build: Path, shaper: hs.StreamShaper, sps: list[tuple[int, ...]]
+) -> tuple[list[hs.StreamResult], list[np.ndarray], list[str], float]:
+    """Stream ``sps`` (one set-point per axis and period, from position 0) into the four-tendon build.
+
+    Returns the reference (from the periods the board named), every axis's edge-minus-tick residuals (CPU
+    cycles), the lines after ``STREAM`` and the busiest period's interrupt load (the control tick and the
+    step interrupt, share of a period). Asserts the replies, the step counts, the DIR levels, the notices and
+    ``DONE`` against the reference.
+    """
+    t_stream = 0.05 + 0.004 * (len(shaper.commands()) + 1)
+    cmds = [(0.05 + 0.004 * i, body) for i, body in enumerate(["EN 1", *shaper.commands()])]
     cmds.append((t_stream, "STREAM"))
     # the first three set-points at once (a lead of about three periods), then one per period
     times = [0.001 + 0.002 * i if i < 3 else 0.005 + 0.01 * (i - 2) for i in range(len(sps))]
     cmds += [(t_stream + t, "MV " + " ".join(map(str, v))) for t, v in zip(times, sps, strict=True)]
     cmds.append((t_stream + times[-1] + 0.003, "END"))
-    duration = t_stream + 0.30 + 0.09 + SHAPER.duration_s + 0.1
-    watch = [p for pair in AXES for p in pair] + ["B0"]
+    duration = t_stream + times[-1] + 0.09 + shaper.duration_s + 0.1
+    watch = [p for pair in AXES for p in pair] + ["B0", "B1"]
     run = fwsim.run("stepper", _script(cmds), duration, watch=watch, elf=build / "stepper_uno.elf")
     assert all(ln.checksum_ok for ln in run.lines)
-    bodies = [ln.body for ln in run.lines]
-    replies = [b for b in bodies if not b.startswith(("N,", "DONE", "HELLO"))]
-    assert replies[:6] == ["OK EN 1", "OK SHAPER 3", "OK IMP 0", "OK IMP 1", "OK IMP 2", "OK STREAM 0"]
+    stream_cycle = next(ln.cycle for ln in run.lines if ln.body == "OK STREAM 0")
+    after = [ln.body for ln in run.lines if ln.cycle >= stream_cycle]
+    replies = [b for b in after if not b.startswith(("N,", "DONE"))]
+    n = len(sps)
+    assert len(replies) == n + 2, replies
     assigned: dict[int, tuple[int, ...]] = {}
-    for v, reply in zip(sps, replies[6:36], strict=True):
+    for v, reply in zip(sps, replies[1 : n + 1], strict=True):
         m = re.fullmatch(r"OK MV (\d+)", reply)
         assert m, reply
         assigned[int(m[1])] = v
-    assert sorted(assigned) == list(range(1, 31))  # no underrun: one set-point per period 1..30
-    m = re.fullmatch(r"OK END (\d+)", replies[36])
-    assert m and int(m[1]) == 31
-    ref = hs.simulate_axes(SHAPER, hs.PeriodCommands(assigned, 31), [0, 0, 0, 0], [TRAVEL] * 4)
-    # the reference itself: axis 1 reaches its travel and is held there (by hand: 391 steps commanded)
-    assert ref[1].position == TRAVEL and [n.line for n in ref[1].notices] == [f"N,LIMIT,TRAVEL,{TRAVEL},1"]
-    assert bodies[-1] == "DONE " + " ".join(str(r.position) for r in ref)
-    notices = sorted(b for b in bodies if b.startswith("N,"))
-    assert notices == sorted(n.line for r in ref for n in r.notices)
-    stream_cycle = next(ln.cycle for ln in run.lines if ln.body == "OK STREAM 0")
+    assert sorted(assigned) == list(range(1, n + 1))  # no underrun: one set-point per period 1..n
+    assert replies[n + 1] == f"OK END {n + 1}"
+    ref = hs.simulate_axes(shaper, hs.PeriodCommands(assigned, n + 1), [0] * 4, [TRAVEL] * 4)
+    assert after[-1] == "DONE " + " ".join(str(r.position) for r in ref)
+    assert sorted(b for b in after if b.startswith("N,")) == sorted(n.line for r in ref for n in r.notices)
     residuals = []
     for a, ((step, dir_pin), r) in enumerate(zip(AXES, ref, strict=True)):
-        edges = _rising(run, step, stream_cycle - F // 100)
+        edges = np.array(
+            [c for c, p, lv in run.pins if p == step and lv == 1 and c >= stream_cycle], dtype=np.int64
+        )
         assert len(edges) == len(r.ticks), f"axis {a}: {len(edges)} steps, reference {len(r.ticks)}"
-        assert len(edges) > 20
+        dir_edges = [(c, lv) for c, p, lv in run.pins if p == dir_pin]
         for c, d in zip(edges, r.directions, strict=True):
-            assert _level_at(run, dir_pin, c) == (d > 0), f"axis {a}: DIR wrong at cycle {c}"
+            assert _level_at(dir_edges, int(c)) == (d > 0), f"axis {a}: DIR wrong at cycle {c}"
+            assert _level_at(dir_edges, int(c) - 5 * 16) == (d > 0), f"axis {a}: DIR set late at {c}"
         residuals.append(edges - TICK_CYCLES * r.ticks)
+    return ref, residuals, after, streamsim.isr_cycles_per_period(run).max() / (F / 100)
+
+
+def test_four_axis_stream_matches_the_reference_per_axis(
+    four_build: tuple[Path, str], firmware_build: None
+) -> None:
+    sps = setpoints()
+    ref, residuals, _, load = run_stream(four_build[0], SHAPER, sps)
+    # the reference itself: axis 1 reaches its travel and is held there (by hand: 391 steps commanded)
+    assert ref[1].position == TRAVEL and [n.line for n in ref[1].notices] == [f"N,LIMIT,TRAVEL,{TRAVEL},1"]
+    assert all(len(r.ticks) > 20 for r in ref)
     allres = np.concatenate(residuals)
     spread = int(allres.max() - allres.min())
     print(
         f"four-axis stream: {[len(r.ticks) for r in ref]} steps; edge minus reference tick spread "
-        f"{spread} cycles ({spread / 16:.3f} us) over all axes"
+        f"{spread} cycles ({spread / 16:.3f} us) over all axes; interrupts at most {100 * load:.1f} % of a "
+        "period"
     )
     assert spread <= TICK_CYCLES  # every step of every axis within one tick of the reference's
+
+
+def random_stream(rnd: random.Random) -> tuple[hs.StreamShaper, list[tuple[int, ...]]]:
+    """A random shaper (1-8 impulses, delays up to 0.62 s) and 20-40 periods of set-points per axis."""
+    n = rnd.randint(1, 8)
+    delays = sorted(rnd.sample(range(1, hs.MAX_DELAY_US_AXES // 16 + 1), n - 1))
+    cuts = sorted(rnd.randint(0, 4096) for _ in range(n - 1))
+    amps = [b - a for a, b in zip([0, *cuts], [*cuts, 4096], strict=True)]
+    shaper = hs.StreamShaper(tuple(amps), (0, *(16 * d for d in delays)))
+    periods = rnd.randint(20, 40)
+    sps = []
+    levels = [rnd.randint(-hs.V_MAX, hs.V_MAX) for _ in AXES]
+    for _ in range(periods):
+        levels = [v if rnd.random() < 0.8 else rnd.randint(-hs.V_MAX, hs.V_MAX) for v in levels]
+        sps.append(tuple(levels))
+    return shaper, sps
+
+
+def _check_random(build: Path, seed: int) -> tuple[int, int, float]:
+    shaper, sps = random_stream(random.Random(seed))
+    ref, residuals, _, load = run_stream(build, shaper, sps)
+    allres = np.concatenate(residuals)
+    spread = int(allres.max() - allres.min())
+    assert spread <= TICK_CYCLES, f"seed {seed}: spread {spread} cycles"
+    return sum(len(r.ticks) for r in ref), spread, load
+
+
+def test_random_four_axis_stream(four_build: tuple[Path, str], firmware_build: None) -> None:
+    steps, spread, load = _check_random(four_build[0], 7)
+    print(f"random four-axis stream: {steps} steps, spread {spread} cycles, load {100 * load:.1f} %")
+
+
+@pytest.mark.slow
+def test_many_random_four_axis_streams(four_build: tuple[Path, str], firmware_build: None) -> None:
+    results = [_check_random(four_build[0], seed) for seed in range(100, 140)]
+    print(
+        f"40 random four-axis streams: {sum(r[0] for r in results)} steps, every edge within "
+        f"{max(r[1] for r in results)} cycles of the reference's tick (spread), interrupts at most "
+        f"{100 * max(r[2] for r in results):.1f} % of a period"
+    )
 
 
 def test_multi_axis_stream_replies_and_refusals(four_build: tuple[Path, str], firmware_build: None) -> None:
