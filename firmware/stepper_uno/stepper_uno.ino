@@ -612,11 +612,26 @@ static const uint16_t STREAM_CHAIN_TICKS = 24;  // an event closer than this to 
 static const uint16_t STREAM_REFILL_TICKS = 100;  // merging one event takes under 40 us (four axes)
 static const uint16_t FOLLOW_TICKS = 16;  // an event this close after another is raised straight after it
 
+// True when tick `t` (at or after `ref`, a tick just past) is less than `margin` ticks after TCNT1. (Events are
+// up to two periods ahead, more than 2^15 ticks: they are compared as distances from `ref`, never signed.)
+static inline bool due_within(uint16_t t, uint16_t ref, uint16_t margin) {
+  return (uint16_t)(t - ref) < (uint16_t)((uint16_t)(TCNT1 - ref) + margin);
+}
+
+// Busy-waits for tick `edge` (at most 127 ticks ahead): on the low byte of TCNT1, a 5-cycle loop, so that the
+// port write follows the tick by 0-5 cycles plus a constant.
+static inline void wait_edge(uint16_t edge) {
+  if ((int16_t)(TCNT1 - edge) >= 0) return;  // (already there)
+  uint8_t e = (uint8_t)edge;
+  while ((int8_t)(TCNT1L - e) < 0) {
+  }
+}
+
 // (Not inlined into the compare vector: its programme path keeps its register allocation and timing.)
 static void __attribute__((noinline)) stream_step_isr() {
   PORTB |= TP_STEP_BIT;
   uint8_t high = 0, stepped = 0;
-  uint16_t rise = 0;
+  uint16_t rise = 0, ref = 0;
   for (;;) {
     // raise the due event and every one due too soon after it (their times and bits are ready)
     uint8_t h = sev_head, first = h, n = 0;
@@ -630,14 +645,10 @@ static void __attribute__((noinline)) stream_step_isr() {
       uint8_t bits2 = (n + 1 < sev_n && gap <= FOLLOW_TICKS) ? sev_bits[h2] : 0;
       uint16_t edge2 = (uint16_t)(edge + gap);
       uint8_t one = gap == 1;
-      while ((int16_t)(TCNT1 - edge) < 0) {
-      }
+      wait_edge(edge);
       PORTD |= bits;
       if (bits2) {
-        if (!one) {
-          while ((int16_t)(TCNT1 - edge2) < 0) {
-          }
-        }
+        if (!one) wait_edge(edge2);
         PORTD |= bits2;  // (one tick later: about 8 cycles after the first write)
         bits |= bits2;
         edge = edge2;
@@ -645,10 +656,11 @@ static void __attribute__((noinline)) stream_step_isr() {
         n++;
       }
       rise = edge;
+      ref = (uint16_t)(edge - STREAM_LEAD_AXES);
       high |= bits;
       h = (uint8_t)((h + 1) & (SEVQ - 1));
       n++;
-    } while (n < sev_n && (int16_t)(sev_t[h] - TCNT1) < (int16_t)STREAM_CHAIN_TICKS);
+    } while (n < sev_n && due_within(sev_t[h], ref, STREAM_CHAIN_TICKS));
     sev_head = h;
     sev_n = (uint8_t)(sev_n - n);
     for (uint8_t j = 0; j < n; j++) {  // the positions after these steps
@@ -661,7 +673,7 @@ static void __attribute__((noinline)) stream_step_isr() {
         sev_pend[a]--;
       }
     }
-    if (sev_n && (int16_t)(sev_t[h] - TCNT1) < (int16_t)(STREAM_CHAIN_TICKS + PULSE_TICKS)) continue;
+    if (sev_n && due_within(sev_t[h], ref, STREAM_CHAIN_TICKS + PULSE_TICKS)) continue;
     end_pulses(high, rise);
     high = 0;
     for (uint8_t a = 0; a < AXES; a++) {  // DIR of each stepped axis's next step in the lookahead
@@ -675,14 +687,14 @@ static void __attribute__((noinline)) stream_step_isr() {
       }
     }
     stepped = 0;
-    while (sev_n < SEVQ && (!sev_n || (int16_t)(sev_t[sev_head] - TCNT1) >= (int16_t)STREAM_REFILL_TICKS)) {
+    while (sev_n < SEVQ && (!sev_n || !due_within(sev_t[sev_head], ref, STREAM_REFILL_TICKS))) {
       if (!sev_produce()) break;
     }
     if (!sev_n) {
       TIMSK1 &= ~_BV(OCIE1A);
       break;
     }
-    if ((int16_t)(sev_t[sev_head] - TCNT1) < (int16_t)STREAM_CHAIN_TICKS) continue;
+    if (due_within(sev_t[sev_head], ref, STREAM_CHAIN_TICKS)) continue;
     OCR1A = sev_t[sev_head];
     break;
   }
