@@ -2,7 +2,8 @@
 // STEP = D5, DIR = D6 (HIGH = pull); axes 1-3 on STEP = D2, D3, D4 and DIR = D10, D11, D12; one ENA = D7
 // (HIGH disables every driver).
 // Two modes, both with Timer1 step timing: a stored programme of segments and dwells (GO), and a stream of
-// velocity set-points shaped on the board by one loaded input shaper (STREAM, axis 0). A programme item moves
+// velocity set-points shaped on the board by one loaded input shaper (STREAM; V for axis 0, MV for every axis,
+// each shaped by the one shaper with its own travel clamp). A programme item moves
 // every axis by its own step count in one time window (MSEG; SEG is one on axis 0), the steps of each axis
 // spread over the window Bresenham-style: step k of n at the first timer tick at or after k/n of the window.
 // Protocol: firmware/PROTOCOL.md (RIG_STEPPER_BAUD, 115200 for the paper's rig, 8N1).
@@ -19,7 +20,8 @@
 // Streaming: Timer1 runs free (normal mode, 0.5 us ticks from STREAM). Its compare B interrupt is the 100 Hz
 // control tick: it takes the next set-point from a FIFO and plans the steps of the period after next
 // (common/stream_plan.cpp), with interrupts re-enabled so that it never delays a step; compare A emits the
-// planned steps from a queue, each STEP edge a fixed 16 us after its compare match (8 us in programme mode).
+// planned steps from a queue, each STEP edge a fixed 16 us after its compare match (8 us in programme mode;
+// several axes: a queue per axis, merged into a short lookahead of events, edges 24 us after their ticks).
 // Test points (for a scope; the simavr tests log them): D8 (PB0) is HIGH while the control tick runs, D9 (PB1)
 // while a streamed step is emitted.
 //

@@ -54,11 +54,11 @@ def _level_at(edges: list[tuple[int, int]], cycle: int) -> int:
 
 def run_stream(
     build: Path, shaper: hs.StreamShaper, sps: list[tuple[int, ...]]
-) -> tuple[list[hs.StreamResult], list[np.ndarray], list[str], float]:
+) -> tuple[list[hs.StreamResult], list[np.ndarray], int, float]:
     """Stream ``sps`` (one set-point per axis and period, from position 0) into the four-tendon build.
 
     Returns the reference (from the periods the board named), every axis's edge-minus-tick residuals (CPU
-    cycles), the lines after ``STREAM`` and the busiest period's interrupt load (the control tick and the
+    cycles), the least free stack (``MEM``) and the busiest period's interrupt load (the control tick and the
     step interrupt, share of a period). Asserts the replies, the step counts, the DIR levels, the notices and
     ``DONE`` against the reference.
     """
@@ -70,11 +70,15 @@ def run_stream(
     cmds += [(t_stream + t, "MV " + " ".join(map(str, v))) for t, v in zip(times, sps, strict=True)]
     cmds.append((t_stream + times[-1] + 0.003, "END"))
     duration = t_stream + times[-1] + 0.09 + shaper.duration_s + 0.1
+    cmds.append((duration, "MEM"))  # the least free stack over the stream
+    duration += 0.01
     watch = [p for pair in AXES for p in pair] + ["B0", "B1"]
     run = fwsim.run("stepper", _script(cmds), duration, watch=watch, elf=build / "stepper_uno.elf")
     assert all(ln.checksum_ok for ln in run.lines)
     stream_cycle = next(ln.cycle for ln in run.lines if ln.body == "OK STREAM 0")
     after = [ln.body for ln in run.lines if ln.cycle >= stream_cycle]
+    mem = re.fullmatch(r"OK MEM (\d+)", after.pop())
+    assert mem and int(mem[1]) >= 256, mem  # the stack margin the RAM budget keeps (PROTOCOL.md)
     replies = [b for b in after if not b.startswith(("N,", "DONE"))]
     n = len(sps)
     assert len(replies) == n + 2, replies
@@ -99,14 +103,14 @@ def run_stream(
             assert _level_at(dir_edges, int(c)) == (d > 0), f"axis {a}: DIR wrong at cycle {c}"
             assert _level_at(dir_edges, int(c) - 5 * 16) == (d > 0), f"axis {a}: DIR set late at {c}"
         residuals.append(edges - TICK_CYCLES * r.ticks)
-    return ref, residuals, after, streamsim.isr_cycles_per_period(run).max() / (F / 100)
+    return ref, residuals, int(mem[1]), streamsim.isr_cycles_per_period(run).max() / (F / 100)
 
 
 def test_four_axis_stream_matches_the_reference_per_axis(
     four_build: tuple[Path, str], firmware_build: None
 ) -> None:
     sps = setpoints()
-    ref, residuals, _, load = run_stream(four_build[0], SHAPER, sps)
+    ref, residuals, free, load = run_stream(four_build[0], SHAPER, sps)
     # the reference itself: axis 1 reaches its travel and is held there (by hand: 391 steps commanded)
     assert ref[1].position == TRAVEL and [n.line for n in ref[1].notices] == [f"N,LIMIT,TRAVEL,{TRAVEL},1"]
     assert all(len(r.ticks) > 20 for r in ref)
@@ -115,7 +119,7 @@ def test_four_axis_stream_matches_the_reference_per_axis(
     print(
         f"four-axis stream: {[len(r.ticks) for r in ref]} steps; edge minus reference tick spread "
         f"{spread} cycles ({spread / 16:.3f} us) over all axes; interrupts at most {100 * load:.1f} % of a "
-        "period"
+        f"period; least free stack {free} bytes"
     )
     assert spread <= TICK_CYCLES  # every step of every axis within one tick of the reference's
 
@@ -136,18 +140,21 @@ def random_stream(rnd: random.Random) -> tuple[hs.StreamShaper, list[tuple[int, 
     return shaper, sps
 
 
-def _check_random(build: Path, seed: int) -> tuple[int, int, float]:
+def _check_random(build: Path, seed: int) -> tuple[int, int, float, int]:
     shaper, sps = random_stream(random.Random(seed))
-    ref, residuals, _, load = run_stream(build, shaper, sps)
+    ref, residuals, free, load = run_stream(build, shaper, sps)
     allres = np.concatenate(residuals)
     spread = int(allres.max() - allres.min())
     assert spread <= TICK_CYCLES, f"seed {seed}: spread {spread} cycles"
-    return sum(len(r.ticks) for r in ref), spread, load
+    return sum(len(r.ticks) for r in ref), spread, load, free
 
 
 def test_random_four_axis_stream(four_build: tuple[Path, str], firmware_build: None) -> None:
-    steps, spread, load = _check_random(four_build[0], 7)
-    print(f"random four-axis stream: {steps} steps, spread {spread} cycles, load {100 * load:.1f} %")
+    steps, spread, load, free = _check_random(four_build[0], 7)
+    print(
+        f"random four-axis stream: {steps} steps, spread {spread} cycles, load {100 * load:.1f} %, "
+        f"least free stack {free} bytes"
+    )
 
 
 @pytest.mark.slow
@@ -156,7 +163,8 @@ def test_many_random_four_axis_streams(four_build: tuple[Path, str], firmware_bu
     print(
         f"40 random four-axis streams: {sum(r[0] for r in results)} steps, every edge within "
         f"{max(r[1] for r in results)} cycles of the reference's tick (spread), interrupts at most "
-        f"{100 * max(r[2] for r in results):.1f} % of a period"
+        f"{100 * max(r[2] for r in results):.1f} % of a period, least free stack "
+        f"{min(r[3] for r in results)} bytes"
     )
 
 
@@ -183,6 +191,7 @@ def test_multi_axis_stream_replies_and_refusals(four_build: tuple[Path, str], fi
     script = [(0.05 + 0.008 * i, fwsim.command(c)) for i, c in enumerate(cmds)]
     t_end = 0.05 + 0.008 * len(cmds)
     script += [(t_end + 0.8, fwsim.command("GO")), (t_end + 0.81, fwsim.command("POS"))]
+    script += [(t_end + 0.82, fwsim.command("MEM"))]
     run = fwsim.run("stepper", script, t_end + 0.85, elf=build / "stepper_uno.elf")
     bodies = [ln.body for ln in run.lines if not ln.body.startswith(("HELLO", "N,"))]
     assert bodies[:9] == [
@@ -207,4 +216,7 @@ def test_multi_axis_stream_replies_and_refusals(four_build: tuple[Path, str], fi
     assert re.fullmatch(r"OK END \d+", bodies[15])
     # 10 + 10 units for two periods on axis 0 (0.19 steps), -5 on axis 3 at 0: nothing moves; then the
     # programme is empty (STREAM took its table)
-    assert bodies[16:] == ["DONE 0 0 0 0", "ERR STATE programme empty", "OK POS 0 0 0 0"]
+    assert bodies[16:19] == ["DONE 0 0 0 0", "ERR STATE programme empty", "OK POS 0 0 0 0"]
+    free = int(re.fullmatch(r"OK MEM (\d+)", bodies[19])[1])
+    print(f"least free stack after a four-axis stream: {free} bytes")
+    assert free >= 256  # the margin the RAM budget keeps (firmware/PROTOCOL.md)
