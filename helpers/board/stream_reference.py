@@ -682,8 +682,6 @@ def simulate_axes(
         if state == "watchdog" and not watchdog_seen:
             watchdog_seen = True
             planners[0].notices.append(Notice("WATCHDOG", k, k))
-        if finish is not None and k >= finish:
-            break
         for planner, va, vlist in zip(planners, vs, v_by_axis, strict=True):
             planner.plan_period(k, va)
             vlist.append(va)
@@ -691,7 +689,7 @@ def simulate_axes(
             last_nonzero = k
         if finish is None and state != "active" and k - last_nonzero >= q_max + 2:
             finish = k + 3
-        if k >= max_periods:
+        if finish is not None or k >= max_periods:  # (the periods left before the finish are all zero)
             break
     return [
         StreamResult(
