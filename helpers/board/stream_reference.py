@@ -24,6 +24,9 @@ not chatter); it is issued at the first timer tick at or after that exact instan
 limits clamp the exact position: at ``c = 156`` with ``r = 0`` an upward ``S`` is held at zero
 (``N,LIMIT,TRAVEL``), likewise at 0. Timeline: set-point k (the k-th period's, k >= 1) is taken at control
 tick k (``k * 10 ms`` after ``STREAM``) and drives the velocity over ``[(k + 1) * 10 ms, (k + 2) * 10 ms)``.
+
+Several axes (a build with ``RIG_AXES`` > 1, ``MV``): every axis is this planner with its own set-points and
+travel, shaped by the one shaper (:func:`simulate_axes`); the longest delay there is ``MAX_DELAY_US_AXES``.
 """
 
 from __future__ import annotations
