@@ -27,7 +27,7 @@ def test_run_records_the_whole_programme(tmp_path):
     assert back.meta["counts"] == {
         "samples": len(f), "dropped": 0, "corrupted": 0, "overruns": 0, "implausible": 0,
     }  # fmt: skip
-    assert back.meta["firmware"] == {"daq": "2.2.0+481e87e3", "stepper": "2.2.0+481e87e3"}
+    assert back.meta["firmware"] == {"daq": "2.3.0+481e87e3", "stepper": "2.3.0+481e87e3"}
     assert back.meta["scenario"]["programme"]["items"][1] == {
         "kind": "SEG",
         "direction": 1,
@@ -87,7 +87,7 @@ def test_sync_by_ping_when_the_board_does_not_reset_on_open():
         timeout=0.5,
         hello_timeout=1.0,
     )
-    assert rig.daq.version == "2.2.0+481e87e3" and world.daq.received[0] == "PING"
+    assert rig.daq.version == "2.3.0+481e87e3" and world.daq.received[0] == "PING"
     assert world.daq.resets == 1  # only the reset at power-up
 
 
@@ -127,7 +127,7 @@ def test_a_late_reply_is_not_taken_for_the_next_command():
     assert rig.stepper.unexpected == ["ABORTED 0"]
 
 
-@pytest.mark.parametrize("version", ["2.2.0+deadbeef", "2.2.0+00000000"])
+@pytest.mark.parametrize("version", ["2.3.0+deadbeef", "2.3.0+00000000"])
 def test_boards_built_for_another_rig_are_refused_with_the_rebuild_command(monkeypatch, version, shipped_rig):
     # rig-parametrised (tests/conftest.py): the host's rig is named by its hash and file
     import helpers.virtual.emulator.boards as emulated

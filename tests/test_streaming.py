@@ -148,3 +148,38 @@ def test_shaper_checks(amps, delays, negative, message):
         assert message in error
         with pytest.raises(ValueError):
             hs.StreamShaper(amps, delays, negative)
+
+
+# --- several axes ------------------------------------------------------------------------------------------
+def test_axes_with_v_setpoints_move_axis_zero_as_one_axis_does() -> None:
+    """``V`` on a build with several axes: axis 0 as the one-axis board, the others never step."""
+    for seed in range(20):
+        shaper, commands, start = random_stream(random.Random(seed))
+        if max(shaper.delays_us) > hs.MAX_DELAY_US_AXES:
+            continue
+        one = hs.simulate(shaper, commands, position=start)
+        axes = hs.simulate_axes(shaper, commands, [start, 5, 0, 156])
+        assert np.array_equal(axes[0].ticks, one.ticks) and np.array_equal(axes[0].directions, one.directions)
+        assert axes[0].finish_tick == one.finish_tick and axes[0].notices == one.notices
+        assert [len(r.ticks) for r in axes[1:]] == [0, 0, 0] and [r.position for r in axes[1:]] == [5, 0, 156]
+
+
+def test_each_axis_is_clamped_at_its_own_travel() -> None:
+    """Top speed for 30 periods (1640 * 625 * 30 / 2^16 = 469.2 steps): up on axes 0 and 2 (travels 100
+    and 40), down on axis 3 (from 40 to 0); axis 1 holds."""
+    unit = hs.StreamShaper((4096,), (0,))
+    commands = hs.PeriodCommands({k: (hs.V_MAX, 0, hs.V_MAX, -hs.V_MAX) for k in range(1, 31)}, 31)
+    res = hs.simulate_axes(unit, commands, [0, 7, 0, 40], [100, 156, 40, 156])
+    assert [r.position for r in res] == [100, 7, 40, 0]
+    assert [n.line for r in res for n in r.notices] == [
+        "N,LIMIT,TRAVEL,100",
+        "N,LIMIT,TRAVEL,40,2",
+        "N,LIMIT,TRAVEL,0,3",
+    ]
+    assert res[1].finish_tick == res[0].finish_tick == 30 + 2 + 3  # last non-zero 30, + q_max + 2, + 3
+
+
+def test_impulse_delays_of_a_build_with_several_axes() -> None:
+    assert hs.impulse_problem(1, 2048, 620_000, 0, False, hs.MAX_DELAY_US_AXES) is None
+    assert hs.impulse_problem(1, 2048, 620_016, 0, False, hs.MAX_DELAY_US_AXES) == "delay"
+    assert hs.impulse_problem(1, 2048, 620_016, 0, False) is None  # one axis: up to 1 s

@@ -75,7 +75,7 @@ def test_build_limits_are_the_rig_files(four: rigfile.RigFile) -> None:
 def test_emulated_stepper_replies_per_axis(four: rigfile.RigFile) -> None:
     s, _ = _stepper(four)
     assert _talk(s, "PING", "CONFIG") == [
-        f"PONG stepper 2.2.0+{four.hash}",
+        f"PONG stepper 2.3.0+{four.hash}",
         "OK CONFIG 4 64 639 1000000 156 156 156 156",
     ]
     assert _talk(s, "EN 1", "MSEG 100000 10 7 157 0", "MSEG 10000 0 16 0 0", "MSEG 100000 0 0 0",

@@ -26,7 +26,7 @@ def talk(board, *commands, checksum=True):
 
 
 def test_hello_on_reset_and_pong_with_the_documented_checksum(shipped_rig):  # rig-parametrised
-    version = f"2.2.0+{shipped_rig.hash}"  # the firmware version and the rig file's hash
+    version = f"2.3.0+{shipped_rig.hash}"  # the firmware version and the rig file's hash
     w = make_world()
     assert w.daq.take_output() == frame(f"HELLO daq {version}")
     w.daq.receive(b"PING*79\n")
@@ -58,7 +58,7 @@ def test_daq_errors_and_limits():
     assert talk(d, "START") == ["OK START 200"]
     assert talk(d, "RATE 300")[0].startswith("ERR STATE")
     assert talk(d, "START")[0].startswith("ERR STATE")
-    assert talk(d, "PING") == ["PONG daq 2.2.0+481e87e3"]  # allowed while streaming
+    assert talk(d, "PING") == ["PONG daq 2.3.0+481e87e3"]  # allowed while streaming
 
 
 def test_daq_streams_at_its_rate_and_stop_reports_the_count():
@@ -171,7 +171,7 @@ def test_reset_sends_hello_and_forgets_state():
     talk(w.stepper, "CLEAR", "SEG 1 50 1000", "EN 1", "GO")
     w.advance_to(w.t + 0.02)
     msgs = talk(w.stepper)
-    assert msgs[-1] == "HELLO stepper 2.2.0+481e87e3"
+    assert msgs[-1] == "HELLO stepper 2.3.0+481e87e3"
     assert not w.stepper.enabled and not w.stepper.running and w.stepper.position == 0
 
 
@@ -187,7 +187,7 @@ def test_url_handler_same_rig_name_same_world():
     assert d.read(100).startswith(b"HELLO daq")
     s.write(frame("PING"))
     # reset on open, reply
-    assert s.read(100) == frame("HELLO stepper 2.2.0+481e87e3") + frame("PONG stepper 2.2.0+481e87e3")
+    assert s.read(100) == frame("HELLO stepper 2.3.0+481e87e3") + frame("PONG stepper 2.3.0+481e87e3")
     t0 = w.t
     assert s.read(10) == b""  # nothing to come: the read waited its timeout in device time
     assert w.t == pytest.approx(t0 + 0.01)

@@ -24,11 +24,22 @@
 // 2^-16 step per 16 us), i.e. 1640 for 639 us (1564.0 steps/s, a step every 639.375 us).
 #define SP_V_MAX ((int16_t)((1L << 20) / RIG_MIN_INTERVAL_US))
 #define SP_S_MAX ((int32_t)SP_V_MAX * 4096L)  // speed limit on the shaped output
-#define SP_TRAVEL_MAX ((int16_t)rig_axis_travel[0])  // streams drive axis 0 (its travel from the rig config)
+#define SP_AXES RIG_AXES                    // each axis a streams with its own travel, rig_axis_travel[a]
 #define SP_MAX_IMPULSES 8
 #define SP_DELAY_UNIT_US 16
+// The set-point history of each axis (a power of two): period k reads the set-points of periods k - q - 1 ..
+// k (q = delay / T), so the longest delay must stay under (SP_HIST - 1) periods. One axis: 128 (delays up to
+// 1 s). Several axes: 64 per axis (the history of four axes shares its RAM with the programme table), delays
+// up to 620 ms.
+#if SP_AXES > 1
+#define SP_HIST 64
+#define SP_MAX_DELAY_US 620000L
+#define SP_MAX_DELAY_TEXT "delay: 0 first, rising, 16 us units, <= 0.62 s"
+#else
+#define SP_HIST 128
 #define SP_MAX_DELAY_US 1000000L
-#define SP_HIST 128                         // set-point history (a power of two > 100 + 2 periods)
+#define SP_MAX_DELAY_TEXT "delay: 0 first, rising, 16 us units, <= 1 s"
+#endif
 
 // The fixed-point ranges (PROTOCOL.md "Fixed point") hold for every rig config the contract allows:
 // the shaped sum of SP_MAX_IMPULSES impulses of |a| <= SP_AMP_MAX on |v| <= SP_V_MAX fits an int32; the clamped
@@ -40,15 +51,16 @@ static_assert((int64_t)((1L << 20) / RIG_MIN_INTERVAL_US) * SP_AMP_MAX * SP_MAX_
 static_assert((int64_t)((1L << 20) / RIG_MIN_INTERVAL_US) * SP_AMP_ONE < SP_ONE,
               "the speed limit must stay under one step per DELTA");
 static_assert(10000L / RIG_MIN_INTERVAL_US + 1 <= 32, "more than 32 steps per control period");
+static_assert(SP_MAX_DELAY_US / 16 / SP_PERIOD + 1 < SP_HIST, "the longest delay needs more set-point history");
 
 enum SpNotice : uint8_t { SP_NOTICE_SPEED = 1, SP_NOTICE_TRAVEL = 2 };
 
 // Supplied by the user of the planner (the sketch, or the host test driver).
-void sp_emit_step(uint32_t tick, int8_t dir);          // a step at `tick` (timer ticks from STREAM, mod 2^32)
-void sp_notice(uint8_t kind, int32_t value);           // a clamp episode begins (value: period or position)
+void sp_emit_step(uint8_t axis, uint32_t tick, int8_t dir);  // a step at `tick` (ticks from STREAM, mod 2^32)
+void sp_notice(uint8_t kind, uint8_t axis, int32_t value);  // a clamp episode begins (value: period or position)
 
-struct Planner {
-  // the shaper, as loaded
+// The shaper, as loaded (kept apart from the stream's state: it stays loaded across streams and programmes).
+struct SpShaper {
   uint8_t n;
   int16_t a[SP_MAX_IMPULSES];
   uint16_t d[SP_MAX_IMPULSES];   // delays in DELTA
@@ -58,23 +70,33 @@ struct Planner {
   uint8_t q_max;
   uint8_t n_offsets;
   uint16_t offsets[SP_MAX_IMPULSES + 1];  // 0 and the distinct p_i, increasing: where the period is cut
-  // state
+};
+
+extern SpShaper sp_shaper;  // the loaded shaper (stream_plan.cpp)
+
+// One axis's position and clamp episodes.
+struct SpAxis {
   int16_t c;        // planned step count
   int32_t r;        // residual: exact position = c + r / 2^28
-  uint32_t period;  // the period being planned
   uint8_t speed_this, speed_clamped, travel_clamped;
-  int16_t hist[SP_HIST];  // set-point of period j at [j % SP_HIST]
+};
 
-  // Prepares the derived tables and the state: the stream starts at `position`, history zero.
-  void start(int16_t position);
-  // Takes the set-point of period k and plans the steps of [(k + 1) T, (k + 2) T).
-  void plan_period(uint32_t k, int16_t v);
+// The stream's state: every axis's position and set-point history. Every axis is shaped by the one shaper.
+struct Planner {
+  uint32_t period;  // the period being planned
+  SpAxis ax[SP_AXES];
+  int16_t hist[SP_AXES][SP_HIST];  // set-point of axis a in period j at [a][j % SP_HIST]
+
+  // Prepares the shaper's derived tables and the state: axis a starts at positions[a], history zero.
+  void start(const int16_t *positions);
+  // Takes the set-points of period k (v[a] for axis a) and plans the steps of [(k + 1) T, (k + 2) T).
+  void plan_period(uint32_t k, const int16_t *v);
 
  private:
-  int16_t v_at(uint32_t j) const { return hist[j & (SP_HIST - 1)]; }
-  void piece(uint32_t tb, uint32_t te, int32_t s);
-  void emit(uint32_t tick, int8_t dir);
-  void clamp_travel();
+  int16_t v_at(uint8_t a, uint32_t j) const { return hist[a][j & (SP_HIST - 1)]; }
+  void plan_axis(uint8_t a, uint32_t k);
+  void piece(uint8_t a, uint32_t tb, uint32_t te, int32_t s);
+  void clamp_travel(uint8_t a);
 };
 
 // Checks one impulse as IMP receives it: 0 if acceptable, else 1 (amplitude) or 2 (delay).

@@ -26,7 +26,7 @@
 #include "rig_config.h"
 
 // The version reported in HELLO and PONG: the protocol version, then "+" and the rig config's hash.
-#define FW_VERSION "2.2.0"
+#define FW_VERSION "2.3.0"
 #define FW_ID FW_VERSION "+" RIG_HASH
 
 #define CHANNELS RIG_CHANNELS

@@ -2,7 +2,8 @@
 // STEP = D5, DIR = D6 (HIGH = pull); axes 1-3 on STEP = D2, D3, D4 and DIR = D10, D11, D12; one ENA = D7
 // (HIGH disables every driver).
 // Two modes, both with Timer1 step timing: a stored programme of segments and dwells (GO), and a stream of
-// velocity set-points shaped on the board by one loaded input shaper (STREAM, axis 0). A programme item moves
+// velocity set-points shaped on the board by one loaded input shaper (STREAM; V for axis 0, MV for every axis,
+// each shaped by the one shaper with its own travel clamp). A programme item moves
 // every axis by its own step count in one time window (MSEG; SEG is one on axis 0), the steps of each axis
 // spread over the window Bresenham-style: step k of n at the first timer tick at or after k/n of the window.
 // Protocol: firmware/PROTOCOL.md (RIG_STEPPER_BAUD, 115200 for the paper's rig, 8N1).
@@ -19,7 +20,8 @@
 // Streaming: Timer1 runs free (normal mode, 0.5 us ticks from STREAM). Its compare B interrupt is the 100 Hz
 // control tick: it takes the next set-point from a FIFO and plans the steps of the period after next
 // (common/stream_plan.cpp), with interrupts re-enabled so that it never delays a step; compare A emits the
-// planned steps from a queue, each STEP edge a fixed 16 us after its compare match (8 us in programme mode).
+// planned steps from a queue, each STEP edge a fixed 16 us after its compare match (8 us in programme mode;
+// several axes: a queue per axis, merged into a short lookahead of events, edges 24 us after their ticks).
 // Test points (for a scope; the simavr tests log them): D8 (PB0) is HIGH while the control tick runs, D9 (PB1)
 // while a streamed step is emitted.
 //
@@ -36,7 +38,7 @@
 #include "stream_plan.h"
 
 // The version reported in HELLO and PONG: the protocol version, then "+" and the rig config's hash.
-#define FW_VERSION "2.2.0"
+#define FW_VERSION "2.3.0"
 #define FW_ID FW_VERSION "+" RIG_HASH
 
 // Compiled-in limits (PROTOCOL.md table), from the rig config (rig_config.h).
@@ -109,12 +111,12 @@ struct Item {
   uint8_t kind;
 };
 
-static Item prog[PROGRAMME_MAX];
-
-// Streaming state (PROTOCOL.md "Streaming"): the planner with its shaper and set-point history, the queue of
-// planned steps and the set-point FIFO. (About 430 bytes: it fits beside the programme table since the boards'
-// constant strings are kept in flash.)
-// Planned steps not yet emitted: two periods ahead, a power of two. A 10 ms period holds at most
+// Streaming state (PROTOCOL.md "Streaming"): the planner with every axis's position and set-point history, the
+// queue of planned steps of each axis and the set-point FIFO (the shaper, sp_shaper, is kept apart: it stays
+// loaded). One axis: about 350 bytes beside the programme table (the boards' constant strings are kept in
+// flash). Several axes: the stream's state shares its RAM with the programme table (STREAM empties the
+// programme; the programme cannot be edited while streaming).
+// Planned steps not yet emitted, per axis: two periods ahead, a power of two. A 10 ms period holds at most
 // 10000 / RIG_MIN_INTERVAL_US + 1 steps: 16 on the paper's rig (639 us), 20 on a finer one (524 us).
 #if 10000L / RIG_MIN_INTERVAL_US + 1 <= 16
 #define STEP_QUEUE 32
@@ -124,18 +126,30 @@ static Item prog[PROGRAMME_MAX];
 #define SETPOINT_FIFO 8
 struct StreamMem {
   Planner planner;
-  uint16_t step_time[STEP_QUEUE];   // Timer1 value (ticks from STREAM, mod 2^16) of each queued step
-  uint8_t step_up[STEP_QUEUE / 8];  // bit set: the step is a pull (+1)
-  int16_t fifo[SETPOINT_FIFO];      // set-points received and not yet taken by a control tick
+  uint16_t step_time[AXES][STEP_QUEUE];   // Timer1 value (ticks from STREAM, mod 2^16) of each queued step
+  uint8_t step_up[AXES][STEP_QUEUE / 8];  // bit set: the step is a pull (+1)
+  int16_t fifo[SETPOINT_FIFO][AXES];      // set-points received and not yet taken by a control tick
 };
+#if AXES > 1
+static union {
+  Item prog[PROGRAMME_MAX];
+  StreamMem st;
+} mem;
+#define prog mem.prog
+#define st mem.st
+static const uint16_t TABLES_BYTES = sizeof(mem) + sizeof(SpShaper);
+#else
+static Item prog[PROGRAMME_MAX];
 static StreamMem st;
+static const uint16_t TABLES_BYTES = sizeof(prog) + sizeof(StreamMem) + sizeof(SpShaper);
+#endif
 static uint8_t prog_len;
 
 // RAM budget, checked at compile time: the programme table and the streaming state (the tables the rig
 // config sizes) must leave room for the rest of the static data (serial buffers, line buffers, run state:
 // about 520 bytes) and at least 256 bytes of stack (the deepest stack measured in simavr is under 200 bytes).
 static const uint16_t RAM_BYTES = RAMEND + 1 - RAMSTART;
-static_assert(sizeof(prog) + sizeof(StreamMem) + 520 + 256 <= RAM_BYTES,
+static_assert(TABLES_BYTES + 520 + 256 <= RAM_BYTES,
               "rig config: the programme table (RIG_PROGRAMME_MAX x RIG_AXES) does not fit the Uno's RAM");
 
 // Run state (ISR-owned while running).
@@ -428,7 +442,7 @@ enum StreamState : uint8_t { ST_IDLE = 0, ST_ACTIVE, ST_ENDING, ST_WATCHDOG };
 static const uint8_t WATCHDOG_PERIODS = 10;  // 100 ms without a set-point
 
 static volatile uint8_t stream_state;
-static volatile uint8_t sq_head, sq_count;        // the step queue: the control tick adds, compare A takes
+static volatile uint8_t sq_head[AXES], sq_count[AXES];  // each axis's step queue: the control tick adds, compare A takes
 static volatile uint8_t fifo_head, fifo_count;    // the set-point FIFO: V adds, the control tick takes
 static volatile uint32_t next_period;             // the period the next control tick plans
 static volatile uint32_t end_period;              // the first period fed with zero (END or the watchdog)
@@ -440,7 +454,7 @@ static uint8_t finishing;                         // no step can follow: the str
 static uint32_t finish_at;
 
 // shaper loading (SHAPER, then IMP 0 .. IMP n-1)
-static uint8_t shaper_ready;   // a complete, valid shaper is in st.planner
+static uint8_t shaper_ready;   // a complete, valid shaper is in sp_shaper
 static uint8_t shaper_expect;  // impulses announced by SHAPER; 0 when not loading
 static uint8_t shaper_next;    // the index the next IMP must have
 static uint8_t shaper_neg;     // negative amplitudes allowed
@@ -449,7 +463,7 @@ static int32_t shaper_sum;
 // notices, queued by the control tick and sent by the main loop
 enum NoticeKind : uint8_t { NOTICE_SPEED = SP_NOTICE_SPEED, NOTICE_TRAVEL = SP_NOTICE_TRAVEL, NOTICE_WATCHDOG };
 #define NOTICES 4
-static uint8_t notice_kind[NOTICES];
+static uint8_t notice_kind[NOTICES];  // the kind; several axes: the axis in the high nibble
 static int32_t notice_value[NOTICES];
 static volatile uint8_t notice_head, notice_count;
 
@@ -465,29 +479,30 @@ static void push_notice(uint8_t kind, int32_t value) {
   SREG = sreg;
 }
 
-void sp_notice(uint8_t kind, int32_t value) { push_notice(kind, value); }
+void sp_notice(uint8_t kind, uint8_t axis, int32_t value) { push_notice((uint8_t)(kind | (axis << 4)), value); }
 
-static inline uint8_t step_is_up(uint8_t i) { return st.step_up[i >> 3] & (uint8_t)(1 << (i & 7)); }
+static inline uint8_t step_is_up(uint8_t a, uint8_t i) { return st.step_up[a][i >> 3] & (uint8_t)(1 << (i & 7)); }
 
+#if AXES == 1
 static inline void set_dir_for(uint8_t i) {
-  if (step_is_up(i)) PORTD |= DIR_BIT;
+  if (step_is_up(0, i)) PORTD |= DIR_BIT;
   else PORTD &= ~DIR_BIT;
 }
 
 // Queues one planned step (called by the planner from the control tick, interrupts enabled).
-void sp_emit_step(uint32_t tick, int8_t dir) {
+void sp_emit_step(uint8_t, uint32_t tick, int8_t dir) {
   uint8_t sreg = SREG;
   cli();
-  if (sq_count >= STEP_QUEUE) {
+  if (sq_count[0] >= STEP_QUEUE) {
     queue_overflow = 1;
     SREG = sreg;
     return;
   }
-  uint8_t i = (uint8_t)((sq_head + sq_count) & (STEP_QUEUE - 1));
-  st.step_time[i] = (uint16_t)tick;
-  if (dir > 0) st.step_up[i >> 3] |= (uint8_t)(1 << (i & 7));
-  else st.step_up[i >> 3] &= (uint8_t)~(1 << (i & 7));
-  if (sq_count++ == 0) {  // the step generator was idle: arm it (DIR set at least 8 ms before this step)
+  uint8_t i = (uint8_t)((sq_head[0] + sq_count[0]) & (STEP_QUEUE - 1));
+  st.step_time[0][i] = (uint16_t)tick;
+  if (dir > 0) st.step_up[0][i >> 3] |= (uint8_t)(1 << (i & 7));
+  else st.step_up[0][i >> 3] &= (uint8_t)~(1 << (i & 7));
+  if (sq_count[0]++ == 0) {  // the step generator was idle: arm it (DIR set at least 8 ms before this step)
     set_dir_for(i);
     OCR1A = (uint16_t)tick;
     TIFR1 = _BV(OCF1A);
@@ -499,35 +514,224 @@ void sp_emit_step(uint32_t tick, int8_t dir) {
 // Compare A in streaming mode: the step at the head of the queue, its edge 16 us after the compare match.
 static void stream_step_isr() {
   PORTB |= TP_STEP_BIT;
-  uint8_t i = sq_head;
+  uint8_t i = sq_head[0];
   uint16_t edge = OCR1A + STREAM_STEP_LEAD_TICKS;
   while ((int16_t)(TCNT1 - edge) < 0) {
   }
   PORTD |= STEP_BIT;
-  position[0] += step_is_up(i) ? 1 : -1;
+  position[0] += step_is_up(0, i) ? 1 : -1;
   __builtin_avr_delay_cycles(64);  // TB6600 needs >= 2.5 us high
   PORTD &= ~STEP_BIT;
   i = (uint8_t)((i + 1) & (STEP_QUEUE - 1));
-  sq_head = i;
-  if (--sq_count) {
+  sq_head[0] = i;
+  if (--sq_count[0]) {
     set_dir_for(i);  // at least 600 us before its step (steps are 639 us apart or more)
-    OCR1A = st.step_time[i];
+    OCR1A = st.step_time[0][i];
   } else {
     TIMSK1 &= ~_BV(OCIE1A);
   }
   PORTB &= ~TP_STEP_BIT;
 }
+#else
+// Several axes: each axis's planned steps queue apart (each in time order). Compare A serves a short lookahead of
+// events (a time and the axes stepping then), merged from the axes' queues outside the step edges' timing:
+// the earliest queued steps become the next event, but only steps before `sq_horizon` (every step before it is
+// planned: the control tick plans one axis after another, and a later axis may plan an earlier step).
+#define SEVQ 4  // a power of two
+static uint16_t sev_t[SEVQ];   // the event's tick (ticks from STREAM, mod 2^16)
+static uint8_t sev_axes[SEVQ]; // bit a: axis a steps
+static uint8_t sev_bits[SEVQ]; // their STEP bits (PORTD)
+static uint8_t sev_up[SEVQ];   // bit a: axis a's step is a pull
+static uint8_t sev_head, sev_n;
+static uint16_t sev_last;      // the time of the last event merged (every queued step is at or after it)
+static uint16_t sq_horizon;    // every step before this tick is planned (at most 2 periods after sev_last)
+static uint8_t sev_pend[AXES]; // events in the lookahead with a step of axis a
+
+// Queues one planned step (called by the planner from the control tick, interrupts enabled).
+void sp_emit_step(uint8_t a, uint32_t tick, int8_t dir) {
+  uint8_t sreg = SREG;
+  cli();
+  if (sq_count[a] >= STEP_QUEUE) {
+    queue_overflow = 1;
+    SREG = sreg;
+    return;
+  }
+  uint8_t i = (uint8_t)((sq_head[a] + sq_count[a]) & (STEP_QUEUE - 1));
+  st.step_time[a][i] = (uint16_t)tick;
+  if (dir > 0) st.step_up[a][i >> 3] |= (uint8_t)(1 << (i & 7));
+  else st.step_up[a][i >> 3] &= (uint8_t)~(1 << (i & 7));
+  sq_count[a]++;
+  SREG = sreg;
+}
+
+// Merges the earliest queued steps (before the horizon) into the next event of the lookahead; false if none.
+// Sets an axis's DIR when it has no earlier step in the lookahead (its last pulse is over: called with no
+// pulse up). Interrupts off.
+static bool sev_produce() {
+  uint16_t best = 0xFFFF;
+  uint16_t limit = (uint16_t)(sq_horizon - sev_last);
+  uint8_t axes = 0;
+  for (uint8_t a = 0; a < AXES; a++) {
+    if (!sq_count[a]) continue;
+    uint16_t d = (uint16_t)(st.step_time[a][sq_head[a]] - sev_last);
+    if (d >= limit) continue;
+    if (d < best) {
+      best = d;
+      axes = (uint8_t)(1 << a);
+    } else if (d == best) {
+      axes |= (uint8_t)(1 << a);
+    }
+  }
+  if (!axes) return false;
+  uint8_t e = (uint8_t)((sev_head + sev_n) & (SEVQ - 1));
+  uint8_t bits = 0, up = 0;
+  for (uint8_t a = 0; a < AXES; a++) {
+    if (!(axes & (1 << a))) continue;
+    uint8_t i = sq_head[a];
+    bool pull = step_is_up(a, i);
+    if (pull) up |= (uint8_t)(1 << a);
+    bits |= AXIS_STEP_BIT[a];
+    if (!sev_pend[a]) set_axis_dir(a, pull);
+    sev_pend[a]++;
+    sq_head[a] = (uint8_t)((i + 1) & (STEP_QUEUE - 1));
+    sq_count[a]--;
+  }
+  sev_last = (uint16_t)(sev_last + best);
+  sev_t[e] = sev_last;
+  sev_axes[e] = axes;
+  sev_bits[e] = bits;
+  sev_up[e] = up;
+  sev_n++;
+  return true;
+}
+
+// Compare A of a multi-axis stream: the STEP edges follow their ticks by STREAM_LEAD_AXES; events due too soon
+// for another interrupt are raised in this one (each at its own tick + the lead), then the pulses end, each
+// stepped axis's DIR is set for its next event, the lookahead is refilled while the next event is far enough,
+// and compare A is set for it.
+static const uint16_t STREAM_LEAD_AXES = 48;    // 24 us
+static const uint16_t STREAM_CHAIN_TICKS = 24;  // an event closer than this to TCNT1 is raised in this interrupt
+static const uint16_t STREAM_REFILL_TICKS = 100;  // merging one event takes under 40 us (four axes)
+static const uint16_t FOLLOW_TICKS = 16;  // an event this close after another is raised straight after it
+
+// True when tick `t` (at or after `ref`, a tick just past) is less than `margin` ticks after TCNT1. (Events are
+// up to two periods ahead, more than 2^15 ticks: they are compared as distances from `ref`, never signed.)
+static inline bool due_within(uint16_t t, uint16_t ref, uint16_t margin) {
+  return (uint16_t)(t - ref) < (uint16_t)((uint16_t)(TCNT1 - ref) + margin);
+}
+
+// Busy-waits for tick `edge` (at most 127 ticks ahead): on the low byte of TCNT1, a 5-cycle loop, so that the
+// port write follows the tick by 0-5 cycles plus a constant.
+static inline void wait_edge(uint16_t edge) {
+  if ((int16_t)(TCNT1 - edge) >= 0) return;  // (already there)
+  uint8_t e = (uint8_t)edge;
+  while ((int8_t)(TCNT1L - e) < 0) {
+  }
+}
+
+// (Not inlined into the compare vector: its programme path keeps its register allocation and timing.)
+static void __attribute__((noinline)) stream_step_isr() {
+  PORTB |= TP_STEP_BIT;
+  uint8_t high = 0, stepped = 0;
+  uint16_t rise = 0, ref = 0;
+  for (;;) {
+    // raise the due event and every one due too soon after it (their times and bits are ready)
+    uint8_t h = sev_head, first = h, n = 0;
+    do {
+      uint16_t tt = sev_t[h];
+      uint16_t edge = (uint16_t)(tt + STREAM_LEAD_AXES);
+      uint8_t bits = sev_bits[h];
+      uint8_t h2 = (uint8_t)((h + 1) & (SEVQ - 1));
+      // an event up to FOLLOW_TICKS later: its edges straight after these, at its own edge (no loop between)
+      uint16_t gap = (uint16_t)(sev_t[h2] - tt);
+      uint8_t bits2 = (n + 1 < sev_n && gap <= FOLLOW_TICKS) ? sev_bits[h2] : 0;
+      uint16_t edge2 = (uint16_t)(edge + gap);
+      uint8_t one = gap == 1;
+      wait_edge(edge);
+      PORTD |= bits;
+      if (bits2) {
+        if (!one) wait_edge(edge2);
+        PORTD |= bits2;  // (one tick later: about 8 cycles after the first write)
+        bits |= bits2;
+        edge = edge2;
+        h = h2;
+        n++;
+      }
+      rise = edge;
+      ref = (uint16_t)(edge - STREAM_LEAD_AXES);
+      high |= bits;
+      h = (uint8_t)((h + 1) & (SEVQ - 1));
+      n++;
+    } while (n < sev_n && due_within(sev_t[h], ref, STREAM_CHAIN_TICKS));
+    sev_head = h;
+    sev_n = (uint8_t)(sev_n - n);
+    for (uint8_t j = 0; j < n; j++) {  // the positions after these steps
+      uint8_t e = (uint8_t)((first + j) & (SEVQ - 1));
+      uint8_t axes = sev_axes[e], up = sev_up[e];
+      stepped |= axes;
+      for (uint8_t a = 0; a < AXES; a++) {
+        if (!(axes & (1 << a))) continue;
+        position[a] += (up & (1 << a)) ? 1 : -1;
+        sev_pend[a]--;
+      }
+    }
+    if (sev_n && due_within(sev_t[h], ref, STREAM_CHAIN_TICKS + PULSE_TICKS)) continue;
+    end_pulses(high, rise);
+    high = 0;
+    for (uint8_t a = 0; a < AXES; a++) {  // DIR of each stepped axis's next step in the lookahead
+      if (!(stepped & (1 << a)) || !sev_pend[a]) continue;
+      for (uint8_t j = 0; j < sev_n; j++) {
+        uint8_t e = (uint8_t)((sev_head + j) & (SEVQ - 1));
+        if (sev_axes[e] & (1 << a)) {
+          set_axis_dir(a, sev_up[e] & (1 << a));
+          break;
+        }
+      }
+    }
+    stepped = 0;
+    while (sev_n < SEVQ && (!sev_n || !due_within(sev_t[sev_head], ref, STREAM_REFILL_TICKS))) {
+      if (!sev_produce()) break;
+    }
+    if (!sev_n) {
+      TIMSK1 &= ~_BV(OCIE1A);
+      break;
+    }
+    if (due_within(sev_t[sev_head], ref, STREAM_CHAIN_TICKS)) continue;
+    OCR1A = sev_t[sev_head];
+    break;
+  }
+  PORTB &= ~TP_STEP_BIT;
+}
+
+// After the control tick has planned period k: every step before (k + 2) T is planned; an idle step generator
+// starts on the new steps.
+static void stream_planned(uint32_t k) {
+  cli();
+  if (!sev_n) sev_last = (uint16_t)(k * SP_PERIOD_TICKS);  // (no step is queued before (k + 1) T)
+  sq_horizon = (uint16_t)((k + 2) * SP_PERIOD_TICKS);
+  if (!(TIMSK1 & _BV(OCIE1A))) {
+    while (sev_n < SEVQ && sev_produce()) {
+    }
+    if (sev_n) {
+      OCR1A = sev_t[sev_head];
+      TIFR1 = _BV(OCF1A);
+      TIMSK1 |= _BV(OCIE1A);
+    }
+  }
+  sei();
+}
+#endif
 
 static void stream_stop_timer() {
   timer_stop();
   stream_timer = 0;
   stream_state = ST_IDLE;
   finishing = 0;
-  sq_count = 0;
+  for (uint8_t a = 0; a < AXES; a++) sq_count[a] = 0;
   fifo_count = 0;
 }
 
-// The control tick: takes the set-point of the next period and plans it. Runs with interrupts enabled, so the
+// The control tick: takes the set-points of the next period and plans it. Runs with interrupts enabled, so the
 // step interrupt (and the UART) preempt it; it is the only writer of the planner.
 ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
   if (tick_busy) return;  // cannot happen (a tick takes about 1 ms of its 10 ms), but never re-enter
@@ -539,10 +743,11 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
   // The main loop cannot run during this interrupt and compare A does not touch the FIFO or the counters
   // below, so they need no further protection (the main loop changes them with interrupts off).
   uint32_t k = next_period;
-  int16_t v;
+  int16_t v[AXES];
+  for (uint8_t a = 0; a < AXES; a++) v[a] = 0;
   uint8_t state = stream_state;
   if (fifo_count) {
-    v = st.fifo[fifo_head];
+    for (uint8_t a = 0; a < AXES; a++) v[a] = st.fifo[fifo_head][a];
     fifo_head = (uint8_t)((fifo_head + 1) & (SETPOINT_FIFO - 1));
     fifo_count--;
     underruns = 0;
@@ -550,14 +755,10 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
     if (++underruns > WATCHDOG_PERIODS) {  // the stream stopped: feed zero from now on
       stream_state = state = ST_WATCHDOG;
       end_period = k;
-      v = 0;
       push_notice(NOTICE_WATCHDOG, (int32_t)k);
-    } else {
-      v = 0;  // an underrun: the period moves nothing (2.1.0; 2.0.0 held the last set-point, moving the
-              // cable further than commanded whenever the host was late)
     }
-  } else {
-    v = 0;
+    // else an underrun: the period moves nothing (2.1.0; 2.0.0 held the last set-point, moving the cable
+    // further than commanded whenever the host was late)
   }
   next_period = k + 1;
   if (finishing && k >= finish_at) {  // every planned step has been emitted
@@ -572,9 +773,14 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
     sei();
   } else {
     st.planner.plan_period(k, v);
-    if (v) last_nonzero = k;
+#if AXES > 1
+    stream_planned(k);
+#endif
+    for (uint8_t a = 0; a < AXES; a++) {
+      if (v[a]) last_nonzero = k;
+    }
     if (!finishing && state != ST_ACTIVE && k >= end_period &&
-        k - last_nonzero >= (uint32_t)st.planner.q_max + 2) {
+        k - last_nonzero >= (uint32_t)sp_shaper.q_max + 2) {
       finishing = 1;  // every impulse now sees zero: the last step is planned
       finish_at = k + 3;
     }
@@ -583,13 +789,21 @@ ISR(TIMER1_COMPB_vect, ISR_NOBLOCK) {
   tick_busy = 0;
 }
 
-static int16_t read_position();
+static int16_t read_position(uint8_t a);
 
 static void stream_start() {
-  st.planner.start(read_position());  // the timer is stopped: nothing else touches the planner
+  int16_t p[AXES];
+  for (uint8_t a = 0; a < AXES; a++) p[a] = read_position(a);
+  st.planner.start(p);  // the timer is stopped: nothing else touches the planner
   cli();
   timer_stop();
-  sq_head = sq_count = 0;
+  for (uint8_t a = 0; a < AXES; a++) sq_head[a] = sq_count[a] = 0;
+#if AXES > 1
+  sev_head = sev_n = 0;
+  sev_last = 0;
+  sq_horizon = SP_PERIOD_TICKS;  // (nothing is planned before 2 T)
+  for (uint8_t a = 0; a < AXES; a++) sev_pend[a] = 0;
+#endif
   fifo_head = fifo_count = 0;
   next_period = 1;
   end_period = 0xFFFFFFFFUL;
@@ -710,6 +924,12 @@ static bool editable() {
     out.err(PSTR("STATE"), PSTR("running"));
     return false;
   }
+#if AXES > 1
+  if (stream_state) {  // the stream's state takes the programme table's RAM
+    out.err(PSTR("STATE"), PSTR("streaming"));
+    return false;
+  }
+#endif
   return true;
 }
 
@@ -722,6 +942,21 @@ static Item *new_item() {
   for (uint8_t a = 0; a < AXES; a++) it->n[a] = 0;
   it->release = 0;
   return it;
+}
+
+// Queues one period's set-points (V, MV) and replies with the period they drive, or ERR FULL.
+static void queue_setpoints(const int16_t *vs, const char *word) {
+  cli();
+  if (fifo_count >= SETPOINT_FIFO) {
+    sei();
+    return out.err(PSTR("FULL"), PSTR("8 set-points queued"));
+  }
+  uint32_t period = next_period + fifo_count;
+  int16_t *slot = st.fifo[(fifo_head + fifo_count) & (SETPOINT_FIFO - 1)];
+  for (uint8_t a = 0; a < AXES; a++) slot[a] = vs[a];
+  fifo_count++;
+  sei();
+  out.word_u32(word, period);
 }
 
 static void handle(Command *cmd) {
@@ -887,14 +1122,14 @@ static void handle(Command *cmd) {
     if (!proto_args_ok(cmd, 3)) return out.err(PSTR("ARG"), PSTR("IMP needs 3 integers"));
     if (stream_state) return out.err(PSTR("STATE"), PSTR("streaming"));
     if (!shaper_expect || cmd->arg[0] != shaper_next) return out.err(PSTR("STATE"), PSTR("SHAPER first, impulses in order"));
-    Planner &pl = st.planner;
+    SpShaper &pl = sp_shaper;
     uint8_t i = shaper_next;
     int32_t previous_us = i ? (int32_t)pl.d[i - 1] * SP_DELAY_UNIT_US : -1;
     uint8_t bad = sp_check_impulse(i, cmd->arg[1], cmd->arg[2], previous_us, shaper_neg);
     if (bad) {
       shaper_expect = 0;  // the shaper is discarded: start again with SHAPER
       if (bad == 1) return out.err(PSTR("RANGE"), PSTR("amplitude -16384..16384 (>= 0 unless allowed)"));
-      return out.err(PSTR("RANGE"), PSTR("delay: 0 first, rising, 16 us units, <= 1 s"));
+      return out.err(PSTR("RANGE"), PSTR(SP_MAX_DELAY_TEXT));
     }
     pl.a[i] = (int16_t)cmd->arg[1];
     pl.d[i] = (uint16_t)(cmd->arg[2] / SP_DELAY_UNIT_US);
@@ -913,23 +1148,47 @@ static void handle(Command *cmd) {
     if (stream_state) return out.err(PSTR("STATE"), PSTR("streaming"));
     if (!shaper_ready) return out.err(PSTR("STATE"), PSTR("no shaper"));
     if (!enabled) return out.err(PSTR("STATE"), PSTR("driver disabled"));
+#if AXES > 1
+    prog_len = 0;  // the stream's state takes the programme table's RAM
+#endif
     out.word_i32(PSTR("OK STREAM"), read_position());  // queued before the stream's first line
     stream_start();
   } else if (proto_is(cmd, PSTR("V"))) {
+    // V <v>: axis 0's set-point (the other axes' zero)
     if (!proto_args_ok(cmd, 1)) return out.err(PSTR("ARG"), PSTR("V needs 1 integer"));
     if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
     int32_t v = cmd->arg[0];
     if (v < -SP_V_MAX || v > SP_V_MAX) return err_range(PSTR("set-point "), -SP_V_MAX, PSTR(".."), SP_V_MAX, PSTR(""));
-    cli();
-    if (fifo_count >= SETPOINT_FIFO) {
-      sei();
-      return out.err(PSTR("FULL"), PSTR("8 set-points queued"));
+    int16_t vs[AXES];
+    vs[0] = (int16_t)v;
+    for (uint8_t a = 1; a < AXES; a++) vs[a] = 0;
+    queue_setpoints(vs, PSTR("OK V"));
+  } else if (proto_is(cmd, PSTR("MV"))) {
+    // MV <v_0> ... <v_{AXES-1}>: every axis's set-point
+    if (!proto_args_ok(cmd, AXES)) {
+      out.begin();
+      out.line.str_P(PSTR("ERR ARG MV needs "));
+      out.line.u32(AXES);
+      out.line.str_P(AXES > 1 ? PSTR(" integers") : PSTR(" integer"));
+      return out.send();
     }
-    uint32_t period = next_period + fifo_count;
-    st.fifo[(fifo_head + fifo_count) & (SETPOINT_FIFO - 1)] = (int16_t)v;
-    fifo_count++;
-    sei();
-    out.word_u32(PSTR("OK V"), period);
+    if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
+    int16_t vs[AXES];
+    for (uint8_t a = 0; a < AXES; a++) {
+      int32_t v = cmd->arg[a];
+      if (v < -SP_V_MAX || v > SP_V_MAX) {
+        out.begin();
+        out.line.str_P(PSTR("ERR RANGE axis "));
+        out.line.u32(a);
+        out.line.str_P(PSTR(" set-point "));
+        out.line.i32(-SP_V_MAX);
+        out.line.str_P(PSTR(".."));
+        out.line.i32(SP_V_MAX);
+        return out.send();
+      }
+      vs[a] = (int16_t)v;
+    }
+    queue_setpoints(vs, PSTR("OK MV"));
   } else if (proto_is(cmd, PSTR("END"))) {
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("END takes no argument"));
     if (stream_state != ST_ACTIVE) return out.err(PSTR("STATE"), PSTR("not streaming"));
@@ -950,7 +1209,7 @@ static void service_done() {
   while (notice_count) {
     cli();
     uint8_t i = notice_head;
-    uint8_t kind = notice_kind[i];
+    uint8_t kind = notice_kind[i] & 0x0F, axis = notice_kind[i] >> 4;
     int32_t value = notice_value[i];
     notice_head = (uint8_t)((i + 1) & (NOTICES - 1));
     notice_count--;
@@ -960,6 +1219,10 @@ static void service_done() {
     else if (kind == NOTICE_TRAVEL) out.line.str_P(PSTR("N,LIMIT,TRAVEL,"));
     else out.line.str_P(PSTR("N,WATCHDOG,"));
     out.line.i32(value);
+    if (axis) {  // several axes: the notices of axes 1.. name their axis
+      out.line.put(',');
+      out.line.u32(axis);
+    }
     out.send();
   }
   if (done_flag) {

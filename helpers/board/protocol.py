@@ -36,7 +36,7 @@ from helpers.board.crc8 import INIT, crc8, crc8_hex
 from helpers.board.crc8 import TABLE as _CRC_TABLE
 from helpers.paper.hardware import ADC_MAX, RIG
 
-FW_VERSION = "2.2.0"
+FW_VERSION = "2.3.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
 
 PAPER_RIG_HASH = "481e87e3"
@@ -56,7 +56,7 @@ def board_version(rig_hash: str | None = None) -> str:
     Returns
     -------
     str
-        E.g. ``"2.2.0+481e87e3"``.
+        E.g. ``"2.3.0+481e87e3"``.
     """
     return f"{FW_VERSION}+{RIG.hash if rig_hash is None else rig_hash}"
 

@@ -24,6 +24,9 @@ not chatter); it is issued at the first timer tick at or after that exact instan
 limits clamp the exact position: at ``c = 156`` with ``r = 0`` an upward ``S`` is held at zero
 (``N,LIMIT,TRAVEL``), likewise at 0. Timeline: set-point k (the k-th period's, k >= 1) is taken at control
 tick k (``k * 10 ms`` after ``STREAM``) and drives the velocity over ``[(k + 1) * 10 ms, (k + 2) * 10 ms)``.
+
+Several axes (a build with ``RIG_AXES`` > 1, ``MV``): every axis is this planner with its own set-points and
+travel, shaped by the one shaper (:func:`simulate_axes`); the longest delay there is ``MAX_DELAY_US_AXES``.
 """
 
 from __future__ import annotations
@@ -61,6 +64,10 @@ WATCHDOG_PERIODS = 10
 FIFO_DEPTH = 8
 HISTORY = 128
 """Set-points the board remembers (the longest delay needs 102)."""
+MAX_DELAY_US_AXES = 620_000
+"""The longest delay on a build with several axes (64 set-points of history per axis, PROTOCOL.md)."""
+HISTORY_AXES = 64
+"""Set-points each axis remembers on a build with several axes."""
 STEPS_PER_S_PER_UNIT = (1.0 / (1 << 16)) / (DELTA * TICK_S)
 """Steps per second of one set-point unit (0.95367431640625)."""
 
@@ -139,7 +146,12 @@ class StreamShaper:
 
 
 def impulse_problem(
-    index: int, amplitude: int, delay_us: int, previous_us: int, allow_negative: bool
+    index: int,
+    amplitude: int,
+    delay_us: int,
+    previous_us: int,
+    allow_negative: bool,
+    max_delay_us: int = MAX_DELAY_US,
 ) -> str | None:
     """The board's check of one impulse as ``IMP`` receives it (the firmware's ``sp_check_impulse``).
 
@@ -153,6 +165,8 @@ def impulse_problem(
         The previous impulse's delay (-1 before the first).
     allow_negative : bool
         ``SHAPER <n> 1``.
+    max_delay_us : int
+        The build's longest delay: ``MAX_DELAY_US`` (one axis), ``MAX_DELAY_US_AXES`` (several axes).
 
     Returns
     -------
@@ -161,7 +175,7 @@ def impulse_problem(
     """
     if not -AMP_MAX <= amplitude <= AMP_MAX or (amplitude < 0 and not allow_negative):
         return "amplitude"
-    if delay_us % DELAY_UNIT_US or not 0 <= delay_us <= MAX_DELAY_US:
+    if delay_us % DELAY_UNIT_US or not 0 <= delay_us <= max_delay_us:
         return "delay"
     if (delay_us != 0) if index == 0 else (delay_us <= previous_us):
         return "delay"
@@ -268,14 +282,15 @@ class PeriodCommands:
     Parameters
     ----------
     assigned : dict
-        ``{period: v}`` from the ``OK V <period>`` replies to ``V <v>``.
+        ``{period: v}`` from the ``OK V <period>`` replies to ``V <v>`` (several axes:
+        ``{period: (v_0, ...)}`` from ``OK MV <period>``, see :func:`simulate_axes`).
     end_period : int or None
         From ``OK END <period>``: the first period fed with zero.
 
     The board's rules are :class:`SetpointRules`'.
     """
 
-    assigned: dict[int, int]
+    assigned: dict[int, int] | dict[int, tuple[int, ...]]
     end_period: int | None = None
 
     def __iter__(self) -> Iterator[tuple[int, int, str]]:
@@ -291,11 +306,20 @@ class PeriodCommands:
 # --- the planner -----------------------------------------------------------------------------------------
 @dataclass
 class Notice:
-    """An unsolicited ``N,...`` line: ``kind`` is ``LIMIT,SPEED``, ``LIMIT,TRAVEL`` or ``WATCHDOG``."""
+    """An unsolicited ``N,...`` line: ``kind`` is ``LIMIT,SPEED``, ``LIMIT,TRAVEL`` or ``WATCHDOG``.
+
+    ``axis``: the axis a limit notice is about (the board appends ``,<axis>`` for axes 1, 2, 3).
+    """
 
     kind: str
     value: int
     period: int
+    axis: int = 0
+
+    @property
+    def line(self) -> str:
+        """The notice as the board sends it."""
+        return f"N,{self.kind},{self.value}" + (f",{self.axis}" if self.axis else "")
 
 
 @dataclass
@@ -333,9 +357,20 @@ class Planner:
     shaper : StreamShaper
     position : int
         The step count when ``STREAM`` starts (the residual starts at 0).
+    travel : int
+        The axis's travel: the position is clamped to ``0..travel`` steps.
+    axis : int
+        The axis this planner drives (named by its notices).
+
+    On a build with several axes each axis is planned by its own planner from the one shaper, with its own
+    set-points and travel: the firmware's per-axis state is exactly this class's, so one planner per axis is
+    the board (:func:`simulate_axes`). Only the history differs (64 set-points per axis there, 128 here),
+    which no shaper the board accepts reads beyond (its delays are under 63 periods there).
     """
 
-    def __init__(self, shaper: StreamShaper, position: int = 0) -> None:
+    def __init__(
+        self, shaper: StreamShaper, position: int = 0, travel: int = TRAVEL_MAX, axis: int = 0
+    ) -> None:
         d = shaper.delays_delta
         self.a = shaper.amplitudes
         self.q = tuple(x // PERIOD for x in d)
@@ -352,6 +387,8 @@ class Planner:
         self._speed_clamped = False  # the previous period was clamped (a notice starts an episode)
         self._travel_clamped = False
         self._period = 0
+        self.travel = travel
+        self.axis = axis
 
     def _v(self, j: int) -> int:
         return self.hist.get(j, 0)
@@ -373,7 +410,7 @@ class Planner:
             end = self.offsets[n + 1] if n + 1 < len(self.offsets) else PERIOD
             self._piece(base + o, base + end, s)
         if self._speed_this and not self._speed_clamped:
-            self.notices.append(Notice("LIMIT,SPEED", k, k))
+            self.notices.append(Notice("LIMIT,SPEED", k, k, self.axis))
         self._speed_clamped = self._speed_this
 
     def _emit(self, tick: int, direction: int) -> None:
@@ -384,7 +421,7 @@ class Planner:
     def _clamp_travel(self) -> None:
         self.r = 0
         if not self._travel_clamped:
-            self.notices.append(Notice("LIMIT,TRAVEL", self.c, self._period))
+            self.notices.append(Notice("LIMIT,TRAVEL", self.c, self._period, self.axis))
         self._travel_clamped = True
 
     def _piece(self, tb: int, te: int, s: int) -> None:
@@ -403,7 +440,7 @@ class Planner:
             return
         up = s > 0
         speed = s if up else -s
-        limit = TRAVEL_MAX if up else 0
+        limit = self.travel if up else 0
         rr = self.r if up else -self.r  # the residual in the direction of motion
         if self.c == limit and rr == 0:
             self._clamp_travel()
@@ -606,6 +643,69 @@ def simulate(
         if run.finish_tick is not None or k >= max_periods:
             break
     return run.result()
+
+
+def simulate_axes(
+    shaper: StreamShaper,
+    commands: PeriodCommands,
+    positions: Sequence[int],
+    travels: Sequence[int] | None = None,
+    max_periods: int = 1_000_000,
+) -> list[StreamResult]:
+    """Run a stream of a board with several axes (``MV``) until it stops: one result per axis.
+
+    Parameters
+    ----------
+    shaper : StreamShaper
+        The loaded shaper (every axis's).
+    commands : PeriodCommands
+        ``assigned`` maps each period to its set-points, a tuple with one per axis (``OK MV <period>``), or
+        to an int (``OK V <period>``: axis 0's, the others zero).
+    positions : sequence of int
+        Each axis's step count at ``STREAM``.
+    travels : sequence of int or None
+        Each axis's travel (default ``TRAVEL_MAX`` each).
+    max_periods : int
+        Stop planning after this period whatever the commands.
+
+    Every axis is planned by its own :class:`Planner` from the one shaper; the stream stops (``finish_tick``,
+    the same for every axis) as :class:`StreamRun` says, with a period counting as non-zero when any axis's
+    set-point is. The ``WATCHDOG`` notice is in axis 0's result.
+    """
+    n = len(positions)
+    travels = [TRAVEL_MAX] * n if travels is None else list(travels)
+    planners = [Planner(shaper, p, t, a) for a, (p, t) in enumerate(zip(positions, travels, strict=True))]
+    q_max = planners[0].q_max
+    finish: int | None = None
+    last_nonzero = 0
+    watchdog_seen = False
+    v_by_axis: list[list[int]] = [[0] for _ in range(n)]
+    for k, v, state in commands:
+        vs = tuple(v) if isinstance(v, tuple) else (v,) + (0,) * (n - 1)
+        if state == "watchdog" and not watchdog_seen:
+            watchdog_seen = True
+            planners[0].notices.append(Notice("WATCHDOG", k, k))
+        for planner, va, vlist in zip(planners, vs, v_by_axis, strict=True):
+            planner.plan_period(k, va)
+            vlist.append(va)
+        if any(vs):
+            last_nonzero = k
+        if finish is None and state != "active" and k - last_nonzero >= q_max + 2:
+            finish = k + 3
+        if finish is not None or k >= max_periods:  # (the periods left before the finish are all zero)
+            break
+    return [
+        StreamResult(
+            np.array(p.ticks, dtype=np.int64),
+            np.array(p.dirs, dtype=np.int64),
+            p.notices,
+            finish,
+            p.c,
+            p.r,
+            vlist,
+        )
+        for p, vlist in zip(planners, v_by_axis, strict=True)
+    ]
 
 
 # --- the exact trajectory -------------------------------------------------------------------------------

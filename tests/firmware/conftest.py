@@ -7,11 +7,13 @@ the firmware is a failure.
 from __future__ import annotations
 
 import subprocess
+from pathlib import Path
 
 import fwsim
 import pytest
 
 _BUILD: dict[str, str | None] = {}
+FOUR = fwsim.FIRMWARE / "common" / "rig_config_four_tendon.h"
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -34,3 +36,20 @@ def firmware_build() -> None:
         _BUILD["error"] = None if proc.returncode == 0 else (proc.stdout[-3000:] + proc.stderr[-3000:])
     if _BUILD["error"] is not None:
         pytest.fail(f"make -C firmware failed:\n{_BUILD['error']}", pytrace=False)
+
+
+@pytest.fixture(scope="session")
+def four_build(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """Both sketches built for the four-tendon config into a temporary directory, and the build's output."""
+    build = tmp_path_factory.mktemp("four_tendon")
+    targets = [f"RIG_CONFIG={FOUR}", f"BUILD={build}", "firmware", "size"]
+    proc = subprocess.run(
+        ["make", "-C", str(fwsim.FIRMWARE), "-j2", *targets],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    if proc.returncode != 0:
+        pytest.fail(f"four-tendon build failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}", pytrace=False)
+    return build, proc.stdout

@@ -11,7 +11,7 @@ from __future__ import annotations
 from crc_reference import LINK_CHECK, xor_hex
 from fwsim import with_checksum
 
-V = r"2\.2\.0\+481e87e3"
+V = r"2\.3\.0\+481e87e3"
 
 
 def _c(body: str) -> bytes:

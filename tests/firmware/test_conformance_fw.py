@@ -151,7 +151,7 @@ def _virtual(board: str) -> tuple[list[str], list[list[str]]]:
 def test_firmware_and_emulated_board_reply_alike(board, firmware_build):
     fw_before, fw_groups = _firmware(board)
     vb_before, vb_groups = _virtual(board)
-    assert fw_before == vb_before == [f"HELLO {BOARD[board]} 2.2.0+481e87e3"]
+    assert fw_before == vb_before == [f"HELLO {BOARD[board]} 2.3.0+481e87e3"]
     _check_stop_counts(fw_groups)
     _check_stop_counts(vb_groups)
     fw, vb = _grouped_bodies(fw_groups), _grouped_bodies(vb_groups)

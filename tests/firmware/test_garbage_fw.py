@@ -93,4 +93,4 @@ def test_the_emulated_board_answers_ping_within_a_second_after_a_flood(board, fl
     b.receive(PING)
     world.advance_to(t_end + 1.0)
     out = b.take_output().split(b"\n")
-    assert frame(f"PONG {board} 2.2.0+481e87e3").rstrip(b"\n") in out
+    assert frame(f"PONG {board} 2.3.0+481e87e3").rstrip(b"\n") in out

@@ -43,16 +43,6 @@ def _make(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
     )
 
 
-@pytest.fixture(scope="module")
-def four_build(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
-    """Both sketches built for the four-tendon config into a temporary directory, and the build's output."""
-    build = tmp_path_factory.mktemp("four_tendon")
-    proc = _make(f"RIG_CONFIG={FOUR}", f"BUILD={build}", "firmware", "size")
-    if proc.returncode != 0:
-        pytest.fail(f"four-tendon build failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}", pytrace=False)
-    return build, proc.stdout
-
-
 def ram_lines(output: str) -> dict[str, tuple[int, int, float, str, str]]:
     return {m[0]: (int(m[1]), int(m[2]), float(m[3]), m[4], m[5]) for m in _RAM.findall(output)}
 
@@ -170,8 +160,8 @@ def test_four_axis_programme_steps_within_one_tick(
     bodies = [ln.body for ln in run.lines]
     assert all(ln.checksum_ok for ln in run.lines)
     assert bodies[:8] == [
-        "HELLO stepper 2.2.0+c0bda550",
-        "PONG stepper 2.2.0+c0bda550",
+        "HELLO stepper 2.3.0+c0bda550",
+        "PONG stepper 2.3.0+c0bda550",
         "OK CONFIG 4 64 639 1000000 156 156 156 156",
         "OK EN 1",
         "OK MSEG 1",

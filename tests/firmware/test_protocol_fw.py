@@ -11,7 +11,7 @@ import pytest
 
 pytestmark = pytest.mark.firmware
 
-HELLO = {"daq": r"HELLO daq 2\.2\.0\+481e87e3", "stepper": r"HELLO stepper 2\.2\.0\+481e87e3"}
+HELLO = {"daq": r"HELLO daq 2\.3\.0\+481e87e3", "stepper": r"HELLO stepper 2\.3\.0\+481e87e3"}
 
 
 def _script(board: str) -> list[tuple[bytes, str | None, float, str | None]]:

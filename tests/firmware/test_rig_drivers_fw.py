@@ -40,7 +40,7 @@ def rig_paths(firmware_build):
 def test_daq_driver_streams_from_the_firmware(rig_paths):
     daq = rig.DaqBoard.open(rig_paths[0], timeout=READY_S, hello_timeout=READY_S)
     try:
-        assert daq.version == "2.2.0+481e87e3"
+        assert daq.version == "2.3.0+481e87e3"
         assert daq.set_rate(500) == 500
         daq.zero()
         assert daq.start() == 500
@@ -60,7 +60,7 @@ def test_daq_driver_streams_from_the_firmware(rig_paths):
         with pytest.raises(rig.CommandRefused) as err:
             daq.command("RATE 5")  # bypasses the driver's own range check: the firmware refuses
         assert err.value.code == "RANGE"
-        assert daq.ping() == "2.2.0+481e87e3"
+        assert daq.ping() == "2.3.0+481e87e3"
     finally:
         daq.close()
 
@@ -68,7 +68,7 @@ def test_daq_driver_streams_from_the_firmware(rig_paths):
 def test_stepper_driver_runs_a_programme_on_the_firmware(rig_paths):
     stepper = rig.StepperBoard.open(rig_paths[1], timeout=READY_S, hello_timeout=READY_S)
     try:
-        assert stepper.version == "2.2.0+481e87e3"
+        assert stepper.version == "2.3.0+481e87e3"
         prog = programmes.Programme(
             (
                 programmes.Dwell(50),
@@ -125,7 +125,7 @@ def test_rig_records_the_steps_the_stepper_firmware_issues(rig_paths, tmp_path):
         rec = the_rig.run(prog, path=tmp_path / "run", rate_hz=1000, progress=False)
         meta = rec.meta
         assert meta["status"] == "complete"
-        assert meta["firmware"] == {"daq": "2.2.0+481e87e3", "stepper": "2.2.0+481e87e3"}
+        assert meta["firmware"] == {"daq": "2.3.0+481e87e3", "stepper": "2.3.0+481e87e3"}
         assert meta["counts"]["dropped"] == 0 and meta["counts"]["overruns"] == 0
         frame = rec.frame
         assert len(frame) >= prog.duration_s * 1000 * 0.95

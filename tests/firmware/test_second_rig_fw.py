@@ -55,10 +55,10 @@ def test_the_second_rigs_build_reports_its_hash_and_its_limits(long_arm_build: P
     )  # fmt: skip
     bodies = [ln.body for ln in run.lines]
     assert all(ln.checksum_ok for ln in run.lines)
-    assert bodies[0] == bodies[1].replace("PONG", "HELLO") == f"HELLO stepper 2.2.0+{digest}"
+    assert bodies[0] == bodies[1].replace("PONG", "HELLO") == f"HELLO stepper 2.3.0+{digest}"
     assert bodies[2] == f"OK CONFIG 1 64 {MIN_INTERVAL_US} 1000000 {TRAVEL_STEPS}"
     assert bodies[3] == "OK SEG 1"
     assert bodies[4].startswith("ERR RANGE") and bodies[5].startswith("ERR RANGE")
     assert bodies[6] == "OK SEG 2"
     daq = fwsim.run("daq", [(0.05, fwsim.command("PING"))], 0.2, elf=long_arm_build / "daq_mega.elf")
-    assert [ln.body for ln in daq.lines][:2] == [f"HELLO daq 2.2.0+{digest}", f"PONG daq 2.2.0+{digest}"]
+    assert [ln.body for ln in daq.lines][:2] == [f"HELLO daq 2.3.0+{digest}", f"PONG daq 2.3.0+{digest}"]

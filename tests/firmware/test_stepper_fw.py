@@ -95,7 +95,7 @@ def table_i_run(request, firmware_build):
 def test_programme_accepted_and_done(table_i_run):
     _, items, run = table_i_run
     bodies = [ln.body for ln in run.lines]
-    assert bodies[0] == "HELLO stepper 2.2.0+481e87e3"
+    assert bodies[0] == "HELLO stepper 2.3.0+481e87e3"
     assert f"OK GO {len(items)}" in bodies
     net = sum(it[1] * it[2] for it in items if it[0] == "SEG")
     assert f"DONE {net}" in bodies and f"OK POS {net}" in bodies
