@@ -16,11 +16,13 @@ import math
 
 import pytest
 
-from helpers import rigfile
+from helpers import recordings, rigfile
+from helpers.__main__ import main
 from helpers.paper.shapers import Shaper
 from helpers.research.task_space import MovePlan, check_travel, move_design, move_programme, plan_move
 from helpers.rig.safety import SafetyError
 from helpers.rig.tendon_safety import check_tendon_programme
+from helpers.virtual.emulator.world import forget_world
 
 MM = math.pi * 65 / 800
 
@@ -127,3 +129,84 @@ def test_the_design_uses_the_direction_maps_mode_at_the_bend(hanging) -> None:
     assert d.shaper.times[1] == pytest.approx(math.pi / d.omega_d)  # ZV: half a damped period
     assert "tendon 1's tension" in d.describe() and f"{d.omega_d:.3f} rad/s" in d.describe()
     assert move_design(hanging, 0.0, 10.0, "none").shaper is None
+
+
+# --- python -m helpers record move ----------------------------------------------------------------------
+def _two_tendon_rig(four: rigfile.RigFile, folder) -> str:
+    """The four-tendon rig with tendons 1 and 2 only (0 and 90 deg): a bend between them pays nothing out."""
+    text = four.text.replace("[[tendon]]\nangle_deg = 180.0\n\n[[tendon]]\nangle_deg = 270.0\n\n", "")
+    path = folder / "two.toml"
+    path.write_text(text.replace('name = "four-tendon"', 'name = "two-tendon"'))
+    assert rigfile.load(path).n_tendons == 2
+    return str(path)
+
+
+def test_record_move_dry_run_prints_the_plan_then_refuses_a_pay_out_from_rest(four, tmp_path, monkeypatch,
+                                                                             capsys) -> None:  # fmt: skip
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    argv = [
+        "record",
+        "move",
+        "--direction-deg",
+        "45",
+        "--bend-mm",
+        "10",
+        "--dry-run",
+        "--data-dir",
+        str(tmp_path),
+    ]
+    assert main(argv) == 3
+    out, err = capsys.readouterr()
+    assert "tendon 1: +28 steps (+7.15 mm, pulled); static tension" in out
+    assert "tendon 4: -27 steps" in out and "floor 1.00 N" in out
+    assert err.strip().startswith("error: tendon 3: the move 10 mm towards 45 deg needs -27 steps")
+    assert len(err.strip().splitlines()) == 1
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_record_move_dry_run_on_a_rig_that_reaches_it(four, tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
+    data = tmp_path / "data"
+    argv = [
+        "record",
+        "move",
+        "--direction-deg",
+        "45",
+        "--bend-mm",
+        "10",
+        "--dry-run",
+        "--data-dir",
+        str(data),
+    ]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    w = round(1e6 * 28 * MM / 200)
+    assert (
+        f"programme (5 items, 12.00 s): WAIT 1000; MSEG {w} 28 28; WAIT 6964; MSEG {w} -28 -28; WAIT 3964"
+        in out
+    )
+    assert "move_none_d45_b10.csv; nothing was sent" in out
+    assert not data.exists()
+
+
+@pytest.mark.slow
+def test_record_move_records_a_shaped_move_whose_hold_is_the_planned_statics(four, tmp_path, monkeypatch,
+                                                                            capsys) -> None:  # fmt: skip
+    monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
+    argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--shaper", "zv", "--quiet",
+            "--data-dir", str(tmp_path / "data"), "--virtual-instance", "task-space-test"]  # fmt: skip
+    try:
+        assert main(argv) == 0
+    finally:
+        forget_world("task-space-test")
+    rec = recordings.load(tmp_path / "data" / "moves" / "move_zv_d45_b10.csv")
+    sc = rec.meta["scenario"]
+    assert (sc["kind"], sc["direction_deg"], sc["bend_mm"], sc["shaper"]) == ("move", 45.0, 10.0, "zv")
+    assert sc["design"]["tendon"] == 1 and len(sc["design"]["times_s"]) == 2
+    f = rec.frame
+    hold = (f["t_s"] > 6.0) & (f["t_s"] < 8.0)  # the move out ends by 1.2 s; 5 s of ring-down
+    for i in range(2):
+        assert (f.loc[hold, f"steps_{i}"] == 28).all()
+        # the time-domain twin through the emulated boards against the planned statics
+        assert f.loc[hold, f"tension_n_{i}"].mean() == pytest.approx(sc["planned_tension_n"][i], abs=0.05)
+    assert list(f.iloc[-1][["steps_0", "steps_1"]]) == [0, 0]
