@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from helpers import recordings, rigfile
@@ -426,6 +427,14 @@ def test_metrics_reports_the_tips_displacement_where_the_twin_provides_it(pulse_
         assert row["peak_mm"] == pytest.approx(peak, abs=1e-9)
         assert row["overshoot_pct"] == pytest.approx(over, rel=1e-6)
     assert table.loc[0, "peak_mm"] > 1.0  # the pull moved the tip by millimetres
+
+
+def test_metrics_writes_the_tips_table_to_csv_and_markdown(pulse_recording_path, tmp_path, capsys) -> None:
+    stem, md = tmp_path / "out", tmp_path / "report.md"
+    assert main(["metrics", str(pulse_recording_path), "--csv", str(stem), "--markdown", str(md)]) == 0
+    tip = pd.read_csv(tmp_path / "out_tip.csv")
+    assert list(tip["motion"]) == ["Up", "Down"] and tip.loc[0, "peak_mm"] > 1.0
+    assert "## Tip displacement |p - p0| (twin-provided, simulated" in md.read_text()
 
 
 def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(monkeypatch, four) -> None:

@@ -30,7 +30,7 @@ from helpers.recordings import Recording, recording_rig
 from helpers.recordings.tendons import TIP_MM_COLUMNS, tendon_frame_view
 
 __all__ = ["TENDON_COLUMNS", "TIP_COLUMNS", "tendon_table", "tendon_text", "tendon_markdown", "tip_frame",
-           "tip_table"]  # fmt: skip
+           "tip_table", "tip_text", "tip_markdown"]  # fmt: skip
 
 TENDON_COLUMNS = [
     "recording", "source", "tendon", "motion", "peak_n", "overshoot_pct", "settling_ms", "y0_n", "yf_n",
@@ -103,23 +103,43 @@ def tip_table(recs: list[Recording], band: float, **kwargs: Any) -> pd.DataFrame
     return table[TIP_COLUMNS + [c for c in table.columns if c not in TIP_COLUMNS]]
 
 
-def tip_text(table: pd.DataFrame, band: float) -> str:
-    """The tip's table for the terminal ('' when no recording has the tip)."""
-    if table.empty:
-        return ""
-    shown_table = pd.DataFrame({
+def _tip_displayed(table: pd.DataFrame) -> pd.DataFrame:
+    return pd.DataFrame({
         "recording": table["recording"], "paced by tendon": table["paced_by"].astype(str),
         "motion": table["motion"], "peak mm": table["peak_mm"].map(lambda v: _cell(v, 2)),
         "overshoot %": table["overshoot_pct"].map(lambda v: _cell(v, 1)),
         "settling ms": table["settling_ms"].map(lambda v: _cell(v, 0)),
     })  # fmt: skip
-    lines = ["", f"Tip displacement |p - p0| (twin-provided, simulated; settling band ±{100 * band:g} %):",
-             shown_table.to_string(index=False)]  # fmt: skip
-    found = [f"{r.recording} tip {r.motion}: {r.reason}" for r in table.itertuples(index=False)
-             if isinstance(r.reason, str) and r.reason]  # fmt: skip
+
+
+def _tip_notes(table: pd.DataFrame) -> list[str]:
+    return [f"{r.recording} tip {r.motion}: {r.reason}" for r in table.itertuples(index=False)
+            if isinstance(r.reason, str) and r.reason]  # fmt: skip
+
+
+TIP_TITLE = "Tip displacement |p - p0| (twin-provided, simulated; settling band ±{}%)"
+
+
+def tip_text(table: pd.DataFrame, band: float) -> str:
+    """The tip's table for the terminal ('' when no recording has the tip)."""
+    if table.empty:
+        return ""
+    lines = ["", TIP_TITLE.format(f"{100 * band:g} ") + ":", _tip_displayed(table).to_string(index=False)]
+    found = _tip_notes(table)
     if found:
         lines += ["", "Notes (NaN or bounded values):", *(f"  {x}" for x in found)]
     return "\n".join(lines) + "\n"
+
+
+def tip_markdown(table: pd.DataFrame, band: float) -> str:
+    """The tip's table as Markdown ('' when no recording has the tip)."""
+    if table.empty:
+        return ""
+    parts = ["\n## " + TIP_TITLE.format(f"{100 * band:g} ") + "\n", to_markdown(_tip_displayed(table))]
+    found = _tip_notes(table)
+    if found:
+        parts.append("Notes (NaN or bounded values):\n\n" + "".join(f"- {x}\n" for x in found))
+    return "\n".join(parts)
 
 
 def _cell(value: Any, digits: int) -> str:
