@@ -50,11 +50,12 @@ if str(fwsim.REPO) not in sys.path:  # run as a script from anywhere: this repos
 
 from helpers import rigfile  # noqa: E402
 from helpers.commands.metrics_tendons import tendon_table  # noqa: E402
+from helpers.paper import metrics  # noqa: E402
 from helpers.recordings import Recording  # noqa: E402
 from helpers.rig.boards import Waiter  # noqa: E402
 from helpers.rig.tendon_safety import TendonProgramme  # noqa: E402
 from helpers.rig.tendons import TendonRig  # noqa: E402
-from helpers.virtual.emulator.tendon_world import tendon_world  # noqa: E402
+from helpers.virtual.emulator.tendon_world import ADC_CONVERSION_S, tendon_world  # noqa: E402
 from helpers.virtual.emulator.world import forget_world, register_world  # noqa: E402
 from helpers.virtual.sensor import LoadCell  # noqa: E402
 from helpers.virtual.spatial.from_rig import spatial_rig  # noqa: E402
@@ -313,6 +314,49 @@ def one_count_settling_spread(rec: Recording) -> pd.Series:
     return pd.Series(out)
 
 
+def twin_frame(edges: Edges, phase_s: float, duration_s: float, rig: rigfile.RigFile,
+               rate_hz: int = 1000) -> pd.DataFrame:  # fmt: skip
+    """The spatial twin alone on pass 1's edges, sampled as the DAQ does (channel c c x 104 us after
+    channel 0) at ``rate_hz`` with channel 0 ``phase_s`` (mod one period) after axis 0's first edge, through
+    noise-free cells rounded to counts; 1 s of rest first. Columns: ``t_s``, ``steps_i``, ``tension_n_i``."""
+    cells = noise_free_cells(rig)
+    n = len(cells)
+    period = 1.0 / rate_hz
+    t0 = np.arange(-1.0 + phase_s, duration_s, period)
+    reads = (t0[:, None] + np.arange(n)[None, :] * ADC_CONVERSION_S).ravel()
+    lead = 1.0 + PLANT_LEAD_S
+    keep = edges.t <= reads[-1]
+    out = SpatialPlant(spatial_rig(rig)).advance(reads + lead, edges.t[keep] + lead, edges.axes[keep],
+                                                 edges.signs[keep])  # fmt: skip
+    every = np.asarray(out["output"], dtype=float).reshape(len(t0), n, -1)
+    frame = pd.DataFrame({"t_s": t0 - t0[0]})
+    for a in range(n):
+        sel = edges.axes == a
+        frame[f"steps_{a}"] = np.concatenate([[0], np.cumsum(edges.signs[sel])])[
+            np.searchsorted(edges.t[sel], t0, side="right")
+        ]
+    for c, cell in enumerate(cells):
+        counts = cell.counts(every[:, c, c])
+        frame[f"tension_n_{c}"] = (counts - cell.offset_counts) * cell.newtons_per_count
+    return frame
+
+
+def phase_spread(edges: Edges, duration_s: float, rig: rigfile.RigFile, n: int = 10) -> pd.DataFrame:
+    """How much each tendon's metrics move with the sampling phase alone (max - min over ``n`` phases in one
+    period of the twin sampled as the DAQ does, :func:`twin_frame`)."""
+    tables = []
+    for k in range(n):
+        frame = twin_frame(edges, k * 1e-3 / n, duration_s, rig)
+        rows = []
+        for a in range(rig.n_tendons):
+            view = frame.rename(columns={f"steps_{a}": "steps", f"tension_n_{a}": "tension_n"})
+            m = metrics.recording_metrics(view[["t_s", "steps", "tension_n"]]).set_index("motion")[METRICS]
+            rows.append(m.assign(tendon=a).set_index("tendon", append=True).swaplevel())
+        tables.append(pd.concat(rows))
+    stacked = pd.concat(tables)
+    return stacked.groupby(level=[0, 1]).max() - stacked.groupby(level=[0, 1]).min()
+
+
 # --- the scenario -------------------------------------------------------------------------------------
 def four_tendon_programme(hold_ms: int = 3000) -> TendonProgramme:
     """A coordinated up-hold-down move of every tendon: 1 s at rest (the metrics' baseline), 16, 10, 6 and 8
@@ -331,11 +375,13 @@ def run_case(tmp: Path, elfs: dict[str, Path], hold_ms: int = 3000, tail_s: floa
     wave = tension_waveform(edges, programme.duration_s + tail_s + 2.0, four_rig())
     fil = record(wave, programme, elfs, tmp, tail_s)
     ref = in_process(programme, tail_s)
+    duration = float(fil.recording.frame["t_s"].iloc[-1]) - 1.0  # the recording's end, from the first step
     return {
         "fil": per_tendon(fil.recording),
         "in_process": per_tendon(ref),
         "alignment": check_alignment(fil, edges, wave),
         "settling_resolution": one_count_settling_spread(ref),
+        "phase_spread": phase_spread(edges, duration, four_rig()),
         "recording": fil.recording,
         "reference": ref,
         "edges": edges,
@@ -347,7 +393,8 @@ def show(result: dict[str, Any]) -> None:
     """Print the comparison."""
     print("\n== four tendons: firmware in the loop (FIL) against the in-process virtual rig (noise-free)")
     table = {"FIL": result["fil"], "in-process": result["in_process"],
-             "FIL - in-process": result["fil"] - result["in_process"]}  # fmt: skip
+             "FIL - in-process": result["fil"] - result["in_process"],
+             "phase spread": result["phase_spread"].reindex(result["fil"].index)}  # fmt: skip
     with pd.option_context("display.width", 250):
         print(pd.concat(table, axis=1).round(3).to_string())
     a = result["alignment"]
