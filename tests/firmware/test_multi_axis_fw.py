@@ -2,7 +2,9 @@
 (``firmware/common/rig_config_four_tendon.h``) in simavr: RAM budgets, compile-time refusal of configs that do
 not fit, coordinated four-axis programmes on the pins (every step within one timer tick of the programme, per
 axis), per-axis limits, the one-axis commands on axis 0, and four-channel DAQ frames with each tendon's step
-count; the link budget at 1 Mbaud through the harness's pseudo-terminal (``-m slow``: 60 s of device time).
+count; the link budget at 1 Mbaud through the harness's pseudo-terminal (``-m slow``: 60 s of device time);
+a short four-tendon firmware-in-the-loop run (``fil4.py``: both sketches driving the spatial twin, sample by
+sample).
 """
 
 from __future__ import annotations
