@@ -338,6 +338,8 @@ def test_a_recording_without_the_tip_loads_unchanged(tendon_recording_path, tmp_
          "calibration.mm_per_step: expected a list of 4 positive finite numbers (one per tendon)"),
         (lambda m: m.pop("rig"), "rig: missing (a recording of several tendons keeps its rig file)"),
         (lambda m: m.update(schema_version=4), "schema_version: unknown 4 (this code reads (1, 2, 3))"),
+        (lambda m: m.update(tip="twin"), "tip: expected an object (the twin-provided tip columns' origin)"),
+        (lambda m: m.pop("tip"), "header"),  # tip columns without the key: not the contract's header
     ],
 )  # fmt: skip
 def test_a_bad_four_tendon_recording_is_refused_in_one_line(tendon_recording_path, tmp_path, change, message):
