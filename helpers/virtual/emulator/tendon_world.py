@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from helpers import __version__, rigfile
+from helpers.board.protocol import WRAP_US
 from helpers.rigfile import RigFile
 from helpers.virtual.emulator.tendon_boards import (
     BuildLimits,
@@ -51,6 +52,8 @@ class TendonWorld(VirtualWorld):
     limits: BuildLimits | None = None
     tendon_tip: list[np.ndarray] = field(default_factory=list)
     """The tip positions (m, clamp frame) at the samples, in chunks (for checks against the twin)."""
+    tendon_tip_t_us: list[np.ndarray] = field(default_factory=list)
+    """The ``t_us`` of the samples of each chunk of :attr:`tendon_tip` (as the data lines carry it)."""
 
     def __post_init__(self) -> None:
         if self.limits is None:
@@ -63,6 +66,22 @@ class TendonWorld(VirtualWorld):
         self.daq.reset()
         self.stepper.reset()
         self.listeners = []
+
+    def tip_um(self, t_us: np.ndarray) -> np.ndarray | None:
+        """The tip's position (integer micrometres, clamp frame) at the samples sent with these ``t_us``.
+
+        At channel 0's instant of each sample; None if the twin gave no tip for one of them.
+        """
+        if not self.tendon_tip:
+            return None
+        known = np.concatenate(self.tendon_tip_t_us)
+        tips = np.concatenate(self.tendon_tip)
+        want = np.asarray(t_us, dtype=np.int64)
+        order = np.argsort(known, kind="stable")
+        i = np.clip(np.searchsorted(known[order], want), 0, len(known) - 1)
+        if not np.array_equal(known[order][i], want):
+            return None
+        return np.rint(tips[order][i] * 1e6).astype(np.int64)
 
     def reseed(self, seed: int) -> None:
         """Restart every load cell's noise (channel 0 from ``seed``, channel c from ``(seed, c)``)."""
@@ -86,6 +105,7 @@ class TendonWorld(VirtualWorld):
             output = every[:, np.arange(channels), np.arange(channels)]  # channel c at its own instant
             if "tip" in out:
                 self.tendon_tip.append(np.asarray(out["tip"])[: reads.size : channels])
+                self.tendon_tip_t_us.append((np.rint(times * 1e6).astype(np.int64) + self.t0_us) % WRAP_US)
             if self.load_n is not None:
                 output = np.full_like(output, self.load_n)
             counts = np.column_stack(
