@@ -20,6 +20,7 @@ import pytest
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
 from helpers.board.protocol import frame
+from helpers.commands.benchmarks.serial_tendons import pty_stream_tendons
 from helpers.commands.home import home
 from helpers.commands.metrics_tendons import tendon_table, tip_table
 from helpers.rig.boards import WrongRig
@@ -515,3 +516,16 @@ def test_the_one_tendon_rig_refuses_a_rig_file_of_several_tendons(monkeypatch, f
     assert str(info.value).startswith("rig 'four-tendon' has 4 tendons, but Rig drives one")
     assert error_line(info.value)[1] == 2
     assert "tendons-test-one" not in world_module._WORLDS  # no port opened, so no world was made
+
+
+@pytest.mark.slow
+def test_a_four_tendon_rig_over_the_pseudo_terminal_server_records_every_channel_without_a_drop():
+    # the server's intervals end at wall-clock instants, mid-conversion of a sample's channels: every sample
+    # still arrives, whole (2 s of device time at 1 kHz, 4 x real time)
+    r = pty_stream_tendons(device_s=2.0, rate_hz=1000, speed=4.0)
+    assert (r["rig"], r["tendons"]) == ("four-tendon", 4)
+    assert (r["dropped"], r["corrupted"], r["overruns"]) == (0, 0, 0)
+    assert r["samples"] >= 2000 and r["rate_per_device_s"] == pytest.approx(1000.0, rel=1e-6)
+    # a data line: "D", ten fields (seq, t_us, four ADC counts, four step counts) of ",x" at least, "*hh\n";
+    # at most 91 characters before its newline (firmware/PROTOCOL.md)
+    assert 1 + 10 * 2 + 4 <= r["line_bytes_mean"] <= r["line_bytes_max"] <= 91 + 1
