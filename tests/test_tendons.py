@@ -157,6 +157,34 @@ def test_world_drives_each_tendon_from_its_axis(four: rigfile.RigFile) -> None:
     assert np.all(np.abs(data[0, 2:6] - REST_COUNTS) < 3.0)
 
 
+def _pull_data(w, ends) -> np.ndarray:
+    for b in (w.daq, w.stepper):
+        b.take_output()
+    _talk(w.daq, "START")
+    _talk(w.stepper, "EN 1", "MSEG 20000 0 0 0 20", "GO")
+    for t in ends:
+        w.advance_to(t)
+    rows = [line.split(b"*")[0].decode().split(",") for line in w.daq.take_output().splitlines()]
+    return np.array([[int(x) for x in r[1:]] for r in rows if r[0] == "D"])
+
+
+def test_intervals_ending_mid_conversion_give_the_samples_of_whole_ones(four: rigfile.RigFile) -> None:
+    # the pseudo-terminal server advances the world to wall-clock instants, often between a sample's
+    # channel 0 and its channel 3 (312 us later): every sample must still come, from the twin at each
+    # channel's own instant, as when the world moves on whole milliseconds
+    whole = _pull_data(tendon_world(four, "tendons-test-whole"), np.arange(1, 201) * 1e-3)
+    ragged_ends = np.cumsum(np.tile([0.37e-3, 0.05e-3, 0.21e-3, 0.53e-3, 0.11e-3], 200))
+    ragged = _pull_data(tendon_world(four, "tendons-test-ragged"), ragged_ends[ragged_ends <= 0.2])
+    n = min(len(whole), len(ragged))
+    assert n >= 195  # 1 kHz for 0.2 s, the last sample still converting at 0.2 s in one of them
+    np.testing.assert_array_equal(ragged[:n, :2], whole[:n, :2])  # seq and t_us: no sample lost or repeated
+    np.testing.assert_array_equal(ragged[:n, 6:], whole[:n, 6:])  # the step counts
+    # the ADC counts: the same twin at the same instants, integrated over other step partitions (RK4 at its
+    # stable step either way) and the same noise: within one count
+    assert np.max(np.abs(ragged[:n, 2:6] - whole[:n, 2:6])) <= 1
+    assert ragged[n - 1, 5] > REST_COUNTS + 3 * 24.576  # tendon 3's pull is in the ragged record too
+
+
 # --- the host: safety per tendon, connecting, running, homing ------------------------------------------
 def _programme(*moves):
     return TendonProgramme.moves(moves)
