@@ -53,6 +53,7 @@ HOW: dict[str, str] = {
     "python -m helpers bench": "slow",
     "python -m helpers bench plant": "slow",
     "python -m helpers bench serial": "slow",
+    "python -m helpers bench serial-tendons": "slow",
     "python -m helpers bench playground": "slow",
     "python -m helpers record pulse --design data/tuning/designs/<file>.json": "quick",
     "python -m helpers tune": "slow",
@@ -301,7 +302,7 @@ def test_record_all_regenerates_the_paper_experiment(newcomer):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("suite", ["plant", "serial", "sweep", "playground", "spatial"])
+@pytest.mark.parametrize("suite", ["plant", "serial", "serial-tendons", "sweep", "playground", "spatial"])
 def test_bench_prints_its_figures(suite):
     proc = subprocess.run(
         [sys.executable, "-m", "helpers", "bench", suite], capture_output=True, text=True, timeout=3600,
