@@ -156,8 +156,8 @@ def check_tendon_stream(
             k = int(out[0])
             x = commanded[k, i]
             raise SafetyError(
-                f"tendon {i + 1}, set-point {k}: the set-points integrate to {x:.1f} steps "
-                f"({x * mm:.1f} mm), past its travel of 0-{travel} steps ({travel * mm:.1f} mm)"
+                f"tendon {i + 1}, set-point {k}: the set-points integrate to {x:.2f} steps "
+                f"({x * mm:.2f} mm), past its travel of 0-{travel} steps ({travel * mm:.1f} mm)"
             )
     tensions = static_tensions(rig, commanded)
     slack = np.flatnonzero(np.all(tensions <= 0.0, axis=1))
