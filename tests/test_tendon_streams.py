@@ -229,3 +229,20 @@ def test_a_board_reset_mid_stream_stops_it_and_saves_what_was_recorded(stream_ri
     assert rec.meta["abort_reason"].startswith("BoardReset: the stepper board reset")
     assert 0 < rec.meta["scenario"]["stream"]["n_setpoints"] < 60 and len(rec.frame) > 300
     assert not world.stepper.enabled and world.stepper.stream is None and not world.daq.streaming
+
+
+def test_an_allowed_clamp_is_recorded_as_deviated(stream_rig, tmp_path) -> None:
+    """The overshooting shaper above on tendon 4 with ``allow_clamps``: the board clamps period 1 (its notice
+    names axis 3), the run goes on and is saved as ``deviated`` beside the name; the tendon ends where the
+    board's planner said."""
+    overshoot = hs.StreamShaper((6144, -2048), (0, 50_000), allow_negative=True)
+    plan = check_tendon_stream(tendon_units(_rows(3, t4=365.0), stream_rig.rig), stream_rig.rig,
+                               tuple(stream_rig.positions), overshoot, allow_clamps=True)  # fmt: skip
+    rec = stream_rig.stream(_rows(3, t4=365.0), overshoot, path=tmp_path / "g" / "clamped", allow_clamps=True,
+                            tail_s=0.2)  # fmt: skip
+    assert rec.status == "deviated" and "clamped the shaped motion" in rec.meta["deviation"]
+    assert rec.meta["scenario"]["stream"]["notices"] == ["N,LIMIT,SPEED,1,3"]
+    assert rec.meta["scenario"]["stream"]["clamps"] == {"speed": 1, "travel": 0}
+    assert rec.path.name.startswith("clamped_deviated_") and not (tmp_path / "g" / "clamped.csv").exists()
+    assert stream_rig.positions == plan.end and plan.end[3] > 0
+    stream_rig.home()
