@@ -26,7 +26,8 @@ limits clamp the exact position: at ``c = 156`` with ``r = 0`` an upward ``S`` i
 tick k (``k * 10 ms`` after ``STREAM``) and drives the velocity over ``[(k + 1) * 10 ms, (k + 2) * 10 ms)``.
 
 Several axes (a build with ``RIG_AXES`` > 1, ``MV``): every axis is this planner with its own set-points and
-travel, shaped by the one shaper (:func:`simulate_axes`); the longest delay there is ``MAX_DELAY_US_AXES``.
+travel, shaped by the one shaper (:class:`AxesRun` tick by tick, :class:`AxesSession` with ``MV``'s FIFO,
+:func:`simulate_axes` from the periods the board named); the longest delay there is ``MAX_DELAY_US_AXES``.
 """
 
 from __future__ import annotations
