@@ -14,13 +14,15 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
 from helpers.board.protocol import frame
+from helpers.commands.benchmarks.serial_tendons import pty_stream_tendons
 from helpers.commands.home import home
-from helpers.commands.metrics_tendons import tendon_table
+from helpers.commands.metrics_tendons import tendon_table, tip_table
 from helpers.rig.boards import WrongRig
 from helpers.rig.safety import SafetyError
 from helpers.rig.stepper import StepperBoard
@@ -287,8 +289,8 @@ def tendon_recording_path(four_rig, tmp_path_factory):
 
 def test_a_four_tendon_recording_round_trips_as_version_3(tendon_recording_path) -> None:
     path = tendon_recording_path
-    header = "seq,t_us,adc_0,adc_1,adc_2,adc_3,steps_0,steps_1,steps_2,steps_3"
-    assert path.read_text().splitlines()[0] == header  # derived columns are never stored
+    header = "seq,t_us,adc_0,adc_1,adc_2,adc_3,steps_0,steps_1,steps_2,steps_3,tip_x_um,tip_y_um,tip_z_um"
+    assert path.read_text().splitlines()[0] == header  # derived columns are never stored; the twin's tip is
     rec = recordings.load(path)
     assert (rec.meta["schema_version"], rec.meta["tendons"], rec.tendons) == (3, 4, 4)
     assert rec.meta["rig"]["name"] == "four-tendon"
@@ -298,6 +300,33 @@ def test_a_four_tendon_recording_round_trips_as_version_3(tendon_recording_path)
     np.testing.assert_allclose(f["cable_mm_1"], f["steps_1"] * 3.14159265358979 * 65 / 800)
     assert list(f.iloc[-1][[f"steps_{i}" for i in range(4)]]) == [0, 3, 0, 0]
     np.testing.assert_allclose(f["t_s"].iloc[:3], [0.0, 0.001, 0.002])
+    assert rec.meta["tip"]["origin"].startswith("twin-provided") and rec.meta["tip"]["unit"] == "um"
+    np.testing.assert_allclose(f["tip_z_mm"], f["tip_z_um"] / 1000.0)
+
+
+def test_the_tip_is_the_twins_at_each_sample(pulse_recording_path) -> None:
+    """The tip columns are the spatial twin's tip node: at rest (a fresh world) the horizontal arm (gravity
+    along -x, rigs/four-tendon.toml) sags towards -x, symmetric in y, and its tip lies within the rod's 240 mm
+    of the clamp; the pull of tendons 1 and 2 (90 degrees apart, 0-based 0 and 1) moves it."""
+    f = recordings.load(pulse_recording_path).frame
+    p0 = f.loc[0, ["tip_x_mm", "tip_y_mm", "tip_z_mm"]].to_numpy(float)
+    assert p0[0] < -1.0 and abs(p0[1]) < 0.01 and 200.0 < np.linalg.norm(p0) <= 240.0
+    moved = np.linalg.norm(f[["tip_x_mm", "tip_y_mm", "tip_z_mm"]].to_numpy(float) - p0, axis=1)
+    assert moved.max() > 1.0
+
+
+def test_a_recording_without_the_tip_loads_unchanged(tendon_recording_path, tmp_path) -> None:
+    """A hardware recording has no tip: without the ``tip`` key and columns it is written and read as before,
+    and the metrics have no tip rows."""
+    rec = recordings.load(tendon_recording_path, derive=False)
+    meta = {k: v for k, v in rec.meta.items() if k not in ("tip", "csv_sha256")}
+    bare = recordings.Recording(rec.frame.drop(columns=["tip_x_um", "tip_y_um", "tip_z_um"]), meta)
+    path = recordings.save(bare, tmp_path / "g" / "hw")
+    header = "seq,t_us,adc_0,adc_1,adc_2,adc_3,steps_0,steps_1,steps_2,steps_3"
+    assert path.read_text().splitlines()[0] == header
+    back = recordings.load(path)
+    assert not any(c.startswith("tip") for c in back.frame.columns)
+    assert tip_table([back], 0.05).empty
 
 
 @pytest.mark.parametrize(
@@ -310,6 +339,8 @@ def test_a_four_tendon_recording_round_trips_as_version_3(tendon_recording_path)
          "calibration.mm_per_step: expected a list of 4 positive finite numbers (one per tendon)"),
         (lambda m: m.pop("rig"), "rig: missing (a recording of several tendons keeps its rig file)"),
         (lambda m: m.update(schema_version=4), "schema_version: unknown 4 (this code reads (1, 2, 3))"),
+        (lambda m: m.update(tip="twin"), "tip: expected an object (the twin-provided tip columns' origin)"),
+        (lambda m: m.pop("tip"), "header"),  # tip columns without the key: not the contract's header
     ],
 )  # fmt: skip
 def test_a_bad_four_tendon_recording_is_refused_in_one_line(tendon_recording_path, tmp_path, change, message):
@@ -378,6 +409,35 @@ def test_metrics_reports_each_tendons_table_ii_metrics(pulse_recording_path, cap
     still = table[table["tendon"] >= 2]
     assert still["peak_n"].isna().all() and still["reason"].str.startswith("segmentation failed").all()
     assert "tendon 2 Up: segmentation failed" in out
+
+
+def test_metrics_reports_the_tips_displacement_where_the_twin_provides_it(pulse_recording_path, capsys):
+    """docs/metrics.md: the tip's displacement magnitude from its first sample, its motions from the count of
+    the tendon that moves most (tendon 0: 6 steps against 4), by hand from the frame's tip columns."""
+    assert main(["metrics", str(pulse_recording_path)]) == 0
+    out = capsys.readouterr().out
+    assert "Tip displacement |p - p0| (twin-provided, simulated" in out
+    rec = recordings.load(pulse_recording_path)
+    f = rec.frame.copy()
+    p = f[["tip_x_um", "tip_y_um", "tip_z_um"]].to_numpy(float) / 1000.0
+    f["tension_n_0"] = np.sqrt(((p - p[0]) ** 2).sum(axis=1))  # the tip's signal in _by_hand's place
+    want = _by_hand(f, 0)
+    table = tip_table([rec], 0.05)
+    assert list(table["motion"]) == ["Up", "Down"] and list(table["paced_by"]) == [0, 0]
+    for motion in ("Up", "Down"):
+        row = table[table["motion"] == motion].iloc[0]
+        peak, over = want[motion]
+        assert row["peak_mm"] == pytest.approx(peak, abs=1e-9)
+        assert row["overshoot_pct"] == pytest.approx(over, rel=1e-6)
+    assert table.loc[0, "peak_mm"] > 1.0  # the pull moved the tip by millimetres
+
+
+def test_metrics_writes_the_tips_table_to_csv_and_markdown(pulse_recording_path, tmp_path, capsys) -> None:
+    stem, md = tmp_path / "out", tmp_path / "report.md"
+    assert main(["metrics", str(pulse_recording_path), "--csv", str(stem), "--markdown", str(md)]) == 0
+    tip = pd.read_csv(tmp_path / "out_tip.csv")
+    assert list(tip["motion"]) == ["Up", "Down"] and tip.loc[0, "peak_mm"] > 1.0
+    assert "## Tip displacement |p - p0| (twin-provided, simulated" in md.read_text()
 
 
 def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(monkeypatch, four) -> None:
@@ -456,3 +516,16 @@ def test_the_one_tendon_rig_refuses_a_rig_file_of_several_tendons(monkeypatch, f
     assert str(info.value).startswith("rig 'four-tendon' has 4 tendons, but Rig drives one")
     assert error_line(info.value)[1] == 2
     assert "tendons-test-one" not in world_module._WORLDS  # no port opened, so no world was made
+
+
+@pytest.mark.slow
+def test_a_four_tendon_rig_over_the_pseudo_terminal_server_records_every_channel_without_a_drop():
+    # the server's intervals end at wall-clock instants, mid-conversion of a sample's channels: every sample
+    # still arrives, whole (2 s of device time at 1 kHz, 4 x real time)
+    r = pty_stream_tendons(device_s=2.0, rate_hz=1000, speed=4.0)
+    assert (r["rig"], r["tendons"]) == ("four-tendon", 4)
+    assert (r["dropped"], r["corrupted"], r["overruns"]) == (0, 0, 0)
+    assert r["samples"] >= 2000 and r["rate_per_device_s"] == pytest.approx(1000.0, rel=1e-6)
+    # a data line: "D", ten fields (seq, t_us, four ADC counts, four step counts) of ",x" at least, "*hh\n";
+    # at most 91 characters before its newline (firmware/PROTOCOL.md)
+    assert 1 + 10 * 2 + 4 <= r["line_bytes_mean"] <= r["line_bytes_max"] <= 91 + 1

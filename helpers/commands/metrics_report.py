@@ -32,7 +32,14 @@ import pandas as pd
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import shown
 from helpers.base.tables import to_markdown
-from helpers.commands.metrics_tendons import tendon_markdown, tendon_table, tendon_text
+from helpers.commands.metrics_tendons import (
+    tendon_markdown,
+    tendon_table,
+    tendon_text,
+    tip_markdown,
+    tip_table,
+    tip_text,
+)
 from helpers.paper import metrics
 from helpers.paper import numbers as paper
 from helpers.recordings import RESERVED_NAMES, Recording, RecordingError, RecordingExists, load, recording_rig
@@ -417,8 +424,14 @@ def run(args: argparse.Namespace) -> int:
         if stem is not None:
             targets.append((stem.with_name(f"{stem.name}_tendons.csv"),
                             tendons.to_csv(index=False, float_format="%.6g")))  # fmt: skip
+        tip = tip_table(several, args.band)
+        if stem is not None and not tip.empty:
+            tip_csv = tip.to_csv(index=False, float_format="%.6g")
+            targets.append((stem.with_name(f"{stem.name}_tip.csv"), tip_csv))
         markdown += tendon_markdown(tendons, args.band)
         text += tendon_text(tendons, args.band)
+        markdown += tip_markdown(tip, args.band)
+        text += tip_text(tip, args.band)
         if not single.recordings:
             markdown += "\n" + _skipped_text(selection.skipped).replace("\n  ", "\n- ") + "\n"
             text += "\n" + _skipped_text(selection.skipped) + "\n"

@@ -15,6 +15,7 @@ Commands::
     python -m helpers record pulse --v-in 200 --x-f 20 --design my_design.json   # a saved design
     python -m helpers record table-i --repetitions 3         # 12 scenarios x 3
     python -m helpers record all                             # identification + result.json + Table I x 3
+    python -m helpers --rig four-tendon record move --direction-deg 45 --bend-mm 10 --shaper zvd --dry-run
 
 ``table-i`` and pulses with ``--system zv``, ``zvd`` or ``ei`` design the shapers from
 ``data/identification/result.json`` (written by ``record all`` or notebook 02's live cell) unless ``--zeta``
@@ -33,6 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import MissingDataError
 from helpers.base.locks import folder_lock
@@ -59,14 +61,20 @@ from helpers.paper.identify import identify_recording, load_identification, save
 from helpers.paper.modes import omega_n_from_damped
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.recordings import RecordingExists, check_group, check_name, recording_path, refuse_existing
+from helpers.recordings import save as save_recording
 from helpers.research.design import SYSTEMS, Design, Schedule, load_design, up_down
 from helpers.research.families import ei
 from helpers.research.modemap import load_map
+from helpers.research.task_space import SHAPERS as MOVE_SHAPERS
+from helpers.research.task_space import check_travel, move_design, move_programme, plan_move
 from helpers.research.teleop import record_streams
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
 from helpers.rig.stream_rig import StreamRig
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
+from helpers.rig.tendon_safety import check_tendon_programme
+from helpers.rig.tendons import TendonRig
+from helpers.virtual.emulator.world import get_world
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
 """Systems ``record`` designs itself from one identified mode (the others come from a --design file)."""
@@ -82,7 +90,7 @@ SYSTEM_HELP = (
 )
 DEFAULT_GROUPS = {
     "calibration": "calibration", "pulse": "runs", "table-i": "experiments", "all": "experiments",
-    "streams": "streams",
+    "streams": "streams", "move": "moves",
 }  # fmt: skip
 SESSION_LOCK = ".recording.lock"
 """The lock a recorder holds on its group for the whole session (another recorder is refused)."""
@@ -107,10 +115,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "what",
-        choices=["calibration", "pulse", "table-i", "all", "streams"],  # the keys of RECORDERS
+        choices=["calibration", "pulse", "table-i", "all", "streams", "move"],  # RECORDERS, and move
         help="calibration: known loads; pulse: one up-hold-down move; table-i: the paper's 12 scenarios; "
         "all: the identification run, its analysis, then Table I; streams: notebook 08's two arbitrary "
-        "motions, unshaped, zv, zvd and scheduled (needs tuning/mode_map.json from `tune`)",
+        "motions, unshaped, zv, zvd and scheduled (needs tuning/mode_map.json from `tune`); move: a bend "
+        "of a rig with several tendons (--direction-deg, --bend-mm; docs/task_space.md)",
     )
     parser.add_argument(
         "--ports",
@@ -135,6 +144,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"pulse displacement, mm, in (0, {MAX_PULSE_MM:.2f}] (the travel, 156 steps); needed for pulse",
     )  # fmt: skip
     parser.add_argument("--system", choices=list(SYSTEMS), default=None, help=SYSTEM_HELP)
+    parser.add_argument(
+        "--direction-deg", type=arg_number(-360, 360),
+        help="move: the bend's direction, deg around the backbone (0 = towards tendon 1, counter-clockwise)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--bend-mm", type=arg_number(0, 1000, lo_open=True),
+        help="move: the bend's magnitude, mm of cable (as the direction map's bend_mm)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--shaper", choices=list(MOVE_SHAPERS), default="none",
+        help="move: none, or the paper's zv / zvd designed from the direction map's mode at the bend",
+    )  # fmt: skip
     parser.add_argument(
         "--design",
         type=Path,
@@ -532,9 +553,105 @@ def _refuse_existing_targets(args: argparse.Namespace) -> None:
             )
 
 
+MOVE_SPEED_MM_S = 200.0
+"""The lead tendon's cable speed of a move when --v-in is not given (Table I's slower speed)."""
+
+
+def _move_name(args: argparse.Namespace) -> str:
+    text = f"move_{args.shaper}_d{args.direction_deg:g}_b{args.bend_mm:g}"
+    return args.name or text.replace(".", "p").replace("-", "m")
+
+
+def _plan_move(args: argparse.Namespace, rig: Any) -> tuple[Any, Any, Any]:
+    """``record move``'s plan, design and programme, every check made before any port opens."""
+    if args.direction_deg is None or args.bend_mm is None:
+        raise SystemExit("record move needs --direction-deg and --bend-mm")
+    if rig.n_tendons < 2:
+        raise ValueError(
+            f"record move needs a rig file with several tendons; the selected rig '{rig.name}' has one "
+            "(--rig four-tendon, or HELPERS_RIG)"
+        )
+    plan = plan_move(rig, args.direction_deg, args.bend_mm)
+    design = move_design(rig, args.direction_deg, args.bend_mm, args.shaper)
+    speed = args.v_in if args.v_in is not None else MOVE_SPEED_MM_S
+    try:
+        programme = move_programme(
+            plan, rig, speed, design.shaper, paper.PULSE_T_UP_S, paper.PULSE_T_DOWN_S, args.t_end
+        )
+    except ValueError as exc:
+        where = f"{args.bend_mm:g} mm towards {args.direction_deg:g} deg"
+        raise SafetyError(f"move {where} refused: {exc}") from None
+    return plan, design, programme
+
+
+def _print_move(args: argparse.Namespace, rig: Any, plan: Any, design: Any) -> None:
+    speed = args.v_in if args.v_in is not None else MOVE_SPEED_MM_S
+    print(
+        f"move: {args.bend_mm:g} mm towards {args.direction_deg:g} deg on rig '{rig.name}' "
+        f"({rig.n_tendons} tendons), the lead tendon at {speed:g} mm/s; static tensions by the spatial twin "
+        "(rotors free):"
+    )
+    for line in plan.lines():
+        print(f"  {line}")
+    print(f"  shaper: {design.describe()}")
+
+
+def _record_move(args: argparse.Namespace) -> int:
+    """``record move``: plan, check, print (dry run) or record one move on a rig with several tendons."""
+    rig = rigfile.selected()
+    plan, design, programme = _plan_move(args, rig)
+    target = recording_path(args.group, _move_name(args), args.data_dir)
+    if not args.replace:
+        refuse_existing(target)
+    if args.dry_run:
+        _print_move(args, rig, plan, design)
+        check_travel(plan, rig)  # from rest: every tendon at position 0
+        check_tendon_programme(programme, rig)
+        _print_move_programme(args, rig, programme, target)
+        return 0
+    check_travel(plan, rig)
+    check_tendon_programme(programme, rig)
+    with folder_lock(args.data_dir / args.group, what="recording", name=SESSION_LOCK, beside=True):
+        with TendonRig.connect(args.ports, rig=rig, rig_name=args.rig_name) as trig:
+            if any(trig.positions):
+                raise SafetyError(
+                    f"tendons 1-{rig.n_tendons}: the stepper stands at {trig.positions}, not at rest (0): a "
+                    "move is planned from rest; run python -m helpers home first"
+                )
+            world = get_world(args.rig_name) if args.ports == "virtual" else None
+            if world is not None:
+                world.reseed(args.seed)
+            print(f"connected: daq firmware {trig.daq.version}, stepper firmware {trig.stepper.version}")
+            print(f"  shaper: {design.describe()}")
+            frame = trig.run(programme, rate_hz=args.rate)
+            rec = trig.recording(frame, programme, rate_hz=args.rate)
+            rec.meta["scenario"] = {
+                "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm,
+                "shaper": design.name, "design": design.metadata(),
+                "speed_mm_s": args.v_in if args.v_in is not None else MOVE_SPEED_MM_S,
+                "steps": list(plan.steps), "planned_tension_n": list(plan.tension_n),
+                "tension_floor_n": plan.floor_n, "trimmed_steps": list(plan.trimmed),
+                "items": rec.meta["scenario"]["items"],
+                "noise_seed": args.seed if world is not None else None,
+            }  # fmt: skip
+            path = save_recording(rec, target, replace=args.replace)
+    print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(path)}")
+    return 0
+
+
+def _print_move_programme(args: argparse.Namespace, rig: Any, programme: Any, target: Path) -> None:
+    cmds = [it.command(rig.n_tendons) for it in programme.items]
+    print(f"  programme ({len(cmds)} items, {programme.duration_s:.2f} s): " + "; ".join(cmds))
+    print(
+        f"dry run: 1 recording would be made on --ports {args.ports}: {repo_path(target)}; nothing was sent"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers record`` (errors are turned into one line by ``python -m helpers``)."""
     args.group = args.group or DEFAULT_GROUPS[args.what]
+    if args.what == "move":
+        return _record_move(args)
     if args.what != "pulse" and args.design is not None:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
     if args.what in ("table-i", "all"):

@@ -31,7 +31,7 @@ from helpers.paper.hardware import RIG as HW_RIG
 from helpers.recordings.tendons import (
     TENDON_SCHEMA_VERSION,
     derive_tendon_columns,
-    tendon_columns,
+    recorded_columns,
     tendon_count,
     tendon_meta_problem,
 )
@@ -166,7 +166,7 @@ def counts_to_newtons(adc: np.ndarray, newtons_per_count: float, offset_counts: 
 def raw_columns(meta: dict[str, Any]) -> tuple[str, ...]:
     """The CSV's columns of a recording with this metadata (several tendons: ``adc_i``, ``steps_i``)."""
     n = tendon_count(meta)
-    return RAW_COLUMNS if n == 1 else tendon_columns(n)
+    return RAW_COLUMNS if n == 1 else recorded_columns(meta)
 
 
 def empty_frame() -> pd.DataFrame:

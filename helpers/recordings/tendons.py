@@ -7,6 +7,11 @@ newtons_per_count``, ``offset_counts`` and ``mm_per_step`` are lists of n number
 whose tendon count must be n) is required. Derived on load: ``t_s``, and per tendon ``tension_n_i =
 (adc_i - offset_counts[i]) * newtons_per_count[i]`` and ``cable_mm_i = steps_i * mm_per_step[i]``.
 
+Optional, from the virtual rig only: the tip's position where the twin provides it, ``tip_x_um``,
+``tip_y_um``, ``tip_z_um`` (integer micrometres, the spatial twin's tip node in the clamp frame at channel 0's
+instant of each sample), present exactly when the metadata has ``tip`` (an object naming its origin); derived
+on load: ``tip_x_mm``, ``tip_y_mm``, ``tip_z_mm``. Recordings from hardware have neither and load unchanged.
+
 A one-tendon recording stays version 2 (``seq,t_us,adc,steps``), written and read exactly as before.
 """
 
@@ -23,10 +28,21 @@ TENDON_SCHEMA_VERSION = 3
 
 MAX_TENDONS = 4
 
+TIP_COLUMNS = ("tip_x_um", "tip_y_um", "tip_z_um")
+"""The optional twin-provided tip columns (integer micrometres), written when the metadata has ``tip``."""
+
+TIP_MM_COLUMNS = ("tip_x_mm", "tip_y_mm", "tip_z_mm")
+"""The tip's position in millimetres, derived on load from :data:`TIP_COLUMNS`."""
+
 
 def tendon_columns(n: int) -> tuple[str, ...]:
     """The CSV's columns of a recording of ``n`` tendons, in order."""
     return ("seq", "t_us") + tuple(f"adc_{i}" for i in range(n)) + tuple(f"steps_{i}" for i in range(n))
+
+
+def recorded_columns(meta: dict[str, Any]) -> tuple[str, ...]:
+    """The CSV's columns of a version-3 recording with this metadata (the tip's when ``meta`` has ``tip``)."""
+    return tendon_columns(tendon_count(meta)) + (TIP_COLUMNS if "tip" in meta else ())
 
 
 def tendon_count(meta: dict[str, Any]) -> int:
@@ -59,6 +75,8 @@ def tendon_meta_problem(meta: dict[str, Any]) -> str | None:
             return f"calibration.{key}: expected a list of {n} {need}finite numbers (one per tendon)"
     if "rig" not in meta:
         return "rig: missing (a recording of several tendons keeps its rig file)"
+    if "tip" in meta and not isinstance(meta["tip"], dict):
+        return "tip: expected an object (the twin-provided tip columns' origin)"
     return None
 
 
@@ -66,7 +84,7 @@ def derive_tendon_columns(frame: pd.DataFrame, meta: dict[str, Any]) -> pd.DataF
     """The raw columns of ``frame`` with ``t_s`` and every tendon's ``tension_n_i`` and ``cable_mm_i``."""
     n = tendon_count(meta)
     cal = meta["calibration"]
-    out = frame.loc[:, list(tendon_columns(n))].copy()
+    out = frame.loc[:, list(recorded_columns(meta))].copy()
     t = out["t_us"].to_numpy(dtype=np.int64)
     out["t_s"] = (t - t[0]) * 1e-6 if len(t) else np.zeros(0)
     for i in range(n):
@@ -74,6 +92,9 @@ def derive_tendon_columns(frame: pd.DataFrame, meta: dict[str, Any]) -> pd.DataF
         out[f"tension_n_{i}"] = (adc - float(cal["offset_counts"][i])) * float(cal["newtons_per_count"][i])
     for i in range(n):
         out[f"cable_mm_{i}"] = out[f"steps_{i}"].to_numpy(float) * float(cal["mm_per_step"][i])
+    if "tip" in meta:
+        for um, mm in zip(TIP_COLUMNS, TIP_MM_COLUMNS, strict=True):
+            out[mm] = out[um].to_numpy(float) * 1e-3
     return out
 
 

@@ -23,7 +23,7 @@ import pandas as pd
 from helpers import rigfile
 from helpers.board.tendon_lines import TendonStreamParser
 from helpers.recordings import Recording
-from helpers.recordings.tendons import TENDON_SCHEMA_VERSION, tendon_columns
+from helpers.recordings.tendons import TENDON_SCHEMA_VERSION, TIP_COLUMNS, recorded_columns
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardTimeout, CommandRefused, WrongRig
 from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard
@@ -32,7 +32,7 @@ from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 from helpers.rigfile.recorded import rig_section
 
-__all__ = ["TendonDaq", "TendonStepper", "TendonRig", "tendon_frame", "tendon_recording"]
+__all__ = ["TendonDaq", "TendonStepper", "TendonRig", "tendon_frame", "tendon_recording", "with_twin_tip"]
 
 
 def _ints(reply: str, skip: int) -> list[int]:
@@ -237,7 +237,8 @@ class TendonRig:
         self.positions = tuple(done[: self.rig.n_tendons])
         if self.positions != end:
             raise BoardError(f"the stepper board ended at {self.positions}, not at the programme's end {end}")
-        return tendon_frame(self.daq.rows, self.rig, start, getattr(self.daq.parser, "channels", 1))
+        frame = tendon_frame(self.daq.rows, self.rig, start, getattr(self.daq.parser, "channels", 1))
+        return with_twin_tip(frame, getattr(self.daq.port, "twin_tip_um", None))
 
     def _read_until_done(self, duration_s: float, tail_s: float) -> None:
         wait = self.daq.waiter(duration_s + tail_s + 5.0)
@@ -290,6 +291,21 @@ class TendonRig:
         window = 2 * floor * max(abs(p) for p in self.positions)
         back = TendonProgramme((TendonItem(window, tuple(-p for p in self.positions)),))
         return self.run(back, rate_hz=rate_hz, tail_s=0.2, rest_ok=True)
+
+
+def with_twin_tip(frame: pd.DataFrame, tip_um: Any) -> pd.DataFrame:
+    """``frame`` with the twin's tip columns (``tip_x_um`` ..) where the port's world provides them.
+
+    ``tip_um`` is the in-process virtual rig's port method (``twin_tip_um(t_us)``); hardware and
+    pseudo-terminal ports have none, and the frame is returned unchanged.
+    """
+    tips = tip_um(frame["t_us"].to_numpy()) if callable(tip_um) and len(frame) else None
+    if tips is None:
+        return frame
+    out = frame.copy()
+    for k, col in enumerate(TIP_COLUMNS):
+        out[col] = np.asarray(tips)[:, k]
+    return out
 
 
 def tendon_frame(
@@ -346,5 +362,8 @@ def tendon_recording(
         "status": status,
         "counts": dict(counts),
     }
-    raw = frame.loc[:, list(tendon_columns(n))].astype(np.int64).reset_index(drop=True)
+    if all(c in frame.columns for c in TIP_COLUMNS):
+        meta["tip"] = {"origin": "twin-provided: the spatial twin's tip node, clamp frame, at channel 0's "
+                       "instant of each sample (not measured)", "unit": "um"}  # fmt: skip
+    raw = frame.loc[:, list(recorded_columns(meta))].astype(np.int64).reset_index(drop=True)
     return Recording(frame=raw, meta=meta).derive()

@@ -2,7 +2,9 @@
 (``firmware/common/rig_config_four_tendon.h``) in simavr: RAM budgets, compile-time refusal of configs that do
 not fit, coordinated four-axis programmes on the pins (every step within one timer tick of the programme, per
 axis), per-axis limits, the one-axis commands on axis 0, and four-channel DAQ frames with each tendon's step
-count; the link budget at 1 Mbaud through the harness's pseudo-terminal (``-m slow``: 60 s of device time).
+count; the link budget at 1 Mbaud through the harness's pseudo-terminal (``-m slow``: 60 s of device time);
+a short four-tendon firmware-in-the-loop run (``fil4.py``: both sketches driving the spatial twin, sample by
+sample).
 """
 
 from __future__ import annotations
@@ -551,3 +553,28 @@ def test_emulated_four_channel_daq_replies_as_the_firmware(
         b if not b.startswith("ERR") else b.split()[:2] for b in emu
     ]
     assert fw[2] == "OK CONFIG 4 4 100 2000"
+
+
+def test_four_tendon_firmware_in_the_loop_short(
+    four_build: tuple[Path, str], firmware_build: None, tmp_path: Path
+) -> None:
+    """A short four-tendon programme through both four-tendon sketches in simavr driving the spatial twin
+    (``fil4.py``, whose full move and per-tendon metrics are ``test_fil4.py``'s, ``-m slow``): every recorded
+    step count of every axis is the stepper sketch's edges at channel 0's conversion, every ADC count simavr's
+    conversion of the twin's millivolts at that channel's own conversion (channel c, c x 104 us later)."""
+    fil4 = pytest.importorskip("fil4")
+    build, _ = four_build
+    elfs = {"daq": build / "daq_mega.elf", "stepper": build / "stepper_uno.elf"}
+    programme = fil4.TendonProgramme.moves([(50_000, (6, 4, 2, 3)), (30_000, (-6, -4, -2, -3))])
+    edges = fil4.programme_edges(programme, elfs["stepper"])
+    # by hand: 6 + 6, 4 + 4, 2 + 2, 3 + 3 steps; axis 0's first at 50 ms / 6 = 8.33 ms after GO, first of all
+    assert [int((edges.axes == a).sum()) for a in range(4)] == [12, 8, 4, 6] and edges.axes[0] == 0
+    assert [int(edges.signs[edges.axes == a].sum()) for a in range(4)] == [0, 0, 0, 0]
+    wave = fil4.tension_waveform(edges, programme.duration_s + 0.5, fil4.four_rig())
+    run = fil4.record(wave, programme, elfs, tmp_path, tail_s=0.1)
+    a = fil4.check_alignment(run, edges, wave)
+    assert a.samples >= 100 and a.adc_mismatches == 0
+    assert a.harness_error <= 0.5 / fil4.SIMAVR_MV_PER_COUNT + 1e-4  # whole millivolts
+    assert a.step_mismatches == a.near_edge <= 0.01 * 4 * a.samples
+    # the twin moved: tendon 0 (6 steps, 1.5 mm) rose above its pretension during the move
+    assert run.frame["tension_n_0"].max() > run.frame["tension_n_0"].iloc[0] + 1.0

@@ -23,9 +23,14 @@ from helpers.rig import Rig
 from helpers.rig.static import record_static
 
 
-def _start_server(speed: float, timeout: float = 120.0) -> tuple[subprocess.Popen, str, str]:
+def start_server(
+    speed: float, timeout: float = 120.0, rig: str | None = None
+) -> tuple[subprocess.Popen, str, str]:
+    """Start ``python -m helpers serve-virtual-rig`` (of ``rig``, default the selected one); its two paths."""
+    extra = [] if rig is None else ["--rig", rig]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "helpers", "serve-virtual-rig", "--speed", str(speed), "--rig-name", "bench"],
+        [sys.executable, "-m", "helpers", "serve-virtual-rig", "--speed", str(speed), "--rig-name", "bench",
+         *extra],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -48,7 +53,7 @@ def _start_server(speed: float, timeout: float = 120.0) -> tuple[subprocess.Pope
 
 def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) -> dict[str, Any]:
     """Stream ``device_s`` of DAQ samples through the pseudo-terminal server; return the figures."""
-    proc, daq, stepper = _start_server(speed)
+    proc, daq, stepper = start_server(speed)
     try:
         rig = Rig.connect(
             (daq, stepper),

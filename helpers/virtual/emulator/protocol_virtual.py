@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import urllib.parse
+from typing import Any
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
@@ -111,6 +112,14 @@ class Serial(SerialBase):
     def device_time(self) -> float:
         """The rig's device clock (s): what the host's timeouts count on this port (``rig.boards.Waiter``)."""
         return self.world.t if self.world is not None else 0.0
+
+    def twin_tip_um(self, t_us: Any) -> Any:
+        """The twin's tip (integer micrometres, clamp frame) at the samples with these ``t_us``, or None.
+
+        Where the world provides it (the several-tendon world): what a recording's optional tip columns hold.
+        """
+        fn = getattr(self.world, "tip_um", None)
+        return fn(t_us) if fn is not None else None
 
     @property
     def in_waiting(self) -> int:

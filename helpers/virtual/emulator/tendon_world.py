@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from helpers import __version__, rigfile
+from helpers.board.protocol import WRAP_US
 from helpers.rigfile import RigFile
 from helpers.virtual.emulator.tendon_boards import (
     BuildLimits,
@@ -51,6 +52,10 @@ class TendonWorld(VirtualWorld):
     limits: BuildLimits | None = None
     tendon_tip: list[np.ndarray] = field(default_factory=list)
     """The tip positions (m, clamp frame) at the samples, in chunks (for checks against the twin)."""
+    tendon_tip_t_us: list[np.ndarray] = field(default_factory=list)
+    """The ``t_us`` of the samples of each chunk of :attr:`tendon_tip` (as the data lines carry it)."""
+    _converting: dict = field(default_factory=dict, repr=False)
+    """(stream start, slot, channel) -> (amplifier output, tip): the channels read of samples not yet sent."""
 
     def __post_init__(self) -> None:
         if self.limits is None:
@@ -64,6 +69,22 @@ class TendonWorld(VirtualWorld):
         self.stepper.reset()
         self.listeners = []
 
+    def tip_um(self, t_us: np.ndarray) -> np.ndarray | None:
+        """The tip's position (integer micrometres, clamp frame) at the samples sent with these ``t_us``.
+
+        At channel 0's instant of each sample; None if the twin gave no tip for one of them.
+        """
+        if not self.tendon_tip:
+            return None
+        known = np.concatenate(self.tendon_tip_t_us)
+        tips = np.concatenate(self.tendon_tip)
+        want = np.asarray(t_us, dtype=np.int64)
+        order = np.argsort(known, kind="stable")
+        i = np.clip(np.searchsorted(known[order], want), 0, len(known) - 1)
+        if not np.array_equal(known[order][i], want):
+            return None
+        return np.rint(tips[order][i] * 1e6).astype(np.int64)
+
     def reseed(self, seed: int) -> None:
         """Restart every load cell's noise (channel 0 from ``seed``, channel c from ``(seed, c)``)."""
         for c, cell in enumerate(self.sensor):
@@ -74,25 +95,45 @@ class TendonWorld(VirtualWorld):
         channels = len(self.sensor)
         step_t, step_a, step_s = stepper.axis_steps_until(t1)
         # channel c is converted c conversions after channel 0 (t_us): a sample is complete, and sent, once
-        # its last channel is read
+        # its last channel is read. The interval (self.t, t1] reads every channel due in it, of the samples it
+        # completes and of the one it leaves converting (kept in _converting until its last channel is read):
+        # the twin is never asked for a past instant, wherever the interval ends (the pseudo-terminal
+        # server's intervals end at wall-clock instants, the in-process rig's on whole samples).
         lag = np.arange(channels) * ADC_CONVERSION_S
-        slots = daq.sample_slots(self.t, t1 - lag[-1])
-        times = daq._t_start + slots / daq.rate
-        reads = (times[:, None] + lag[None, :]).ravel()
+        started = daq.sample_slots(self.t, t1)
+        done = daq.sample_slots(self.t, t1 - lag[-1])
+        times = daq._t_start + started / daq.rate
+        key = daq._t_start
+        converting = {k: v for k, v in self._converting.items() if k[0] == key}
+        due = [(i, c) for i in range(len(started)) for c in range(channels)
+               if (key, int(started[i]), c) not in converting]  # fmt: skip
+        reads = np.array([times[i] + lag[c] for i, c in due], dtype=float)
+        keep = reads > self.t - 1e-12
+        due = [d for d, k in zip(due, keep, strict=True) if k]
+        reads = reads[keep]
         plant_times = reads if len(reads) and reads[-1] >= t1 - 1e-12 else np.append(reads, t1)
         out = self.plant.advance(plant_times, step_t, step_a, step_s)
-        if len(slots):
-            every = np.asarray(out["output"], dtype=float)[: reads.size].reshape(len(times), channels, -1)
-            output = every[:, np.arange(channels), np.arange(channels)]  # channel c at its own instant
-            if "tip" in out:
-                self.tendon_tip.append(np.asarray(out["tip"])[: reads.size : channels])
+        every = np.asarray(out["output"], dtype=float)
+        tip = np.asarray(out["tip"]) if "tip" in out else None
+        for j, (i, c) in enumerate(due):
+            converting[(key, int(started[i]), c)] = (every[j, c], None if tip is None or c else tip[j])
+        n_done = len(done)
+        if n_done:
+            slots = started[:n_done]
+            got = [[converting.pop((key, int(k), c)) for c in range(channels)] for k in slots]
+            output = np.array([[v for v, _ in row] for row in got], dtype=float)
+            if tip is not None:
+                self.tendon_tip.append(np.array([row[0][1] for row in got], dtype=float))
+                t_us = (np.rint(times[:n_done] * 1e6).astype(np.int64) + self.t0_us) % WRAP_US
+                self.tendon_tip_t_us.append(t_us)
             if self.load_n is not None:
                 output = np.full_like(output, self.load_n)
             counts = np.column_stack(
                 [np.asarray(cell.counts(output[:, c]), dtype=np.int64) for c, cell in enumerate(self.sensor)]
             )
-            steps = daq.steps_at(times, step_t, step_a, step_s)
-            daq.emit_samples(slots, times, counts, steps)
+            steps = daq.steps_at(times[:n_done], step_t, step_a, step_s)
+            daq.emit_samples(slots, times[:n_done], counts, steps)
+        self._converting = converting
         daq.count(step_a, step_s)
         self.t = t1
         stepper.finish_if_due(t1)
