@@ -108,7 +108,7 @@ class TendonWorld(VirtualWorld):
         due = [(i, c) for i in range(len(started)) for c in range(channels)
                if (key, int(started[i]), c) not in converting]  # fmt: skip
         reads = np.array([times[i] + lag[c] for i, c in due], dtype=float)
-        keep = reads > self.t - 1e-12
+        keep = (reads > self.t - 1e-12) & (reads <= t1 + 1e-12)  # a channel read later waits for its interval
         due = [d for d, k in zip(due, keep, strict=True) if k]
         reads = reads[keep]
         plant_times = reads if len(reads) and reads[-1] >= t1 - 1e-12 else np.append(reads, t1)
