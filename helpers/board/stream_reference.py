@@ -26,7 +26,8 @@ limits clamp the exact position: at ``c = 156`` with ``r = 0`` an upward ``S`` i
 tick k (``k * 10 ms`` after ``STREAM``) and drives the velocity over ``[(k + 1) * 10 ms, (k + 2) * 10 ms)``.
 
 Several axes (a build with ``RIG_AXES`` > 1, ``MV``): every axis is this planner with its own set-points and
-travel, shaped by the one shaper (:func:`simulate_axes`); the longest delay there is ``MAX_DELAY_US_AXES``.
+travel, shaped by the one shaper (:class:`AxesRun` tick by tick, :class:`AxesSession` with ``MV``'s FIFO,
+:func:`simulate_axes` from the periods the board named); the longest delay there is ``MAX_DELAY_US_AXES``.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -571,7 +573,7 @@ class StreamSession:
     def __init__(self, shaper: StreamShaper, position: int = 0) -> None:
         self.run = StreamRun(shaper, position)
         self.rules = SetpointRules()
-        self.fifo: deque[int] = deque()
+        self.fifo: deque[Any] = deque()
         self.next_period = 1
         self.ended = False
         self.stopped = False
@@ -599,9 +601,32 @@ class StreamSession:
             raise StreamRefused("STATE", "not streaming")
         if not -V_MAX <= v <= V_MAX:
             raise StreamRefused("RANGE", f"set-point -{V_MAX}..{V_MAX}")
+        return self._queue(self._entry((v,)))
+
+    def setpoints(self, vs: Sequence[int]) -> int:
+        """``MV <v_0> ...``: queue one period's set-points (one per axis) and return the period they drive.
+
+        Raises
+        ------
+        StreamRefused
+            ``STATE`` (not streaming, or ending), ``RANGE`` naming the first axis out of range, ``FULL``, in
+            the board's order (the caller has checked that there is one set-point per axis).
+        """
+        if not self.accepting:
+            raise StreamRefused("STATE", "not streaming")
+        for a, v in enumerate(vs):
+            if not -V_MAX <= v <= V_MAX:
+                raise StreamRefused("RANGE", f"axis {a} set-point -{V_MAX}..{V_MAX}")
+        return self._queue(self._entry(tuple(vs)))
+
+    def _entry(self, vs: tuple[int, ...]) -> Any:
+        """What the FIFO holds for one period: axis 0's set-point (one axis)."""
+        return vs[0]
+
+    def _queue(self, entry: Any) -> int:
         if len(self.fifo) >= FIFO_DEPTH:
             raise StreamRefused("FULL", f"{FIFO_DEPTH} set-points queued")
-        self.fifo.append(v)
+        self.fifo.append(entry)
         return self.next_period + len(self.fifo) - 1
 
     def end(self) -> int:
@@ -620,6 +645,106 @@ class StreamSession:
         if not self.run.tick(k, v, self.rules.state):
             self.stopped = True
         return not self.stopped
+
+
+class AxesRun:
+    """A stream of a board with several axes, planned control tick by control tick (as :class:`StreamRun`).
+
+    Every axis is planned by its own :class:`Planner` from the one shaper, with its own travel; the stream
+    stops for every axis at once (``finish_tick``), a period counting as non-zero when any axis's set-point
+    is. :attr:`notices` lists every notice in the order the board sends them: a ``WATCHDOG`` notice first
+    in its tick, then each axis's limit notices of the period, axis by axis (the firmware plans the axes one
+    after another).
+
+    Parameters
+    ----------
+    shaper : StreamShaper
+    positions : sequence of int
+        Each axis's step count at ``STREAM``.
+    travels : sequence of int or None
+        Each axis's travel (default ``TRAVEL_MAX`` each).
+    """
+
+    def __init__(
+        self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None
+    ) -> None:
+        n = len(positions)
+        travels = [TRAVEL_MAX] * n if travels is None else list(travels)
+        pairs = zip(positions, travels, strict=True)
+        self.planners = [Planner(shaper, p, t, a) for a, (p, t) in enumerate(pairs)]
+        self.q_max = self.planners[0].q_max
+        self.finish_tick: int | None = None
+        self.last_nonzero = 0
+        self.watchdog_seen = False
+        self.v_by_axis: list[list[int]] = [[0] for _ in range(n)]
+        self.notices: list[Notice] = []
+        """Every notice so far, in the board's order."""
+
+    def tick(self, k: int, v: int | tuple[int, ...], state: str) -> bool:
+        """Control tick ``k`` with set-points ``v`` (one per axis; an int: axis 0's, the others zero).
+
+        False (nothing planned) once the board has stopped.
+        """
+        n = len(self.planners)
+        vs = tuple(v) if isinstance(v, tuple) else (v,) + (0,) * (n - 1)
+        if state == "watchdog" and not self.watchdog_seen:
+            self.watchdog_seen = True
+            notice = Notice("WATCHDOG", k, k)
+            self.planners[0].notices.append(notice)
+            self.notices.append(notice)
+        if self.finish_tick is not None and k >= self.finish_tick:
+            return False
+        for planner, va, vlist in zip(self.planners, vs, self.v_by_axis, strict=True):
+            before = len(planner.notices)
+            planner.plan_period(k, va)
+            self.notices.extend(planner.notices[before:])
+            vlist.append(va)
+        if any(vs):
+            self.last_nonzero = k
+        if self.finish_tick is None and state != "active" and k - self.last_nonzero >= self.q_max + 2:
+            self.finish_tick = k + 3
+        return True
+
+    def results(self) -> list[StreamResult]:
+        """What the board has done so far, one result per axis (the ``WATCHDOG`` notice in axis 0's)."""
+        return [
+            StreamResult(
+                np.array(p.ticks, dtype=np.int64),
+                np.array(p.dirs, dtype=np.int64),
+                p.notices,
+                self.finish_tick,
+                p.c,
+                p.r,
+                vlist,
+            )
+            for p, vlist in zip(self.planners, self.v_by_axis, strict=True)
+        ]
+
+
+class AxesSession(StreamSession):
+    """:class:`StreamSession` of a board with several axes.
+
+    ``MV`` queues every axis's set-point for a period, ``V`` axis 0's (the others zero); the control tick
+    plans every axis (:class:`AxesRun`).
+
+    Parameters
+    ----------
+    shaper : StreamShaper
+    positions : sequence of int
+        Each axis's step count at ``STREAM``.
+    travels : sequence of int or None
+        Each axis's travel (default ``TRAVEL_MAX`` each).
+    """
+
+    def __init__(
+        self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None
+    ) -> None:
+        super().__init__(shaper, positions[0])
+        self.run = AxesRun(shaper, positions, travels)  # type: ignore[assignment]
+        self.axes = len(positions)
+
+    def _entry(self, vs: tuple[int, ...]) -> Any:
+        return tuple(vs) + (0,) * (self.axes - len(vs))
 
 
 def simulate(
@@ -672,40 +797,12 @@ def simulate_axes(
     the same for every axis) as :class:`StreamRun` says, with a period counting as non-zero when any axis's
     set-point is. The ``WATCHDOG`` notice is in axis 0's result.
     """
-    n = len(positions)
-    travels = [TRAVEL_MAX] * n if travels is None else list(travels)
-    planners = [Planner(shaper, p, t, a) for a, (p, t) in enumerate(zip(positions, travels, strict=True))]
-    q_max = planners[0].q_max
-    finish: int | None = None
-    last_nonzero = 0
-    watchdog_seen = False
-    v_by_axis: list[list[int]] = [[0] for _ in range(n)]
+    run = AxesRun(shaper, positions, travels)
     for k, v, state in commands:
-        vs = tuple(v) if isinstance(v, tuple) else (v,) + (0,) * (n - 1)
-        if state == "watchdog" and not watchdog_seen:
-            watchdog_seen = True
-            planners[0].notices.append(Notice("WATCHDOG", k, k))
-        for planner, va, vlist in zip(planners, vs, v_by_axis, strict=True):
-            planner.plan_period(k, va)
-            vlist.append(va)
-        if any(vs):
-            last_nonzero = k
-        if finish is None and state != "active" and k - last_nonzero >= q_max + 2:
-            finish = k + 3
-        if finish is not None or k >= max_periods:  # (the periods left before the finish are all zero)
+        run.tick(k, v, state)
+        if run.finish_tick is not None or k >= max_periods:  # (the periods left before the finish are zero)
             break
-    return [
-        StreamResult(
-            np.array(p.ticks, dtype=np.int64),
-            np.array(p.dirs, dtype=np.int64),
-            p.notices,
-            finish,
-            p.c,
-            p.r,
-            vlist,
-        )
-        for p, vlist in zip(planners, v_by_axis, strict=True)
-    ]
+    return run.results()
 
 
 # --- the exact trajectory -------------------------------------------------------------------------------

@@ -21,11 +21,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from helpers.rig.safety import SafetyError
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 
-__all__ = ["TendonItem", "TendonProgramme", "check_tendon_programme", "slack_tendons"]
+__all__ = ["TendonItem", "TendonProgramme", "check_tendon_programme", "slack_tendons", "static_tensions"]
 
 
 @dataclass(frozen=True)
@@ -78,13 +80,21 @@ class TendonProgramme:
         return tuple(pos)
 
 
-def slack_tendons(rig: RigFile, positions: Sequence[int]) -> list[bool]:
-    """Whether each tendon is slack at ``positions`` (steps from zero): ``T_0 + k u <= 0`` (N, m)."""
+def static_tensions(rig: RigFile, positions: Sequence[float] | np.ndarray) -> np.ndarray:
+    """Each tendon's tension by the rig file's statics, ``T_0 + k u`` (N), at ``positions`` (steps from zero).
+
+    ``positions``: one per tendon, or an array of such rows (shape ``(..., n)``, fractions of a step allowed).
+    """
     d = derived(rig)
-    return [
-        t.pretension_n + t.cable_stiffness_n_m * p * d.mm_per_step[i] * 1e-3 <= 0.0
-        for i, (t, p) in enumerate(zip(rig.tendons, positions, strict=True))
-    ]
+    pre = np.array([t.pretension_n for t in rig.tendons], dtype=float)
+    k = np.array([t.cable_stiffness_n_m for t in rig.tendons], dtype=float)
+    pull_m = np.asarray(positions, dtype=float) * np.asarray(d.mm_per_step, dtype=float) * 1e-3
+    return pre + k * pull_m
+
+
+def slack_tendons(rig: RigFile, positions: Sequence[float]) -> list[bool]:
+    """Whether each tendon is slack at ``positions`` (steps from zero): ``T_0 + k u <= 0`` (N, m)."""
+    return [bool(x <= 0.0) for x in static_tensions(rig, positions)]
 
 
 def check_tendon_programme(

@@ -262,11 +262,12 @@ class TendonRig:
 
     def _cleanup(self) -> list[str]:
         problems = []
-        for what, fn in (
-            ("ABORT", lambda: self.stepper.abort(timeout=self.cleanup_timeout)),
-            ("EN 0", lambda: self.stepper.enable(False, timeout=self.cleanup_timeout)),
-            ("STOP", lambda: self.daq.stop(timeout=self.cleanup_timeout)),
+        for what, board, fn in (
+            ("ABORT", self.stepper, lambda: self.stepper.abort(timeout=self.cleanup_timeout)),
+            ("EN 0", self.stepper, lambda: self.stepper.enable(False, timeout=self.cleanup_timeout)),
+            ("STOP", self.daq, lambda: self.daq.stop(timeout=self.cleanup_timeout)),
         ):
+            board.hello_seen = 0  # a rebooted board still takes the command
             try:
                 fn()
             except Exception as exc:  # noqa: BLE001 - cleanup must go on

@@ -247,6 +247,7 @@ def stream_cases() -> list[tuple[bytes, str | None, float]]:
         (_c("IMP 0 4096 0"), r"ERR STATE( .*)?", 0),  # no SHAPER yet
         (_c("STREAM"), r"ERR STATE( .*)?", 0),  # no shaper
         (_c("V 0"), r"ERR STATE( .*)?", 0),  # not streaming
+        (_c("MV 0"), r"ERR STATE( .*)?", 0),  # (MV: every build; one axis here)
         (_c("END"), r"ERR STATE( .*)?", 0),
         (_c("SHAPER 2 0"), r"OK SHAPER 2", 0),
         (_c("IMP 1 2048 160"), r"ERR STATE( .*)?", 0),  # impulses in order
@@ -285,6 +286,9 @@ def stream_cases() -> list[tuple[bytes, str | None, float]]:
         (_c("V 0"), r"OK V \d+", 0),
         (_c("V"), r"ERR ARG( .*)?", 0),
         (_c("V 1 2"), r"ERR ARG( .*)?", 0),
+        (_c("MV 0"), r"OK MV \d+", 0),  # one axis: MV <v> is V <v>
+        (_c("MV 1 2"), r"ERR ARG( .*)?", 0),  # one set-point per axis
+        (_c("MV 1641"), r"ERR RANGE( .*)?", 0),
         (_c("V 1641"), r"ERR RANGE( .*)?", 0),
         (_c("V 0"), r"OK V \d+", 0),
         (_c("V -1641"), r"ERR RANGE( .*)?", 0),

@@ -24,6 +24,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from helpers.board.protocol import MAX_LINE, WRAP_US, board_version, checksum, frame
+from helpers.board.stream_reference import MAX_DELAY_US
 from helpers.paper.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
 from helpers.virtual.emulator.framing import frame_many
 from helpers.virtual.emulator.stream_mode import ShaperLoader, StreamMode
@@ -447,6 +448,8 @@ class StepperEmulator(EmulatedBoard):
     """
 
     kind = "stepper"
+    stream_max_delay_us = MAX_DELAY_US
+    """The longest shaper delay ``IMP`` accepts (1 s on a one-axis build)."""
 
     def __init__(self, world: Any, faults: Faults | None = None) -> None:
         super().__init__(world, faults)
@@ -458,7 +461,7 @@ class StepperEmulator(EmulatedBoard):
         self._step_signs = np.zeros(0, dtype=np.int64)
         self._next = 0
         self._end_t = 0.0
-        self.shaper = ShaperLoader()
+        self.shaper = ShaperLoader(self.stream_max_delay_us)
         self.stream: StreamMode | None = None
         """The stream in progress (None when not streaming)."""
 
@@ -467,7 +470,7 @@ class StepperEmulator(EmulatedBoard):
         self.items = []
         self.enabled = False
         self.position = 0
-        self.shaper = ShaperLoader()
+        self.shaper = ShaperLoader(self.stream_max_delay_us)
         super().reset()
 
     def _stop(self) -> None:
@@ -634,6 +637,14 @@ class StepperEmulator(EmulatedBoard):
         if self.stream is None:
             return "ERR STATE not streaming"
         return self.stream.setpoint(cmd.args[0])
+
+    def cmd_MV(self, cmd: _Command) -> str:  # noqa: N802, D102
+        # one axis (the paper's build): MV <v_0> is V <v_0>, answered OK MV
+        if err := self._arg_error(cmd, 1):
+            return err
+        if self.stream is None:
+            return "ERR STATE not streaming"
+        return self.stream.setpoints(cmd.args)
 
     def cmd_END(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 0):

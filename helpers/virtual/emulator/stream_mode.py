@@ -1,4 +1,4 @@
-"""The emulated stepper's streaming mode (``SHAPER``, ``IMP``, ``STREAM``, ``V``, ``END``) in device time.
+"""The emulated stepper's streaming mode (``SHAPER``, ``IMP``, ``STREAM``, ``V``, ``MV``, ``END``).
 
 Every rule and every number comes from :mod:`helpers.board.stream_reference`, the reference of the firmware's
 streaming
@@ -9,11 +9,16 @@ the watchdog and the control tick (:class:`~helpers.board.stream_reference.Strea
 ``IMP`` handler
 does, runs the control ticks on the world's device clock (tick k at ``STREAM`` + k x 10 ms) and words the
 replies and notices as the firmware does.
+
+A board with several axes (:class:`AxesStreamMode`) runs
+:class:`~helpers.board.stream_reference.AxesSession` instead: every axis planned from the one shaper with its
+own travel, ``MV`` for every axis's set-point, the STEP edges 24 us after their ticks (the firmware's
+``STREAM_LEAD_AXES``), the longest delay 0.62 s.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -22,19 +27,28 @@ from helpers.board import stream_reference as hs
 STEP_EDGE_S = 16e-6
 """A streamed STEP edge follows its planned tick by 16 us (the firmware's ``STREAM_STEP_LEAD_TICKS``)."""
 
+STEP_EDGE_AXES_S = 24e-6
+"""On a build with several axes a streamed STEP edge follows its tick by 24 us (``STREAM_LEAD_AXES``)."""
+
 PERIOD_S = hs.PERIOD_TICKS * hs.TICK_S
 """The control period (10 ms)."""
 
-_RANGE_TEXT = {
-    "amplitude": "ERR RANGE amplitude -16384..16384 (>= 0 unless allowed)",
-    "delay": "ERR RANGE delay: 0 first, rising, 16 us units, <= 1 s",
-}
+AMPLITUDE_TEXT = "ERR RANGE amplitude -16384..16384 (>= 0 unless allowed)"
+
+
+def delay_text(max_delay_us: int) -> str:
+    """The refusal of a delay (``<= 1 s``; ``<= 0.62 s`` on a build with several axes)."""
+    return f"ERR RANGE delay: 0 first, rising, 16 us units, <= {max_delay_us / 1e6:g} s"
 
 
 class ShaperLoader:
-    """``SHAPER <n> <neg>`` then ``IMP <i> <a> <d_us>`` for i = 0 .. n-1, checked impulse by impulse."""
+    """``SHAPER <n> <neg>`` then ``IMP <i> <a> <d_us>`` for i = 0 .. n-1, checked impulse by impulse.
 
-    def __init__(self) -> None:
+    ``max_delay_us``: the build's longest delay (``MAX_DELAY_US``; ``MAX_DELAY_US_AXES`` for several axes).
+    """
+
+    def __init__(self, max_delay_us: int = hs.MAX_DELAY_US) -> None:
+        self.max_delay_us = max_delay_us
         self.ready: hs.StreamShaper | None = None
         """The loaded shaper (None until a complete, valid one has been loaded)."""
         self._expect = 0
@@ -59,10 +73,10 @@ class ShaperLoader:
         if not self._expect or index != i:
             return "ERR STATE SHAPER first, impulses in order"
         previous = self._delays[-1] if self._delays else -1
-        problem = hs.impulse_problem(i, amplitude, delay_us, previous, self._negative)
+        problem = hs.impulse_problem(i, amplitude, delay_us, previous, self._negative, self.max_delay_us)
         if problem is not None:
             self._expect = 0  # the shaper is discarded: start again with SHAPER
-            return _RANGE_TEXT[problem]
+            return AMPLITUDE_TEXT if problem == "amplitude" else delay_text(self.max_delay_us)
         self._amplitudes.append(amplitude)
         self._delays.append(delay_us)
         if len(self._amplitudes) == self._expect:
@@ -113,6 +127,13 @@ class StreamMode:
         except hs.StreamRefused as exc:
             return str(exc)
 
+    def setpoints(self, vs: Sequence[int]) -> str:
+        """``MV <v_0> ...`` (the caller has checked that there is one per axis): the reply."""
+        try:
+            return f"OK MV {self.session.setpoints(vs)}"
+        except hs.StreamRefused as exc:
+            return str(exc)
+
     def end(self) -> str:
         """``END``: the reply."""
         try:
@@ -156,3 +177,66 @@ class StreamMode:
         times.append(due[0])
         signs.append(due[1])
         return np.concatenate(times), np.concatenate(signs)
+
+
+class AxesStreamMode(StreamMode):
+    """One stream of the emulated stepper of a build with several axes, on the world's device clock.
+
+    Parameters
+    ----------
+    shaper : helpers.board.stream_reference.StreamShaper
+        The loaded shaper (every axis's).
+    positions : sequence of int
+        Each axis's step count at ``STREAM``.
+    travels : sequence of int
+        Each axis's travel (the build's).
+    t0 : float
+        Device time of ``STREAM`` (s).
+    send : callable
+        Queues one line from the board (notices, with ``,<axis>`` for axes 1..).
+    """
+
+    def __init__(
+        self, shaper: hs.StreamShaper, positions: Sequence[int], travels: Sequence[int], t0: float,
+        send: Callable[[str], None],
+    ) -> None:  # fmt: skip
+        super().__init__(shaper, positions[0], t0, send)
+        self.session = hs.AxesSession(shaper, positions, travels)
+        self._planned_axes = [0] * len(positions)
+        self._axes = np.zeros(0, dtype=np.int64)
+
+    def _take_axes(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        j = int(np.searchsorted(self._times, t + 1e-12, side="right"))
+        out = self._times[:j], self._axes[:j], self._signs[:j]
+        self._times, self._axes, self._signs = self._times[j:], self._axes[j:], self._signs[j:]
+        return out
+
+    def _tick(self) -> None:
+        alive = self.session.tick()
+        run = self.session.run
+        for n in run.notices[self._noticed :]:
+            self._send(n.line)
+        self._noticed = len(run.notices)
+        times, axes, signs = [self._times], [self._axes], [self._signs]
+        for a, planner in enumerate(run.planners):
+            done = self._planned_axes[a]
+            if len(planner.ticks) > done:
+                ticks = np.asarray(planner.ticks[done:], dtype=np.int64)
+                times.append(self.t0 + ticks * hs.TICK_S + STEP_EDGE_AXES_S)
+                axes.append(np.full(len(ticks), a, dtype=np.int64))
+                signs.append(np.asarray(planner.dirs[done:], dtype=np.int64))
+                self._planned_axes[a] = len(planner.ticks)
+        if len(times) > 1:
+            t, ax = np.concatenate(times), np.concatenate(axes)
+            order = np.lexsort((ax, t))  # by time, steps on one tick in the axes' order
+            self._times, self._axes, self._signs = t[order], ax[order], np.concatenate(signs)[order]
+        self.finished = not alive
+
+    def axis_steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Run the control ticks due by ``t1`` and take the steps due by ``t1``: ``(times, axes, signs)``."""
+        parts = []
+        while not self.finished and self.next_tick <= t1 + 1e-12:
+            parts.append(self._take_axes(self.next_tick))
+            self._tick()
+        parts.append(self._take_axes(t1))
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))  # type: ignore[return-value]

@@ -5,8 +5,16 @@ tendons*): ``MSEG <window_us> <n_0> ... <n_{A-1}>`` moves every axis in one wind
 n steps on the 0.5 us tick ``ceil(k * 2 W / n)`` from the item's start (the firmware's remainder recurrence);
 ``SEG`` moves axis 0, ``WAIT`` is a dwell of every axis; ``CONFIG`` reports the axes, the programme length,
 the interval limits and each axis's travel; ``DONE``, ``ABORTED`` and ``OK POS`` list every axis's position;
-``GO`` refuses the first axis (in axis order) that the programme would take past its travel. A stream drives
-axis 0 only, as the firmware's.
+``GO`` refuses the first axis (in axis order) that the programme would take past its travel.
+
+Streams shape every axis with the one loaded shaper, as the firmware's multi-axis stream mode does
+(:class:`~helpers.virtual.emulator.stream_mode.AxesStreamMode`, on
+:class:`helpers.board.stream_reference.AxesSession`): ``MV <v_0> ... <v_{A-1}>`` -> ``OK MV <period>``,
+``V <v>`` axis 0's set-point (the others zero), each axis clamped at its own travel with its notices
+(``N,LIMIT,TRAVEL,156,1``: axes 1.. append ``,<axis>``), the longest delay 0.62 s (``IMP`` refuses longer);
+``STREAM`` empties the programme (whose table the firmware's stream state takes) and ``CLEAR``, ``SEG``,
+``MSEG`` and ``WAIT`` get ``ERR STATE streaming`` while streaming. ``OK STREAM`` names axis 0's position,
+``DONE`` every axis's.
 
 :class:`TendonDaqEmulator` is the DAQ firmware built for C channels and A axes: ``OK CONFIG <C> <A> <min>
 <max>`` and data lines ``D,<seq>,<t_us>,<adc_0>,...,<adc_{C-1}>,<steps_0>,...,<steps_{A-1}>``.
@@ -22,9 +30,11 @@ from typing import Any
 
 import numpy as np
 
+from helpers.board.stream_reference import MAX_DELAY_US, MAX_DELAY_US_AXES
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 from helpers.virtual.emulator.boards import DaqEmulator, Faults, StepperEmulator, _Command
+from helpers.virtual.emulator.stream_mode import AxesStreamMode
 
 __all__ = ["BuildLimits", "build_limits", "TendonStepperEmulator", "TendonDaqEmulator"]
 
@@ -102,6 +112,10 @@ class TendonStepperEmulator(StepperEmulator):
         self._step_axes = np.zeros(0, dtype=np.int64)
         super().__init__(world, faults)
 
+    @property
+    def stream_max_delay_us(self) -> int:  # type: ignore[override]  # noqa: D102
+        return MAX_DELAY_US_AXES if self.limits.axes > 1 else MAX_DELAY_US
+
     # --- replies ------------------------------------------------------------------------------------
     def _positions(self, word: str) -> str:
         return f"{word} " + " ".join(map(str, self.positions))
@@ -128,6 +142,14 @@ class TendonStepperEmulator(StepperEmulator):
             f"OK CONFIG {lim.axes} {lim.programme_max} {lim.min_interval_us} {lim.max_interval_us} {travel}"
         )
 
+    def _locked(self) -> str | None:
+        """The firmware's ``editable()``: no programme edit while it runs or a stream holds its table."""
+        if self.running:
+            return "ERR STATE running"
+        if self.stream is not None and self.limits.axes > 1:
+            return "ERR STATE streaming"
+        return None
+
     def _add(self, item: _Window) -> str | None:
         if len(self.windows) >= self.limits.programme_max:
             return f"ERR FULL {self.limits.programme_max} items"
@@ -135,16 +157,14 @@ class TendonStepperEmulator(StepperEmulator):
         return None
 
     def cmd_CLEAR(self, cmd: _Command) -> str:  # noqa: N802, D102
-        reply = super().cmd_CLEAR(cmd)
-        if reply == "OK CLEAR":
-            self.windows = []
-        return reply
+        if err := self._arg_error(cmd, 0) or self._locked():
+            return err
+        self.items, self.windows = [], []
+        return "OK CLEAR"
 
     def cmd_SEG(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 3):
+        if err := self._arg_error(cmd, 3) or self._locked():
             return err
-        if self.running:
-            return "ERR STATE running"
         lim = self.limits
         d, n, iv = cmd.args
         if d not in (1, -1):
@@ -160,8 +180,8 @@ class TendonStepperEmulator(StepperEmulator):
         lim = self.limits
         if cmd.bad or len(cmd.args) != 1 + lim.axes:
             return f"ERR ARG MSEG needs {1 + lim.axes} integers"
-        if self.running:
-            return "ERR STATE running"
+        if err := self._locked():
+            return err
         window, *ns = cmd.args
         if not 1 <= window <= 255 * lim.max_interval_us:
             return f"ERR RANGE window 1-{255 * lim.max_interval_us} us"
@@ -176,10 +196,8 @@ class TendonStepperEmulator(StepperEmulator):
         return self._add(_Window(window, tuple(ns))) or f"OK MSEG {len(self.windows)}"
 
     def cmd_WAIT(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 1):
+        if err := self._arg_error(cmd, 1) or self._locked():
             return err
-        if self.running:
-            return "ERR STATE running"
         if not 0 <= cmd.args[0] <= self.limits.max_dwell_ms:
             return f"ERR RANGE dwell 0-{self.limits.max_dwell_ms} ms"
         return self._add(_Window(1000 * cmd.args[0], None)) or f"OK WAIT {len(self.windows)}"
@@ -228,6 +246,26 @@ class TendonStepperEmulator(StepperEmulator):
         self.world.go_times.append(go)
         return f"OK GO {len(self.windows)}"
 
+    # --- streaming: every axis (firmware/PROTOCOL.md, the end of "Stepper board: streaming mode") ---------
+    def cmd_STREAM(self, cmd: _Command) -> str:  # noqa: N802, D102
+        reply = super().cmd_STREAM(cmd)  # the checks, and one axis's stream
+        if not reply.startswith("OK") or self.limits.axes == 1:
+            return reply
+        self.windows = []  # the stream's state takes the programme table's RAM
+        self.positions[0] = self.position
+        assert self.shaper.ready is not None
+        self.stream = AxesStreamMode(self.shaper.ready, list(self.positions), self.limits.travel_steps,
+                                     self.world.t, self.send)  # fmt: skip
+        return reply
+
+    def cmd_MV(self, cmd: _Command) -> str:  # noqa: N802, D102
+        axes = self.limits.axes
+        if cmd.bad or len(cmd.args) != axes:
+            return f"ERR ARG MV needs {axes} integer{'s' if axes > 1 else ''}"
+        if self.stream is None:
+            return "ERR STATE not streaming"
+        return self.stream.setpoints(cmd.args)
+
     def cmd_ABORT(self, cmd: _Command) -> str:  # noqa: N802, D102
         reply = super().cmd_ABORT(cmd)
         if reply.startswith("ABORTED"):
@@ -246,7 +284,9 @@ class TendonStepperEmulator(StepperEmulator):
         """Take the steps due at or before ``t1``: ``(times, axes, signs)`` (positions updated)."""
         if self.hung or self.disconnected or (self.stream is None and not self.running):
             return np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-        if self.stream is not None:  # a stream drives axis 0
+        if isinstance(self.stream, AxesStreamMode):
+            return self._stream_steps_until(t1)
+        if self.stream is not None:  # one axis
             times, signs = self.steps_until(t1)
             self.positions[0] = self.position
             return times, np.zeros(len(times), dtype=np.int64), signs
@@ -257,6 +297,20 @@ class TendonStepperEmulator(StepperEmulator):
         for a in range(self.limits.axes):
             self.positions[a] += int(signs[axes == a].sum())
         self.position = self.positions[0]
+        return times, axes, signs
+
+    def _stream_steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        stream = self.stream
+        assert isinstance(stream, AxesStreamMode)
+        times, axes, signs = stream.axis_steps_until(t1)
+        for a in range(self.limits.axes):
+            self.positions[a] += int(signs[axes == a].sum())
+        self.position = self.positions[0]
+        if stream.finished:
+            if stream.session.watchdog:  # the watchdog's stream ends with the driver disabled
+                self.enabled = False
+            self.stream = None
+            self.send(self._positions("DONE"))
         return times, axes, signs
 
 
