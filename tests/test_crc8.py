@@ -238,6 +238,7 @@ def test_every_burst_of_up_to_8_bits_that_leaves_the_line_whole_is_detected(body
                     assert all(body.endswith(w) for w in wrong), (body, length, start, pattern)
 
 
+@pytest.mark.slow  # single-bit errors and bursts up to 8 bits: the default suite
 def test_two_bit_errors():
     """Data lines (bodies <= 20 bytes, whose bytes are all >= 3 flips from '\\n'): every 2-bit error anywhere;
     bodies <= 30 bytes: every 2-bit error inside the body; 60 bytes: only flips exactly 255 bits apart."""

@@ -159,7 +159,8 @@ def recordings_calibration() -> dict:
 @pytest.mark.parametrize(
     "sig, status",
     [
-        (signal.SIGTERM, 143),
+        # the default suite's signal checks are in-process (tests/test_run_signals.py, test_cli_signals.py)
+        pytest.param(signal.SIGTERM, 143, marks=pytest.mark.slow),
         pytest.param(signal.SIGHUP, 129, marks=pytest.mark.slow),
         pytest.param(signal.SIGINT, 130, marks=pytest.mark.slow),
     ],

@@ -43,6 +43,7 @@ def test_failure_names_notebook_and_cell(tmp_path):
         reproduce.execute_notebook(bad, timeout=60)
 
 
+@pytest.mark.slow
 def test_priority_starts_a_long_notebook_first(tmp_path, capsys):
     a = _write(tmp_path / "01_a.ipynb", ["1"])
     b = _write(tmp_path / "02_b.ipynb", ["2"])
@@ -65,6 +66,7 @@ def test_stream_outputs_are_merged_so_reruns_store_the_same_bytes(tmp_path):
     assert [(o["output_type"], o["name"], o["text"]) for o in outputs] == [("stream", "stdout", "a\nb\n")]
 
 
+@pytest.mark.slow
 def test_reproduce_undoes_what_a_jupyterlab_autosave_changes(tmp_path):
     """Measured: JupyterLab (4.x, ipykernel) that opens a stored notebook rewrites its kernelspec's display
     name within its 2-minute autosave; one that ran it may add widget state, cell metadata and timings."""

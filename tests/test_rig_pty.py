@@ -61,6 +61,7 @@ def test_record_over_pseudo_terminals(tmp_path):
     finish()
 
 
+@pytest.mark.slow  # streams in-process: tests/test_rig_stream.py (default suite)
 @pytest.mark.streaming
 def test_stream_over_pseudo_terminals_in_real_time(tmp_path):
     """The same StreamRig.stream as in-process, paced by the server's device clock through the ports (at half

@@ -94,6 +94,7 @@ def reference(tmp_path_factory):
     return ds, report, out
 
 
+@pytest.mark.slow  # the serial loop and the batch API in the default suite; a cluster here and in -m slow
 def test_tiny_sweep_on_a_local_cluster_of_two_workers_equals_the_serial_loop(tmp_path, reference):
     d = tiny()
     serial, rep_s, serial_path = reference

@@ -359,7 +359,8 @@ def _release_energy(h, actuator):
 
 
 @pytest.mark.parametrize(
-    ("actuator", "h_fine", "h_coarse"), [("ideal", 5e-5, 2e-4), ("stepper+carriage", 1.25e-5, 5e-5)]
+    ("actuator", "h_fine", "h_coarse"),
+    [("ideal", 5e-5, 2e-4), pytest.param("stepper+carriage", 1.25e-5, 5e-5, marks=pytest.mark.slow)],
 )
 def test_energy_conserved_without_damping(actuator, h_fine, h_coarse):
     """Damping off: the energy stays put through slack and re-engagement (hundreds of times for the undamped

@@ -27,6 +27,10 @@ BAUD = {"daq": 500_000, "stepper": 115_200}
 PING = b"PING*79\n"
 
 
+FLOODS = ["random bytes", pytest.param("newlines", marks=pytest.mark.slow),
+          pytest.param("long lines", marks=pytest.mark.slow)]  # fmt: skip
+"""The floods: random bytes in the default suite, the two structured ones in the slow suite."""
+
 def _floods(n: int) -> dict[str, bytes]:
     rng = np.random.default_rng(7)
     return {
@@ -37,7 +41,7 @@ def _floods(n: int) -> dict[str, bytes]:
 
 
 @pytest.mark.firmware
-@pytest.mark.parametrize("flood", ["random bytes", "newlines", "long lines"])
+@pytest.mark.parametrize("flood", FLOODS)
 @pytest.mark.parametrize("board", ["daq", "stepper"])
 def test_the_firmware_answers_ping_within_a_second_after_a_flood(firmware_build, board, flood):
     junk = _floods(20_000)[flood]
@@ -81,7 +85,7 @@ def test_over_the_pseudo_terminal_the_daq_answers_within_a_second_after_a_burst(
         proc.wait(timeout=30)
 
 
-@pytest.mark.parametrize("flood", ["random bytes", "newlines", "long lines"])
+@pytest.mark.parametrize("flood", FLOODS)
 @pytest.mark.parametrize("board", ["daq", "stepper"])
 def test_the_emulated_board_answers_ping_within_a_second_after_a_flood(board, flood):
     world = make_world()
