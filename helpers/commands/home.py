@@ -80,10 +80,20 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
     programme = home_programme(position, speed_mm_s)
     check_programme(programme, start_position=position)
     stepper.load(programme, start_position=position)
+    _run_home(stepper, programme.duration_s)
+    return (
+        f"moved {abs(position)} steps ({abs(position) * MM_PER_STEP:.2f} mm) back to position "
+        f"{stepper.done_position} at {speed_mm_s:g} mm/s (driver disabled)"
+    )
+
+
+
+def _run_home(stepper: StepperBoard, duration_s: float) -> None:
+    """Run the loaded homing programme of ``duration_s`` until ``DONE``; the driver off afterwards, always."""
     try:
         stepper.enable(True)
         stepper.go()
-        wait = stepper.waiter(programme.duration_s + 2.0)
+        wait = stepper.waiter(duration_s + 2.0)
         while stepper.done_position is None:
             stepper.pump()
             stepper.check_reset()
@@ -95,11 +105,6 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
             stepper.enable(False)
         except BoardError:
             pass
-    return (
-        f"moved {abs(position)} steps ({abs(position) * MM_PER_STEP:.2f} mm) back to position "
-        f"{stepper.done_position} at {speed_mm_s:g} mm/s (driver disabled)"
-    )
-
 
 def _home_every_axis(stepper: StepperBoard, positions: tuple[int, ...], speed_mm_s: float) -> str:
     """Every axis back to 0 in one ``MSEG`` at ``speed_mm_s`` for the farthest one (the others slower)."""
@@ -113,21 +118,7 @@ def _home_every_axis(stepper: StepperBoard, positions: tuple[int, ...], speed_mm
         back = TendonProgramme((TendonItem(window, tuple(-p for p in positions)),))
         check_tendon_programme(back, rig, positions, rest_ok=True)
     stepper.send_all(["CLEAR", f"MSEG {window} " + " ".join(str(-p) for p in positions)])
-    try:
-        stepper.enable(True)
-        stepper.go()
-        wait = stepper.waiter(window * 1e-6 + 2.0)
-        while stepper.done_position is None:
-            stepper.pump()
-            stepper.check_reset()
-            if wait.expired:
-                raise BoardTimeout("the stepper board did not report DONE on its way home")
-            wait.idle(stepper.port.timeout or 0.0)
-    finally:
-        try:
-            stepper.enable(False)
-        except BoardError:
-            pass
+    _run_home(stepper, window * 1e-6)
     now = stepper.command("POS").split()[2:]
     moved = ", ".join(f"tendon {i + 1} {abs(p)}" for i, p in enumerate(positions) if p)
     return (
