@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from tendon_fakes import Clock, talk
 
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line
 from helpers.board import stream_reference as hs
-from helpers.board.protocol import frame
 from helpers.rig.boards import BoardReset
 from helpers.rig.safety import SafetyError
 from helpers.rig.stream import StreamLimit
@@ -31,20 +31,6 @@ def four() -> rigfile.RigFile:
     return rigfile.load(rigfile.resolve("four-tendon"))
 
 
-class _Clock:
-    def __init__(self) -> None:
-        self.t, self.seed, self.t0_us, self.go_times = 0.0, 0, 0, []
-
-
-def _talk(board, *cmds: str) -> list[str]:
-    out = []
-    for c in cmds:
-        board.receive(frame(c))
-        out += [line.decode().rstrip("\n").rpartition("*")[0] for line in board.out]
-        board.out.clear()
-    return out
-
-
 # --- the emulated four-tendon stepper ----------------------------------------------------------------------
 def test_emulated_stepper_streams_every_axis(four) -> None:
     """Unit shaper, ten periods of MV 1000 0 500 -100 (the FIFO holds 8): axis 0 moves
@@ -52,41 +38,41 @@ def test_emulated_stepper_streams_every_axis(four) -> None:
     from 0 and held there (its notice names the axis); period k drives [(k + 1) T, (k + 2) T), so axis 0's
     first step is due 20 ms + 65536 / 1000 x 16 us = 21.048576 ms after STREAM, on the tick at or after it
     (21.0490 ms), its edge 24 us later."""
-    clock = _Clock()
+    clock = Clock()
     s = TendonStepperEmulator(clock, build_limits(four))
     s.reset()
     s.out.clear()
-    assert _talk(s, "EN 1", "MSEG 100000 1 1 1 1", *hs.UNIT_SHAPER.commands(), "STREAM") == [
+    assert talk(s, "EN 1", "MSEG 100000 1 1 1 1", *hs.UNIT_SHAPER.commands(), "STREAM") == [
         "OK EN 1", "OK MSEG 1", "OK SHAPER 1", "OK IMP 0", "OK STREAM 0",
     ]  # fmt: skip
-    replies = _talk(s, *["MV 1000 0 500 -100"] * 8, "MV 1000 0 500 -100")
+    replies = talk(s, *["MV 1000 0 500 -100"] * 8, "MV 1000 0 500 -100")
     assert replies == [f"OK MV {k}" for k in range(1, 9)] + ["ERR FULL 8 set-points queued"]
     s.axis_steps_until(0.0105)  # tick 1 takes period 1's set-points: axis 3 is held at 0 at once
-    assert _talk(s, "MV 1000 0 500 -100", "MV 1000 0 500 -100") == [
+    assert talk(s, "MV 1000 0 500 -100", "MV 1000 0 500 -100") == [
         "N,LIMIT,TRAVEL,0,3", "OK MV 9", "ERR FULL 8 set-points queued",
     ]  # fmt: skip
     s.axis_steps_until(0.0205)
-    assert _talk(s, "MV 1000 0 500 -100", "V 7", "END") == ["OK MV 10", "ERR FULL 8 set-points queued",
+    assert talk(s, "MV 1000 0 500 -100", "V 7", "END") == ["OK MV 10", "ERR FULL 8 set-points queued",
                                                             "OK END 11"]  # fmt: skip
     times, axes, signs = s.axis_steps_until(1.0)
     assert [b.decode().split("*")[0] for b in s.out] == ["DONE 95 0 47 0"]
     s.out.clear()
     assert [int((axes == a).sum()) for a in range(4)] == [95, 0, 47, 0] and set(signs.tolist()) == {1}
     assert times[axes == 0][0] == pytest.approx(0.0210490 + 24e-6, abs=1e-9)
-    assert _talk(s, "GO", "POS") == ["ERR STATE programme empty", "OK POS 95 0 47 0"]  # STREAM emptied it
+    assert talk(s, "GO", "POS") == ["ERR STATE programme empty", "OK POS 95 0 47 0"]  # STREAM emptied it
 
 
 def test_emulated_stepper_stream_refusals(four) -> None:
-    clock = _Clock()
+    clock = Clock()
     s = TendonStepperEmulator(clock, build_limits(four))
     s.reset()
     s.out.clear()
-    assert _talk(s, "EN 1", "SHAPER 2 0", "IMP 0 2048 0", "IMP 1 2048 620016", "MV 0 0 0 0") == [
+    assert talk(s, "EN 1", "SHAPER 2 0", "IMP 0 2048 0", "IMP 1 2048 620016", "MV 0 0 0 0") == [
         "OK EN 1", "OK SHAPER 2", "OK IMP 0",
         "ERR RANGE delay: 0 first, rising, 16 us units, <= 0.62 s",  # a build with several axes: 0.62 s
         "ERR STATE not streaming",
     ]  # fmt: skip
-    assert _talk(s, "SHAPER 2 0", "IMP 0 2048 0", "IMP 1 2048 620000", "STREAM", "MV 1 2 3", "MV 0 1641 0 0",
+    assert talk(s, "SHAPER 2 0", "IMP 0 2048 0", "IMP 1 2048 620000", "STREAM", "MV 1 2 3", "MV 0 1641 0 0",
                  "CLEAR", "SEG 1 1 1000", "MSEG 10000 1 1 1 1", "WAIT 1", "SHAPER 1 0", "STREAM",
                  "ABORT") == [
         "OK SHAPER 2", "OK IMP 0", "OK IMP 1", "OK STREAM 0",

@@ -16,6 +16,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from tendon_fakes import Clock, talk
 
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
@@ -45,22 +46,8 @@ def four() -> rigfile.RigFile:
     return rigfile.load(rigfile.resolve("four-tendon"))
 
 
-class _Clock:
-    def __init__(self) -> None:
-        self.t, self.seed, self.t0_us, self.go_times = 0.0, 0, 0, []
-
-
-def _talk(board, *cmds: str) -> list[str]:
-    out = []
-    for c in cmds:
-        board.receive(frame(c))
-        out += [line.decode().rstrip("\n").rpartition("*")[0] for line in board.out]
-        board.out.clear()
-    return out
-
-
-def _stepper(four: rigfile.RigFile) -> tuple[TendonStepperEmulator, _Clock]:
-    clock = _Clock()
+def _stepper(four: rigfile.RigFile) -> tuple[TendonStepperEmulator, Clock]:
+    clock = Clock()
     s = TendonStepperEmulator(clock, build_limits(four))
     s.reset()
     s.out.clear()
@@ -76,11 +63,11 @@ def test_build_limits_are_the_rig_files(four: rigfile.RigFile) -> None:
 
 def test_emulated_stepper_replies_per_axis(four: rigfile.RigFile) -> None:
     s, _ = _stepper(four)
-    assert _talk(s, "PING", "CONFIG") == [
+    assert talk(s, "PING", "CONFIG") == [
         f"PONG stepper 2.3.0+{four.hash}",
         "OK CONFIG 4 64 639 1000000 156 156 156 156",
     ]
-    assert _talk(s, "EN 1", "MSEG 100000 10 7 157 0", "MSEG 10000 0 16 0 0", "MSEG 100000 0 0 0",
+    assert talk(s, "EN 1", "MSEG 100000 10 7 157 0", "MSEG 10000 0 16 0 0", "MSEG 100000 0 0 0",
                  "MSEG 100000 0 0 0 0", "MSEG 200000 100 100 100 100", "MSEG 200000 50 50 50 57", "GO",
                  "POS") == [
         "OK EN 1",
@@ -97,7 +84,7 @@ def test_emulated_stepper_replies_per_axis(four: rigfile.RigFile) -> None:
 
 def test_emulated_stepper_steps_on_the_firmware_ticks(four: rigfile.RigFile) -> None:
     s, clock = _stepper(four)
-    assert _talk(s, "EN 1", "MSEG 7001 3 0 1 2", "WAIT 1", "SEG 1 2 1000", "GO")[-1] == "OK GO 3"
+    assert talk(s, "EN 1", "MSEG 7001 3 0 1 2", "WAIT 1", "SEG 1 2 1000", "GO")[-1] == "OK GO 3"
     times, axes, signs = s.axis_steps_until(1.0)
     # step k of n in W: tick ceil(k 2W / n) (0.5 us): 14002/3 -> 4668, 9335, 14002 ticks; one step at the
     # window's end; 14002/2 -> 7001, 14002; then the dwell (1 ms) and 1000 us per SEG step
@@ -110,10 +97,10 @@ def test_emulated_stepper_steps_on_the_firmware_ticks(four: rigfile.RigFile) -> 
 
 
 def test_emulated_daq_sends_every_channel_and_axis(four: rigfile.RigFile) -> None:
-    clock = _Clock()
+    clock = Clock()
     d = TendonDaqEmulator(clock, build_limits(four))
     d.reset()
-    assert _talk(d, "CONFIG", "RATE 50")[1:] == ["OK CONFIG 4 4 100 2000", "ERR RANGE rate 100-2000 Hz"]
+    assert talk(d, "CONFIG", "RATE 50")[1:] == ["OK CONFIG 4 4 100 2000", "ERR RANGE rate 100-2000 Hz"]
     body = d.payload(np.array([[180, 181, 182, 183]]), np.array([[0, 5, -3, 156]]))
     assert body == ["180,181,182,183,0,5,-3,156"]
 
@@ -145,8 +132,8 @@ def test_world_drives_each_tendon_from_its_axis(four: rigfile.RigFile) -> None:
     w = tendon_world(four, "tendons-test-pull")
     for b in (w.daq, w.stepper):
         b.take_output()
-    _talk(w.daq, "START")
-    assert _talk(w.stepper, "EN 1", "MSEG 20000 0 0 0 20", "GO") == ["OK EN 1", "OK MSEG 1", "OK GO 1"]
+    talk(w.daq, "START")
+    assert talk(w.stepper, "EN 1", "MSEG 20000 0 0 0 20", "GO") == ["OK EN 1", "OK MSEG 1", "OK GO 1"]
     w.advance_to(0.4)
     rows = [line.split(b"*")[0].decode().split(",") for line in w.daq.take_output().splitlines()]
     data = np.array([[int(x) for x in r[1:]] for r in rows if r[0] == "D"])
@@ -160,8 +147,8 @@ def test_world_drives_each_tendon_from_its_axis(four: rigfile.RigFile) -> None:
 def _pull_data(w, ends) -> np.ndarray:
     for b in (w.daq, w.stepper):
         b.take_output()
-    _talk(w.daq, "START")
-    _talk(w.stepper, "EN 1", "MSEG 20000 0 0 0 20", "GO")
+    talk(w.daq, "START")
+    talk(w.stepper, "EN 1", "MSEG 20000 0 0 0 20", "GO")
     for t in ends:
         w.advance_to(t)
     rows = [line.split(b"*")[0].decode().split(",") for line in w.daq.take_output().splitlines()]
@@ -520,7 +507,7 @@ def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monk
     monkeypatch.setenv("HELPERS_RIG", "four-tendon")
     w = register_world(tendon_world(four, "tendons-test-home"))
     try:
-        assert _talk(w.stepper, "EN 1", "MSEG 40000 5 3 0 7", "GO")[-1] == "OK GO 1"
+        assert talk(w.stepper, "EN 1", "MSEG 40000 5 3 0 7", "GO")[-1] == "OK GO 1"
         w.advance_to(0.1)
         stepper = StepperBoard.open("virtual://stepper?rig=tendons-test-home&reset_on_open=0", rig=four)
         try:

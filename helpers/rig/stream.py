@@ -56,6 +56,25 @@ class StreamStarved(BoardError):
     """The stream's watchdog fired (``N,WATCHDOG``): the board went 100 ms without a set-point."""
 
 
+def refuse_notice(line: str, allow_clamps: bool) -> None:
+    """Stop a stream on the board's notice ``line``: always on the watchdog, on a clamp unless allowed.
+
+    Raises
+    ------
+    StreamStarved
+        ``N,WATCHDOG``: the host fell behind.
+    StreamLimit
+        Any other notice (a speed or travel clamp) unless ``allow_clamps``.
+    """
+    if line.startswith("N,WATCHDOG"):
+        raise StreamStarved(
+            f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a "
+            "set-point (the host fell behind)"
+        )
+    if not allow_clamps:
+        raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
+
+
 def units(mm_s: float) -> int:
     """The board's set-point (units of 2^-16 step per 16 us) nearest to a cable speed in mm/s."""
     return hs.velocity_units(mm_s, MM_PER_STEP)

@@ -27,9 +27,8 @@ from helpers.rig.stream import (
     Pacer,
     SetpointSource,
     ShapedCheck,
-    StreamLimit,
     StreamRecord,
-    StreamStarved,
+    refuse_notice,
 )
 
 __all__ = ["STREAM_FIRMWARE", "StreamRig"]
@@ -283,13 +282,7 @@ class StreamRig(Rig):
             for line in self.stepper.notices[noticed:]:
                 noticed += 1
                 record.notice(line)
-                if line.startswith("N,WATCHDOG"):
-                    raise StreamStarved(
-                        f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a "
-                        "set-point (the host fell behind)"
-                    )
-                if not allow_clamps:
-                    raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
+                refuse_notice(line, allow_clamps)
 
         while True:
             take_notices()

@@ -44,7 +44,7 @@ from helpers.recordings import Recording, RecordingError, reserve
 from helpers.rig.boards import BoardError, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.safety import SafetyError
 from helpers.rig.stepper import last_int
-from helpers.rig.stream import STREAM_RATE_HZ, Pacer, StreamLimit, StreamStarved
+from helpers.rig.stream import STREAM_RATE_HZ, Pacer, StreamLimit, refuse_notice
 from helpers.rig.tendon_safety import static_tensions
 from helpers.rig.tendons import TendonRig, tendon_frame, tendon_recording
 from helpers.rigfile import RigFile
@@ -462,13 +462,7 @@ class TendonStreamRig(TendonRig):
             for line in stepper.notices[noticed:]:
                 noticed += 1
                 feed.notice(line)
-                if line.startswith("N,WATCHDOG"):
-                    raise StreamStarved(
-                        f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a "
-                        "set-point (the host fell behind)"
-                    )
-                if not allow_clamps:
-                    raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
+                refuse_notice(line, allow_clamps)
 
         while True:
             take_notices()
