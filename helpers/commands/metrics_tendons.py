@@ -49,14 +49,24 @@ def tendon_table(recs: list[Recording], band: float, **kwargs: Any) -> pd.DataFr
             one = {k: cal[k][i] for k in ("newtons_per_count", "offset_counts", "mm_per_step")}
             df = metrics.recording_metrics(tendon_frame_view(rec.frame, i), band, calibration=one, rig=rig,
                                            **kwargs)  # fmt: skip
-            df.insert(0, "recording", shown(rec.path.with_suffix("")) if rec.path else rec.name)
-            df.insert(1, "source", (rec.meta.get("source") or {}).get("kind", "unknown"))
-            df.insert(2, "tendon", i)
-            parts.append(df)
+            parts.append(_labelled(df, rec, "tendon", i))
+    return _ordered(parts, TENDON_COLUMNS)
+
+
+def _labelled(df: pd.DataFrame, rec: Recording, key: str, value: int) -> pd.DataFrame:
+    """``df`` with the recording's name, its source and ``key`` = ``value`` as its first three columns."""
+    df.insert(0, "recording", shown(rec.path.with_suffix("")) if rec.path else rec.name)
+    df.insert(1, "source", (rec.meta.get("source") or {}).get("kind", "unknown"))
+    df.insert(2, key, value)
+    return df
+
+
+def _ordered(parts: list[pd.DataFrame], columns: list[str]) -> pd.DataFrame:
+    """The parts in one table, ``columns`` first (an empty table of them without parts)."""
     if not parts:
-        return pd.DataFrame(columns=TENDON_COLUMNS)
+        return pd.DataFrame(columns=columns)
     table = pd.concat(parts, ignore_index=True)
-    return table[TENDON_COLUMNS + [c for c in table.columns if c not in TENDON_COLUMNS]]
+    return table[columns + [c for c in table.columns if c not in columns]]
 
 
 TIP_COLUMNS = [
@@ -93,14 +103,8 @@ def tip_table(recs: list[Recording], band: float, **kwargs: Any) -> pd.DataFrame
         frame, lead = found
         df = metrics.recording_metrics(frame, band, column="tip_mm", **kwargs)
         df = df.rename(columns={"peak_n": "peak_mm", "y0_n": "y0_mm", "yf_n": "yf_mm"})
-        df.insert(0, "recording", shown(rec.path.with_suffix("")) if rec.path else rec.name)
-        df.insert(1, "source", (rec.meta.get("source") or {}).get("kind", "unknown"))
-        df.insert(2, "paced_by", lead)
-        parts.append(df)
-    if not parts:
-        return pd.DataFrame(columns=TIP_COLUMNS)
-    table = pd.concat(parts, ignore_index=True)
-    return table[TIP_COLUMNS + [c for c in table.columns if c not in TIP_COLUMNS]]
+        parts.append(_labelled(df, rec, "paced_by", lead))
+    return _ordered(parts, TIP_COLUMNS)
 
 
 def _tip_displayed(table: pd.DataFrame) -> pd.DataFrame:
