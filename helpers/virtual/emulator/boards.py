@@ -542,17 +542,23 @@ class StepperEmulator(EmulatedBoard):
         self.items.append(_Item(0, 0, 0, cmd.args[0]))
         return f"OK WAIT {len(self.items)}"
 
-    def cmd_GO(self, cmd: _Command) -> str:  # noqa: N802, D102
+    def _go_refusal(self, cmd: _Command, has_programme: bool) -> str | None:
+        """``GO``'s refusals in the firmware's order (arguments, running, streaming, empty, disabled)."""
         if err := self._arg_error(cmd, 0):
             return err
         if self.running:
             return "ERR STATE running"
         if self.stream is not None:
             return "ERR STATE streaming"
-        if not self.items:
+        if not has_programme:
             return "ERR STATE programme empty"
         if not self.enabled:
             return "ERR STATE driver disabled"
+        return None
+
+    def cmd_GO(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._go_refusal(cmd, bool(self.items)):
+            return err
         pos, lo, hi = self.position, self.position, self.position
         for it in self.items:
             if it.dwell_ms < 0:

@@ -203,16 +203,8 @@ class TendonStepperEmulator(StepperEmulator):
         return self._add(_Window(1000 * cmd.args[0], None)) or f"OK WAIT {len(self.windows)}"
 
     def cmd_GO(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 0):
+        if err := self._go_refusal(cmd, bool(self.windows)):
             return err
-        if self.running:
-            return "ERR STATE running"
-        if self.stream is not None:
-            return "ERR STATE streaming"
-        if not self.windows:
-            return "ERR STATE programme empty"
-        if not self.enabled:
-            return "ERR STATE driver disabled"
         self.positions[0] = self.position
         for a, travel in enumerate(self.limits.travel_steps):  # the firmware checks axis by axis
             pos = self.positions[a]
