@@ -8,8 +8,12 @@ firmware build) are the only files the tests leave behind.
 
 import atexit
 import os
+import re
 import shutil
 import tempfile
+from pathlib import Path
+
+import pytest
 
 # An inherited backend (e.g. MPLBACKEND=Agg in CI) would stop the kernels nbval starts from producing
 # inline figures, and the stored "<Figure ...>" outputs would then not match.
@@ -22,6 +26,20 @@ if not os.environ.get("HELPERS_FIGURES_DIR"):
     _figures = tempfile.mkdtemp(prefix="helpers-test-figures-")
     os.environ["HELPERS_FIGURES_DIR"] = _figures
     atexit.register(shutil.rmtree, _figures, ignore_errors=True)
+
+
+PAPER_NOTEBOOKS = range(0, 6)
+"""Notebooks 00-05 (the paper's own steps) run under nbval in the default suite; the wings' notebooks (06
+onwards: the twin, the research) carry the ``slow`` marker, so ``python -m pytest -m slow`` runs them."""
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Mark the nbval cells of the notebooks beyond the paper's as ``slow`` (before ``-m`` selects)."""
+    for item in items:
+        match = re.match(r"(\d+)_", Path(str(item.fspath)).name)
+        if item.fspath.ext == ".ipynb" and match and int(match.group(1)) not in PAPER_NOTEBOOKS:
+            item.add_marker(pytest.mark.slow)
 
 
 def _git_status() -> list[str] | None:

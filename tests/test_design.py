@@ -189,6 +189,7 @@ def test_minimax_on_a_single_point_cancels_it():
     assert v_closed(s.amplitudes, s.times, 25.0 / math.sqrt(1 - 0.044**2), 0.044) < 1e-6
 
 
+@pytest.mark.slow  # 4 s of optimisation
 def test_minimax_beats_zvd_over_a_wide_band_at_the_same_duration():
     m = varying_map(zeta=0.04)
     wn_lo, wn_hi = 25.1 / math.sqrt(1 - 0.04**2), 37.7 / math.sqrt(1 - 0.04**2)

@@ -156,6 +156,12 @@ def test_reproduce_writes_identical_figures_and_notebooks_twice(tmp_path, monkey
     assert all("execution" not in cell.get("metadata", {}) for cell in nb.cells)
 
 
+NBVAL_EVERY_NOTEBOOK = (sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider")
+NBVAL_EVERY_NOTEBOOK += ("-m", "slow or not slow")
+"""nbval over every notebook: the wings' notebooks carry the ``slow`` marker (``conftest.py``), so ``-m``
+selects both."""
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("setting", ["one-blas-thread", "generic-cpu"])
 def test_every_notebook_output_is_identical_under_other_settings(setting, tmp_path):
@@ -164,7 +170,7 @@ def test_every_notebook_output_is_identical_under_other_settings(setting, tmp_pa
     env = _env(extra, tmp_path)
     env["HELPERS_FIGURES_DIR"] = str(tmp_path / "figures")
     proc = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(REPO_ROOT / "notebooks")],
+        [*NBVAL_EVERY_NOTEBOOK, str(REPO_ROOT / "notebooks")],
         cwd=REPO_ROOT,
         env=env,
         capture_output=True,
