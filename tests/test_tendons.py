@@ -57,6 +57,8 @@ def _stepper(four: rigfile.RigFile) -> tuple[TendonStepperEmulator, Clock]:
 def test_build_limits_are_the_rig_files(four: rigfile.RigFile) -> None:
     lim = build_limits(four)
     assert (lim.axes, lim.channels, lim.travel_steps) == (4, 4, (156, 156, 156, 156))
+    # release_mm = 20 over pi 65 / 800 = 0.25525 mm per step: 78.35, floored
+    assert lim.release_steps == (78, 78, 78, 78)
     assert (lim.min_interval_us, lim.max_interval_us, lim.programme_max) == (639, 1_000_000, 64)
     assert lim.rig_hash == four.hash
 
@@ -65,19 +67,19 @@ def test_emulated_stepper_replies_per_axis(four: rigfile.RigFile) -> None:
     s, _ = _stepper(four)
     assert talk(s, "PING", "CONFIG") == [
         f"PONG stepper 2.3.0+{four.hash}",
-        "OK CONFIG 4 64 639 1000000 156 156 156 156",
+        "OK CONFIG 4 64 639 1000000 156 156 156 156 78 78 78 78",  # the releases after the travels
     ]
-    assert talk(s, "EN 1", "MSEG 100000 10 7 157 0", "MSEG 10000 0 16 0 0", "MSEG 100000 0 0 0",
+    assert talk(s, "EN 1", "MSEG 200000 10 7 235 0", "MSEG 10000 0 16 0 0", "MSEG 100000 0 0 0",
                  "MSEG 100000 0 0 0 0", "MSEG 200000 100 100 100 100", "MSEG 200000 50 50 50 57", "GO",
                  "POS") == [
         "OK EN 1",
-        "ERR RANGE axis 2 steps -156..156",
+        "ERR RANGE axis 2 steps -234..234",  # 78 below rest + 156 above
         "ERR RANGE axis 1 interval 639-1000000 us",  # 16 steps in 10 ms: 625 us apart
         "ERR ARG MSEG needs 5 integers",
         "ERR RANGE no axis moves (a dwell is WAIT)",
         "OK MSEG 1",
         "OK MSEG 2",
-        "ERR RANGE axis 3 travel 0-156 steps",  # 100 + 57 = 157
+        "ERR RANGE axis 3 travel -78-156 steps",  # 100 + 57 = 157
         "OK POS 0 0 0 0",
     ]  # fmt: skip
 
@@ -181,8 +183,8 @@ def _programme(*moves):
     ("moves", "message"),
     [
         ([(200_000, (100, 0, 0, 0)), (200_000, (57, 0, 0, 0))],
-         "tendon 1, item 2: position 157 steps is past its travel of 0-156 steps (39.8 mm)"),
-        ([(100_000, (0, 0, -1, 0))], "tendon 3, item 1: position -1 steps is past its travel of 0-156 steps"),
+         "tendon 1, item 2: position 157 steps is past its travel of -78-156 steps (-19.9-39.8 mm)"),
+        ([(100_000, (0, 0, -79, 0))], "tendon 3, item 1: position -79 steps is past its travel of -78-156 steps"),
         ([(10_000, (0, 16, 0, 0))],
          "tendon 2, item 1: 16 steps in 10000 us is a step every 625 us, below the step-interval floor of "
          "639 us"),

@@ -162,8 +162,8 @@ def test_four_axis_programme_steps_within_one_tick(
     bodies = [ln.body for ln in run.lines]
     assert all(ln.checksum_ok for ln in run.lines)
     assert bodies[:8] == [
-        "HELLO stepper 2.3.0+c0bda550",
-        "PONG stepper 2.3.0+c0bda550",
+        "HELLO stepper 2.3.0+d09e5115",
+        "PONG stepper 2.3.0+d09e5115",
         "OK CONFIG 4 64 639 1000000 156 156 156 156",
         "OK EN 1",
         "OK MSEG 1",
