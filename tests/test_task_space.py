@@ -1,11 +1,11 @@
 """Moves in task space (helpers.research.task_space): a bend turned into every tendon's steps, the floor.
 
 Expected values by hand from the rig files: a step is pi 65 / 800 = 0.255254 mm of cable, the travel 156
-steps (39.82 mm), the release below rest floor(20 / 0.255254) = floor(78.35) = 78 steps (19.91 mm). A bend of ``b`` mm towards ``beta`` pulls tendon ``i`` at ``a_i`` by ``b cos(beta - a_i)``
-(equal offsets), so 10 mm towards 45 deg is 7.0711 mm = 27.70 steps on tendons 1 and 2, towards 30 deg
-8.660 mm = 33.93 steps on tendon 1 and 5.0 mm = 19.59 steps on tendon 2 (the stepper's command adds its
-rotor's lag, under half a step here). The opposite tendon pays out about the same cable as the pulled one
-takes in.
+steps (39.82 mm), the release below rest floor(20 / 0.255254) = floor(78.35) = 78 steps (19.91 mm). A
+bend of ``b`` mm towards ``beta`` pulls tendon ``i`` at ``a_i`` by ``b cos(beta - a_i)`` (equal offsets),
+so 10 mm towards 45 deg is 7.0711 mm = 27.70 steps on tendons 1 and 2, towards 30 deg 8.660 mm = 33.93
+steps on tendon 1 and 5.0 mm = 19.59 steps on tendon 2 (the stepper's command adds its rotor's lag, under
+half a step here). The opposite tendon pays out about the same cable as the pulled one takes in.
 The hanging rig (gravity along the backbone) is symmetric about the plane between two neighbours, so its
 plan for 45 deg is mirrored and 30 deg mirrors 60 deg.
 """
@@ -90,8 +90,9 @@ def test_paying_out_within_the_release_is_inside_the_travel(four) -> None:
     with pytest.raises(SafetyError) as exc:
         check_travel(_steps_plan((28, 28, -27, -79)), four)
     assert str(exc.value) == (
-        "tendon 4: the move 10 mm towards 45 deg needs -79 steps (-20.17 mm) from position 0, past its travel "
-        "of -78-156 steps: it pays out at most 78 steps (19.91 mm, [hardware] release_mm) below its rest"
+        "tendon 4: the move 10 mm towards 45 deg needs -79 steps (-20.17 mm) from position 0, past its "
+        "travel of -78-156 steps: it pays out at most 78 steps (19.91 mm, [hardware] release_mm) below its "
+        "rest"
     )
     p = plan_move(four, 90.0, 10.0)  # tendon 4 (270 deg) is opposite: about 39 steps out
     assert check_travel(p, four) == p.steps
@@ -169,7 +170,8 @@ def _two_tendon_rig(four: rigfile.RigFile, folder) -> str:
 def test_record_move_dry_run_pays_the_antagonists_out_below_rest(four, tmp_path, monkeypatch, capsys) -> None:
     monkeypatch.setenv("HELPERS_RIG", "four-tendon")
     data = tmp_path / "data"
-    argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--dry-run", "--data-dir", str(data)]
+    argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--dry-run", "--data-dir"]
+    argv.append(str(data))
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "tendon 1: +28 steps (+7.15 mm, pulled); static tension" in out

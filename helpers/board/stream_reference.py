@@ -374,7 +374,12 @@ class Planner:
     """
 
     def __init__(
-        self, shaper: StreamShaper, position: int = 0, travel: int = TRAVEL_MAX, axis: int = 0, release: int = 0
+        self,
+        shaper: StreamShaper,
+        position: int = 0,
+        travel: int = TRAVEL_MAX,
+        axis: int = 0,
+        release: int = 0,
     ) -> None:
         d = shaper.delays_delta
         self.a = shaper.amplitudes
@@ -833,8 +838,8 @@ def exact_position(
 
     The velocity is the shaped set-point stream (set-point k on ``[(k + 1) T, (k + 2) T)``), clamped to the
     speed limit, integrated exactly piece by piece in floating point; with ``limits`` the position is
-    saturated at ``-release`` and ``travel`` steps (the board's travel clamp: 0 and 156 by default). This is independent of :class:`Planner`'s integer
-    arithmetic and of its step-time rule.
+    saturated at ``-release`` and ``travel`` steps (the board's travel clamp: 0 and 156 by default). This is
+    independent of :class:`Planner`'s integer arithmetic and of its step-time rule.
     """
     d = np.asarray(shaper.delays_us, dtype=float) / (DELAY_UNIT_US) * DELTA  # ticks
     amp = np.asarray(shaper.amplitudes, dtype=float) / AMP_ONE

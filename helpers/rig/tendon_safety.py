@@ -29,13 +29,16 @@ from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 
 __all__ = [
-    "TendonItem", "TendonProgramme", "check_tendon_programme", "slack_tendons", "static_tensions", "travel_text",
+    "TendonItem", "TendonProgramme", "check_tendon_programme", "slack_tendons", "static_tensions",
+    "travel_text",
 ]  # fmt: skip
 
 
 def travel_text(rig: RigFile, i: int) -> str:
-    """Tendon ``i``'s (0-based) travel for a refusal: ``0-156 steps (39.8 mm)``, with a release
-    ``-78-156 steps (-19.9-39.8 mm)``."""
+    """Tendon ``i``'s (0-based) travel for a refusal.
+
+    ``0-156 steps (39.8 mm)``; with a release below position 0, ``-78-156 steps (-19.9-39.8 mm)``.
+    """
     d = derived(rig)
     travel, release, mm = d.travel_steps[i], d.release_steps[i], d.mm_per_step[i]
     if not release:

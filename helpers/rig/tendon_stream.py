@@ -417,8 +417,10 @@ class TendonStreamRig(TendonRig):
                   "overruns": int(stats.overruns)}  # fmt: skip
         rec = tendon_recording(frame, self.rig, rate_hz, counts, self.source, scene, status)
         rec.meta["started_utc"] = started
-        rec.meta["done_positions"] = None if self.stepper.done_positions is None else list(
-            self.stepper.done_positions[: self.rig.n_tendons]
+        rec.meta["done_positions"] = (
+            None
+            if self.stepper.done_positions is None
+            else list(self.stepper.done_positions[: self.rig.n_tendons])
         )
         return rec
 
@@ -503,4 +505,3 @@ class TendonStreamRig(TendonRig):
                 )
             silence = self._read_both(silence)
             now = rows[-1][1]
-

@@ -91,7 +91,7 @@ class TendonStepper(StepperBoard):
         values = _ints(reply, 2)
         axes, rest = values[0], tuple(values[4:])
         if len(rest) not in (axes, 2 * axes):
-            raise BoardError(f"malformed reply {reply!r}: {axes} axes need {axes} travels (and {axes} releases)")
+            raise BoardError(f"malformed reply {reply!r}: {axes} travels (and {axes} releases) expected")
         self.release = rest[axes:] or (0,) * axes
         return axes, rest[:axes]
 
@@ -204,8 +204,8 @@ class TendonRig:
         if other:
             i = other[0]
             raise WrongRig(
-                f"the stepper board's axis {i} pays out {release[i]} steps below position 0, but rig '{name}' "
-                f"gives tendon {i + 1} {d.release_steps[i]} (release_mm): " + rebuild % "stepper"
+                f"the stepper board's axis {i} pays out {release[i]} steps below position 0, but rig "
+                f"'{name}' gives tendon {i + 1} {d.release_steps[i]} (release_mm): " + rebuild % "stepper"
             )
         self.axes = axes
 

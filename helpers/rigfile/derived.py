@@ -131,8 +131,9 @@ def derived(rig: Any) -> Derived:
     clip_high = min(adc_max, round(loop_counts(hw, hw.loop_max_ma)) - hw.adc_clip_margin_counts)
     readable = tuple((clip_high - offset) / g for g in gains)
     return Derived(
-        mm_per_step=mm, travel_steps=travel, release_steps=release, max_rate_steps_s=rates, min_interval_us=min_interval,
-        max_interval_us=hw.max_interval_us, adc_max=adc_max, offset_counts=offset, gain_counts_per_n=gains,
+        mm_per_step=mm, travel_steps=travel, release_steps=release, max_rate_steps_s=rates,
+        min_interval_us=min_interval, max_interval_us=hw.max_interval_us, adc_max=adc_max,
+        offset_counts=offset, gain_counts_per_n=gains,
         clip_low_counts=clip_low, clip_high_counts=clip_high, readable_n=readable,
         pull_out_n=tuple(t.pull_out_n for t in rig.tendons),
         hold_n=tuple(hold_tension_n(rig, i) for i in range(len(rig.tendons))),

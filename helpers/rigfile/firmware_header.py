@@ -68,8 +68,9 @@ def firmware_problem(rig: RigFile) -> str | None:
         room = MAX_TRAVEL_STEPS - d.travel_steps[axis - 1]
         return (
             f"[hardware] release_mm: {d.release_steps[axis - 1]} steps below position 0 and "
-            f"{d.travel_steps[axis - 1]} of travel on axis {axis}: the boards hold at most {MAX_TRAVEL_STEPS} "
-            f"steps of both together per axis (a release of at most {room * d.mm_per_step[axis - 1]:.2f} mm)"
+            f"{d.travel_steps[axis - 1]} of travel on axis {axis}: the boards hold at most "
+            f"{MAX_TRAVEL_STEPS} steps of both together per axis (a release of at most "
+            f"{room * d.mm_per_step[axis - 1]:.2f} mm)"
         )
     if hw.programme_max_items > MAX_PROGRAMME_ITEMS:
         return f"[hardware] programme_max_items: at most {MAX_PROGRAMME_ITEMS} on the boards"

@@ -189,9 +189,16 @@ ARM: tuple[Key, ...] = (
         lo=0.0,
         plausible=(0.0, 10_000.0),
     ),  # fmt: skip
-    Key("tension_floor_n", "float", "N", 1.0, "the least static tension every tendon keeps in a move planned "
+    Key(
+        "tension_floor_n",
+        "float",
+        "N",
+        1.0,
+        "the least static tension every tendon keeps in a move planned "
         "in task space (record move; below it a tendon is close to slack and stops controlling the arm)",
-        lo=0.0, plausible=(0.0, 10_000.0)),  # fmt: skip
+        lo=0.0,
+        plausible=(0.0, 10_000.0),
+    ),  # fmt: skip
     _pos(
         "cable_stiffness_n_m",
         "N/m",
