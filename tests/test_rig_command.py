@@ -100,10 +100,30 @@ def test_header_of_a_four_tendon_rig_and_of_the_second_rig(tmp_path):
     m = _macros(out.read_text())
     assert (m["RIG_AXES"], m["RIG_CHANNELS"]) == ("4", "4")
     assert m["RIG_AXIS_TRAVEL_STEPS"] == "{156, 156, 156, 156}"
+    # 20 mm below rest / 0.2552544 mm per step = 78.35: the release table, right after the travel's
+    assert m["RIG_AXIS_RELEASE_STEPS"] == "{78, 78, 78, 78}"
+    names = list(m)
+    assert names[names.index("RIG_AXIS_TRAVEL_STEPS") + 1] == "RIG_AXIS_RELEASE_STEPS"
     assert m["RIG_DAQ_BAUD"] == "1000000L"  # four channels per line need more than 500 kbaud
     assert firmware_header.main(["long-arm", "-o", str(out)]) == 0
     m = _macros(out.read_text())
     assert (m["RIG_MIN_INTERVAL_US"], m["RIG_AXIS_TRAVEL_STEPS"]) == ("524", "{254}")
+    assert "RIG_AXIS_RELEASE_STEPS" not in m  # no release: the header as before the key existed
+
+
+def test_header_refuses_a_release_and_travel_over_the_boards_8_bits(tmp_path, capsys):
+    # the long arm: 254 steps of travel at pi 40 / 1600 = 0.0785398 mm per step; 0.1 mm is 1 step (255 in
+    # all, the most), 0.2 mm 2 steps (256)
+    text = (rigfile.RIGS_DIR / "long-arm.toml").read_text()
+    out = tmp_path / "h.h"
+    for release, ok in (("0.1", True), ("0.2", False)):
+        rig_path = tmp_path / f"long{release}.toml"
+        rig_path.write_text(text.replace("travel_mm = 20.0", f"travel_mm = 20.0\nrelease_mm = {release}"))
+        assert firmware_header.main([str(rig_path), "-o", str(out)]) == (0 if ok else 2)
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "[hardware] release_mm: 2 steps below position 0 and 254 of travel" in err
+    assert "at most 255 steps of both together per axis (a release of at most 0.08 mm)" in err
+    assert _macros(out.read_text())["RIG_AXIS_RELEASE_STEPS"] == "{1}"  # the 0.1 mm one, not overwritten
 
 
 def test_header_refuses_a_bad_rig_and_writes_nothing(tmp_path, capsys):

@@ -406,6 +406,27 @@ def test_a_bad_four_tendon_recording_is_refused_in_one_line(tendon_recording_pat
     assert error_line(info.value)[1] == 5
 
 
+def test_a_step_count_within_the_release_and_the_travel_is_a_recording_the_rig_can_make(
+    tendon_recording_path, tmp_path
+) -> None:
+    """A step count changes by at most the release and the travel together from the recording's start: 78 +
+    156 = 234 steps on the four-tendon rig (a tendon paid out to -78 when the recording started, then pulled
+    to 156, or the reverse)."""
+    rec = recordings.load(tendon_recording_path, derive=False)
+    for steps, refused in ((-234, False), (-235, True)):
+        frame = rec.frame.copy()
+        frame["steps_2"] = steps  # tendon 3 stood still in this recording
+        meta = {k: v for k, v in rec.meta.items() if k != "csv_sha256"}
+        path = recordings.save(recordings.Recording(frame, meta), tmp_path / "g" / f"at{-steps}")
+        if not refused:
+            assert (recordings.load(path).frame["steps_2"] == steps).all()
+            continue
+        with pytest.raises(
+            recordings.RecordingError, match="steps_2: -235 at row 0 is beyond the travel of 234"
+        ):
+            recordings.load(path)
+
+
 # --- metrics per tendon --------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def pulse_recording_path(four, tmp_path_factory):

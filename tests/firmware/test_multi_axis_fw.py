@@ -89,6 +89,8 @@ def _header(**changes: str) -> str:
         ({"RIG_AXES": "5"}, "RIG_AXES must be 1-4"),
         ({"RIG_HASH": ""}, "RIG_HASH, RIG_NAME, RIG_AXES and RIG_CHANNELS are required"),
         ({"RIG_AXIS_TRAVEL_STEPS": "{156, 156}"}, "RIG_AXIS_TRAVEL_STEPS needs RIG_AXES values"),
+        ({"RIG_AXIS_RELEASE_STEPS": "{78, 78}"}, "RIG_AXIS_RELEASE_STEPS needs RIG_AXES values"),
+        ({"RIG_AXIS_RELEASE_STEPS": "{78, 78, 100, 78}"}, "must be <= 255 per axis"),  # 100 + 156 = 256
         ({"RIG_MIN_INTERVAL_US": "100"}, "step intervals must satisfy"),
     ],
 )
