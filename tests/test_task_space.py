@@ -254,3 +254,33 @@ def test_record_move_records_a_shaped_move_whose_hold_is_the_planned_statics(fou
         # the time-domain twin through the emulated boards against the planned statics
         assert f.loc[hold, f"tension_n_{i}"].mean() == pytest.approx(sc["planned_tension_n"][i], abs=0.05)
     assert list(f.iloc[-1][["steps_0", "steps_1"]]) == [0, 0]
+
+
+@pytest.mark.slow
+def test_a_four_tendon_move_pays_out_and_holds_the_planned_statics(tmp_path, monkeypatch, capsys) -> None:
+    """10 mm towards 45 deg on the four-tendon virtual rig: tendons 3 and 4 pay out 27 steps below rest.
+
+    The twin starts at rest with every stepper at position 0 (every tendon at its 2.3554 N pretension) and
+    holds the plan's static tensions (rotors free) after the move. Tolerance 0.05 N: half an ADC count is
+    0.020 N (0.0407 N per count), the noise averages out over the hold's 2000 samples, and 5 s after the move
+    the ringing (zeta 0.045 at 24.7 rad/s) has decayed to exp(-0.045 x 24.7 x 5) = 0.4 % of its ~2 N.
+    """
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--quiet", "--data-dir",
+            str(tmp_path / "data"), "--virtual-instance", "task-space-four"]  # fmt: skip
+    try:
+        assert main(argv) == 0
+    finally:
+        forget_world("task-space-four")
+    rec = recordings.load(tmp_path / "data" / "moves" / "move_none_d45_b10.csv")
+    sc = rec.meta["scenario"]
+    assert sc["steps"] == [28, 28, -27, -27]
+    f = rec.frame
+    rest = f["t_s"] < 0.9  # the lead-in: the twin at rest, every stepper at 0
+    hold = (f["t_s"] > 6.0) & (f["t_s"] < 8.0)
+    for i in range(4):
+        assert (f.loc[rest, f"steps_{i}"] == 0).all()
+        assert f.loc[rest, f"tension_n_{i}"].mean() == pytest.approx(2.3554, abs=0.05)
+        assert (f.loc[hold, f"steps_{i}"] == sc["steps"][i]).all()
+        assert f.loc[hold, f"tension_n_{i}"].mean() == pytest.approx(sc["planned_tension_n"][i], abs=0.05)
+    assert list(f.iloc[-1][[f"steps_{i}" for i in range(4)]]) == [0, 0, 0, 0]  # back at rest
