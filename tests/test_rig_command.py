@@ -112,18 +112,21 @@ def test_header_of_a_four_tendon_rig_and_of_the_second_rig(tmp_path):
 
 
 def test_header_refuses_a_release_and_travel_over_the_boards_8_bits(tmp_path, capsys):
-    # the long arm: 254 steps of travel at pi 40 / 1600 = 0.0785398 mm per step; 0.1 mm is 1 step (255 in
-    # all, the most), 0.2 mm 2 steps (256)
-    text = (rigfile.RIGS_DIR / "long-arm.toml").read_text()
+    # the four-tendon rig: 156 steps of travel at pi 65 / 800 = 0.2552544 mm per step; a release of 25.5 mm is
+    # floor(99.90) = 99 steps (255 in all, the most), 25.6 mm floor(100.29) = 100 (256); at most 99 steps,
+    # 25.27 mm
+    text = (rigfile.RIGS_DIR / "four-tendon.toml").read_text()
     out = tmp_path / "h.h"
-    for release, ok in (("0.1", True), ("0.2", False)):
-        rig_path = tmp_path / f"long{release}.toml"
-        rig_path.write_text(text.replace("travel_mm = 20.0", f"travel_mm = 20.0\nrelease_mm = {release}"))
+    for release, ok in (("25.5", True), ("25.6", False)):
+        rig_path = tmp_path / f"four{release}.toml"
+        rig_path.write_text(text.replace("release_mm = 20.0", f"release_mm = {release}"))
         assert firmware_header.main([str(rig_path), "-o", str(out)]) == (0 if ok else 2)
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "[hardware] release_mm: 2 steps below position 0 and 254 of travel" in err
-    assert "at most 255 steps of both together per axis (a release of at most 0.08 mm)" in err
-    assert _macros(out.read_text())["RIG_AXIS_RELEASE_STEPS"] == "{1}"  # the 0.1 mm one, not overwritten
+    assert (
+        err.count("\n") == 1 and "[hardware] release_mm: 100 steps below position 0 and 156 of travel" in err
+    )
+    assert "at most 255 steps of both together per axis (a release of at most 25.27 mm)" in err
+    assert _macros(out.read_text())["RIG_AXIS_RELEASE_STEPS"] == "{99, 99, 99, 99}"  # 25.5 mm's, kept
 
 
 def test_header_refuses_a_bad_rig_and_writes_nothing(tmp_path, capsys):

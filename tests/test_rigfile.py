@@ -240,8 +240,11 @@ def test_docs_name_every_key_and_macro():
 
 
 # --- the release below position 0 ([hardware] release_mm) ------------------------------------------------
+FOUR_TEXT = (rigfile.RIGS_DIR / "four-tendon.toml").read_text()
+
+
 def _with_release(value: str) -> str:
-    return PAPER_TEXT.replace("travel_mm = 40.0", f"travel_mm = 40.0\nrelease_mm = {value}", 1)
+    return _edit(FOUR_TEXT, "release_mm", value)
 
 
 def test_release_defaults_to_none_and_the_shipped_four_tendon_rigs_pay_out_78_steps():
@@ -257,10 +260,11 @@ def test_release_defaults_to_none_and_the_shipped_four_tendon_rigs_pay_out_78_st
 
 
 def test_release_is_read_in_mm_and_floored_to_whole_steps():
-    assert rigfile.derived(rigfile.loads(_with_release("20.0"))).release_steps == (78,)
-    assert rigfile.derived(rigfile.loads(_with_release("10"))).release_steps == (39,)  # 39.18
-    assert rigfile.derived(rigfile.loads(_with_release("0.2552544031041700"))).release_steps == (
-        1,
+    assert rigfile.derived(rigfile.loads(_with_release("20.0"))).release_steps == (78,) * 4
+    assert rigfile.derived(rigfile.loads(_with_release("10"))).release_steps == (39,) * 4  # 39.18
+    assert rigfile.derived(rigfile.loads(_with_release("0.0"))).release_steps == (0,) * 4
+    assert (
+        rigfile.derived(rigfile.loads(_with_release("0.2552544031041700"))).release_steps == (1,) * 4
     )  # one step
 
 
@@ -279,3 +283,12 @@ def test_release_is_read_in_mm_and_floored_to_whole_steps():
 )
 def test_a_nonsense_release_is_refused_in_one_line(value, message):
     assert _refusal(_with_release(value)).startswith(message)
+
+
+def test_a_release_on_a_rig_of_one_tendon_is_refused():
+    text = PAPER_TEXT.replace("travel_mm = 40.0", "travel_mm = 40.0\nrelease_mm = 20.0", 1)
+    assert _refusal(text).startswith(
+        "my.toml: [hardware] release_mm: 20 mm on a rig of one tendon: its position 0 is the end of its "
+        "travel"
+    )
+    assert rigfile.loads(text.replace("release_mm = 20.0", "release_mm = 0.0")).hardware.release_mm == 0.0

@@ -175,6 +175,13 @@ def check(rig: Any) -> Derived:
             )
         if d.travel_steps[i] < 1:
             raise refuse("[hardware] travel_mm", f"{hw.travel_mm:g} mm is less than one step")
+        if hw.release_mm > 0.0 and not many:
+            raise refuse(
+                "[hardware] release_mm",
+                f"{hw.release_mm:g} mm on a rig of one tendon: its position 0 is the end of its travel (the "
+                "paper's programmes and streams count from there); a release below it is for rigs of several "
+                "tendons, whose rest holds every tendon taut",
+            )
         if hw.release_mm > 0.0 and d.release_steps[i] < 1:
             raise refuse(
                 "[hardware] release_mm",
