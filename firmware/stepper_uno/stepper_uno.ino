@@ -973,7 +973,7 @@ static void handle(Command *cmd) {
     if (!editable()) return;
     int32_t dir = cmd->arg[0], n = cmd->arg[1], iv = cmd->arg[2];
     if (dir != 1 && dir != -1) return out.err(PSTR("RANGE"), PSTR("dir must be 1 or -1"));
-    int32_t span0 = (int32_t)rig_axis_travel[0] + rig_axis_release[0];  // the travel when nothing pays out
+    int32_t span0 = (int32_t)rig_axis_travel[0] + rig_axis_release[0];  // release + travel: the most one item moves axis 0
     if (n < 1 || n > span0) return err_range(PSTR("n_steps "), 1, PSTR("-"), span0, PSTR(""));
     if (iv < INTERVAL_MIN_US || iv > INTERVAL_MAX_US)
       return err_range(PSTR("interval "), INTERVAL_MIN_US, PSTR("-"), INTERVAL_MAX_US, PSTR(" us"));
