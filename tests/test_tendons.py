@@ -25,11 +25,11 @@ from helpers.board.protocol import frame
 from helpers.commands.benchmarks.serial_tendons import pty_stream_tendons
 from helpers.commands.home import PositionUnknown, home
 from helpers.commands.metrics_tendons import tendon_table, tip_table
-from helpers.rig.boards import WrongRig
+from helpers.rig.boards import BoardError, WrongRig
 from helpers.rig.safety import SafetyError
 from helpers.rig.stepper import StepperBoard
 from helpers.rig.tendon_safety import TendonProgramme, check_tendon_programme, slack_tendons
-from helpers.rig.tendons import TendonRig
+from helpers.rig.tendons import TendonRig, TendonStepper
 from helpers.virtual.emulator.tendon_boards import (
     BuildLimits,
     TendonDaqEmulator,
@@ -251,6 +251,28 @@ def test_a_stepper_built_without_the_rig_files_release_is_refused(four) -> None:
         "78 (release_mm)"
     )
     assert "\n" not in str(info.value) and error_line(info.value)[1] == 4
+
+
+class _Configured(TendonStepper):
+    """A stepper driver whose ``CONFIG`` reply is given (no port)."""
+
+    def __init__(self, reply: str) -> None:
+        super().__init__(None)
+        self.reply = reply
+
+    def command(self, line: str, *args, **kwargs) -> str:  # noqa: D102
+        assert line == "CONFIG"
+        return self.reply
+
+
+def test_config_lists_the_releases_after_the_travels_or_none() -> None:
+    head = "OK CONFIG 4 64 639 1000000 156 156 156 156"
+    s = _Configured(head)
+    assert s.configure() == (4, (156,) * 4) and s.release == (0,) * 4  # a build without a release
+    s = _Configured(head + " 78 78 78 78")
+    assert s.configure() == (4, (156,) * 4) and s.release == (78,) * 4
+    with pytest.raises(BoardError, match="malformed reply"):
+        _Configured(head + " 78").configure()  # neither A nor 2A numbers after the limits
 
 
 def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
