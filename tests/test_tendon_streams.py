@@ -198,25 +198,27 @@ def test_refused_streams_send_nothing(stream_rig) -> None:
 def test_a_four_tendon_stream_records_every_channel(stream_rig, tmp_path) -> None:
     """Tendon 1 at 20 mm/s (82.16 -> 82 units) for 20 periods: floor(20 x 82 x 625 / 65536) = floor(15.64)
     = 15 steps; tendon 2 at 15 mm/s (61.62 -> 62) for 10 periods from period 21: floor(5.91) = 5; tendon 4 at
-    30 mm/s (123.24 -> 123) for 10: floor(11.73) = 11; tendon 3 stays. Through a two-impulse shaper (0.5, 0.5
-    at 50 ms) every tendon ends where its set-points integrate to."""
+    30 mm/s (123.24 -> 123) for 10: floor(11.73) = 11; tendon 3 at -30 mm/s for 10 pays out below rest: -11.73
+    steps, the count within one step of it, -11. Through a two-impulse shaper (0.5, 0.5 at 50 ms) every tendon
+    ends where its set-points integrate to."""
     sp = _rows(40)
-    sp[:20, 0], sp[20:30, 1], sp[:10, 3] = 20.0, 15.0, 30.0
+    sp[:20, 0], sp[20:30, 1], sp[:10, 3], sp[:10, 2] = 20.0, 15.0, 30.0, -30.0
     shaper = hs.StreamShaper((2048, 2048), (0, 50_000))
     rec = stream_rig.stream(sp, shaper, path=tmp_path / "g" / "four_stream", tail_s=0.3)
-    assert rec.status == "complete" and stream_rig.positions == (15, 5, 0, 11)
+    assert rec.status == "complete" and stream_rig.positions == (15, 5, -11, 11)
     stream = rec.meta["scenario"]["stream"]
     assert rec.meta["scenario"]["kind"] == "stream" and rec.meta["tendons"] == 4
     assert stream["periods"] == list(range(1, 41)) and stream["end_period"] == 41  # no underrun (one clock)
     assert stream["tendon_setpoints"][0] == [82] * 20 + [0] * 20
     assert stream["tendon_setpoints"][1] == [0] * 20 + [62] * 10 + [0] * 10
     assert stream["tendon_setpoints"][3] == [123] * 10 + [0] * 30
+    assert stream["tendon_setpoints"][2] == [-123] * 10 + [0] * 30
     assert stream["setpoints"] == stream["tendon_setpoints"][0] and stream["notices"] == []
     assert stream["impulses"]["delays_us"] == [0, 50_000]
     loaded = recordings.load(rec.path)
     f = loaded.frame
     assert loaded.tendons == 4 and (f["t_us"].diff().dropna() == 1000).all()
-    assert [int(f[f"steps_{i}"].iloc[-1]) for i in range(4)] == [15, 5, 0, 11]
+    assert [int(f[f"steps_{i}"].iloc[-1]) for i in range(4)] == [15, 5, -11, 11]
     assert [int(f[f"steps_{i}"].iloc[0]) for i in range(4)] == [0, 0, 0, 0]
     # tendon 1's first step: period 1 drives from 20 ms after STREAM, half of it (the first impulse) at once:
     # 65536 / (0.5 x 82) x 16 us = 25.6 ms more, 45.6 ms after STREAM (the DAQ's sample then, within 2 ms)
