@@ -10,7 +10,7 @@ direction and the magnitude of the bend. So, on the rig (the in-process virtual 
 1. **measure the map**: an unshaped move (:func:`helpers.research.task_space.plan_move`) to each bend of the
    grid (:data:`DIRECTIONS_DEG` x :data:`BENDS_MM`); the dominant mode (``omega_d``, ``zeta``) of the lead
    tendon's tension is identified from the ring-down in the hold after the move out (:func:`identify_hold`:
-   the FFT peak refined by the damped-sine fit), beside the twin's prediction at the same
+   the FFT peak and the decay of the envelope), beside the twin's prediction at the same
    bend (``frequency_map``'s dominant mode: what the twin predicts, not measured);
 2. **design** (:data:`SYSTEMS`): unshaped; the paper's ZV and ZVD designed **once**, from the mode measured
    at the reference bend (:data:`REFERENCE`: 10 mm towards tendon 1, as one would tune along one tendon);
@@ -46,7 +46,7 @@ from helpers import recordings
 from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
 from helpers.base.paths import repo_path
-from helpers.paper.identify import damped_sine_fit, fft_peak
+from helpers.paper.identify import fft_peak
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.recordings import Recording, RecordingExists
 from helpers.research.task_space import MoveDesign, MovePlan, check_travel, move_programme, plan_move
@@ -59,7 +59,8 @@ from helpers.virtual.spatial.direction_map import frequency_map
 from helpers.virtual.spatial.from_rig import spatial_rig
 
 __all__ = [
-    "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "MOVE_TIMES_S", "MapPoint", "scheduled_mode",
+    "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "SEARCH_BAND", "ENVELOPE_FLOOR", "MOVE_TIMES_S",
+    "MapPoint", "scheduled_mode",
     "design_for", "run_move", "identify_hold", "measure_map", "verify", "summarise", "tune_tendons",
     "tendon_folder", "run_tendons",
 ]  # fmt: skip
@@ -181,22 +182,42 @@ def _hold_window(rec: Recording, lead: int) -> tuple[float, float]:
     return float(t[out[-1] + 1]) + 0.1, float(t[back[0]]) - 0.05
 
 
-def identify_hold(rec: Recording, lead: int, zeta0: float) -> tuple[float, float]:
+ENVELOPE_FLOOR = 0.2
+"""Periods whose peak-to-peak is below this fraction of the largest are left out of the envelope's decay."""
+
+SEARCH_BAND = (0.6, 1.5)
+"""The FFT peak is searched between these multiples of the twin's predicted frequency at the bend."""
+
+
+def identify_hold(rec: Recording, lead: int, omega0: float) -> tuple[float, float]:
     """(omega_d, zeta) of the lead tendon's tension in the hold after the move out.
 
-    The frequency is the FFT peak of the hold (:func:`helpers.paper.identify.fft_peak`), refined with the
-    damping by the damped-sine fit (:func:`helpers.paper.identify.damped_sine_fit`) started there and at
-    ``zeta0``. Not the log decrement: between two tendons the bend excites two modes of close frequencies
-    whose beating is no single exponential decay about one level, and the log decrement refuses it.
+    The frequency is the FFT peak of the hold (:func:`helpers.paper.identify.fft_peak`) within
+    :data:`SEARCH_BAND` of ``omega0`` (the twin's prediction: the band keeps a harmonic out). The damping
+    comes from the envelope: the peak-to-peak of each whole damped period of the hold, whose logarithm falls
+    by ``sigma = zeta omega_n`` per second (a least-squares line through those above :data:`ENVELOPE_FLOOR`
+    of the largest),
+    ``zeta = sigma / sqrt(sigma^2 + omega_d^2)``. Not the paper's log decrement or the damped-sine fit: a
+    bend between tendons excites two modes of close frequencies, whose beating is no single decay about one
+    level (the log decrement refuses it, and the fit can wander off to another frequency); the
+    period-by-period envelope takes both as one decay, which is what a single-mode design sees.
     """
     lo, hi = _hold_window(rec, lead)
     f = rec.frame
     inside = (f["t_s"] >= lo) & (f["t_s"] <= hi)
     t = f.loc[inside, "t_s"].to_numpy(float)
     y = f.loc[inside, f"tension_n_{lead}"].to_numpy(float)
-    peak = fft_peak(t, y)
-    fit = damped_sine_fit(t, y, zeta0=zeta0, omega_d0=peak.omega_d)
-    return float(fit.omega_d), float(fit.zeta)
+    f0 = omega0 / (2 * math.pi)
+    omega_d = float(fft_peak(t, y, f_min_hz=SEARCH_BAND[0] * f0, f_max_hz=SEARCH_BAND[1] * f0).omega_d)
+    period = 2 * math.pi / omega_d
+    edges = np.arange(t[0], t[-1] - period, period)
+    mids = edges + period / 2
+    ptp = np.array([np.ptp(y[(t >= a) & (t < a + period)]) for a in edges])
+    keep = ptp >= ENVELOPE_FLOOR * ptp.max()  # the tail, where noise and harmonics hold the envelope up, out
+    if np.count_nonzero(keep) < 3:
+        raise ValueError(f"the hold of {rec.path} rings for fewer than three periods: no decay to measure")
+    sigma = -float(np.polyfit(mids[keep], np.log(ptp[keep]), 1)[0])
+    return omega_d, sigma / math.hypot(sigma, omega_d)
 
 
 def measure_map(
@@ -221,7 +242,7 @@ def measure_map(
             rec = run_move(trig, plan, MoveDesign(None, "none"), folder / name, seed=seeds(), reseed=reseed,
                            replace=replace, extra={"purpose": "mode map"})  # fmt: skip
             pred = frequency_map(twin, (d,), (b,), n_modes=1).iloc[0]
-            omega_d, zeta = identify_hold(rec, plan.lead, float(pred["dominant_zeta"]))
+            omega_d, zeta = identify_hold(rec, plan.lead, float(pred["dominant_omega_d_rad_s"]))
             points.append(MapPoint(d, b, omega_d, zeta, float(pred["dominant_omega_d_rad_s"]),
                                    float(pred["dominant_zeta"]), name))  # fmt: skip
             progress(f"map {d:g} deg, {b:g} mm: omega_d {omega_d:.3f} rad/s (twin predicts "
