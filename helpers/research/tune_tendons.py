@@ -96,6 +96,8 @@ class MapPoint:
     predicted_omega_d: float
     predicted_zeta: float
     recording: str
+    predicted_split: tuple[float, float] = (math.nan, math.nan)
+    """The twin's two lowest bending modes with every spool held, rad/s: the pair the bend splits."""
 
 
 def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: float) -> tuple[float, float]:
@@ -241,10 +243,11 @@ def measure_map(
             name = f"map_d{d:g}_b{b:g}".replace(".", "p")
             rec = run_move(trig, plan, MoveDesign(None, "none"), folder / name, seed=seeds(), reseed=reseed,
                            replace=replace, extra={"purpose": "mode map"})  # fmt: skip
-            pred = frequency_map(twin, (d,), (b,), n_modes=1).iloc[0]
+            pred = frequency_map(twin, (d,), (b,), n_modes=2).iloc[0]
             omega_d, zeta = identify_hold(rec, plan.lead, float(pred["dominant_omega_d_rad_s"]))
+            split = (float(pred["omega_d1_rad_s"]), float(pred["omega_d2_rad_s"]))
             points.append(MapPoint(d, b, omega_d, zeta, float(pred["dominant_omega_d_rad_s"]),
-                                   float(pred["dominant_zeta"]), name))  # fmt: skip
+                                   float(pred["dominant_zeta"]), name, split))  # fmt: skip
             progress(f"map {d:g} deg, {b:g} mm: omega_d {omega_d:.3f} rad/s (twin predicts "
                      f"{points[-1].predicted_omega_d:.3f}), zeta {zeta:.4f}")  # fmt: skip
     return points
