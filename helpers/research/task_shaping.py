@@ -70,6 +70,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -95,7 +96,7 @@ __all__ = [
     "mode_grid", "ramp_factor", "split_ratio", "MoveShaping", "predicted_residual_pct", "design_move",
     "programme_step_times", "pretensioned", "prepull_programme", "MoveRun", "simulate_move", "residuals",
     "FloorCheck", "dynamic_floor", "floor_check",
-    "benchmark",
+    "ShapedMove", "shaped_move", "residual_table", "TABLE_POINTS", "TABLE_SHAPERS", "benchmark",
 ]  # fmt: skip
 
 FAMILY_OF = {
@@ -253,6 +254,26 @@ class ModeGrid:
                 f"a mode grid needs every direction x bend: {len(points)} of {len(dirs) * len(bends)}"
             )
         return cls(dirs, bends, points)
+
+    def write_csv(self, path: str | Path) -> Path:
+        """Save the grid as CSV (:meth:`to_frame`, 9 significant digits); returns the path."""
+        path = Path(path)
+        self.to_frame().to_csv(path, index=False, float_format="%.9g")
+        return path
+
+    @classmethod
+    def read_csv(cls, path: str | Path) -> ModeGrid:
+        """The grid :meth:`write_csv` saved.
+
+        Raises
+        ------
+        ValueError
+            One line naming the file: missing, not a grid, or a grid without every direction x bend.
+        """
+        try:
+            return cls.from_frame(pd.read_csv(path))
+        except (OSError, KeyError, ValueError, pd.errors.ParserError) as exc:
+            raise ValueError(f"{path}: not a mode grid ({exc})") from None
 
     def _corners(self, direction_deg: float, bend_mm: float) -> list[tuple[tuple[int, int], float]]:
         dirs, bends = np.array(self.directions_deg), np.array(self.bends_mm)
@@ -838,6 +859,153 @@ def floor_check(
         return design_move(rig, p, name, speed_mm_s, twin=pre, grid=grid if k == 0 else None)
 
     return dynamic_floor(plan, shaping, simulate, planner, redesign)
+
+
+@dataclass(frozen=True)
+class ShapedMove:
+    """A move ready to run: its plan, its design, the dynamic floor's check and the programme.
+
+    ``start`` is where every tendon stands when the move's own programme starts (``prepull`` steps in; the
+    plan's steps count from there); ``check`` is None when the floor check was not asked for.
+    """
+
+    plan: MovePlan
+    shaping: MoveShaping
+    check: FloorCheck | None
+    programme: TendonProgramme
+    prepull: int
+
+    @property
+    def start(self) -> tuple[int, ...]:
+        """Every tendon's position when the bend starts (after a pre-pull)."""
+        return (self.prepull,) * len(self.plan.steps)
+
+    def lines(self) -> list[str]:
+        """The design (and its duration) and the dynamic floor's report, one item a line."""
+        out = [f"shaper: {self.shaping.describe()}"]
+        if self.check is None:
+            out.append("dynamic floor: not checked (--no-floor-check)")
+        else:
+            out += self.check.lines()
+        return out
+
+    def metadata(self) -> dict[str, object]:
+        """The design and the floor check for a recording's scenario."""
+        meta: dict[str, object] = {"design": self.shaping.metadata(), "prepull_steps": self.prepull}
+        meta["floor_check"] = None if self.check is None else self.check.metadata()
+        return meta
+
+
+def shaped_move(
+    rig: RigFile,
+    direction_deg: float,
+    bend_mm: float,
+    shaper: str = "none",
+    speed_mm_s: float = 200.0,
+    times: tuple[float, float, float] = (1.0, 8.0, 12.0),
+    grid: ModeGrid | None = None,
+    check_floor: bool = True,
+) -> ShapedMove:
+    """Plan, design, check the dynamic floor (changing pretension or design) and build the programme.
+
+    The command line's ``record move`` (``docs/task_space.md``): :func:`plan_move`, :func:`design_move`, then
+    :func:`floor_check` (unless ``check_floor`` is False) and the programme of what the check settled on
+    (:func:`~helpers.research.task_space.move_programme` inside :func:`prepull_programme`).
+    """
+    twin = spatial_rig(rig)
+    plan = plan_move(rig, direction_deg, bend_mm, spatial=twin)
+    shaping = design_move(rig, plan, shaper, speed_mm_s, grid=grid, twin=twin)
+    check = None
+    prepull = 0
+    if check_floor:
+        check = floor_check(rig, plan, shaping, speed_mm_s, times, twin=twin, grid=grid)
+        plan, shaping, prepull = check.plan, check.shaping, check.prepull
+    prog = move_programme(plan, rig, speed_mm_s, shaping.shaper, *times)
+    prog, _, _ = prepull_programme(prog, prepull, rig.n_tendons)
+    return ShapedMove(plan, shaping, check, prog, prepull)
+
+
+TABLE_POINTS = ((0.0, 10.0), (0.0, 20.0), (22.5, 10.0), (22.5, 20.0), (45.0, 10.0), (45.0, 20.0))
+"""The bends of :func:`residual_table` (direction deg, bend mm)."""
+
+TABLE_SHAPERS = ("none", "zv", "zvd", "scheduled", "multimode", "auto")
+"""The designs of :func:`residual_table`."""
+
+
+def residual_table(
+    rig: RigFile,
+    points: Sequence[tuple[float, float]] = TABLE_POINTS,
+    names: Sequence[str] = TABLE_SHAPERS,
+    grid: ModeGrid | None = None,
+    speed_mm_s: float = 200.0,
+    times: tuple[float, float, float] = (1.0, 8.0, 12.0),
+    floor: bool = True,
+) -> pd.DataFrame:
+    """Residual vibration and least tensions of designed moves in the spatial twin (**simulated**).
+
+    For each bend and design: the move as designed (:func:`simulate_move`, :func:`residuals`; ``zv``/``zvd``
+    and the families at the move, ``scheduled``/``multimode``/``auto`` on ``grid`` if given) and, with
+    ``floor``, the move after the dynamic floor's change (:func:`floor_check`), simulated again.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``direction_deg, bend_mm, shaper, design, duration_s, predicted_pct, tip_mm, tip_pct`` (of the
+        unshaped move's at that bend), ``p2p{i}_n``, ``worst_p2p_pct`` (the tendon whose peak to peak is the
+        largest share of its unshaped one), ``least_n`` (any tendon), ``below_floor`` (samples, every tendon);
+        with ``floor``: ``changed``, ``prepull``, ``run_design``, ``run_tip_pct``, ``run_worst_p2p_pct``,
+        ``run_least_n``, ``run_below_floor``; ``wall_s`` (every simulation of the row).
+    """
+    twin = spatial_rig(rig)
+    plant = SpatialPlant(twin)
+    rows = []
+    for beta, bend in points:
+        plan = plan_move(rig, beta, bend, spatial=twin)
+        base: dict[str, object] | None = None
+        for name in names:
+            started = time.perf_counter()
+            use = grid if name in ("scheduled", "multimode", "auto") else None
+            shaping = design_move(rig, plan, name, speed_mm_s, grid=use, twin=twin)
+            run = simulate_move(rig, plan, shaping.shaper, speed_mm_s, *times, twin=twin, plant=plant)
+            r = residuals(run, plan.floor_n)
+            if base is None:
+                if name != "none":
+                    unshaped = simulate_move(rig, plan, None, speed_mm_s, *times, twin=twin, plant=plant)
+                    base = residuals(unshaped, plan.floor_n)
+                else:
+                    base = r
+            p2p = np.array(r["tension_p2p_n"])
+            ref = np.array(base["tension_p2p_n"])
+            row: dict[str, object] = {
+                "direction_deg": beta, "bend_mm": bend, "shaper": name,
+                "design": "unshaped" if shaping.shaper is None else shaping.shaper.name,
+                "duration_s": shaping.duration_s, "predicted_pct": shaping.predicted_pct,
+                "tip_mm": r["tip_mm"], "tip_pct": 100 * r["tip_mm"] / base["tip_mm"],
+            }  # fmt: skip
+            row.update({f"p2p{i + 1}_n": float(v) for i, v in enumerate(p2p)})
+            row["worst_p2p_pct"] = float(100 * np.max(p2p / ref))
+            row["least_n"] = float(min(r["least_n"]))
+            row["below_floor"] = int(sum(r["below_floor"]))
+            if floor:
+                fc = floor_check(rig, plan, shaping, speed_mm_s, times, twin=twin, grid=use)
+                ran = "unshaped" if fc.shaping.shaper is None else fc.shaping.shaper.name
+                row.update({"changed": fc.changed, "prepull": fc.prepull, "run_design": ran})
+                if fc.changed == "nothing":
+                    for key in ("tip_pct", "worst_p2p_pct", "least_n", "below_floor"):
+                        row[f"run_{key}"] = row[key]
+                else:
+                    again = simulate_move(rig, fc.plan, fc.shaping.shaper, speed_mm_s, *times, twin=twin,
+                                          plant=plant, prepull=fc.prepull)  # fmt: skip
+                    q = residuals(again, plan.floor_n)
+                    row.update({
+                        "run_tip_pct": 100 * q["tip_mm"] / base["tip_mm"],
+                        "run_worst_p2p_pct": float(100 * np.max(np.array(q["tension_p2p_n"]) / ref)),
+                        "run_least_n": float(min(q["least_n"])),
+                        "run_below_floor": int(sum(q["below_floor"])),
+                    })  # fmt: skip
+            row["wall_s"] = time.perf_counter() - started
+            rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def benchmark(
