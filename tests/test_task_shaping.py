@@ -24,6 +24,8 @@ from helpers.research import task_shaping as ts
 from helpers.research.task_space import MovePlan, move_programme, plan_move
 from helpers.rig.safety import SafetyError
 from helpers.rig.tendon_safety import TendonItem, TendonProgramme
+from helpers.virtual.spatial.direction_map import frequency_map
+from helpers.virtual.spatial.from_rig import spatial_rig
 
 MM = math.pi * 65 / 800  # mm of cable per step
 
@@ -82,6 +84,17 @@ def test_the_scheduled_design_at_a_grid_point_is_that_points_zvd_by_hand(four) -
     zv = ts.design_move(four, _plan(0.0, 10.0), "zv", grid=grid)
     np.testing.assert_allclose(zv.shaper.amplitudes, [1 / (1 + k), k / (1 + k)], rtol=1e-12)
     assert zv.shaper.times[1] == pytest.approx(math.pi / wd, rel=1e-12)
+
+
+def test_the_fixed_design_is_the_zvd_of_the_maps_dominant_mode_at_rest_for_every_move(four) -> None:
+    row = frequency_map(spatial_rig(four), (0.0,), (0.0,), n_modes=1).iloc[0]
+    wd, z = float(row["dominant_omega_d_rad_s"]), float(row["dominant_zeta"])
+    k = math.exp(-z * math.pi / math.sqrt(1 - z * z))
+    for beta in (0.0, 45.0):
+        d = ts.design_move(four, _plan(beta, 10.0), "fixed")
+        np.testing.assert_allclose(d.shaper.times, [0, math.pi / wd, 2 * math.pi / wd], rtol=1e-9)
+        np.testing.assert_allclose(d.shaper.amplitudes, np.array([1, 2 * k, k * k]) / (1 + k) ** 2, rtol=1e-9)
+        assert d.source == "rest" and "at rest" in d.describe()
 
 
 def test_the_grid_interpolates_bilinearly_and_wraps_the_direction() -> None:
@@ -317,3 +330,19 @@ def test_on_the_twin_zvd_leaves_a_fraction_of_the_unshaped_residual(four) -> Non
     assert unshaped["tip_pct"] == pytest.approx(100.0)
     assert zvd["tip_pct"] < 50.0 and zvd["worst_p2p_pct"] < 100.0
     assert unshaped["below_floor"] > 0  # the measured problem: unshaped, tendons go slack
+
+
+@pytest.mark.slow
+def test_the_simulated_automatic_choice_is_the_shortest_within_its_target(four) -> None:
+    move = ts.shaped_move(four, 45.0, 10.0, "auto")
+    table = move.shaping.candidates
+    assert move.prepull == 1 and move.check.ok  # the floor needed the pre-pull (docs/task_space.md)
+    chosen = table[table["chosen"]].iloc[0]
+    assert chosen["simulated_pct"] <= ts.AUTO_TARGET_PCT and chosen["below_floor"] == 0
+    shorter = table[table["duration_s"] < chosen["duration_s"]]
+    assert ((shorter["simulated_pct"] > ts.AUTO_TARGET_PCT) | (shorter["below_floor"] > 0)).all()
+    assert (
+        move.plan.steps
+        == plan_move(four, 45.0, 10.0, spatial=ts.pretensioned(four, spatial_rig(four), 1)).steps
+    )
+    assert move.shaping.shaper.name == chosen["candidate"]

@@ -724,13 +724,14 @@ def verify_auto(
     prepull: int = 0,
     twin: SpatialRig | None = None,
     target_pct: float = AUTO_TARGET_PCT,
+    unshaped_plan: MovePlan | None = None,
 ) -> MoveShaping:
     """The automatic choice checked in the twin: the shortest candidate whose **simulated** residual meets it.
 
     The candidates of ``shaping`` (an ``auto`` design) are simulated in order of duration
-    (:data:`VERIFY_TIMES`, with ``prepull`` steps pulled in first) against the unshaped move under the same
-    conditions; the first whose :func:`simulated_pct` is at most ``target_pct`` and that keeps every tendon at
-    the floor is taken.
+    (:data:`VERIFY_TIMES`, with ``prepull`` steps pulled in first) against the unshaped move as planned
+    (``unshaped_plan``, no pre-pull; default ``plan`` with the same pre-pull); the first whose
+    :func:`simulated_pct` is at most ``target_pct`` and that keeps every tendon at the floor is taken.
     None: the candidate of the smallest simulated residual among those keeping the floor (or of all). The
     linear prediction ranks nothing here: it misses the high modes the stepping and the slack excite (four
     tendons, 10 mm towards 45 deg: MZV predicted 3.2 %, simulated 18.7 %).
@@ -739,8 +740,9 @@ def verify_auto(
         raise ValueError("verify_auto needs an automatic choice's candidates")
     twin = spatial_rig(rig) if twin is None else twin
     plant = SpatialPlant(twin)
-    base = residuals(simulate_move(rig, plan, None, speed_mm_s, *VERIFY_TIMES, twin=twin, plant=plant,
-                                   prepull=prepull), plan.floor_n)  # fmt: skip
+    ref, ref_k = (plan, prepull) if unshaped_plan is None else (unshaped_plan, 0)
+    base = residuals(simulate_move(rig, ref, None, speed_mm_s, *VERIFY_TIMES, twin=twin, plant=plant,
+                                   prepull=ref_k), plan.floor_n)  # fmt: skip
     table = shaping.candidates.sort_values("duration_s", kind="stable").reset_index(drop=True)
     sims, lows = [], []
     pick = None
@@ -997,7 +999,7 @@ def shaped_move(
     inside :func:`prepull_programme`).
     """
     twin = spatial_rig(rig)
-    plan = plan_move(rig, direction_deg, bend_mm, spatial=twin)
+    plan = as_planned = plan_move(rig, direction_deg, bend_mm, spatial=twin)
     shaping = design_move(rig, plan, shaper, speed_mm_s, grid=grid, twin=twin)
     check = None
     prepull = 0
@@ -1006,7 +1008,7 @@ def shaped_move(
         plan, shaping, prepull = check.plan, check.shaping, check.prepull
     if shaping.name == "auto" and verify:
         linear = shaping.shaper
-        shaping = verify_auto(rig, plan, shaping, speed_mm_s, prepull, twin=twin)
+        shaping = verify_auto(rig, plan, shaping, speed_mm_s, prepull, twin=twin, unshaped_plan=as_planned)
         if check is not None and shaping.shaper != linear:  # the floor's figures of what will run
             run = simulate_move(rig, plan, shaping.shaper, speed_mm_s, *times, twin=twin, prepull=prepull)
             least, below = run.least_n(), run.below(plan.floor_n)
