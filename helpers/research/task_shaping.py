@@ -704,8 +704,9 @@ def residuals(
 AUTO_TARGET_PCT = 10.0
 """The automatic choice's target on the residual simulated in the twin, percent of the unshaped move's."""
 
-VERIFY_TIMES = (0.2, 3.2, 4.0)
-"""The programme (t_up, t_down, t_end) on which :func:`verify_auto` simulates each candidate."""
+VERIFY_TIMES = (1.0, 4.0, 4.8)
+"""The programme (t_up, t_down, t_end) on which :func:`verify_auto` simulates each candidate: the
+recording's lead-in (so the move starts as long after a pre-pull as it will), a shorter hold and no tail."""
 
 
 def simulated_pct(run: MoveRun, unshaped: dict[str, object], floor_n: float) -> float:
