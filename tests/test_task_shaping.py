@@ -346,3 +346,19 @@ def test_the_simulated_automatic_choice_is_the_shortest_within_its_target(four) 
         == plan_move(four, 45.0, 10.0, spatial=ts.pretensioned(four, spatial_rig(four), 1)).steps
     )
     assert move.shaping.shaper.name == chosen["candidate"]
+
+
+@pytest.mark.slow
+def test_on_two_tendons_that_do_not_balance_the_floor_changes_the_design(four, tmp_path, monkeypatch,
+                                                                          capsys) -> None:  # fmt: skip
+    monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
+    argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--shaper", "zv", "--dry-run",
+            "--data-dir", str(tmp_path / "data")]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    # ZV leaves tendon 2 a few milliseconds below the floor; a pre-pull would bend this arm (tendons at 0
+    # and 90 deg pull it towards 45), so the design changes: ZVD, whose three impulses keep the floor
+    assert "tried: as planned (zv): least 0." in out and "samples below the floor" in out
+    assert "+1 step(s) before the move: refused (pulling every tendon in would bend this arm" in out
+    assert "dynamic floor kept: changed the design: the design ZVD" in out
+    assert "MSEG 35736 8 8" in out  # ZVD's first impulse, 1 / (1 + K)^2 = 0.29 of 28 steps

@@ -561,9 +561,21 @@ def programme_step_times(programme: TendonProgramme, n_tendons: int) -> list[tup
 
 
 def pretensioned(rig: RigFile, twin: SpatialRig, k: int) -> SpatialRig:
-    """The twin whose rest is every tendon pulled ``k`` steps in (each pretension the statics' tension)."""
+    """The twin whose rest is every tendon pulled ``k`` steps in (each pretension the statics' tension).
+
+    Only for tendons that balance (their offsets' vectors sum to zero, as four at 90 degrees): elsewhere
+    pulling every tendon in bends the arm, and this raises ``ValueError`` (the dynamic floor then changes the
+    design instead).
+    """
     if k == 0:
         return twin
+    r = np.array([t.offset_mm for t in twin.tendons])
+    pull = np.hypot(np.sum(r * np.cos(twin.angles)), np.sum(r * np.sin(twin.angles)))
+    if pull > 1e-6 * r.sum():  # every tendon pulled in alike bends an arm whose tendons do not balance
+        angles = ", ".join(f"{t.angle_deg:g}" for t in twin.tendons)
+        raise ValueError(
+            f"pulling every tendon in would bend this arm (tendons at {angles} deg do not balance)"
+        )
     mm = np.array(derived(rig).mm_per_step)
     tension = equilibrium(twin, np.full(twin.n_tendons, k) * mm * 1e-3, rotor="free").tension
     tendons = tuple(
