@@ -238,7 +238,8 @@ def test_record_move_records_a_shaped_move_whose_hold_is_the_planned_statics(fou
                                                                             capsys) -> None:  # fmt: skip
     monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
     argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--shaper", "zv", "--quiet",
-            "--data-dir", str(tmp_path / "data"), "--virtual-instance", "task-space-test"]  # fmt: skip
+            "--no-floor-check", "--data-dir", str(tmp_path / "data"),
+            "--virtual-instance", "task-space-test"]  # fmt: skip
     try:
         assert main(argv) == 0
     finally:

@@ -65,8 +65,9 @@ from helpers.recordings import save as save_recording
 from helpers.research.design import SYSTEMS, Design, Schedule, load_design, up_down
 from helpers.research.families import ei
 from helpers.research.modemap import load_map
-from helpers.research.task_space import SHAPERS as MOVE_SHAPERS
-from helpers.research.task_space import check_travel, move_design, move_programme, plan_move
+from helpers.research.task_shaping import SHAPERS as MOVE_SHAPERS
+from helpers.research.task_shaping import ModeGrid, shaped_move
+from helpers.research.task_space import check_travel
 from helpers.research.teleop import record_streams
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
@@ -154,7 +155,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--shaper", choices=list(MOVE_SHAPERS), default="none",
-        help="move: none, or the paper's zv / zvd designed from the direction map's mode at the bend",
+        help="move: none; a family (zv, zvd, zvdd, mzv, ei, ei2, ei3, umzv) at the dominant mode at the "
+        "bend; scheduled (ZVD on the mode grid), multimode (two split modes) or auto (docs/task_space.md)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--mode-grid", type=Path, default=None,
+        help="move: a mode grid (CSV of helpers.research.task_shaping.ModeGrid.write_csv) that scheduled, "
+        "multimode and auto read the modes off (default: the modes at the move itself)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--no-floor-check", action="store_true",
+        help="move: do not simulate the shaped move's tensions in the spatial twin (nor change the "
+        "pretension or the design when a tendon would dip below the floor)",
     )  # fmt: skip
     parser.add_argument(
         "--design",
@@ -562,8 +574,8 @@ def _move_name(args: argparse.Namespace) -> str:
     return args.name or text.replace(".", "p").replace("-", "m")
 
 
-def _plan_move(args: argparse.Namespace, rig: Any) -> tuple[Any, Any, Any]:
-    """``record move``'s plan, design and programme, every check made before any port opens."""
+def _plan_move(args: argparse.Namespace, rig: Any) -> Any:
+    """``record move``'s plan, design, floor check and programme, every check made before any port opens."""
     if args.direction_deg is None or args.bend_mm is None:
         raise SystemExit("record move needs --direction-deg and --bend-mm")
     if rig.n_tendons < 2:
@@ -571,45 +583,56 @@ def _plan_move(args: argparse.Namespace, rig: Any) -> tuple[Any, Any, Any]:
             f"record move needs a rig file with several tendons; the selected rig '{rig.name}' has one "
             "(--rig four-tendon, or HELPERS_RIG)"
         )
-    plan = plan_move(rig, args.direction_deg, args.bend_mm)
-    design = move_design(rig, args.direction_deg, args.bend_mm, args.shaper)
+    grid = None
+    if args.mode_grid is not None:
+        if args.shaper not in ("scheduled", "multimode", "auto"):
+            raise ValueError(
+                f"--mode-grid applies to --shaper scheduled, multimode or auto, not {args.shaper}"
+            )
+        grid = ModeGrid.read_csv(args.mode_grid)
     speed = args.v_in if args.v_in is not None else MOVE_SPEED_MM_S
+    times = (paper.PULSE_T_UP_S, paper.PULSE_T_DOWN_S, args.t_end)
     try:
-        programme = move_programme(
-            plan, rig, speed, design.shaper, paper.PULSE_T_UP_S, paper.PULSE_T_DOWN_S, args.t_end
-        )
-    except ValueError as exc:
+        return shaped_move(rig, args.direction_deg, args.bend_mm, args.shaper, speed, times, grid,
+                           check_floor=not args.no_floor_check)  # fmt: skip
+    except ValueError as exc:  # the bend itself is checked by the options' ranges
         where = f"{args.bend_mm:g} mm towards {args.direction_deg:g} deg"
         raise SafetyError(f"move {where} refused: {exc}") from None
-    return plan, design, programme
 
 
-def _print_move(args: argparse.Namespace, rig: Any, plan: Any, design: Any) -> None:
+def _print_move(args: argparse.Namespace, rig: Any, move: Any) -> None:
     speed = args.v_in if args.v_in is not None else MOVE_SPEED_MM_S
     print(
         f"move: {args.bend_mm:g} mm towards {args.direction_deg:g} deg on rig '{rig.name}' "
         f"({rig.n_tendons} tendons), the lead tendon at {speed:g} mm/s; static tensions by the spatial twin "
         "(rotors free):"
     )
-    for line in plan.lines():
+    if move.prepull:
+        print(
+            f"  every tendon pulled in {move.prepull} step(s) before the move (the dynamic floor); the plan "
+            "from there:"
+        )
+    for line in move.plan.lines():
         print(f"  {line}")
-    print(f"  shaper: {design.describe()}")
+    for line in move.lines():
+        print(f"  {line}")
 
 
 def _record_move(args: argparse.Namespace) -> int:
     """``record move``: plan, check, print (dry run) or record one move on a rig with several tendons."""
     rig = rigfile.selected()
-    plan, design, programme = _plan_move(args, rig)
+    move = _plan_move(args, rig)
+    plan, design, programme = move.plan, move.shaping, move.programme
     target = recording_path(args.group, _move_name(args), args.data_dir)
     if not args.replace:
         refuse_existing(target)
     if args.dry_run:
-        _print_move(args, rig, plan, design)
-        check_travel(plan, rig)  # from rest: every tendon at position 0
+        _print_move(args, rig, move)
+        check_travel(plan, rig, start=move.start)  # from rest: every tendon at position 0 (or pre-pulled)
         check_tendon_programme(programme, rig)
         _print_move_programme(args, rig, programme, target)
         return 0
-    check_travel(plan, rig)
+    check_travel(plan, rig, start=move.start)
     check_tendon_programme(programme, rig)
     with folder_lock(args.data_dir / args.group, what="recording", name=SESSION_LOCK, beside=True):
         with TendonRig.connect(args.ports, rig=rig, rig_name=args.rig_name) as trig:
@@ -627,7 +650,7 @@ def _record_move(args: argparse.Namespace) -> int:
             rec = trig.recording(frame, programme, rate_hz=args.rate)
             rec.meta["scenario"] = {
                 "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm,
-                "shaper": design.name, "design": design.metadata(),
+                "shaper": design.name, **move.metadata(),
                 "speed_mm_s": args.v_in if args.v_in is not None else MOVE_SPEED_MM_S,
                 "steps": list(plan.steps), "planned_tension_n": list(plan.tension_n),
                 "tension_floor_n": plan.floor_n, "trimmed_steps": list(plan.trimmed),
