@@ -173,11 +173,13 @@ def check_tendon_stream(
     rules = hs.SetpointRules()
     k = 0
     for k, row in enumerate(units.tolist(), start=1):
-        run.tick(k, tuple(row), rules.take(k, tuple(row)))
+        v = rules.take(k, tuple(row))
+        run.tick(k, v, rules.state)  # the rules' state (active, end), not the set-point
     rules.end_period = k + 1
     while run.finish_tick is None:
         k += 1
-        run.tick(k, 0, rules.take(k, None))
+        v = rules.take(k, None)
+        run.tick(k, v, rules.state)
     limits = [x for x in run.notices if x.kind.startswith("LIMIT")]
     if limits and not allow_clamps:
         x = limits[0]

@@ -1,0 +1,178 @@
+"""Arbitrary motion of the tip (helpers.research.tip_stream): a bend stream turned into every tendon's set-points.
+
+Expected values by hand from the rig files: a step is pi 65 / 800 = 0.255254 mm of cable; one board unit held
+for a 10 ms period moves 625 / 65536 step (104.8576 unit-periods per step). A bend of ``b`` towards ``beta``
+pulls tendon ``i`` at ``a_i`` by ``b cos(beta - a_i)`` (equal offsets): 10 mm towards 45 deg is 7.0711 mm =
+27.70 steps on tendons 1 and 2. The tendon opposite a bend pays out a little less than the pulled tendon takes
+in (the statics: 9.85 mm against 10.10 mm for 10 mm towards 0 deg, ``docs/task_space.md``); paying it out the
+constant-curvature 8 mm at a bend of 8 mm instead stretches it less by about 0.2 mm, 0.2 / 0.255 x 2.7 N =
+2 N below its 2.36 N: under the 1 N floor.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from helpers import rigfile
+from helpers.__main__ import error_line
+from helpers.board import stream_reference as hs
+from helpers.research import tip_stream as ts
+from helpers.research.task_space import plan_move
+from helpers.rig.safety import SafetyError
+from helpers.rig.stream import StreamLimit
+from helpers.rig.tendon_stream import check_tendon_stream, tendon_units
+
+MM = math.pi * 65 / 800
+
+
+@pytest.fixture(scope="module")
+def four() -> rigfile.RigFile:
+    return rigfile.load(rigfile.resolve("four-tendon"))
+
+
+@pytest.fixture(scope="module")
+def two(four) -> rigfile.RigFile:
+    """The four-tendon rig with tendons 1 and 2 only (0 and 90 deg): a bend between them pays nothing out."""
+    text = four.text.replace("[[tendon]]\nangle_deg = 180.0\n\n[[tendon]]\nangle_deg = 270.0\n\n", "")
+    rig = rigfile.loads(text.replace('name = "four-tendon"', 'name = "two-tendon"'), "two.toml")
+    assert rig.n_tendons == 2
+    return rig
+
+
+def _out_and_back(direction_deg: float, bend_mm: float, periods: int = 5, hold: int = 40) -> ts.TipPath:
+    """Rest (10 periods), out in ``periods`` to the bend, hold, back in ``periods``, rest (``hold``)."""
+    r = math.radians(direction_deg)
+    step = np.array([math.cos(r), math.sin(r)]) * bend_mm / (periods * ts.PERIOD_S)
+    v = np.vstack([np.zeros((10, 2)), np.repeat(step[None], periods, 0), np.zeros((hold, 2)),
+                   np.repeat(-step[None], periods, 0), np.zeros((hold, 2))])  # fmt: skip
+    return ts.velocity_path(v, f"out-and-back {direction_deg:g}")
+
+
+# --- paths -------------------------------------------------------------------------------------------------
+def test_a_velocity_command_integrates_to_the_bends_and_its_stops() -> None:
+    path = _out_and_back(90.0, 10.0)
+    # 10 mm in 5 periods: 200 mm/s of bend along y
+    assert path.velocity_mm_s[10].tolist() == pytest.approx([0.0, 200.0], abs=1e-9)
+    assert path.polar(15) == pytest.approx((90.0, 10.0))
+    assert path.stops == ((0, 10), (15, 55), (60, 100))
+    assert path.periods == 100
+
+
+def test_the_figures_are_deterministic_and_start_and_end_at_rest() -> None:
+    for name in ts.FIGURES:
+        a, b = ts.figure_path(name, 10.0, seed=4), ts.figure_path(name, 10.0, seed=4)
+        assert np.array_equal(a.bends, b.bends)
+        assert not a.bends[0].any() and not a.bends[-1].any()
+        assert np.max(np.hypot(*a.bends.T)) <= 10.0 + 1e-9
+    square = ts.figure_path("square", 10.0, speed_mm_s=100.0, hold_s=1.0, lead_s=0.3)
+    corners = [square.polar(a) for a, _ in square.stops]
+    assert [tuple(round(v, 6) for v in c) for c in corners] == [
+        (0.0, 0.0), (0.0, 10.0), (90.0, 10.0), (180.0, 10.0), (270.0, 10.0), (0.0, 10.0), (0.0, 0.0),
+    ]  # fmt: skip
+    # an edge of the square: 10 sqrt 2 = 14.14 mm at 100 mm/s, 14 whole periods
+    assert square.stops[2][0] - square.stops[1][1] == 14
+    assert ts.figure_path("random", 10.0, seed=1).bends.tolist() != ts.figure_path("random", 10.0).bends.tolist()
+    with pytest.raises(ValueError, match="path must be one of square, star, circle, random"):
+        ts.figure_path("spiral", 10.0)
+
+
+# --- the mapping -------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def twenty(four) -> ts.StreamPlan:
+    """20 mm towards 0 deg and back: the stop where rounding leaves tendon 2 short and the policy trims it."""
+    return ts.plan_stream(four, _out_and_back(0.0, 20.0, periods=10), knot_mm=2.0)
+
+
+def test_a_held_bend_stands_at_plan_moves_steps(four, twenty) -> None:
+    """Independent: plan_move solves the bend from rest, the stream by continuation along the path."""
+    expected = plan_move(four, 0.0, 20.0)
+    assert twenty.stop_steps[1] == expected.steps  # (+79, +2, -75, +1): tendon 2 pulled in one step
+    assert twenty.trimmed[1] == expected.trimmed
+    assert twenty.stop_steps[0] == twenty.stop_steps[2] == (0, 0, 0, 0)
+    # the planned positions at the stop are those steps to within one board unit-period (1 / 104.86 step)
+    a, b = twenty.path.stops[1]
+    assert np.all(np.abs(twenty.positions[a : b + 1] - np.array(expected.steps)) < 1 / ts.UNITS_PER_STEP)
+    assert twenty.tension_n[a] == pytest.approx(expected.tension_n, abs=0.05)
+    assert twenty.tension_n.min() >= twenty.floor_n == 1.0
+
+
+def test_the_stream_comes_back_to_rest_exactly(twenty) -> None:
+    assert twenty.units.sum(axis=0).tolist() == [0, 0, 0, 0]
+    assert np.all(twenty.positions[-1] == 0.0)
+
+
+def test_a_straight_line_sums_to_its_end_displacement_and_the_board_stands_there(two) -> None:
+    """Rest to 10 mm towards 45 deg and hold: each tendon's set-points x 10 ms sum to its 28 steps (27.70
+    rounded) x 0.255254 mm, to within one unit-period; the board's planner, shaped by a two-impulse shaper,
+    stands at 28 steps."""
+    v = np.vstack([np.zeros((5, 2)), np.full((8, 2), 10 * math.cos(math.pi / 4) / 0.08), np.zeros((40, 2))])
+    path = ts.velocity_path(v, "line")
+    plan = ts.plan_stream(two, path, knot_mm=2.0)
+    assert plan.stop_steps[-1] == (28, 28)
+    moved = plan.setpoints_mm_s.sum(axis=0) * ts.PERIOD_S
+    assert np.all(np.abs(moved - 28 * MM) <= MM / ts.UNITS_PER_STEP + 1e-9)
+    shaper = hs.StreamShaper((2048, 2048), (0, 50_000))
+    assert ts.board_counts(plan, two, shaper)[-1] == (28, 28)
+    assert ts.check_plan(plan, two, shaper).end == (28, 28)
+
+
+def test_the_statics_between_knots_is_interpolated_within_a_hundredth_of_a_step(two) -> None:
+    path = ts.velocity_path(np.vstack([np.zeros((2, 2)), np.tile([[40.0, 30.0]], (20, 1))]), "slow line")
+    # 10 mm in 20 periods (0.5 mm each), knots every 2 mm: every fourth boundary, the midpoints solved
+    assert ts.interpolation_error(two, path, knot_mm=2.0) < 0.01
+
+
+# --- the floor, before any byte ------------------------------------------------------------------------------
+def test_a_path_that_leaves_the_opposite_tendon_short_is_refused_naming_it(four) -> None:
+    """Paying every tendon out by the constant-curvature lengths (no statics) leaves the tendon opposite the
+    bend (towards 0 deg: tendon 3, at 180 deg) short by about 2 N at 8 mm (module docstring)."""
+    star = ts.figure_path("star", 10.0, speed_mm_s=200.0, lead_s=0.3)
+    # boundaries 0-29 at rest, then 2 mm of bend per period towards 0 deg: 8 mm at boundary 33
+    path = ts.velocity_path(star.velocity_mm_s[:45], "star")
+    assert path.polar(33) == pytest.approx((0.0, 8.0))
+    with pytest.raises(SafetyError) as info:
+        ts.plan_stream(four, path, mapping="kinematic")
+    text = str(info.value)
+    assert text.startswith("tendon 3: the star path (10 mm) leaves it at 0.")
+    assert "by statics at period 33 (t = 0.33 s, bend 8.00 mm towards 0.0 deg), below the tension floor " in text
+    assert "1.00 N ([arm] tension_floor_n)" in text and "\n" not in text
+    assert error_line(info.value)[1] == 3
+    # the statics' own mapping holds it at its pretension: the same path is planned
+    plan = ts.plan_stream(four, path, knot_mm=2.0)
+    assert plan.tension_n[:, 2].min() >= 2.3
+
+
+def test_a_rest_pretension_below_the_floor_is_refused(four) -> None:
+    low = rigfile.loads(four.text.replace("pretension_n = 2.3554", "pretension_n = 0.8"), "low.toml")
+    with pytest.raises(SafetyError, match=r"^tendon 1: its rest pretension 0.80 N is below the tension floor"):
+        ts.plan_stream(low, _out_and_back(0.0, 5.0))
+
+
+def test_a_direction_no_tendon_faces_is_refused(two) -> None:
+    with pytest.raises(SafetyError, match=r"no tendon faces 180 deg \(tendons at 0, 90 deg\)"):
+        ts.plan_stream(two, _out_and_back(180.0, 5.0))
+
+
+def test_the_stream_checks_a_shaped_motion_after_a_lead_at_rest(four) -> None:
+    """The board's shaped motion is checked whatever comes first: 20 periods at rest, then 365 mm/s (1499
+    units) through a 1.5 / -0.5 shaper is 2248.5 units in period 21, over the 1640 limit."""
+    overshoot = hs.StreamShaper((6144, -2048), (0, 50_000), allow_negative=True)
+    sp = np.zeros((23, 4))
+    sp[20:, 3] = 365.0
+    with pytest.raises(StreamLimit, match=r"^tendon 4: the shaped stream would exceed the speed limit .* in "
+                                          r"period 21$"):  # fmt: skip
+        check_tendon_stream(tendon_units(sp, four), four, (0, 0, 0, 0), overshoot)
+
+
+# --- the shaper ---------------------------------------------------------------------------------------------
+def test_the_design_is_the_mean_of_the_maps_mode_at_the_stops(two) -> None:
+    path = _out_and_back(45.0, 10.0)
+    d = ts.stream_design(two, path, "zvd")
+    assert len(d.points) == 1 and d.points[0][:2] == (45.0, 10.0)
+    # docs/task_space.md: the two-tendon rig, 10 mm towards 45 deg: 26.996 rad/s, zeta 0.0424
+    assert d.omega_d == pytest.approx(26.996, abs=0.01) and d.zeta == pytest.approx(0.0424, abs=1e-4)
+    assert d.shaper.times[-1] == pytest.approx(2 * math.pi / d.omega_d)  # ZVD: one damped period
+    assert "every tendon" in d.describe() and ts.stream_design(two, path, "none").shaper is None
