@@ -12,9 +12,9 @@ each starting and ending at rest with stops; :func:`velocity_path` integrates an
 1. **The statics along the path.** The spatial twin's bend equilibrium (the task-space pretension policy:
    the tendons facing the bend pulled as the map pulls them, every other held at its rest pretension, the
    statics saying how far its spool turns) is solved by continuation at **knots** along the path (every
-   ``knot_mm`` of the bend's path length, every stop, the ends), each stepper's command interpolated linearly
-   in time between knots (the interpolation error, from the statics solved at the knots' midpoints, is
-   printed by the dry run: under 0.01 step for the figures at 1 mm knots).
+   ``knot_mm`` of the bend's path length, every stop, the ends), each stepper's command interpolated
+   linearly in the path's length between knots (the interpolation error, against the statics solved at the
+   knots' midpoints, is printed by the dry run when any period is interpolated).
 2. **Whole steps at the stops.** At every stop (a stretch of periods where the bend holds) each tendon's
    command is rounded to whole steps and trimmed to the floor as :func:`plan_move` does (so a stop holds
    ``plan_move``'s steps); the difference (under half a step plus the trim) is blended in linearly over the
@@ -290,12 +290,16 @@ def figure_path(
 
 
 # --- the statics along the path --------------------------------------------------------------------------
+def _length(path: TipPath) -> np.ndarray:
+    """The bend's path length (mm) at every boundary."""
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path.bends, axis=0).T))])
+
+
 def _knots(path: TipPath, knot_mm: float) -> np.ndarray:
     """Boundaries where the statics is solved: every ``knot_mm`` of path length, every stop, the ends."""
     if not (math.isfinite(knot_mm) and knot_mm > 0):
         raise ValueError(f"knot_mm must be > 0, got {knot_mm!r}")
-    length = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path.bends, axis=0).T))])
-    cells = np.floor(length / knot_mm + 1e-9)
+    cells = np.floor(_length(path) / knot_mm + 1e-9)
     picks = {0, path.periods, *np.flatnonzero(np.diff(cells) != 0) + 1}
     for a, b in path.stops:
         picks |= {a, b}
@@ -309,15 +313,22 @@ def _bend_eq(twin: SpatialRig, bend: np.ndarray, start: SpatialEquilibrium | Non
 
 
 def _commands(twin: SpatialRig, path: TipPath, knots: np.ndarray) -> tuple[np.ndarray, list]:
-    """Every stepper's command (m) at every boundary (knots solved, linear between) and the knots' states."""
+    """Every stepper's command (m) at every boundary, and the knots' states.
+
+    Solved at the knots, linear in the path's length between them.
+    """
     eqs: list[SpatialEquilibrium] = []
     eq = None
     for k in knots:
         eq = _bend_eq(twin, path.bends[k], eq)
         eqs.append(eq)
     at_knots = np.array([e.command for e in eqs])
-    idx = np.arange(path.periods + 1)
-    cmd = np.column_stack([np.interp(idx, knots, at_knots[:, i]) for i in range(at_knots.shape[1])])
+    length = _length(path)
+    cmd = np.empty((path.periods + 1, at_knots.shape[1]))
+    for j, (a, b) in enumerate(zip(knots[:-1], knots[1:], strict=True)):
+        span = length[b] - length[a]  # linear in the path's length between two knots (0 over a stop)
+        f = (length[a : b + 1] - length[a]) / span if span > 0 else np.zeros(b - a + 1)
+        cmd[a : b + 1] = at_knots[j] + f[:, None] * (at_knots[j + 1] - at_knots[j])
     return cmd, eqs
 
 
@@ -378,6 +389,8 @@ class StreamPlan:
     tension_n: np.ndarray
     floor_n: float
     knot_mm: float
+    interpolated: int = 0
+    """Boundaries in motion whose command was interpolated between knots (not solved there)."""
 
     def least_tension(self) -> list[tuple[float, int]]:
         """Each tendon's least planned static tension and the boundary where it is."""
@@ -406,6 +419,7 @@ class StreamPlan:
             "trimmed_steps": [list(s) for s in self.trimmed],
             "planned_min_tension_n": [round(t, 6) for t, _ in self.least_tension()],
             "tension_floor_n": self.floor_n, "knot_mm": self.knot_mm,
+            "interpolated_periods": self.interpolated,
         }  # fmt: skip
 
 
@@ -539,8 +553,16 @@ def plan_stream(
         path=path, units=units, setpoints_mm_s=mm_s, positions=positions,
         stop_steps=tuple(tuple(int(v) for v in s) for s in stop_steps),
         trimmed=tuple(tuple(int(v) for v in t) for t in trims), tension_n=tension, floor_n=floor,
-        knot_mm=float(knot_mm),
+        knot_mm=float(knot_mm), interpolated=_interpolated(path, knots) if mapping == "statics" else 0,
     )  # fmt: skip
+
+
+def _interpolated(path: TipPath, knots: np.ndarray) -> int:
+    held = np.zeros(path.periods + 1, dtype=bool)
+    for a, b in path.stops:
+        held[a : b + 1] = True
+    held[knots] = True
+    return int(np.count_nonzero(~held))
 
 
 def check_floor(tension_n: np.ndarray, floor_n: float, path: TipPath, what: str) -> None:
