@@ -72,7 +72,6 @@ __all__ = [
     "MAPPINGS",
     "plan_stream",
     "check_floor",
-    "positions_tensions",
     "check_plan",
     "board_counts",
     "stream_design",
@@ -374,6 +373,8 @@ class StreamPlan:
         Steps each stop's trimming pulled each tendon in.
     tension_n : numpy.ndarray
         The static tensions (rotors free) at every boundary's planned positions, N.
+    tip_mm : numpy.ndarray
+        Where the statics puts the tip there (mm, the clamp frame), shape (periods + 1, 3).
     floor_n : float
         The rig file's tension floor, N.
     knot_mm : float
@@ -387,6 +388,7 @@ class StreamPlan:
     stop_steps: tuple[tuple[int, ...], ...]
     trimmed: tuple[tuple[int, ...], ...]
     tension_n: np.ndarray
+    tip_mm: np.ndarray
     floor_n: float
     knot_mm: float
     interpolated: int = 0
@@ -547,12 +549,12 @@ def plan_stream(
     mm_s = units * hs.STEPS_PER_S_PER_UNIT * (mm_m * 1e3)
     tendon_units(mm_s, rig)  # the speed limit, one line naming the tendon and the set-point
     positions = cum / UNITS_PER_STEP
-    tension = _tensions(twin, positions * mm_m, knots, eqs, what, path)
+    tension, tip = _tensions(twin, positions * mm_m, knots, eqs, what, path)
     check_floor(tension, floor, path, what)
     return StreamPlan(
         path=path, units=units, setpoints_mm_s=mm_s, positions=positions,
         stop_steps=tuple(tuple(int(v) for v in s) for s in stop_steps),
-        trimmed=tuple(tuple(int(v) for v in t) for t in trims), tension_n=tension, floor_n=floor,
+        trimmed=tuple(tuple(int(v) for v in t) for t in trims), tension_n=tension, tip_mm=tip, floor_n=floor,
         knot_mm=float(knot_mm), interpolated=_interpolated(path, knots) if mapping == "statics" else 0,
     )  # fmt: skip
 
@@ -585,28 +587,15 @@ def check_floor(tension_n: np.ndarray, floor_n: float, path: TipPath, what: str)
         )
 
 
-def positions_tensions(
-    rig: RigFile, positions_steps: np.ndarray, spatial: SpatialRig | None = None
-) -> np.ndarray:
-    """The static tensions (rotors free, N) at every row of planned positions (steps), by continuation."""
-    twin = spatial_rig(rig) if spatial is None else spatial
-    mm_m = np.asarray(derived(rig).mm_per_step, dtype=float) * 1e-3
-    out = np.empty_like(np.asarray(positions_steps, dtype=float))
-    eq = None
-    last = None
-    for k, row in enumerate(np.asarray(positions_steps, dtype=float)):
-        if last is None or np.any(row != last):
-            eq = equilibrium(twin, row * mm_m, rotor="free", start=eq)
-            last = row
-        out[k] = eq.tension
-    return out
-
-
 def _tensions(
     twin: SpatialRig, u_m: np.ndarray, knots: np.ndarray, eqs: list | None, what: str, path: TipPath
-) -> np.ndarray:
-    """Static tensions at every boundary (rotors free), each from the knot before (repeated rows reused)."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """Static tensions (N) and tip (mm, clamp frame) at every boundary (rotors free).
+
+    Each solved from the bend's state at the knot before (repeated rows reused).
+    """
     out = np.empty_like(u_m)
+    tip = np.empty((len(u_m), 3))
     nearest = np.searchsorted(knots, np.arange(len(u_m)), side="right") - 1
     eq = None
     last = None
@@ -621,7 +610,8 @@ def _tensions(
                 raise SafetyError(f"{what} refused at {path.where(k)}: {exc}") from None
             last = row
         out[k] = eq.tension
-    return out
+        tip[k] = eq.tip * 1e3
+    return out, tip
 
 
 def check_plan(

@@ -46,7 +46,7 @@ from helpers.rig.safety import SafetyError
 from helpers.rig.stepper import last_int
 from helpers.rig.stream import STREAM_RATE_HZ, Pacer, StreamLimit, refuse_notice
 from helpers.rig.tendon_safety import static_tensions
-from helpers.rig.tendons import TendonRig, tendon_frame, tendon_recording
+from helpers.rig.tendons import TendonRig, tendon_frame, tendon_recording, with_twin_tip
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 
@@ -413,6 +413,7 @@ class TendonStreamRig(TendonRig):
                           started: str) -> Recording:  # fmt: skip
         channels = getattr(self.daq.parser, "channels", self.rig.n_tendons)
         frame = tendon_frame(list(self.daq.rows), self.rig, feed.plan.start, channels)
+        frame = with_twin_tip(frame, getattr(self.daq.port, "twin_tip_um", None))  # the virtual rig's tip
         stats = self.daq.stats
         counts = {"samples": len(frame), "dropped": int(stats.dropped), "corrupted": int(stats.corrupted),
                   "overruns": int(stats.overruns)}  # fmt: skip
