@@ -100,10 +100,33 @@ def test_header_of_a_four_tendon_rig_and_of_the_second_rig(tmp_path):
     m = _macros(out.read_text())
     assert (m["RIG_AXES"], m["RIG_CHANNELS"]) == ("4", "4")
     assert m["RIG_AXIS_TRAVEL_STEPS"] == "{156, 156, 156, 156}"
+    # 20 mm below rest / 0.2552544 mm per step = 78.35: the release table, right after the travel's
+    assert m["RIG_AXIS_RELEASE_STEPS"] == "{78, 78, 78, 78}"
+    names = list(m)
+    assert names[names.index("RIG_AXIS_TRAVEL_STEPS") + 1] == "RIG_AXIS_RELEASE_STEPS"
     assert m["RIG_DAQ_BAUD"] == "1000000L"  # four channels per line need more than 500 kbaud
     assert firmware_header.main(["long-arm", "-o", str(out)]) == 0
     m = _macros(out.read_text())
     assert (m["RIG_MIN_INTERVAL_US"], m["RIG_AXIS_TRAVEL_STEPS"]) == ("524", "{254}")
+    assert "RIG_AXIS_RELEASE_STEPS" not in m  # no release: the header as before the key existed
+
+
+def test_header_refuses_a_release_and_travel_over_the_boards_8_bits(tmp_path, capsys):
+    # the four-tendon rig: 156 steps of travel at pi 65 / 800 = 0.2552544 mm per step; a release of 25.5 mm is
+    # floor(99.90) = 99 steps (255 in all, the most), 25.6 mm floor(100.29) = 100 (256); at most 99 steps,
+    # 25.27 mm
+    text = (rigfile.RIGS_DIR / "four-tendon.toml").read_text()
+    out = tmp_path / "h.h"
+    for release, ok in (("25.5", True), ("25.6", False)):
+        rig_path = tmp_path / f"four{release}.toml"
+        rig_path.write_text(text.replace("release_mm = 20.0", f"release_mm = {release}"))
+        assert firmware_header.main([str(rig_path), "-o", str(out)]) == (0 if ok else 2)
+    err = capsys.readouterr().err
+    assert (
+        err.count("\n") == 1 and "[hardware] release_mm: 100 steps below position 0 and 156 of travel" in err
+    )
+    assert "at most 255 steps of both together per axis (a release of at most 25.27 mm)" in err
+    assert _macros(out.read_text())["RIG_AXIS_RELEASE_STEPS"] == "{99, 99, 99, 99}"  # 25.5 mm's, kept
 
 
 def test_header_refuses_a_bad_rig_and_writes_nothing(tmp_path, capsys):

@@ -237,3 +237,58 @@ def test_docs_name_every_key_and_macro():
     missing = [k for k in keys if f"`{k}`" not in doc]
     missing += [m for m in firmware_header.MACROS if f"`{m}`" not in doc]
     assert not missing, f"docs/rig_file.md does not document {missing}"
+
+
+# --- the release below position 0 ([hardware] release_mm) ------------------------------------------------
+FOUR_TEXT = (rigfile.RIGS_DIR / "four-tendon.toml").read_text()
+
+
+def _with_release(value: str) -> str:
+    return _edit(FOUR_TEXT, "release_mm", value)
+
+
+def test_release_defaults_to_none_and_the_shipped_four_tendon_rigs_pay_out_78_steps():
+    paper = rigfile.default_rig()
+    assert "release_mm" not in PAPER_TEXT and paper.hardware.release_mm == 0.0
+    assert rigfile.derived(paper).release_steps == (0,)
+    # 20 mm / (pi 65 / 800 mm per step) = 20 / 0.2552544 = 78.35 steps, floored as the travel is
+    for name in ("four-tendon", "hanging"):
+        rig = rigfile.load(rigfile.resolve(name))
+        assert rig.hardware.release_mm == 20.0
+        assert rigfile.derived(rig).release_steps == (78, 78, 78, 78)
+    assert rigfile.load(rigfile.resolve("long-arm")).hardware.release_mm == 0.0
+
+
+def test_release_is_read_in_mm_and_floored_to_whole_steps():
+    assert rigfile.derived(rigfile.loads(_with_release("20.0"))).release_steps == (78,) * 4
+    assert rigfile.derived(rigfile.loads(_with_release("10"))).release_steps == (39,) * 4  # 39.18
+    assert rigfile.derived(rigfile.loads(_with_release("0.0"))).release_steps == (0,) * 4
+    assert (
+        rigfile.derived(rigfile.loads(_with_release("0.2552544031041700"))).release_steps == (1,) * 4
+    )  # one step
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        ("-1.0", "my.toml: [hardware] release_mm: must be >= 0 mm, got -1.0"),
+        ('"20"', "my.toml: [hardware] release_mm: must be a number mm, got '20'"),
+        (
+            "0.1",
+            "my.toml: [hardware] release_mm: 0.1 mm is less than one step (0.25525 mm): 0 means no "
+            "paying out",
+        ),
+        ("5000.0", "my.toml: [hardware] release_mm: 5000.0 mm is outside the plausible 0-2000 mm"),
+    ],
+)
+def test_a_nonsense_release_is_refused_in_one_line(value, message):
+    assert _refusal(_with_release(value)).startswith(message)
+
+
+def test_a_release_on_a_rig_of_one_tendon_is_refused():
+    text = PAPER_TEXT.replace("travel_mm = 40.0", "travel_mm = 40.0\nrelease_mm = 20.0", 1)
+    assert _refusal(text).startswith(
+        "my.toml: [hardware] release_mm: 20 mm on a rig of one tendon: its position 0 is the end of its "
+        "travel"
+    )
+    assert rigfile.loads(text.replace("release_mm = 20.0", "release_mm = 0.0")).hardware.release_mm == 0.0

@@ -179,6 +179,25 @@ def test_each_axis_is_clamped_at_its_own_travel() -> None:
     assert res[1].finish_tick == res[0].finish_tick == 30 + 2 + 3  # last non-zero 30, + q_max + 2, + 3
 
 
+def test_an_axis_with_a_release_pays_out_down_to_it() -> None:
+    """The same top speed down for 30 periods (469.2 steps) on axes with a release below zero
+    (``RIG_AXIS_RELEASE_STEPS``): axis 0 (release 78) from 0 to -78, axis 1 (none) held at 0, axis 2 (release
+    78) from 100 to -78; the exact trajectory with the same limits ends there too."""
+    unit = hs.StreamShaper((4096,), (0,))
+    commands = hs.PeriodCommands({k: (-hs.V_MAX, -hs.V_MAX, -hs.V_MAX) for k in range(1, 31)}, 31)
+    res = hs.simulate_axes(unit, commands, [0, 0, 100], [156, 156, 156], releases=[78, 0, 78])
+    assert [r.position for r in res] == [-78, 0, -78]
+    assert [n.line for r in res for n in r.notices] == [
+        "N,LIMIT,TRAVEL,-78",
+        "N,LIMIT,TRAVEL,0,1",
+        "N,LIMIT,TRAVEL,-78,2",
+    ]
+    assert len(res[2].ticks) == 178 and set(res[2].directions.tolist()) == {-1}
+    t = np.array([40.0 * hs.PERIOD_TICKS])
+    assert hs.exact_position(unit, res[2].v_by_period, t, position=100, release=78)[0] == -78.0
+    assert hs.exact_position(unit, res[2].v_by_period, t, position=100)[0] == 0.0  # no release: at 0
+
+
 def test_impulse_delays_of_a_build_with_several_axes() -> None:
     assert hs.impulse_problem(1, 2048, 620_000, 0, False, hs.MAX_DELAY_US_AXES) is None
     assert hs.impulse_problem(1, 2048, 620_016, 0, False, hs.MAX_DELAY_US_AXES) == "delay"

@@ -1,11 +1,11 @@
 """Moves in task space (helpers.research.task_space): a bend turned into every tendon's steps, the floor.
 
 Expected values by hand from the rig files: a step is pi 65 / 800 = 0.255254 mm of cable, the travel 156
-steps (39.82 mm). A bend of ``b`` mm towards ``beta`` pulls tendon ``i`` at ``a_i`` by ``b cos(beta - a_i)``
-(equal offsets), so 10 mm towards 45 deg is 7.0711 mm = 27.70 steps on tendons 1 and 2, towards 30 deg
-8.660 mm = 33.93 steps on tendon 1 and 5.0 mm = 19.59 steps on tendon 2 (the stepper's command adds its
-rotor's lag, under half a step here). The opposite tendon pays out about the same cable as the pulled one
-takes in.
+steps (39.82 mm), the release below rest floor(20 / 0.255254) = floor(78.35) = 78 steps (19.91 mm). A
+bend of ``b`` mm towards ``beta`` pulls tendon ``i`` at ``a_i`` by ``b cos(beta - a_i)`` (equal offsets),
+so 10 mm towards 45 deg is 7.0711 mm = 27.70 steps on tendons 1 and 2, towards 30 deg 8.660 mm = 33.93
+steps on tendon 1 and 5.0 mm = 19.59 steps on tendon 2 (the stepper's command adds its rotor's lag, under
+half a step here). The opposite tendon pays out about the same cable as the pulled one takes in.
 The hanging rig (gravity along the backbone) is symmetric about the plane between two neighbours, so its
 plan for 45 deg is mirrored and 30 deg mirrors 60 deg.
 """
@@ -71,16 +71,42 @@ def test_the_opposite_tendon_pays_out_and_every_tendon_keeps_the_floor(four) -> 
     assert "tendon 3: -" in "\n".join(p.lines()) and "floor 1.00 N" in p.lines()[0]
 
 
-def test_paying_out_from_the_rest_position_is_past_the_travel_and_names_the_tendon(four) -> None:
-    p = plan_move(four, 90.0, 10.0)  # tendon 4 (270 deg) is opposite
-    with pytest.raises(
-        SafetyError, match=r"^tendon 4: the move 10 mm towards 90 deg needs -3\d steps"
-    ) as exc:
-        check_travel(p, four)
-    assert "past its travel of 0-156 steps" in str(exc.value) and "\n" not in str(exc.value)
-    assert check_travel(p, four, start=(40, 0, 40, 40)) == tuple(
-        40 * (i != 1) + n for i, n in enumerate(p.steps)
+def _no_release(four: rigfile.RigFile) -> rigfile.RigFile:
+    """The four-tendon rig without a release: position 0 (the rest) is the end of every tendon's travel."""
+    text = four.text.replace("release_mm = 20.0", "release_mm = 0.0")
+    assert text != four.text
+    return rigfile.loads(text, "no-release.toml")
+
+
+def _steps_plan(steps: tuple[int, ...]) -> MovePlan:
+    return MovePlan(45.0, 10.0, steps, (0.0,) * 4, (0.0,) * 4, (3.0,) * 4, 1.0, (True, True, False, False),
+                    (0, 0, 0, 0))  # fmt: skip
+
+
+def test_paying_out_within_the_release_is_inside_the_travel(four) -> None:
+    # 10 mm towards 45 deg: tendons 3 and 4 pay out 27 steps, inside the 78 below rest
+    assert check_travel(_steps_plan((28, 28, -27, -27)), four) == (28, 28, -27, -27)
+    assert check_travel(_steps_plan((28, 28, -78, -27)), four) == (28, 28, -78, -27)  # the end of the release
+    with pytest.raises(SafetyError) as exc:
+        check_travel(_steps_plan((28, 28, -27, -79)), four)
+    assert str(exc.value) == (
+        "tendon 4: the move 10 mm towards 45 deg needs -79 steps (-20.17 mm) from position 0, past its "
+        "travel of -78-156 steps: it pays out at most 78 steps (19.91 mm, [hardware] release_mm) below its "
+        "rest"
     )
+    p = plan_move(four, 90.0, 10.0)  # tendon 4 (270 deg) is opposite: about 39 steps out
+    assert check_travel(p, four) == p.steps
+    with pytest.raises(SafetyError, match=r"^tendon 4: the move 10 mm towards 90 deg needs -3\d steps"):
+        check_travel(p, four, start=(0, 0, 0, -45))  # -45 - 39 is past -78
+
+
+def test_paying_out_from_rest_on_a_rig_without_a_release_names_the_tendon(four) -> None:
+    rig = _no_release(four)
+    with pytest.raises(SafetyError, match=r"^tendon 3: the move 10 mm towards 45 deg needs -27 steps") as exc:
+        check_travel(_steps_plan((28, 28, -27, -27)), rig)
+    assert "past its travel of 0-156 steps: the rig's position 0 is its rest" in str(exc.value)
+    assert "\n" not in str(exc.value)
+    assert check_travel(_steps_plan((28, 28, -27, -27)), rig, start=(40, 0, 40, 40)) == (68, 28, 13, 13)
 
 
 def test_a_bend_beyond_the_travel_is_refused_before_the_statics(four) -> None:
@@ -141,9 +167,27 @@ def _two_tendon_rig(four: rigfile.RigFile, folder) -> str:
     return str(path)
 
 
+def test_record_move_dry_run_pays_the_antagonists_out_below_rest(four, tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    data = tmp_path / "data"
+    argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--dry-run", "--data-dir"]
+    argv.append(str(data))
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "tendon 1: +28 steps (+7.15 mm, pulled); static tension" in out
+    assert "tendon 3: -27 steps (-6.89 mm, paid out below its rest, held at its pretension)" in out
+    w = round(1e6 * 28 * MM / 200)  # the lead tendon's window at 200 mm/s
+    assert f"MSEG {w} 28 28 -27 -27; WAIT 6964; MSEG {w} -28 -28 27 27" in out
+    assert "move_none_d45_b10.csv; nothing was sent" in out and not data.exists()
+
+
 def test_record_move_dry_run_prints_the_plan_then_refuses_a_pay_out_from_rest(four, tmp_path, monkeypatch,
                                                                              capsys) -> None:  # fmt: skip
-    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    path = tmp_path / "rig" / "no-release.toml"
+    path.parent.mkdir()
+    path.write_text(_no_release(four).text)
+    monkeypatch.setenv("HELPERS_RIG", str(path))
+    tmp_path = tmp_path / "data"
     argv = [
         "record",
         "move",
@@ -161,7 +205,7 @@ def test_record_move_dry_run_prints_the_plan_then_refuses_a_pay_out_from_rest(fo
     assert "tendon 4: -27 steps" in out and "floor 1.00 N" in out
     assert err.strip().startswith("error: tendon 3: the move 10 mm towards 45 deg needs -27 steps")
     assert len(err.strip().splitlines()) == 1
-    assert not any(tmp_path.iterdir())  # nothing written
+    assert not tmp_path.exists()  # nothing written
 
 
 def test_record_move_dry_run_on_a_rig_that_reaches_it(four, tmp_path, monkeypatch, capsys) -> None:
@@ -210,3 +254,33 @@ def test_record_move_records_a_shaped_move_whose_hold_is_the_planned_statics(fou
         # the time-domain twin through the emulated boards against the planned statics
         assert f.loc[hold, f"tension_n_{i}"].mean() == pytest.approx(sc["planned_tension_n"][i], abs=0.05)
     assert list(f.iloc[-1][["steps_0", "steps_1"]]) == [0, 0]
+
+
+@pytest.mark.slow
+def test_a_four_tendon_move_pays_out_and_holds_the_planned_statics(tmp_path, monkeypatch, capsys) -> None:
+    """10 mm towards 45 deg on the four-tendon virtual rig: tendons 3 and 4 pay out 27 steps below rest.
+
+    The twin starts at rest with every stepper at position 0 (every tendon at its 2.3554 N pretension) and
+    holds the plan's static tensions (rotors free) after the move. Tolerance 0.05 N: half an ADC count is
+    0.020 N (0.0407 N per count), the noise averages out over the hold's 2000 samples, and 5 s after the move
+    the ringing (zeta 0.045 at 24.7 rad/s) has decayed to exp(-0.045 x 24.7 x 5) = 0.4 % of its ~2 N.
+    """
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--quiet", "--data-dir",
+            str(tmp_path / "data"), "--virtual-instance", "task-space-four"]  # fmt: skip
+    try:
+        assert main(argv) == 0
+    finally:
+        forget_world("task-space-four")
+    rec = recordings.load(tmp_path / "data" / "moves" / "move_none_d45_b10.csv")
+    sc = rec.meta["scenario"]
+    assert sc["steps"] == [28, 28, -27, -27]
+    f = rec.frame
+    rest = f["t_s"] < 0.9  # the lead-in: the twin at rest, every stepper at 0
+    hold = (f["t_s"] > 6.0) & (f["t_s"] < 8.0)
+    for i in range(4):
+        assert (f.loc[rest, f"steps_{i}"] == 0).all()
+        assert f.loc[rest, f"tension_n_{i}"].mean() == pytest.approx(2.3554, abs=0.05)
+        assert (f.loc[hold, f"steps_{i}"] == sc["steps"][i]).all()
+        assert f.loc[hold, f"tension_n_{i}"].mean() == pytest.approx(sc["planned_tension_n"][i], abs=0.05)
+    assert list(f.iloc[-1][[f"steps_{i}" for i in range(4)]]) == [0, 0, 0, 0]  # back at rest

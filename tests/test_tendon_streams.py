@@ -4,11 +4,14 @@ board reset mid-stream).
 
 Expected values by hand from ``rigs/four-tendon.toml``: pi 65 / 800 = 0.2552544 mm per step, so one
 set-point unit (2^-16 step per 16 us = 0.95367 steps/s) is 0.2434288 mm/s, and a unit held for one 10 ms
-period (625 x 16 us) moves 625 / 65536 = 0.0095367 step. The travel is 156 steps (39.8 mm), the set-point
-limit floor(2^20 / 639) = 1640 units = 399.2 mm/s.
+period (625 x 16 us) moves 625 / 65536 = 0.0095367 step. The travel is 156 steps (39.8 mm), the release below
+rest floor(20 / 0.2552544) = 78 steps (19.9 mm), the set-point limit floor(2^20 / 639) = 1640 units =
+399.2 mm/s.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -37,9 +40,10 @@ def test_emulated_stepper_streams_every_axis(four) -> None:
     floor(10 x 1000 x 625 / 65536) = floor(95.37) = 95 steps, axis 2 floor(47.68) = 47, axis 3 is driven down
     from 0 and held there (its notice names the axis); period k drives [(k + 1) T, (k + 2) T), so axis 0's
     first step is due 20 ms + 65536 / 1000 x 16 us = 21.048576 ms after STREAM, on the tick at or after it
-    (21.0490 ms), its edge 24 us later."""
+    (21.0490 ms), its edge 24 us later. The build has no release (``RIG_AXIS_RELEASE_STEPS`` absent), so
+    axis 3 is held at 0."""
     clock = Clock()
-    s = TendonStepperEmulator(clock, build_limits(four))
+    s = TendonStepperEmulator(clock, dataclasses.replace(build_limits(four), release_steps=()))
     s.reset()
     s.out.clear()
     assert talk(s, "EN 1", "MSEG 100000 1 1 1 1", *hs.UNIT_SHAPER.commands(), "STREAM") == [
@@ -60,6 +64,27 @@ def test_emulated_stepper_streams_every_axis(four) -> None:
     assert [int((axes == a).sum()) for a in range(4)] == [95, 0, 47, 0] and set(signs.tolist()) == {1}
     assert times[axes == 0][0] == pytest.approx(0.0210490 + 24e-6, abs=1e-9)
     assert talk(s, "GO", "POS") == ["ERR STATE programme empty", "OK POS 95 0 47 0"]  # STREAM emptied it
+
+
+def test_emulated_stepper_streams_a_paid_out_axis_down_to_its_release(four) -> None:
+    """Unit shaper, eight periods of MV 0 0 0 -1640 (the fastest): axis 3 would go 8 x 1640 x 625 / 65536 =
+    125.1 steps down, but the build's release holds it at -78 (its notice names the position and the axis).
+    Its first step is due 20 ms + 65536 / 1640 x 16 us = 20.639375 ms after STREAM: tick ceil(41278.75) =
+    41279 (20.6395 ms), its edge 24 us later."""
+    clock = Clock()
+    s = TendonStepperEmulator(clock, build_limits(four))
+    s.reset()
+    s.out.clear()
+    assert talk(s, "EN 1", *hs.UNIT_SHAPER.commands(), "STREAM", *["MV 0 0 0 -1640"] * 8) == [
+        "OK EN 1", "OK SHAPER 1", "OK IMP 0", "OK STREAM 0", *[f"OK MV {k}" for k in range(1, 9)],
+    ]  # fmt: skip
+    s.axis_steps_until(0.0105)
+    assert talk(s, "END") == ["OK END 9"]
+    times, axes, signs = s.axis_steps_until(1.0)
+    lines = [b.decode().split("*")[0] for b in s.out]
+    assert lines == ["N,LIMIT,TRAVEL,-78,3", "DONE 0 0 0 -78"]
+    assert set(axes.tolist()) == {3} and len(axes) == 78 and set(signs.tolist()) == {-1}
+    assert times[0] == pytest.approx(41279 * 0.5e-6 + 24e-6, abs=1e-9)
 
 
 def test_emulated_stepper_stream_refusals(four) -> None:
@@ -96,9 +121,11 @@ def _rows(n: int, **columns: float) -> np.ndarray:
     [
         # 50 mm/s = 205.40 -> 205 units = 1.95503 steps per period: 80 periods reach 156.40 steps (39.9 mm)
         (_rows(100, t2=50.0), "tendon 2, set-point 79: the set-points integrate to 156.40 steps (39.92 mm), "
-                              "past its travel of 0-156 steps (39.8 mm)"),
-        # -1 mm/s = -4.11 -> -4 units: -0.038 steps (-0.0097 mm) after the first period
-        (_rows(5, t1=-1.0), "tendon 1, set-point 0: the set-points integrate to -0.04 steps (-0.01 mm)"),
+                              "past its travel of -78-156 steps (-19.9-39.8 mm)"),
+        # -50 mm/s = -205 units = -1.95503 steps per period: 40 periods reach -78.20 steps (-19.96 mm), past
+        # the release of 78 steps below rest
+        (_rows(50, t1=-50.0), "tendon 1, set-point 39: the set-points integrate to -78.20 steps (-19.96 mm), "
+                              "past its travel of -78-156 steps (-19.9-39.8 mm)"),
         # 400 mm/s = 1643.2 units > 1640 (399.2 mm/s)
         (_rows(3, t3=400.0), "tendon 3, set-point 0: 400 mm/s exceeds the stream's speed limit of 399.2 mm/s "
                              "(1640 board units)"),
@@ -171,25 +198,27 @@ def test_refused_streams_send_nothing(stream_rig) -> None:
 def test_a_four_tendon_stream_records_every_channel(stream_rig, tmp_path) -> None:
     """Tendon 1 at 20 mm/s (82.16 -> 82 units) for 20 periods: floor(20 x 82 x 625 / 65536) = floor(15.64)
     = 15 steps; tendon 2 at 15 mm/s (61.62 -> 62) for 10 periods from period 21: floor(5.91) = 5; tendon 4 at
-    30 mm/s (123.24 -> 123) for 10: floor(11.73) = 11; tendon 3 stays. Through a two-impulse shaper (0.5, 0.5
-    at 50 ms) every tendon ends where its set-points integrate to."""
+    30 mm/s (123.24 -> 123) for 10: floor(11.73) = 11; tendon 3 at -30 mm/s for 10 pays out below rest: -11.73
+    steps, the count within one step of it, -11. Through a two-impulse shaper (0.5, 0.5 at 50 ms) every tendon
+    ends where its set-points integrate to."""
     sp = _rows(40)
-    sp[:20, 0], sp[20:30, 1], sp[:10, 3] = 20.0, 15.0, 30.0
+    sp[:20, 0], sp[20:30, 1], sp[:10, 3], sp[:10, 2] = 20.0, 15.0, 30.0, -30.0
     shaper = hs.StreamShaper((2048, 2048), (0, 50_000))
     rec = stream_rig.stream(sp, shaper, path=tmp_path / "g" / "four_stream", tail_s=0.3)
-    assert rec.status == "complete" and stream_rig.positions == (15, 5, 0, 11)
+    assert rec.status == "complete" and stream_rig.positions == (15, 5, -11, 11)
     stream = rec.meta["scenario"]["stream"]
     assert rec.meta["scenario"]["kind"] == "stream" and rec.meta["tendons"] == 4
     assert stream["periods"] == list(range(1, 41)) and stream["end_period"] == 41  # no underrun (one clock)
     assert stream["tendon_setpoints"][0] == [82] * 20 + [0] * 20
     assert stream["tendon_setpoints"][1] == [0] * 20 + [62] * 10 + [0] * 10
     assert stream["tendon_setpoints"][3] == [123] * 10 + [0] * 30
+    assert stream["tendon_setpoints"][2] == [-123] * 10 + [0] * 30
     assert stream["setpoints"] == stream["tendon_setpoints"][0] and stream["notices"] == []
     assert stream["impulses"]["delays_us"] == [0, 50_000]
     loaded = recordings.load(rec.path)
     f = loaded.frame
     assert loaded.tendons == 4 and (f["t_us"].diff().dropna() == 1000).all()
-    assert [int(f[f"steps_{i}"].iloc[-1]) for i in range(4)] == [15, 5, 0, 11]
+    assert [int(f[f"steps_{i}"].iloc[-1]) for i in range(4)] == [15, 5, -11, 11]
     assert [int(f[f"steps_{i}"].iloc[0]) for i in range(4)] == [0, 0, 0, 0]
     # tendon 1's first step: period 1 drives from 20 ms after STREAM, half of it (the first impulse) at once:
     # 65536 / (0.5 x 82) x 16 us = 25.6 ms more, 45.6 ms after STREAM (the DAQ's sample then, within 2 ms)

@@ -11,6 +11,7 @@ counts at 0 N and 614.4 at 20 mA: 491.52 counts over the cells' 20 N, 24.576 cou
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -22,13 +23,13 @@ from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
 from helpers.board.protocol import frame
 from helpers.commands.benchmarks.serial_tendons import pty_stream_tendons
-from helpers.commands.home import home
+from helpers.commands.home import PositionUnknown, home
 from helpers.commands.metrics_tendons import tendon_table, tip_table
-from helpers.rig.boards import WrongRig
+from helpers.rig.boards import BoardError, WrongRig
 from helpers.rig.safety import SafetyError
 from helpers.rig.stepper import StepperBoard
 from helpers.rig.tendon_safety import TendonProgramme, check_tendon_programme, slack_tendons
-from helpers.rig.tendons import TendonRig
+from helpers.rig.tendons import TendonRig, TendonStepper
 from helpers.virtual.emulator.tendon_boards import (
     BuildLimits,
     TendonDaqEmulator,
@@ -57,6 +58,8 @@ def _stepper(four: rigfile.RigFile) -> tuple[TendonStepperEmulator, Clock]:
 def test_build_limits_are_the_rig_files(four: rigfile.RigFile) -> None:
     lim = build_limits(four)
     assert (lim.axes, lim.channels, lim.travel_steps) == (4, 4, (156, 156, 156, 156))
+    # release_mm = 20 over pi 65 / 800 = 0.25525 mm per step: 78.35, floored
+    assert lim.release_steps == (78, 78, 78, 78)
     assert (lim.min_interval_us, lim.max_interval_us, lim.programme_max) == (639, 1_000_000, 64)
     assert lim.rig_hash == four.hash
 
@@ -65,19 +68,19 @@ def test_emulated_stepper_replies_per_axis(four: rigfile.RigFile) -> None:
     s, _ = _stepper(four)
     assert talk(s, "PING", "CONFIG") == [
         f"PONG stepper 2.3.0+{four.hash}",
-        "OK CONFIG 4 64 639 1000000 156 156 156 156",
+        "OK CONFIG 4 64 639 1000000 156 156 156 156 78 78 78 78",  # the releases after the travels
     ]
-    assert talk(s, "EN 1", "MSEG 100000 10 7 157 0", "MSEG 10000 0 16 0 0", "MSEG 100000 0 0 0",
+    assert talk(s, "EN 1", "MSEG 200000 10 7 235 0", "MSEG 10000 0 16 0 0", "MSEG 100000 0 0 0",
                  "MSEG 100000 0 0 0 0", "MSEG 200000 100 100 100 100", "MSEG 200000 50 50 50 57", "GO",
                  "POS") == [
         "OK EN 1",
-        "ERR RANGE axis 2 steps -156..156",
+        "ERR RANGE axis 2 steps -234..234",  # 78 below rest + 156 above
         "ERR RANGE axis 1 interval 639-1000000 us",  # 16 steps in 10 ms: 625 us apart
         "ERR ARG MSEG needs 5 integers",
         "ERR RANGE no axis moves (a dwell is WAIT)",
         "OK MSEG 1",
         "OK MSEG 2",
-        "ERR RANGE axis 3 travel 0-156 steps",  # 100 + 57 = 157
+        "ERR RANGE axis 3 travel -78-156 steps",  # 100 + 57 = 157
         "OK POS 0 0 0 0",
     ]  # fmt: skip
 
@@ -181,8 +184,9 @@ def _programme(*moves):
     ("moves", "message"),
     [
         ([(200_000, (100, 0, 0, 0)), (200_000, (57, 0, 0, 0))],
-         "tendon 1, item 2: position 157 steps is past its travel of 0-156 steps (39.8 mm)"),
-        ([(100_000, (0, 0, -1, 0))], "tendon 3, item 1: position -1 steps is past its travel of 0-156 steps"),
+         "tendon 1, item 2: position 157 steps is past its travel of -78-156 steps (-19.9-39.8 mm)"),
+        ([(100_000, (0, 0, -79, 0))],
+         "tendon 3, item 1: position -79 steps is past its travel of -78-156 steps"),
         ([(10_000, (0, 16, 0, 0))],
          "tendon 2, item 1: 16 steps in 10000 us is a step every 625 us, below the step-interval floor of "
          "639 us"),
@@ -231,6 +235,46 @@ def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> 
     assert "make -C firmware RIG=" in str(info.value) and error_line(info.value)[1] == 4
 
 
+def test_a_stepper_built_without_the_rig_files_release_is_refused(four) -> None:
+    w = tendon_world(four, "tendons-test-no-release")
+    # a build without RIG_AXIS_RELEASE_STEPS: its CONFIG lists no release
+    w.limits = dataclasses.replace(w.limits, release_steps=())
+    w.stepper.limits = w.limits
+    register_world(w)
+    try:
+        with pytest.raises(WrongRig) as info:
+            TendonRig.connect("virtual", rig=four, rig_name=w.name)
+    finally:
+        forget_world(w.name)
+    assert str(info.value).startswith(
+        "the stepper board's axis 0 pays out 0 steps below position 0, but rig 'four-tendon' gives tendon 1 "
+        "78 (release_mm)"
+    )
+    assert "\n" not in str(info.value) and error_line(info.value)[1] == 4
+
+
+class _Configured(TendonStepper):
+    """A stepper driver whose ``CONFIG`` reply is given (no port)."""
+
+    def __init__(self, reply: str) -> None:
+        super().__init__(None)
+        self.reply = reply
+
+    def command(self, line: str, *args, **kwargs) -> str:  # noqa: D102
+        assert line == "CONFIG"
+        return self.reply
+
+
+def test_config_lists_the_releases_after_the_travels_or_none() -> None:
+    head = "OK CONFIG 4 64 639 1000000 156 156 156 156"
+    s = _Configured(head)
+    assert s.configure() == (4, (156,) * 4) and s.release == (0,) * 4  # a build without a release
+    s = _Configured(head + " 78 78 78 78")
+    assert s.configure() == (4, (156,) * 4) and s.release == (78,) * 4
+    with pytest.raises(BoardError, match="malformed reply"):
+        _Configured(head + " 78").configure()  # neither A nor 2A numbers after the limits
+
+
 def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
     register_world(default_world("tendons-test-paper"))  # the paper's boards: one axis, the paper's hash
     try:
@@ -273,6 +317,20 @@ def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(
     assert four_rig.home() is not None and four_rig.positions == (0, 0, 0, 0)
     assert four_rig.stepper.positions() == (0, 0, 0, 0)
     assert four_rig.home() is None  # nothing to do
+
+
+def test_tendons_pay_out_below_rest_down_to_the_release_and_home_pulls_them_back(four_rig) -> None:
+    assert four_rig.stepper.release == (78, 78, 78, 78)  # CONFIG's releases, the rig file's 78 steps
+    world = get_world("tendons-test-rig")
+    sent = len(world.stepper.received)
+    with pytest.raises(SafetyError, match=r"^tendon 3, item 2: position -79 steps is past its travel of -78"):
+        four_rig.run(_programme((100_000, (0, 0, -40, 0)), (100_000, (0, 0, -39, 0))))
+    assert len(world.stepper.received) == sent  # refused before any byte
+    f = four_rig.run(_programme((100_000, (20, 0, -78, -5))), tail_s=0.2)
+    assert four_rig.positions == (20, 0, -78, -5)
+    assert [f.iloc[-1][f"steps_{i}"] for i in range(4)] == [20, 0, -78, -5]
+    assert f.iloc[-1]["cable_mm_2"] == pytest.approx(-78 * 3.14159265 * 65 / 800)
+    assert four_rig.home() is not None and four_rig.stepper.positions() == (0, 0, 0, 0)
 
 
 # --- recordings: version 3 for several tendons, version 2 for one ----------------------------------------
@@ -368,6 +426,27 @@ def test_a_bad_four_tendon_recording_is_refused_in_one_line(tendon_recording_pat
         recordings.load(target)
     assert message in str(info.value) and "\n" not in str(info.value)
     assert error_line(info.value)[1] == 5
+
+
+def test_a_step_count_within_the_release_and_the_travel_is_a_recording_the_rig_can_make(
+    tendon_recording_path, tmp_path
+) -> None:
+    """A step count changes by at most the release and the travel together from the recording's start: 78 +
+    156 = 234 steps on the four-tendon rig (a tendon paid out to -78 when the recording started, then pulled
+    to 156, or the reverse)."""
+    rec = recordings.load(tendon_recording_path, derive=False)
+    for steps, refused in ((-234, False), (-235, True)):
+        frame = rec.frame.copy()
+        frame["steps_2"] = steps  # tendon 3 stood still in this recording
+        meta = {k: v for k, v in rec.meta.items() if k != "csv_sha256"}
+        path = recordings.save(recordings.Recording(frame, meta), tmp_path / "g" / f"at{-steps}")
+        if not refused:
+            assert (recordings.load(path).frame["steps_2"] == steps).all()
+            continue
+        with pytest.raises(
+            recordings.RecordingError, match="steps_2: -235 at row 0 is beyond the travel of 234"
+        ):
+            recordings.load(path)
 
 
 # --- metrics per tendon --------------------------------------------------------------------------------
@@ -503,11 +582,12 @@ def test_each_channel_is_read_one_conversion_after_the_previous(four) -> None:
 
 def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monkeypatch) -> None:
     """``python -m helpers home``'s routine on a four-axis stepper: every axis back in one MSEG (the farthest,
-    7 steps, at 50 mm/s: 0.255254 / 50 mm/s = 5105 us per step, a 35.7 ms window)."""
+    7 steps, at 50 mm/s: 0.255254 / 50 mm/s = 5105 us per step, a 35.7 ms window); tendon 2, paid out 3 steps
+    below its rest, is pulled back up to it."""
     monkeypatch.setenv("HELPERS_RIG", "four-tendon")
     w = register_world(tendon_world(four, "tendons-test-home"))
     try:
-        assert talk(w.stepper, "EN 1", "MSEG 40000 5 3 0 7", "GO")[-1] == "OK GO 1"
+        assert talk(w.stepper, "EN 1", "MSEG 40000 5 -3 0 7", "GO")[-1] == "OK GO 1"
         w.advance_to(0.1)
         stepper = StepperBoard.open("virtual://stepper?rig=tendons-test-home&reset_on_open=0", rig=four)
         try:
@@ -516,9 +596,36 @@ def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monk
             stepper.close()
         assert w.stepper.positions == [0, 0, 0, 0] and not w.stepper.enabled
         assert said.startswith("moved every tendon back to position 0 (tendon 1 5, tendon 2 3, tendon 4 7")
-        assert "MSEG 35735 -5 -3 0 -7" in w.stepper.received
+        assert "MSEG 35735 -5 3 0 -7" in w.stepper.received
     finally:
         forget_world("tendons-test-home")
+
+
+class _RebootedStepper:
+    """A stepper board that restarted as its port opened: its positions are unknown."""
+
+    booted_on_open = True
+
+    def __init__(self) -> None:
+        self.enabled: list[bool] = []
+
+    def enable(self, on: bool) -> None:
+        self.enabled.append(on)
+
+
+def test_home_after_a_restart_asks_for_every_tendon_at_its_rest_pretension(monkeypatch) -> None:
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    stepper = _RebootedStepper()
+    with pytest.raises(PositionUnknown) as info:
+        home(stepper)  # type: ignore[arg-type]
+    text = str(info.value)
+    assert "every tendon's position is unknown" in text and "every tendon is at its rest pretension" in text
+    assert "slack" not in text.replace("--confirm-slack", "") and "\n" not in text
+    assert "confirmed at its rest pretension" in home(stepper, confirm_slack=True)  # type: ignore[arg-type]
+    assert stepper.enabled == [False]
+    monkeypatch.setenv("HELPERS_RIG", "paper")  # the paper's one tendon: its slack cable, as before
+    with pytest.raises(PositionUnknown, match="make sure the cable is slack and the arm down at rest"):
+        home(stepper)  # type: ignore[arg-type]
 
 
 def test_the_one_tendon_rig_refuses_a_rig_file_of_several_tendons(monkeypatch, four) -> None:

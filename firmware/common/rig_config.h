@@ -12,6 +12,8 @@
 //   RIG_MIN_INTERVAL_US      shortest step interval per axis (us), >= 500
 //   RIG_MAX_INTERVAL_US      longest step interval per axis (us), <= 1000000
 //   RIG_AXIS_TRAVEL_STEPS    {t0, ...}: each axis's travel, 0..t_i steps from zero (RIG_AXES values, 1-255)
+//   RIG_AXIS_RELEASE_STEPS   {r0, ...}: optional (absent: every axis 0): how far each axis may pay out below
+//                            zero (the rest), so its positions are -r_i..t_i (RIG_AXES values, r_i + t_i <= 255)
 //   RIG_PROGRAMME_MAX        items of the stepper's programme table (1-255)
 //   RIG_DAQ_RATE_MIN_HZ, RIG_DAQ_RATE_MAX_HZ, RIG_DAQ_RATE_DEFAULT_HZ   DAQ sample rates (Hz)
 //   RIG_DAQ_BAUD, RIG_STEPPER_BAUD                                      serial line rates (8N1)
@@ -63,8 +65,22 @@
 
 #ifdef __cplusplus
 // Each axis's travel (steps from zero), as a table; its length must be RIG_AXES.
-static const uint8_t rig_axis_travel[] = RIG_AXIS_TRAVEL_STEPS;
+static constexpr uint8_t rig_axis_travel[] = RIG_AXIS_TRAVEL_STEPS;
 static_assert(sizeof(rig_axis_travel) == RIG_AXES, "rig config: RIG_AXIS_TRAVEL_STEPS needs RIG_AXES values");
+// Each axis's paid-out range below zero (steps): its positions are -release..travel. Absent: none.
+#ifdef RIG_AXIS_RELEASE_STEPS
+#define RIG_HAS_RELEASE 1
+static constexpr uint8_t rig_axis_release[] = RIG_AXIS_RELEASE_STEPS;
+static_assert(sizeof(rig_axis_release) == RIG_AXES, "rig config: RIG_AXIS_RELEASE_STEPS needs RIG_AXES values");
+#else
+#define RIG_HAS_RELEASE 0
+static constexpr uint8_t rig_axis_release[RIG_AXES] = {0};
+#endif
+// An item holds each axis's steps as an 8-bit count, at most release + travel.
+static constexpr bool rig_spans_fit(uint8_t a) {
+  return a >= RIG_AXES || ((uint16_t)rig_axis_travel[a] + rig_axis_release[a] <= 255 && rig_spans_fit(a + 1));
+}
+static_assert(rig_spans_fit(0), "rig config: RIG_AXIS_RELEASE_STEPS + RIG_AXIS_TRAVEL_STEPS must be <= 255 per axis");
 static_assert(sizeof(RIG_HASH) == 9, "rig config: RIG_HASH must be 8 hex characters");
 #endif
 

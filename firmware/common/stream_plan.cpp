@@ -104,7 +104,7 @@ void Planner::piece(uint8_t a, uint32_t tb, uint32_t te, int32_t s) {
   if (s == 0) return;
   bool up = s > 0;
   uint32_t speed = (uint32_t)(up ? s : -s);
-  int16_t limit = up ? (int16_t)rig_axis_travel[a] : 0;
+  int16_t limit = up ? (int16_t)rig_axis_travel[a] : -(int16_t)rig_axis_release[a];
   int8_t dir = up ? 1 : -1;
   int32_t rr = up ? x.r : -x.r;  // the residual in the direction of motion
   if (x.c == limit && rr == 0) {

@@ -24,7 +24,7 @@
 // 2^-16 step per 16 us), i.e. 1640 for 639 us (1564.0 steps/s, a step every 639.375 us).
 #define SP_V_MAX ((int16_t)((1L << 20) / RIG_MIN_INTERVAL_US))
 #define SP_S_MAX ((int32_t)SP_V_MAX * 4096L)  // speed limit on the shaped output
-#define SP_AXES RIG_AXES                    // each axis a streams with its own travel, rig_axis_travel[a]
+#define SP_AXES RIG_AXES                    // each axis a streams within -rig_axis_release[a]..rig_axis_travel[a]
 #define SP_MAX_IMPULSES 8
 #define SP_DELAY_UNIT_US 16
 // The set-point history of each axis (a power of two): period k reads the set-points of periods k - q - 1 ..

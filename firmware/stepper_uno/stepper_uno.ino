@@ -106,7 +106,7 @@ enum ItemKind : uint8_t { ITEM_SEG = 1, ITEM_WAIT = 2 };
 // ceil(k * ticks / n) from the window's start: for SEG, k * interval exactly); WAIT is a window without steps.
 struct Item {
   uint32_t ticks;      // the window (SEG: n * interval; WAIT: the dwell), in 0.5 us ticks
-  uint8_t n[AXES];     // steps of each axis (<= its travel)
+  uint8_t n[AXES];     // steps of each axis (<= its release + travel)
   uint8_t release;     // bit a set: axis a releases (-1), else pulls (+1)
   uint8_t kind;
 };
@@ -905,7 +905,7 @@ static void word_positions(const char *word) {
   out.send();
 }
 
-// The first axis the programme would take outside 0..its travel from the present positions, or -1.
+// The first axis the programme would take outside -its release..its travel from the present positions, or -1.
 static int8_t programme_leaves_travel() {
   for (uint8_t a = 0; a < AXES; a++) {
     int16_t pos = read_position(a);
@@ -913,7 +913,7 @@ static int8_t programme_leaves_travel() {
       if (prog[i].kind != ITEM_SEG) continue;
       int16_t n = prog[i].n[a];
       pos += (prog[i].release & (1 << a)) ? -n : n;
-      if (pos < 0 || pos > (int16_t)rig_axis_travel[a]) return (int8_t)a;
+      if (pos < -(int16_t)rig_axis_release[a] || pos > (int16_t)rig_axis_travel[a]) return (int8_t)a;
     }
   }
   return -1;
@@ -973,7 +973,8 @@ static void handle(Command *cmd) {
     if (!editable()) return;
     int32_t dir = cmd->arg[0], n = cmd->arg[1], iv = cmd->arg[2];
     if (dir != 1 && dir != -1) return out.err(PSTR("RANGE"), PSTR("dir must be 1 or -1"));
-    if (n < 1 || n > rig_axis_travel[0]) return err_range(PSTR("n_steps "), 1, PSTR("-"), rig_axis_travel[0], PSTR(""));
+    int32_t span0 = (int32_t)rig_axis_travel[0] + rig_axis_release[0];  // release + travel: the most one item moves axis 0
+    if (n < 1 || n > span0) return err_range(PSTR("n_steps "), 1, PSTR("-"), span0, PSTR(""));
     if (iv < INTERVAL_MIN_US || iv > INTERVAL_MAX_US)
       return err_range(PSTR("interval "), INTERVAL_MIN_US, PSTR("-"), INTERVAL_MAX_US, PSTR(" us"));
     Item *it = new_item();
@@ -1000,15 +1001,16 @@ static void handle(Command *cmd) {
     for (uint8_t a = 0; a < AXES; a++) {
       int32_t n = cmd->arg[1 + a];
       int32_t m = n < 0 ? -n : n;
-      if (n < -(int32_t)rig_axis_travel[a] || n > (int32_t)rig_axis_travel[a]) {
+      int32_t span = (int32_t)rig_axis_travel[a] + rig_axis_release[a];  // the farthest one item can go
+      if (m > span) {
         out.begin();
         out.line.str_P(PSTR("ERR RANGE axis "));
         out.line.u32(a);
         out.line.str_P(PSTR(" steps -"));
-        out.line.u32(rig_axis_travel[a]);
+        out.line.u32(span);
         out.line.put('.');
         out.line.put('.');
-        out.line.u32(rig_axis_travel[a]);
+        out.line.u32(span);
         return out.send();
       }
       // each moving axis steps every window / |n| us on average, within the interval limits
@@ -1061,7 +1063,10 @@ static void handle(Command *cmd) {
         out.line.u32((uint8_t)bad);
         out.line.put(' ');
       }
-      out.line.str_P(PSTR("travel 0-"));
+      out.line.str_P(PSTR("travel "));
+      if (rig_axis_release[bad]) out.line.put('-');  // "-78-156"; without a release "0-156" as before
+      out.line.u32(rig_axis_release[bad]);
+      out.line.put('-');
       out.line.u32(rig_axis_travel[bad]);
       out.line.str_P(PSTR(" steps"));
       return out.send();
@@ -1074,6 +1079,7 @@ static void handle(Command *cmd) {
     word_positions(PSTR("ABORTED"));
   } else if (proto_is(cmd, PSTR("CONFIG"))) {
     // CONFIG -> OK CONFIG <axes> <programme_max> <min_interval_us> <max_interval_us> <travel_0> ...
+    //           [<release_0> ...]: every axis's release appended when the build has one (RIG_HAS_RELEASE)
     if (!proto_args_ok(cmd, 0)) return out.err(PSTR("ARG"), PSTR("CONFIG takes no argument"));
     out.begin();
     out.line.str_P(PSTR("OK CONFIG "));
@@ -1087,6 +1093,10 @@ static void handle(Command *cmd) {
     for (uint8_t a = 0; a < AXES; a++) {
       out.line.put(' ');
       out.line.u32(rig_axis_travel[a]);
+    }
+    for (uint8_t a = 0; RIG_HAS_RELEASE && a < AXES; a++) {
+      out.line.put(' ');
+      out.line.u32(rig_axis_release[a]);
     }
     out.send();
   } else if (proto_is(cmd, PSTR("EN"))) {

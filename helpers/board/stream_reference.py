@@ -22,7 +22,8 @@ the period), a step up is due when ``x`` reaches ``c + 1`` and a step down when 
 hysteresis of one step: the count is within one step of ``x`` at every instant and a small oscillation does
 not chatter); it is issued at the first timer tick at or after that exact instant (a ceiling). The travel
 limits clamp the exact position: at ``c = 156`` with ``r = 0`` an upward ``S`` is held at zero
-(``N,LIMIT,TRAVEL``), likewise at 0. Timeline: set-point k (the k-th period's, k >= 1) is taken at control
+(``N,LIMIT,TRAVEL``), likewise at ``-release`` (0 on a build without a paid-out range below zero,
+``RIG_AXIS_RELEASE_STEPS``). Timeline: set-point k (the k-th period's, k >= 1) is taken at control
 tick k (``k * 10 ms`` after ``STREAM``) and drives the velocity over ``[(k + 1) * 10 ms, (k + 2) * 10 ms)``.
 
 Several axes (a build with ``RIG_AXES`` > 1, ``MV``): every axis is this planner with its own set-points and
@@ -360,9 +361,11 @@ class Planner:
     position : int
         The step count when ``STREAM`` starts (the residual starts at 0).
     travel : int
-        The axis's travel: the position is clamped to ``0..travel`` steps.
+        The axis's travel: the position is clamped to ``-release..travel`` steps.
     axis : int
         The axis this planner drives (named by its notices).
+    release : int
+        How far the axis may pay out below zero (``RIG_AXIS_RELEASE_STEPS``; 0: none).
 
     On a build with several axes each axis is planned by its own planner from the one shaper, with its own
     set-points and travel: the firmware's per-axis state is exactly this class's, so one planner per axis is
@@ -371,7 +374,12 @@ class Planner:
     """
 
     def __init__(
-        self, shaper: StreamShaper, position: int = 0, travel: int = TRAVEL_MAX, axis: int = 0
+        self,
+        shaper: StreamShaper,
+        position: int = 0,
+        travel: int = TRAVEL_MAX,
+        axis: int = 0,
+        release: int = 0,
     ) -> None:
         d = shaper.delays_delta
         self.a = shaper.amplitudes
@@ -390,6 +398,7 @@ class Planner:
         self._travel_clamped = False
         self._period = 0
         self.travel = travel
+        self.release = release
         self.axis = axis
 
     def _v(self, j: int) -> int:
@@ -442,7 +451,7 @@ class Planner:
             return
         up = s > 0
         speed = s if up else -s
-        limit = self.travel if up else 0
+        limit = self.travel if up else -self.release
         rr = self.r if up else -self.r  # the residual in the direction of motion
         if self.c == limit and rr == 0:
             self._clamp_travel()
@@ -663,15 +672,19 @@ class AxesRun:
         Each axis's step count at ``STREAM``.
     travels : sequence of int or None
         Each axis's travel (default ``TRAVEL_MAX`` each).
+    releases : sequence of int or None
+        Each axis's paid-out range below zero (default 0 each).
     """
 
     def __init__(
-        self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None
-    ) -> None:
+        self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None,
+        releases: Sequence[int] | None = None,
+    ) -> None:  # fmt: skip
         n = len(positions)
         travels = [TRAVEL_MAX] * n if travels is None else list(travels)
-        pairs = zip(positions, travels, strict=True)
-        self.planners = [Planner(shaper, p, t, a) for a, (p, t) in enumerate(pairs)]
+        releases = [0] * n if releases is None else list(releases)
+        rows = zip(positions, travels, releases, strict=True)
+        self.planners = [Planner(shaper, p, t, a, r) for a, (p, t, r) in enumerate(rows)]
         self.q_max = self.planners[0].q_max
         self.finish_tick: int | None = None
         self.last_nonzero = 0
@@ -734,13 +747,16 @@ class AxesSession(StreamSession):
         Each axis's step count at ``STREAM``.
     travels : sequence of int or None
         Each axis's travel (default ``TRAVEL_MAX`` each).
+    releases : sequence of int or None
+        Each axis's paid-out range below zero (default 0 each).
     """
 
     def __init__(
-        self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None
-    ) -> None:
+        self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None,
+        releases: Sequence[int] | None = None,
+    ) -> None:  # fmt: skip
         super().__init__(shaper, positions[0])
-        self.run = AxesRun(shaper, positions, travels)  # type: ignore[assignment]
+        self.run = AxesRun(shaper, positions, travels, releases)  # type: ignore[assignment]
         self.axes = len(positions)
 
     def _entry(self, vs: tuple[int, ...]) -> Any:
@@ -776,6 +792,7 @@ def simulate_axes(
     positions: Sequence[int],
     travels: Sequence[int] | None = None,
     max_periods: int = 1_000_000,
+    releases: Sequence[int] | None = None,
 ) -> list[StreamResult]:
     """Run a stream of a board with several axes (``MV``) until it stops: one result per axis.
 
@@ -792,12 +809,14 @@ def simulate_axes(
         Each axis's travel (default ``TRAVEL_MAX`` each).
     max_periods : int
         Stop planning after this period whatever the commands.
+    releases : sequence of int or None
+        Each axis's paid-out range below zero (default 0 each).
 
     Every axis is planned by its own :class:`Planner` from the one shaper; the stream stops (``finish_tick``,
     the same for every axis) as :class:`StreamRun` says, with a period counting as non-zero when any axis's
     set-point is. The ``WATCHDOG`` notice is in axis 0's result.
     """
-    run = AxesRun(shaper, positions, travels)
+    run = AxesRun(shaper, positions, travels, releases)
     for k, v, state in commands:
         run.tick(k, v, state)
         if run.finish_tick is not None or k >= max_periods:  # (the periods left before the finish are zero)
@@ -812,13 +831,15 @@ def exact_position(
     t_ticks: np.ndarray,
     position: int = 0,
     limits: bool = True,
+    travel: int = TRAVEL_MAX,
+    release: int = 0,
 ) -> np.ndarray:
     """The exact shaped position (steps, float) at times ``t_ticks`` (ticks from ``STREAM``).
 
     The velocity is the shaped set-point stream (set-point k on ``[(k + 1) T, (k + 2) T)``), clamped to the
     speed limit, integrated exactly piece by piece in floating point; with ``limits`` the position is
-    saturated at 0 and 156 steps (the board's travel clamp). This is independent of :class:`Planner`'s integer
-    arithmetic and of its step-time rule.
+    saturated at ``-release`` and ``travel`` steps (the board's travel clamp: 0 and 156 by default). This is
+    independent of :class:`Planner`'s integer arithmetic and of its step-time rule.
     """
     d = np.asarray(shaper.delays_us, dtype=float) / (DELAY_UNIT_US) * DELTA  # ticks
     amp = np.asarray(shaper.amplitudes, dtype=float) / AMP_ONE
@@ -846,12 +867,12 @@ def exact_position(
         rates[i] = s
         x = x + s * (edges[i + 1] - edges[i])
         if limits:
-            x = min(max(x, 0.0), float(TRAVEL_MAX))
+            x = min(max(x, -float(release)), float(travel))
         xs[i + 1] = x
     # positions at the query times: from the piece each falls in
     idx = np.clip(np.searchsorted(edges, t_query, side="right") - 1, 0, len(rates) - 1)
     e0 = np.asarray(edges)[idx]
     out = xs[idx] + rates[idx] * (t_query - e0)
     if limits:
-        out = np.clip(out, 0.0, float(TRAVEL_MAX))
+        out = np.clip(out, -float(release), float(travel))
     return out

@@ -1,7 +1,9 @@
 """``python -m helpers home``: bring the cable back to position 0 safely, from where the stepper says it is.
 
 A stepper built for several tendons (its ``ABORTED`` lists every axis) has every tendon brought back at once,
-in one ``MSEG`` item (the farthest at the home speed), checked against every tendon's limits first.
+in one ``MSEG`` item (the farthest at the home speed), checked against every tendon's limits first. There
+position 0 is the rest (every tendon at its pretension; a tendon paid out below it, a negative position, is
+pulled back up to it).
 
 The stepper board counts its position from zero since it booted; there is no limit switch. So:
 
@@ -10,8 +12,8 @@ The stepper board counts its position from zero since it booted; there is no lim
   the driver;
 - if the board rebooted when its port opened (an Arduino resets when the port opens; the in-process virtual
   rig does the same), the position is **unknown**: ``home`` says so and asks the user to make sure the cable
-  is slack (the arm down, at rest) and to confirm with ``--confirm-slack``; the board's count then starts
-  from 0 there.
+  is slack (the arm down, at rest; on a rig of several tendons: every tendon at its rest pretension, the arm
+  straight) and to confirm with ``--confirm-slack``; the board's count then starts from 0 there.
 """
 
 from __future__ import annotations
@@ -45,8 +47,21 @@ def home_programme(position: int, speed_mm_s: float = HOME_SPEED_MM_S) -> Progra
     return Programme((Segment(-1 if position > 0 else 1, abs(position), interval),))
 
 
+def _rest_state(tendons: int) -> str:
+    """What the rest (position 0) is, for the user to set up by hand.
+
+    The paper's one cable slack, or several tendons at their pretension.
+    """
+    if tendons > 1:
+        return "every tendon is at its rest pretension (the arm straight, at rest)"
+    return "the cable is slack and the arm down at rest"
+
+
 def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float = HOME_SPEED_MM_S) -> str:
-    """Return the cable to 0 (or accept 0 where the user confirmed the cable is slack); return what happened.
+    """Return the cable to 0 (or accept 0 where the user confirmed the rest state); return what happened.
+
+    The rest state to confirm is the selected rig file's: on a rig of several tendons every tendon at its
+    rest pretension, else the cable slack.
 
     Raises
     ------
@@ -56,13 +71,20 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
         The board refused or stopped answering (the driver is disabled on the way out either way).
     """
     if stepper.booted_on_open:
+        tendons = rigfile.selected().n_tendons
+        what = "every tendon's" if tendons > 1 else "the cable's"
         if not confirm_slack:
             raise PositionUnknown(
-                "the stepper board restarted when its port opened, so the cable's position is unknown (there "
-                "is no limit switch): make sure the cable is slack and the arm down at rest, then run "
+                f"the stepper board restarted when its port opened, so {what} position is unknown (there "
+                f"is no limit switch): make sure {_rest_state(tendons)}, then run "
                 "`python -m helpers home --confirm-slack` to count from there"
             )
         stepper.enable(False)
+        if tendons > 1:
+            return (
+                "every tendon was confirmed at its rest pretension: the stepper counts from 0 here "
+                "(driver disabled)"
+            )
         return "the cable was confirmed slack: the stepper counts from 0 here (driver disabled)"
     # ABORT first: a programme or stream an earlier session left running stops (CLEAR would be refused while
     # it runs), the driver goes off, and the reply says where the cable is
@@ -87,7 +109,6 @@ def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float =
     )
 
 
-
 def _run_home(stepper: StepperBoard, duration_s: float) -> None:
     """Run the loaded homing programme of ``duration_s`` until ``DONE``; the driver off afterwards, always."""
     try:
@@ -105,6 +126,7 @@ def _run_home(stepper: StepperBoard, duration_s: float) -> None:
             stepper.enable(False)
         except BoardError:
             pass
+
 
 def _home_every_axis(stepper: StepperBoard, positions: tuple[int, ...], speed_mm_s: float) -> str:
     """Every axis back to 0 in one ``MSEG`` at ``speed_mm_s`` for the farthest one (the others slower)."""
@@ -136,13 +158,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="'virtual' (in-process virtual rig), 'auto' (USB discovery), 'DAQ,STEPPER' or the stepper port",
     )
     parser.add_argument(
-        "--virtual-instance", "--rig-name", dest="rig_name", default="record", type=arg_rig_name,
+        "--virtual-instance",
+        "--rig-name",
+        dest="rig_name",
+        default="record",
+        type=arg_rig_name,
         help="name of the in-process virtual rig instance (--rig-name: its old spelling)",
     )
     parser.add_argument(
         "--confirm-slack",
         action="store_true",
-        help="after a board restart: I checked that the cable is slack and the arm down; count from here",
+        help="after a board restart: I checked the rest state (the cable slack and the arm down; several "
+        "tendons: every tendon at its rest pretension); count from here",
     )
     parser.add_argument(
         "--speed",

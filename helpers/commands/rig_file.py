@@ -112,6 +112,7 @@ def report(rig: RigFile, points: int = 5) -> dict[str, Any]:
         "n_tendons": rig.n_tendons, "tendon_angles_deg": [t.angle_deg for t in rig.tendons],
         "mm_per_step": d.mm_per_step[0], "mm_per_step_per_axis": list(d.mm_per_step),
         "travel_mm": hw.travel_mm, "travel_steps": list(d.travel_steps),
+        "release_mm": hw.release_mm, "release_steps": list(d.release_steps),
         "speed_limit_mm_s": hw.speed_limit_mm_s, "max_step_rate_hz": list(d.max_rate_steps_s),
         "min_interval_us": d.min_interval_us, "max_interval_us": d.max_interval_us,
         "adc_max_counts": d.adc_max, "adc_offset_counts": d.offset_counts,
@@ -151,6 +152,14 @@ def _text(r: dict[str, Any]) -> str:
         f"  tendons: {r['n_tendons']} at {', '.join(f'{a:g}' for a in r['tendon_angles_deg'])} deg",
         "  cable per step: " + ", ".join(f"{m:.5f} mm" for m in r["mm_per_step_per_axis"]),
         f"  travel: {r['travel_mm']:g} mm = " + ", ".join(f"{n} steps" for n in r["travel_steps"]),
+        *(
+            [
+                f"  release below position 0 (the rest): {r['release_mm']:g} mm = "
+                + ", ".join(f"{n} steps" for n in r["release_steps"])
+            ]
+            if any(r["release_steps"])
+            else []
+        ),
         f"  speed limit {r['speed_limit_mm_s']:g} mm/s: fastest step "
         + ", ".join(f"{s:.0f} steps/s" for s in r["max_step_rate_hz"])
         + f"; step interval {r['min_interval_us']}-{r['max_interval_us']} us",

@@ -269,9 +269,7 @@ def validate_meta(meta: Any, path: Path) -> None:
     if problem is not None:
         raise _fail(path, problem)
     if version == TENDON_SCHEMA_VERSION and recording_rig(meta).n_tendons != meta["tendons"]:
-        raise _fail(
-            path, f"tendons: {meta['tendons']}, but the rig file has {recording_rig(meta).n_tendons}"
-        )
+        raise _fail(path, f"tendons: {meta['tendons']}, but the rig file has {recording_rig(meta).n_tendons}")
     scenario = _section(meta, "scenario", path)
     if not isinstance(scenario.get("kind"), str):
         raise _fail(path, f"scenario.kind: expected text, got {scenario.get('kind')!r}")
@@ -384,6 +382,9 @@ periods): closer than this fraction of a period less is impossible."""
 def _rig_limits(meta: dict[str, Any]) -> tuple[int, float]:
     """Travel (steps) and step-rate cap (steps/s) of the rig a recording was made with (its ``rig``).
 
+    The travel is the most a step count (from the recording's start) can change: an axis's release below
+    position 0 and its travel above it together.
+
     The selected rig's limits when the recording carries the selected rig (or none: the paper's rig made
     it, and the paper's is selected); otherwise the kept rig file's, so that a recording made on another rig
     is checked against that rig, not this process's.
@@ -396,7 +397,9 @@ def _rig_limits(meta: dict[str, Any]) -> tuple[int, float]:
             return LIMITS.max_position_steps, LIMITS.max_step_rate_hz
     else:
         rig = recording_rig(meta)
-    return max(rigfile.derived(rig).travel_steps), float(rig.hardware.step_rate_cap_hz)
+    d = rigfile.derived(rig)
+    span = max(t + r for t, r in zip(d.travel_steps, d.release_steps, strict=True))
+    return span, float(rig.hardware.step_rate_cap_hz)
 
 
 def _check_physics(frame: pd.DataFrame, meta: dict[str, Any], path: Path, column: str = "steps") -> None:

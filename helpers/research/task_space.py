@@ -18,8 +18,8 @@ Refused before any byte, in one line naming the tendon and the figure
 (:class:`~helpers.rig.safety.SafetyError`, exit status 3, ``docs/safety.md``): a tendon whose rest pretension
 is below the floor, a plan that leaves a tendon below the floor after the trimming, a tendon the statics load
 to its stepper's pull-out tension, a direction no tendon faces, and (:func:`check_travel`) a displacement past
-a tendon's travel from where it stands (the rig's position 0 is its rest, so a tendon cannot pay out from
-there).
+a tendon's travel from where it stands: ``-release..travel`` steps, position 0 being the rest and ``release``
+the rig file's ``[hardware] release_mm`` below it (a rig without one cannot pay a tendon out from rest).
 
 :func:`move_programme` makes the coordinated programme (``MSEG``/``WAIT`` items of
 :class:`~helpers.rig.tendon_safety.TendonProgramme`): a lead-in, the move out (every tendon's steps in the
@@ -108,6 +108,8 @@ class MovePlan:
         out = []
         for i, (n, mm, t) in enumerate(zip(self.steps, self.displacement_mm, self.tension_n, strict=True)):
             role = "pulled" if self.pulled[i] else "held at its pretension"
+            if not self.pulled[i] and n < 0:
+                role = "paid out below its rest, held at its pretension"
             trim = f", {self.trimmed[i]} step(s) pulled in to keep the floor" if self.trimmed[i] else ""
             out.append(
                 f"tendon {i + 1}: {n:+d} steps ({mm:+.2f} mm, {role}{trim}); static tension {t:.2f} N "
@@ -239,14 +241,15 @@ def plan_move(
 
 
 def check_travel(plan: MovePlan, rig: RigFile, start: Sequence[int] | None = None) -> tuple[int, ...]:
-    """Refuse a plan that takes a tendon past its travel from ``start`` (default every tendon at 0).
+    """Refuse a plan that takes a tendon past its travel from ``start`` (default every tendon at 0, the rest).
 
-    Returns the positions at the bend (steps from zero).
+    A tendon's travel is ``-release_steps..travel_steps`` (the rig file's ``[hardware] release_mm`` below
+    position 0 = its rest, ``travel_mm`` above). Returns the positions at the bend (steps from zero).
 
     Raises
     ------
     SafetyError
-        ``tendon i: ... needs n steps (mm) from position p, past its travel of 0-N steps``.
+        ``tendon i: ... needs n steps (mm) from position p, past its travel of -R-N steps``.
     """
     d = derived(rig)
     start = tuple(start) if start is not None else (0,) * rig.n_tendons
@@ -254,18 +257,21 @@ def check_travel(plan: MovePlan, rig: RigFile, start: Sequence[int] | None = Non
         raise SafetyError(f"{len(start)} start positions for the rig's {rig.n_tendons} tendons")
     ends = []
     for i, (p, n) in enumerate(zip(start, plan.steps, strict=True)):
-        travel = d.travel_steps[i]
-        if not 0 <= p + n <= travel:
-            why = (
-                ": the rig's position 0 is its rest (every tendon at its pretension), so a tendon cannot "
-                "pay out from there"
-                if p + n < 0
-                else ""
-            )
+        travel, release = d.travel_steps[i], d.release_steps[i]
+        if not -release <= p + n <= travel:
+            why = ""
+            if p + n < -release:
+                why = (
+                    ": the rig's position 0 is its rest (every tendon at its pretension), so a tendon cannot "
+                    "pay out from there ([hardware] release_mm = 0)"
+                    if not release
+                    else f": it pays out at most {release} steps ({release * d.mm_per_step[i]:.2f} mm, "
+                    "[hardware] release_mm) below its rest"
+                )
             raise SafetyError(
                 f"tendon {i + 1}: the move {plan.bend_mm:g} mm towards {plan.direction_deg:g} deg needs "
                 f"{n:+d} steps ({n * d.mm_per_step[i]:+.2f} mm) from position {p}, past its travel of "
-                f"0-{travel} steps{why}"
+                f"{-release if release else 0}-{travel} steps{why}"
             )
         ends.append(p + n)
     return tuple(ends)

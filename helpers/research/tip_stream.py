@@ -641,7 +641,7 @@ def board_counts(
     """
     board = hs.board_shaper(shaper)
     d = derived(rig)
-    run = hs.AxesRun(board, (0,) * rig.n_tendons, d.travel_steps)
+    run = hs.AxesRun(board, (0,) * rig.n_tendons, d.travel_steps, d.release_steps)
     rules = hs.SetpointRules()
     k = 0
     for k, row in enumerate(plan.units.tolist(), start=1):

@@ -5,7 +5,8 @@
 one line naming the tendon and the limit (``docs/safety.md``), a programme that
 
 - has no item, more items than the board holds, or an item without one step count per tendon;
-- moves a tendon past its travel (``0..travel_steps`` of the rig file, from its present position);
+- moves a tendon past its travel (``-release_steps..travel_steps`` of the rig file, from its present
+  position: position 0 is the rest, and a tendon pays out at most ``release_mm`` below it);
 - steps a tendon faster than the step-interval floor (``window / |n|`` below the rig's shortest interval) or
   slower than the longest interval, or dwells longer than the rig's longest dwell;
 - commands a state in which every tendon is slack: by the statics of the rig file's tendons, tendon ``i``
@@ -27,7 +28,22 @@ from helpers.rig.safety import SafetyError
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 
-__all__ = ["TendonItem", "TendonProgramme", "check_tendon_programme", "slack_tendons", "static_tensions"]
+__all__ = [
+    "TendonItem", "TendonProgramme", "check_tendon_programme", "slack_tendons", "static_tensions",
+    "travel_text",
+]  # fmt: skip
+
+
+def travel_text(rig: RigFile, i: int) -> str:
+    """Tendon ``i``'s (0-based) travel for a refusal.
+
+    ``0-156 steps (39.8 mm)``; with a release below position 0, ``-78-156 steps (-19.9-39.8 mm)``.
+    """
+    d = derived(rig)
+    travel, release, mm = d.travel_steps[i], d.release_steps[i], d.mm_per_step[i]
+    if not release:
+        return f"0-{travel} steps ({travel * mm:.1f} mm)"
+    return f"-{release}-{travel} steps ({-release * mm:.1f}-{travel * mm:.1f} mm)"
 
 
 @dataclass(frozen=True)
@@ -149,11 +165,11 @@ def check_tendon_programme(
                     f"interval of {d.max_interval_us} us (slower is a dwell)"
                 )
             pos[i] += steps
-            travel = d.travel_steps[i]
-            if not 0 <= pos[i] <= travel:
+            travel, release = d.travel_steps[i], d.release_steps[i]
+            if not -release <= pos[i] <= travel:
                 raise SafetyError(
-                    f"tendon {i + 1}, {where}: position {pos[i]} steps is past its travel of 0-{travel} "
-                    f"steps ({travel * d.mm_per_step[i]:.1f} mm)"
+                    f"tendon {i + 1}, {where}: position {pos[i]} steps is past its travel of "
+                    f"{travel_text(rig, i)}"
                 )
         if all(slack_tendons(rig, pos)) and not (rest_ok and not any(pos)):
             tensions = ", ".join(

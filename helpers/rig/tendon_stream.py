@@ -11,7 +11,8 @@ Before any byte is sent, :func:`check_tendon_stream` refuses, in one line naming
 
 - a set-point that is not a finite number or is beyond the stream's speed limit, a shape other than
   (periods, tendons), an empty stream or one longer than the host's ``max_programme_s``;
-- a tendon whose integrated set-points (the commanded cable, from its present position) leave its travel;
+- a tendon whose integrated set-points (the commanded cable, from its present position) leave its travel
+  (``-release..travel``: a tendon pays out at most the rig file's ``release_mm`` below position 0, its rest);
 - a period whose commanded state has every tendon slack by the rig file's statics (``pretension_n_i +
   cable_stiffness_n_m_i * pull_i <= 0`` for every tendon: :func:`~helpers.rig.tendon_safety.static_tensions`,
   the rule programmes are checked by);
@@ -45,7 +46,7 @@ from helpers.rig.boards import BoardError, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.safety import SafetyError
 from helpers.rig.stepper import last_int
 from helpers.rig.stream import STREAM_RATE_HZ, Pacer, StreamLimit, refuse_notice
-from helpers.rig.tendon_safety import static_tensions
+from helpers.rig.tendon_safety import static_tensions, travel_text
 from helpers.rig.tendons import TendonRig, tendon_frame, tendon_recording, with_twin_tip
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
@@ -150,14 +151,14 @@ def check_tendon_stream(
     # the commanded cable: the integrated set-points, at the end of every period
     commanded = np.asarray(start, dtype=float) + np.cumsum(units, axis=0) * STEPS_PER_UNIT_PERIOD
     for i in range(n):
-        travel, mm = d.travel_steps[i], d.mm_per_step[i]
-        out = np.flatnonzero((commanded[:, i] < -1e-9) | (commanded[:, i] > travel + 1e-9))
+        travel, release, mm = d.travel_steps[i], d.release_steps[i], d.mm_per_step[i]
+        out = np.flatnonzero((commanded[:, i] < -release - 1e-9) | (commanded[:, i] > travel + 1e-9))
         if len(out):
             k = int(out[0])
             x = commanded[k, i]
             raise SafetyError(
                 f"tendon {i + 1}, set-point {k}: the set-points integrate to {x:.2f} steps "
-                f"({x * mm:.2f} mm), past its travel of 0-{travel} steps ({travel * mm:.1f} mm)"
+                f"({x * mm:.2f} mm), past its travel of {travel_text(rig, i)}"
             )
     tensions = static_tensions(rig, commanded)
     slack = np.flatnonzero(np.all(tensions <= 0.0, axis=1))
@@ -169,7 +170,7 @@ def check_tendon_stream(
             f"tendons 1-{n}, set-point {k}: every tendon slack at positions ({where}) steps (pretension + "
             f"k pull = {figures} N <= 0): the arm would hang on no tendon"
         )
-    run = hs.AxesRun(shaper, start, d.travel_steps)
+    run = hs.AxesRun(shaper, start, d.travel_steps, d.release_steps)
     rules = hs.SetpointRules()
     k = 0
     for k, row in enumerate(units.tolist(), start=1):
@@ -419,8 +420,10 @@ class TendonStreamRig(TendonRig):
                   "overruns": int(stats.overruns)}  # fmt: skip
         rec = tendon_recording(frame, self.rig, rate_hz, counts, self.source, scene, status)
         rec.meta["started_utc"] = started
-        rec.meta["done_positions"] = None if self.stepper.done_positions is None else list(
-            self.stepper.done_positions[: self.rig.n_tendons]
+        rec.meta["done_positions"] = (
+            None
+            if self.stepper.done_positions is None
+            else list(self.stepper.done_positions[: self.rig.n_tendons])
         )
         return rec
 
@@ -505,4 +508,3 @@ class TendonStreamRig(TendonRig):
                 )
             silence = self._read_both(silence)
             now = rows[-1][1]
-

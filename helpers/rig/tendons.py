@@ -3,7 +3,9 @@
 :meth:`TendonRig.connect` opens the DAQ and stepper boards (hardware, pseudo-terminals or ``virtual://``)
 as :class:`~helpers.rig.experiment.Rig` does, checks that both were built for the rig file (its hash in
 ``HELLO``/``PONG``) and that their ``CONFIG`` reports at least the rig file's tendons (axes on the stepper,
-channels and axes on the DAQ), else one line: :class:`~helpers.rig.boards.WrongRig` (exit status 4).
+channels and axes on the DAQ), each tendon's travel, and each tendon's release below position 0 exactly as the
+rig file gives it (``release_mm``; a stepper whose ``CONFIG`` lists no release has none), else one line:
+:class:`~helpers.rig.boards.WrongRig` (exit status 4).
 :meth:`TendonRig.run` checks a :class:`~helpers.rig.tendon_safety.TendonProgramme` against every tendon's
 limits before any byte is sent (:class:`~helpers.rig.safety.SafetyError`, exit status 3), loads it
 (``MSEG``/``WAIT``), samples every channel while it runs and returns the samples with each tendon's tension
@@ -62,6 +64,8 @@ class TendonStepper(StepperBoard):
     def __init__(self, port, timeout: float = 2.0) -> None:
         super().__init__(port, timeout)
         self.done_positions: tuple[int, ...] | None = None
+        self.release: tuple[int, ...] = ()
+        """Every axis's release below zero as ``CONFIG`` lists it (:meth:`configure`; empty before)."""
 
     def _message(self, msg: str) -> None:
         if msg.startswith("DONE"):
@@ -74,13 +78,22 @@ class TendonStepper(StepperBoard):
             super()._message(msg)
 
     def configure(self) -> tuple[int, tuple[int, ...]]:
-        """``CONFIG`` -> ``(axes, travel per axis)`` (firmware 2.1: one axis, travel unknown)."""
+        """``CONFIG`` -> ``(axes, travel per axis)`` (firmware 2.1: one axis, travel unknown).
+
+        :attr:`release` is every axis's release below zero that ``CONFIG`` lists after the travels (a build
+        with ``RIG_AXIS_RELEASE_STEPS``), else 0 each.
+        """
+        self.release = ()
         try:
             reply = self.command("CONFIG")
         except CommandRefused:
             return 1, ()
         values = _ints(reply, 2)
-        return values[0], tuple(values[4:])
+        axes, rest = values[0], tuple(values[4:])
+        if len(rest) not in (axes, 2 * axes):
+            raise BoardError(f"malformed reply {reply!r}: {axes} travels (and {axes} releases) expected")
+        self.release = rest[axes:] or (0,) * axes
+        return axes, rest[:axes]
 
     def positions(self) -> tuple[int, ...]:
         """``POS``: every axis's position."""
@@ -177,13 +190,22 @@ class TendonRig:
                 f"the stepper board reports {axes} axis/axes, but rig '{name}' has {n} tendons: "
                 + rebuild % "stepper"
             )
-        want = derived(self.rig).travel_steps
+        d = derived(self.rig)
+        want = d.travel_steps
         short = [i for i, t in enumerate(travel[:n]) if t < want[i]]
         if short:
             i = short[0]
             raise WrongRig(
                 f"the stepper board's axis {i} travels {travel[i]} steps, but rig '{name}' gives tendon "
                 f"{i + 1} {want[i]}: " + rebuild % "stepper"
+            )
+        release = self.stepper.release or (0,) * axes
+        other = [i for i in range(min(n, len(release))) if release[i] != d.release_steps[i]]
+        if other:
+            i = other[0]
+            raise WrongRig(
+                f"the stepper board's axis {i} pays out {release[i]} steps below position 0, but rig "
+                f"'{name}' gives tendon {i + 1} {d.release_steps[i]} (release_mm): " + rebuild % "stepper"
             )
         self.axes = axes
 

@@ -38,6 +38,9 @@ class Derived:
         Cable per microstep of each axis, mm (``pi d / steps_per_rev``).
     travel_steps : tuple of int
         Each axis's travel in whole steps, ``floor(travel_mm / mm_per_step)``.
+    release_steps : tuple of int
+        How far each axis may pay out below position 0 (the rest) in whole steps,
+        ``floor(release_mm / mm_per_step)``: its positions are ``-release_steps..travel_steps``.
     max_rate_steps_s : tuple of float
         Each axis's fastest step rate, ``min(step_rate_cap_hz, speed_limit_mm_s / mm_per_step)``.
     min_interval_us : int
@@ -63,6 +66,7 @@ class Derived:
 
     mm_per_step: tuple[float, ...]
     travel_steps: tuple[int, ...]
+    release_steps: tuple[int, ...]
     max_rate_steps_s: tuple[float, ...]
     min_interval_us: int
     max_interval_us: int
@@ -116,6 +120,7 @@ def derived(rig: Any) -> Derived:
     hw = rig.hardware
     mm = tuple(t.mm_per_step for t in rig.tendons)
     travel = tuple(int(math.floor(hw.travel_mm / m + _EPS)) for m in mm)
+    release = tuple(int(math.floor(hw.release_mm / m + _EPS)) for m in mm)
     rates = tuple(min(hw.step_rate_cap_hz, hw.speed_limit_mm_s / m) for m in mm)
     min_interval = max(int(math.ceil(1e6 / rate - _EPS)) for rate in rates)
     adc_max = 2**hw.adc_bits - 1
@@ -126,8 +131,9 @@ def derived(rig: Any) -> Derived:
     clip_high = min(adc_max, round(loop_counts(hw, hw.loop_max_ma)) - hw.adc_clip_margin_counts)
     readable = tuple((clip_high - offset) / g for g in gains)
     return Derived(
-        mm_per_step=mm, travel_steps=travel, max_rate_steps_s=rates, min_interval_us=min_interval,
-        max_interval_us=hw.max_interval_us, adc_max=adc_max, offset_counts=offset, gain_counts_per_n=gains,
+        mm_per_step=mm, travel_steps=travel, release_steps=release, max_rate_steps_s=rates,
+        min_interval_us=min_interval, max_interval_us=hw.max_interval_us, adc_max=adc_max,
+        offset_counts=offset, gain_counts_per_n=gains,
         clip_low_counts=clip_low, clip_high_counts=clip_high, readable_n=readable,
         pull_out_n=tuple(t.pull_out_n for t in rig.tendons),
         hold_n=tuple(hold_tension_n(rig, i) for i in range(len(rig.tendons))),
@@ -169,6 +175,18 @@ def check(rig: Any) -> Derived:
             )
         if d.travel_steps[i] < 1:
             raise refuse("[hardware] travel_mm", f"{hw.travel_mm:g} mm is less than one step")
+        if hw.release_mm > 0.0 and not many:
+            raise refuse(
+                "[hardware] release_mm",
+                f"{hw.release_mm:g} mm on a rig of one tendon: its position 0 is the end of its travel (the "
+                "paper's programmes and streams count from there); a release below it is for rigs of several "
+                "tendons, whose rest holds every tendon taut",
+            )
+        if hw.release_mm > 0.0 and d.release_steps[i] < 1:
+            raise refuse(
+                "[hardware] release_mm",
+                f"{hw.release_mm:g} mm is less than one step ({t.mm_per_step:.5f} mm): 0 means no paying out",
+            )
         if t.pretension_n >= t.pull_out_n:
             raise refuse(
                 axis(i, "pretension_n") if rig.explicit_tendons else "[arm] pretension_n",

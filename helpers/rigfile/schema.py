@@ -81,6 +81,16 @@ HARDWARE: tuple[Key, ...] = (
         "cable travel from position 0 (the host's and the firmware's limit)",
         (0.1, 2000.0),
     ),  # fmt: skip
+    Key(
+        "release_mm",
+        "float",
+        "mm",
+        0.0,
+        "how far a tendon may pay out below position 0 (the rest: every tendon at its pretension); its "
+        "travel is -release_mm..travel_mm (0: none, position 0 is the end of the travel)",
+        lo=0.0,
+        plausible=(0.0, 2000.0),
+    ),  # fmt: skip
     _pos("speed_limit_mm_s", "mm/s", REQUIRED, "cable speed limit", (0.1, 10_000.0)),
     _pos("step_rate_cap_hz", "steps/s", REQUIRED, "step-rate cap of the driver chain", (1.0, 200_000.0)),
     _int("max_interval_us", 1_000_000, "slowest step interval; slower is a dwell", unit="us", lo=1000),
@@ -179,9 +189,16 @@ ARM: tuple[Key, ...] = (
         lo=0.0,
         plausible=(0.0, 10_000.0),
     ),  # fmt: skip
-    Key("tension_floor_n", "float", "N", 1.0, "the least static tension every tendon keeps in a move planned "
+    Key(
+        "tension_floor_n",
+        "float",
+        "N",
+        1.0,
+        "the least static tension every tendon keeps in a move planned "
         "in task space (record move; below it a tendon is close to slack and stops controlling the arm)",
-        lo=0.0, plausible=(0.0, 10_000.0)),  # fmt: skip
+        lo=0.0,
+        plausible=(0.0, 10_000.0),
+    ),  # fmt: skip
     _pos(
         "cable_stiffness_n_m",
         "N/m",

@@ -25,6 +25,7 @@ F = fwsim.F_CPU
 TICK_CYCLES = 8  # Timer1 /8: one tick is 0.5 us = 8 cycles
 FOUR = fwsim.FIRMWARE / "common" / "rig_config_four_tendon.h"
 TRAVEL = 156
+RELEASE = 78  # rigs/four-tendon.toml: 20 mm below rest, floor(20 / 0.2552544) = 78 steps
 # (STEP, DIR) pins of the four axes on the Uno, and their inputs on the Mega (firmware/PROTOCOL.md)
 UNO_AXES = [("D5", "D6"), ("D2", "B2"), ("D3", "B3"), ("D4", "B4")]
 MEGA_AXES = [("E4", "G5"), ("E5", "E3"), ("D2", "A1"), ("D3", "A3")]
@@ -88,6 +89,8 @@ def _header(**changes: str) -> str:
         ({"RIG_AXES": "5"}, "RIG_AXES must be 1-4"),
         ({"RIG_HASH": ""}, "RIG_HASH, RIG_NAME, RIG_AXES and RIG_CHANNELS are required"),
         ({"RIG_AXIS_TRAVEL_STEPS": "{156, 156}"}, "RIG_AXIS_TRAVEL_STEPS needs RIG_AXES values"),
+        ({"RIG_AXIS_RELEASE_STEPS": "{78, 78}"}, "RIG_AXIS_RELEASE_STEPS needs RIG_AXES values"),
+        ({"RIG_AXIS_RELEASE_STEPS": "{78, 78, 100, 78}"}, "must be <= 255 per axis"),  # 100 + 156 = 256
         ({"RIG_MIN_INTERVAL_US": "100"}, "step intervals must satisfy"),
     ],
 )
@@ -162,9 +165,9 @@ def test_four_axis_programme_steps_within_one_tick(
     bodies = [ln.body for ln in run.lines]
     assert all(ln.checksum_ok for ln in run.lines)
     assert bodies[:8] == [
-        "HELLO stepper 2.3.0+c0bda550",
-        "PONG stepper 2.3.0+c0bda550",
-        "OK CONFIG 4 64 639 1000000 156 156 156 156",
+        "HELLO stepper 2.3.0+d09e5115",
+        "PONG stepper 2.3.0+d09e5115",
+        "OK CONFIG 4 64 639 1000000 156 156 156 156 78 78 78 78",
         "OK EN 1",
         "OK MSEG 1",
         "OK MSEG 2",
@@ -261,7 +264,9 @@ def random_programme(rnd: random.Random) -> tuple[list[str], list[list[int]], li
             cmds.append(f"WAIT {ms}")
             t0 += 2000 * ms
             continue
-        steps = [0 if rnd.random() < 0.2 else rnd.randint(max(-p, -60), min(TRAVEL - p, 60)) for p in pos]
+        steps = [
+            0 if rnd.random() < 0.2 else rnd.randint(max(-RELEASE - p, -60), min(TRAVEL - p, 60)) for p in pos
+        ]
         if not any(steps):
             steps[0] = 1 if pos[0] < TRAVEL else -1
         fastest, slowest = max(map(abs, steps)), min(abs(n) for n in steps if n)
@@ -310,7 +315,7 @@ def test_per_axis_limits_refused_before_moving(four_build: tuple[Path, str], fir
     build, _ = four_build
     cmds = [
         "EN 1",
-        "MSEG 100000 10 7 157 0",  # axis 2 past its travel in one item
+        "MSEG 200000 10 7 235 0",  # axis 2 past its release and travel (78 + 156) in one item
         "MSEG 10000 0 16 0 0",  # axis 1 faster than 639 us per step
         "MSEG 10000000 0 0 0 5",  # axis 3 slower than one step per second
         "MSEG 100000 0 0 0",  # one number short
@@ -319,24 +324,64 @@ def test_per_axis_limits_refused_before_moving(four_build: tuple[Path, str], fir
         "MSEG 200000 50 50 50 57",  # axis 3 would reach 157
         "GO",
         "POS",
-        "SEG 1 157 1000",  # the one-axis command keeps axis 0's limits and texts
+        "SEG 1 235 1000",  # the one-axis command: axis 0's release and travel, as MSEG
     ]
     run = _stepper(build, cmds, 0.05 + 0.02 * len(cmds) + 0.05)
     assert [ln.body for ln in run.lines][1:] == [
         "OK EN 1",
-        "ERR RANGE axis 2 steps -156..156",
+        "ERR RANGE axis 2 steps -234..234",
         "ERR RANGE axis 1 interval 639-1000000 us",
         "ERR RANGE axis 3 interval 639-1000000 us",
         "ERR ARG MSEG needs 5 integers",
         "ERR RANGE no axis moves (a dwell is WAIT)",
         "OK MSEG 1",
         "OK MSEG 2",
-        "ERR RANGE axis 3 travel 0-156 steps",
+        "ERR RANGE axis 3 travel -78-156 steps",
         "OK POS 0 0 0 0",
-        "ERR RANGE n_steps 1-156",
+        "ERR RANGE n_steps 1-234",
     ]
     for step, _ in UNO_AXES:
         assert _rising(run, step) == [], f"{step} moved"
+
+
+PAID_OUT = [  # below rest: axis 2 to the end of its release, axis 3 a little, axis 0 up; then back
+    (100_000, (20, 0, -78, -5)),
+    (100_000, (-20, 0, 78, 5)),
+]
+
+
+def test_paid_out_axes_go_down_to_the_release_like_the_emulated_board(
+    four_build: tuple[Path, str], firmware_build: None
+) -> None:
+    """GO accepts a programme down to -78 (the release) and refuses one step further, naming the axis and
+    the travel -78-156; the emulated four-tendon stepper replies alike and steps on the firmware's ticks."""
+    build, _ = four_build
+    cmds = ["EN 1", f"MSEG {PAID_OUT[0][0]} " + " ".join(map(str, PAID_OUT[0][1])), "GO"]
+    cmds += ["CLEAR", "MSEG 10000 0 0 -1 0", "GO", "POS", "CLEAR"]
+    cmds += [f"MSEG {PAID_OUT[1][0]} " + " ".join(map(str, PAID_OUT[1][1])), "GO"]
+    duration = 0.05 + 0.11 * len(cmds) + 0.15  # 110 ms apart: each programme (100 ms) is done before the next
+    run = _stepper(build, cmds, duration, spacing=0.11)
+    fw = [ln.body for ln in run.lines]
+    emu, emu_steps = _emulated("stepper", cmds, duration, spacing=0.11)
+    assert fw == emu
+    assert fw[1:] == [
+        "OK EN 1", "OK MSEG 1", "OK GO 1", "DONE 20 0 -78 -5", "OK CLEAR", "OK MSEG 1",
+        "ERR RANGE axis 2 travel -78-156 steps", "OK POS 20 0 -78 -5", "OK CLEAR", "OK MSEG 1", "OK GO 1",
+        "DONE 0 0 0 0",
+    ]  # fmt: skip
+    edges = [_rising(run, step) for step, _ in UNO_AXES]
+    assert [len(e) for e in edges] == [len(s) for s in emu_steps] == [40, 0, 156, 10]
+    for c in edges[2][:78]:  # the pay-out: DIR low (release) at each of axis 2's first 78 edges
+        assert _level_at(run, UNO_AXES[2][1], c) == 0
+    # each GO's steps (the emulated ones from that GO) share one origin: GO on the simulated clock
+    second_go = [ln.cycle for ln in run.lines if ln.body == "OK GO 1"][1]
+    groups: tuple[list[int], list[int]] = ([], [])
+    for got, want in zip(edges, emu_steps, strict=True):
+        for c, t in zip(got, want, strict=True):
+            groups[c > second_go].append(c - 128 - 8 * round(t * 2e6))
+    for group in groups:
+        origin = sorted(group)[len(group) // 2]
+        assert max(abs(o - origin) for o in group) <= TICK_CYCLES
 
 
 def test_one_axis_commands_drive_axis_zero(four_build: tuple[Path, str], firmware_build: None) -> None:

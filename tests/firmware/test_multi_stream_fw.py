@@ -25,6 +25,7 @@ F = fwsim.F_CPU
 TICK_CYCLES = 8
 AXES = [("D5", "D6"), ("D2", "B2"), ("D3", "B3"), ("D4", "B4")]  # (STEP, DIR) of axes 0-3 on the Uno
 TRAVEL = 156
+RELEASE = 78  # rigs/four-tendon.toml: 20 mm below rest, floor(20 / 0.2552544) = 78 steps
 # ZVD-like: three impulses, the delays off the period grid (77.008 ms = 7 periods + 438.5 DELTA ...)
 SHAPER = hs.StreamShaper((1024, 2048, 1024), (0, 77_008, 154_016))
 
@@ -102,7 +103,9 @@ def run_stream(
         assigned[int(m[1])] = v
     assert sorted(assigned) == list(range(1, n + 1))  # no underrun: one set-point per period 1..n
     assert replies[n + 1] == f"OK END {n + 1}"
-    ref = hs.simulate_axes(shaper, hs.PeriodCommands(assigned, n + 1), [0] * 4, [TRAVEL] * 4)
+    ref = hs.simulate_axes(
+        shaper, hs.PeriodCommands(assigned, n + 1), [0] * 4, [TRAVEL] * 4, releases=[RELEASE] * 4
+    )
     assert after[-1] == "DONE " + " ".join(str(r.position) for r in ref)
     assert sorted(b for b in after if b.startswith("N,")) == sorted(n.line for r in ref for n in r.notices)
     residuals = []
@@ -137,6 +140,26 @@ def test_four_axis_stream_matches_the_reference_per_axis(
         "the firmware's edges (less the lead)"
     )
     assert spread <= TICK_CYCLES  # every step of every axis within one tick of the reference's
+
+
+def test_four_axis_stream_pays_out_down_to_the_release(
+    four_build: tuple[Path, str], firmware_build: None
+) -> None:
+    """Axis 2 driven down at the top speed for 10 periods (by hand: 10 x 1640 x 625 / 65536 = 156.4 steps
+    commanded) is paid out below rest down to its release, -78, and held there; axis 0 goes up meanwhile."""
+    sps = [(600 if i < 10 else 0, 0, -hs.V_MAX if i < 10 else 0, 0) for i in range(12)]
+    ref, residuals, _, _, (emu_steps, emu_spread) = run_stream(four_build[0], SHAPER, sps)
+    assert ref[2].position == -RELEASE
+    assert [n.line for n in ref[2].notices] == [f"N,LIMIT,TRAVEL,-{RELEASE},2"]
+    assert len(ref[2].ticks) == RELEASE and set(ref[2].directions.tolist()) == {-1}
+    assert ref[0].position == 57  # 10 x 600 x 625 / 65536 = 57.2 steps
+    allres = np.concatenate(residuals)
+    spread = int(allres.max() - allres.min())
+    print(
+        f"paid-out four-axis stream: axis 2 down to {ref[2].position}, firmware edges within {spread} cycles "
+        f"of the reference's ticks; the emulated stepper's {emu_steps} steps within {emu_spread} cycles"
+    )
+    assert spread <= TICK_CYCLES
 
 
 def random_stream(rnd: random.Random) -> tuple[hs.StreamShaper, list[tuple[int, ...]]]:
@@ -332,9 +355,11 @@ def test_emulated_four_axis_stream_follows_the_firmware_tick_for_tick(
     fw = [ln.body for ln in run.lines]
     # what the script is about (by hand): the ten refusals in order, axis 1 held at its travel, the end
     errors = [b for b in fw if b.startswith("ERR")]
-    assert errors[:10] == ["ERR ARG MV needs 4 integers", "ERR RANGE axis 2 set-point -1640..1640"] + [
-        "ERR STATE streaming"
-    ] * 8
+    assert (
+        errors[:10]
+        == ["ERR ARG MV needs 4 integers", "ERR RANGE axis 2 set-point -1640..1640"]
+        + ["ERR STATE streaming"] * 8
+    )
     assert "N,LIMIT,TRAVEL,156,1" in fw
     assert fw[-4].startswith("DONE ") and fw[-3] == fw[-4].replace("DONE", "OK POS")
     assert int(fw[-4].split()[2]) == 156  # axis 1: up to its travel and held there
@@ -363,8 +388,9 @@ def test_emulated_four_axis_watchdog_like_the_firmware(
     steps, spread = emulated_alike(run, cmds, duration)
     fw = [ln.body for ln in run.lines]
     # by hand: set-points for periods 1-5; periods 6-15 underrun, the 11th in a row (period 16) is the
-    # watchdog's; axis 2 is driven down from 0: held at 0 (its travel clamp) at once
-    assert "N,WATCHDOG,16" in fw and "N,LIMIT,TRAVEL,0,2" in fw
+    # watchdog's; axis 2 is driven down from 0 and pays out below rest: 5 x 300 x 625 / 65536 = 14.3 steps,
+    # the count within one step of it (-14), inside its release (78)
+    assert "N,WATCHDOG,16" in fw and not any(b.startswith("N,LIMIT,TRAVEL") for b in fw)
     assert fw[-3:] == ["ERR STATE not streaming", fw[-2], "ERR STATE driver disabled"]
-    assert fw[-2].startswith("OK POS ") and fw[-2].split()[3] == "0"
+    assert fw[-2].startswith("OK POS ") and fw[-2].split()[2 + 2] == "-14"  # axis 2
     print(f"emulated four-axis watchdog: {steps} steps alike (spread {spread} cycles), {len(fw)} lines alike")

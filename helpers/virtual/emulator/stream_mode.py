@@ -194,14 +194,16 @@ class AxesStreamMode(StreamMode):
         Device time of ``STREAM`` (s).
     send : callable
         Queues one line from the board (notices, with ``,<axis>`` for axes 1..).
+    releases : sequence of int or None
+        Each axis's paid-out range below zero (the build's; default none).
     """
 
     def __init__(
         self, shaper: hs.StreamShaper, positions: Sequence[int], travels: Sequence[int], t0: float,
-        send: Callable[[str], None],
+        send: Callable[[str], None], releases: Sequence[int] | None = None,
     ) -> None:  # fmt: skip
         super().__init__(shaper, positions[0], t0, send)
-        self.session = hs.AxesSession(shaper, positions, travels)
+        self.session = hs.AxesSession(shaper, positions, travels, releases)
         self._planned_axes = [0] * len(positions)
         self._axes = np.zeros(0, dtype=np.int64)
 

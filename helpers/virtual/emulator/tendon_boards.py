@@ -4,8 +4,9 @@
 tendons*): ``MSEG <window_us> <n_0> ... <n_{A-1}>`` moves every axis in one window, step k of an axis making
 n steps on the 0.5 us tick ``ceil(k * 2 W / n)`` from the item's start (the firmware's remainder recurrence);
 ``SEG`` moves axis 0, ``WAIT`` is a dwell of every axis; ``CONFIG`` reports the axes, the programme length,
-the interval limits and each axis's travel; ``DONE``, ``ABORTED`` and ``OK POS`` list every axis's position;
-``GO`` refuses the first axis (in axis order) that the programme would take past its travel.
+the interval limits and each axis's travel (then each axis's release, on a build with one); ``DONE``,
+``ABORTED`` and ``OK POS`` list every axis's position; ``GO`` refuses the first axis (in axis order) that the
+programme would take outside ``-release..travel``. An item moves an axis at most ``release + travel`` steps.
 
 Streams shape every axis with the one loaded shaper, as the firmware's multi-axis stream mode does
 (:class:`~helpers.virtual.emulator.stream_mode.AxesStreamMode`, on
@@ -55,6 +56,8 @@ class BuildLimits:
         The stepper's limits.
     rate_min_hz, rate_max_hz, rate_default_hz : int
         The DAQ's rates.
+    release_steps : tuple of int
+        ``RIG_AXIS_RELEASE_STEPS``: how far each axis may pay out below zero; empty (the macro absent): none.
     """
 
     rig_hash: str
@@ -67,11 +70,26 @@ class BuildLimits:
     rate_min_hz: int = 100
     rate_max_hz: int = 2000
     rate_default_hz: int = 1000
+    release_steps: tuple[int, ...] = ()
 
     @property
     def axes(self) -> int:
         """``RIG_AXES``."""
         return len(self.travel_steps)
+
+    @property
+    def releases(self) -> tuple[int, ...]:
+        """Each axis's release (0 each without ``RIG_AXIS_RELEASE_STEPS``)."""
+        return self.release_steps or (0,) * self.axes
+
+    def span(self, axis: int) -> int:
+        """The most steps one item moves ``axis``: its release and travel together."""
+        return self.travel_steps[axis] + self.releases[axis]
+
+    def travel_text(self, axis: int) -> str:
+        """``GO``'s range of ``axis``: ``0-156``, or ``-78-156`` with a release."""
+        r = self.releases[axis]
+        return f"{-r if r else 0}-{self.travel_steps[axis]}"
 
 
 def build_limits(rig: RigFile) -> BuildLimits:
@@ -83,6 +101,7 @@ def build_limits(rig: RigFile) -> BuildLimits:
         min_interval_us=d.min_interval_us, max_interval_us=d.max_interval_us,
         programme_max=hw.programme_max_items, max_dwell_ms=hw.max_dwell_ms, rate_min_hz=hw.daq_rate_min_hz,
         rate_max_hz=hw.daq_rate_max_hz, rate_default_hz=hw.daq_rate_default_hz,
+        release_steps=tuple(d.release_steps) if any(d.release_steps) else (),
     )  # fmt: skip
 
 
@@ -137,7 +156,7 @@ class TendonStepperEmulator(StepperEmulator):
         if err := self._arg_error(cmd, 0):
             return err
         lim = self.limits
-        travel = " ".join(map(str, lim.travel_steps))
+        travel = " ".join(map(str, lim.travel_steps + lim.release_steps))  # releases only when built with
         return (
             f"OK CONFIG {lim.axes} {lim.programme_max} {lim.min_interval_us} {lim.max_interval_us} {travel}"
         )
@@ -169,8 +188,8 @@ class TendonStepperEmulator(StepperEmulator):
         d, n, iv = cmd.args
         if d not in (1, -1):
             return "ERR RANGE dir must be 1 or -1"
-        if not 1 <= n <= lim.travel_steps[0]:
-            return f"ERR RANGE n_steps 1-{lim.travel_steps[0]}"
+        if not 1 <= n <= lim.span(0):
+            return f"ERR RANGE n_steps 1-{lim.span(0)}"
         if not lim.min_interval_us <= iv <= lim.max_interval_us:
             return f"ERR RANGE interval {lim.min_interval_us}-{lim.max_interval_us} us"
         steps = (d * n,) + (0,) * (lim.axes - 1)
@@ -186,9 +205,9 @@ class TendonStepperEmulator(StepperEmulator):
         if not 1 <= window <= 255 * lim.max_interval_us:
             return f"ERR RANGE window 1-{255 * lim.max_interval_us} us"
         for a, n in enumerate(ns):
-            travel, m = lim.travel_steps[a], abs(n)
-            if not -travel <= n <= travel:
-                return f"ERR RANGE axis {a} steps -{travel}..{travel}"
+            span, m = lim.span(a), abs(n)
+            if m > span:
+                return f"ERR RANGE axis {a} steps -{span}..{span}"
             if m and not m * lim.min_interval_us <= window <= m * lim.max_interval_us:
                 return f"ERR RANGE axis {a} interval {lim.min_interval_us}-{lim.max_interval_us} us"
         if not any(ns):
@@ -206,13 +225,14 @@ class TendonStepperEmulator(StepperEmulator):
         if err := self._go_refusal(cmd, bool(self.windows)):
             return err
         self.positions[0] = self.position
-        for a, travel in enumerate(self.limits.travel_steps):  # the firmware checks axis by axis
-            pos = self.positions[a]
+        lim = self.limits
+        for a, (travel, release) in enumerate(zip(lim.travel_steps, lim.releases, strict=True)):
+            pos = self.positions[a]  # the firmware checks axis by axis
             for it in self.windows:
                 pos += it.steps[a] if it.steps else 0
-                if not 0 <= pos <= travel:
-                    where = f"axis {a} " if self.limits.axes > 1 else ""
-                    return f"ERR RANGE {where}travel 0-{travel} steps"
+                if not -release <= pos <= travel:
+                    where = f"axis {a} " if lim.axes > 1 else ""
+                    return f"ERR RANGE {where}travel {lim.travel_text(a)} steps"
         times, axes, signs, t0_us = [], [], [], 0.0
         for it in self.windows:
             if it.steps:
@@ -247,7 +267,7 @@ class TendonStepperEmulator(StepperEmulator):
         self.positions[0] = self.position
         assert self.shaper.ready is not None
         self.stream = AxesStreamMode(self.shaper.ready, list(self.positions), self.limits.travel_steps,
-                                     self.world.t, self.send)  # fmt: skip
+                                     self.world.t, self.send, self.limits.releases)  # fmt: skip
         return reply
 
     def cmd_MV(self, cmd: _Command) -> str:  # noqa: N802, D102
