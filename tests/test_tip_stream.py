@@ -1,4 +1,4 @@
-"""Arbitrary motion of the tip (helpers.research.tip_stream): a bend stream turned into every tendon's set-points.
+"""Arbitrary motion of the tip (helpers.research.tip_stream): a bend stream turned into tendon set-points.
 
 Expected values by hand from the rig files: a step is pi 65 / 800 = 0.255254 mm of cable; one board unit held
 for a 10 ms period moves 625 / 65536 step (104.8576 unit-periods per step). A bend of ``b`` towards ``beta``
@@ -16,14 +16,16 @@ import math
 import numpy as np
 import pytest
 
-from helpers import rigfile
-from helpers.__main__ import error_line
+from helpers import recordings, rigfile
+from helpers.__main__ import error_line, main
 from helpers.board import stream_reference as hs
 from helpers.research import tip_stream as ts
+from helpers.research import tip_stream_metrics as tm
 from helpers.research.task_space import plan_move
 from helpers.rig.safety import SafetyError
 from helpers.rig.stream import StreamLimit
 from helpers.rig.tendon_stream import check_tendon_stream, tendon_units
+from helpers.virtual.emulator.world import forget_world
 
 MM = math.pi * 65 / 800
 
@@ -74,7 +76,9 @@ def test_the_figures_are_deterministic_and_start_and_end_at_rest() -> None:
     ]  # fmt: skip
     # an edge of the square: 10 sqrt 2 = 14.14 mm at 100 mm/s, 14 whole periods
     assert square.stops[2][0] - square.stops[1][1] == 14
-    assert ts.figure_path("random", 10.0, seed=1).bends.tolist() != ts.figure_path("random", 10.0).bends.tolist()
+    assert (
+        ts.figure_path("random", 10.0, seed=1).bends.tolist() != ts.figure_path("random", 10.0).bends.tolist()
+    )
     with pytest.raises(ValueError, match="path must be one of square, star, circle, random"):
         ts.figure_path("spiral", 10.0)
 
@@ -125,7 +129,7 @@ def test_the_statics_between_knots_is_interpolated_within_a_hundredth_of_a_step(
     assert ts.interpolation_error(two, path, knot_mm=2.0) < 0.01
 
 
-# --- the floor, before any byte ------------------------------------------------------------------------------
+# --- the floor, before any byte -----------------------------------------------------------------------
 def test_a_path_that_leaves_the_opposite_tendon_short_is_refused_naming_it(four) -> None:
     """Paying every tendon out by the constant-curvature lengths (no statics) leaves the tendon opposite the
     bend (towards 0 deg: tendon 3, at 180 deg) short by about 2 N at 8 mm (module docstring)."""
@@ -137,7 +141,9 @@ def test_a_path_that_leaves_the_opposite_tendon_short_is_refused_naming_it(four)
         ts.plan_stream(four, path, mapping="kinematic")
     text = str(info.value)
     assert text.startswith("tendon 3: the star path (10 mm) leaves it at 0.")
-    assert "by statics at period 33 (t = 0.33 s, bend 8.00 mm towards 0.0 deg), below the tension floor " in text
+    assert (
+        "by statics at period 33 (t = 0.33 s, bend 8.00 mm towards 0.0 deg), below the tension floor " in text
+    )
     assert "1.00 N ([arm] tension_floor_n)" in text and "\n" not in text
     assert error_line(info.value)[1] == 3
     # the statics' own mapping holds it at its pretension: the same path is planned
@@ -147,7 +153,9 @@ def test_a_path_that_leaves_the_opposite_tendon_short_is_refused_naming_it(four)
 
 def test_a_rest_pretension_below_the_floor_is_refused(four) -> None:
     low = rigfile.loads(four.text.replace("pretension_n = 2.3554", "pretension_n = 0.8"), "low.toml")
-    with pytest.raises(SafetyError, match=r"^tendon 1: its rest pretension 0.80 N is below the tension floor"):
+    with pytest.raises(
+        SafetyError, match=r"^tendon 1: its rest pretension 0.80 N is below the tension floor"
+    ):
         ts.plan_stream(low, _out_and_back(0.0, 5.0))
 
 
@@ -176,3 +184,91 @@ def test_the_design_is_the_mean_of_the_maps_mode_at_the_stops(two) -> None:
     assert d.omega_d == pytest.approx(26.996, abs=0.01) and d.zeta == pytest.approx(0.0424, abs=1e-4)
     assert d.shaper.times[-1] == pytest.approx(2 * math.pi / d.omega_d)  # ZVD: one damped period
     assert "every tendon" in d.describe() and ts.stream_design(two, path, "none").shaper is None
+
+
+# --- python -m helpers record tip-stream ------------------------------------------------------------------
+def test_record_tip_stream_dry_run_prints_every_tendons_range_and_least_tension(tmp_path, monkeypatch,
+                                                                             capsys) -> None:  # fmt: skip
+    """A square of 5 mm at 200 mm/s on the four-tendon rig: its corners are plan_move's bends (5 mm towards
+    a tendon pulls it 5 / 0.255 = 19.6 steps and pays the opposite out about as much), within the travel
+    -78..156 steps."""
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    argv = ["record", "tip-stream", "--path", "square", "--bend-mm", "5", "--v-in", "200", "--dry-run",
+            "--data-dir", str(tmp_path / "data")]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    corner = plan_move(four, 0.0, 5.0).steps
+    assert f"5 mm towards 0 deg: {', '.join(f'{n:+d}' for n in corner)}" in out
+    for i in range(1, 5):
+        line = next(x for x in out.splitlines() if x.strip().startswith(f"tendon {i}: positions"))
+        assert (
+            "its travel -78-156 steps" in line and "least static tension" in line and "floor 1.00 N" in line
+        )
+    assert "shaper: unshaped" in out
+    assert "stands at the plan's whole steps at every stop" in out
+    assert "tip_streams/tip_square_none_b5.csv; nothing was sent" in out
+    assert not (tmp_path / "data").exists()
+
+
+def test_record_tip_stream_refuses_a_figure_the_rig_cannot_reach(two, tmp_path, monkeypatch, capsys) -> None:
+    """The star's third direction, 90 deg, faces tendon 2; its fifth, 180 deg, faces no tendon at 0 or 90 deg
+    (cos 180 deg < 0, cos 90 deg = 0)."""
+    path = tmp_path / "two.toml"
+    path.write_text(two.text)
+    monkeypatch.setenv("HELPERS_RIG", str(path))
+    argv = [
+        "record",
+        "tip-stream",
+        "--path",
+        "star",
+        "--bend-mm",
+        "5",
+        "--dry-run",
+        "--data-dir",
+        str(tmp_path),
+    ]
+    assert main(argv) == 3
+    err = capsys.readouterr().err.strip()
+    assert (
+        err.startswith("error: the star path (5 mm) refused: no tendon faces 180 deg (tendons at 0, 90 deg)")
+        and "\n" not in err
+    )
+
+
+# --- end to end on the virtual rig ------------------------------------------------------------------------
+@pytest.mark.slow
+def test_a_tip_stream_on_the_virtual_rig_stands_at_the_plan_and_keeps_every_tendon_taut(
+    tmp_path, monkeypatch
+) -> None:
+    """The four-tendon square of 5 mm shaped by ZVD, recorded: every stop's step counts are the plan's, the
+    stream ends at rest, the scenario names the stream, the shaper and the path; the twin's tip and every
+    tension are recorded (simulated)."""
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    data = tmp_path / "data"
+    argv = ["record", "tip-stream", "--path", "square", "--bend-mm", "5", "--v-in", "200", "--shaper", "zvd",
+            "--data-dir", str(data), "--virtual-instance", "tip-stream-test", "--quiet"]  # fmt: skip
+    try:
+        assert main(argv) == 0
+    finally:
+        forget_world("tip-stream-test")
+    rec = recordings.load(data / "tip_streams" / "tip_square_zvd_b5.csv")
+    scenario = rec.meta["scenario"]
+    assert rec.status == "complete" and scenario["kind"] == "stream"
+    assert scenario["shaper_name"] == "zvd" and scenario["design"]["shaper"] == "zvd"
+    assert scenario["path"]["figure"] == "square" and scenario["path"]["bend_mm"] == 5.0
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    plan = ts.plan_stream(four, ts.figure_path("square", 5.0, speed_mm_s=200.0))
+    assert scenario["stop_steps"] == [list(s) for s in plan.stop_steps]
+    t = tm.stream_clock(rec)
+    for (_a, b), steps in zip(plan.path.stops, plan.stop_steps, strict=True):
+        k = np.searchsorted(t, (b + 2) * ts.PERIOD_S) - 1  # the stop's last boundary, before the next move
+        assert [int(rec.frame[f"steps_{i}"].iloc[k]) for i in range(4)] == list(steps)
+    assert [int(rec.frame[f"steps_{i}"].iloc[-1]) for i in range(4)] == [0, 0, 0, 0]
+    assert all(c in rec.frame.columns for c in ("tip_x_mm", "tip_y_mm", "tip_z_mm"))
+    least = tm.tension_summary(rec, plan.floor_n)
+    assert least["tendon"].tolist() == [1, 2, 3, 4] and (least["samples"] == least["samples"][0]).all()
+    stops = tm.stop_metrics(rec, plan)
+    assert len(stops) == len(plan.path.stops) - 1
+    # at the last stop, back at rest, the tip is where the statics puts it to within a millimetre
+    assert stops["tip_offset_mm"].iloc[-1] < 1.0

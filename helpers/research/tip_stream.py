@@ -51,6 +51,7 @@ from helpers.board import stream_reference as hs
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.research.task_space import MAX_TRIM_STEPS
 from helpers.rig.safety import SafetyError
+from helpers.rig.tendon_safety import travel_text
 from helpers.rig.tendon_stream import TendonStreamPlan, check_tendon_stream, tendon_units
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
@@ -408,7 +409,8 @@ class StreamPlan:
             v = self.setpoints_mm_s[:, i]
             out.append(
                 f"tendon {i + 1}: positions {lo:+.2f} to {hi:+.2f} steps ({lo * mm[i]:+.2f} to "
-                f"{hi * mm[i]:+.2f} mm), speeds {v.min():+.1f} to {v.max():+.1f} mm/s; least static tension "
+                f"{hi * mm[i]:+.2f} mm; its travel {travel_text(rig, i)}), speeds {v.min():+.1f} to "
+                f"{v.max():+.1f} mm/s; least static tension "
                 f"{t:.2f} N at {self.path.where(k)} (floor {self.floor_n:.2f} N, margin "
                 f"{t - self.floor_n:+.2f} N)"
             )
