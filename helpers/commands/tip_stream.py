@@ -23,6 +23,7 @@ from helpers.base.paths import repo_path
 from helpers.recordings import recording_path, refuse_existing
 from helpers.research.tip_stream import (
     board_counts,
+    board_tensions,
     check_plan,
     figure_path,
     interpolation_error,
@@ -99,7 +100,13 @@ def record_tip_stream(args: argparse.Namespace) -> int:
             f"the {path.name} path: the board's planner stands at {counts} at the stops, not at the plan's "
             f"{list(plan.stop_steps)}"
         )
+    forecast = board_tensions(plan, rig, design.shaper).min(axis=0)
     if args.dry_run:
+        figures = ", ".join(f"{t:.2f}" for t in forecast)
+        print(
+            f"  forecast (not a check): the least static tensions at the board's whole-step counts as it "
+            f"moves (its planner, one-step hysteresis): {figures} N for tendons 1-{rig.n_tendons}"
+        )
         print(
             f"  the board's shaped motion (its planner) reaches {list(checked.reach)} steps and stands at "
             "the plan's whole steps at every stop"
@@ -110,6 +117,7 @@ def record_tip_stream(args: argparse.Namespace) -> int:
     scenario = {
         "stream_of": "tip path", "path": path.metadata(), "shaper_name": design.name,
         "design": design.metadata(), **plan.metadata(), "speed_mm_s": path.speed_mm_s,
+        "board_count_min_static_tension_n": [round(float(t), 6) for t in forecast],
     }  # fmt: skip
     with folder_lock(args.data_dir / args.group, what="recording", name=".recording.lock", beside=True):
         with TendonStreamRig.connect(args.ports, rig=rig, rig_name=args.rig_name) as trig:

@@ -74,7 +74,9 @@ __all__ = [
     "plan_stream",
     "check_floor",
     "check_plan",
+    "board_path",
     "board_counts",
+    "board_tensions",
     "stream_design",
     "interpolation_error",
 ]
@@ -633,13 +635,12 @@ def check_plan(
     return check_tendon_stream(tendon_units(plan.setpoints_mm_s, rig), rig, start, hs.board_shaper(shaper))
 
 
-def board_counts(
-    plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper | None
-) -> list[tuple[int, ...]]:
-    """Every tendon's step count at the end of each stop, by the board's own planner (the shaped motion).
+def board_path(plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper | None) -> np.ndarray:
+    """Every tendon's step count at every boundary, by the board's own planner (the shaped motion, from rest).
 
-    The count at the last boundary of a stop, or at the board's finish for the last stop (the shaper's
-    delays carry the motion past the set-points).
+    Row ``k`` is the count ``(k + 2)`` periods after ``STREAM`` (row ``r`` of the set-points, taken at tick
+    ``r + 1``, drives ``[(r + 2) T, (r + 3) T)``); a last row is the count when the board has finished (the
+    shaper's delays carry the motion past the set-points). Shape (periods + 2, tendons).
     """
     board = hs.board_shaper(shaper)
     d = derived(rig)
@@ -654,15 +655,49 @@ def board_counts(
         k += 1
         v = rules.take(k, None)
         run.tick(k, v, rules.state)
-    counts = []
-    for _a, b in plan.path.stops:
-        # row r (0-based) is taken at tick r + 1 and drives [(r + 2) T, (r + 3) T): boundary b's motion is
-        # over (b + 2) T after STREAM (a stop's rows are zero, and it lasts longer than the shaper)
-        tick = (b + 2) * hs.PERIOD_TICKS if b < plan.path.periods else math.inf
-        counts.append(
-            tuple(int(np.sum(np.asarray(p.dirs)[np.asarray(p.ticks) < tick])) for p in run.planners)
-        )
-    return counts
+    edges = np.append((np.arange(plan.path.periods + 1) + 2) * hs.PERIOD_TICKS, np.iinfo(np.int64).max)
+    out = np.zeros((len(edges), rig.n_tendons), dtype=np.int64)
+    for i, p in enumerate(run.planners):
+        ticks, dirs = np.asarray(p.ticks, dtype=np.int64), np.asarray(p.dirs, dtype=np.int64)
+        where = np.searchsorted(ticks, edges, side="left")  # steps strictly before each edge
+        out[:, i] = np.concatenate([[0], np.cumsum(dirs)])[where]
+    return out
+
+
+def board_counts(
+    plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper | None
+) -> list[tuple[int, ...]]:
+    """Every tendon's step count at the end of each stop, by the board's own planner (:func:`board_path`).
+
+    The count at the last boundary of a stop (a stop lasts longer than the shaper), or when the board has
+    finished for a stop that ends the path.
+    """
+    counts = board_path(plan, rig, shaper)
+    return [tuple(int(c) for c in counts[b if b < plan.path.periods else -1]) for _a, b in plan.path.stops]
+
+
+def board_tensions(
+    plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper | None, spatial: SpatialRig | None = None
+) -> np.ndarray:
+    """The static tensions (rotors free, N) at the board's whole-step counts at every boundary.
+
+    A forecast, not a check: the board's count follows the shaped cable with a one-step hysteresis, and one
+    step is 2-3 N on a tendon of the four-tendon rigs, so these can fall well below the plan's
+    (:attr:`StreamPlan.tension_n`, at the integrated set-points) while the tendons move.
+    """
+    twin = spatial_rig(rig) if spatial is None else spatial
+    mm_m = np.asarray(derived(rig).mm_per_step, dtype=float) * 1e-3
+    counts = board_path(plan, rig, shaper)
+    out = np.empty(counts.shape)
+    eq = None
+    cache: dict[tuple[int, ...], np.ndarray] = {}
+    for k, row in enumerate(counts):
+        key = tuple(int(c) for c in row)
+        if key not in cache:
+            eq = equilibrium(twin, row * mm_m, rotor="free", start=eq)
+            cache[key] = eq.tension
+        out[k] = cache[key]
+    return out
 
 
 # --- the shaper ------------------------------------------------------------------------------------------
