@@ -9,7 +9,8 @@ frame has the twin's tip, ``tip_x_mm`` ..) is measured against the plan:
   offset from where the statics puts it (mm), and each tendon's tension peak to peak (N);
 - :func:`tracking`: the delay of the tip behind the plan's static tip path that best aligns them, and the RMS
   distance left at that delay (mm);
-- :func:`tension_summary`: each tendon's least tension over the stream and the samples below the floor.
+- :func:`tension_summary`: each tendon's least tension over the stream and the samples below the floor (raw,
+  and over a 20 ms moving mean that leaves out the steps' transients).
 
 On the virtual rig every figure is **simulated** (the twin's tip is not measured).
 """
@@ -96,21 +97,31 @@ def tracking(rec: Recording, plan: StreamPlan, max_lag_s: float = 0.6) -> tuple[
     return best[1], best[0]
 
 
-def tension_summary(rec: Recording, floor_n: float) -> pd.DataFrame:
+def tension_summary(rec: Recording, floor_n: float, smooth_s: float = 0.02) -> pd.DataFrame:
     """Each tendon's least tension from ``STREAM`` on and the samples below ``floor_n``.
+
+    Also over the tension's centred moving mean of ``smooth_s``: each step of a stepper moves its tendon's
+    tension by several newtons for a few milliseconds (the cable's stiffness before the arm follows), and the
+    smoothed figures separate those transients from a tendon that stays slack.
 
     Returns
     -------
     pandas.DataFrame
         One row per tendon (1-based): ``tendon``, ``least_n``, ``at_s`` (from ``STREAM``), ``below_floor``
-        (samples), ``samples``.
+        (samples), ``least_smoothed_n``, ``below_floor_smoothed``, ``samples``.
     """
     t = stream_clock(rec)
     after = t >= 0.0
+    width = max(1, round(smooth_s * float(rec.meta["rate_hz"])))
     rows = []
     for i in range(rec.meta["tendons"]):
-        y = rec.frame[f"tension_n_{i}"].to_numpy(dtype=float)[after]
+        raw = rec.frame[f"tension_n_{i}"].to_numpy(dtype=float)
+        smooth = pd.Series(raw).rolling(width, center=True, min_periods=1).mean().to_numpy()
+        y, ys = raw[after], smooth[after]
         k = int(np.argmin(y))
-        rows.append({"tendon": i + 1, "least_n": float(y[k]), "at_s": float(t[after][k]),
-                     "below_floor": int(np.count_nonzero(y < floor_n)), "samples": int(y.size)})  # fmt: skip
+        rows.append({
+            "tendon": i + 1, "least_n": float(y[k]), "at_s": float(t[after][k]),
+            "below_floor": int(np.count_nonzero(y < floor_n)), "least_smoothed_n": float(ys.min()),
+            "below_floor_smoothed": int(np.count_nonzero(ys < floor_n)), "samples": int(y.size),
+        })  # fmt: skip
     return pd.DataFrame(rows)
