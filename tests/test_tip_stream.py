@@ -14,11 +14,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
 from helpers.board import stream_reference as hs
+from helpers.recordings import Recording
 from helpers.research import tip_stream as ts
 from helpers.research import tip_stream_metrics as tm
 from helpers.research.task_space import plan_move
@@ -272,3 +274,28 @@ def test_a_tip_stream_on_the_virtual_rig_stands_at_the_plan_and_keeps_every_tend
     assert len(stops) == len(plan.path.stops) - 1
     # at the last stop, back at rest, the tip is where the statics puts it to within a millimetre
     assert stops["tip_offset_mm"].iloc[-1] < 1.0
+    row = tm.summary(rec, plan)
+    assert (
+        row["below_floor"] == least["below_floor"].sum() and row["tip_pp_max_mm"] == stops["tip_pp_mm"].max()
+    )
+    assert 0.0 < row["lag_s"] < 0.6  # ZVD's mean delay is half its 0.25 s
+
+
+def test_the_tension_summary_separates_step_transients_from_a_slack_tendon() -> None:
+    """1 kHz, STREAM at 0.1 s: tendon 1 at 2 N with a 3 ms dip to 0 N every 100 ms from 0.2 s (eight dips, 24
+    samples below 1 N; a 20 ms mean over a dip is 2 x 17 / 20 = 1.7 N, none below); tendon 2 at 0.5 N for
+    50 ms from 0.5 s (50 samples). A 20 ms mean holding m of those is (2 (20 - m) + 0.5 m) / 20, below 1 N for
+    m >= 14: the centred window [k - 10, k + 9] holds 14 or more for k = 504..546, 43 samples."""
+    t_us = np.arange(1000) * 1000
+    one = np.full(1000, 2.0)
+    for start in range(200, 1000, 100):
+        one[start : start + 3] = 0.0
+    two = np.full(1000, 2.0)
+    two[500:550] = 0.5
+    frame = pd.DataFrame({"t_us": t_us, "tension_n_0": one, "tension_n_1": two})
+    rec = Recording(frame=frame, meta={"scenario": {"t_stream_us": 100_000}, "rate_hz": 1000, "tendons": 2})
+    table = tm.tension_summary(rec, 1.0)
+    assert table["below_floor"].tolist() == [24, 50]
+    assert table["least_n"].tolist() == [0.0, 0.5] and table["at_s"].tolist() == pytest.approx([0.1, 0.4])
+    assert table["below_floor_smoothed"].tolist() == [0, 43]
+    assert table["least_smoothed_n"][0] == pytest.approx(1.7)

@@ -23,7 +23,7 @@ import pandas as pd
 from helpers.recordings import Recording
 from helpers.research.tip_stream import PERIOD_S, StreamPlan
 
-__all__ = ["stop_metrics", "tracking", "tension_summary", "stream_clock"]
+__all__ = ["stop_metrics", "tracking", "tension_summary", "stream_clock", "summary"]
 
 _TIP = ("tip_x_mm", "tip_y_mm", "tip_z_mm")
 
@@ -125,3 +125,26 @@ def tension_summary(rec: Recording, floor_n: float, smooth_s: float = 0.02) -> p
             "below_floor_smoothed": int(np.count_nonzero(ys < floor_n)), "samples": int(y.size),
         })  # fmt: skip
     return pd.DataFrame(rows)
+
+
+def summary(rec: Recording, plan: StreamPlan) -> dict[str, float | int]:
+    """One row for a recorded tip stream: the tip at the stops, its tracking, the least tensions.
+
+    ``tip_pp_mean_mm`` / ``tip_pp_max_mm`` (:func:`stop_metrics`'s ``tip_pp_mm`` over the stops),
+    ``tip_offset_max_mm``, ``lag_s`` and ``track_rms_mm`` (:func:`tracking`), ``least_n_<i>`` and
+    ``least_smoothed_n_<i>`` per tendon, ``below_floor`` and ``below_floor_smoothed`` (samples, every tendon).
+    """
+    stops = stop_metrics(rec, plan)
+    lag, rms = tracking(rec, plan)
+    ten = tension_summary(rec, plan.floor_n)
+    row: dict[str, float | int] = {
+        "tip_pp_mean_mm": float(stops["tip_pp_mm"].mean()), "tip_pp_max_mm": float(stops["tip_pp_mm"].max()),
+        "tip_offset_max_mm": float(stops["tip_offset_mm"].max()), "lag_s": lag, "track_rms_mm": rms,
+    }  # fmt: skip
+    for _, r in ten.iterrows():
+        row[f"least_n_{int(r.tendon)}"] = float(r.least_n)
+    for _, r in ten.iterrows():
+        row[f"least_smoothed_n_{int(r.tendon)}"] = float(r.least_smoothed_n)
+    row["below_floor"] = int(ten["below_floor"].sum())
+    row["below_floor_smoothed"] = int(ten["below_floor_smoothed"].sum())
+    return row
