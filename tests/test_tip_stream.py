@@ -299,3 +299,18 @@ def test_the_tension_summary_separates_step_transients_from_a_slack_tendon() -> 
     assert table["least_n"].tolist() == [0.0, 0.5] and table["at_s"].tolist() == pytest.approx([0.1, 0.4])
     assert table["below_floor_smoothed"].tolist() == [0, 43]
     assert table["least_smoothed_n"][0] == pytest.approx(1.7)
+
+
+def test_a_margin_trims_the_stops_away_from_rest_and_leaves_rest_at_zero(four) -> None:
+    """10 mm towards 0 deg: rounding leaves the side tendons 2 and 4 at 1.18 N (docs/task_space.md), above the
+    1 N floor (no trim) but below floor + 0.5 N: with the margin tendon 2 is pulled in (the lower of two equal
+    tendons, the first), and rest stays at zero steps on every tendon."""
+    path = _out_and_back(0.0, 10.0)
+    plain = ts.plan_stream(four, path, knot_mm=2.0)
+    assert plain.stop_steps[1] == plan_move(four, 0.0, 10.0).steps == (40, 0, -39, 0)
+    assert plain.trimmed[1] == (0, 0, 0, 0)
+    margin = ts.plan_stream(four, path, knot_mm=2.0, margin_n=0.5)
+    assert margin.trimmed[1][1] == 1 and margin.stop_steps[1][1] == 1
+    a, _ = path.stops[1]
+    assert margin.tension_n[a].min() >= 1.5
+    assert margin.stop_steps[0] == margin.stop_steps[2] == (0, 0, 0, 0) and margin.margin_n == 0.5

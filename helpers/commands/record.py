@@ -165,6 +165,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="tip-stream: the seed of the random path",
     )  # fmt: skip
     parser.add_argument(
+        "--margin-n", type=arg_number(0, 10), default=0.0,
+        help="tip-stream: trim the stops' whole steps to the tension floor plus this margin, N (0: record "
+        "move's policy)",
+    )  # fmt: skip
+    parser.add_argument(
         "--shaper", choices=list(MOVE_SHAPERS), default="none",
         help="move: none, or the paper's zv / zvd designed from the direction map's mode at the bend; "
         "tip-stream: the same from the map's mode at the path's stops, one shaper for every tendon",

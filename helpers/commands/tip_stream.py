@@ -44,7 +44,9 @@ TIP_TAIL_S = 1.5
 
 
 def _name(args: argparse.Namespace) -> str:
-    text = f"tip_{args.path}_{args.shaper}_b{args.bend_mm:g}"
+    text = f"tip_{args.path}_{args.shaper}_b{args.bend_mm:g}" + (
+        f"_m{args.margin_n:g}" if args.margin_n else ""
+    )
     return args.name or text.replace(".", "p").replace("-", "m")
 
 
@@ -58,7 +60,9 @@ def _plan(args: argparse.Namespace, rig: Any) -> tuple[Any, Any, Any]:
         )
     speed = args.v_in if args.v_in is not None else TIP_SPEED_MM_S
     path = figure_path(args.path, args.bend_mm, speed_mm_s=speed, seed=args.path_seed)
-    plan = plan_stream(rig, path)  # the floor at every period: refused before any port opens
+    plan = plan_stream(
+        rig, path, margin_n=args.margin_n
+    )  # the floor at every period: refused before any port
     design = stream_design(rig, path, args.shaper)
     return path, plan, design
 

@@ -394,6 +394,8 @@ class StreamPlan:
     tip_mm: np.ndarray
     floor_n: float
     knot_mm: float
+    margin_n: float = 0.0
+    """The margin above the floor the stops were trimmed to, N."""
     interpolated: int = 0
     """Boundaries in motion whose command was interpolated between knots (not solved there)."""
 
@@ -424,7 +426,7 @@ class StreamPlan:
             "stop_steps": [list(s) for s in self.stop_steps],
             "trimmed_steps": [list(s) for s in self.trimmed],
             "planned_min_tension_n": [round(t, 6) for t, _ in self.least_tension()],
-            "tension_floor_n": self.floor_n, "knot_mm": self.knot_mm,
+            "tension_floor_n": self.floor_n, "margin_n": self.margin_n, "knot_mm": self.knot_mm,
             "interpolated_periods": self.interpolated,
         }  # fmt: skip
 
@@ -475,6 +477,7 @@ def plan_stream(
     knot_mm: float = 1.0,
     spatial: SpatialRig | None = None,
     mapping: str = "statics",
+    margin_n: float = 0.0,
 ) -> StreamPlan:
     """Every tendon's set-points for a tip path, the static tensions checked against the floor (module doc).
 
@@ -491,6 +494,10 @@ def plan_stream(
     mapping : {"statics", "kinematic"}
         :data:`MAPPINGS`; with ``"kinematic"`` every tendon's cable is ``b (r_i / r_mean) cos(beta - a_i)``
         and a stop's steps are only rounded (the floor is still checked by the statics).
+    margin_n : float
+        At the stops, trim every tendon up to the floor plus this margin (N; 0: ``plan_move``'s policy), for
+        the ringing on arrival: a tendon the rounding leaves just above the floor (1.18 N beside a bend of
+        10 mm towards a tendon of the four-tendon rig) dips below it as the arm settles.
 
     Raises
     ------
@@ -512,6 +519,8 @@ def plan_stream(
                 f"tendon {i + 1}: its rest pretension {t.pretension_n:.2f} N is below the tension floor "
                 f"{floor:.2f} N ([arm] tension_floor_n): {what} would start with it short"
             )
+    if not (math.isfinite(margin_n) and margin_n >= 0):
+        raise ValueError(f"margin_n must be >= 0 N, got {margin_n!r}")
     if mapping not in MAPPINGS:
         raise ValueError(f"mapping must be one of {', '.join(MAPPINGS)}, got {mapping!r}")
     mm_m = np.asarray(derived(rig).mm_per_step, dtype=float) * 1e-3
@@ -521,7 +530,12 @@ def plan_stream(
         try:
             cmd, eqs = _commands(twin, path, knots)
             for a, _b in path.stops:
-                s, tr, _ = _whole_steps(twin, cmd[a], mm_m, floor, eqs[int(np.searchsorted(knots, a))])
+                if path.polar(a)[1] <= 1e-9:  # at rest: position 0, every tendon at its pretension
+                    stop_steps.append(np.zeros(rig.n_tendons, dtype=int))
+                    trims.append(np.zeros(rig.n_tendons, dtype=int))
+                    continue
+                j = int(np.searchsorted(knots, a))
+                s, tr, _ = _whole_steps(twin, cmd[a], mm_m, floor + margin_n, eqs[j])
                 stop_steps.append(s)
                 trims.append(tr)
         except ValueError as exc:  # the statics' pull-out refusal names the tendon
@@ -559,7 +573,8 @@ def plan_stream(
         path=path, units=units, setpoints_mm_s=mm_s, positions=positions,
         stop_steps=tuple(tuple(int(v) for v in s) for s in stop_steps),
         trimmed=tuple(tuple(int(v) for v in t) for t in trims), tension_n=tension, tip_mm=tip, floor_n=floor,
-        knot_mm=float(knot_mm), interpolated=_interpolated(path, knots) if mapping == "statics" else 0,
+        knot_mm=float(knot_mm), margin_n=float(margin_n),
+        interpolated=_interpolated(path, knots) if mapping == "statics" else 0,
     )  # fmt: skip
 
 
