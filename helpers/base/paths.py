@@ -39,9 +39,6 @@ LOADCELL_CALIBRATION: Path = DATA_DIR / "calibration" / "calibration.json"
 record
 calibration``), read by ``helpers.paper.tension.load_calibration`` (every recording run)."""
 
-FIRMWARE_DIR: Path = REPO_ROOT / "firmware"
-"""Arduino sketches, the Makefile and the simavr harness."""
-
 VIRTUAL_RIG_REGISTRY: Path = Path(tempfile.gettempdir()) / "helpers-virtual-rigs"
 """Where ``python -m helpers serve-virtual-rig`` announces its pseudo-terminals, so that recordings made
 through them are labelled ``virtual-rig``, never ``hardware`` (read by

@@ -9,7 +9,6 @@ identifies). Both are in rad/s. This module holds the conversion, computed nowhe
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 
@@ -76,32 +75,3 @@ def omega_d_from_natural(omega_n: float, zeta: float) -> float:
     """
     check_mode(omega_n, zeta)
     return float(omega_n) * math.sqrt(1.0 - float(zeta) ** 2)
-
-
-@dataclass(frozen=True)
-class Mode:
-    """One lightly damped mode: undamped natural frequency ``omega_n`` (rad/s) and damping ratio ``zeta``.
-
-    Build it from an identified damped frequency with :meth:`from_damped`.
-    """
-
-    omega_n: float
-    zeta: float
-
-    def __post_init__(self) -> None:
-        check_mode(self.omega_n, self.zeta)
-
-    @classmethod
-    def from_damped(cls, omega_d: float, zeta: float) -> Mode:
-        """The mode whose damped frequency is ``omega_d`` (rad/s)."""
-        return cls(omega_n_from_damped(omega_d, zeta), float(zeta))
-
-    @property
-    def omega_d(self) -> float:
-        """Damped natural frequency, rad/s."""
-        return omega_d_from_natural(self.omega_n, self.zeta)
-
-    @property
-    def sigma(self) -> float:
-        """Decay rate ``zeta omega_n``, 1/s."""
-        return self.zeta * self.omega_n

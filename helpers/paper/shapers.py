@@ -95,27 +95,6 @@ class Shaper:
 
     # -- construction -------------------------------------------------------------------------------------
     @classmethod
-    def normalised(cls, amplitudes: Iterable[float], times: Iterable[float], name: str = "shaper") -> Shaper:
-        """Build a shaper from amplitudes that need dividing by their sum (as Klipper stores them).
-
-        Parameters
-        ----------
-        amplitudes, times : array_like
-            Unnormalised amplitudes and their times (s).
-        name : str
-            Label.
-
-        Returns
-        -------
-        Shaper
-        """
-        a = _as_1d_float(amplitudes, "amplitudes")
-        total = a.sum()
-        if not np.isfinite(total) or total == 0.0:
-            raise ValueError(f"cannot normalise amplitudes that sum to {total!r}")
-        return cls(a / total, _as_1d_float(times, "times"), name)
-
-    @classmethod
     def unit(cls) -> Shaper:
         """The unit impulse: no shaping (``V = 1`` everywhere)."""
         return cls(np.array([1.0]), np.array([0.0]), "unshaped")

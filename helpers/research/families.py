@@ -35,6 +35,27 @@ MULTI_HUMP_VTOL = 0.05
 """Singhose's damped two- and three-hump EI fits exist only for a 5 % vibration tolerance."""
 
 
+def normalised(amplitudes: Iterable[float], times: Iterable[float], name: str = "shaper") -> Shaper:
+    """A shaper from amplitudes that need dividing by their sum (as Klipper stores them).
+
+    Parameters
+    ----------
+    amplitudes, times : array_like
+        Unnormalised amplitudes and their times (s).
+    name : str
+        Label.
+
+    Returns
+    -------
+    Shaper
+    """
+    a = np.asarray(amplitudes, dtype=float)
+    total = a.sum()
+    if not np.isfinite(total) or total == 0.0:
+        raise ValueError(f"cannot normalise amplitudes that sum to {total!r}")
+    return Shaper(a / total, times, name)
+
+
 def zvdd(omega_n: float, zeta: float) -> Shaper:
     """ZVDD shaper: ``zv**3``, amplitudes ``[1, 3K, 3K^2, K^3]/(1+K)^3`` at 0, T, 2T, 3T (1.5 damped periods).
 
@@ -79,7 +100,7 @@ def three_tap(omega_n: float, zeta: float, delay: float, name: str = "3-tap") ->
         raise ValueError(f"delay must be a positive number of seconds, got {delay!r}")
     e = math.exp(-zeta * omega_n * delay)
     a = np.array([1.0, -2.0 * e * math.cos(omega_d * delay), e * e])
-    return Shaper.normalised(a, np.array([0.0, delay, 2 * delay]), name)
+    return normalised(a, np.array([0.0, delay, 2 * delay]), name)
 
 
 def mzv(omega_n: float, zeta: float) -> Shaper:
@@ -140,7 +161,7 @@ def ei(omega_n: float, zeta: float, vtol: float = 0.05) -> Shaper:
         + (1.75601 * v + 336.989 * v**2) * z**3
     )
     period = 2.0 * math.pi / omega_n
-    return Shaper.normalised([a1, 1.0 - a1 - a3, a3], [0.0, t2 * period, period], "EI")
+    return normalised([a1, 1.0 - a1 - a3, a3], [0.0, t2 * period, period], "EI")
 
 
 # Singhose's fits for the damped multi-hump EI shapers (vtol = 5 %): coefficient rows are the impulses,
@@ -186,7 +207,7 @@ def _from_fit(
     period = 2.0 * math.pi / omega_n
     times = np.array(t_rows) @ powers * period
     amps = np.array(a_rows) @ powers
-    return Shaper.normalised(amps, times, name)
+    return normalised(amps, times, name)
 
 
 def two_hump_ei(omega_n: float, zeta: float, vtol: float = MULTI_HUMP_VTOL) -> Shaper:

@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
@@ -52,7 +52,7 @@ from helpers.paper.identify import load_identification
 from helpers.paper.shapers import design_tdfs
 from helpers.paper.tension import load_calibration
 from helpers.recordings import RecordingExists
-from helpers.research import design, residuals
+from helpers.research import design, residuals, tune_tendons
 from helpers.research.modemap import ModeMap, load_map, refuse_map_of_other_rig
 from helpers.research.survey import POSITIONS_MM, survey
 from helpers.rig import Rig
@@ -436,7 +436,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``python -m helpers tune``."""
+    """Run ``python -m helpers tune`` (a rig with several tendons: :mod:`helpers.research.tune_tendons`)."""
+    selected = rigfile.selected()
+    if selected.n_tendons > 1:
+        return tune_tendons.run_tendons(args, selected)
     grid = rig_grid(args.grid)
     positions = rig_positions()
     scaling_notes.announce({f"tune {args.grid} grid": GRIDS[args.grid]}, POSITIONS_MM)

@@ -51,7 +51,7 @@ from helpers.research.design.predict import (
     worst_residual_pct,
 )
 from helpers.research.design.scheduled import _map_info, _move_info, family
-from helpers.research.families import FAMILIES
+from helpers.research.families import FAMILIES, normalised
 from helpers.research.modemap import ModeMap, mode_at
 
 EI_FAMILIES = ("EI", "2-hump EI", "3-hump EI")
@@ -373,7 +373,7 @@ def _clean(a: np.ndarray, th: np.ndarray, scale: float, name: str) -> Shaper:
         else:
             merged_a.append(ai)
             merged_t.append(ti)
-    return Shaper.normalised(merged_a, merged_t, name)
+    return normalised(merged_a, merged_t, name)
 
 
 def minimax(

@@ -1,0 +1,397 @@
+"""``python -m helpers --rig FILE tune`` on a rig with several tendons: map, design, verify over directions.
+
+The map is over direction and bend, the designs come from it, and the verification is on a grid of
+task-space moves.
+
+The one-tendon ``tune`` (:mod:`helpers.research.tune`) measures the arm's modes along its one cable; a rig
+with several tendons bends its tip in any direction (``docs/task_space.md``), and its modes depend on the
+direction and the magnitude of the bend. So, on the rig (the in-process virtual rig by default):
+
+1. **measure the map**: an unshaped move (:func:`helpers.research.task_space.plan_move`) to each bend of the
+   grid (:data:`DIRECTIONS_DEG` x :data:`BENDS_MM`); the dominant mode (``omega_d``, ``zeta``) of the lead
+   tendon's tension is identified from the ring-down in the hold after the move out (:func:`identify_hold`:
+   the FFT peak and the decay of the envelope), beside the twin's prediction at the same
+   bend (``frequency_map``'s dominant mode: what the twin predicts, not measured);
+2. **design** (:data:`SYSTEMS`): unshaped; the paper's ZV and ZVD designed **once**, from the mode measured
+   at the reference bend (:data:`REFERENCE`: 10 mm towards tendon 1, as one would tune along one tendon);
+   and the **direction-scheduled** ZV and ZVD, each move's designed from the map's mode at its own direction
+   and bend (:func:`scheduled_mode`: the map interpolated, periodic in the direction, linear in the bend);
+3. **verify** each design on every bend of the grid, ``repetitions`` runs each: the residual vibration of
+   every tendon's tension and of the tip after the Up and Down motions, and the samples below the tension
+   floor (:func:`helpers.research.tendon_residuals.move_residuals_tendons`);
+4. **report**: per direction and design, the worst residual of the lead tendon and of the tip over the
+   bends and repetitions, the slack samples, the move's duration; the wall time of the whole run.
+
+Every move of a design lasts its ramp plus the shaper's last impulse time: ZV and the scheduled ZV last
+about half a period longer than unshaped, ZVD one period (durations are in the report; comparisons across
+families are not at equal duration).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import math
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from helpers import recordings
+from helpers.base.jsonfile import write_json
+from helpers.base.locks import folder_lock
+from helpers.base.paths import repo_path
+from helpers.paper.identify import fft_peak
+from helpers.paper.shapers import Shaper, design_tdfs
+from helpers.recordings import Recording, RecordingExists
+from helpers.research.task_space import MoveDesign, MovePlan, check_travel, move_programme, plan_move
+from helpers.research.tendon_residuals import move_residuals_tendons
+from helpers.rig.safety import SafetyError
+from helpers.rig.tendons import TendonRig
+from helpers.rigfile import RigFile
+from helpers.virtual.emulator.world import get_world
+from helpers.virtual.spatial.direction_map import frequency_map
+from helpers.virtual.spatial.from_rig import spatial_rig
+
+__all__ = [
+    "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "SEARCH_BAND", "ENVELOPE_FLOOR", "MOVE_TIMES_S",
+    "MapPoint", "scheduled_mode",
+    "design_for", "run_move", "identify_hold", "measure_map", "verify", "summarise", "tune_tendons",
+    "tendon_folder", "run_tendons",
+]  # fmt: skip
+
+DIRECTIONS_DEG = tuple(45.0 * k for k in range(8))
+"""The grid's bend directions, deg (0 = towards tendon 1, counter-clockwise)."""
+
+BENDS_MM = (10.0, 20.0)
+"""The grid's bend magnitudes, mm of cable."""
+
+REFERENCE = (0.0, 10.0)
+"""(direction deg, bend mm) whose measured mode the fixed ZV and ZVD are designed from."""
+
+SYSTEMS = ("unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd")
+"""The designs verified, by the name each recording's scenario carries."""
+
+MOVE_TIMES_S = (1.5, 4.5, 8.0)
+"""(move out, move back, end) of every tuning run, s: 1.5 s at rest first, so that the ringing a run leaves
+has decayed (below 1 % at zeta 0.045, 25 rad/s) before the next run's first second, its noise floor."""
+
+SPEED_MM_S = 200.0
+"""The lead tendon's cable speed, mm/s (Table I's slower speed)."""
+
+
+@dataclass(frozen=True)
+class MapPoint:
+    """The dominant mode at one bend: measured on the rig, and the twin's prediction."""
+
+    direction_deg: float
+    bend_mm: float
+    omega_d: float
+    zeta: float
+    predicted_omega_d: float
+    predicted_zeta: float
+    recording: str
+
+
+def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: float) -> tuple[float, float]:
+    """The map's (omega_d, zeta) at a bend: linear between the grid's directions (periodic) and bends.
+
+    Outside the grid's bends the nearest bend's values are used (no extrapolation).
+    """
+    table = pd.DataFrame([(p.direction_deg % 360.0, p.bend_mm, p.omega_d, p.zeta) for p in points],
+                         columns=["d", "b", "w", "z"])  # fmt: skip
+    ds = np.sort(table["d"].unique())
+    bs = np.sort(table["b"].unique())
+    grid = table.set_index(["d", "b"])
+    d = direction_deg % 360.0
+    i = int(np.searchsorted(ds, d, side="right")) - 1
+    d0 = ds[i] if i >= 0 else ds[-1] - 360.0
+    d1 = ds[(i + 1) % len(ds)] + (360.0 if i + 1 >= len(ds) else 0.0)
+    fd = 0.0 if d1 == d0 else (d - d0) / (d1 - d0)
+    b = min(max(bend_mm, bs[0]), bs[-1])
+    j = min(int(np.searchsorted(bs, b, side="right")) - 1, len(bs) - 1)
+    b0, b1 = bs[j], bs[min(j + 1, len(bs) - 1)]
+    fb = 0.0 if b1 == b0 else (b - b0) / (b1 - b0)
+
+    def at(dd: float, bb: float) -> np.ndarray:
+        return grid.loc[(dd % 360.0, bb), ["w", "z"]].to_numpy(float)
+
+    lo = (1 - fd) * at(d0, b0) + fd * at(d1, b0)
+    hi = (1 - fd) * at(d0, b1) + fd * at(d1, b1)
+    w, z = (1 - fb) * lo + fb * hi
+    return float(w), float(z)
+
+
+def design_for(system: str, points: Sequence[MapPoint], direction_deg: float, bend_mm: float) -> MoveDesign:
+    """The design ``system`` (:data:`SYSTEMS`) of a move to a bend, from the measured map."""
+    if system not in SYSTEMS:
+        raise ValueError(f"system must be one of {', '.join(SYSTEMS)}, got {system!r}")
+    if system == "unshaped":
+        return MoveDesign(None, "none")
+    where = REFERENCE if not system.startswith("scheduled") else (direction_deg, bend_mm)
+    omega_d, zeta = scheduled_mode(points, *where)
+    zv, zvd = design_tdfs(omega_d, zeta)
+    shaper: Shaper = zvd if system.endswith("zvd") else zv
+    return MoveDesign(shaper, system, omega_d, zeta, 0)
+
+
+def run_move(
+    trig: TendonRig,
+    plan: MovePlan,
+    design: MoveDesign,
+    target: Path,
+    *,
+    rate_hz: int = 1000,
+    seed: int | None = None,
+    reseed: Callable[[int], None] | None = None,
+    replace: bool = False,
+    extra: dict[str, Any] | None = None,
+) -> Recording:
+    """Run one move from rest and save its recording (scenario ``kind`` "move" with the bend and design)."""
+    rig = trig.rig
+    check_travel(plan, rig, trig.positions)
+    programme = move_programme(plan, rig, SPEED_MM_S, design.shaper, *MOVE_TIMES_S)
+    if reseed is not None and seed is not None:
+        reseed(seed)
+    frame = trig.run(programme, rate_hz=rate_hz)
+    rec = trig.recording(frame, programme, rate_hz=rate_hz)
+    rec.meta["scenario"] = {
+        "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm, "shaper": design.name,
+        "design": design.metadata(), "speed_mm_s": SPEED_MM_S, "steps": list(plan.steps),
+        "planned_tension_n": list(plan.tension_n), "tension_floor_n": plan.floor_n,
+        "trimmed_steps": list(plan.trimmed), "items": rec.meta["scenario"]["items"], "noise_seed": seed,
+        **(extra or {}),
+    }  # fmt: skip
+    recordings.save(rec, target, replace=replace)
+    return rec
+
+
+def _hold_window(rec: Recording, lead: int) -> tuple[float, float]:
+    """The hold after the move out: from 0.1 s after the lead's last step to 0.05 s before the move back."""
+    f = rec.frame
+    t = f["t_s"].to_numpy(float)
+    s = f[f"steps_{lead}"].to_numpy()
+    changes = np.flatnonzero(np.diff(s) != 0)
+    back = changes[t[changes] >= MOVE_TIMES_S[1] - 0.01]
+    out = changes[t[changes] < MOVE_TIMES_S[1] - 0.01]
+    return float(t[out[-1] + 1]) + 0.1, float(t[back[0]]) - 0.05
+
+
+ENVELOPE_FLOOR = 0.2
+"""Periods whose peak-to-peak is below this fraction of the largest are left out of the envelope's decay."""
+
+SEARCH_BAND = (0.6, 1.5)
+"""The FFT peak is searched between these multiples of the twin's predicted frequency at the bend."""
+
+
+def identify_hold(rec: Recording, lead: int, omega0: float) -> tuple[float, float]:
+    """(omega_d, zeta) of the lead tendon's tension in the hold after the move out.
+
+    The frequency is the FFT peak of the hold (:func:`helpers.paper.identify.fft_peak`) within
+    :data:`SEARCH_BAND` of ``omega0`` (the twin's prediction: the band keeps a harmonic out). The damping
+    comes from the envelope: the peak-to-peak of each whole damped period of the hold, whose logarithm falls
+    by ``sigma = zeta omega_n`` per second (a least-squares line through those above :data:`ENVELOPE_FLOOR`
+    of the largest),
+    ``zeta = sigma / sqrt(sigma^2 + omega_d^2)``. Not the paper's log decrement or the damped-sine fit: a
+    bend between tendons excites two modes of close frequencies, whose beating is no single decay about one
+    level (the log decrement refuses it, and the fit can wander off to another frequency); the
+    period-by-period envelope takes both as one decay, which is what a single-mode design sees.
+    """
+    lo, hi = _hold_window(rec, lead)
+    f = rec.frame
+    inside = (f["t_s"] >= lo) & (f["t_s"] <= hi)
+    t = f.loc[inside, "t_s"].to_numpy(float)
+    y = f.loc[inside, f"tension_n_{lead}"].to_numpy(float)
+    f0 = omega0 / (2 * math.pi)
+    omega_d = float(fft_peak(t, y, f_min_hz=SEARCH_BAND[0] * f0, f_max_hz=SEARCH_BAND[1] * f0).omega_d)
+    period = 2 * math.pi / omega_d
+    edges = np.arange(t[0], t[-1] - period, period)
+    mids = edges + period / 2
+    ptp = np.array([np.ptp(y[(t >= a) & (t < a + period)]) for a in edges])
+    keep = ptp >= ENVELOPE_FLOOR * ptp.max()  # the tail, where noise and harmonics hold the envelope up, out
+    if np.count_nonzero(keep) < 3:
+        raise ValueError(f"the hold of {rec.path} rings for fewer than three periods: no decay to measure")
+    sigma = -float(np.polyfit(mids[keep], np.log(ptp[keep]), 1)[0])
+    return omega_d, sigma / math.hypot(sigma, omega_d)
+
+
+def measure_map(
+    trig: TendonRig,
+    folder: Path,
+    directions: Sequence[float] = DIRECTIONS_DEG,
+    bends: Sequence[float] = BENDS_MM,
+    *,
+    seeds: Callable[[], int | None] = lambda: None,
+    reseed: Callable[[int], None] | None = None,
+    replace: bool = False,
+    progress: Callable[[str], None] = lambda _line: None,
+) -> list[MapPoint]:
+    """Record an unshaped move to every bend and identify the lead tendon's dominant mode in its hold."""
+    rig = trig.rig
+    twin = spatial_rig(rig)
+    points = []
+    for d in directions:
+        for b in bends:
+            plan = plan_move(rig, d, b, twin)
+            name = f"map_d{d:g}_b{b:g}".replace(".", "p")
+            rec = run_move(trig, plan, MoveDesign(None, "none"), folder / name, seed=seeds(), reseed=reseed,
+                           replace=replace, extra={"purpose": "mode map"})  # fmt: skip
+            pred = frequency_map(twin, (d,), (b,), n_modes=1).iloc[0]
+            omega_d, zeta = identify_hold(rec, plan.lead, float(pred["dominant_omega_d_rad_s"]))
+            points.append(MapPoint(d, b, omega_d, zeta, float(pred["dominant_omega_d_rad_s"]),
+                                   float(pred["dominant_zeta"]), name))  # fmt: skip
+            progress(f"map {d:g} deg, {b:g} mm: omega_d {omega_d:.3f} rad/s (twin predicts "
+                     f"{points[-1].predicted_omega_d:.3f}), zeta {zeta:.4f}")  # fmt: skip
+    return points
+
+
+def verify(
+    trig: TendonRig,
+    points: Sequence[MapPoint],
+    folder: Path,
+    repetitions: int,
+    directions: Sequence[float] = DIRECTIONS_DEG,
+    bends: Sequence[float] = BENDS_MM,
+    systems: Sequence[str] = SYSTEMS,
+    *,
+    seeds: Callable[[], int | None] = lambda: None,
+    reseed: Callable[[int], None] | None = None,
+    replace: bool = False,
+    progress: Callable[[str], None] = lambda _line: None,
+) -> pd.DataFrame:
+    """Run every design on every bend ``repetitions`` times; one row per run, motion and signal."""
+    rig = trig.rig
+    twin = spatial_rig(rig)
+    parts = []
+    for d in directions:
+        for b in bends:
+            plan = plan_move(rig, d, b, twin)
+            for system in systems:
+                design = design_for(system, points, d, b)
+                duration = float(design.shaper.times[-1]) if design.shaper is not None else 0.0
+                for rep in range(1, repetitions + 1):
+                    name = f"{system}_d{d:g}_b{b:g}_r{rep}".replace(".", "p")
+                    rec = run_move(trig, plan, design, folder / name, seed=seeds(), reseed=reseed,
+                                   replace=replace)  # fmt: skip
+                    rows = move_residuals_tendons(rec.frame, rig.n_tendons, plan.floor_n)
+                    rows.insert(0, "repetition", rep)
+                    rows.insert(0, "system", system)
+                    rows.insert(0, "bend_mm", b)
+                    rows.insert(0, "direction_deg", d)
+                    rows["shaper_s"] = duration
+                    rows["recording"] = name
+                    parts.append(rows)
+                progress(f"verify {d:g} deg, {b:g} mm, {system}: {repetitions} run(s)")
+    return pd.concat(parts, ignore_index=True)
+
+
+def summarise(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per direction and design: the worst residuals, the slack samples, the shaper's added duration.
+
+    The worst residual of the lead tendon (N, %) and of the tip (mm, %) over the bends, motions and
+    repetitions; the least tension and the samples below the floor of every tendon.
+    """
+    lead = rows[rows["signal"] == "tendon " + rows["lead"].astype(str)]
+    tip = rows[rows["signal"] == "tip"]
+    tendons = rows[rows["unit"] == "N"]
+    keys = ["direction_deg", "system"]
+    out = lead.groupby(keys).agg(
+        lead_residual_n=("residual", "max"),
+        lead_residual_pct=("residual_pct", "max"),
+        shaper_s=("shaper_s", "max"),
+    )
+    out["least_tension_n"] = tendons.groupby(keys)["least"].min()
+    out["below_floor"] = tendons.groupby(keys)["below_floor"].sum()
+    if not tip.empty:
+        out["tip_residual_mm"] = tip.groupby(keys)["residual"].max()
+        out["tip_residual_pct"] = tip.groupby(keys)["residual_pct"].max()
+    return out.reset_index()
+
+
+def tune_tendons(
+    trig: TendonRig,
+    folder: Path,
+    repetitions: int = 3,
+    *,
+    directions: Sequence[float] = DIRECTIONS_DEG,
+    bends: Sequence[float] = BENDS_MM,
+    seeds: Callable[[], int | None] = lambda: None,
+    reseed: Callable[[int], None] | None = None,
+    replace: bool = False,
+    progress: Callable[[str], None] = lambda _line: None,
+) -> dict[str, Any]:
+    """Measure the map, verify every design on the grid, write ``verification.json``; return its document."""
+    rig: RigFile = trig.rig
+    start = time.perf_counter()
+    points = measure_map(trig, folder / "map", directions, bends, seeds=seeds, reseed=reseed,
+                         replace=replace, progress=progress)  # fmt: skip
+    t_map = time.perf_counter() - start
+    rows = verify(trig, points, folder / "verify", repetitions, directions, bends, seeds=seeds, reseed=reseed,
+                  replace=replace, progress=progress)  # fmt: skip
+    wall = time.perf_counter() - start
+    summary = summarise(rows)
+    document = {
+        "format": "continuum-arm-tendon-verification", "version": 1, "rig": rig.name,
+        "source": dict(trig.source), "repetitions": repetitions, "directions_deg": list(directions),
+        "bends_mm": list(bends), "reference": list(REFERENCE), "move_times_s": list(MOVE_TIMES_S),
+        "speed_mm_s": SPEED_MM_S,
+        "map": [p.__dict__ for p in points],
+        "rows": rows.replace({math.nan: None}).to_dict(orient="records"),
+        "summary": summary.replace({math.nan: None}).to_dict(orient="records"),
+    }  # fmt: skip
+    write_json(folder / "verification.json", document)
+    n_runs = len(rows["recording"].unique())
+    progress(f"wall time: map {t_map:.1f} s, all {wall:.1f} s ({n_runs} verification runs)")
+    document["wall_s"] = wall
+    return document
+
+
+def tendon_folder(data_dir: Path, rig: RigFile) -> Path:
+    """Where ``tune`` on a rig with several tendons writes: ``<data>/tuning/tendons/<rig name>/``."""
+    return data_dir / "tuning" / "tendons" / rig.name
+
+
+def run_tendons(args: Any, rig: RigFile) -> int:
+    """``python -m helpers --rig FILE tune`` on a rig with several tendons (the module's steps 1-4)."""
+    if args.reuse_map or args.minimax or args.grid != "table-i":
+        raise ValueError(
+            "--reuse-map, --minimax and --grid apply to a rig with one tendon; on a rig with several the "
+            f"grid is {len(DIRECTIONS_DEG)} directions x {len(BENDS_MM)} bends (docs/task_space.md)"
+        )
+    repetitions = args.repetitions or 3
+    folder = tendon_folder(args.data_dir, rig)
+    say = (lambda _line: None) if args.quiet else (lambda line: print(line, file=sys.stderr))
+    runs = len(DIRECTIONS_DEG) * len(BENDS_MM) * (1 + len(SYSTEMS) * repetitions)
+    say(
+        f"tune on '{rig.name}': {runs} moves of {MOVE_TIMES_S[-1]:g} s ({len(DIRECTIONS_DEG)} directions "
+        f"x {len(BENDS_MM)} bends; the map, then {len(SYSTEMS)} designs x {repetitions} repetitions)"
+    )
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(folder_lock(folder, what="tuning", name=".tuning.lock"))
+        trig = stack.enter_context(TendonRig.connect(args.ports, rig=rig, rig_name="tune"))
+        if any(trig.positions):
+            raise SafetyError(
+                f"tendons 1-{rig.n_tendons}: the stepper stands at {trig.positions}, not at rest (0); run "
+                "python -m helpers home first"
+            )
+        world = get_world("tune") if args.ports == "virtual" else None
+        counter = itertools.count(args.seed)
+        seeds = (lambda: next(counter)) if world is not None else (lambda: None)
+        if (folder / "verification.json").exists() and not args.replace:
+            raise RecordingExists(
+                f"{repo_path(folder / 'verification.json')} exists; pass --replace to tune again"
+            )
+        reseed = None if world is None else world.reseed
+        doc = tune_tendons(trig, folder, repetitions, seeds=seeds, reseed=reseed, replace=args.replace,
+                           progress=say)  # fmt: skip
+    summary = pd.DataFrame(doc["summary"])
+    print(summary.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print(
+        f"-> {repo_path(folder / 'verification.json')}; wall time {doc['wall_s']:.1f} s (machine-dependent)"
+    )
+    return 0

@@ -1,0 +1,133 @@
+"""``tune`` on a rig with several tendons: the schedule over the measured map, the designs, the summary, and a
+short run end to end on the virtual rig (slow).
+
+Expected values by hand: the map's interpolation is linear in the direction (periodic over 360 deg) and in
+the bend; ZV's second impulse follows a half damped period, pi / omega_d, and ZVD's last one a whole period,
+2 pi / omega_d (Singer and Seering; the paper's equations).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from helpers import rigfile
+from helpers.__main__ import main
+from helpers.research.tune_tendons import REFERENCE, MapPoint, design_for, scheduled_mode, summarise
+
+
+def _points() -> list[MapPoint]:
+    """A map on 0/90/180/270 deg x 10/20 mm: omega_d = 20 + d / 10 + b / 10 rad/s, zeta = 0.04 + b / 1000."""
+    return [MapPoint(d, b, 20 + d / 10 + b / 10, 0.04 + b / 1000, 0.0, 0.0, "r")
+            for d in (0.0, 90.0, 180.0, 270.0) for b in (10.0, 20.0)]  # fmt: skip
+
+
+def test_the_schedule_is_the_map_at_its_points_and_linear_between() -> None:
+    pts = _points()
+    assert scheduled_mode(pts, 90.0, 10.0) == pytest.approx((30.0, 0.05))
+    assert scheduled_mode(pts, 45.0, 15.0) == pytest.approx((20 + 4.5 + 1.5, 0.055))
+    # between 270 and 360 = 0: from 48 (270 deg, 10 mm... + 1) back to 21
+    w270, w0 = 20 + 27 + 1, 20 + 0 + 1
+    assert scheduled_mode(pts, 315.0, 10.0)[0] == pytest.approx((w270 + w0) / 2)
+    assert scheduled_mode(pts, -45.0, 10.0)[0] == pytest.approx((w270 + w0) / 2)
+    # outside the bends: the nearest bend
+    assert scheduled_mode(pts, 0.0, 30.0) == pytest.approx(scheduled_mode(pts, 0.0, 20.0))
+
+
+def test_fixed_designs_use_the_reference_and_scheduled_ones_the_move() -> None:
+    pts = _points()
+    w_ref = 20 + REFERENCE[0] / 10 + REFERENCE[1] / 10
+    zv = design_for("zv", pts, 180.0, 20.0)
+    assert zv.omega_d == pytest.approx(w_ref) and zv.shaper.times[-1] == pytest.approx(math.pi / w_ref)
+    zvd = design_for("scheduled-zvd", pts, 180.0, 20.0)
+    assert zvd.omega_d == pytest.approx(40.0) and zvd.shaper.times[-1] == pytest.approx(2 * math.pi / 40.0)
+    assert design_for("unshaped", pts, 0.0, 10.0).shaper is None
+    with pytest.raises(ValueError, match="system must be one of"):
+        design_for("ei", pts, 0.0, 10.0)
+
+
+def test_the_summary_takes_the_worst_of_the_lead_and_the_tip_and_counts_slack_samples() -> None:
+    rows = []
+    for rep, (res, tip, below) in enumerate(((0.5, 2.0, 0), (0.7, 1.0, 3)), start=1):
+        for signal, unit, r, b in (
+            ("tendon 1", "N", res, 0),
+            ("tendon 2", "N", 9.9, below),
+            ("tip", "mm", tip, 0),
+        ):
+            rows.append({"direction_deg": 0.0, "system": "zv", "repetition": rep, "motion": "Up",
+                         "signal": signal, "unit": unit, "lead": 1, "residual": r, "residual_pct": 10 * r,
+                         "below_floor": b,
+                         "least": 1.0 - rep if unit == "N" else 0.0, "shaper_s": 0.12})  # fmt: skip
+    s = summarise(pd.DataFrame(rows)).iloc[0]
+    assert s["lead_residual_n"] == 0.7 and s["tip_residual_mm"] == 2.0  # tendon 2 is not the lead
+    assert s["below_floor"] == 3 and s["least_tension_n"] == -1.0 and s["shaper_s"] == 0.12
+
+
+def test_tune_on_several_tendons_refuses_the_one_tendon_options(monkeypatch, tmp_path, capsys) -> None:
+    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    assert main(["tune", "--grid", "wide", "--data-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--grid apply to a rig with one tendon" in err
+    assert not any(tmp_path.iterdir())
+
+
+def _two_tendon_rig(folder: Path) -> Path:
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    text = four.text.replace("[[tendon]]\nangle_deg = 180.0\n\n[[tendon]]\nangle_deg = 270.0\n\n", "")
+    path = folder / "two.toml"
+    path.write_text(text.replace('name = "four-tendon"', 'name = "two-tendon"'))
+    return path
+
+
+@pytest.mark.slow
+def test_a_short_tune_measures_the_map_and_zvd_leaves_less_than_unshaped(tmp_path) -> None:
+    """Two directions between the two tendons, one bend, one repetition, on the virtual rig."""
+    import itertools
+
+    from helpers.research import tune_tendons as tt
+    from helpers.rig.tendons import TendonRig
+    from helpers.virtual.emulator.tendon_world import tendon_world
+    from helpers.virtual.emulator.world import forget_world, register_world
+
+    rig = rigfile.load(_two_tendon_rig(tmp_path))
+    world = register_world(tendon_world(rig, "tune-tendons-test"))
+    seeds = itertools.count(7)
+    try:
+        with TendonRig.connect("virtual", rig=rig, rig_name="tune-tendons-test") as trig:
+            doc = tt.tune_tendons(trig, tmp_path / "out", 1, directions=(0.0, 45.0), bends=(10.0,),
+                                  seeds=lambda: next(seeds), reseed=world.reseed)  # fmt: skip
+    finally:
+        forget_world("tune-tendons-test")
+    assert (tmp_path / "out" / "verification.json").exists()
+    assert len(list((tmp_path / "out" / "verify").glob("*.csv"))) == 2 * len(tt.SYSTEMS)
+    for p in doc["map"]:  # the measured mode beside the twin's prediction: within 2 %
+        assert p["omega_d"] == pytest.approx(p["predicted_omega_d"], rel=0.02)
+    s = pd.DataFrame(doc["summary"]).set_index(["direction_deg", "system"])
+    for d in (0.0, 45.0):
+        assert s.loc[(d, "zvd"), "lead_residual_n"] < 0.5 * s.loc[(d, "unshaped"), "lead_residual_n"]
+        assert np.isfinite(s.loc[(d, "unshaped"), "tip_residual_mm"])
+
+
+def test_the_hold_gives_the_frequency_and_damping_of_a_known_decay() -> None:
+    """A tension that rings as exp(-zeta omega_n t) sin(omega_d t) in the hold: both come back (FFT peak
+    within 0.5 %, the envelope's damping within 3 %), beside a harmonic at twice the frequency."""
+    from types import SimpleNamespace
+
+    from helpers.research.tune_tendons import identify_hold
+
+    k = np.arange(0, 8000)
+    t = k / 1000.0
+    steps = np.clip((k - 1500) // 4, 0, 25) - np.clip((k - 4500) // 4, 0, 25)
+    zeta, omega_n = 0.05, 25.0
+    omega_d = omega_n * math.sqrt(1 - zeta**2)
+    tau = np.clip(t - 1.6, 0, None)
+    hold = (t > 1.6) & (t < 4.5)
+    ring = np.where(hold, 1.5 * np.exp(-zeta * omega_n * tau) * np.sin(omega_d * tau), 0.0)
+    harmonic = np.where(hold, 0.01 * np.sin(2 * omega_d * tau), 0.0)
+    frame = pd.DataFrame({"t_s": t, "steps_0": steps, "tension_n_0": 3.0 + ring + harmonic})
+    w, z = identify_hold(SimpleNamespace(frame=frame, path="synthetic"), 0, omega0=24.0)
+    assert w == pytest.approx(omega_d, rel=0.005) and z == pytest.approx(zeta, rel=0.03)
