@@ -240,7 +240,7 @@ def test_record_tip_stream_refuses_a_figure_the_rig_cannot_reach(two, tmp_path, 
 
 # --- end to end on the virtual rig ------------------------------------------------------------------------
 @pytest.mark.slow
-def test_a_tip_stream_on_the_virtual_rig_stands_at_the_plan_and_keeps_every_tendon_taut(
+def test_a_tip_stream_on_the_virtual_rig_stands_at_the_plan_and_records_tip_and_tensions(
     tmp_path, monkeypatch
 ) -> None:
     """The four-tendon square of 5 mm shaped by ZVD, recorded: every stop's step counts are the plan's, the
@@ -259,6 +259,10 @@ def test_a_tip_stream_on_the_virtual_rig_stands_at_the_plan_and_keeps_every_tend
     assert rec.status == "complete" and scenario["kind"] == "stream"
     assert scenario["shaper_name"] == "zvd" and scenario["design"]["shaper"] == "zvd"
     assert scenario["path"]["figure"] == "square" and scenario["path"]["bend_mm"] == 5.0
+    assert scenario["path"]["summary"].startswith("square path of 5 mm at 200 mm/s")
+    assert [(s["direction_deg"], s["bend_mm"]) for s in scenario["path"]["stops"][1:5]] == [
+        (0.0, 5.0), (90.0, 5.0), (180.0, 5.0), (270.0, 5.0),
+    ]  # fmt: skip
     four = rigfile.load(rigfile.resolve("four-tendon"))
     plan = ts.plan_stream(four, ts.figure_path("square", 5.0, speed_mm_s=200.0))
     assert scenario["stop_steps"] == [list(s) for s in plan.stop_steps]

@@ -153,6 +153,7 @@ class TipPath:
     def metadata(self) -> dict[str, object]:
         """The path for a recording's scenario."""
         return {
+            "summary": self.summary(),
             "figure": self.name, "bend_mm": float(self.bend_mm), "speed_mm_s": float(self.speed_mm_s),
             "periods": int(self.periods), "period_s": PERIOD_S,
             "stops": [{"first_period": int(a), "last_period": int(b),
