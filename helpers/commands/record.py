@@ -40,6 +40,7 @@ from helpers.base.jsonfile import MissingDataError
 from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, repo_path
 from helpers.board.programmes import experiment_programme
+from helpers.commands.tip_stream import record_tip_stream
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
 from helpers.paper.calibration import (
@@ -69,6 +70,7 @@ from helpers.research.task_shaping import SHAPERS as MOVE_SHAPERS
 from helpers.research.task_shaping import ModeGrid, shaped_move
 from helpers.research.task_space import check_travel
 from helpers.research.teleop import record_streams
+from helpers.research.tip_stream import FIGURES as TIP_FIGURES
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
 from helpers.rig.stream_rig import StreamRig
@@ -91,7 +93,7 @@ SYSTEM_HELP = (
 )
 DEFAULT_GROUPS = {
     "calibration": "calibration", "pulse": "runs", "table-i": "experiments", "all": "experiments",
-    "streams": "streams", "move": "moves",
+    "streams": "streams", "move": "moves", "tip-stream": "tip_streams",
 }  # fmt: skip
 SESSION_LOCK = ".recording.lock"
 """The lock a recorder holds on its group for the whole session (another recorder is refused)."""
@@ -116,11 +118,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = DefaultsHelp
     parser.add_argument(
         "what",
-        choices=["calibration", "pulse", "table-i", "all", "streams", "move"],  # RECORDERS, and move
+        choices=["calibration", "pulse", "table-i", "all", "streams", "move", "tip-stream"],  # RECORDERS, +2
         help="calibration: known loads; pulse: one up-hold-down move; table-i: the paper's 12 scenarios; "
         "all: the identification run, its analysis, then Table I; streams: notebook 08's two arbitrary "
         "motions, unshaped, zv, zvd and scheduled (needs tuning/mode_map.json from `tune`); move: a bend "
-        "of a rig with several tendons (--direction-deg, --bend-mm; docs/task_space.md)",
+        "of a rig with several tendons (--direction-deg, --bend-mm; docs/task_space.md); tip-stream: a "
+        "figure of bends (--path, --bend-mm) streamed to a rig with several tendons, one shaper for all",
     )
     parser.add_argument(
         "--ports",
@@ -151,12 +154,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--bend-mm", type=arg_number(0, 1000, lo_open=True),
-        help="move: the bend's magnitude, mm of cable (as the direction map's bend_mm)",
+        help="move: the bend's magnitude, mm of cable (as the direction map's bend_mm); tip-stream: the "
+        "figure's size",
+    )  # fmt: skip
+    parser.add_argument(
+        "--path", choices=list(TIP_FIGURES), default="square",
+        help="tip-stream: the figure of bends (docs/task_space.md, arbitrary motion)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--path-seed", type=arg_number(0, 2**32 - 1, int), default=0,
+        help="tip-stream: the seed of the random path",
+    )  # fmt: skip
+    parser.add_argument(
+        "--margin-n", type=arg_number(0, 10), default=0.0,
+        help="tip-stream: trim the stops' whole steps to the tension floor plus this margin, N (0: record "
+        "move's policy)",
     )  # fmt: skip
     parser.add_argument(
         "--shaper", choices=list(MOVE_SHAPERS), default="none",
         help="move: none; a family (zv, zvd, zvdd, mzv, ei, ei2, ei3, umzv) at the dominant mode at the "
-        "bend; scheduled (ZVD on the mode grid), multimode (two split modes) or auto (docs/task_space.md)",
+        "bend; scheduled (ZVD on the mode grid), multimode (two split modes) or auto (docs/task_space.md); "
+        "tip-stream: none, zv or zvd from the map's mode at the path's stops, one shaper for every tendon",
     )  # fmt: skip
     parser.add_argument(
         "--mode-grid", type=Path, default=None,
@@ -675,6 +693,8 @@ def run(args: argparse.Namespace) -> int:
     args.group = args.group or DEFAULT_GROUPS[args.what]
     if args.what == "move":
         return _record_move(args)
+    if args.what == "tip-stream":
+        return record_tip_stream(args)
     if args.what != "pulse" and args.design is not None:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
     if args.what in ("table-i", "all"):

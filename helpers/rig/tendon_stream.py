@@ -47,7 +47,7 @@ from helpers.rig.safety import SafetyError
 from helpers.rig.stepper import last_int
 from helpers.rig.stream import STREAM_RATE_HZ, Pacer, StreamLimit, refuse_notice
 from helpers.rig.tendon_safety import static_tensions, travel_text
-from helpers.rig.tendons import TendonRig, tendon_frame, tendon_recording
+from helpers.rig.tendons import TendonRig, tendon_frame, tendon_recording, with_twin_tip
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 
@@ -174,11 +174,13 @@ def check_tendon_stream(
     rules = hs.SetpointRules()
     k = 0
     for k, row in enumerate(units.tolist(), start=1):
-        run.tick(k, tuple(row), rules.take(k, tuple(row)))
+        v = rules.take(k, tuple(row))
+        run.tick(k, v, rules.state)  # the rules' state (active, end), not the set-point
     rules.end_period = k + 1
     while run.finish_tick is None:
         k += 1
-        run.tick(k, 0, rules.take(k, None))
+        v = rules.take(k, None)
+        run.tick(k, v, rules.state)
     limits = [x for x in run.notices if x.kind.startswith("LIMIT")]
     if limits and not allow_clamps:
         x = limits[0]
@@ -412,6 +414,7 @@ class TendonStreamRig(TendonRig):
                           started: str) -> Recording:  # fmt: skip
         channels = getattr(self.daq.parser, "channels", self.rig.n_tendons)
         frame = tendon_frame(list(self.daq.rows), self.rig, feed.plan.start, channels)
+        frame = with_twin_tip(frame, getattr(self.daq.port, "twin_tip_um", None))  # the virtual rig's tip
         stats = self.daq.stats
         counts = {"samples": len(frame), "dropped": int(stats.dropped), "corrupted": int(stats.corrupted),
                   "overruns": int(stats.overruns)}  # fmt: skip

@@ -1,0 +1,142 @@
+"""``python -m helpers record tip-stream``: a figure of bends streamed to a rig with several tendons.
+
+::
+
+    python -m helpers --rig four-tendon record tip-stream --path square --bend-mm 10 --shaper zvd --dry-run
+
+The path (:func:`helpers.research.tip_stream.figure_path`) is planned and checked before any port opens: every
+tendon's set-points by the statics, the static tensions at every period against the rig file's floor, and the
+stream's own checks (travel, speed, the board's shaped motion). The dry run prints each tendon's range of
+set-points and least planned tension against the floor, the shaper and the modes it was designed from, then
+names the recording it would make. Without it the stream is recorded (``TendonStreamRig.stream``; the tendons
+must stand at rest) into ``data/<group>/tip_<path>_<shaper>_b<bend>``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from helpers import rigfile
+from helpers.base.locks import folder_lock
+from helpers.base.paths import repo_path
+from helpers.recordings import recording_path, refuse_existing
+from helpers.research.tip_stream import (
+    board_counts,
+    board_tensions,
+    check_plan,
+    figure_path,
+    interpolation_error,
+    plan_stream,
+    stream_design,
+)
+from helpers.rig import SafetyError
+from helpers.rig.tendon_stream import TendonStreamRig
+from helpers.virtual.emulator.world import get_world
+
+__all__ = ["record_tip_stream", "TIP_SPEED_MM_S", "TIP_TAIL_S"]
+
+TIP_SPEED_MM_S = 100.0
+"""The figure's speed (mm of bend per second) when ``--v-in`` is not given."""
+
+TIP_TAIL_S = 1.5
+"""Device time recorded after the board's ``DONE``, s."""
+
+
+def _name(args: argparse.Namespace) -> str:
+    text = f"tip_{args.path}_{args.shaper}_b{args.bend_mm:g}" + (
+        f"_m{args.margin_n:g}" if args.margin_n else ""
+    )
+    return args.name or text.replace(".", "p").replace("-", "m")
+
+
+def _plan(args: argparse.Namespace, rig: Any) -> tuple[Any, Any, Any]:
+    if args.bend_mm is None:
+        raise SystemExit("record tip-stream needs --bend-mm (the figure's size)")
+    if rig.n_tendons < 2:
+        raise ValueError(
+            f"record tip-stream needs a rig file with several tendons; the selected rig '{rig.name}' has one "
+            "(--rig four-tendon, or HELPERS_RIG)"
+        )
+    speed = args.v_in if args.v_in is not None else TIP_SPEED_MM_S
+    path = figure_path(args.path, args.bend_mm, speed_mm_s=speed, seed=args.path_seed)
+    plan = plan_stream(
+        rig, path, margin_n=args.margin_n
+    )  # the floor at every period: refused before any port
+    design = stream_design(rig, path, args.shaper)
+    return path, plan, design
+
+
+def _print(rig: Any, path: Any, plan: Any, design: Any) -> None:
+    print(
+        f"tip stream on rig '{rig.name}' ({rig.n_tendons} tendons): {path.summary()}; set-points by the "
+        "spatial twin's statics (simulated), static tensions at every period (rotors free):"
+    )
+    for line in plan.lines(rig):
+        print(f"  {line}")
+    away = [(path.polar(a), s) for (a, _), s in zip(path.stops, plan.stop_steps, strict=True)]
+    stops = "; ".join(f"{m:g} mm towards {d:g} deg: {', '.join(f'{n:+d}' for n in s)}" for (d, m), s in away)
+    print(f"  whole steps at the stops: {stops}")
+    if plan.interpolated:
+        error = interpolation_error(rig, path, plan.knot_mm)
+        print(
+            f"  the statics solved at knots every {plan.knot_mm:g} mm of bend, {plan.interpolated} periods "
+            f"interpolated between them: at most {error:.4f} step off the statics at the knots' midpoints"
+        )
+    else:
+        print(f"  the statics solved at every period in motion (knots every {plan.knot_mm:g} mm of bend)")
+    print(f"  shaper: {design.describe()}")
+
+
+def record_tip_stream(args: argparse.Namespace) -> int:
+    """``record tip-stream``: plan, check, print (dry run) or record one figure of bends (several tendons)."""
+    rig = rigfile.selected()
+    path, plan, design = _plan(args, rig)
+    target = recording_path(args.group, _name(args), args.data_dir)
+    if not args.replace:
+        refuse_existing(target)
+    if args.dry_run:
+        _print(rig, path, plan, design)
+    checked = check_plan(plan, rig, design.shaper)  # travel, speed, the shaped motion: from rest
+    counts = board_counts(plan, rig, design.shaper)
+    if [tuple(c) for c in counts] != list(plan.stop_steps):
+        raise SafetyError(
+            f"the {path.name} path: the board's planner stands at {counts} at the stops, not at the plan's "
+            f"{list(plan.stop_steps)}"
+        )
+    forecast = board_tensions(plan, rig, design.shaper).min(axis=0)
+    if args.dry_run:
+        figures = ", ".join(f"{t:.2f}" for t in forecast)
+        print(
+            f"  forecast (not a check): the least static tensions at the board's whole-step counts as it "
+            f"moves (its planner, one-step hysteresis): {figures} N for tendons 1-{rig.n_tendons}"
+        )
+        print(
+            f"  the board's shaped motion (its planner) reaches {list(checked.reach)} steps and stands at "
+            "the plan's whole steps at every stop"
+        )
+        print(f"dry run: 1 recording would be made on --ports {args.ports}: {repo_path(target)}; "
+              "nothing was sent")  # fmt: skip
+        return 0
+    scenario = {
+        "stream_of": "tip path", "path": path.metadata(), "shaper_name": design.name,
+        "design": design.metadata(), **plan.metadata(), "speed_mm_s": path.speed_mm_s,
+        "board_count_min_static_tension_n": [round(float(t), 6) for t in forecast],
+    }  # fmt: skip
+    with folder_lock(args.data_dir / args.group, what="recording", name=".recording.lock", beside=True):
+        with TendonStreamRig.connect(args.ports, rig=rig, rig_name=args.rig_name) as trig:
+            if any(trig.positions):
+                raise SafetyError(
+                    f"tendons 1-{rig.n_tendons}: the stepper stands at {trig.positions}, not at rest (0): a "
+                    "tip stream is planned from rest; run python -m helpers home first"
+                )
+            world = get_world(args.rig_name) if args.ports == "virtual" else None
+            if world is not None:
+                world.reseed(args.seed)
+            scenario["noise_seed"] = args.seed if world is not None else None
+            print(f"connected: daq firmware {trig.daq.version}, stepper firmware {trig.stepper.version}")
+            print(f"  {path.summary()}; shaper: {design.describe()}")
+            rec = trig.stream(plan.setpoints_mm_s, design.shaper, path=target, scenario=scenario,
+                              rate_hz=args.rate, replace=args.replace, tail_s=TIP_TAIL_S)  # fmt: skip
+    print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
+    return 0
