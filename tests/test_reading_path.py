@@ -27,12 +27,12 @@ scaling notes (``helpers.paper.scaling_notes``) left the path, 6,159 once a proc
 (``helpers.rigfile.in_use``, which the notebooks' parameters cells rely on), 6,250 once the recording loader
 read recordings of several tendons (``helpers.recordings.tendons``), 6,262 before and 6,231 after what only
 the wings use left the path (a Klipper-style constructor to ``helpers.research.families``, the twin's
-backbone provenance to ``helpers.virtual.parameters``) with two names nothing used, 6,263 once a tendon could pay out below its rest (the rig file's
-``release_mm``: its key, checks and derived steps). The rest is what notebooks
-01-05 call: 4,669 lines for their analysis cells, 1,562 more for their live cells' serial I/O (``Rig``, the
-boards' protocol and drivers, the store that never loses a run). Running them, live cells on the virtual
-rig included, executes 5,336 of those lines (most of the rest refuses bad input or a failing board): the
-aim of 5,000 is not reached without taking out what the paper's notebooks run."""
+backbone provenance to ``helpers.virtual.parameters``) with two names nothing used, 6,263 once a tendon
+could pay out below its rest (the rig file's ``release_mm``: its key, checks and derived steps). The rest is
+what notebooks 01-05 call: 4,669 lines for their analysis cells, 1,562 more for their live cells' serial
+I/O (``Rig``, the boards' protocol and drivers, the store that never loses a run). Running them, live cells
+on the virtual rig included, executes 5,336 of those lines (most of the rest refuses bad input or a failing
+board): the aim of 5,000 is not reached without taking out what the paper's notebooks run."""
 WINGS_OUTSIDE = ("helpers.virtual", "helpers.research", "helpers.commands", "helpers.__main__")
 
 

@@ -58,7 +58,9 @@ def _level(t: np.ndarray, y: np.ndarray, lo: float, hi: float) -> float:
     return float(np.median(y[inside])) if inside.any() else math.nan
 
 
-def move_residuals_tendons(frame: pd.DataFrame, tendons: int, floor_n: float) -> pd.DataFrame:
+def move_residuals_tendons(
+    frame: pd.DataFrame, tendons: int, floor_n: float, prepull: int = 0
+) -> pd.DataFrame:
     """Residual vibration of every tendon and of the tip after the Up and Down motions of one move.
 
     Parameters
@@ -70,6 +72,9 @@ def move_residuals_tendons(frame: pd.DataFrame, tendons: int, floor_n: float) ->
         How many tendons the recording has.
     floor_n : float
         The tension floor, N (the rig file's ``[arm] tension_floor_n``).
+    prepull : int
+        Steps every tendon was pulled in before the move and let out after it: the motions are found on the
+        lead's count above that (the pre-pull's own steps are no motion).
 
     Returns
     -------
@@ -86,7 +91,7 @@ def move_residuals_tendons(frame: pd.DataFrame, tendons: int, floor_n: float) ->
     """
     t = frame["t_s"].to_numpy(dtype=float)
     lead = lead_tendon(frame, tendons)
-    steps = frame[f"steps_{lead}"].to_numpy(dtype=float)
+    steps = np.maximum(frame[f"steps_{lead}"].to_numpy(dtype=float) - prepull, 0.0)
     motions = metrics.segment_motions(t, steps)
     signals: list[tuple[str, str, np.ndarray]] = [
         (f"tendon {i + 1}", "N", frame[f"tension_n_{i}"].to_numpy(dtype=float)) for i in range(tendons)

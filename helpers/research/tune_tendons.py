@@ -49,6 +49,14 @@ from helpers.base.paths import repo_path
 from helpers.paper.identify import fft_peak
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.recordings import Recording, RecordingExists
+from helpers.research.task_shaping import (
+    MAX_PREPULL_STEPS,
+    design_move,
+    prepull_programme,
+    pretensioned,
+    simulate_move,
+    verify_auto,
+)
 from helpers.research.task_space import MoveDesign, MovePlan, check_travel, move_programme, plan_move
 from helpers.research.tendon_residuals import move_residuals_tendons
 from helpers.rig.safety import SafetyError
@@ -57,12 +65,13 @@ from helpers.rigfile import RigFile
 from helpers.virtual.emulator.world import get_world
 from helpers.virtual.spatial.direction_map import frequency_map
 from helpers.virtual.spatial.from_rig import spatial_rig
+from helpers.virtual.spatial.plant import SpatialPlant
 
 __all__ = [
     "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "SEARCH_BAND", "ENVELOPE_FLOOR", "MOVE_TIMES_S",
     "MapPoint", "scheduled_mode",
     "design_for", "run_move", "identify_hold", "measure_map", "verify", "summarise", "tune_tendons",
-    "tendon_folder", "run_tendons",
+    "choose_prepull", "tendon_folder", "run_tendons",
 ]  # fmt: skip
 
 DIRECTIONS_DEG = tuple(45.0 * k for k in range(8))
@@ -74,8 +83,9 @@ BENDS_MM = (10.0, 20.0)
 REFERENCE = (0.0, 10.0)
 """(direction deg, bend mm) whose measured mode the fixed ZV and ZVD are designed from."""
 
-SYSTEMS = ("unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd")
-"""The designs verified, by the name each recording's scenario carries."""
+SYSTEMS = ("unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd", "auto")
+"""The designs verified, by the name each recording's scenario carries (``auto``: the automatic choice of
+:mod:`helpers.research.task_shaping`, designed from the twin's modes and checked in it)."""
 
 MOVE_TIMES_S = (1.5, 4.5, 8.0)
 """(move out, move back, end) of every tuning run, s: 1.5 s at rest first, so that the ringing a run leaves
@@ -153,11 +163,17 @@ def run_move(
     reseed: Callable[[int], None] | None = None,
     replace: bool = False,
     extra: dict[str, Any] | None = None,
+    prepull: int = 0,
 ) -> Recording:
-    """Run one move from rest and save its recording (scenario ``kind`` "move" with the bend and design)."""
+    """Run one move from rest and save its recording (scenario ``kind`` "move" with the bend and design).
+
+    ``prepull``: every tendon pulled that many steps in first and let out after
+    (:func:`helpers.research.task_shaping.prepull_programme`); ``plan`` counts from there.
+    """
     rig = trig.rig
-    check_travel(plan, rig, trig.positions)
+    check_travel(plan, rig, tuple(p + prepull for p in trig.positions))
     programme = move_programme(plan, rig, SPEED_MM_S, design.shaper, *MOVE_TIMES_S)
+    programme, _, _ = prepull_programme(programme, prepull, rig.n_tendons)
     if reseed is not None and seed is not None:
         reseed(seed)
     frame = trig.run(programme, rate_hz=rate_hz)
@@ -167,6 +183,7 @@ def run_move(
         "design": design.metadata(), "speed_mm_s": SPEED_MM_S, "steps": list(plan.steps),
         "planned_tension_n": list(plan.tension_n), "tension_floor_n": plan.floor_n,
         "trimmed_steps": list(plan.trimmed), "items": rec.meta["scenario"]["items"], "noise_seed": seed,
+        "prepull_steps": prepull,
         **(extra or {}),
     }  # fmt: skip
     recordings.save(rec, target, replace=replace)
@@ -216,10 +233,64 @@ def identify_hold(rec: Recording, lead: int, omega0: float) -> tuple[float, floa
     mids = edges + period / 2
     ptp = np.array([np.ptp(y[(t >= a) & (t < a + period)]) for a in edges])
     keep = ptp >= ENVELOPE_FLOOR * ptp.max()  # the tail, where noise and harmonics hold the envelope up, out
+    keep[: min(3, keep.size)] = True  # a fast decay: its first three periods
     if np.count_nonzero(keep) < 3:
         raise ValueError(f"the hold of {rec.path} rings for fewer than three periods: no decay to measure")
     sigma = -float(np.polyfit(mids[keep], np.log(ptp[keep]), 1)[0])
     return omega_d, sigma / math.hypot(sigma, omega_d)
+
+
+def choose_prepull(
+    rig: RigFile,
+    directions: Sequence[float] = DIRECTIONS_DEG,
+    bends: Sequence[float] = BENDS_MM,
+    progress: Callable[[str], None] = lambda _line: None,
+) -> tuple[int, list[str]]:
+    """The fewest steps every tendon is pulled in before each move so that a ZVD keeps the floor everywhere.
+
+    For ``k`` = 0, 1 .. :data:`~helpers.research.task_shaping.MAX_PREPULL_STEPS`: every bend of the grid,
+    planned from the rest ``k`` steps in (:func:`~helpers.research.task_shaping.pretensioned`), shaped by the
+    ZVD of the twin's dominant mode there, simulated in the twin (**simulated**; the tune's own designs come
+    from the measured map later); the first ``k`` with no sample below the floor at any bend. The pretension
+    is the same for every move of the tune (the unshaped ones included), so that every comparison is at one
+    pretension. Where none does (or the tendons do not balance, so pulling all in bends the arm), the ``k``
+    with the fewest samples below is taken and the report says so. Returns ``k`` and one line per ``k`` tried.
+    """
+    twin = spatial_rig(rig)
+    plant = SpatialPlant(twin)
+    lines = []
+    best = (math.inf, 0)
+    for k in range(MAX_PREPULL_STEPS + 1):
+        try:
+            pre = pretensioned(rig, twin, k)
+        except ValueError as exc:  # tendons that do not balance: no pre-pull, the slack is reported as run
+            lines.append(f"pre-pull {k} step(s): not possible ({exc})")
+            progress(lines[-1])
+            break
+        worst: tuple[float, str] = (math.inf, "")
+        below = 0
+        for d in directions:
+            for b in bends:
+                plan = plan_move(rig, d, b, pre)
+                shaping = design_move(rig, plan, "zvd", SPEED_MM_S, twin=pre)
+                run = simulate_move(rig, plan, shaping.shaper, SPEED_MM_S, *MOVE_TIMES_S, twin=twin,
+                                    plant=plant, prepull=k)  # fmt: skip
+                least = run.least_n()
+                below += int(run.below(plan.floor_n).sum())
+                if least.min() < worst[0]:
+                    worst = (
+                        float(least.min()),
+                        f"tendon {int(np.argmin(least)) + 1}, {b:g} mm towards {d:g} deg",
+                    )
+        lines.append(f"pre-pull {k} step(s): ZVD at every bend, least {worst[0]:.2f} N ({worst[1]}), "
+                     f"{below} samples below the floor (simulated)")  # fmt: skip
+        progress(lines[-1])
+        if below == 0:
+            return k, lines
+        best = min(best, (below, k))
+    lines.append(f"no pre-pull keeps the floor at every bend: {best[1]} step(s), the fewest samples below it")
+    progress(lines[-1])
+    return best[1], lines
 
 
 def measure_map(
@@ -228,21 +299,26 @@ def measure_map(
     directions: Sequence[float] = DIRECTIONS_DEG,
     bends: Sequence[float] = BENDS_MM,
     *,
+    prepull: int = 0,
     seeds: Callable[[], int | None] = lambda: None,
     reseed: Callable[[int], None] | None = None,
     replace: bool = False,
     progress: Callable[[str], None] = lambda _line: None,
 ) -> list[MapPoint]:
-    """Record an unshaped move to every bend and identify the lead tendon's dominant mode in its hold."""
+    """Record an unshaped move to every bend and identify the lead tendon's dominant mode in its hold.
+
+    The moves start from the rest ``prepull`` steps in, as the verified moves do: the map is the arm's at
+    the pretension it runs at.
+    """
     rig = trig.rig
-    twin = spatial_rig(rig)
+    twin = pretensioned(rig, spatial_rig(rig), prepull)
     points = []
     for d in directions:
         for b in bends:
             plan = plan_move(rig, d, b, twin)
             name = f"map_d{d:g}_b{b:g}".replace(".", "p")
             rec = run_move(trig, plan, MoveDesign(None, "none"), folder / name, seed=seeds(), reseed=reseed,
-                           replace=replace, extra={"purpose": "mode map"})  # fmt: skip
+                           replace=replace, extra={"purpose": "mode map"}, prepull=prepull)  # fmt: skip
             pred = frequency_map(twin, (d,), (b,), n_modes=2).iloc[0]
             omega_d, zeta = identify_hold(rec, plan.lead, float(pred["dominant_omega_d_rad_s"]))
             split = (float(pred["omega_d1_rad_s"]), float(pred["omega_d2_rad_s"]))
@@ -251,6 +327,16 @@ def measure_map(
             progress(f"map {d:g} deg, {b:g} mm: omega_d {omega_d:.3f} rad/s (twin predicts "
                      f"{points[-1].predicted_omega_d:.3f}), zeta {zeta:.4f}")  # fmt: skip
     return points
+
+
+def _auto_design(rig: RigFile, plan: MovePlan, prepull: int) -> MoveDesign:
+    """The automatic choice of :mod:`helpers.research.task_shaping` at the move, checked in the twin."""
+    twin = spatial_rig(rig)
+    pre = pretensioned(rig, twin, prepull)
+    shaping = design_move(rig, plan, "auto", SPEED_MM_S, twin=pre)
+    shaping = verify_auto(rig, plan, shaping, SPEED_MM_S, prepull, twin=twin)
+    omega_d, zeta = shaping.modes[0]
+    return MoveDesign(shaping.shaper, "auto", float(omega_d), float(zeta), int(shaping.lead))
 
 
 def verify(
@@ -262,6 +348,7 @@ def verify(
     bends: Sequence[float] = BENDS_MM,
     systems: Sequence[str] = SYSTEMS,
     *,
+    prepull: int = 0,
     seeds: Callable[[], int | None] = lambda: None,
     reseed: Callable[[int], None] | None = None,
     replace: bool = False,
@@ -269,24 +356,27 @@ def verify(
 ) -> pd.DataFrame:
     """Run every design on every bend ``repetitions`` times; one row per run, motion and signal."""
     rig = trig.rig
-    twin = spatial_rig(rig)
+    twin = pretensioned(rig, spatial_rig(rig), prepull)
     parts = []
     for d in directions:
         for b in bends:
             plan = plan_move(rig, d, b, twin)
             for system in systems:
-                design = design_for(system, points, d, b)
+                design = (
+                    _auto_design(rig, plan, prepull) if system == "auto" else design_for(system, points, d, b)
+                )
                 duration = float(design.shaper.times[-1]) if design.shaper is not None else 0.0
                 for rep in range(1, repetitions + 1):
                     name = f"{system}_d{d:g}_b{b:g}_r{rep}".replace(".", "p")
                     rec = run_move(trig, plan, design, folder / name, seed=seeds(), reseed=reseed,
-                                   replace=replace)  # fmt: skip
-                    rows = move_residuals_tendons(rec.frame, rig.n_tendons, plan.floor_n)
+                                   replace=replace, prepull=prepull)  # fmt: skip
+                    rows = move_residuals_tendons(rec.frame, rig.n_tendons, plan.floor_n, prepull=prepull)
                     rows.insert(0, "repetition", rep)
                     rows.insert(0, "system", system)
                     rows.insert(0, "bend_mm", b)
                     rows.insert(0, "direction_deg", d)
                     rows["shaper_s"] = duration
+                    rows["shaper"] = design.shaper.name if design.shaper is not None else "none"
                     rows["recording"] = name
                     parts.append(rows)
                 progress(f"verify {d:g} deg, {b:g} mm, {system}: {repetitions} run(s)")
@@ -331,18 +421,19 @@ def tune_tendons(
     """Measure the map, verify every design on the grid, write ``verification.json``; return its document."""
     rig: RigFile = trig.rig
     start = time.perf_counter()
-    points = measure_map(trig, folder / "map", directions, bends, seeds=seeds, reseed=reseed,
+    prepull, prepull_lines = choose_prepull(rig, directions, bends, progress)
+    points = measure_map(trig, folder / "map", directions, bends, prepull=prepull, seeds=seeds, reseed=reseed,
                          replace=replace, progress=progress)  # fmt: skip
     t_map = time.perf_counter() - start
-    rows = verify(trig, points, folder / "verify", repetitions, directions, bends, seeds=seeds, reseed=reseed,
-                  replace=replace, progress=progress)  # fmt: skip
+    rows = verify(trig, points, folder / "verify", repetitions, directions, bends, prepull=prepull,
+                  seeds=seeds, reseed=reseed, replace=replace, progress=progress)  # fmt: skip
     wall = time.perf_counter() - start
     summary = summarise(rows)
     document = {
         "format": "continuum-arm-tendon-verification", "version": 1, "rig": rig.name,
         "source": dict(trig.source), "repetitions": repetitions, "directions_deg": list(directions),
         "bends_mm": list(bends), "reference": list(REFERENCE), "move_times_s": list(MOVE_TIMES_S),
-        "speed_mm_s": SPEED_MM_S,
+        "speed_mm_s": SPEED_MM_S, "prepull_steps": prepull, "prepull_check": prepull_lines,
         "map": [p.__dict__ for p in points],
         "rows": rows.replace({math.nan: None}).to_dict(orient="records"),
         "summary": summary.replace({math.nan: None}).to_dict(orient="records"),
