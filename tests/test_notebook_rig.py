@@ -46,7 +46,7 @@ def _parts(path: Path) -> tuple[list[str], str, list[str]]:
 
 def test_the_notebooks_with_live_cells_are_the_expected_ones() -> None:
     # the calibration, the identification, the experiments, tune and the streams record; the others analyse
-    assert [p.name[:2] for p in LIVE_NOTEBOOKS] == ["00", "02", "04", "07", "08"]
+    assert [p.name[:2] for p in LIVE_NOTEBOOKS] == ["00", "02", "04", "07", "08", "10"]
 
 
 @pytest.mark.parametrize("path", LIVE_NOTEBOOKS, ids=lambda p: p.name[:2])
