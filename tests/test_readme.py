@@ -57,6 +57,8 @@ HOW: dict[str, str] = {
     "python -m helpers bench playground": "slow",
     "python -m helpers record pulse --design data/tuning/designs/<file>.json": "quick",
     "python -m helpers tune": "slow",
+    # several tendons: tests/test_tune_tendons.py (a short grid end to end, slow; the dispatch, its refusal)
+    "python -m helpers --rig four-tendon tune": "slow",
     "python -m helpers reproduce 07": "slow",
     "python -m helpers record streams": "slow",
     "python -m helpers sweep": "help",
