@@ -18,7 +18,7 @@ from helpers.base.paths import REPO_ROOT
 
 PACKAGE = REPO_ROOT / "helpers"
 PAPER_NOTEBOOKS = sorted((REPO_ROOT / "notebooks").glob("0[1-5]_*.ipynb"))
-CODE_LINES_BUDGET = 6_263
+CODE_LINES_BUDGET = 6_270
 """Code lines the paper's reading path may reach: a guard against growth, not the aim. Measured 10,807
 before the core was separated from the wings, 5,664 after, and 6,499 once the hardware's numbers came from
 the rig file (``helpers.rigfile``: about 730 code lines of keys, checks and derived limits) and the paper's
@@ -28,7 +28,9 @@ scaling notes (``helpers.paper.scaling_notes``) left the path, 6,159 once a proc
 read recordings of several tendons (``helpers.recordings.tendons``), 6,262 before and 6,231 after what only
 the wings use left the path (a Klipper-style constructor to ``helpers.research.families``, the twin's
 backbone provenance to ``helpers.virtual.parameters``) with two names nothing used, 6,263 once a tendon
-could pay out below its rest (the rig file's ``release_mm``: its key, checks and derived steps). The rest is
+could pay out below its rest (the rig file's ``release_mm``: its key, checks and derived steps), 6,270 with
+the backbone's provenance back in ``helpers.paper.backbone`` (moving it changed the fingerprint of the
+virtual rig's code, which the stored atlas is checked against). The rest is
 what notebooks 01-05 call: 4,669 lines for their analysis cells, 1,562 more for their live cells' serial
 I/O (``Rig``, the boards' protocol and drivers, the store that never loses a run). Running them, live cells
 on the virtual rig included, executes 5,336 of those lines (most of the rest refuses bad input or a failing

@@ -20,6 +20,16 @@ values range from about 190 to 210 GPa)."""
 RHO_STEEL: float = 7850.0
 """Density of carbon steel, kg/m^3 (0.284 lb/in^3 is tabulated for A228)."""
 
+SOURCES: dict[str, tuple[str, str, str]] = {
+    # field: (unit, source, reason)
+    "E": ("Pa", "handbook", "ASTM A228 music wire, 30e6 psi (range 190-210 GPa)"),
+    "rho": ("kg/m^3", "handbook", "carbon steel"),
+    "d": ("m", "paper", "backbone diameter 0.82 mm"),
+    "L": ("m", "paper", "arm length 0.24 m"),
+    "n_discs": ("-", "paper", "12 cable-support discs, the last at the tip where the cable is knotted"),
+}
+"""Unit, source and reason of each backbone field (used by the parameter tables of both models)."""
+
 
 def _positive(value: object, name: str) -> None:
     if not (isinstance(value, int | float | np.floating) and math.isfinite(value) and value > 0):

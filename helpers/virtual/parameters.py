@@ -23,6 +23,7 @@ import pandas as pd
 
 from helpers.paper import hardware
 from helpers.paper import numbers as paper
+from helpers.paper.backbone import SOURCES as BACKBONE_SOURCES
 from helpers.paper.backbone import Backbone
 
 __all__ = ["RigParameters", "TUNED", "ACTUATORS", "KG_CM", "parameter_table"]
@@ -414,12 +415,8 @@ class RigParameters(Backbone):
 
 
 _SOURCES: dict[str, tuple[str, str, str]] = {
-    # field: (unit, source, reason); the backbone's first (helpers.paper.backbone)
-    "E": ("Pa", "handbook", "ASTM A228 music wire, 30e6 psi (range 190-210 GPa)"),
-    "rho": ("kg/m^3", "handbook", "carbon steel"),
-    "d": ("m", "paper", "backbone diameter 0.82 mm"),
-    "L": ("m", "paper", "arm length 0.24 m"),
-    "n_discs": ("-", "paper", "12 cable-support discs, the last at the tip where the cable is knotted"),
+    # field: (unit, source, reason)
+    **BACKBONE_SOURCES,
     "elements_per_disc": (
         "-",
         "numerical",
