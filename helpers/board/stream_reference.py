@@ -824,6 +824,25 @@ def simulate_axes(
     return run.results()
 
 
+def drive_axes(run: AxesRun, rows: Sequence[Sequence[int]]) -> int:
+    """Feed a whole stream's set-points to ``run``, then zeros until the board would stop; the last period.
+
+    ``rows``: one row per period, one value per axis. As the host streams: period k's row goes through
+    :class:`SetpointRules` (what the board accepts and when it ends) and the planner takes the rules' state,
+    not the set-point alone.
+    """
+    rules = SetpointRules()
+    k = 0
+    for k, row in enumerate(rows, start=1):
+        v = rules.take(k, tuple(row))
+        run.tick(k, v, rules.state)
+    rules.end_period = k + 1
+    while run.finish_tick is None:
+        k += 1
+        run.tick(k, rules.take(k, None), rules.state)
+    return k
+
+
 # --- the exact trajectory -------------------------------------------------------------------------------
 def exact_position(
     shaper: StreamShaper,

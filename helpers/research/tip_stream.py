@@ -661,16 +661,7 @@ def board_path(plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper 
     board = hs.board_shaper(shaper)
     d = derived(rig)
     run = hs.AxesRun(board, (0,) * rig.n_tendons, d.travel_steps, d.release_steps)
-    rules = hs.SetpointRules()
-    k = 0
-    for k, row in enumerate(plan.units.tolist(), start=1):
-        v = rules.take(k, tuple(row))
-        run.tick(k, v, rules.state)  # the rules' state (active, end), not the set-point
-    rules.end_period = k + 1
-    while run.finish_tick is None:
-        k += 1
-        v = rules.take(k, None)
-        run.tick(k, v, rules.state)
+    hs.drive_axes(run, plan.units.tolist())
     edges = np.append((np.arange(plan.path.periods + 1) + 2) * hs.PERIOD_TICKS, np.iinfo(np.int64).max)
     out = np.zeros((len(edges), rig.n_tendons), dtype=np.int64)
     for i, p in enumerate(run.planners):

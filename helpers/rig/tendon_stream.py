@@ -171,16 +171,7 @@ def check_tendon_stream(
             f"k pull = {figures} N <= 0): the arm would hang on no tendon"
         )
     run = hs.AxesRun(shaper, start, d.travel_steps, d.release_steps)
-    rules = hs.SetpointRules()
-    k = 0
-    for k, row in enumerate(units.tolist(), start=1):
-        v = rules.take(k, tuple(row))
-        run.tick(k, v, rules.state)  # the rules' state (active, end), not the set-point
-    rules.end_period = k + 1
-    while run.finish_tick is None:
-        k += 1
-        v = rules.take(k, None)
-        run.tick(k, v, rules.state)
+    hs.drive_axes(run, units.tolist())
     limits = [x for x in run.notices if x.kind.startswith("LIMIT")]
     if limits and not allow_clamps:
         x = limits[0]
