@@ -63,6 +63,8 @@ def test_recording_follows_the_contract(path: Path):
     group = path.parent.relative_to(DATA_DIR)
     assert all(NAME.match(part) for part in (*group.parts, path.stem))
     data = path.with_suffix(".csv").read_bytes()
+    if meta["schema_version"] == 3:
+        return _check_several_tendons(path, meta, data)
     assert meta["schema_version"] == 1
     assert meta["status"] in ("complete", "aborted", "deviated")
     assert meta["csv_sha256"] == hashlib.sha256(data).hexdigest()
@@ -93,3 +95,36 @@ def test_recording_follows_the_contract(path: Path):
     rec = recordings.load(path)
     expected = (body[:, 2] - cal["offset_counts"]) * cal["newtons_per_count"]
     np.testing.assert_allclose(rec.frame["tension_n"].to_numpy(), expected, rtol=0, atol=1e-12)
+
+
+def _check_several_tendons(path: Path, meta: dict, data: bytes) -> None:
+    """A recording of several tendons (``schema_version`` 3, docs/recording_format.md), read independently."""
+    n = meta["tendons"]
+    assert 2 <= n <= 4
+    assert meta["status"] in ("complete", "aborted", "deviated")
+    assert meta["csv_sha256"] == hashlib.sha256(data).hexdigest()
+    rig = meta["rig"]
+    assert isinstance(rig["name"], str) and isinstance(rig["hash"], str) and isinstance(rig["text"], str)
+    assert rig["text"].count("[[tendon]]") == n
+    cal = meta["calibration"]
+    for key in ("newtons_per_count", "offset_counts", "mm_per_step"):
+        assert len(cal[key]) == n and all(_number(v) for v in cal[key]), key
+    assert all(v > 0 for v in cal["newtons_per_count"]) and all(v > 0 for v in cal["mm_per_step"])
+    assert meta["source"]["kind"] in ("hardware", "virtual-rig")
+    assert isinstance(meta["host"]["helpers"], str)  # provenance: the code that recorded it
+    assert isinstance(meta["firmware"]["daq"], str) and isinstance(meta["firmware"]["stepper"], str)
+    rows = list(csv.reader(io.StringIO(data.decode("ascii"))))
+    header = ["seq", "t_us", *(f"adc_{i}" for i in range(n)), *(f"steps_{i}" for i in range(n))]
+    tip = ["tip_x_um", "tip_y_um", "tip_z_um"]
+    assert rows[0] == (header + tip if "tip" in meta else header)
+    if "tip" in meta:
+        assert meta["source"]["kind"] == "virtual-rig" and meta["tip"]["unit"] == "um"
+    body = np.array(rows[1:], dtype=np.int64)
+    assert len(body) == meta["counts"]["samples"]
+    assert np.all(np.diff(body[:, 0]) > 0) and np.all(np.diff(body[:, 1]) > 0)
+    adc = body[:, 2 : 2 + n]
+    assert adc.min() >= 0 and adc.max() <= 1023
+    rec = recordings.load(path)
+    for i in range(n):
+        expected = (adc[:, i] - cal["offset_counts"][i]) * cal["newtons_per_count"][i]
+        np.testing.assert_allclose(rec.frame[f"tension_n_{i}"].to_numpy(), expected, rtol=0, atol=1e-12)

@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from helpers import __version__ as HELPERS_VERSION
 from helpers import recordings
 from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
@@ -430,7 +431,8 @@ def tune_tendons(
     wall = time.perf_counter() - start
     summary = summarise(rows)
     document = {
-        "format": "continuum-arm-tendon-verification", "version": 1, "rig": rig.name,
+        "format": "continuum-arm-tendon-verification", "version": 1, "rig": rig.name, "rig_hash": rig.hash,
+        "host": {"helpers": HELPERS_VERSION},
         "source": dict(trig.source), "repetitions": repetitions, "directions_deg": list(directions),
         "bends_mm": list(bends), "reference": list(REFERENCE), "move_times_s": list(MOVE_TIMES_S),
         "speed_mm_s": SPEED_MM_S, "prepull_steps": prepull, "prepull_check": prepull_lines,

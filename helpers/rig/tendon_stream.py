@@ -409,7 +409,8 @@ class TendonStreamRig(TendonRig):
         stats = self.daq.stats
         counts = {"samples": len(frame), "dropped": int(stats.dropped), "corrupted": int(stats.corrupted),
                   "overruns": int(stats.overruns)}  # fmt: skip
-        rec = tendon_recording(frame, self.rig, rate_hz, counts, self.source, scene, status)
+        boards = {"daq": self.daq.version, "stepper": self.stepper.version}
+        rec = tendon_recording(frame, self.rig, rate_hz, counts, self.source, scene, status, firmware=boards)
         rec.meta["started_utc"] = started
         rec.meta["done_positions"] = (
             None

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from helpers import __version__ as HELPERS_VERSION
 from helpers import rigfile
 from helpers.board.tendon_lines import TendonStreamParser
 from helpers.recordings import Recording
@@ -302,7 +303,8 @@ class TendonRig:
         counts = {"samples": len(frame), "dropped": stats.dropped, "corrupted": stats.corrupted,
                   "overruns": stats.overruns}  # fmt: skip
         scenario = {"kind": "programme", "items": [it.command(self.rig.n_tendons) for it in programme.items]}
-        return tendon_recording(frame, self.rig, rate_hz, counts, self.source, scenario)
+        firmware = {"daq": self.daq.version, "stepper": self.stepper.version}
+        return tendon_recording(frame, self.rig, rate_hz, counts, self.source, scenario, firmware=firmware)
 
     def home(self, rate_hz: int = 1000) -> pd.DataFrame | None:
         """Bring every tendon back to zero in one item at half the top speed (None if all are there)."""
@@ -360,11 +362,12 @@ def tendon_frame(
 
 def tendon_recording(
     frame: pd.DataFrame, rig: RigFile, rate_hz: int, counts: dict[str, int], source: dict[str, Any],
-    scenario: dict[str, Any], status: str = "complete",
+    scenario: dict[str, Any], status: str = "complete", firmware: dict[str, str] | None = None,
 ) -> Recording:  # fmt: skip
     """A recording of several tendons (``docs/recording_format.md``, version 3) of a :func:`tendon_frame`.
 
-    The calibration is the rig file's nominal chain per tendon (``calibration.origin`` says so).
+    The calibration is the rig file's nominal chain per tendon (``calibration.origin`` says so). Provenance
+    as version 2's: the rig file, the source, the host's ``helpers`` version and (given) the boards' firmware.
     """
     d = derived(rig)
     n = rig.n_tendons
@@ -383,7 +386,10 @@ def tendon_recording(
         "rate_hz": int(rate_hz),
         "status": status,
         "counts": dict(counts),
+        "host": {"helpers": HELPERS_VERSION},
     }
+    if firmware is not None:
+        meta["firmware"] = dict(firmware)
     if all(c in frame.columns for c in TIP_COLUMNS):
         meta["tip"] = {"origin": "twin-provided: the spatial twin's tip node, clamp frame, at channel 0's "
                        "instant of each sample (not measured)", "unit": "um"}  # fmt: skip
