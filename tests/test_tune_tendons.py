@@ -131,3 +131,19 @@ def test_the_hold_gives_the_frequency_and_damping_of_a_known_decay() -> None:
     frame = pd.DataFrame({"t_s": t, "steps_0": steps, "tension_n_0": 3.0 + ring + harmonic})
     w, z = identify_hold(SimpleNamespace(frame=frame, path="synthetic"), 0, omega0=24.0)
     assert w == pytest.approx(omega_d, rel=0.005) and z == pytest.approx(zeta, rel=0.03)
+
+
+def test_the_report_lists_every_direction_and_design_with_the_pre_pull(tmp_path) -> None:
+    from helpers.research.tune_tendons import write_report
+
+    doc = {"rig": "r", "source": {"kind": "virtual-rig"}, "repetitions": 3, "directions_deg": [0.0, 90.0],
+           "bends_mm": [10.0], "prepull_steps": 1, "prepull_check": ["pre-pull 1 step(s): fine"],
+           "summary": [{"system": s, "direction_deg": d, "lead_residual_n": 0.5 + d / 1000, "below_floor": 0}
+                       for d in (0.0, 90.0) for s in ("zv", "zvd")]}  # fmt: skip
+    md, csv = write_report(doc, tmp_path / "out")
+    text = md.read_text()
+    assert "Every move pre-pulled 1 step(s)" in text and "- pre-pull 1 step(s): fine" in text
+    assert "| direction_deg | system | lead_residual_n | below_floor |" in text
+    assert "| 90.000 | zvd | 0.590 | 0 |" in text
+    back = pd.read_csv(csv)
+    assert list(back.columns[:2]) == ["direction_deg", "system"] and len(back) == 4

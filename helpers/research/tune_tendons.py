@@ -44,9 +44,10 @@ import pandas as pd
 
 from helpers import __version__ as HELPERS_VERSION
 from helpers import recordings
-from helpers.base.jsonfile import write_json
+from helpers.base.jsonfile import atomic_write, write_json
 from helpers.base.locks import folder_lock
 from helpers.base.paths import repo_path
+from helpers.base.tables import to_markdown
 from helpers.paper.identify import fft_peak
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.recordings import Recording, RecordingExists
@@ -72,7 +73,7 @@ __all__ = [
     "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "SEARCH_BAND", "ENVELOPE_FLOOR", "MOVE_TIMES_S",
     "MapPoint", "scheduled_mode",
     "design_for", "run_move", "identify_hold", "measure_map", "verify", "summarise", "tune_tendons",
-    "choose_prepull", "tendon_folder", "run_tendons",
+    "choose_prepull", "tendon_folder", "run_tendons", "write_report",
 ]  # fmt: skip
 
 DIRECTIONS_DEG = tuple(45.0 * k for k in range(8))
@@ -441,10 +442,42 @@ def tune_tendons(
         "summary": summary.replace({math.nan: None}).to_dict(orient="records"),
     }  # fmt: skip
     write_json(folder / "verification.json", document)
+    write_report(document, folder)
     n_runs = len(rows["recording"].unique())
     progress(f"wall time: map {t_map:.1f} s, all {wall:.1f} s ({n_runs} verification runs)")
     document["wall_s"] = wall
     return document
+
+
+def write_report(document: dict[str, Any], folder: Path) -> list[Path]:
+    """The per-direction report of a verification document: ``tuning_report.md`` and ``.csv`` in ``folder``.
+
+    One row per direction and design (:func:`summarise`'s columns), and the pre-pull check's lines.
+    """
+    summary = pd.DataFrame(document["summary"])
+    first = [c for c in ("direction_deg", "system") if c in summary.columns]
+    summary = summary[first + [c for c in summary.columns if c not in first]]
+    kind = document["source"].get("kind", "hardware")
+    grid = f"{len(document['directions_deg'])} directions x {len(document['bends_mm'])} bends"
+    lines = [
+        f"# Tuning report on '{document['rig']}' ({kind}; {document['repetitions']} run(s) per design and "
+        f"bend, {grid})",
+        "",
+        f"Every move pre-pulled {document.get('prepull_steps', 0)} step(s):",
+        "",
+        *(f"- {line}" for line in document.get("prepull_check", [])),
+        "",
+        "Per direction and design: the worst residual of the lead tendon (N, % of its step) and of the tip "
+        "(mm, %), the least tension and the samples below the floor of every tendon, the shaper's added "
+        "duration (s).",
+        "",
+        to_markdown(summary, precision=3),
+    ]
+    folder.mkdir(parents=True, exist_ok=True)
+    md, csv = folder / "tuning_report.md", folder / "tuning_report.csv"
+    atomic_write(md, ("\n".join(lines) + "\n").encode())
+    atomic_write(csv, summary.to_csv(index=False, float_format="%.6g").encode())
+    return [md, csv]
 
 
 def tendon_folder(data_dir: Path, rig: RigFile) -> Path:
