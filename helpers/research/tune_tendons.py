@@ -450,7 +450,10 @@ def tune_tendons(
 
 
 def write_report(document: dict[str, Any], folder: Path) -> list[Path]:
-    """The per-direction report of a verification document: ``tuning_report.md`` and ``.csv`` in ``folder``.
+    """The per-direction report of a verification document: ``tuning_report.md`` in ``folder``.
+
+    (The table's numbers are ``verification.json``'s ``summary``: no CSV beside it, which ``data/`` keeps
+    for recordings.)
 
     One row per direction and design (:func:`summarise`'s columns), and the pre-pull check's lines.
     """
@@ -474,10 +477,9 @@ def write_report(document: dict[str, Any], folder: Path) -> list[Path]:
         to_markdown(summary, precision=3),
     ]
     folder.mkdir(parents=True, exist_ok=True)
-    md, csv = folder / "tuning_report.md", folder / "tuning_report.csv"
+    md = folder / "tuning_report.md"
     atomic_write(md, ("\n".join(lines) + "\n").encode())
-    atomic_write(csv, summary.to_csv(index=False, float_format="%.6g").encode())
-    return [md, csv]
+    return [md]
 
 
 def tendon_folder(data_dir: Path, rig: RigFile) -> Path:
