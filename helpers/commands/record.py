@@ -40,6 +40,7 @@ from helpers.base.jsonfile import MissingDataError
 from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, repo_path
 from helpers.board.programmes import experiment_programme
+from helpers.commands.tendon_session import SESSION_LOCK, tendons_at_rest
 from helpers.commands.tip_stream import record_tip_stream
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
@@ -77,7 +78,6 @@ from helpers.rig.stream_rig import StreamRig
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
 from helpers.rig.tendon_safety import check_tendon_programme
 from helpers.rig.tendons import TendonRig
-from helpers.virtual.emulator.world import get_world
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
 """Systems ``record`` designs itself from one identified mode (the others come from a --design file)."""
@@ -95,7 +95,6 @@ DEFAULT_GROUPS = {
     "calibration": "calibration", "pulse": "runs", "table-i": "experiments", "all": "experiments",
     "streams": "streams", "move": "moves", "tip-stream": "tip_streams",
 }  # fmt: skip
-SESSION_LOCK = ".recording.lock"
 """The lock a recorder holds on its group for the whole session (another recorder is refused)."""
 
 
@@ -652,30 +651,19 @@ def _record_move(args: argparse.Namespace) -> int:
         return 0
     check_travel(plan, rig, start=move.start)
     check_tendon_programme(programme, rig)
-    with folder_lock(args.data_dir / args.group, what="recording", name=SESSION_LOCK, beside=True):
-        with TendonRig.connect(args.ports, rig=rig, rig_name=args.rig_name) as trig:
-            if any(trig.positions):
-                raise SafetyError(
-                    f"tendons 1-{rig.n_tendons}: the stepper stands at {trig.positions}, not at rest (0): a "
-                    "move is planned from rest; run python -m helpers home first"
-                )
-            world = get_world(args.rig_name) if args.ports == "virtual" else None
-            if world is not None:
-                world.reseed(args.seed)
-            print(f"connected: daq firmware {trig.daq.version}, stepper firmware {trig.stepper.version}")
-            print(f"  shaper: {design.describe()}")
-            frame = trig.run(programme, rate_hz=args.rate)
-            rec = trig.recording(frame, programme, rate_hz=args.rate)
-            rec.meta["scenario"] = {
-                "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm,
-                "shaper": design.name, **move.metadata(),
-                "speed_mm_s": args.v_in if args.v_in is not None else MOVE_SPEED_MM_S,
-                "steps": list(plan.steps), "planned_tension_n": list(plan.tension_n),
-                "tension_floor_n": plan.floor_n, "trimmed_steps": list(plan.trimmed),
-                "items": rec.meta["scenario"]["items"],
-                "noise_seed": args.seed if world is not None else None,
-            }  # fmt: skip
-            path = save_recording(rec, target, replace=args.replace)
+    with tendons_at_rest(TendonRig.connect, args, rig, "a move") as (trig, noise_seed):
+        print(f"  shaper: {design.describe()}")
+        frame = trig.run(programme, rate_hz=args.rate)
+        rec = trig.recording(frame, programme, rate_hz=args.rate)
+        rec.meta["scenario"] = {
+            "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm,
+            "shaper": design.name, **move.metadata(),
+            "speed_mm_s": args.v_in if args.v_in is not None else MOVE_SPEED_MM_S,
+            "steps": list(plan.steps), "planned_tension_n": list(plan.tension_n),
+            "tension_floor_n": plan.floor_n, "trimmed_steps": list(plan.trimmed),
+            "items": rec.meta["scenario"]["items"], "noise_seed": noise_seed,
+        }  # fmt: skip
+        path = save_recording(rec, target, replace=args.replace)
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(path)}")
     return 0
 

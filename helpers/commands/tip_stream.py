@@ -18,8 +18,8 @@ import argparse
 from typing import Any
 
 from helpers import rigfile
-from helpers.base.locks import folder_lock
 from helpers.base.paths import repo_path
+from helpers.commands.tendon_session import tendons_at_rest
 from helpers.recordings import recording_path, refuse_existing
 from helpers.research.tip_stream import (
     board_counts,
@@ -32,7 +32,6 @@ from helpers.research.tip_stream import (
 )
 from helpers.rig import SafetyError
 from helpers.rig.tendon_stream import TendonStreamRig
-from helpers.virtual.emulator.world import get_world
 
 __all__ = ["record_tip_stream", "TIP_SPEED_MM_S", "TIP_TAIL_S"]
 
@@ -123,20 +122,10 @@ def record_tip_stream(args: argparse.Namespace) -> int:
         "design": design.metadata(), **plan.metadata(), "speed_mm_s": path.speed_mm_s,
         "board_count_min_static_tension_n": [round(float(t), 6) for t in forecast],
     }  # fmt: skip
-    with folder_lock(args.data_dir / args.group, what="recording", name=".recording.lock", beside=True):
-        with TendonStreamRig.connect(args.ports, rig=rig, rig_name=args.rig_name) as trig:
-            if any(trig.positions):
-                raise SafetyError(
-                    f"tendons 1-{rig.n_tendons}: the stepper stands at {trig.positions}, not at rest (0): a "
-                    "tip stream is planned from rest; run python -m helpers home first"
-                )
-            world = get_world(args.rig_name) if args.ports == "virtual" else None
-            if world is not None:
-                world.reseed(args.seed)
-            scenario["noise_seed"] = args.seed if world is not None else None
-            print(f"connected: daq firmware {trig.daq.version}, stepper firmware {trig.stepper.version}")
-            print(f"  {path.summary()}; shaper: {design.describe()}")
-            rec = trig.stream(plan.setpoints_mm_s, design.shaper, path=target, scenario=scenario,
-                              rate_hz=args.rate, replace=args.replace, tail_s=TIP_TAIL_S)  # fmt: skip
+    with tendons_at_rest(TendonStreamRig.connect, args, rig, "a tip stream") as (trig, noise_seed):
+        scenario["noise_seed"] = noise_seed
+        print(f"  {path.summary()}; shaper: {design.describe()}")
+        rec = trig.stream(plan.setpoints_mm_s, design.shaper, path=target, scenario=scenario,
+                          rate_hz=args.rate, replace=args.replace, tail_s=TIP_TAIL_S)  # fmt: skip
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0
