@@ -18,7 +18,7 @@ import math
 import os
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -157,7 +157,25 @@ def _urls(ports: str) -> tuple[str, str]:
     return pair[0], pair[1]
 
 
-class LiveRig:
+class BoardPair:
+    """Both boards of a rig (``daq``, ``stepper``), their ports closed on leaving a ``with`` block."""
+
+    daq: Any
+    stepper: Any
+
+    def close(self) -> None:
+        """Close both ports."""
+        self.daq.close()
+        self.stepper.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class LiveRig(BoardPair):
     """Both boards of one rig (hardware or virtual) and the load-cell calibration it records with.
 
     Parameters
@@ -200,25 +218,14 @@ class LiveRig:
         if self.source["kind"] == "hardware" and self.calibration.source == "virtual-rig":
             warnings.warn("hardware, but the load-cell calibration is the virtual rig's", stacklevel=2)
 
-    def close(self) -> None:
-        """Close both ports."""
-        self.daq.close()
-        self.stepper.close()
-
-    def __enter__(self) -> LiveRig:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     def run_pulse(
         self,
         v_in_mm_s: float,
         x_f_mm: float,
-        shaper: Any = None,
-        system: str | None = None,
         *,
         path: str | os.PathLike,
+        shaper: Any = None,
+        system: str | None = None,
         repetition: int = 1,
         t_end_s: float = 12.0,
         rate_hz: int = 1000,
@@ -230,12 +237,12 @@ class LiveRig:
         ----------
         v_in_mm_s, x_f_mm : float
             Speed (mm/s) and displacement (mm): refused with :class:`SafetyError` outside the limits.
+        path : path-like
+            ``data/<group>/<name>``; an existing recording is refused before anything moves.
         shaper : Shaper, optional
             None for the unshaped pulse, else the shaper of both moves.
         system : str, optional
             Its name in :data:`helpers.recordings.shaping.SYSTEMS` (default: the shaper's).
-        path : path-like
-            ``data/<group>/<name>``; an existing recording is refused before anything moves.
         repetition : int
             Repetition number written into the scenario.
         t_end_s : float

@@ -52,6 +52,7 @@ from helpers.live.driver import (
     REST_FACTOR,
     REST_TIMEOUT_S,
     REST_WINDOW_S,
+    BoardPair,
     NotAtRest,
     pulse_scenario,
     recording_of,
@@ -223,7 +224,7 @@ class RunOptions:
             raise SafetyError(f"noise seed must be an integer in 0..2**32-1, got {seed!r}")
 
 
-class Rig:
+class Rig(BoardPair):
     """Both boards of one rig (hardware or virtual) and the calibration that turns counts into newtons.
 
     Parameters
@@ -348,17 +349,6 @@ class Rig:
     def virtual_world(self) -> Any:
         """The in-process virtual rig's world (for the VIRTUAL calibration fixture), or None."""
         return getattr(self.daq.port, "world", None)
-
-    def close(self) -> None:
-        """Close both ports."""
-        self.daq.close()
-        self.stepper.close()
-
-    def __enter__(self) -> Rig:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # --- running -------------------------------------------------------------------------------------
     def run_pulse(
