@@ -320,12 +320,12 @@ class LiveRig(BoardPair):
     def _pulse(self, programme: Any, scenario: dict[str, Any], rate_hz: int, run: dict[str, Any]) -> None:
         """Wait for rest, load the programme, start the DAQ, ``GO``, read until the end and ``DONE``."""
         scenario["rest"] = self._wait_for_rest(rate_hz)
-        run["go"] = True
-        self.stepper.command("ABORT")
+        self.stepper.command("ABORT")  # a programme left running by an earlier session stops
         for line in programme.commands():  # CLEAR first: loading starts from nothing
             self.stepper.command(line)
         self.daq.command("ZERO")
         self._start(rate_hz)
+        run["go"] = True  # from here on the DAQ's rows are this run's
         self.stepper.command("EN 1")
         self.stepper.done_position = None
         self.stepper.command("GO")
@@ -349,34 +349,43 @@ class LiveRig(BoardPair):
         self._stop()
         self.stepper.command("EN 0")
 
+    def _cleanup(self) -> list[str]:
+        """``ABORT`` and ``EN 0`` to the stepper, ``STOP`` to the DAQ; the problems met (it never raises)."""
+        problems = []
+        for board, body in ((self.stepper, "ABORT"), (self.stepper, "EN 0"), (self.daq, "STOP")):
+            board.hello = 0  # a rebooted board still takes the command
+            try:
+                board.command(body, timeout=2.0)
+            except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - cleanup must go on
+                problems.append(f"{body} to the {board.kind} board failed: {type(exc).__name__}: {exc}")
+        return problems
+
     def _guarded(
         self, programme: Any, scenario: dict[str, Any], target: Path, rate_hz: int
     ) -> recordings.Recording:
-        """Run :meth:`_pulse` so that every way it ends leaves the boards safe and its recording on disk."""
+        """Run :meth:`_pulse` so that every way it ends leaves the boards safe and its recording on disk.
+
+        On an exception, the stepper is stopped and disabled and what was recorded is saved as ``aborted``
+        beside ``target``; the exception goes on carrying ``saved_path`` (None, with ``save_error``, if the
+        save failed) and ``cleanup`` (the problems the cleanup met). A signal that comes once the run has
+        ended is held until the recording is saved.
+        """
         run: dict[str, Any] = {"started_utc": utc_now(), "t_go_us": None, "go": False}
         with run_guard() as guard:
             try:
                 with guard.interruptible():
                     self._pulse(programme, scenario, rate_hz, run)
             except BaseException as exc:
-                problems = []
-                for board, body in ((self.stepper, "ABORT"), (self.stepper, "EN 0"), (self.daq, "STOP")):
-                    board.hello = 0  # a rebooted board still takes the command
-                    try:
-                        board.command(body, timeout=2.0)
-                    except (Exception, KeyboardInterrupt) as problem:  # noqa: BLE001 - cleanup must go on
-                        problems.append(
-                            f"{body} to the {board.kind} board failed: {type(problem).__name__}: {problem}"
-                        )
-                reason = f"{type(exc).__name__}: {exc}" + (
-                    " | cleanup: " + "; ".join(problems) if problems else ""
-                )
+                problems = self._cleanup()
+                reason = f"{type(exc).__name__}: {exc}"
+                reason += " | cleanup: " + "; ".join(problems) if problems else ""
                 rec = self._recording(scenario, rate_hz, run, "aborted", reason)
+                exc.cleanup, exc.saved_path, exc.save_error = problems, None, None  # type: ignore[attr-defined]
+                aborted = recordings.aborted_path(target, run["started_utc"])
                 try:
-                    exc.saved_path = recordings.save(rec, recordings.aborted_path(target, run["started_utc"]))  # type: ignore[attr-defined]
+                    exc.saved_path = recordings.save(rec, aborted)  # type: ignore[attr-defined]
                 except (recordings.RecordingError, OSError) as save_exc:
-                    exc.saved_path, exc.save_error = None, str(save_exc)  # type: ignore[attr-defined]
-                exc.cleanup = problems  # type: ignore[attr-defined]
+                    exc.save_error = str(save_exc)  # type: ignore[attr-defined]
                 raise
             rec = self._recording(scenario, rate_hz, run, "complete", None)
             recordings.save(rec, target)
