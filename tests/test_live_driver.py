@@ -1,6 +1,7 @@
 """The live cells' driver (helpers.live): a pulse over the virtual rig records what the full rig records, the
 notebooks' live cells run end to end, and a failing board, a refused request or a busy port is one clear error
-with the motor stopped and the ports closed."""
+with the motor stopped and the ports closed. Paper-only: the expected limits and rig hash are the paper's rig
+file's (the rig this session runs)."""
 
 from __future__ import annotations
 
@@ -8,14 +9,16 @@ import json
 
 import numpy as np
 import pytest
+from crc_reference import link_hex, xor_hex
 from rig_fakes import CALIBRATION, make_rig, make_world
+from test_old_firmware import FakeBoard
 
 from helpers import recordings, rigfile
 from helpers.base.paths import REPO_ROOT
 from helpers.board.programmes import experiment_programme
 from helpers.board.protocol import FW_VERSION
 from helpers.live import LiveRig
-from helpers.live.link import BoardReset, BoardTimeout, PortBusy
+from helpers.live.link import BoardReset, BoardTimeout, Link, OldFirmware, PortBusy, WrongRig
 from helpers.live.safety import SafetyError
 from helpers.paper import numbers as paper
 from helpers.paper import scenarios
@@ -150,6 +153,18 @@ def test_a_second_open_of_the_same_port_is_refused(tmp_path):
         first.run_pulse(100, 10, path=tmp_path / "p")  # the first is undisturbed
     with _live(world):  # and once it is closed, the port opens again
         pass
+
+
+@pytest.mark.parametrize("hello", [False, True])
+def test_a_board_of_another_protocol_or_rig_is_refused_when_it_is_synchronised(hello):
+    with pytest.raises(OldFirmware, match=r"firmware 1\.x .*XOR.*flash firmware 2\.x"):
+        Link(FakeBoard("daq", "1.0.0", xor_hex, hello=hello), "daq", timeout=0.5).sync()
+    with pytest.raises(WrongRig, match=r"built for rig deadbeef, but this host runs rig 'paper'"):
+        Link(FakeBoard("stepper", "2.3.0+deadbeef", link_hex, hello=hello), "stepper", timeout=0.5).sync()
+    paper_rig = f"2.3.0+{rigfile.load(REPO_ROOT / 'rigs' / 'paper.toml').hash}"
+    assert Link(FakeBoard("daq", paper_rig, link_hex, hello=hello), "daq", timeout=0.5).sync() == paper_rig
+    no_hash = Link(FakeBoard("daq", "2.0.0", link_hex), "daq", timeout=0.5)  # firmware 2.0: the paper's rig
+    assert no_hash.sync() == "2.0.0"
 
 
 def test_ports_other_than_virtual_or_a_pair_are_one_clear_error():

@@ -92,6 +92,16 @@ def check_firmware(kind: str, version: str, rig: Any = None) -> None:
         )
 
 
+def check_protocol_1(parser: StreamParser, port_name: str) -> None:
+    """Raise :class:`OldFirmware` once the parser saw a line of a protocol-1 board (firmware 1.x: XOR)."""
+    if parser.legacy is not None:
+        raise OldFirmware(
+            f"the board on {port_name} runs firmware 1.x (protocol 1, XOR checksums; it sent "
+            f"{parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
+            f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
+        )
+
+
 def expected_reply(command: str) -> str:
     """The start of the reply a command gets besides ``ERR``: ``PONG``, ``ABORTED`` or ``OK <WORD>``."""
     word = command.split(" ", 1)[0]
@@ -193,6 +203,7 @@ class Link:
         with signals_held():  # the parser's counts and the kept rows change together
             rows, messages = self.parser.feed(data)
             self.rows += rows
+        check_protocol_1(self.parser, self.port.port)
         for msg in messages:
             if msg.startswith("HELLO"):
                 self.hello += 1

@@ -27,7 +27,7 @@ from typing import Any
 import serial
 
 from helpers.base.signals import signals_held
-from helpers.board.protocol import PROTOCOL_MAJOR, StreamParser, frame
+from helpers.board.protocol import StreamParser, frame
 from helpers.live.link import (
     BOOT_TIMEOUT_S,
     REPLY_PREFIXES,
@@ -41,6 +41,7 @@ from helpers.live.link import (
     Waiter,
     WrongRig,
     check_firmware,
+    check_protocol_1,
     expected_reply,
     open_exclusive,
 )
@@ -187,12 +188,7 @@ class BoardLink:
             rows, messages = self.parser.feed(data)
             if rows:
                 self.rows.extend(rows)
-        if self.parser.legacy is not None:
-            raise OldFirmware(
-                f"the board on {self.port.port} runs firmware 1.x (protocol 1, XOR checksums; it sent "
-                f"{self.parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
-                f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
-            )
+        check_protocol_1(self.parser, self.port.port)
         for msg in messages:
             self._message(msg)
         return len(data)
