@@ -33,6 +33,7 @@ WINGS: dict[str, str] = {
     "helpers.recordings": "core",
     "helpers.board": "core",
     "helpers.rig": "core",
+    "helpers.live": "core",
     "helpers.rigfile": "core",
     "helpers.plotting": "core",
     "helpers.virtual": "twin",
@@ -151,7 +152,7 @@ def test_the_core_utilities_and_the_paper_need_only_what_is_below_them(package):
 def test_the_rig_imports_no_physics():
     problems = []
     for name, path in _modules().items():
-        if name == "helpers.rig" or name.startswith("helpers.rig."):
+        if name.split(".")[:2] in (["helpers", "rig"], ["helpers", "live"]):
             physics = [t for t in _imports(path, name)[0] if t.startswith("helpers.virtual")]
             problems += [f"{name} imports {t}" for t in physics]
             tree = ast.parse(path.read_text())
@@ -255,7 +256,7 @@ def test_virtual_scheme_is_registered_by_opening_a_port_not_by_importing():
     code = (
         "import serial, helpers.rig\n"
         "assert 'helpers.virtual.emulator' not in serial.protocol_handler_packages, 'registered on import'\n"
-        "from helpers.rig.ports import open_port\n"
+        "from helpers.live.ports import open_port\n"
         "p = open_port('virtual://daq?rig=arch', baudrate=500000, timeout=0.01, write_timeout=1.0)\n"
         "assert 'helpers.virtual.emulator' in serial.protocol_handler_packages\n"
         "p.close()\n"

@@ -10,8 +10,8 @@ from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
 
 from helpers.board import stream_reference as hs
 from helpers.board.protocol import StreamParser, checksum, frame
+from helpers.live.ports import open_port
 from helpers.paper.hardware import MM_PER_STEP
-from helpers.rig.ports import open_port
 from helpers.virtual.emulator.boards import Faults
 
 

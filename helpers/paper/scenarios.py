@@ -84,6 +84,12 @@ def table_i_conditions() -> tuple[tuple[float, float], ...]:
     return scale_conditions(paper.TABLE_I_CONDITIONS)
 
 
+def scenario_name(system: str, v_in: float, x_f: float, repetition: int | None = None) -> str:
+    """File name of a pulse scenario, e.g. ``zvd_v200_x20_r1`` (a decimal point is ``p``: ``x6p6``)."""
+    base = f"{system}_v{v_in:g}_x{x_f:g}".replace(".", "p")
+    return base if repetition is None else f"{base}_r{repetition}"
+
+
 def identification_run() -> dict:
     """The identification run on the selected rig: the paper's (100 mm/s, 10 mm, 9-10 s), scaled if needed."""
     run = paper.IDENTIFICATION_RUN

@@ -1,6 +1,6 @@
 """Serial I/O to the rig's two boards (real hardware or the virtual rig) with pyserial.
 
-- :mod:`helpers.rig.ports`: opening a port (device path, pyserial URL, or ``virtual://``);
+- :mod:`helpers.live`: what the full rig is built on (opening a port, one board's link, the safety limits);
 - :mod:`helpers.rig.boards`: the link shared by both drivers (commands, replies, timeouts, resets);
 - :mod:`helpers.rig.daq`, :mod:`helpers.rig.stepper`: the DAQ and stepper drivers;
 - :mod:`helpers.rig.safety`: the limits checked before any byte is sent;

@@ -21,51 +21,52 @@ other work still connects, and a port with no board behind it is named within se
 
 from __future__ import annotations
 
-import time
 from collections import deque
-from collections.abc import Callable
 from typing import Any
 
 import serial
 
 from helpers.base.signals import signals_held
-from helpers.board.protocol import PAPER_RIG_HASH, PROTOCOL_MAJOR, StreamParser, frame
-from helpers.paper.hardware import RIG
-from helpers.rig.ports import open_port
+from helpers.board.protocol import StreamParser, frame
+from helpers.live.link import (
+    BOOT_TIMEOUT_S,
+    REPLY_PREFIXES,
+    BoardDisconnected,
+    BoardError,
+    BoardReset,
+    BoardTimeout,
+    CommandRefused,
+    OldFirmware,
+    PortBusy,
+    Waiter,
+    WrongRig,
+    check_firmware,
+    check_protocol_1,
+    expected_reply,
+    open_exclusive,
+)
 
-REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
-
-BOOT_TIMEOUT_S = 10.0
-"""Seconds a board has to answer after its port opens (``HELLO``, or ``PONG`` to a ``PING``): an Arduino's
-reset and bootloader take about 1.5-2 s, so five times that, for a slow USB hub or a busy host."""
+__all__ = [
+    "BOOTLOADER_QUIET_S",
+    "BOOT_TIMEOUT_S",
+    "RESENDABLE",
+    "SEND_ATTEMPTS",
+    "BoardDisconnected",
+    "BoardError",
+    "BoardLink",
+    "BoardReset",
+    "BoardTimeout",
+    "CommandRefused",
+    "LinkCorrupted",
+    "OldFirmware",
+    "PortBusy",
+    "Waiter",
+    "WrongRig",
+]
 
 BOOTLOADER_QUIET_S = 2.5
 """Seconds the host stays silent after opening a USB serial port, past the bootloader's 1.5-2 s window (a
 pseudo-terminal or an emulated board has no bootloader: it is asked at once)."""
-
-
-class BoardError(RuntimeError):
-    """A board misbehaved; the message names the board and what happened."""
-
-
-class BoardTimeout(BoardError):
-    """A board stopped answering within its timeout."""
-
-
-class BoardReset(BoardError):
-    """A board sent ``HELLO`` unexpectedly: it rebooted (power glitch, USB reset, watchdog)."""
-
-
-class OldFirmware(BoardError):
-    """The board runs firmware of another protocol MAJOR version (1.x: XOR checksums): flash this one."""
-
-
-class BoardDisconnected(BoardError):
-    """The serial port vanished (pyserial raised ``SerialException``)."""
-
-
-class PortBusy(BoardError):
-    """The port is open in another program (ports are opened exclusively)."""
 
 
 class LinkCorrupted(BoardError):
@@ -77,81 +78,6 @@ RESENDABLE = frozenset({"PING", "POS", "MEM", "ABORT", "EN", "RATE", "ZERO", "ST
 
 SEND_ATTEMPTS = 3
 """How often a command is sent when the board refused it as damaged in transit or its reply was damaged."""
-
-
-class WrongRig(BoardError):
-    """The board's firmware was built for another rig file than the one the host runs: rebuild it."""
-
-
-class CommandRefused(BoardError):
-    """A board answered ``ERR <code> <text>``."""
-
-    def __init__(self, message: str, code: str) -> None:
-        super().__init__(message)
-        self.code = code
-
-
-def _check_major(kind: str, version: str, rig: Any = None) -> None:
-    """Raise unless ``version`` is of this host's protocol MAJOR and the board was built for this host's rig.
-
-    Raises
-    ------
-    OldFirmware
-        The board speaks another protocol MAJOR version.
-    WrongRig
-        The version's build metadata (``+<rig hash>``) names another rig than the one the host runs
-        (``rig``, default ``helpers.paper.hardware.RIG``). A version without it (firmware 2.0-2.1) is the
-        paper's rig's.
-    """
-    rig = RIG if rig is None else rig
-    if version.split(".")[0] != str(PROTOCOL_MAJOR):
-        raise OldFirmware(
-            f"the {kind} board runs firmware {version}; this host speaks protocol {PROTOCOL_MAJOR} "
-            f"(firmware {PROTOCOL_MAJOR}.x, CRC-8 checksums): flash the firmware of this repository"
-        )
-    built_for = version.partition("+")[2] or PAPER_RIG_HASH
-    if built_for != rig.hash:
-        raise WrongRig(
-            f"the {kind} board was built for rig {built_for}, but this host runs rig '{rig.name}' "
-            f"({rig.source or 'rig file'}, hash {rig.hash}): rebuild and flash it with "
-            f"make -C firmware RIG={rig.source or 'FILE'} upload-{kind} PORT=..."
-        )
-
-
-def _expected_reply(command: str) -> str:
-    """The start of the reply a command gets besides ``ERR``: ``PONG``, ``ABORTED`` or ``OK <WORD>``."""
-    word = command.split(" ", 1)[0]
-    return {"PING": "PONG", "ABORT": "ABORTED"}.get(word, f"OK {word}")
-
-
-class Waiter:
-    """Elapsed waiting time: the larger of wall time and the sum of read timeouts that expired.
-
-    Given a device ``clock`` (the in-process virtual rig's :meth:`device_time`), the elapsed time is that
-    clock's alone: the emulated boards' time moves only when the host reads, so wall time says nothing there.
-    """
-
-    def __init__(self, timeout: float, clock: Callable[[], float] | None = None) -> None:
-        self.timeout = timeout
-        self._clock = clock
-        self._t0 = time.monotonic() if clock is None else clock()
-        self._virtual = 0.0
-
-    def idle(self, seconds: float) -> None:
-        """Record a read that returned without data after waiting ``seconds``."""
-        self._virtual += seconds
-
-    @property
-    def elapsed(self) -> float:
-        """Seconds waited so far."""
-        if self._clock is not None:
-            return self._clock() - self._t0
-        return max(time.monotonic() - self._t0, self._virtual)
-
-    @property
-    def expired(self) -> bool:
-        """True once ``timeout`` has passed."""
-        return self.elapsed >= self.timeout
 
 
 class BoardLink:
@@ -217,15 +143,7 @@ class BoardLink:
         -------
         BoardLink
         """
-        try:
-            port = open_port(url, baudrate=cls.baudrate, timeout=read_timeout, write_timeout=timeout)
-        except serial.SerialException as exc:
-            if "exclusive" in str(exc) or "busy" in str(exc):
-                raise PortBusy(
-                    f"port busy: the {cls.kind} board at {url} is open in another program (another recorder, "
-                    "notebook or serve-virtual-rig client); close it first"
-                ) from exc
-            raise BoardDisconnected(f"cannot open the {cls.kind} board at {url}: {exc}") from exc
+        port = open_exclusive(url, cls.kind, cls.baudrate, read_timeout, timeout)
         link = cls(port, timeout=timeout)
         link.expected_rig = rig
         if sync:
@@ -270,12 +188,7 @@ class BoardLink:
             rows, messages = self.parser.feed(data)
             if rows:
                 self.rows.extend(rows)
-        if self.parser.legacy is not None:
-            raise OldFirmware(
-                f"the board on {self.port.port} runs firmware 1.x (protocol 1, XOR checksums; it sent "
-                f"{self.parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
-                f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
-            )
+        check_protocol_1(self.parser, self.port.port)
         for msg in messages:
             self._message(msg)
         return len(data)
@@ -335,7 +248,7 @@ class BoardLink:
     def _command_once(self, body: str, timeout: float | None) -> str:
         self.replies.clear()
         self.write_line(body)
-        expected = _expected_reply(body)
+        expected = expected_reply(body)
         wait = self.waiter(self.timeout if timeout is None else timeout)
         reply = None
         while reply is None:
@@ -388,7 +301,7 @@ class BoardLink:
                     if len(words) != 3 or words[1] != self.kind:
                         raise BoardError(f"expected a {self.kind} board on {self.port.port}, got {reply!r}")
                     self.version = words[2]
-                    _check_major(self.kind, words[2], self.expected_rig)
+                    check_firmware(self.kind, words[2], self.expected_rig)
                     break
             else:
                 if wait.expired:
@@ -420,7 +333,7 @@ class BoardLink:
                 f"expected 'PONG {self.kind} <version>' from the {self.kind} board, got {reply!r}"
             )
         self.version = words[2]
-        _check_major(self.kind, words[2], self.expected_rig)
+        check_firmware(self.kind, words[2], self.expected_rig)
         return words[2]
 
     def close(self) -> None:

@@ -16,20 +16,16 @@ A genuine board's role follows from its PID; for a CH340 clone the port is opene
 and asked ``PING`` (``PONG daq ...`` or ``PONG stepper ...``). Opening a port resets an Arduino (DTR), which
 the drivers handle by waiting for ``HELLO`` (see :meth:`helpers.rig.boards.BoardLink.sync`).
 
-It also finds running ``serve-virtual-rig`` processes (:func:`announced_virtual_rigs`), so that a recording
-made through their pseudo-terminals is labelled ``virtual-rig``, never ``hardware``.
+Running ``serve-virtual-rig`` processes, whose pseudo-terminals record as ``virtual-rig`` and never as
+``hardware``, are found by :mod:`helpers.live.ports` (:func:`~helpers.live.ports.virtual_source_for`).
 """
 
 from __future__ import annotations
 
-import json
-import os
 from dataclasses import dataclass
-from typing import Any
 
 from serial.tools import list_ports
 
-from helpers.base.paths import VIRTUAL_RIG_REGISTRY
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, OldFirmware
 from helpers.rig.daq import DaqBoard
 from helpers.rig.stepper import StepperBoard
@@ -121,27 +117,3 @@ def find_rig_ports(hello_timeout: float = BOOT_TIMEOUT_S) -> tuple[str, str]:
             "Pass the ports explicitly: 'DAQ,STEPPER'."
         )
     return roles["daq"][0], roles["stepper"][0]
-
-
-def announced_virtual_rigs() -> list[dict[str, Any]]:
-    """Return the announcements of running ``serve-virtual-rig`` processes (dead ones are ignored)."""
-    out = []
-    if not VIRTUAL_RIG_REGISTRY.is_dir():
-        return out
-    for f in VIRTUAL_RIG_REGISTRY.glob("*.json"):
-        try:
-            info = json.loads(f.read_text())
-            os.kill(int(info["pid"]), 0)
-        except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
-            continue
-        out.append(info)
-    return out
-
-
-def virtual_source_for(paths: tuple[str, str]) -> dict[str, Any] | None:
-    """Provenance of a ``serve-virtual-rig`` serving either of ``paths``, or None (then it is hardware)."""
-    real = {os.path.realpath(p) for p in paths}
-    for info in announced_virtual_rigs():
-        if {os.path.realpath(info["daq"]), os.path.realpath(info["stepper"])} & real:
-            return {"kind": "virtual-rig", "via": "pseudo-terminal server", **info.get("source", {})}
-    return None

@@ -30,8 +30,6 @@ so the in-process virtual rig streams faster than real time, deterministically).
 
 from __future__ import annotations
 
-import datetime as _dt
-import math
 import os
 import warnings
 from collections.abc import Callable
@@ -45,46 +43,53 @@ try:  # a progress bar where tqdm is installed (the [virtual] extra); the paper'
     from tqdm.auto import tqdm
 except ImportError:  # pragma: no cover - the light environment
     tqdm = None
-from helpers import __version__ as HELPERS_VERSION
 from helpers import recordings
-from helpers.base.noise import white_noise_std
 from helpers.base.paths import DATA_DIR
 from helpers.base.signals import Interrupted, run_guard
 from helpers.base.validate import RIG_NAME
-from helpers.board.programmes import Programme, Segment, experiment_programme
-from helpers.paper import numbers as paper
-from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, MAX_PROGRAMME_S, RIG
+from helpers.board.programmes import Programme, Segment
+from helpers.live.driver import (
+    REST_FACTOR,
+    REST_TIMEOUT_S,
+    REST_WINDOW_S,
+    BoardPair,
+    NotAtRest,
+    pulse_scenario,
+    recording_of,
+    rest_of,
+    utc_now,
+)
+from helpers.live.ports import virtual_source_for
+from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, RIG
 from helpers.paper.tension import LoadCellCalibration, load_calibration
 from helpers.recordings import Recording, RecordingError, reserve
-from helpers.recordings.shaping import pulse_metadata
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardLink, BoardTimeout, Waiter
 from helpers.rig.daq import DaqBoard
-from helpers.rig.discovery import find_rig_ports, virtual_source_for
-from helpers.rig.safety import SafetyError, check_programme, check_request
+from helpers.rig.discovery import find_rig_ports
+from helpers.rig.safety import SafetyError, check_programme
 from helpers.rig.stepper import StepperBoard
-from helpers.rigfile.recorded import rig_section
 
 
 class RunAborted(BoardError):
     """The run was stopped because its data were unusable (e.g. mostly corrupted lines)."""
 
 
-class NotAtRest(BoardError):
-    """The tension did not settle before a run (the arm still moves, or the sensor drifts)."""
-
-
 class NotAtZero(SafetyError):
     """A pulse experiment was asked for while the cable is not at position 0."""
 
 
-REST_WINDOW_S = 0.5
-"""Span (s) over which the tension must be steady before a run."""
-
-REST_FACTOR = 2.0
-"""Steady: standard deviation over the window <= this factor x the white-noise level (and >= 0.5 count)."""
-
-REST_TIMEOUT_S = 30.0
-"""Longest wait (device s) for the tension to become steady."""
+__all__ = [
+    "GO_LATENCY_US",
+    "REST_FACTOR",
+    "REST_TIMEOUT_S",
+    "REST_WINDOW_S",
+    "NotAtRest",
+    "NotAtZero",
+    "Rig",
+    "RunAborted",
+    "RunOptions",
+    "step_windows",
+]
 
 
 @dataclass
@@ -104,10 +109,6 @@ class _RunState:
     """Every sample of the run is in: an interrupt from now on cannot make it partial."""
     deviation: str | None = None
     """Why the motion differed from its command (a stream's underruns, clamps), or None."""
-
-
-def _utc_now() -> str:
-    return _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
 
 def _is_virtual_url(url: str) -> bool:
@@ -156,12 +157,18 @@ class _DeviceTimeBar:
     """A tqdm bar of device seconds, updated in 0.1 s increments (none where tqdm is not installed)."""
 
     def __init__(self, total_s: float | None, show: bool, desc: str | None = "device time") -> None:
-        self.bar = None if tqdm is None else tqdm(
-            total=None if total_s is None else round(total_s, 1),
-            unit="s",
-            desc=desc,
-            disable=not show,
-            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s" if total_s is not None else "{desc}: {n:.1f} s",
+        self.bar = (
+            None
+            if tqdm is None
+            else tqdm(
+                total=None if total_s is None else round(total_s, 1),
+                unit="s",
+                desc=desc,
+                disable=not show,
+                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s"
+                if total_s is not None
+                else "{desc}: {n:.1f} s",
+            )
         )
         self.shown = 0.0
 
@@ -217,7 +224,7 @@ class RunOptions:
             raise SafetyError(f"noise seed must be an integer in 0..2**32-1, got {seed!r}")
 
 
-class Rig:
+class Rig(BoardPair):
     """Both boards of one rig (hardware or virtual) and the calibration that turns counts into newtons.
 
     Parameters
@@ -343,17 +350,6 @@ class Rig:
         """The in-process virtual rig's world (for the VIRTUAL calibration fixture), or None."""
         return getattr(self.daq.port, "world", None)
 
-    def close(self) -> None:
-        """Close both ports."""
-        self.daq.close()
-        self.stepper.close()
-
-    def __enter__(self) -> Rig:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     # --- running -------------------------------------------------------------------------------------
     def run_pulse(
         self,
@@ -398,27 +394,8 @@ class Rig:
         **kwargs
             Passed to :meth:`run` (``path``, ``replace``, ``noise_seed``, ``rate_hz``, ...).
         """
-        v, x = check_request(v_in_mm_s, x_f_mm)
-        ok = isinstance(t_end_s, int | float) and math.isfinite(t_end_s) and 0 < t_end_s <= MAX_PROGRAMME_S
-        if not ok:
-            limit = f"(0, {MAX_PROGRAMME_S:.0f}] s"
-            raise SafetyError(f"programme length: t_end {t_end_s!r} s is outside {limit}")
-        t_up, t_down = paper.PULSE_T_UP_S, paper.PULSE_T_DOWN_S
-        try:
-            programme, report = experiment_programme(v, x, shaper, t_up=t_up, t_down=t_down, t_end=t_end_s)
-        except ValueError as exc:
-            raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
-        scenario = {
-            "kind": "pulse",
-            "v_in_mm_s": v,
-            "x_f_mm": x,
-            **pulse_metadata(shaper, system),
-            "repetition": int(repetition),
-            "t_up_s": t_up,
-            "t_down_s": t_down,
-            "quantisation": report.to_dict(),
-            **(scenario_extra or {}),
-        }
+        programme, scenario = pulse_scenario(v_in_mm_s, x_f_mm, shaper, system, repetition, t_end_s)
+        scenario.update(scenario_extra or {})
         return self.run(programme, scenario=scenario, path=path, require_zero=not allow_offset, **kwargs)
 
     def run(
@@ -511,7 +488,7 @@ class Rig:
     def _target(self, path: str | os.PathLike | None) -> Path:
         """Where a run is saved: ``path`` (its name checked) or ``data/runs/run_<UTC time>``."""
         if path is None:
-            return DATA_DIR / "runs" / ("run_" + _utc_now().replace(":", "").replace("-", "") + ".csv")
+            return DATA_DIR / "runs" / ("run_" + utc_now().replace(":", "").replace("-", "") + ".csv")
         target = Path(path)
         target = target.with_suffix(".csv") if target.suffix in ("", ".json") else target
         recordings.check_name(target.stem)
@@ -550,17 +527,14 @@ class Rig:
         n = max(3, round(REST_WINDOW_S * rate_hz))
         adc: list[int] = []
         t0: int | None = None
-        std = noise = float("nan")
         try:
             for rows in self.daq.samples():
                 adc.extend(r[2] for r in rows)
                 t0 = rows[0][1] if t0 is None else t0
                 waited = (rows[-1][1] - t0) / 1e6
-                if len(adc) >= n:
-                    window = np.asarray(adc[-n:], dtype=float)
-                    std, noise = float(np.std(window)), white_noise_std(window)
-                    if std <= max(REST_FACTOR * noise, 0.5):
-                        return {"waited_s": round(waited, 3), "std_counts": std, "noise_counts": noise}
+                steady, std, noise = rest_of(adc, rate_hz)
+                if steady:
+                    return {"waited_s": round(waited, 3), "std_counts": std, "noise_counts": noise}
                 if waited > timeout_s:
                     raise NotAtRest(
                         f"the tension did not come to rest within {timeout_s:.0f} s (std {std:.2f} counts "
@@ -645,7 +619,12 @@ class Rig:
         return new, silence
 
     def _stream_until_done(
-        self, state: _RunState, duration_us: int, margin_s: float, o: RunOptions, bar: _DeviceTimeBar,
+        self,
+        state: _RunState,
+        duration_us: int,
+        margin_s: float,
+        o: RunOptions,
+        bar: _DeviceTimeBar,
         end_position: int,
     ) -> None:
         """Read samples until the programme's end + ``margin_s`` has passed and ``DONE`` has arrived.
@@ -722,7 +701,7 @@ class Rig:
         came (``state.finished``) is saved whole, as if nothing had happened, and the interrupt is raised
         after the save; so is a run that ended normally and was interrupted just after.
         """
-        state = _RunState(started_utc=_utc_now())
+        state = _RunState(started_utc=utc_now())
         self.daq.take_rows()  # nothing of an earlier run is this run's
         with run_guard() as guard:
             try:
@@ -790,31 +769,6 @@ class Rig:
         self, state: _RunState, scenario: dict[str, Any], rate_hz: int, status: str, reason: str | None
     ) -> Recording:
         # The run's samples since its START (a reset board restarts seq: the parser refused those already).
-        rows = list(self.daq.rows)
-        frame = recordings.frame_from_rows(rows) if rows else recordings.empty_frame()
-        stats = self.daq.stats
-        first_t = int(frame["t_us"].iloc[0]) if len(frame) else None
-        meta = {
-            "schema_version": recordings.SCHEMA_VERSION,
-            "rig": rig_section(RIG),
-            "source": self.source,
-            "scenario": scenario,
-            "calibration": self.calibration.to_dict(),
-            "rate_hz": rate_hz,
-            "firmware": {"daq": self.daq.version, "stepper": self.stepper.version},
-            "host": {"helpers": HELPERS_VERSION},
-            "started_utc": state.started_utc,
-            "status": status,
-            "abort_reason": reason,
-            "counts": {
-                "samples": len(frame),
-                "dropped": int(stats.dropped),
-                "corrupted": int(stats.corrupted),
-                "overruns": int(stats.overruns),
-                "implausible": int(stats.implausible),
-            },
-            "t_go_us": state.t_go_us,
-            "t_go_s": None if (state.t_go_us is None or first_t is None) else (state.t_go_us - first_t) / 1e6,
-            "done_position": self.stepper.done_position,
-        }
-        return Recording(frame=frame, meta=meta)
+        return recording_of(
+            self, scenario, rate_hz, state.started_utc, state.t_go_us, status, reason, list(self.daq.rows)
+        )

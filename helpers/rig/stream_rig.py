@@ -92,7 +92,6 @@ def _shaper_meta(shaper: Any) -> dict[str, Any]:
     }
 
 
-
 @dataclass(frozen=True)
 class _Stream:
     """What one stream is, checked before anything is sent (:meth:`StreamRig.stream`'s own arguments)."""
@@ -250,8 +249,15 @@ class StreamRig(Rig):
         return self._guarded(body, scenario, target, o.rate_hz, replace=o.replace)
 
     def _feed(
-        self, state: _RunState, feed: Any, check: ShapedCheck, record: StreamRecord, stream: _Stream,
-        o: RunOptions, bar: _DeviceTimeBar, position: int,
+        self,
+        state: _RunState,
+        feed: Any,
+        check: ShapedCheck,
+        record: StreamRecord,
+        stream: _Stream,
+        o: RunOptions,
+        bar: _DeviceTimeBar,
+        position: int,
     ) -> None:
         """The lead-in, ``STREAM``, the set-points as they fall due, ``END``, ``DONE``, the tail.
 
@@ -260,7 +266,10 @@ class StreamRig(Rig):
         refused before it happens, whatever the host's timing.
         """
         lead_periods, lead_in_s, tail_s, allow_clamps = (
-            stream.lead_periods, stream.lead_in_s, stream.tail_s, stream.allow_clamps
+            stream.lead_periods,
+            stream.lead_in_s,
+            stream.tail_s,
+            stream.allow_clamps,
         )
         done_grace_s, max_corrupted_fraction = o.done_grace_s, o.max_corrupted_fraction
         silence = self.daq.waiter(o.silence_timeout)

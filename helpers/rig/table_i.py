@@ -1,9 +1,11 @@
 """The paper's experiment on a rig: the twelve scenarios of Table I, each repeated, recorded into ``data/``.
 
-The procedure of notebook 04's live cell and of ``python -m helpers record table-i``: for each system
+The procedure of ``python -m helpers record table-i`` (notebook 04's live cell writes the same loop with
+:class:`helpers.live.LiveRig`): for each system
 (unshaped, the non-robust TDF, the robust TDF) and each condition of Table I (scaled by
 :mod:`helpers.paper.scenarios` on a rig it does not fit), one
-:meth:`helpers.rig.Rig.run_pulse` per repetition, saved as ``<system>_v<v_in>_x<x_f>_r<n>``.
+:meth:`helpers.rig.Rig.run_pulse` per repetition, saved as ``<system>_v<v_in>_x<x_f>_r<n>``
+(:func:`helpers.paper.scenarios.scenario_name`).
 """
 
 from __future__ import annotations
@@ -14,12 +16,9 @@ from typing import Any
 from helpers.base.paths import DATA_DIR
 from helpers.paper import numbers as paper
 from helpers.paper import scenarios
+from helpers.paper.scenarios import scenario_name
 
-
-def scenario_name(system: str, v_in: float, x_f: float, repetition: int | None = None) -> str:
-    """File name of a pulse scenario, e.g. ``zvd_v200_x20_r1`` (a decimal point is ``p``: ``x6p6``)."""
-    base = f"{system}_v{v_in:g}_x{x_f:g}".replace(".", "p")
-    return base if repetition is None else f"{base}_r{repetition}"
+__all__ = ["NoiseSeeds", "record_table_i", "scenario_name"]
 
 
 class NoiseSeeds:

@@ -25,6 +25,7 @@ import pandas as pd
 from helpers import __version__ as HELPERS_VERSION
 from helpers import rigfile
 from helpers.board.tendon_lines import TendonStreamParser
+from helpers.live.driver import BoardPair
 from helpers.recordings import Recording
 from helpers.recordings.tendons import TENDON_SCHEMA_VERSION, TIP_COLUMNS, recorded_columns
 from helpers.rig.boards import BOOT_TIMEOUT_S, BoardError, BoardTimeout, CommandRefused, WrongRig
@@ -105,7 +106,7 @@ class TendonStepper(StepperBoard):
         return super().go()
 
 
-class TendonRig:
+class TendonRig(BoardPair):
     """Both boards of a rig with several tendons and its rig file.
 
     Parameters
@@ -209,17 +210,6 @@ class TendonRig:
                 f"'{name}' gives tendon {i + 1} {d.release_steps[i]} (release_mm): " + rebuild % "stepper"
             )
         self.axes = axes
-
-    def close(self) -> None:
-        """Close both ports."""
-        self.daq.close()
-        self.stepper.close()
-
-    def __enter__(self) -> TendonRig:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # --- running ---------------------------------------------------------------------------------
     def run(self, programme: TendonProgramme, rate_hz: int = 1000, tail_s: float = 0.5,

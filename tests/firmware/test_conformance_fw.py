@@ -35,7 +35,7 @@ def _boards_module():
 
 
 def _open(url: str, timeout: float):
-    ports = pytest.importorskip("helpers.rig.ports")
+    ports = pytest.importorskip("helpers.live.ports")
     return ports.open_port(url, baudrate=115200, timeout=timeout, write_timeout=1.0)
 
 

@@ -1,0 +1,215 @@
+"""The live cells' driver (helpers.live): a pulse over the virtual rig records what the full rig records, the
+notebooks' live cells run end to end, and a failing board, a refused request or a busy port is one clear error
+with the motor stopped and the ports closed. Paper-only: the expected limits and rig hash are the paper's rig
+file's (the rig this session runs)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from crc_reference import link_hex, xor_hex
+from rig_fakes import CALIBRATION, make_rig, make_world
+from test_old_firmware import FakeBoard
+
+from helpers import recordings, rigfile
+from helpers.base.paths import REPO_ROOT
+from helpers.board.programmes import experiment_programme
+from helpers.board.protocol import FW_VERSION
+from helpers.live import LiveRig
+from helpers.live.link import BoardReset, BoardTimeout, Link, OldFirmware, PortBusy, WrongRig
+from helpers.live.safety import SafetyError
+from helpers.paper import numbers as paper
+from helpers.paper import scenarios
+from helpers.paper.hardware import MM_PER_STEP
+from helpers.paper.shapers import design_tdfs
+
+
+def _ports(world, daq: str = "", stepper: str = "") -> str:
+    return f"virtual://daq?rig={world.name}{daq},virtual://stepper?rig={world.name}{stepper}"
+
+
+def _live(world, daq: str = "", stepper: str = "") -> LiveRig:
+    return LiveRig(_ports(world, daq, stepper), calibration=CALIBRATION, timeout=0.5)
+
+
+def _keys(meta: dict, prefix: str = "") -> set[str]:
+    out = set()
+    for key, value in meta.items():
+        out.add(prefix + key)
+        if isinstance(value, dict):
+            out |= _keys(value, f"{prefix}{key}.")
+    return out
+
+
+@pytest.mark.parametrize("shaped", [False, True], ids=["unshaped", "zvd"])
+def test_a_pulse_records_what_the_full_rig_records_for_the_same_request(tmp_path, shaped):
+    zvd = design_tdfs(paper.OMEGA_D, paper.ZETA)[1] if shaped else None
+    system = "zvd" if shaped else None
+    with _live(make_world()) as rig:
+        rec = rig.run_pulse(200, 20, path=tmp_path / "live" / "p", shaper=zvd, system=system, repetition=2)
+    full, _ = make_rig()
+    with full:
+        ref = full.run_pulse(200, 20, zvd, system=system, path=tmp_path / "full" / "p", repetition=2,
+                             progress=False)  # fmt: skip
+    live = recordings.load(rec.path)
+    meta, expected = live.meta, recordings.load(ref.path).meta
+    assert _keys(meta) == _keys(expected) and list(meta["scenario"]) == list(expected["scenario"])
+    # the values that follow from the request and the rig file, computed here without the driver
+    programme, _ = experiment_programme(200.0, 20.0, zvd, t_up=1.0, t_down=8.0, t_end=12.0)
+    assert meta["scenario"]["programme"] == programme.to_dict()
+    assert (meta["scenario"]["v_in_mm_s"], meta["scenario"]["x_f_mm"], meta["scenario"]["repetition"]) == (
+        200.0, 20.0, 2,
+    )  # fmt: skip
+    assert meta["scenario"]["system"] == ("zvd" if shaped else "unshaped")
+    assert meta["rig"]["hash"] == rigfile.load(REPO_ROOT / "rigs" / "paper.toml").hash
+    assert meta["firmware"]["daq"].startswith(FW_VERSION + "+") and meta["status"] == "complete"
+    assert meta["source"]["kind"] == "virtual-rig" and meta["calibration"]["origin"] == "test double"
+    # a deterministic world: the same samples as the full rig's, and the whole programme in them
+    assert live.frame[["t_us", "adc", "steps"]].equals(
+        recordings.load(ref.path).frame[["t_us", "adc", "steps"]]
+    )
+    assert live.frame["steps"].max() == round(20.0 / MM_PER_STEP) and live.frame["steps"].iloc[-1] == 0
+    assert meta["counts"] == {**expected["counts"], "samples": len(live.frame)}
+
+
+def test_a_second_run_to_the_same_name_is_refused_before_anything_moves(tmp_path):
+    world = make_world()
+    with _live(world) as rig:
+        rig.run_pulse(100, 10, path=tmp_path / "g" / "p")
+        sent = len(world.stepper.received)
+        with pytest.raises(recordings.RecordingExists):
+            rig.run_pulse(100, 10, path=tmp_path / "g" / "p")
+        assert len(world.stepper.received) == sent
+
+
+@pytest.mark.parametrize(
+    "v, x, message",
+    [(500, 10, "exceeds the limit of 400 mm/s"), (100, 45, "travel limit"), (float("nan"), 10, "finite")],
+)
+def test_an_out_of_range_motion_is_refused_before_any_byte_is_sent(tmp_path, v, x, message):
+    world = make_world()
+    with _live(world) as rig:
+        daq, stepper = len(world.daq.received), len(world.stepper.received)
+        with pytest.raises(SafetyError, match=message) as info:
+            rig.run_pulse(v, x, path=tmp_path / "p")
+    assert "\n" not in str(info.value)
+    assert (len(world.daq.received), len(world.stepper.received)) == (daq, stepper)
+    assert not list(tmp_path.iterdir())
+
+
+CASES = [
+    ("daq", "reset_at", BoardReset, "daq board reset"),
+    ("daq", "hang_at", BoardTimeout, "daq board sent no sample"),
+    ("stepper", "reset_at", BoardReset, "stepper board reset"),
+    ("stepper", "hang_at", BoardTimeout, "did not report DONE"),
+]
+
+
+@pytest.mark.parametrize("board, fault, error, message", CASES)
+def test_a_board_that_resets_or_stops_answering_mid_run_stops_the_motor(
+    tmp_path, board, fault, error, message
+):
+    world = make_world()
+    option = f"&{fault}=3.0"  # device s after the ports open: during the hold (after the 0.5 s rest)
+    rig = _live(world, **({"daq": option} if board == "daq" else {"stepper": option}))
+    with rig, pytest.raises(error, match=message) as info:
+        rig.run_pulse(100, 10, path=tmp_path / "p")
+    assert "\n" not in str(info.value)
+    assert not rig.daq.port.is_open and not rig.stepper.port.is_open  # closed by the with block
+    assert not world.stepper.running
+    if not (board == "stepper" and fault == "hang_at"):
+        assert world.stepper.received[-2:] == ["ABORT", "EN 0"] and not world.stepper.enabled
+    saved = recordings.load(info.value.saved_path)  # what was recorded, as aborted, beside the name asked for
+    assert saved.status == "aborted" and error.__name__ in saved.meta["abort_reason"]
+    assert not (tmp_path / "p.csv").exists() and info.value.saved_path.name.startswith("p_aborted_")
+    assert len(saved.frame) == saved.meta["counts"]["samples"] > 1000  # 0.5 s of lead-in and more
+    if board == "daq":  # nothing after the fault (3 s after opening, as the world's clock counts)
+        assert saved.frame["t_us"].iloc[-1] <= 3.0e6 + world.t0_us
+
+
+def test_an_interrupt_mid_run_saves_what_was_recorded_and_disables_the_motor(tmp_path):
+    world = make_world()
+
+    def interrupt(w):
+        if w.t > 3.0:
+            w.listeners.clear()
+            raise KeyboardInterrupt
+
+    with _live(world) as rig:
+        world.listeners.append(interrupt)
+        with pytest.raises(KeyboardInterrupt) as info:
+            rig.run_pulse(100, 10, path=tmp_path / "p")
+    assert world.stepper.received[-2:] == ["ABORT", "EN 0"] and not world.stepper.enabled
+    assert recordings.load(info.value.saved_path).status == "aborted"
+
+
+def test_a_second_open_of_the_same_port_is_refused(tmp_path):
+    world = make_world()
+    with _live(world) as first:
+        with pytest.raises(PortBusy, match="port busy: the daq board"):
+            _live(world)
+        first.run_pulse(100, 10, path=tmp_path / "p")  # the first is undisturbed
+    with _live(world):  # and once it is closed, the port opens again
+        pass
+
+
+@pytest.mark.parametrize("hello", [False, True])
+def test_a_board_of_another_protocol_or_rig_is_refused_when_it_is_synchronised(hello):
+    with pytest.raises(OldFirmware, match=r"firmware 1\.x .*XOR.*flash firmware 2\.x"):
+        Link(FakeBoard("daq", "1.0.0", xor_hex, hello=hello), "daq", timeout=0.5).sync()
+    with pytest.raises(WrongRig, match=r"built for rig deadbeef, but this host runs rig 'paper'"):
+        Link(FakeBoard("stepper", "2.3.0+deadbeef", link_hex, hello=hello), "stepper", timeout=0.5).sync()
+    paper_rig = f"2.3.0+{rigfile.load(REPO_ROOT / 'rigs' / 'paper.toml').hash}"
+    assert Link(FakeBoard("daq", paper_rig, link_hex, hello=hello), "daq", timeout=0.5).sync() == paper_rig
+    no_hash = Link(FakeBoard("daq", "2.0.0", link_hex), "daq", timeout=0.5)  # firmware 2.0: the paper's rig
+    assert no_hash.sync() == "2.0.0"
+
+
+def test_ports_other_than_virtual_or_a_pair_are_one_clear_error():
+    with pytest.raises(ValueError, match=r"'DAQ,STEPPER'.*--ports auto"):
+        LiveRig("auto", calibration=CALIBRATION)
+
+
+def _cell(notebook: str, start: str) -> str:
+    cells = json.loads((REPO_ROOT / "notebooks" / notebook).read_text())["cells"]
+    (source,) = [
+        "".join(c["source"]) for c in cells if c["cell_type"] == "code" and start in "".join(c["source"])
+    ]
+    assert source.startswith("# NBVAL_SKIP\nif LIVE:")
+    return source
+
+
+def test_notebook_02s_live_cell_records_the_identification_run(tmp_path):
+    world = make_world()
+    identified = []
+    namespace = {
+        "LIVE": True, "PORTS": _ports(world), "V_IN_MM_S": 100, "X_F_MM": 10, "WINDOW_S": (9.0, 10.0),
+        "RECORDING": tmp_path / "identification" / "pulse_v100_x10", "REPO_ROOT": tmp_path,
+        "identify_recording": lambda rec, window, column: identified.append(rec) or rec.path,
+        "save_identification": lambda path: path,
+    }  # fmt: skip
+    exec(_cell("02_pulse_identification.ipynb", "run_pulse"), namespace)  # noqa: S102
+    (rec,) = identified
+    assert recordings.load(tmp_path / "identification" / "pulse_v100_x10.csv").status == "complete"
+    assert rec.meta["scenario"]["v_in_mm_s"] == 100 and rec.frame["steps"].max() == round(10 / MM_PER_STEP)
+
+
+def test_notebook_04s_live_cell_records_every_system_of_a_condition(tmp_path, monkeypatch, capsys):
+    world = make_world()
+    monkeypatch.setattr(scenarios, "table_i_conditions", lambda: ((200.0, 10.0),))  # one of Table I's four
+    zv, zvd = design_tdfs(paper.OMEGA_D, paper.ZETA)
+    namespace = {
+        "LIVE": True, "PORTS": _ports(world), "REPETITIONS": 1, "GROUP": tmp_path / "experiments",
+        "REPO_ROOT": tmp_path, "paper": paper, "shapers": {"unshaped": None, "zv": zv, "zvd": zvd},
+        "zeta": paper.ZETA, "omega_d": paper.OMEGA_D,
+    }  # fmt: skip
+    exec(_cell("04_experiments.ipynb", "run_pulse"), namespace)  # noqa: S102
+    names = sorted(p.name for p in (tmp_path / "experiments").glob("*.csv"))
+    assert names == ["unshaped_v200_x10_r1.csv", "zv_v200_x10_r1.csv", "zvd_v200_x10_r1.csv"]
+    rec = recordings.load(tmp_path / "experiments" / "zvd_v200_x10_r1.csv")
+    assert rec.meta["scenario"]["design"] == {"zeta": paper.ZETA, "omega_d": paper.OMEGA_D}
+    assert rec.meta["scenario"]["system"] == "zvd" and rec.meta["scenario"]["repetition"] == 1
+    assert np.allclose(rec.meta["scenario"]["shaper"]["amplitudes"], zvd.amplitudes)
+    assert "3 recordings written under experiments" in capsys.readouterr().out
