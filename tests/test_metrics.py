@@ -15,7 +15,7 @@ import pytest
 
 from helpers.paper import metrics
 from helpers.paper.numbers import TABLE_I_CONDITIONS, table_ii
-from helpers.research import residuals
+from helpers.research import residuals, table_ii_checks
 
 matplotlib.use("Agg")
 
@@ -373,7 +373,7 @@ def test_paper_comparison_sets_the_paper_beside_ours():
 
 def test_band_sweep_is_monotonic():
     recs = [fake_recording(200, 20, "unshaped", 1, 0.08)]
-    sweep = metrics.band_sweep(recs, (0.02, 0.05, 0.1))
+    sweep = table_ii_checks.band_sweep(recs, (0.02, 0.05, 0.1))
     up = sweep[sweep["motion"] == "Up"].sort_values("band")["settling_ms_mean"].to_numpy()
     assert np.all(np.diff(up) < 0)
 
@@ -528,7 +528,7 @@ def test_prediction_errors_are_ours_minus_the_papers_on_the_shaped_rows():
     ours = paper.copy()
     ours["peak_n"] += 1.0
     ours["overshoot_pct"] -= 5.0
-    err = metrics.prediction_errors(_as_scenario_table(ours))
+    err = table_ii_checks.prediction_errors(_as_scenario_table(ours))
     assert len(err) == 16 and set(err["system"]) == {"zv", "zvd"}
     np.testing.assert_allclose(err["peak_err_n"], 1.0)
     np.testing.assert_allclose(err["overshoot_err_pp"], -5.0)
@@ -538,7 +538,7 @@ def test_prediction_errors_are_ours_minus_the_papers_on_the_shaped_rows():
 
 def test_ordering_agreement_of_the_paper_with_itself_and_with_a_reversed_table():
     paper = table_ii()
-    same = metrics.ordering_agreement(_as_scenario_table(paper), "overshoot_pct")
+    same = table_ii_checks.ordering_agreement(_as_scenario_table(paper), "overshoot_pct")
     assert len(same) == 4 * 2 * 3 and same["agrees"].all()
     # 8 informative orderings (robust against non-robust), 16 trivial ones (a shaper below the pulse)
     assert set(same.loc[same.informative, "ordering"]) == {"zvd < zv"} and same.informative.sum() == 8
@@ -552,7 +552,7 @@ def test_ordering_agreement_of_the_paper_with_itself_and_with_a_reversed_table()
     assert not row["paper"].item()
     reversed_ = paper.copy()
     reversed_["settling_ms"] = -reversed_["settling_ms"]
-    flipped = metrics.ordering_agreement(_as_scenario_table(reversed_), "settling_ms")
+    flipped = table_ii_checks.ordering_agreement(_as_scenario_table(reversed_), "settling_ms")
     # reversing every value flips every ordering except ties (the paper has one: 30 mm Up, 1044 ms twice)
     key = paper.set_index(["v_in_mm_s", "x_f_mm", "system", "motion"])["settling_ms"]
     ties = [key[(v, x, a, m)] == key[(v, x, b, m)]
@@ -561,7 +561,7 @@ def test_ordering_agreement_of_the_paper_with_itself_and_with_a_reversed_table()
     assert sum(ties) == 1
     np.testing.assert_array_equal(flipped["agrees"].to_numpy(), np.array(ties))
     with pytest.raises(ValueError, match="metric"):
-        metrics.ordering_agreement(_as_scenario_table(paper), "peak_n")
+        table_ii_checks.ordering_agreement(_as_scenario_table(paper), "peak_n")
 
 
 def test_another_chain_is_bounded_by_the_adc_rails_only():

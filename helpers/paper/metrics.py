@@ -43,7 +43,7 @@ makes the overshoot and the settling time NaN (the step itself is unknown).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
@@ -551,7 +551,8 @@ def recording_metrics(
     ]
 
 
-_KEYS = ["v_in_mm_s", "x_f_mm", "system", "motion"]
+KEYS = ["v_in_mm_s", "x_f_mm", "system", "motion"]
+"""The columns that name a row of Table II: condition, system, motion."""
 
 
 def _scenario_of(rec: Any, i: int) -> dict[str, Any]:
@@ -697,8 +698,8 @@ def summarise(runs: pd.DataFrame, band: float) -> pd.DataFrame:
         bounds.
     """
     rows = []
-    for keys, g in runs.groupby(_KEYS, sort=False):
-        row: dict[str, Any] = dict(zip(_KEYS, keys, strict=True))
+    for keys, g in runs.groupby(KEYS, sort=False):
+        row: dict[str, Any] = dict(zip(KEYS, keys, strict=True))
         row["n_runs"] = len(g)
         for m in METRIC_COLUMNS:
             vals = g[m].to_numpy(dtype=float)
@@ -735,42 +736,16 @@ def paper_comparison(table: pd.DataFrame) -> pd.DataFrame:
         ``reason`` if the table has them (a clipped peak stays flagged beside the paper's); rows of either
         table without a partner have NaN in the other's columns.
     """
-    need = _KEYS + [f"{m}_mean" for m in METRIC_COLUMNS]
+    need = KEYS + [f"{m}_mean" for m in METRIC_COLUMNS]
     missing = [c for c in need if c not in table.columns]
     if missing:
         raise ValueError(f"table lacks column(s) {missing}: pass the output of scenario_table()")
     extra = [c for c in ("peak_is_bound", "reason") if c in table.columns]
     ours = table[need + extra].rename(columns={f"{m}_mean": m for m in METRIC_COLUMNS})
     theirs = paper.table_ii().rename(columns={m: f"{m}_paper" for m in METRIC_COLUMNS})
-    merged = ours.merge(theirs, on=_KEYS, how="outer")
-    cols = _KEYS + [c for m in METRIC_COLUMNS for c in (m, f"{m}_paper")] + extra
+    merged = ours.merge(theirs, on=KEYS, how="outer")
+    cols = KEYS + [c for m in METRIC_COLUMNS for c in (m, f"{m}_paper")] + extra
     return paper_order(merged[cols])
-
-
-def band_sweep(recordings: Sequence[Any], bands: Iterable[float], **kwargs: Any) -> pd.DataFrame:
-    """Settling time against the band: :func:`scenario_table` for each band, stacked.
-
-    Parameters
-    ----------
-    recordings : sequence
-        Recordings as for :func:`metrics_by_run`.
-    bands : iterable of float
-        Band fractions, e.g. ``(0.02, 0.05, 0.10)``.
-    **kwargs
-        Passed to :func:`motion_metrics`.
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``band``, the keys, ``settling_ms_mean``, ``settling_ms_std``, ``settling_ms_n``.
-    """
-    parts = [
-        scenario_table(recordings, b, **kwargs)[
-            ["band", *_KEYS, "settling_ms_mean", "settling_ms_std", "settling_ms_n"]
-        ]
-        for b in bands
-    ]
-    return pd.concat(parts, ignore_index=True)
 
 
 RESIDUAL_START_S = 0.1
@@ -822,78 +797,3 @@ def residual_vibration(
         return math.nan
     w = y[window]
     return float(100.0 * (w.max() - w.min()) / 2.0 / step)
-
-
-ORDERINGS = (("zv", "unshaped"), ("zvd", "zv"), ("zvd", "unshaped"))
-"""The paper's orderings, per condition and motion: each pair ``(a, b)`` claims ``a`` below ``b`` (in
-overshoot and in settling time): a shaper beats the pulse, the robust shaper beats the non-robust one."""
-
-INFORMATIVE_ORDERINGS = (("zvd", "zv"),)
-"""The orderings that tell the designs apart: robust against non-robust. A shaped move below the unshaped
-pulse (the other two) is all but certain for any shaper near the mode, so those 16 of the 24 are trivial."""
-
-
-def prediction_errors(table: pd.DataFrame, systems: Sequence[str] = ("zv", "zvd")) -> pd.DataFrame:
-    """Errors of a Table II (means) against the paper's, for the rows of ``systems``.
-
-    Parameters
-    ----------
-    table : pandas.DataFrame
-        Output of :func:`scenario_table` (or a stored copy of it).
-    systems : sequence of str
-        The systems whose rows are compared (default the shaped ones: the held-out predictions).
-
-    Returns
-    -------
-    pandas.DataFrame
-        The keys, then ``peak_err_n``, ``overshoot_err_pp``, ``settling_err_ms`` (ours minus the paper's) and
-        ``peak_is_bound`` (False if the table does not say).
-    """
-    cmp = paper_comparison(table)
-    cmp = cmp[cmp["system"].isin(systems)].copy()
-    out = cmp[_KEYS].copy()
-    out["peak_err_n"] = cmp["peak_n"] - cmp["peak_n_paper"]
-    out["overshoot_err_pp"] = cmp["overshoot_pct"] - cmp["overshoot_pct_paper"]
-    out["settling_err_ms"] = cmp["settling_ms"] - cmp["settling_ms_paper"]
-    bound = cmp["peak_is_bound"] if "peak_is_bound" in cmp else pd.Series(False, index=cmp.index)
-    out["peak_is_bound"] = bound.fillna(False).astype(bool)
-    return out.reset_index(drop=True)
-
-
-def ordering_agreement(table: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """Whether a Table II reproduces the paper's orderings (:data:`ORDERINGS`) of ``metric``, row by row.
-
-    Parameters
-    ----------
-    table : pandas.DataFrame
-        Output of :func:`scenario_table` (means in ``<metric>_mean``).
-    metric : {"overshoot_pct", "settling_ms"}
-        The metric compared.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Per condition, motion and ordering ``a < b``: ``informative`` (robust against non-robust,
-        :data:`INFORMATIVE_ORDERINGS`; the others are trivial), ``paper`` (does the paper's table show it),
-        ``ours`` (does ``table``), ``agrees`` (the same answer) and ``ours_margin`` (``b - a`` in ``table``,
-        in the metric's unit: a disagreement by a hair is a tie).
-    """
-    if metric not in ("overshoot_pct", "settling_ms"):
-        raise ValueError(f"metric must be 'overshoot_pct' or 'settling_ms', got {metric!r}")
-    ours = table.set_index(_KEYS)[f"{metric}_mean"]
-    theirs = paper.table_ii().set_index(_KEYS)[metric]
-    rows = []
-    for v, x in paper.TABLE_I_CONDITIONS:
-        for motion in MOTIONS:
-            for a, b in ORDERINGS:
-                key_a, key_b = (float(v), float(x), a, motion), (float(v), float(x), b, motion)
-                p_ok = bool(theirs.loc[key_a] < theirs.loc[key_b])
-                try:
-                    margin = float(ours.loc[key_b] - ours.loc[key_a])
-                    o_ok = bool(ours.loc[key_a] < ours.loc[key_b])
-                except KeyError:
-                    margin, o_ok = math.nan, None
-                rows.append({"v_in_mm_s": v, "x_f_mm": x, "motion": motion, "ordering": f"{a} < {b}",
-                             "informative": (a, b) in INFORMATIVE_ORDERINGS, "paper": p_ok, "ours": o_ok,
-                             "agrees": o_ok == p_ok, "ours_margin": margin})  # fmt: skip
-    return pd.DataFrame(rows)
