@@ -2,16 +2,13 @@
 
 - :mod:`helpers.virtual.emulator.boards`: the DAQ and stepper boards, behaving as the firmware does;
 - :mod:`helpers.virtual.emulator.world`: one virtual rig (plant, sensor, both boards, one device clock) and
-the
-  registry of named rigs;
+  the registry of named rigs;
 - :mod:`helpers.virtual.emulator.protocol_virtual`: the pyserial URL handler ``virtual://daq?rig=NAME``;
-pyserial
-  finds it when ``helpers.virtual.emulator`` is in ``serial.protocol_handler_packages``, which
-  :func:`helpers.rig.ports.open_port` arranges when it is asked to open a ``virtual://`` URL;
+  pyserial finds it when ``helpers.virtual.emulator`` is in ``serial.protocol_handler_packages``, which
+  :func:`helpers.live.ports.open_port` arranges when it is asked to open a ``virtual://`` URL;
 - :mod:`helpers.virtual.emulator.server`: ``python -m helpers serve-virtual-rig``, both boards on
-pseudo-terminals.
+  pseudo-terminals.
 
 The physics comes from :mod:`helpers.virtual`, the protocol from :mod:`helpers.board.protocol`; nothing here
-imports
-the host drivers (:mod:`helpers.rig`).
+imports the host drivers (:mod:`helpers.live`, :mod:`helpers.rig`).
 """

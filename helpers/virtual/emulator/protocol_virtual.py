@@ -11,7 +11,7 @@ URLs: ``virtual://daq?rig=<name>`` and ``virtual://stepper?rig=<name>``; the sam
   ``hang_at``, ``disconnect_at`` (device seconds after the port is opened), ``overrun_every`` (samples).
 
 pyserial finds this handler when ``"helpers.virtual.emulator"`` is in ``serial.protocol_handler_packages``;
-:func:`helpers.rig.ports.open_port` adds it when it opens a ``virtual://`` URL (not as an import side
+:func:`helpers.live.ports.open_port` adds it when it opens a ``virtual://`` URL (not as an import side
 effect). Device time runs as fast as the reader consumes it: a read waits, in device time, at most
 the port's timeout, so a read that finds nothing advances the clock by the timeout (or to the next event such
 as ``DONE``); a read of a streaming DAQ generates samples chunk by chunk until it has the bytes it asked for.
