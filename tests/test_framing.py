@@ -27,6 +27,7 @@ from helpers.board.protocol import (
     parse_body,
     unframe,
 )
+from helpers.rig.daq import ProgrammeStreamParser
 
 STRUCTURED_EXAMPLES = 1000
 FUZZ_EXAMPLES = 750
@@ -283,7 +284,7 @@ def test_total_fuzzed_streams_is_at_least_ten_thousand():
 
 def test_impossible_step_counts_are_rejected_and_counted():
     """A bit error that survives the checksum can still describe the impossible: reject and count it."""
-    p = StreamParser(max_step_rate_hz=2000.0)
+    p = ProgrammeStreamParser(max_step_rate_hz=2000.0)
     p.steps_range = (0, 78)
     lines = [
         frame("D,0,1000,600,10"),
@@ -303,7 +304,7 @@ def test_impossible_step_counts_are_rejected_and_counted():
 
 def test_a_step_while_the_programme_makes_none_is_rejected_and_counted():
     """Steps happen only inside the programme's segments; a count that changes in a dwell is impossible."""
-    p = StreamParser(max_step_rate_hz=2000.0)
+    p = ProgrammeStreamParser(max_step_rate_hz=2000.0)
     p.step_windows = (np.array([2_000, 9_000]), np.array([4_000, 10_000]))  # two segments, a dwell between
     lines = [
         frame("D,0,1000,600,0"),

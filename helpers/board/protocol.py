@@ -1,15 +1,13 @@
 """The serial protocol of both boards (``firmware/PROTOCOL.md``): framing, checksums, line splitting, parsing.
 
-The host drivers (``helpers.rig``) and the emulated boards (``helpers.virtual.emulator``) both speak it
-through this
-module. Every line a board sends ends in ``*hh``, the CRC-8 of all bytes before the ``*``
-(:mod:`helpers.board.crc8`) as two upper-case hex digits. This module turns a byte stream into classified
-lines and
-never raises on garbage: a line that fails any check (non-ASCII, missing or wrong checksum, too long,
-malformed data fields) is reported as corrupted. A line whose checksum is the XOR of protocol 1 (firmware 1.x)
-is also corrupted, and when it is such a board's ``HELLO``, ``PONG`` or ``ERR CHECKSUM``,
-:attr:`StreamParser.legacy` keeps it so that the driver can stop with one clear error (there is no fallback to
-XOR).
+The host drivers (``helpers.live``, ``helpers.rig``) and the emulated boards (``helpers.virtual.emulator``)
+both speak it through this module. Every line a board sends ends in ``*hh``, the CRC-8 of all bytes before the
+``*`` (:mod:`helpers.board.crc8`) as two upper-case hex digits. This module turns a byte stream into
+classified lines and never raises on garbage: a line that fails any check (non-ASCII, missing or wrong
+checksum, too long, malformed data fields) is reported as corrupted. A line whose checksum is the XOR of
+protocol 1 (firmware 1.x) is also corrupted, and when it is such a board's ``HELLO``, ``PONG`` or
+``ERR CHECKSUM``, :attr:`StreamParser.legacy` keeps it so that the driver can stop with one clear error (there
+is no fallback to XOR).
 
 :class:`StreamParser` is the one place where the DAQ stream's bookkeeping happens: it counts exactly
 
@@ -18,9 +16,10 @@ XOR).
 - ``overruns``: sample periods the board itself reports as missed (``W,OVERRUN,<n>``),
 - ``corrupted``: non-blank lines that failed a check,
 - ``implausible``: data lines that passed every check but describe the impossible: a step count that changed
-  faster than the step-rate limit allows, left the range the running programme can reach
-  (:attr:`StreamParser.steps_range`), or changed while the programme makes no step
-  (:attr:`StreamParser.step_windows`); they are rejected (their ``seq`` then counts as dropped too),
+  faster than the step-rate limit allows (the full rig's parser,
+  :class:`helpers.rig.daq.ProgrammeStreamParser`, also rejects one outside the range the running programme
+  can reach or one that changed while the programme makes no step); they are rejected (their ``seq`` then
+  counts as dropped too),
 
 and unwraps the board's 32-bit microsecond clock.
 """
@@ -285,11 +284,6 @@ class StreamParser:
         """The first line from a protocol-1 board (XOR-framed ``HELLO``/``PONG`` 1.x or ``ERR CHECKSUM``)."""
         self.max_step_rate_hz = max_step_rate_hz
         """Step-rate limit used to reject impossible step counts (None: no check)."""
-        self.steps_range: tuple[int, int] | None = None
-        """The step counts the running programme can reach (from ``ZERO``), or None (no check)."""
-        self.step_windows: tuple[np.ndarray, np.ndarray] | None = None
-        """Sorted, disjoint ``(starts, ends)`` in device us where the programme makes steps, or None (no
-        check): a count that changes outside them is impossible."""
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
         self._t_offset = 0
@@ -303,20 +297,11 @@ class StreamParser:
         self._last_sample = None
 
     def _plausible(self, t_us: int, steps: int) -> bool:
-        """A step count the motor can have reached: within the programme's range, no faster than allowed."""
-        rng = self.steps_range
-        if rng is not None and not rng[0] <= steps <= rng[1]:
-            return False
+        """A step count the motor can have reached: no faster than the step-rate limit allows."""
         last = self._last_sample
         if last is not None and self.max_step_rate_hz is not None:
             dt = max(t_us - last[0], 0)
             if abs(steps - last[1]) > self.max_step_rate_hz * dt * 1e-6 + 1:
-                return False
-        windows = self.step_windows
-        if windows is not None and last is not None and steps != last[1]:
-            # the count changed in (last t, t]: some window must overlap that interval
-            i = int(np.searchsorted(windows[0], t_us, side="right")) - 1
-            if i < 0 or windows[1][i] < last[0]:
                 return False
         return True
 

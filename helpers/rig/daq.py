@@ -19,6 +19,38 @@ from helpers.rig.boards import BoardError, BoardLink, BoardTimeout
 RATE_MIN_HZ, RATE_MAX_HZ = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ
 
 
+class ProgrammeStreamParser(StreamParser):
+    """:class:`~helpers.board.protocol.StreamParser` that also knows the running programme.
+
+    Besides a step count that changes faster than the step-rate limit, it rejects as implausible one outside
+    :attr:`steps_range` and one that changes outside :attr:`step_windows` (their ``seq`` then counts as
+    dropped too).
+    """
+
+    def __init__(self, max_step_rate_hz: float | None = None) -> None:
+        super().__init__(max_step_rate_hz)
+        self.steps_range: tuple[int, int] | None = None
+        """The step counts the running programme can reach (from ``ZERO``), or None (no check)."""
+        self.step_windows: tuple[np.ndarray, np.ndarray] | None = None
+        """Sorted, disjoint ``(starts, ends)`` in device us where the programme makes steps, or None (no
+        check): a count that changes outside them is impossible."""
+
+    def _plausible(self, t_us: int, steps: int) -> bool:
+        """Within the programme's range, no faster than allowed, changed only while the programme steps."""
+        rng = self.steps_range
+        if rng is not None and not rng[0] <= steps <= rng[1]:
+            return False
+        if not super()._plausible(t_us, steps):
+            return False
+        last, windows = self._last_sample, self.step_windows
+        if windows is not None and last is not None and steps != last[1]:
+            # the count changed in (last t, t]: some window must overlap that interval
+            i = int(np.searchsorted(windows[0], t_us, side="right")) - 1
+            if i < 0 or windows[1][i] < last[0]:
+                return False
+        return True
+
+
 class DaqBoard(BoardLink):
     """The DAQ board: samples (``seq``, ``t_us`` unwrapped, ``adc``, ``steps``) with exact fault counts.
 
@@ -34,7 +66,7 @@ class DaqBoard(BoardLink):
 
     def __init__(self, port, timeout: float = 2.0) -> None:
         super().__init__(port, timeout)
-        self.parser = StreamParser(max_step_rate_hz=MAX_STEP_RATE_HZ)
+        self.parser = ProgrammeStreamParser(max_step_rate_hz=MAX_STEP_RATE_HZ)
         self.rate_hz = DAQ_RATE_DEFAULT_HZ
         self.streaming = False
 
