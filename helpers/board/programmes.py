@@ -259,7 +259,10 @@ class Programme:
                 )
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description for a recording's metadata (:meth:`from_dict` reads it back)."""
+        """JSON-ready description for a recording's metadata.
+
+        :func:`helpers.rig.stepper.programme_from_dict` reads it back.
+        """
         items: list[dict[str, Any]] = []
         for item in self.items:
             if isinstance(item, Segment):
@@ -270,41 +273,6 @@ class Programme:
             else:
                 items.append({"kind": "WAIT", "ms": item.ms})
         return {"items": items, "duration_s": self.duration_s, "net_steps": self.net_steps}
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> Programme:
-        """Rebuild a programme from :meth:`to_dict` output (``duration_s``/``net_steps`` are checked).
-
-        Parameters
-        ----------
-        data : dict
-            ``{"items": [{"kind": "SEG", ...} | {"kind": "WAIT", "ms": ...}, ...], ...}``.
-
-        Returns
-        -------
-        Programme
-        """
-        if not isinstance(data, dict) or not isinstance(data.get("items"), list):
-            raise ValueError("a programme dict needs an 'items' list")
-        items: list[Item] = []
-        for i, d in enumerate(data["items"]):
-            kind = d.get("kind") if isinstance(d, dict) else None
-            if kind == "SEG":
-                items.append(Segment(d.get("direction"), d.get("n_steps"), d.get("interval_us")))
-            elif kind == "WAIT":
-                items.append(Dwell(d.get("ms")))
-            else:
-                raise ValueError(f"programme item {i}: unknown kind {kind!r} (expected 'SEG' or 'WAIT')")
-        prog = cls(tuple(items))
-        if "net_steps" in data and data["net_steps"] != prog.net_steps:
-            raise ValueError(
-                f"programme dict says net_steps={data['net_steps']}, its items give {prog.net_steps}"
-            )
-        if "duration_s" in data and abs(float(data["duration_s"]) - prog.duration_s) > 1e-9:
-            raise ValueError(
-                f"programme dict says duration_s={data['duration_s']}, its items give {prog.duration_s}"
-            )
-        return prog
 
 
 # -- quantisation of an experiment ------------------------------------------------------------------------

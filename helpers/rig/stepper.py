@@ -7,10 +7,48 @@ here, as they may arrive between any two replies.
 
 from __future__ import annotations
 
-from helpers.board.programmes import Programme
+from typing import Any
+
+from helpers.board.programmes import Dwell, Item, Programme, Segment
 from helpers.paper.hardware import STEPPER_BAUD
 from helpers.rig.boards import SEND_ATTEMPTS, BoardError, BoardLink, LinkCorrupted
 from helpers.rig.safety import check_programme
+
+
+def programme_from_dict(data: dict[str, Any]) -> Programme:
+    """Rebuild a programme from :meth:`Programme.to_dict` output (``duration_s``/``net_steps`` are checked).
+
+    Parameters
+    ----------
+    data : dict
+        ``{"items": [{"kind": "SEG", ...} | {"kind": "WAIT", "ms": ...}, ...], ...}``, as a recording's
+        ``scenario["programme"]``.
+
+    Returns
+    -------
+    Programme
+    """
+    if not isinstance(data, dict) or not isinstance(data.get("items"), list):
+        raise ValueError("a programme dict needs an 'items' list")
+    items: list[Item] = []
+    for i, d in enumerate(data["items"]):
+        kind = d.get("kind") if isinstance(d, dict) else None
+        if kind == "SEG":
+            items.append(Segment(d.get("direction"), d.get("n_steps"), d.get("interval_us")))
+        elif kind == "WAIT":
+            items.append(Dwell(d.get("ms")))
+        else:
+            raise ValueError(f"programme item {i}: unknown kind {kind!r} (expected 'SEG' or 'WAIT')")
+    prog = Programme(tuple(items))
+    if "net_steps" in data and data["net_steps"] != prog.net_steps:
+        raise ValueError(
+            f"programme dict says net_steps={data['net_steps']}, its items give {prog.net_steps}"
+        )
+    if "duration_s" in data and abs(float(data["duration_s"]) - prog.duration_s) > 1e-9:
+        raise ValueError(
+            f"programme dict says duration_s={data['duration_s']}, its items give {prog.duration_s}"
+        )
+    return prog
 
 
 def last_int(reply: str, what: str) -> int:
