@@ -14,7 +14,7 @@ from rig_fakes import make_world
 from helpers import recordings
 from helpers.base.jsonfile import DataFileError
 from helpers.base.paths import DATA_DIR
-from helpers.board.programmes import experiment_programme, shaped_moves
+from helpers.board.programmes import experiment_programme
 from helpers.commands import record
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.paper.shapers import Shaper
@@ -33,7 +33,7 @@ DOWN = Shaper(np.array([0.25, 0.5, 0.25]), np.array([0.0, 0.125, 0.25]), "down")
 
 
 def test_a_pair_shapes_each_move_with_its_own_shaper():
-    up, down = shaped_moves(200.0, 30.0, ShaperPair(UP, DOWN), t_up=1.0, t_down=8.0)
+    up, down = ShaperPair(UP, DOWN).moves(200.0, 30.0, t_up=1.0, t_down=8.0)
     t_p = 30.0 / 200.0
     np.testing.assert_allclose(up.breakpoints, 1.0 + np.array([0.0, 0.1, t_p, t_p + 0.1]), atol=1e-12)
     np.testing.assert_allclose(up.velocities, [100.0, 200.0, 100.0])
@@ -48,7 +48,7 @@ def test_a_pair_shapes_each_move_with_its_own_shaper():
 
 def test_a_schedule_runs_its_sub_moves_and_only_for_its_move():
     d = map_following(MAP, 20.0, 200.0, "ZVD")
-    up, down = shaped_moves(200.0, 20.0, d)
+    up, down = d.moves(200.0, 20.0, t_up=1.0, t_down=8.0)
     subs = d.shaping.up.sub_moves
     ends = {1.0 + s.start_s for s in subs} | {1.0 + s.end_s for s in subs}
     assert set(np.round(up.breakpoints, 12)) <= set(np.round(sorted(ends), 12))

@@ -35,7 +35,6 @@ __all__ = [
     "ShapesMoves",
     "MIN_PIECE_S",
     "experiment_programme",
-    "shaped_moves",
     "table_i_programmes",
     "programmes_table",
 ]
@@ -539,38 +538,6 @@ def experiment_programme(
     return programme, report
 
 
-def shaped_moves(
-    v_in_mm_s: float,
-    x_f_mm: float,
-    shaping: Shaper | ShapesMoves | None,
-    t_up: float = paper.PULSE_T_UP_S,
-    t_down: float = paper.PULSE_T_DOWN_S,
-) -> tuple[VelocityProfile, VelocityProfile]:
-    """The exact shaped Up and Down moves of a pulse experiment, before quantisation.
-
-    Parameters
-    ----------
-    v_in_mm_s, x_f_mm : float
-        The move.
-    shaping : Shaper, ShapesMoves or None
-        As :func:`experiment_programme`'s ``shaper``.
-    t_up, t_down : float
-        When the moves start (s).
-
-    Returns
-    -------
-    (VelocityProfile, VelocityProfile)
-        The Up move (positive velocities) and the Down move (negative).
-    """
-    if shaping is None or isinstance(shaping, Shaper):
-        up = single_pulse(v_in_mm_s, x_f_mm, t_up, +1).shaped(shaping)
-        down = single_pulse(v_in_mm_s, x_f_mm, t_down, -1).shaped(shaping)
-        return up, down
-    if isinstance(shaping, ShapesMoves):
-        return shaping.moves(v_in_mm_s, x_f_mm, t_up, t_down)
-    raise ValueError(f"shaper must be a Shaper, ShaperPair, Schedule, Design or None, got {shaping!r}")
-
-
 def _shaped_moves(
     v_in_mm_s: float, x_f_mm: float, shaper: Shaper | ShapesMoves | None, t_up: float,
     t_down: float, t_end: float, limits: Limits,
@@ -580,7 +547,16 @@ def _shaped_moves(
     n_total = int(round(x_f_mm / MM_PER_STEP))
     if n_total < 1:
         raise ValueError(f"x_f_mm = {x_f_mm} mm is less than half a step ({MM_PER_STEP:.5f} mm)")
-    up, down = shaped_moves(v_in_mm_s, x_f_mm, shaper, t_up, t_down)
+    if shaper is None or isinstance(shaper, Shaper):
+        up = single_pulse(v_in_mm_s, x_f_mm, t_up, +1).shaped(shaper)
+        down = single_pulse(v_in_mm_s, x_f_mm, t_down, -1).shaped(shaper)
+    elif isinstance(shaper, ShapesMoves):
+        up, down = shaper.moves(v_in_mm_s, x_f_mm, t_up, t_down)
+    else:
+        raise ValueError(
+            f"shaper must be a Shaper, a shaping that makes its own moves (ShapesMoves) or None, "
+            f"got {shaper!r}"
+        )
     peak = max(float(np.max(np.abs(up.velocities))), float(np.max(np.abs(down.velocities))))
     if peak > limits.max_speed_mm_s:
         raise ValueError(

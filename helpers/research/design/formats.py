@@ -32,7 +32,6 @@ from typing import Any
 import numpy as np
 
 from helpers.base.jsonfile import DataFileError, json_safe, read_json, write_json
-from helpers.board.programmes import shaped_moves
 from helpers.paper.profiles import VelocityProfile, single_pulse
 from helpers.paper.shapers import SUM_TOLERANCE, Shaper
 from helpers.recordings.shaping import DESIGN_FORMAT, DESIGN_VERSION, SYSTEMS, shaper_to_dict
@@ -322,7 +321,10 @@ class Design:
         self, v_in_mm_s: float, x_f_mm: float, t_up: float, t_down: float
     ) -> tuple[VelocityProfile, VelocityProfile]:
         """The shaped Up and Down moves of this design's shaping, before quantisation."""
-        return shaped_moves(v_in_mm_s, x_f_mm, self.shaping, t_up, t_down)
+        if isinstance(self.shaping, Shaper):  # both moves by the one shaper
+            up = single_pulse(v_in_mm_s, x_f_mm, t_up, +1).shaped(self.shaping)
+            return up, single_pulse(v_in_mm_s, x_f_mm, t_down, -1).shaped(self.shaping)
+        return self.shaping.moves(v_in_mm_s, x_f_mm, t_up, t_down)
 
     def design_document(self, system: str | None = None) -> dict[str, Any]:
         """The design-file document, under ``system`` if it differs (:func:`as_design`)."""
