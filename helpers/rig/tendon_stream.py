@@ -29,7 +29,6 @@ recorded is saved under an aborted name (the exception carries ``recording``, ``
 
 from __future__ import annotations
 
-import datetime as _dt
 import hashlib
 import os
 from dataclasses import dataclass, field
@@ -41,6 +40,7 @@ import numpy as np
 from helpers import recordings
 from helpers.base.paths import DATA_DIR
 from helpers.board import stream_reference as hs
+from helpers.live.driver import utc_now
 from helpers.recordings import Recording, RecordingError, reserve
 from helpers.rig.boards import BoardError, BoardTimeout, CommandRefused, Waiter
 from helpers.rig.safety import SafetyError
@@ -199,10 +199,6 @@ def _shaper_meta(shaper: Any, board: hs.StreamShaper) -> dict[str, Any] | None:
             "times": [float(t) for t in shaper.times]}  # fmt: skip
 
 
-def _utc_now() -> str:
-    return _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
-
-
 @dataclass
 class _Feed:
     """A stream as it goes: what was sent and what the board said (``scenario.stream``)."""
@@ -335,7 +331,7 @@ class TendonStreamRig(TendonRig):
 
     def _target(self, path: str | os.PathLike | None) -> Path:
         if path is None:
-            return DATA_DIR / "runs" / ("run_" + _utc_now().replace(":", "").replace("-", "") + ".csv")
+            return DATA_DIR / "runs" / ("run_" + utc_now().replace(":", "").replace("-", "") + ".csv")
         target = Path(path)
         target = target.with_suffix(".csv") if target.suffix in ("", ".json") else target
         recordings.check_name(target.stem)
@@ -343,7 +339,7 @@ class TendonStreamRig(TendonRig):
 
     def _stream(self, feed: _Feed, scene: dict[str, Any], target: Path, rate_hz: int, timing: tuple,
                 replace: bool) -> Recording:  # fmt: skip
-        started = _utc_now()
+        started = utc_now()
         self.daq.rows.clear()
         try:
             self.stepper.check_reset()
