@@ -99,21 +99,21 @@ def interrupts_from_signals() -> Iterator[None]:
 
 
 @contextmanager
-def signals_held() -> Iterator[None]:
-    """Defer SIGINT, SIGTERM and SIGHUP for the block; one that arrived is delivered when the block ends.
+def _deferred() -> Iterator[tuple[bool, int]]:
+    """Defer :data:`HELD` for the block; yield whether the handler is installed and the depth before it.
 
-    If the block ends with an exception, that exception goes on and a deferred signal is dropped (it asked
-    to stop, and the run is stopping).
+    A signal deferred at the outermost level is delivered when the block ends without an exception (with one,
+    that exception goes on and the signal is dropped).
     """
     with _handlers() as installed:
         if not installed:
-            yield
+            yield False, _state.depth
             return
         base = _state.depth
         _state.depth = base + 1
         failed = True
         try:
-            yield
+            yield True, base
             failed = False
         finally:
             _state.depth = base
@@ -122,6 +122,17 @@ def signals_held() -> Iterator[None]:
                 _state.pending.clear()
     if not failed:
         _redeliver(pending)
+
+
+@contextmanager
+def signals_held() -> Iterator[None]:
+    """Defer SIGINT, SIGTERM and SIGHUP for the block; one that arrived is delivered when the block ends.
+
+    If the block ends with an exception, that exception goes on and a deferred signal is dropped (it asked
+    to stop, and the run is stopping).
+    """
+    with _deferred():
+        yield
 
 
 @dataclass
@@ -160,21 +171,9 @@ def run_guard() -> Iterator[Guard]:
     A signal deferred in the guard and not taken (:meth:`Guard.take_pending`) is delivered when the guard
     ends without an exception; with one, that exception goes on.
     """
-    with _handlers() as installed:
-        guard = Guard(installed, _state.depth)
-        if not installed:
-            yield guard
-            return
-        _state.depth = guard.base + 1
-        failed = True
+    with _deferred() as (installed, base):
         try:
-            yield guard
-            failed = False
+            yield Guard(installed, base)
         finally:
-            _state.armed = False
-            _state.depth = guard.base
-            pending = [] if guard.base else _state.pending[:]
-            if not guard.base:
-                _state.pending.clear()
-    if not failed:
-        _redeliver(pending)
+            if installed:
+                _state.armed = False
