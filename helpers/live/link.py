@@ -5,8 +5,9 @@ Every line goes through a :class:`helpers.board.protocol.StreamParser`: data lin
 command, ``DONE <position>`` is kept in ``done_position``, ``HELLO`` means the board rebooted (an error
 unless it was expected).
 A timeout is counted by :class:`Waiter`: in device time on the in-process virtual rig, else the larger of wall
-time and the read timeouts that expired. The full rig's link (:class:`helpers.rig.boards.BoardLink`) adds
-resending over a noisy line, the bootloader's quiet time and the protocol-1 check to the same errors.
+time and the read timeouts that expired. Reading the port, resets and closing are :class:`PortLink`'s; the
+full rig's link (:class:`helpers.rig.boards.BoardLink`) is built on it too and adds resending over a noisy
+line and the bootloader's quiet time, with the same errors.
 """
 
 from __future__ import annotations
@@ -153,7 +154,59 @@ class Waiter:
         return self.elapsed >= self.timeout
 
 
-class Link:
+class PortLink:
+    """What both drivers' links do alike: read a board's port through its parser, see resets, close.
+
+    A subclass sets ``port``, ``kind``, ``parser``, ``rows``, ``replies``, ``hello`` and ``done_position``
+    (:class:`Link`; the full rig's :class:`helpers.rig.boards.BoardLink`), and may take other messages in
+    :meth:`_message`.
+    """
+
+    def waiter(self, timeout: float) -> Waiter:
+        """A :class:`Waiter` in device time on the in-process virtual rig, else in wall time."""
+        return Waiter(timeout, getattr(self.port, "device_time", None))
+
+    def read(self, wait: Waiter | None = None, block: bool = True) -> int:
+        """Read what the port has (if ``block``, waiting up to its read timeout); return the bytes read."""
+        try:
+            n = self.port.in_waiting
+            data = self.port.read(max(n, 1)) if n or block else b""
+            data += self.port.read(self.port.in_waiting) if data and self.port.in_waiting else b""
+        except (serial.SerialException, OSError) as exc:
+            raise BoardDisconnected(f"{self.kind} board disconnected ({self.port.port}): {exc}") from exc
+        if not data and wait is not None:
+            wait.idle(self.port.timeout or 0.0)
+        with signals_held():  # the parser's counts and the kept rows change together
+            rows, messages = self.parser.feed(data)
+            self.rows += rows
+        check_protocol_1(self.parser, self.port.port)
+        for msg in messages:
+            self._message(msg)
+        return len(data)
+
+    def _message(self, msg: str) -> None:
+        """``HELLO`` counts a reset, ``DONE`` keeps its position, a reply waits for its command."""
+        if msg.startswith("HELLO"):
+            self.hello += 1
+        elif msg.startswith("DONE"):
+            self.done_position = int(msg.split()[-1]) if msg.split()[-1].lstrip("-").isdigit() else 0
+        elif msg.startswith(REPLY_PREFIXES):
+            self.replies.append(msg)
+
+    def check_reset(self) -> None:
+        """Raise :class:`BoardReset` if the board sent ``HELLO`` since it was synchronised."""
+        if self.hello:
+            raise BoardReset(f"the {self.kind} board reset (it sent HELLO): its state is lost")
+
+    def close(self) -> None:
+        """Close the port."""
+        try:
+            self.port.close()
+        except (serial.SerialException, OSError):
+            pass
+
+
+class Link(PortLink):
     """One board of ``kind`` (``"daq"`` or ``"stepper"``) on an open port, synchronised by :meth:`open`.
 
     Attributes
@@ -185,38 +238,6 @@ class Link:
             link.close()
             raise
         return link
-
-    def waiter(self, timeout: float) -> Waiter:
-        """A :class:`Waiter` in device time on the in-process virtual rig, else in wall time."""
-        return Waiter(timeout, getattr(self.port, "device_time", None))
-
-    def read(self, wait: Waiter | None = None, block: bool = True) -> int:
-        """Read what the port has (if ``block``, waiting up to its read timeout); return the bytes read."""
-        try:
-            n = self.port.in_waiting
-            data = self.port.read(max(n, 1)) if n or block else b""
-            data += self.port.read(self.port.in_waiting) if data and self.port.in_waiting else b""
-        except (serial.SerialException, OSError) as exc:
-            raise BoardDisconnected(f"{self.kind} board disconnected ({self.port.port}): {exc}") from exc
-        if not data and wait is not None:
-            wait.idle(self.port.timeout or 0.0)
-        with signals_held():  # the parser's counts and the kept rows change together
-            rows, messages = self.parser.feed(data)
-            self.rows += rows
-        check_protocol_1(self.parser, self.port.port)
-        for msg in messages:
-            if msg.startswith("HELLO"):
-                self.hello += 1
-            elif msg.startswith("DONE"):
-                self.done_position = int(msg.split()[-1]) if msg.split()[-1].lstrip("-").isdigit() else 0
-            elif msg.startswith(REPLY_PREFIXES):
-                self.replies.append(msg)
-        return len(data)
-
-    def check_reset(self) -> None:
-        """Raise :class:`BoardReset` if the board sent ``HELLO`` since it was synchronised."""
-        if self.hello:
-            raise BoardReset(f"the {self.kind} board reset (it sent HELLO): its state is lost")
 
     def command(self, body: str, timeout: float | None = None) -> str:
         """Send ``body`` and return its reply; ``ERR`` raises :class:`CommandRefused`, silence a timeout."""
@@ -262,10 +283,3 @@ class Link:
         self.version = words[2]
         self.rows.clear()
         return self.version
-
-    def close(self) -> None:
-        """Close the port."""
-        try:
-            self.port.close()
-        except (serial.SerialException, OSError):
-            pass

@@ -1,9 +1,10 @@
 """The link to one board, shared by both drivers: framed commands, replies, timeouts, resets, disconnects.
 
-Every read goes through :meth:`BoardLink.pump`, which feeds the bytes to a
-:class:`helpers.board.protocol.StreamParser`: data lines become samples (kept for the DAQ driver), other lines
-become messages. Replies (``OK``, ``ERR``, ``PONG``, ``ABORTED``) answer the pending command; unsolicited
-``DONE`` is remembered; ``HELLO`` means the board rebooted, which is an error whenever it was not expected.
+Every read goes through :meth:`BoardLink.pump` (the live link's :meth:`helpers.live.link.PortLink.read`),
+which feeds the bytes to a :class:`helpers.board.protocol.StreamParser`: data lines become samples (kept for
+the DAQ driver), other lines become messages. Replies (``OK``, ``ERR``, ``PONG``, ``ABORTED``) answer the
+pending command; unsolicited ``DONE`` is remembered; ``HELLO`` means the board rebooted, which is an error
+whenever it was not expected.
 
 Timeouts are counted in the port's own read timeouts (a pyserial read that returns early has waited its
 ``timeout``), or in wall time, whichever is larger, on hardware and on pseudo-terminals. The in-process
@@ -26,7 +27,6 @@ from typing import Any
 
 import serial
 
-from helpers.base.signals import signals_held
 from helpers.board.protocol import StreamParser, frame
 from helpers.live.link import (
     BOOT_TIMEOUT_S,
@@ -38,10 +38,10 @@ from helpers.live.link import (
     CommandRefused,
     OldFirmware,
     PortBusy,
+    PortLink,
     Waiter,
     WrongRig,
     check_firmware,
-    check_protocol_1,
     expected_reply,
     open_exclusive,
 )
@@ -80,7 +80,7 @@ SEND_ATTEMPTS = 3
 """How often a command is sent when the board refused it as damaged in transit or its reply was damaged."""
 
 
-class BoardLink:
+class BoardLink(PortLink):
     """One serial port speaking the protocol of ``firmware/PROTOCOL.md``.
 
     Parameters
@@ -104,7 +104,7 @@ class BoardLink:
         self.replies: deque[str] = deque()
         self.unexpected: list[str] = []
         self.done_position: int | None = None
-        self.hello_seen = 0
+        self.hello = 0
         self.version: str | None = None
         self.sent: list[str] = []
         self.expected_rig: Any = None
@@ -151,10 +151,6 @@ class BoardLink:
         return link
 
     # --- low level ----------------------------------------------------------------------------------
-    def waiter(self, timeout: float) -> Waiter:
-        """A :class:`Waiter` for this port: in device time on the in-process virtual rig, else wall time."""
-        return Waiter(timeout, getattr(self.port, "device_time", None))
-
     def _fail_disconnected(self, exc: Exception) -> BoardDisconnected:
         return BoardDisconnected(f"{self.kind} board disconnected ({self.port.port}): {exc}")
 
@@ -169,29 +165,7 @@ class BoardLink:
 
     def pump(self, block: bool = True) -> int:
         """Read what the port has (waiting up to its read timeout if ``block``); return bytes read."""
-        try:
-            n = self.port.in_waiting
-            if n == 0 and not block:
-                return 0
-            data = self.port.read(max(n, 1))
-            if data:
-                more = self.port.in_waiting
-                if more:
-                    data += self.port.read(more)
-        except serial.SerialException as exc:
-            raise self._fail_disconnected(exc) from exc
-        except OSError as exc:
-            raise self._fail_disconnected(exc) from exc
-        if not data:
-            return 0
-        with signals_held():  # the parser's counts and the kept rows change together, or not at all
-            rows, messages = self.parser.feed(data)
-            if rows:
-                self.rows.extend(rows)
-        check_protocol_1(self.parser, self.port.port)
-        for msg in messages:
-            self._message(msg)
-        return len(data)
+        return self.read(block=block)
 
     def _message(self, msg: str) -> None:
         if msg.startswith(REPLY_PREFIXES):
@@ -200,15 +174,10 @@ class BoardLink:
             parts = msg.split()
             self.done_position = int(parts[1]) if len(parts) == 2 and parts[1].lstrip("-").isdigit() else 0
         elif msg.startswith("HELLO"):
-            self.hello_seen += 1
+            self.hello += 1
             self.version = msg.split()[-1] if len(msg.split()) == 3 else None
         else:
             self.unexpected.append(msg)
-
-    def check_reset(self) -> None:
-        """Raise :class:`BoardReset` if the board sent ``HELLO`` since the last :meth:`sync`."""
-        if self.hello_seen:
-            raise BoardReset(f"the {self.kind} board reset (it sent HELLO): its state is lost")
 
     def command(self, body: str, timeout: float | None = None) -> str:
         """Send one command and return its reply; ``ERR`` raises :class:`CommandRefused`.
@@ -292,7 +261,7 @@ class BoardLink:
         quiet = 0.0 if port_name.startswith(("/dev/pts/", "virtual://", "loop://")) else BOOTLOADER_QUIET_S
         quiet = min(quiet, hello_timeout / 2)
         while True:
-            if self.hello_seen:
+            if self.hello:
                 break
             for reply in list(self.replies):
                 if reply.startswith("PONG"):
@@ -316,8 +285,8 @@ class BoardLink:
                     wait.idle(self.port.timeout or 0.0)
                 continue
             break
-        if self.hello_seen:
-            self.hello_seen = 0
+        if self.hello:
+            self.hello = 0
             self.booted_on_open = True
             self.version = self.ping()
         self.replies.clear()
@@ -335,10 +304,3 @@ class BoardLink:
         self.version = words[2]
         check_firmware(self.kind, words[2], self.expected_rig)
         return words[2]
-
-    def close(self) -> None:
-        """Close the port."""
-        try:
-            self.port.close()
-        except (serial.SerialException, OSError):
-            pass

@@ -677,7 +677,7 @@ class Rig(BoardPair):
             ]
         steps.append(("STOP", self.daq, lambda: self.daq.stop(timeout=self.cleanup_timeout)))
         for what, board, fn in steps:
-            board.hello_seen = 0  # a rebooted board still takes the command
+            board.hello = 0  # a rebooted board still takes the command
             try:
                 fn()
             except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - cleanup must go on

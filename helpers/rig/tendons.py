@@ -280,7 +280,7 @@ class TendonRig(BoardPair):
             ("EN 0", self.stepper, lambda: self.stepper.enable(False, timeout=self.cleanup_timeout)),
             ("STOP", self.daq, lambda: self.daq.stop(timeout=self.cleanup_timeout)),
         ):
-            board.hello_seen = 0  # a rebooted board still takes the command
+            board.hello = 0  # a rebooted board still takes the command
             try:
                 fn()
             except Exception as exc:  # noqa: BLE001 - cleanup must go on
