@@ -9,7 +9,7 @@ type live there, so that a run does not carry the fit). Recording the known load
 :mod:`helpers.rig.loadcell`'s job.
 
 (Not to be confused with the virtual rig's *tuning*, :mod:`helpers.virtual.tuning`, or the linear model's
-*fit*, :func:`helpers.paper.model.fit_to_mode`.)
+*fit*, :func:`helpers.research.model_fit.fit_to_mode`.)
 """
 
 from __future__ import annotations

@@ -31,9 +31,11 @@ The paper's mode function (eq. 3) has ``Phi_n(L) = 2 (-1)^(n+1)`` at the exact r
 The masses of the 12 discs are smeared uniformly along the backbone (the paper's "uniform parameter
 distribution" assumption): the mass per length is ``(rod mass + discs) / L``.
 
-Which parameters are known, assumed and fitted is documented on :class:`ArmParameters` and
-:func:`fit_to_mode`, and in ``docs/model.md``. (The model *fit* is not the virtual rig's *tuning*,
-:mod:`helpers.virtual.tuning`, nor the *load-cell calibration*, :mod:`helpers.paper.calibration`.)
+Which parameters are known, assumed and fitted is documented on :class:`ArmParameters` and :data:`FITTED`,
+and in ``docs/model.md``. The fit itself, the project's procedure and not the paper's, is
+:func:`helpers.research.model_fit.fit_to_mode`; this module keeps its result as data. (The model *fit* is not
+the virtual rig's *tuning*, :mod:`helpers.virtual.tuning`, nor the *load-cell calibration*,
+:mod:`helpers.paper.calibration`.)
 """
 
 from __future__ import annotations
@@ -49,14 +51,12 @@ import numpy.typing as npt
 import pandas as pd
 from scipy import linalg, optimize
 
-from helpers.paper import numbers as paper
 from helpers.paper.backbone import Backbone
 
 __all__ = [
     "ArmParameters",
+    "FITTED",
     "DominantMode",
-    "U_REF",
-    "Y_REF",
     "FIXED_DISC_MASS",
     "cantilever_roots",
     "mode_function",
@@ -79,21 +79,13 @@ __all__ = [
     "static_tension_gain",
     "relative_degree",
     "model_order",
-    "fit_to_mode",
-    "fitted_parameters",
     "linear_response",
     "PARAMETER_SOURCES",
     "parameter_table",
 ]
 
-U_REF: float = 0.030
-"""Cable displacement (m) of the paper's tip-displacement statement ("30 mm of cable ...")."""
-
-Y_REF: float = 0.5
-"""Tip displacement (m) the linear model predicts for ``U_REF`` ("approximately 0.5 m", Results)."""
-
 FIXED_DISC_MASS: float = 1.0e-3
-"""Mass of each cable-support disc (kg), *fixed* (not fitted); see :func:`fit_to_mode` for the reason."""
+"""Mass of each cable-support disc (kg), *fixed* (not fitted); :mod:`helpers.research.model_fit` says why."""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -267,24 +259,27 @@ class ArmParameters(Backbone):
 
     The backbone (``E``, ``rho``, ``d``, ``L``, ``n_discs``) is :class:`helpers.paper.backbone.Backbone`'s,
     shared
-    with the virtual rig. The defaults of ``r``, ``k`` and ``zeta`` are the values :func:`fitted_parameters`
-    solves for, rounded to 3 significant digits (they are also the fit's starting point); call
-    :func:`fitted_parameters` for the exact solution.
+    with the virtual rig. The defaults of ``r``, ``k`` and ``zeta`` are the fitted values (:data:`FITTED`),
+    rounded to 3 significant digits (they are also the fit's starting point); use :data:`FITTED` for the
+    exact solution.
 
     Attributes
     ----------
     r : float
-        Cable offset from the neutral axis, m. Not given by the paper: solved by :func:`fit_to_mode` from the
-        paper's statement that 30 mm of cable gives about 0.5 m of predicted tip displacement.
+        Cable offset from the neutral axis, m. Not given by the paper: solved by
+        :func:`helpers.research.model_fit.fit_to_mode` from the paper's statement that 30 mm of cable gives
+        about 0.5 m of predicted tip displacement.
     disc_mass : float
         Mass of each cable-support disc, kg. Not given by the paper: *fixed* at 1.0 g (a 3D-printed disc of
-        about 18 mm diameter and 3 mm thickness); see :func:`fit_to_mode`.
+        about 18 mm diameter and 3 mm thickness); see :func:`helpers.research.model_fit.fit_to_mode`.
     k : float
         Series stiffness of cable, pulleys and load cell, N/m. Not given by the paper: solved by
-        :func:`fit_to_mode`. ``numpy.inf`` gives the paper's inextensible-cable limit.
+        :func:`helpers.research.model_fit.fit_to_mode`. ``numpy.inf`` gives the paper's inextensible-cable
+        limit.
     zeta : float
         Rayleigh damping ratio of modes 1 and 2 (paper eqs. 8-10), dimensionless. Solved by
-        :func:`fit_to_mode` so that the *dominant* pole has the identified damping 0.044.
+        :func:`helpers.research.model_fit.fit_to_mode` so that the *dominant* pole has the identified damping
+        0.044.
     n_modes : int
         Number of modes N retained (paper: 4).
     """
@@ -321,6 +316,15 @@ class ArmParameters(Backbone):
     def mass_per_length(self) -> float:
         """Effective mass per length (rod + smeared discs), kg/m; the paper's ``rho A`` in eq. 5."""
         return self.total_mass / self.L
+
+
+FITTED = ArmParameters(r=0.005864293416234312, k=1744.1442579272143, zeta=0.058275450909921825)
+"""The fitted model: the paper's backbone, the fixed 1.0 g discs and the solved ``r``, ``k`` and ``zeta``.
+
+Stored values, to the last digit, of :func:`helpers.research.model_fit.fit_to_mode` with its defaults (the
+paper's identified mode, omega_d = 25.085 rad/s and zeta = 0.044, and its "30 mm of cable gives about 0.5 m
+of tip displacement"); ``tests/test_model_fit.py`` re-runs that fit and checks that it reproduces them
+(``pytest tests/test_model_fit.py``; its failure message prints the values to store here)."""
 
 
 PARAMETER_SOURCES: dict[str, tuple[str, str]] = {
@@ -698,114 +702,3 @@ def static_tip_gain(params: ArmParameters) -> float:
     """
     big_k, kn = coupling(params), modal_stiffnesses(params)
     return float(np.sum(big_k / kn)) * static_tension_gain(params)
-
-
-# ----------------------------------------------------------------------------------------------
-# Fit of the unknown parameters to the identified mode
-# ----------------------------------------------------------------------------------------------
-
-
-def _fit_residuals(
-    x: np.ndarray, base: ArmParameters, omega_d: float, zeta: float, u_ref: float, y_ref: float
-) -> np.ndarray:
-    params = base.replace(k=float(np.exp(x[0])), r=float(np.exp(x[1])), zeta=float(x[2]))
-    dom = dominant_mode(params)
-    return np.array(
-        [
-            dom.omega_d / omega_d - 1.0,
-            dom.zeta / zeta - 1.0,
-            static_tip_gain(params) * u_ref / y_ref - 1.0,
-        ]
-    )
-
-
-def fit_to_mode(
-    base: ArmParameters | None = None,
-    omega_d: float = paper.OMEGA_D,
-    zeta: float = paper.ZETA,
-    u_ref: float = U_REF,
-    y_ref: float = Y_REF,
-) -> ArmParameters:
-    """Solve for the unknown cable stiffness ``k``, cable offset ``r`` and Rayleigh ``zeta``.
-
-    Three conditions, three unknowns:
-
-    1. the dominant pole (:func:`dominant_mode`) has damped frequency ``omega_d`` (identified 25.085 rad/s);
-    2. it has damping ratio ``zeta`` (identified 0.044);
-    3. the static tip displacement for a cable displacement ``u_ref`` = 30 mm is ``y_ref`` = 0.5 m (the
-       paper's "approximately 0.5 m", taken as exact).
-
-    Fixed, with reasons: E, rho, d, L, n_discs (material and geometry, paper and handbook values) and the
-    **disc mass** (``base.disc_mass``, default 1.0 g). Of the unknowns, the disc mass is the one that can be
-    estimated from the hardware's geometry (a support disc wide enough for a cable at r ~ 6-7 mm, e.g. an
-    18 mm x 3 mm printed disc of about 1 g), whereas ``k`` lumps the cable's unknown material and length,
-    the pulley train and the load cell's flexure, about which the paper says nothing. The frequency
-    condition fixes the ratio of ``k r^2 L / EI`` (cable to backbone rotational stiffness) for the given
-    mass, and the 0.5 m statement then separates ``r`` from ``k``. A solution exists when the first modal
-    frequency is below ``omega_d`` and the cable-stiffened (``k = inf``) dominant frequency is above it,
-    i.e. (N = 4) for disc masses of about 0.46-1.56 g; near the lower end the solved ``r`` becomes
-    implausibly small (0.8 mm at 0.5 g, 4.1 mm at 0.75 g, 5.9 mm at 1.0 g; notebook 01).
-
-    Parameters
-    ----------
-    base : ArmParameters, optional
-        Fixed parameters and the starting point for ``k``, ``r``, ``zeta``; default ``ArmParameters()``.
-    omega_d, zeta : float
-        Target damped frequency (rad/s) and damping ratio of the dominant pole.
-    u_ref, y_ref : float
-        Cable displacement (m) and the static tip displacement (m) it should produce.
-
-    Returns
-    -------
-    ArmParameters
-        ``base`` with ``k``, ``r`` and ``zeta`` replaced by the solution.
-
-    Raises
-    ------
-    ValueError
-        If the targets are out of range or no solution is found (e.g. a disc mass outside the feasible
-        range).
-    """
-    base = ArmParameters() if base is None else base
-    if not (omega_d > 0 and 0 < zeta < 1 and u_ref > 0 and y_ref > 0):
-        raise ValueError(
-            f"targets must be positive (and zeta < 1): omega_d={omega_d}, zeta={zeta}, u_ref={u_ref}, "
-            f"y_ref={y_ref}"
-        )
-    if not math.isfinite(base.k):
-        raise ValueError("fit_to_mode needs a finite starting k")
-    w = modal_frequencies(base)
-    if not w[0] < omega_d:
-        raise ValueError(
-            f"first modal frequency {w[0]:.3f} rad/s is not below omega_d={omega_d}: disc mass "
-            f"{base.disc_mass * 1e3:.3f} g is too small for a solution"
-        )
-    stiffest = dominant_mode(base.replace(k=math.inf)).omega_d
-    if not stiffest > omega_d:
-        raise ValueError(
-            f"even an inextensible cable only lifts the dominant mode to {stiffest:.3f} rad/s, below "
-            f"omega_d={omega_d}: disc mass {base.disc_mass * 1e3:.3f} g is too large for a solution"
-        )
-    x0 = np.array([math.log(base.k), math.log(base.r), base.zeta])
-    sol = optimize.least_squares(
-        _fit_residuals,
-        x0,
-        args=(base, omega_d, zeta, u_ref, y_ref),
-        bounds=([math.log(1.0), math.log(1e-4), 1e-4], [math.log(1e7), math.log(0.1), 0.9]),
-        x_scale=[1.0, 1.0, 0.01],
-        xtol=1e-14,
-        ftol=1e-14,
-        gtol=1e-14,
-    )
-    if not sol.success or np.max(np.abs(sol.fun)) > 1e-9:
-        raise ValueError(
-            f"the model fit did not converge (residuals {sol.fun}); the disc mass "
-            f"{base.disc_mass * 1e3:.3f} g may be outside the feasible range"
-        )
-    return base.replace(k=float(np.exp(sol.x[0])), r=float(np.exp(sol.x[1])), zeta=float(sol.x[2]))
-
-
-@functools.cache
-def fitted_parameters() -> ArmParameters:
-    """The fitted model: :func:`fit_to_mode` with the paper's targets and the fixed 1.0 g discs (cached)."""
-    return fit_to_mode(ArmParameters())

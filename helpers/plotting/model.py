@@ -194,7 +194,7 @@ def fig12(
     Parameters
     ----------
     params : helpers.paper.model.ArmParameters, optional
-        The model; default :func:`helpers.paper.model.fitted_parameters`.
+        The model; default :data:`helpers.paper.model.FITTED`.
     v_in_mm_s, x_f_mm : float
         The pulse (default 200 mm/s, 20 mm; the paper does not say which it used).
     response : ShapingResponse, optional
@@ -206,7 +206,7 @@ def fig12(
         The figure (also written to ``figures/``).
     """
     if response is None:
-        params = model.fitted_parameters() if params is None else params
+        params = model.FITTED if params is None else params
         response = shaping_response(params, v_in_mm_s, x_f_mm)
     labels = {"unshaped": "Pulse (unshaped)", "zv": "Non-robust TDF (ZV)", "zvd": "Robust TDF (ZVD)"}
     t = response.t

@@ -128,7 +128,7 @@ class LinearPlayground:
     v_in_mm_s, x_f_mm : float
         The move.
     model_params : helpers.paper.model.ArmParameters, optional
-        The linear model (default: :func:`helpers.paper.model.fitted_parameters`).
+        The linear model (default: :data:`helpers.paper.model.FITTED`).
     """
 
     def __init__(
@@ -141,7 +141,7 @@ class LinearPlayground:
     ) -> None:
         self.omega_d, self.zeta = float(omega_d), float(zeta)
         self.v_in_mm_s, self.x_f_mm = float(v_in_mm_s), float(x_f_mm)
-        params = model.fitted_parameters() if model_params is None else model_params
+        params = model.FITTED if model_params is None else model_params
         self.response = LinearResponse(v_in_mm_s, x_f_mm, params)
         self.fig: plt.Figure | None = None
 

@@ -2,7 +2,7 @@
 
 (Not to be confused with the *load-cell calibration*, :mod:`helpers.paper.calibration`, or the linear model's
 *fit*,
-:func:`helpers.paper.model.fit_to_mode`.)
+:func:`helpers.research.model_fit.fit_to_mode`.)
 
 The paper states the backbone, the spool, the step count and the motor, not the disc mass, the cable offset
 ``r``, the series stiffness ``k`` of the cable path, the pretension or the damping. They are chosen here in
