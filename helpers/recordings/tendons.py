@@ -97,14 +97,3 @@ def derive_tendon_columns(frame: pd.DataFrame, meta: dict[str, Any]) -> pd.DataF
             out[mm] = out[um].to_numpy(float) * 1e-3
     return out
 
-
-def tendon_frame_view(frame: pd.DataFrame, tendon: int) -> pd.DataFrame:
-    """Tendon ``tendon``'s columns under the one-tendon names, for the analyses written for one tendon.
-
-    ``adc_i``, ``steps_i``, ``tension_n_i``, ``cable_mm_i`` become ``adc``, ``steps``, ``tension_n``,
-    ``cable_mm`` (``seq``, ``t_us``, ``t_s`` kept), as :mod:`helpers.paper.metrics` reads them.
-    """
-    names = {f"adc_{tendon}": "adc", f"steps_{tendon}": "steps", f"tension_n_{tendon}": "tension_n",
-             f"cable_mm_{tendon}": "cable_mm"}  # fmt: skip
-    cols = ["seq", "t_us", "t_s", *names]
-    return frame.loc[:, [c for c in cols if c in frame.columns]].rename(columns=names)
