@@ -40,10 +40,9 @@ from helpers.board.programmes import experiment_programme
 from helpers.paper.identify import load_identification
 from helpers.paper.metrics import MOTIONS, recording_metrics, scenario_table
 from helpers.rigfile import RigFile
-from helpers.rigfile.derived import ROTOR_TEETH
 from helpers.rigfile.recorded import refuse_other_rig
 from helpers.virtual import ArmPlant, RigParameters, simulate
-from helpers.virtual.from_rig import rig_parameters
+from helpers.virtual.from_rig import ROTOR_TEETH, rig_parameters
 from helpers.virtual.statics import stable_max_step
 from helpers.virtual.tuning import calibrate_mode
 
