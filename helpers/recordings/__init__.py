@@ -8,19 +8,12 @@
 """
 
 from helpers.recordings.format import (
-    DERIVED_COLUMNS,
-    RAW_COLUMNS,
     SCHEMA_VERSION,
-    SOURCES,
-    STATUSES,
     Recording,
     RecordingError,
     counts_to_newtons,
-    derive_columns,
     empty_frame,
     frame_from_rows,
-    validate,
-    validate_meta,
 )
 from helpers.recordings.store import (
     RESERVED_NAMES,
@@ -36,12 +29,8 @@ from helpers.recordings.store import (
 from helpers.rigfile.recorded import recording_rig, rig_section
 
 __all__ = [
-    "DERIVED_COLUMNS",
-    "RAW_COLUMNS",
     "RESERVED_NAMES",
     "SCHEMA_VERSION",
-    "SOURCES",
-    "STATUSES",
     "Recording",
     "RecordingError",
     "RecordingExists",
@@ -49,7 +38,6 @@ __all__ = [
     "catalogue",
     "check_name",
     "counts_to_newtons",
-    "derive_columns",
     "empty_frame",
     "frame_from_rows",
     "load",
@@ -58,6 +46,4 @@ __all__ = [
     "reserve",
     "rig_section",
     "save",
-    "validate",
-    "validate_meta",
 ]
