@@ -17,7 +17,7 @@ one :class:`RecordingError` that names the file, the field and the problem.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -99,7 +99,6 @@ class Recording:
     frame: pd.DataFrame
     meta: dict[str, Any]
     path: Path | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
