@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from helpers.base.validate import is_finite_number
 from helpers.rigfile.derived import check
 from helpers.rigfile.errors import RigFileError
 from helpers.rigfile.schema import (
@@ -142,7 +141,9 @@ def _value(source: str, where: str, key: Key, value: Any) -> Any:
         return value
     if key.kind == "vector3":
         ok = isinstance(value, list) and len(value) == 3
-        ok = ok and all(is_finite_number(v) for v in value)
+        ok = ok and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
+        )
         if not ok or math.sqrt(sum(float(v) ** 2 for v in value)) < 1e-12:
             raise _problem(source, where, f"must be a nonzero vector of three numbers, got {value!r}")
         return tuple(float(v) for v in value)
