@@ -16,6 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from helpers import recordings
+from helpers.commands.recording_paths import recording_path
 from helpers.recordings import Recording, RecordingError, RecordingExists
 
 CAL = {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.25525, "origin": "test"}
@@ -144,7 +145,7 @@ def test_a_full_disk_is_one_error_and_loses_nothing(tmp_path, monkeypatch):
 )
 def test_bad_or_reserved_names_are_refused(tmp_path, name):
     with pytest.raises(RecordingError, match="invalid recording name"):
-        recordings.recording_path("group", name, root=tmp_path)
+        recording_path("group", name, root=tmp_path)
     if "/" not in name:  # save itself checks the file's own name too
         with pytest.raises(RecordingError, match="invalid recording name"):
             recordings.save(_rec(), tmp_path / "group" / f"{name}.csv")
@@ -154,7 +155,7 @@ def test_bad_or_reserved_names_are_refused(tmp_path, name):
 @pytest.mark.parametrize("group", ["../x", "/etc", "a/../b", "", "a//b"])
 def test_bad_groups_are_refused(group):
     with pytest.raises(RecordingError, match="invalid group"):
-        recordings.recording_path(group, "run")
+        recording_path(group, "run")
 
 
 def test_an_aborted_run_gets_its_own_name(tmp_path):

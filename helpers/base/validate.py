@@ -22,6 +22,16 @@ def check_int(value: Any, name: str, minimum: int | None = None) -> int:
     return value
 
 
+def is_int(value: Any) -> bool:
+    """True for an integer that is not a bool (a JSON or TOML integer)."""
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def is_finite_number(value: Any) -> bool:
+    """True for a finite integer or float that is not a bool (a JSON or TOML number)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
 def _real(value: Any, name: str, what: str) -> float:
     """``value`` as a ``float`` if it is a real number (not a bool), else ``ValueError`` naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):

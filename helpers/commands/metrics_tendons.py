@@ -1,7 +1,7 @@
 """Table II metrics of recordings of several tendons (``schema_version`` 3), one set per tendon.
 
 Each tendon ``i`` of a recording is analysed as a one-tendon recording of its own
-(:func:`helpers.recordings.tendons.tendon_frame_view`: ``tension_n_i`` against ``steps_i``, its load
+(:func:`tendon_frame_view`: ``tension_n_i`` against ``steps_i``, its load
 cell's calibration and the recording's rig for the range check): its Up and Down motions are found from its
 own step count, and :func:`helpers.paper.metrics.recording_metrics` gives the peak, overshoot and settling
 time of each. A tendon whose count makes no up-hold-down move gets NaN with the segmentation's reason. The
@@ -27,7 +27,7 @@ from helpers.base.paths import shown
 from helpers.base.tables import to_markdown
 from helpers.paper import metrics
 from helpers.recordings import Recording, recording_rig
-from helpers.recordings.tendons import TIP_MM_COLUMNS, tendon_frame_view
+from helpers.recordings.tendons import TIP_MM_COLUMNS
 
 __all__ = ["TENDON_COLUMNS", "TIP_COLUMNS", "tendon_table", "tendon_text", "tendon_markdown", "tip_frame",
            "tip_table", "tip_text", "tip_markdown"]  # fmt: skip
@@ -37,6 +37,18 @@ TENDON_COLUMNS = [
     "band", "reason",
 ]  # fmt: skip
 """Columns of the per-tendon table (``tendon`` 0-based, the boards' axis and channel)."""
+
+
+def tendon_frame_view(frame: pd.DataFrame, tendon: int) -> pd.DataFrame:
+    """Tendon ``tendon``'s columns under the one-tendon names, for the analyses written for one tendon.
+
+    ``adc_i``, ``steps_i``, ``tension_n_i``, ``cable_mm_i`` become ``adc``, ``steps``, ``tension_n``,
+    ``cable_mm`` (``seq``, ``t_us``, ``t_s`` kept), as :mod:`helpers.paper.metrics` reads them.
+    """
+    names = {f"adc_{tendon}": "adc", f"steps_{tendon}": "steps", f"tension_n_{tendon}": "tension_n",
+             f"cable_mm_{tendon}": "cable_mm"}  # fmt: skip
+    cols = ["seq", "t_us", "t_s", *names]
+    return frame.loc[:, [c for c in cols if c in frame.columns]].rename(columns=names)
 
 
 def tendon_table(recs: list[Recording], band: float, **kwargs: Any) -> pd.DataFrame:

@@ -40,6 +40,7 @@ from helpers.base.jsonfile import MissingDataError
 from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, repo_path
 from helpers.board.programmes import experiment_programme
+from helpers.commands.recording_paths import check_group, recording_path
 from helpers.commands.tendon_session import SESSION_LOCK, tendons_at_rest
 from helpers.commands.tip_stream import record_tip_stream
 from helpers.paper import numbers as paper
@@ -62,7 +63,7 @@ from helpers.paper.hardware import (
 from helpers.paper.identify import identify_recording, load_identification, save_identification
 from helpers.paper.modes import omega_n_from_damped
 from helpers.paper.shapers import Shaper, design_tdfs
-from helpers.recordings import RecordingExists, check_group, check_name, recording_path, refuse_existing
+from helpers.recordings import RecordingExists, check_name, refuse_existing
 from helpers.recordings import save as save_recording
 from helpers.research.design import SYSTEMS, Design, Schedule, load_design, up_down
 from helpers.research.families import ei

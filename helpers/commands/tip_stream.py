@@ -19,8 +19,9 @@ from typing import Any
 
 from helpers import rigfile
 from helpers.base.paths import repo_path
+from helpers.commands.recording_paths import recording_path
 from helpers.commands.tendon_session import tendons_at_rest
-from helpers.recordings import recording_path, refuse_existing
+from helpers.recordings import refuse_existing
 from helpers.research.tip_stream import (
     board_counts,
     board_tensions,

@@ -159,18 +159,14 @@ def clip_limits(calibration: dict[str, Any] | None = None, rig: Any = None) -> t
     :data:`LOOP_OFFSET_TOLERANCE_COUNTS`) comes from another chain, whose saturation is unknown: then only the
     ADC's rails, 0 and 1023, bound the range. ``rig`` (a :class:`helpers.rigfile.RigFile`, the recording's:
     :func:`helpers.recordings.recording_rig`) gives that rig's chain instead of the host's
-    (:mod:`helpers.paper.hardware`).
+    (:data:`helpers.paper.hardware.RIG`, whose limits :mod:`helpers.paper.hardware` states); either's counts
+    are :func:`helpers.rigfile.derived`'s.
     """
     offset = None if calibration is None else calibration.get("offset_counts")
-    if rig is not None:
-        d = rigfile.derived(rig)
-        loop_zero, top, low, high = d.offset_counts, d.adc_max, d.clip_low_counts, d.clip_high_counts
-    else:
-        loop_zero, top = hardware.loop_counts(hardware.LOOP_ZERO_A), hardware.ADC_MAX
-        low, high = hardware.CLIP_LOW_COUNTS, hardware.CLIP_HIGH_COUNTS
-    if offset is not None and abs(float(offset) - loop_zero) > LOOP_OFFSET_TOLERANCE_COUNTS:
-        return 0.0, float(top)
-    return float(low), float(high)
+    d = rigfile.derived(hardware.RIG if rig is None else rig)
+    if offset is not None and abs(float(offset) - d.offset_counts) > LOOP_OFFSET_TOLERANCE_COUNTS:
+        return 0.0, float(d.adc_max)
+    return float(d.clip_low_counts), float(d.clip_high_counts)
 
 
 def clipped_samples(

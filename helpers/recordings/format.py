@@ -16,9 +16,8 @@ one :class:`RecordingError` that names the file, the field and the problem.
 
 from __future__ import annotations
 
-import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from helpers import rigfile
+from helpers.base.validate import is_finite_number, is_int
 from helpers.paper.hardware import ADC_MAX, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
 from helpers.paper.hardware import RIG as HW_RIG
 from helpers.recordings.tendons import (
@@ -99,7 +99,6 @@ class Recording:
     frame: pd.DataFrame
     meta: dict[str, Any]
     path: Path | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -185,14 +184,6 @@ def _fail(path: Path, problem: str) -> RecordingError:
     return RecordingError(f"{path}: {problem}")
 
 
-def _is_int(x: Any) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool)
-
-
-def _is_number(x: Any) -> bool:
-    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
-
-
 def _section(meta: dict[str, Any], key: str, path: Path, where: str = "") -> dict[str, Any]:
     if key not in meta:
         raise _fail(path, f"{where}{key}: missing")
@@ -206,7 +197,7 @@ def _number(section: dict[str, Any], key: str, where: str, path: Path, positive:
     if key not in section:
         raise _fail(path, f"{where}.{key}: missing")
     value = section[key]
-    if not _is_number(value):
+    if not is_finite_number(value):
         raise _fail(path, f"{where}.{key}: expected a finite number, got {value!r}")
     if positive and value <= 0:
         raise _fail(path, f"{where}.{key}: must be > 0, got {value!r}")
@@ -226,7 +217,7 @@ def validate_meta(meta: Any, path: Path) -> None:
     if not isinstance(meta, dict):
         raise _fail(path, f"metadata is not a JSON object (got {type(meta).__name__})")
     version = meta.get("schema_version")
-    if version not in READ_VERSIONS or not _is_int(version):
+    if version not in READ_VERSIONS or not is_int(version):
         raise _fail(path, f"schema_version: unknown {version!r} (this code reads {READ_VERSIONS})")
     missing = [k for k in REQUIRED_META if k not in meta]
     if missing:
@@ -249,12 +240,12 @@ def validate_meta(meta: Any, path: Path) -> None:
         _number(cal, "offset_counts", "calibration", path)
         _number(cal, "mm_per_step", "calibration", path, positive=True)
     rate = meta["rate_hz"]
-    if not (_is_int(rate) and DAQ_RATE_MIN_HZ <= rate <= DAQ_RATE_MAX_HZ):
+    if not (is_int(rate) and DAQ_RATE_MIN_HZ <= rate <= DAQ_RATE_MAX_HZ):
         span = f"{DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ}"
         raise _fail(path, f"rate_hz: expected an integer in {span}, got {rate!r}")
     counts = _section(meta, "counts", path)
     for key in COUNT_KEYS:
-        if key in counts and not (_is_int(counts[key]) and counts[key] >= 0):
+        if key in counts and not (is_int(counts[key]) and counts[key] >= 0):
             raise _fail(path, f"counts.{key}: expected an integer >= 0, got {counts[key]!r}")
     if "samples" not in counts:
         raise _fail(path, "counts.samples: missing")
@@ -278,7 +269,7 @@ def validate_meta(meta: Any, path: Path) -> None:
             raise _fail(path, f"scenario.system: expected text, got {scenario.get('system')!r}")
         _number(scenario, "v_in_mm_s", "scenario", path, positive=True)
         _number(scenario, "x_f_mm", "scenario", path, positive=True)
-    if "repetition" in scenario and not _is_int(scenario["repetition"]):
+    if "repetition" in scenario and not is_int(scenario["repetition"]):
         raise _fail(path, f"scenario.repetition: expected an integer, got {scenario['repetition']!r}")
     if scenario["kind"] == "stream":
         _validate_stream(scenario, path)
@@ -286,7 +277,7 @@ def validate_meta(meta: Any, path: Path) -> None:
 
 def _int_list(section: dict[str, Any], key: str, where: str, path: Path) -> list[int]:
     value = section.get(key)
-    if not isinstance(value, list) or not all(_is_int(x) for x in value):
+    if not isinstance(value, list) or not all(is_int(x) for x in value):
         raise _fail(path, f"{where}.{key}: expected a list of integers")
     return value
 
@@ -309,7 +300,7 @@ def _validate_stream(scenario: dict[str, Any], path: Path) -> None:
     setpoints = _int_list(stream, "setpoints", "scenario.stream", path)
     periods = _int_list(stream, "periods", "scenario.stream", path)
     n = stream.get("n_setpoints")
-    if not (_is_int(n) and n == len(setpoints) == len(periods)):
+    if not (is_int(n) and n == len(setpoints) == len(periods)):
         raise _fail(
             path, f"scenario.stream.n_setpoints: {n!r} does not match the set-points and periods listed"
         )
@@ -319,12 +310,12 @@ def _validate_stream(scenario: dict[str, Any], path: Path) -> None:
     if not (isinstance(sha, str) and _SHA256.match(sha)):
         raise _fail(path, "scenario.stream.setpoints_sha256: expected 64 lower-case hex digits")
     for key in ("fifo_full", "underruns"):
-        if not (_is_int(stream.get(key)) and stream[key] >= 0):
+        if not (is_int(stream.get(key)) and stream[key] >= 0):
             raise _fail(path, f"scenario.stream.{key}: expected an integer >= 0, got {stream.get(key)!r}")
     clamps = stream.get("clamps")
     if not (
         isinstance(clamps, dict)
-        and all(_is_int(clamps.get(k)) and clamps[k] >= 0 for k in ("speed", "travel"))
+        and all(is_int(clamps.get(k)) and clamps[k] >= 0 for k in ("speed", "travel"))
     ):
         raise _fail(path, "scenario.stream.clamps: expected integers >= 0 for speed and travel")
     notices = stream.get("notices")

@@ -1,8 +1,8 @@
 """Where recordings live, and how they are written and read without ever losing one.
 
-- **Names** are validated (:func:`check_name`, :func:`check_group`): letters, digits, ``_``, ``-``, ``.``; no
-  path separators in a name, no ``..``, nothing that could reach outside ``data/``; the stems of the
-  project's own files (``calibration``, ``result``) are reserved.
+- **Names** are validated (:func:`check_name`): letters, digits, ``_``, ``-``, ``.``; no path separators in
+  a name, no ``..``; the stems of the project's own files (``calibration``, ``result``) are reserved. (The
+  record commands check the group, a folder under ``data/``: :mod:`helpers.commands.recording_paths`.)
 - **No silent overwrite**: :func:`save` refuses a name that exists unless asked to replace it, and then keeps
   the old pair until the new one is complete.
 - **Pairs are never torn**: the CSV goes first, the JSON (holding the CSV's sha256) last, each written to a
@@ -76,22 +76,6 @@ def check_name(name: str) -> str:
     if name.lower() in RESERVED_NAMES or name.lower().endswith(".tmp"):
         raise RecordingError(f"invalid recording name {name!r}: reserved for the project's own files")
     return name
-
-
-def check_group(group: str) -> str:
-    """Return ``group`` (a folder under ``data/``, ``a`` or ``a/b``) if valid, else raise saying why."""
-    parts = str(group).split("/")
-    if not group or any(not NAME_PATTERN.match(p) or ".." in p for p in parts):
-        raise RecordingError(
-            f"invalid group {group!r}: a folder under data/ named with letters, digits, '_', '-', '.' "
-            "(sub-folders with '/'; no '..', not an absolute path)"
-        )
-    return str(group)
-
-
-def recording_path(group: str, name: str, root: str | os.PathLike = DATA_DIR) -> Path:
-    """``<root>/<group>/<name>.csv`` after checking both names."""
-    return Path(root) / check_group(group) / f"{check_name(name)}.csv"
 
 
 def refuse_existing(target: str | os.PathLike, replace: bool = False) -> None:

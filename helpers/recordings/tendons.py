@@ -17,11 +17,12 @@ A one-tendon recording stays version 2 (``seq,t_us,adc,steps``), written and rea
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from helpers.base.validate import is_finite_number, is_int
 
 TENDON_SCHEMA_VERSION = 3
 """The metadata version of a recording with several tendons."""
@@ -54,7 +55,7 @@ def _numbers(value: Any, n: int, positive: bool) -> bool:
     return (
         isinstance(value, list)
         and len(value) == n
-        and all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in value)
+        and all(is_finite_number(x) for x in value)
         and (not positive or all(x > 0 for x in value))
     )
 
@@ -62,7 +63,7 @@ def _numbers(value: Any, n: int, positive: bool) -> bool:
 def tendon_meta_problem(meta: dict[str, Any]) -> str | None:
     """What is wrong with the version-3 keys of ``meta`` (``tendons``, the calibration's lists), or None."""
     n = meta.get("tendons")
-    if not (isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= MAX_TENDONS):
+    if not (is_int(n) and 2 <= n <= MAX_TENDONS):
         return f"tendons: expected an integer 2-{MAX_TENDONS}, got {n!r}"
     cal = meta.get("calibration")
     if not isinstance(cal, dict):
@@ -97,14 +98,3 @@ def derive_tendon_columns(frame: pd.DataFrame, meta: dict[str, Any]) -> pd.DataF
             out[mm] = out[um].to_numpy(float) * 1e-3
     return out
 
-
-def tendon_frame_view(frame: pd.DataFrame, tendon: int) -> pd.DataFrame:
-    """Tendon ``tendon``'s columns under the one-tendon names, for the analyses written for one tendon.
-
-    ``adc_i``, ``steps_i``, ``tension_n_i``, ``cable_mm_i`` become ``adc``, ``steps``, ``tension_n``,
-    ``cable_mm`` (``seq``, ``t_us``, ``t_s`` kept), as :mod:`helpers.paper.metrics` reads them.
-    """
-    names = {f"adc_{tendon}": "adc", f"steps_{tendon}": "steps", f"tension_n_{tendon}": "tension_n",
-             f"cable_mm_{tendon}": "cable_mm"}  # fmt: skip
-    cols = ["seq", "t_us", "t_s", *names]
-    return frame.loc[:, [c for c in cols if c in frame.columns]].rename(columns=names)

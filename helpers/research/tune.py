@@ -56,7 +56,7 @@ from helpers.research import design, residuals, tune_tendons
 from helpers.research.modemap import ModeMap, load_map, refuse_map_of_other_rig
 from helpers.research.survey import POSITIONS_MM, survey
 from helpers.rig import Rig
-from helpers.rigfile.recorded import refuse_other_rig
+from helpers.virtual.rig_file_tuning import refuse_other_rig
 
 CANDIDATES = ("zv", "zvd", "ei", "multi-mode", "scheduled", "map-following", "auto")
 """What ``tune`` designs and verifies, by ``scenario.system`` name (``docs/shaper_design.md``): the paper's

@@ -17,13 +17,10 @@ from typing import Any
 
 from helpers.rigfile.errors import RigFileError
 
-__all__ = ["Derived", "derived", "check", "hold_tension_n", "loop_counts", "ROTOR_TEETH", "MIN_SPAN_COUNTS"]
+__all__ = ["Derived", "derived", "check", "hold_tension_n", "loop_counts", "MIN_SPAN_COUNTS"]
 
 MIN_SPAN_COUNTS = 100
 """A load-cell chain must spread its range (zero to full load) over at least this many ADC counts."""
-
-ROTOR_TEETH = 50
-"""Rotor teeth of a 1.8 degree hybrid stepper (the microstep spring ``T_h N_r``; used by the twin)."""
 
 _EPS = 1e-9
 
@@ -78,10 +75,6 @@ class Derived:
     readable_n: tuple[float, ...]
     pull_out_n: tuple[float, ...]
     hold_n: tuple[float, ...]
-
-    def as_dict(self) -> dict[str, Any]:
-        """Flat JSON values."""
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
 
 
 def loop_counts(hw: Any, current_ma: float) -> float:

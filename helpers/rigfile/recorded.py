@@ -11,10 +11,9 @@ from pathlib import Path
 from typing import Any
 
 from helpers import rigfile
-from helpers.base.jsonfile import DataFileError
 from helpers.rigfile import RigFile, RigFileError
 
-__all__ = ["rig_section", "recording_rig", "refuse_other_rig", "validate_rig_section"]
+__all__ = ["rig_section", "recording_rig", "validate_rig_section"]
 
 
 def rig_section(rig: RigFile) -> dict[str, Any]:
@@ -53,12 +52,3 @@ def recording_rig(meta: dict[str, Any], source: str = "recording") -> RigFile:
     except (KeyError, TypeError):
         raise RigFileError(f"{source}: rig.text: missing") from None
 
-
-def refuse_other_rig(meta: dict[str, Any], rig: RigFile, path: Path, what: str = "use") -> None:
-    """Refuse (``DataFileError``, one line) a recording made on a rig other than ``rig``."""
-    kept = recording_rig(meta, source=str(path))
-    if kept.hash != rig.hash:
-        raise DataFileError(
-            f"{path}: recorded on rig {kept.name!r} (hash {kept.hash}), not on the selected rig {rig.name!r} "
-            f"({rig.hash}); {what} a rig's own recordings (select its rig file with --rig)"
-        )

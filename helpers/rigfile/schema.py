@@ -303,6 +303,3 @@ TENDON: tuple[Key, ...] = (
         (1.0, 1e9),
     ),  # fmt: skip
 )
-
-TABLES: dict[str, tuple[Key, ...]] = {"hardware": HARDWARE, "arm": ARM, "boards": BOARDS}
-"""The single tables (``[hardware]``, ``[arm]``, ``[boards]``); ``[[tendon]]`` is :data:`TENDON`."""

@@ -14,11 +14,13 @@ import math
 from typing import Any
 
 from helpers.rigfile import RigFile
-from helpers.rigfile.derived import ROTOR_TEETH
 from helpers.rigfile.units import si
 from helpers.virtual.parameters import RigParameters
 
-__all__ = ["rig_parameters", "base_angle_deg"]
+__all__ = ["rig_parameters", "base_angle_deg", "ROTOR_TEETH"]
+
+ROTOR_TEETH = 50
+"""Rotor teeth of a 1.8 degree hybrid stepper (the microstep spring ``T_h N_r``)."""
 
 
 def base_angle_deg(gravity_direction: tuple[float, float, float]) -> float:

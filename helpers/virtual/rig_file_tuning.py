@@ -40,10 +40,9 @@ from helpers.board.programmes import experiment_programme
 from helpers.paper.identify import load_identification
 from helpers.paper.metrics import MOTIONS, recording_metrics, scenario_table
 from helpers.rigfile import RigFile
-from helpers.rigfile.derived import ROTOR_TEETH
-from helpers.rigfile.recorded import refuse_other_rig
+from helpers.rigfile.recorded import recording_rig
 from helpers.virtual import ArmPlant, RigParameters, simulate
-from helpers.virtual.from_rig import rig_parameters
+from helpers.virtual.from_rig import ROTOR_TEETH, rig_parameters
 from helpers.virtual.statics import stable_max_step
 from helpers.virtual.tuning import calibrate_mode
 
@@ -98,6 +97,16 @@ def load_targets(rig: RigFile, data_dir: Path) -> Targets:
     cols = {"peak_n_mean": "peak_n", "overshoot_pct_mean": "overshoot_pct"}
     table = table.rename(columns=cols)[["v_in_mm_s", "x_f_mm", "motion", *cols.values()]]
     return Targets(mode.omega_d, mode.zeta, table.reset_index(drop=True), tuple(sources))
+
+
+def refuse_other_rig(meta: dict[str, Any], rig: RigFile, path: Path, what: str = "use") -> None:
+    """Refuse (``DataFileError``, one line) a recording made on a rig other than ``rig``."""
+    kept = recording_rig(meta, source=str(path))
+    if kept.hash != rig.hash:
+        raise DataFileError(
+            f"{path}: recorded on rig {kept.name!r} (hash {kept.hash}), not on the selected rig {rig.name!r} "
+            f"({rig.hash}); {what} a rig's own recordings (select its rig file with --rig)"
+        )
 
 
 def _check_rig(meta: dict[str, Any], rig: RigFile, path: Path) -> None:
