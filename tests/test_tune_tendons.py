@@ -17,7 +17,15 @@ import pytest
 
 from helpers import rigfile
 from helpers.__main__ import main
-from helpers.research.tune_tendons import REFERENCE, MapPoint, design_for, scheduled_mode, summarise
+from helpers.research.tune_tendons import (
+    REFERENCE,
+    SUMMARY_COLUMNS,
+    MapPoint,
+    design_for,
+    scheduled_mode,
+    summarise,
+    write_report,
+)
 
 
 def _points() -> list[MapPoint]:
@@ -65,6 +73,21 @@ def test_the_summary_takes_the_worst_of_the_lead_and_the_tip_and_counts_slack_sa
     s = summarise(pd.DataFrame(rows)).iloc[0]
     assert s["lead_residual_n"] == 0.7 and s["tip_residual_mm"] == 2.0  # tendon 2 is not the lead
     assert s["below_floor"] == 3 and s["least_tension_n"] == -1.0 and s["shaper_s"] == 0.12
+    assert tuple(summarise(pd.DataFrame(rows)).columns) == SUMMARY_COLUMNS  # the report's column order
+
+
+def test_the_report_orders_its_columns_the_same_for_a_summary_read_back_from_json(tmp_path) -> None:
+    """verification.json stores the summary with sorted keys: read back, its rows give the same report."""
+    row = {"direction_deg": 0.0, "system": "zv", "lead_residual_n": 0.5, "lead_residual_pct": 5.0,
+           "shaper_s": 0.12, "least_tension_n": 3.0, "below_floor": 0, "tip_residual_mm": 1.0,
+           "tip_residual_pct": 2.0}  # fmt: skip
+    doc = {"rig": "r", "source": {"kind": "virtual-rig"}, "repetitions": 1, "directions_deg": [0.0],
+           "bends_mm": [10.0], "summary": [row]}  # fmt: skip
+    (fresh,) = write_report(doc, tmp_path / "fresh")
+    (read,) = write_report({**doc, "summary": [dict(sorted(row.items()))]}, tmp_path / "read")
+    assert read.read_text() == fresh.read_text()
+    header = "| direction_deg | system | lead_residual_n | lead_residual_pct | shaper_s | least_tension_n | "
+    assert header + "below_floor | tip_residual_mm | tip_residual_pct |" in read.read_text()
 
 
 def test_tune_on_several_tendons_refuses_the_one_tendon_options(monkeypatch, tmp_path, capsys) -> None:
@@ -134,8 +157,6 @@ def test_the_hold_gives_the_frequency_and_damping_of_a_known_decay() -> None:
 
 
 def test_the_report_lists_every_direction_and_design_with_the_pre_pull(tmp_path) -> None:
-    from helpers.research.tune_tendons import write_report
-
     doc = {"rig": "r", "source": {"kind": "virtual-rig"}, "repetitions": 3, "directions_deg": [0.0, 90.0],
            "bends_mm": [10.0], "prepull_steps": 1, "prepull_check": ["pre-pull 1 step(s): fine"],
            "summary": [{"system": s, "direction_deg": d, "lead_residual_n": 0.5 + d / 1000, "below_floor": 0}

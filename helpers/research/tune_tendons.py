@@ -72,8 +72,8 @@ from helpers.virtual.spatial.plant import SpatialPlant
 __all__ = [
     "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "SEARCH_BAND", "ENVELOPE_FLOOR", "MOVE_TIMES_S",
     "MapPoint", "scheduled_mode",
-    "design_for", "run_move", "identify_hold", "measure_map", "verify", "summarise", "tune_tendons",
-    "choose_prepull", "tendon_folder", "run_tendons", "write_report",
+    "design_for", "run_move", "identify_hold", "measure_map", "verify", "SUMMARY_COLUMNS", "summarise",
+    "tune_tendons", "choose_prepull", "tendon_folder", "run_tendons", "write_report",
 ]  # fmt: skip
 
 DIRECTIONS_DEG = tuple(45.0 * k for k in range(8))
@@ -385,6 +385,13 @@ def verify(
     return pd.concat(parts, ignore_index=True)
 
 
+SUMMARY_COLUMNS = (
+    "direction_deg", "system", "lead_residual_n", "lead_residual_pct", "shaper_s", "least_tension_n",
+    "below_floor", "tip_residual_mm", "tip_residual_pct",
+)  # fmt: skip
+"""The columns of :func:`summarise`, in its order (the report's, also for a summary read back from JSON)."""
+
+
 def summarise(rows: pd.DataFrame) -> pd.DataFrame:
     """Per direction and design: the worst residuals, the slack samples, the shaper's added duration.
 
@@ -458,7 +465,7 @@ def write_report(document: dict[str, Any], folder: Path) -> list[Path]:
     One row per direction and design (:func:`summarise`'s columns), and the pre-pull check's lines.
     """
     summary = pd.DataFrame(document["summary"])
-    first = [c for c in ("direction_deg", "system") if c in summary.columns]
+    first = [c for c in SUMMARY_COLUMNS if c in summary.columns]  # the same order however the rows were read
     summary = summary[first + [c for c in summary.columns if c not in first]]
     kind = document["source"].get("kind", "hardware")
     grid = f"{len(document['directions_deg'])} directions x {len(document['bends_mm'])} bends"
