@@ -527,24 +527,8 @@ def recording_metrics(
             motion_metrics(t, y, m.up_start, m.down_start, "Up", band, **kwargs),
             motion_metrics(t, y, m.down_start, m.end, "Down", band, **kwargs),
         ]
-    df = pd.DataFrame([asdict(r) for r in rows])
-    return df.rename(columns={"y0": "y0_n", "yf": "yf_n", "peak": "peak_n"})[
-        [
-            "motion",
-            "start_s",
-            "end_s",
-            "y0_n",
-            "yf_n",
-            "peak_n",
-            "overshoot_pct",
-            "settling_ms",
-            "settled_s",
-            "band",
-            "reason",
-            "peak_is_bound",
-            "n_clipped",
-        ]
-    ]
+    df = pd.DataFrame([asdict(r) for r in rows])  # columns in MotionMetrics' order
+    return df.rename(columns={"y0": "y0_n", "yf": "yf_n", "peak": "peak_n"})
 
 
 KEYS = ["v_in_mm_s", "x_f_mm", "system", "motion"]
