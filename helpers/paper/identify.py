@@ -52,6 +52,9 @@ MIN_CYCLES = 2.0
 UNIFORM_TOLERANCE = 0.05
 """Largest relative deviation of any sample interval from the median interval (a uniform time base)."""
 
+PAD_FACTOR = 16
+"""The FFT's zero padding: the spectrum holds at least this many times the window's samples."""
+
 METHODS = ("fit", "logdec", "fft")
 """Names of the estimates :func:`identify` can report."""
 
@@ -145,23 +148,20 @@ def fft_peak(
     t: ArrayLike,
     y: ArrayLike,
     *,
-    pad_factor: int = 16,
     f_min_hz: float | None = None,
     f_max_hz: float | None = None,
 ) -> FftResult:
     """Dominant frequency of ``y(t)`` from its windowed, zero-padded FFT.
 
-    The mean is removed, a Hann window applied and the spectrum zero-padded to at least ``pad_factor`` times
-    the window length; the highest bin in ``[f_min_hz, f_max_hz]`` (default: above 1.5 cycles per window, so
-    that the leakage of the removed mean cannot win, up to Nyquist) is refined by a parabola through the
-    logarithms of it and its two neighbours.
+    The mean is removed, a Hann window applied and the spectrum zero-padded to at least :data:`PAD_FACTOR`
+    times the window length; the highest bin in ``[f_min_hz, f_max_hz]`` (default: above 1.5 cycles per
+    window, so that the leakage of the removed mean cannot win, up to Nyquist) is refined by a parabola
+    through the logarithms of it and its two neighbours.
 
     Parameters
     ----------
     t, y : array_like
         Uniformly sampled time (s) and signal.
-    pad_factor : int
-        Zero-padding factor (>= 1).
     f_min_hz, f_max_hz : float, optional
         Search band in Hz.
 
@@ -176,10 +176,8 @@ def fft_peak(
         For invalid input or an empty search band.
     """
     t, y, dt = _as_window(t, y)
-    if pad_factor < 1:
-        raise ValueError(f"pad_factor must be >= 1, got {pad_factor}")
     n = t.size
-    n_fft = 1 << int(math.ceil(math.log2(n * pad_factor)))
+    n_fft = 1 << int(math.ceil(math.log2(n * PAD_FACTOR)))
     w = signal.windows.hann(n, sym=False)
     spectrum = np.fft.rfft((y - y.mean()) * w, n_fft)
     amplitude = 2.0 * np.abs(spectrum) / w.sum()
@@ -320,8 +318,6 @@ def log_decrement(
     t: ArrayLike,
     y: ArrayLike,
     *,
-    baseline: Literal["envelope", "final"] | float = "envelope",
-    prominence: float | None = None,
     omega_hint: float | None = None,
 ) -> LogDecrementResult:
     """Damping and damped frequency from the successive extrema of a free decay.
@@ -331,13 +327,12 @@ def log_decrement(
     1. a rough frequency from :func:`fft_peak` (or ``omega_hint``) sets the minimum distance between
        extrema of one sign (0.6 periods) and the half-width of the sub-sample refinement (1/8 period);
     2. maxima and minima are found with :func:`scipy.signal.find_peaks`; an extremum counts only if its
-       prominence exceeds ``prominence``, by default the larger of 6 times the noise (estimated robustly from
-       the second difference), 3 quantisation steps (if ``y`` lies on a grid such as ADC counts) and 2 % of
-       the window's range; each is refined by a least-squares parabola through its neighbourhood (an
-       extremum whose neighbourhood crosses the window's edge is dropped);
-    3. the baseline (the equilibrium) is either fitted together with the envelope, ``c +- B exp(-sigma t)``
-       through all extrema (``"envelope"``, default; the extrema of a damped sine lie exactly on such an
-       envelope), taken as the median of the window's last damped period (``"final"``), or given;
+       prominence exceeds the larger of 6 times the noise (estimated robustly from the second difference),
+       3 quantisation steps (if ``y`` lies on a grid such as ADC counts) and 2 % of the window's range; each
+       is refined by a least-squares parabola through its neighbourhood (an extremum whose neighbourhood
+       crosses the window's edge is dropped);
+    3. the baseline (the equilibrium) is fitted together with the envelope, ``c +- B exp(-sigma t)``, through
+       all extrema (the extrema of a damped sine lie exactly on such an envelope);
     4. ``sigma`` is minus the slope of a weighted line through ``ln |extremum - baseline|`` against time
        (weights ``|extremum - baseline|^2``, the inverse variance of the logarithm), ``omega_d`` is ``pi``
        over the slope of the extremum times against their half-cycle index, and
@@ -347,10 +342,6 @@ def log_decrement(
     ----------
     t, y : array_like
         Uniformly sampled time (s) and signal (N or ADC counts).
-    baseline : {"envelope", "final"} or float
-        How the equilibrium is found (see above).
-    prominence : float, optional
-        Minimum prominence of an extremum, in the units of ``y``.
     omega_hint : float, optional
         Rough damped frequency (rad/s) instead of the FFT estimate.
 
@@ -369,8 +360,7 @@ def log_decrement(
     if not (math.isfinite(omega) and omega > 0):
         raise ValueError(f"omega_hint must be a positive frequency, got {omega_hint!r}")
     period = 2.0 * math.pi / omega
-    if prominence is None:
-        prominence = max(6.0 * white_noise_std(y), 3.0 * _quantum(y), 0.02 * float(np.ptp(y)))
+    prominence = max(6.0 * white_noise_std(y), 3.0 * _quantum(y), 0.02 * float(np.ptp(y)))
     peaks, troughs = _extrema(t, y, dt, period, prominence)
     ext_t = np.concatenate([peaks[:, 0], troughs[:, 0]])
     ext_y = np.concatenate([peaks[:, 1], troughs[:, 1]])
@@ -379,12 +369,12 @@ def log_decrement(
     ext_t, ext_y, sign = ext_t[order], ext_y[order], sign[order]
     t_ref = float(ext_t[0])
     omega_d, omega_d_std = _frequency_from_extrema(ext_t, period)
-    c = _baseline(baseline, t, y, dt, ext_t - t_ref, ext_y, sign, omega_d)
+    c = _envelope_baseline(ext_t - t_ref, ext_y, sign, omega_d)
     amp = sign * (ext_y - c)
     if np.any(amp <= 0):
         raise ValueError(
             f"baseline {c:.6g} does not lie between the peaks and troughs; the window is not a free decay "
-            "about one equilibrium (drift?) - try another window or baseline"
+            "about one equilibrium (drift?) - try another window"
         )
     ln_a, neg_sigma, sigma_std = _weighted_line(ext_t - t_ref, np.log(amp), amp**2)
     sigma = -neg_sigma
@@ -467,24 +457,6 @@ def _frequency_from_extrema(ext_t: FloatArray, period: float) -> tuple[float, fl
     half_index = np.concatenate([[0.0], np.cumsum(steps)])
     _, slope, slope_std = _weighted_line(half_index, ext_t, np.ones_like(ext_t))
     return math.pi / slope, math.pi * slope_std / slope**2
-
-
-def _baseline(
-    baseline: str | float, t: FloatArray, y: FloatArray, dt: float, tau: FloatArray, ext_y: FloatArray,
-    sign: FloatArray, omega_d: float,
-) -> float:  # fmt: skip
-    """The equilibrium the extrema decay towards (step 3 above)."""
-    if not isinstance(baseline, str):
-        c = float(baseline)
-        if not math.isfinite(c):
-            raise ValueError(f"baseline must be finite, got {baseline!r}")
-        return c
-    if baseline == "final":
-        n_last = max(2, int(round(2.0 * math.pi / omega_d / dt)))
-        return float(np.median(y[-n_last:]))
-    if baseline == "envelope":
-        return _envelope_baseline(tau, ext_y, sign, omega_d)
-    raise ValueError(f"baseline must be 'envelope', 'final' or a number, got {baseline!r}")
 
 
 def _envelope_baseline(tau: FloatArray, ext_y: FloatArray, sign: FloatArray, omega_d: float) -> float:
@@ -705,19 +677,9 @@ class IdentificationResult:
         estimates = {"logdec": _estimate(self.logdec), "fft": fft}
         if self.fit is not None:
             estimates["fit"] = _estimate(self.fit)
-        return {
-            "zeta": float(self.zeta),
-            "omega_d": float(self.omega_d),
-            "zeta_std": _json_float(self.zeta_std),
-            "omega_d_std": _json_float(self.omega_d_std),
-            "omega_n": float(self.omega_n),
-            "method": self.method,
-            "window_s": None if self.window is None else [float(w) for w in self.window],
-            "recording": self.recording,
-            "source": self.source,
-            "n_cycles": float(self.n_cycles),
-            "estimates": estimates,
-        }
+        shared = ("omega_d", "zeta", "omega_d_std", "zeta_std", "method", "recording", "source")
+        mode = IdentifiedMode(window_s=self.window, **{name: getattr(self, name) for name in shared})
+        return {**mode.to_dict(), "n_cycles": float(self.n_cycles), "estimates": estimates}
 
     def summary(self) -> str:
         """A fixed-precision, multi-line summary for notebooks."""
@@ -977,15 +939,15 @@ class IdentifiedMode:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """The keys :meth:`from_dict` reads (NaN as None)."""
+        """The keys :meth:`from_dict` reads (NaN as None), as :meth:`IdentificationResult.to_dict` begins."""
         return {
-            "zeta": self.zeta,
-            "omega_d": self.omega_d,
+            "zeta": float(self.zeta),
+            "omega_d": float(self.omega_d),
             "zeta_std": _json_float(self.zeta_std),
             "omega_d_std": _json_float(self.omega_d_std),
-            "omega_n": self.omega_n,
+            "omega_n": float(self.omega_n),
             "method": self.method,
-            "window_s": None if self.window_s is None else list(self.window_s),
+            "window_s": None if self.window_s is None else [float(w) for w in self.window_s],
             "recording": self.recording,
             "source": self.source,
         }
