@@ -256,9 +256,11 @@ def test_too_little_data_before_the_motion():
     assert math.isnan(m.y0) and "before the motion" in m.reason
 
 
-def test_settling_at_the_very_end_is_not_confirmed():
+def test_settling_at_the_very_end_is_not_confirmed(monkeypatch):
+    monkeypatch.setattr(metrics, "FINAL_S", 0.3)
+    monkeypatch.setattr(metrics, "MIN_HOLD_S", 1.0)
     y = np.where(T >= T_UP, 1.0 - np.exp(-(T - T_UP) / 0.3), 0.0)
-    m = metrics.motion_metrics(T, y, T_UP, 2.5, "Up", 0.05, final_s=0.3, min_hold_s=1.0)
+    m = metrics.motion_metrics(T, y, T_UP, 2.5, "Up", 0.05)
     assert math.isnan(m.settling_ms) and "cannot confirm" in m.reason
 
 

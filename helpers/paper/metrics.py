@@ -9,8 +9,8 @@ recording). With the tension ``y(t)``:
   (the first step happened within the sample interval before it, so at 1 kHz the start is at most 1 ms late);
 - window of a motion: ``start <= t < end`` (the sample at ``end`` belongs to the next motion), except that a
   window ending at or after the last sample includes it;
-- initial value ``y0``: median of the ``pre_s = 0.5`` s before the start; final value ``yf``: median of the
-  last ``final_s = 1.0`` s of the window;
+- initial value ``y0``: median of the :data:`PRE_S` = 0.5 s before the start; final value ``yf``: median of
+  the last :data:`FINAL_S` = 1.0 s of the window;
 - Up: ``peak = max y`` over the window, ``overshoot = 100 (peak - yf) / (yf - y0)``;
   Down: ``peak = min y``, ``overshoot = 100 (yf - peak) / (y0 - yf)``;
 - settling time: from the start to the *settling instant*, the last time the signal leaves the band
@@ -21,15 +21,15 @@ recording). With the tension ``y(t)``:
 
 A metric that cannot be computed is NaN and the row's ``reason`` says why; no number is ever made up:
 
-- a gap in the samples of the analysed span (more than ``max_missing`` consecutive samples missing; NaN
+- a gap in the samples of the analysed span (more than :data:`MAX_MISSING` consecutive samples missing; NaN
   tension samples count as missing): every metric of that motion is NaN;
-- less than ``pre_s`` of data before the start, or a window shorter than ``final_s``: every metric is NaN;
-- a zero step (``|yf - y0| <= min_step``, by default 10 times the white-noise level of the pre-motion
+- less than ``PRE_S`` of data before the start, or a window shorter than ``FINAL_S``: every metric is NaN;
+- a zero step (``|yf - y0|`` at most 10 times the white-noise level of the pre-motion
   samples, estimated robustly from their second difference): overshoot and settling time are NaN (the peak
   is still reported);
 - a step of the wrong sign for the motion (the tension falls across an Up motion or rises across a Down
   one): the overshoot is NaN (its formula assumes the expected direction);
-- never settles (the last sample of the window is outside the band) or settles less than ``min_hold_s``
+- never settles (the last sample of the window is outside the band) or settles less than :data:`MIN_HOLD_S`
   before the window ends (it cannot be confirmed that it stays): the settling time is NaN.
 
 Range check (hardware and virtual recordings alike): a sample whose ADC reading is *clipped*
@@ -279,11 +279,6 @@ def motion_metrics(
     motion: Literal["Up", "Down"],
     band: float = 0.05,
     *,
-    pre_s: float = PRE_S,
-    final_s: float = FINAL_S,
-    min_hold_s: float = MIN_HOLD_S,
-    max_missing: int = MAX_MISSING,
-    min_step: float | None = None,
     clipped: ArrayLike | None = None,
 ) -> MotionMetrics:
     """Peak, overshoot and settling time of one motion (definitions in the module docstring).
@@ -299,15 +294,6 @@ def motion_metrics(
         Which formulas apply.
     band : float
         Half-width of the settling band as a fraction of ``|yf - y0|`` (0 < band < 1).
-    pre_s, final_s : float
-        Lengths (s) of the spans whose medians give ``y0`` and ``yf``.
-    min_hold_s : float
-        The signal must be seen inside the band for at least this long before the window ends.
-    max_missing : int
-        Most consecutive missing samples tolerated in the analysed span.
-    min_step : float, optional
-        Smallest ``|yf - y0|`` that counts as a step; default 10 times the white-noise standard deviation
-        of the pre-motion samples (robust, from the second difference; at least ``1e-9 * max(|y0|, |yf|)``).
     clipped : array_like of bool, optional
         Per sample, whether the sensor clipped it (:func:`clipped_samples`); default none.
 
@@ -321,7 +307,7 @@ def motion_metrics(
     ValueError
         For invalid arguments (not for signals whose metrics are undefined: those give NaN).
     """
-    _check_motion_args(motion, band, start, end, pre_s, final_s, min_hold_s, max_missing)
+    _check_motion_args(motion, band, start, end)
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
     _check_time(t)
@@ -340,12 +326,12 @@ def motion_metrics(
     tv, yv, cv = t[valid], y[valid], clip[valid]
     in_window = (tv >= start) & ((tv < end) | (end >= t[-1]))
     t_w, y_w, c_w = tv[in_window], yv[in_window], cv[in_window]
-    pre = (tv >= start - pre_s) & (tv < start)
-    problem = _coverage_problem(t, tv, t_w, start, end, dt, pre_s, final_s, max_missing)
+    pre = (tv >= start - PRE_S) & (tv < start)
+    problem = _coverage_problem(t, tv, t_w, start, end, dt)
     if problem:
         return _nan_metrics(motion, start, end, band, problem)
 
-    final = t_w >= t_w[-1] - final_s
+    final = t_w >= t_w[-1] - FINAL_S
     y0 = float(np.median(yv[pre]))
     yf = float(np.median(y_w[final]))
     peak = float(np.max(y_w)) if motion == "Up" else float(np.min(y_w))
@@ -364,14 +350,14 @@ def motion_metrics(
         reason = "; ".join(bound_reasons + [why])
         return _nan_metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak, **flags)
     step = yf - y0
-    if min_step is None:
-        min_step = max(10.0 * white_noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
+    # the smallest step: 10 times the pre-motion samples' white noise (robust), at least 1e-9 of the levels
+    min_step = max(10.0 * white_noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
     if abs(step) <= min_step or abs(step) == 0.0:
         reason = f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
         return _nan_metrics(motion, start, end, band, "; ".join(bound_reasons + [reason]), y0=y0, yf=yf,
                             peak=peak, **flags)  # fmt: skip
     overshoot, reasons = _overshoot(motion, peak, y0, yf)
-    settling_ms, settled_s, more = _settling(t_w, y_w, yf, step, band, min_hold_s, start)
+    settling_ms, settled_s, more = _settling(t_w, y_w, yf, step, band, start)
     return MotionMetrics(
         motion=motion,
         start_s=start,
@@ -388,41 +374,35 @@ def motion_metrics(
     )
 
 
-def _check_motion_args(
-    motion: str, band: float, start: float, end: float, pre_s: float, final_s: float, min_hold_s: float,
-    max_missing: int,
-) -> None:  # fmt: skip
+def _check_motion_args(motion: str, band: float, start: float, end: float) -> None:
     if motion not in MOTIONS:
         raise ValueError(f"motion must be 'Up' or 'Down', got {motion!r}")
     if not (0.0 < band < 1.0):
         raise ValueError(f"band must lie in (0, 1), got {band!r}")
     if not (math.isfinite(start) and not math.isnan(end) and end > start):
         raise ValueError(f"need start < end, got start={start!r}, end={end!r}")
-    if pre_s <= 0 or final_s <= 0 or min_hold_s < 0 or max_missing < 0:
-        raise ValueError("pre_s and final_s must be > 0, min_hold_s and max_missing >= 0")
 
 
 def _coverage_problem(
-    t: FloatArray, tv: FloatArray, t_w: FloatArray, start: float, end: float, dt: float, pre_s: float,
-    final_s: float, max_missing: int,
-) -> str:  # fmt: skip
-    """Why the analysed span ``[start - pre_s, end of the window]`` cannot give metrics ("" if it can)."""
-    lo = start - pre_s
+    t: FloatArray, tv: FloatArray, t_w: FloatArray, start: float, end: float, dt: float
+) -> str:
+    """Why the analysed span ``[start - PRE_S, end of the window]`` cannot give metrics ("" if it can)."""
+    lo = start - PRE_S
     if t[0] > lo + 0.5 * dt:
         return (
-            f"only {max(start - t[0], 0.0):.3f} s of data before the motion starts, need {pre_s:.3f} s for y0"
+            f"only {max(start - t[0], 0.0):.3f} s of data before the motion starts, need {PRE_S:.3f} s for y0"
         )
-    if t_w.size < 2 or t_w[-1] - t_w[0] < final_s:
-        return f"window shorter than {final_s:.3f} s, the span of yf"
+    if t_w.size < 2 or t_w[-1] - t_w[0] < FINAL_S:
+        return f"window shorter than {FINAL_S:.3f} s, the span of yf"
     span = tv[(tv >= lo) & (tv <= t_w[-1])]
     # the span's ends are the nominal ones, so that missing samples at either end count as a gap too
     span = np.concatenate([[lo], span, [min(end, float(t[-1]))]])
     gaps = np.diff(span)
     worst = int(np.argmax(gaps))
-    if gaps[worst] > (max_missing + 1.5) * dt:
+    if gaps[worst] > (MAX_MISSING + 1.5) * dt:
         return (
             f"gap of {1e3 * gaps[worst]:.1f} ms in the samples at t = {span[worst]:.3f} s (more than "
-            f"{max_missing} consecutive samples missing)"
+            f"{MAX_MISSING} consecutive samples missing)"
         )
     return ""
 
@@ -442,7 +422,7 @@ def _overshoot(motion: str, peak: float, y0: float, yf: float) -> tuple[float, l
 
 
 def _settling(
-    t_w: FloatArray, y_w: FloatArray, yf: float, step: float, band: float, min_hold_s: float, start: float
+    t_w: FloatArray, y_w: FloatArray, yf: float, step: float, band: float, start: float
 ) -> tuple[float, float, list[str]]:
     """Settling time (ms) and instant (s): the last exit from the band, interpolated, seen to hold."""
     reasons: list[str] = []
@@ -460,10 +440,10 @@ def _settling(
         settled_s = float(t_w[k] + frac * (t_w[k + 1] - t_w[k]))
     if not math.isfinite(settled_s):
         return math.nan, math.nan, reasons
-    if t_w[-1] - settled_s < min_hold_s:
+    if t_w[-1] - settled_s < MIN_HOLD_S:
         reasons.append(
             f"settles only {1e3 * (t_w[-1] - settled_s):.0f} ms before the window ends "
-            f"(< {1e3 * min_hold_s:.0f} ms): cannot confirm it stays in the band"
+            f"(< {1e3 * MIN_HOLD_S:.0f} ms): cannot confirm it stays in the band"
         )
         return math.nan, math.nan, reasons
     return 1e3 * (settled_s - start), settled_s, reasons
