@@ -74,8 +74,9 @@ def test_segmentation_uses_the_recorded_steps_not_nominal_times():
     assert m.up_start == pytest.approx(1.235)  # first sample at or after the first step
     assert m.down_start == pytest.approx(8.433)
     assert m.end == T[-1]
-    assert s[m.up_index - 1] == 0 and s[m.up_index] > 0
-    assert s[m.down_index] < s[m.down_index - 1] == N_STEPS
+    i_up, i_down = np.searchsorted(T, [m.up_start, m.down_start])
+    assert s[i_up - 1] == 0 and s[i_up] > 0
+    assert s[i_down] < s[i_down - 1] == N_STEPS
 
 
 def test_segmentation_errors_are_named():

@@ -728,8 +728,6 @@ def identify(
     y: ArrayLike,
     window: tuple[float, float] | None = None,
     method: Literal["fit", "logdec", "fft"] = "fit",
-    *,
-    min_cycles: float = MIN_CYCLES,
 ) -> IdentificationResult:
     """Identify the dominant mode (zeta, omega_d) from a free decay.
 
@@ -742,8 +740,6 @@ def identify(
     method : {"fit", "logdec", "fft"}
         Which estimate to report: the damped-sine fit (default), the log decrement, or the FFT peak frequency
         with the log decrement's damping. All three are computed and kept in the result.
-    min_cycles : float
-        Fewest damped periods the window must hold (counted from the FFT peak).
 
     Returns
     -------
@@ -753,7 +749,8 @@ def identify(
     Raises
     ------
     ValueError
-        For invalid input, an unknown method, or a window with fewer than ``min_cycles`` cycles.
+        For invalid input, an unknown method, or a window with fewer than :data:`MIN_CYCLES` cycles (counted
+        from the FFT peak).
     RuntimeError
         If ``method="fit"`` and the fit does not converge.
     """
@@ -764,10 +761,10 @@ def identify(
     duration = tw.size * dt
     fft = fft_peak(tw, yw)
     cycles = fft.frequency_hz * duration
-    if cycles < min_cycles:
+    if cycles < MIN_CYCLES:
         raise ValueError(
             f"too few cycles: the window ({duration:.3f} s) holds {cycles:.2f} damped periods of the "
-            f"dominant oscillation, need at least {min_cycles:g}"
+            f"dominant oscillation, need at least {MIN_CYCLES:g}"
         )
     logdec = log_decrement(tw, yw, omega_hint=fft.omega_d)
     try:

@@ -86,15 +86,11 @@ class Motions:
     up_start, down_start, end : float
         Time (s) of the first sample showing the up move, of the first sample showing the down move, and of
         the recording's last sample.
-    up_index, down_index : int
-        The sample indices of ``up_start`` and ``down_start``.
     """
 
     up_start: float
     down_start: float
     end: float
-    up_index: int
-    down_index: int
 
 
 @dataclass(frozen=True)
@@ -219,7 +215,7 @@ def segment_motions(t: ArrayLike, steps: ArrayLike) -> Motions:
     Returns
     -------
     Motions
-        Start times and indices.
+        Start times.
 
     Raises
     ------
@@ -245,13 +241,7 @@ def segment_motions(t: ArrayLike, steps: ArrayLike) -> Motions:
             f"at t = {t[i_max]:.3f} s"
         )
     i_down = i_max + int(down[0])
-    return Motions(
-        up_start=float(t[i_up]),
-        down_start=float(t[i_down]),
-        end=float(t[-1]),
-        up_index=i_up,
-        down_index=i_down,
-    )
+    return Motions(up_start=float(t[i_up]), down_start=float(t[i_down]), end=float(t[-1]))
 
 
 def _nan_metrics(
@@ -565,12 +555,12 @@ def metrics_by_run(
     skipped: list[str] = []
     rigs: dict[str, str] = {}
     for i, rec in enumerate(recordings):
-        status = (getattr(rec, "meta", None) or {}).get("status", "complete")
+        meta = getattr(rec, "meta", None) or {}
+        status = meta.get("status", "complete")
         if status != "complete" and not include_aborted:
             skipped.append(f"{getattr(rec, 'name', i)}: {status}")
             continue
         sc = _scenario_of(rec, i)
-        meta = getattr(rec, "meta", None) or {}
         rig = recording_rig(meta, source=str(getattr(rec, "name", i)))
         rigs[rig.hash] = rig.name
         if len(rigs) > 1 and not mix_rigs:
@@ -720,14 +710,12 @@ def residual_vibration(
     move_end_s: float,
     y0: float,
     yf: float,
-    start_s: float = RESIDUAL_START_S,
-    length_s: float = RESIDUAL_LENGTH_S,
 ) -> float:
     """Residual vibration of a move: half the peak-to-peak of ``y`` in a window after it, in % of the step.
 
-    The window runs from ``move_end_s + start_s`` to ``move_end_s + start_s + length_s`` (default 0.1 s to
-    1.1 s after the last step of the, possibly shaped, move), and the step is ``yf - y0`` as defined for
-    Table II (``docs/metrics.md``).
+    The window runs from :data:`RESIDUAL_START_S` = 0.1 s to ``RESIDUAL_START_S + RESIDUAL_LENGTH_S`` = 1.1 s
+    after the last step of the, possibly shaped, move, and the step is ``yf - y0`` as defined for Table II
+    (``docs/metrics.md``).
 
     Parameters
     ----------
@@ -737,8 +725,6 @@ def residual_vibration(
         Time of the move's last step, s.
     y0, yf : float
         The signal before the move and its final value.
-    start_s, length_s : float
-        Where the window starts after the move, and its length, s.
 
     Returns
     -------
@@ -750,8 +736,8 @@ def residual_vibration(
     y = np.asarray(y, dtype=float)
     if t.shape != y.shape:
         raise ValueError(f"t and y must have the same length, got {t.size} and {y.size}")
-    lo = move_end_s + start_s
-    window = (t >= lo) & (t <= lo + length_s) & np.isfinite(y)
+    lo = move_end_s + RESIDUAL_START_S
+    window = (t >= lo) & (t <= lo + RESIDUAL_LENGTH_S) & np.isfinite(y)
     step = abs(yf - y0)
     if np.count_nonzero(window) < 2 or step == 0.0 or not math.isfinite(step):
         return math.nan
