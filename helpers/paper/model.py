@@ -527,13 +527,11 @@ def transfer_functions(params: ArmParameters) -> tuple[control.TransferFunction,
     sum_b = functools.reduce(np.polyadd, [b[i] * p_except[i] for i in range(n)])
     s = np.array([1.0, 0.0])
     if math.isfinite(params.k):
-        den = np.polymul(s, np.polyadd(p_all, params.k * sum_a))
-        tension = control.tf(params.k * p_all, den, inputs="v", outputs="tension")
-        tip = control.tf(params.k * sum_b, den, inputs="v", outputs="tip")
+        gain, den = params.k, np.polymul(s, np.polyadd(p_all, params.k * sum_a))
     else:
-        den = np.polymul(s, sum_a)
-        tension = control.tf(p_all, den, inputs="v", outputs="tension")
-        tip = control.tf(sum_b, den, inputs="v", outputs="tip")
+        gain, den = 1.0, np.polymul(s, sum_a)
+    tension = control.tf(gain * p_all, den, inputs="v", outputs="tension")
+    tip = control.tf(gain * sum_b, den, inputs="v", outputs="tip")
     return tension, tip
 
 

@@ -163,17 +163,6 @@ class VelocityProfile:
         v[np.abs(v) < 1e-9 * max(1.0, float(np.max(np.abs(self.velocities))))] = 0.0
         return VelocityProfile(b, v).simplified()
 
-    def pieces(self) -> pd.DataFrame:
-        """The pieces as a table: ``t_start_s``, ``t_end_s``, ``v_mm_s``, ``displacement_mm``."""
-        return pd.DataFrame(
-            {
-                "t_start_s": self.breakpoints[:-1],
-                "t_end_s": self.breakpoints[1:],
-                "v_mm_s": self.velocities,
-                "displacement_mm": self.piece_displacements,
-            }
-        )
-
 
 def single_pulse(v_in_mm_s: float, x_f_mm: float, t_start: float, direction: int = 1) -> VelocityProfile:
     """One move: ``direction * v_in`` from ``t_start`` for ``t_p = x_f / v_in``.

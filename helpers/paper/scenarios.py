@@ -72,11 +72,7 @@ def scale_conditions(
     """
     speeds = scale_values([v for v, _ in conditions], fastest_mm_s, 1.0)
     dists = scale_values([x for _, x in conditions], longest_mm, 0.1)
-    out: list[tuple[float, float]] = []
-    for pair in zip(speeds, dists, strict=True):
-        if pair not in out:
-            out.append(pair)
-    return tuple(out)
+    return tuple(dict.fromkeys(zip(speeds, dists, strict=True)))  # duplicates dropped, the order kept
 
 
 def table_i_conditions() -> tuple[tuple[float, float], ...]:

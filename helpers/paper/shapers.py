@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -392,12 +392,7 @@ def design_tdfs(omega_d: float, zeta: float) -> tuple[Shaper, Shaper]:
         (= its square = ZVD), named ``"zv"`` and ``"zvd"`` like the systems of :mod:`helpers.paper.numbers`.
     """
     omega_n = omega_n_from_damped(omega_d, zeta)
-    nonrobust = zv(omega_n, zeta)
-    robust = zvd(omega_n, zeta)
-    return (
-        Shaper(nonrobust.amplitudes, nonrobust.times, "zv"),
-        Shaper(robust.amplitudes, robust.times, "zvd"),
-    )
+    return replace(zv(omega_n, zeta), name="zv"), replace(zvd(omega_n, zeta), name="zvd")
 
 
 def paper_tdfs(omega_d: float = paper.OMEGA_D, zeta: float = paper.ZETA) -> tuple[Shaper, Shaper]:
