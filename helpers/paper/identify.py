@@ -221,8 +221,6 @@ class LogDecrementResult:
         Damped angular frequency (rad/s) from the extremum spacing, and its standard error.
     sigma : float
         Decay rate ``zeta * omega_n`` (1/s), minus the slope of ``ln |extremum - baseline|``.
-    delta : float
-        Logarithmic decrement per damped period, ``sigma * 2 pi / omega_d``.
     baseline : float
         The equilibrium the extrema are measured from.
     envelope_amplitude : float
@@ -234,8 +232,6 @@ class LogDecrementResult:
         Detected maxima (sub-sample refined), for plotting.
     trough_times, trough_values : numpy.ndarray
         Detected minima (sub-sample refined), for plotting.
-    n_cycles : float
-        Damped periods between the first and last extremum.
     """
 
     zeta: float
@@ -243,7 +239,6 @@ class LogDecrementResult:
     omega_d: float
     omega_d_std: float
     sigma: float
-    delta: float
     baseline: float
     envelope_amplitude: float
     t_ref: float
@@ -251,7 +246,6 @@ class LogDecrementResult:
     peak_values: FloatArray
     trough_times: FloatArray
     trough_values: FloatArray
-    n_cycles: float
 
     def envelope(self, t: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Return the upper and lower decay envelopes ``baseline +- a exp(-sigma (t - t_ref))`` at ``t``."""
@@ -382,14 +376,12 @@ def log_decrement(
     zeta = _zeta_from_delta(delta)
     dzeta_ddelta = 4.0 * math.pi**2 / (4.0 * math.pi**2 + delta**2) ** 1.5
     zeta_std = abs(dzeta_ddelta) * 2.0 * math.pi / omega_d * sigma_std
-    n_cycles = float((ext_t[-1] - ext_t[0]) * omega_d / (2.0 * math.pi))
     return LogDecrementResult(
         zeta=zeta,
         zeta_std=zeta_std,
         omega_d=omega_d,
         omega_d_std=omega_d_std,
         sigma=sigma,
-        delta=delta,
         baseline=c,
         envelope_amplitude=float(math.exp(ln_a)),
         t_ref=t_ref,
@@ -397,7 +389,6 @@ def log_decrement(
         peak_values=peaks[:, 1].copy(),
         trough_times=troughs[:, 0].copy(),
         trough_values=troughs[:, 1].copy(),
-        n_cycles=n_cycles,
     )
 
 
@@ -485,14 +476,12 @@ class DampedSineFit:
     ----------
     zeta, omega_d, amplitude, phase, offset : float
         Fitted parameters (``omega_n = omega_d / sqrt(1 - zeta^2)``).
-    zeta_std, omega_d_std, amplitude_std, phase_std, offset_std : float
+    zeta_std, omega_d_std : float
         Standard errors from ``s^2 (J^T J)^-1`` at the solution, ``s^2`` the residual variance.
     t0 : float
         Time origin (the window's first sample).
     rms_residual : float
         Root-mean-square residual, in the units of ``y``.
-    n_samples : int
-        Samples in the fit.
     """
 
     zeta: float
@@ -502,17 +491,8 @@ class DampedSineFit:
     offset: float
     zeta_std: float
     omega_d_std: float
-    amplitude_std: float
-    phase_std: float
-    offset_std: float
     t0: float
     rms_residual: float
-    n_samples: int
-
-    @property
-    def omega_n(self) -> float:
-        """Undamped natural frequency, rad/s."""
-        return omega_n_from_damped(self.omega_d, self.zeta)
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         """Evaluate the fitted model at ``t``."""
@@ -609,12 +589,8 @@ def damped_sine_fit(
         offset=c,
         zeta_std=float(std[2]),
         omega_d_std=float(std[3]),
-        amplitude_std=float(std[1]),
-        phase_std=float(std[4]),
-        offset_std=float(std[0]),
         t0=float(t[0]),
         rms_residual=math.sqrt(rss / n),
-        n_samples=n,
     )
 
 
