@@ -111,11 +111,8 @@ class Shaper:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Shaper):
             return NotImplemented
-        return (
-            self.amplitudes.shape == other.amplitudes.shape
-            and bool(np.array_equal(self.amplitudes, other.amplitudes))
-            and bool(np.array_equal(self.times, other.times))
-        )
+        same = np.array_equal(self.amplitudes, other.amplitudes) and np.array_equal(self.times, other.times)
+        return bool(same)
 
     def __hash__(self) -> int:
         return hash((self.amplitudes.tobytes(), self.times.tobytes()))
@@ -220,12 +217,9 @@ class Shaper:
         i1 = int(np.argmin(np.abs(r - 1.0)))
         if not loose[i1]:
             return math.nan, math.nan, math.nan
-        lo = i1
-        while lo > 0 and loose[lo - 1]:
-            lo -= 1
-        hi = i1
-        while hi < r.size - 1 and loose[hi + 1]:
-            hi += 1
+        tight = np.flatnonzero(~loose)  # the band runs between the nearest of these on either side
+        lo = int(tight[tight < i1].max(initial=-1)) + 1
+        hi = int(tight[tight > i1].min(initial=r.size)) - 1
         inside = np.flatnonzero(v[lo : hi + 1] <= vtol) + lo
         if inside.size == 0:
             return math.nan, math.nan, math.nan
