@@ -24,19 +24,19 @@ def check_mode(omega: Any, zeta: Any, name: str = "omega_n") -> None:
     name : str
         How the frequency is called in the message.
     """
-    number = (int, float)
-    if isinstance(omega, bool) or not (isinstance(omega, number) or hasattr(omega, "__float__")):
-        raise ValueError(f"{name} must be a finite number (rad/s), got {omega!r}")
-    if not math.isfinite(float(omega)):
-        raise ValueError(f"{name} must be a finite number (rad/s), got {omega!r}")
-    if float(omega) <= 0:
+    if _finite(omega, f"{name} must be a finite number (rad/s)") <= 0:
         raise ValueError(f"{name} must be > 0 rad/s, got {omega!r}")
-    if isinstance(zeta, bool) or not (isinstance(zeta, number) or hasattr(zeta, "__float__")):
-        raise ValueError(f"zeta must be a finite number, got {zeta!r}")
-    if not math.isfinite(float(zeta)):
-        raise ValueError(f"zeta must be a finite number, got {zeta!r}")
-    if not 0.0 <= float(zeta) < 1.0:
+    if not 0.0 <= _finite(zeta, "zeta must be a finite number") < 1.0:
         raise ValueError(f"zeta must lie in [0, 1), got {zeta!r}")
+
+
+def _finite(value: Any, message: str) -> float:
+    """``float(value)``; ``ValueError`` with ``message`` unless it is a finite number (a bool is not)."""
+    if isinstance(value, bool) or not (isinstance(value, int | float) or hasattr(value, "__float__")):
+        raise ValueError(f"{message}, got {value!r}")
+    if not math.isfinite(float(value)):
+        raise ValueError(f"{message}, got {value!r}")
+    return float(value)
 
 
 def omega_n_from_damped(omega_d: float, zeta: float) -> float:
