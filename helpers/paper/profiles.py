@@ -101,14 +101,9 @@ class VelocityProfile:
         return float(self.breakpoints[-1])
 
     @property
-    def durations(self) -> np.ndarray:
-        """Length of each piece (s)."""
-        return np.diff(self.breakpoints)
-
-    @property
     def piece_displacements(self) -> np.ndarray:
-        """Displacement of each piece (mm)."""
-        return self.velocities * self.durations
+        """Displacement of each piece (mm): its velocity times its length."""
+        return self.velocities * np.diff(self.breakpoints)
 
     @property
     def total_displacement(self) -> float:
@@ -122,16 +117,13 @@ class VelocityProfile:
         inside = (k >= 0) & (k < self.velocities.size)
         return np.where(inside, self.velocities[np.clip(k, 0, self.velocities.size - 1)], 0.0)
 
-    def cumulative(self) -> np.ndarray:
-        """Displacement (mm) reached at each breakpoint (starts at 0)."""
-        return np.concatenate([[0.0], np.cumsum(self.piece_displacements)])
-
     def displacement(self, t: np.ndarray | float) -> np.ndarray:
         """Exact displacement (mm) from rest at 0 before the first breakpoint, at times ``t``."""
         t = np.asarray(t, dtype=float)
         tc = np.clip(t, self.start, self.end)
         k = np.clip(np.searchsorted(self.breakpoints, tc, side="right") - 1, 0, self.velocities.size - 1)
-        return self.cumulative()[k] + self.velocities[k] * (tc - self.breakpoints[k])
+        reached = np.concatenate([[0.0], np.cumsum(self.piece_displacements)])  # at each breakpoint
+        return reached[k] + self.velocities[k] * (tc - self.breakpoints[k])
 
     def simplified(self) -> VelocityProfile:
         """The same profile with equal neighbouring velocities merged."""
