@@ -27,6 +27,7 @@ from helpers.rigfile.schema import (
     REQUIRED,
     RIG_SCHEMA_VERSION,
     TENDON,
+    TENDON_FALLBACK,
     TOP,
     Key,
 )
@@ -55,20 +56,11 @@ Boards.__doc__ = "The ``[boards]`` table (``helpers.rigfile.schema.BOARDS``)."
 
 
 @dataclass(frozen=True)
-class Tendon:
+class Tendon(dataclasses.make_dataclass("TendonKeys", _fields(TENDON), frozen=True)):
     """One tendon with its stepper and load cell, every value resolved (absent keys: its tables).
 
-    Units in the names; ``docs/rig_file.md``.
+    Its fields are the keys of ``helpers.rigfile.schema.TENDON``; units in the names; ``docs/rig_file.md``.
     """
-
-    angle_deg: float
-    offset_mm: float
-    spool_diameter_mm: float
-    steps_per_rev: int
-    holding_torque_n_m: float
-    load_cell_range_n: float
-    pretension_n: float
-    cable_stiffness_n_m: float
 
     @property
     def mm_per_step(self) -> float:
@@ -233,15 +225,8 @@ def loads(text: str, source: str = "<string>") -> RigFile:
         raise _problem(source, "[[tendon]]", "must be an array of tables ([[tendon]] blocks)")
     if not 1 <= len(raw_tendons) <= MAX_TENDONS:
         raise _problem(source, "[[tendon]]", f"{len(raw_tendons)} tendons: a rig has 1 to {MAX_TENDONS}")
-    fallback = {
-        "offset_mm": arm["cable_offset_mm"],
-        "spool_diameter_mm": hw["spool_diameter_mm"],
-        "steps_per_rev": hw["steps_per_rev"],
-        "holding_torque_n_m": hw["holding_torque_n_m"],
-        "load_cell_range_n": hw["load_cell_range_n"],
-        "pretension_n": arm["pretension_n"],
-        "cable_stiffness_n_m": arm["cable_stiffness_n_m"],
-    }
+    tables = {"hardware": hw, "arm": arm}
+    fallback = {name: tables[table][key] for name, (table, key, _) in TENDON_FALLBACK.items()}
     tendons = []
     for i, raw in enumerate(raw_tendons):
         values = _table(source, f"[[tendon]] #{i + 1}", raw, TENDON)
