@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 
 from helpers.paper import numbers as paper
 from helpers.paper.identify import IdentificationResult
-from helpers.plotting import save as save_figure
+from helpers.plotting import finish
 
 FIG5_NAME = "fig5_force_response.png"
 FIG6_NAME = "fig6_logdec_fft.png"
@@ -112,10 +112,7 @@ def fig5_force_response(
         )
     ax.set_title(f"Fig. 5{_source_note(source)}: force response to the velocity pulse{what}", fontsize=10)
     ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    if save:
-        save_figure(fig, FIG5_NAME)
-    return fig
+    return finish(fig, FIG5_NAME if save else None)
 
 
 def fig6_logdec_fft(
@@ -198,7 +195,4 @@ def fig6_logdec_fft(
     ax2.set_xlim(0.0, f_top)
     ax2.set_title("Single-sided amplitude spectrum (Hann window)")
     ax2.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    if save:
-        save_figure(fig, FIG6_NAME)
-    return fig
+    return finish(fig, FIG6_NAME if save else None)

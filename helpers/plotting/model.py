@@ -14,7 +14,7 @@ from helpers.paper import model
 from helpers.paper import numbers as paper
 from helpers.paper.profiles import velocity_pulse
 from helpers.paper.shapers import paper_tdfs
-from helpers.plotting import SYSTEM_COLOURS, save
+from helpers.plotting import SYSTEM_COLOURS, finish, save
 
 FIG12_NAME = "fig12_model_shaping.png"
 """File name of the paper's Fig. 12 under ``figures/``."""
@@ -101,8 +101,7 @@ def pole_zero_map(params: model.ArmParameters, zoom: float = 60.0) -> plt.Figure
     axes[1].set_ylim(-1.1 * w[1], 1.1 * w[1])
     axes[1].set_title(rf"zoom: dominant pair, $\omega_d$ = {dom.omega_d:.3f} rad/s")
     axes[1].legend(loc="lower left", fontsize=7)
-    fig.tight_layout()
-    return fig
+    return finish(fig, None)
 
 
 @dataclass(frozen=True)
@@ -117,8 +116,6 @@ class ShapingResponse:
         Cable velocity command per system (``"unshaped"``, ``"zv"``, ``"zvd"``), mm/s.
     tension : dict of str to numpy.ndarray
         Model tension per system, N.
-    tip : dict of str to numpy.ndarray
-        Model tip displacement per system, m.
     v_in_mm_s, x_f_mm : float
         The pulse.
     """
@@ -128,7 +125,6 @@ class ShapingResponse:
     t: np.ndarray
     commands: dict[str, np.ndarray]
     tension: dict[str, np.ndarray]
-    tip: dict[str, np.ndarray]
 
 
 def shaping_response(
@@ -161,7 +157,7 @@ def shaping_response(
     Returns
     -------
     ShapingResponse
-        Commands, tensions and tip displacements on one grid.
+        Commands and tensions on one grid.
     """
     if not (int(rate_hz) == rate_hz and rate_hz > 0 and t_end > 8.0 + x_f_mm / v_in_mm_s):
         raise ValueError(
@@ -171,12 +167,9 @@ def shaping_response(
     pulse = np.asarray(velocity_pulse(t, v_in_mm_s, x_f_mm), dtype=float)
     zv, zvd = paper_tdfs()
     commands = {"unshaped": pulse, "zv": zv.apply(t, pulse), "zvd": zvd.apply(t, pulse)}
-    tension: dict[str, np.ndarray] = {}
-    tip: dict[str, np.ndarray] = {}
-    for name, v in commands.items():
-        tension[name], tip[name] = model.linear_response(params, t, v * 1e-3)
+    tension = {name: model.linear_response(params, t, v * 1e-3)[0] for name, v in commands.items()}
     return ShapingResponse(
-        v_in_mm_s=float(v_in_mm_s), x_f_mm=float(x_f_mm), t=t, commands=commands, tension=tension, tip=tip
+        v_in_mm_s=float(v_in_mm_s), x_f_mm=float(x_f_mm), t=t, commands=commands, tension=tension
     )
 
 
@@ -227,13 +220,11 @@ def fig12(
     ax_all.set_ylabel("tension (N)")
     ax_all.set_xlabel("time (s)")
     ax_all.set_xlim(t[0], t[-1])
-    ax_up.set_xlim(paper.PULSE_T_UP_S - 0.1, paper.PULSE_T_UP_S + 2.4)
-    ax_down.set_xlim(paper.PULSE_T_DOWN_S - 0.1, paper.PULSE_T_DOWN_S + 2.4)
-    ax_up.set_title("Up", fontsize=9)
-    ax_down.set_title("Down", fontsize=9)
-    ax_up.set_ylabel("tension (N)")
-    for ax in (ax_up, ax_down):
+    for ax, t_move, title in ((ax_up, paper.PULSE_T_UP_S, "Up"), (ax_down, paper.PULSE_T_DOWN_S, "Down")):
+        ax.set_xlim(t_move - 0.1, t_move + 2.4)
+        ax.set_title(title, fontsize=9)
         ax.set_xlabel("time (s)")
+    ax_up.set_ylabel("tension (N)")
     ax_down.tick_params(labelleft=False)
     lowest = min(float(np.min(response.tension[name])) for name in paper.SYSTEMS)
     if lowest < 0.0:  # the linear model has no slack: say where it stops being physical

@@ -15,7 +15,7 @@ from helpers.paper import numbers as paper
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile
 from helpers.paper.shapers import Shaper
-from helpers.plotting import SYSTEM_COLOURS, save
+from helpers.plotting import SYSTEM_COLOURS, finish
 
 SENSITIVITY_NAME = "shaper_sensitivity.png"
 IMPULSES_NAME = "shaper_impulses.png"
@@ -62,10 +62,7 @@ def impulse_sequences(shapers: Sequence[Shaper], name: str | None = IMPULSES_NAM
         ax.set_title(f"{label} TDF ({s.name.upper()})" if label else s.name)
     axes[0, 0].set_ylabel("impulse amplitude")
     axes[0, 0].set_ylim(min(0.0, min(s.amplitudes.min() for s in shapers)) - 0.05, 0.75)
-    fig.tight_layout()
-    if name:
-        save(fig, name)
-    return fig
+    return finish(fig, name)
 
 
 def sensitivity_curves(
@@ -114,10 +111,7 @@ def sensitivity_curves(
     ax.set_ylabel("residual vibration V (%)")
     ax.set_title(f"Sensitivity of the shapers (zeta = {zeta:.3f})")
     ax.legend(ncol=3, loc="upper center")
-    fig.tight_layout()
-    if name:
-        save(fig, name)
-    return fig
+    return finish(fig, name)
 
 
 def shaped_commands(
@@ -164,7 +158,4 @@ def shaped_commands(
         axes[0, 1].legend(loc="lower right")
     axes[-1, 0].set_xlabel("time (s)")
     axes[-1, 1].set_xlabel("time (s)")
-    fig.tight_layout()
-    if name:
-        save(fig, name)
-    return fig
+    return finish(fig, name)
