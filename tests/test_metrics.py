@@ -401,8 +401,7 @@ def test_scenario_figure_is_written(tmp_path, monkeypatch):
         expected = (pair[0].frame["tension_n"].to_numpy() + pair[1].frame["tension_n"].to_numpy()) / 2
         np.testing.assert_allclose(mean_line.get_ydata(), expected)
         assert len(ax.collections) == 1  # the band between the repetitions
-    by_system = {"unshaped": recs[:2], "zv": recs[2:4], "zvd": recs[4:6]}
-    plots.fig_scenario(by_system, (200.0, 20.0), save=True)  # number from the paper's numbering
+    plots.fig_scenario(recs, (200.0, 20.0), save=True)  # number from the paper's numbering
     fig_a = plots.fig_scenario(recs, (200, 10), save=True)
     assert (tmp_path / "figA_10mm_200mms.png").exists()
     assert "no figure in the paper" in fig_a._suptitle.get_text()

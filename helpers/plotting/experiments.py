@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import matplotlib.pyplot as plt
@@ -27,15 +27,6 @@ def scenario_figure_name(condition: tuple[float, float], number: int | str) -> s
     return f"fig{number}_{x_f:g}mm_{v_in:g}mms.png"
 
 
-def _group(recordings: Mapping[str, Sequence[Any]] | Iterable[Any]) -> dict[str, list[Any]]:
-    if isinstance(recordings, Mapping):
-        return {str(k): list(v) for k, v in recordings.items()}
-    groups: dict[str, list[Any]] = {}
-    for rec in recordings:
-        groups.setdefault(str(rec.meta["scenario"]["system"]), []).append(rec)
-    return groups
-
-
 def _matches(rec: Any, condition: tuple[float, float]) -> bool:
     sc = rec.meta["scenario"]
     return (
@@ -52,7 +43,7 @@ def _common_grid(recs: Sequence[Any], column: str) -> tuple[np.ndarray, np.ndarr
 
 
 def fig_scenario(
-    recordings_by_system: Mapping[str, Sequence[Any]] | Iterable[Any],
+    recordings: Iterable[Any],
     condition: tuple[float, float],
     number: int | str | None = None,
     *,
@@ -69,10 +60,9 @@ def fig_scenario(
 
     Parameters
     ----------
-    recordings_by_system : mapping or iterable
-        ``{"unshaped": [...], "zv": [...], "zvd": [...]}`` of recordings (objects with ``.frame`` holding
-        ``t_s``, ``tension_n`` and ``cable_mm`` or ``steps``, and ``.meta`` with ``"scenario"``; a
-        ``source.kind`` of ``"virtual-rig"`` is named in the title), or a flat iterable of recordings grouped
+    recordings : iterable
+        Recordings (objects with ``.frame`` holding ``t_s``, ``tension_n`` and ``cable_mm`` or ``steps``, and
+        ``.meta`` with ``"scenario"``; a ``source.kind`` of ``"virtual-rig"`` is named in the title), grouped
         by ``meta["scenario"]["system"]``.
     condition : (float, float)
         ``(v_in in mm/s, x_f in mm)``.
@@ -94,10 +84,10 @@ def fig_scenario(
     condition = (float(condition[0]), float(condition[1]))
     if number is None:
         number = PAPER_FIGURE_NUMBERS.get(condition, "X")
-    groups = {
-        s: [r for r in recs if _matches(r, condition)] for s, recs in _group(recordings_by_system).items()
-    }
-    groups = {s: recs for s, recs in groups.items() if recs}
+    groups: dict[str, list[Any]] = {}
+    for rec in recordings:
+        if _matches(rec, condition):
+            groups.setdefault(str(rec.meta["scenario"]["system"]), []).append(rec)
     if not groups:
         raise ValueError(
             f"no recording matches the condition v_in = {condition[0]:g} mm/s, x_f = {condition[1]:g} mm"
