@@ -114,11 +114,6 @@ class RigFile:
         """Number of tendons (axes and load-cell channels)."""
         return len(self.tendons)
 
-    @property
-    def mm_per_step(self) -> float:
-        """Tendon 1's (the ``[hardware]`` stepper's) cable per microstep, mm."""
-        return self.tendons[0].mm_per_step
-
 
 def _problem(source: str, where: str, problem: str) -> RigFileError:
     return RigFileError(f"{source}: {where}: {problem}")
@@ -217,10 +212,8 @@ def loads(text: str, source: str = "<string>") -> RigFile:
     hw = _table(source, "[hardware]", data["hardware"], HARDWARE)
     arm = _table(source, "[arm]", data["arm"], ARM)
     boards = _table(source, "[boards]", data.get("boards", {}), BOARDS)
-    raw_tendons = data.get("tendon")
-    explicit = raw_tendons is not None
-    if raw_tendons is None:
-        raw_tendons = [{"angle_deg": 0.0}]
+    explicit = "tendon" in data
+    raw_tendons = data.get("tendon", [{"angle_deg": 0.0}])
     if not isinstance(raw_tendons, list) or not all(isinstance(t, dict) for t in raw_tendons):
         raise _problem(source, "[[tendon]]", "must be an array of tables ([[tendon]] blocks)")
     if not 1 <= len(raw_tendons) <= MAX_TENDONS:
