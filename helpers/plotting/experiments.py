@@ -45,7 +45,6 @@ def _common_grid(recs: Sequence[Any], column: str) -> tuple[np.ndarray, np.ndarr
 def fig_scenario(
     recordings: Iterable[Any],
     condition: tuple[float, float],
-    number: int | str | None = None,
     *,
     save: bool = False,
 ) -> plt.Figure:
@@ -66,10 +65,9 @@ def fig_scenario(
         by ``meta["scenario"]["system"]``.
     condition : (float, float)
         ``(v_in in mm/s, x_f in mm)``.
-    number : int or str, optional
-        The paper's figure number (default from :data:`PAPER_FIGURE_NUMBERS`); names the saved file.
     save : bool
-        Save as ``figures/fig<number>_<x_f>mm_<v_in>mms.png``.
+        Save as ``figures/fig<number>_<x_f>mm_<v_in>mms.png``, with the paper's figure number
+        (:data:`PAPER_FIGURE_NUMBERS`; ``X`` for a condition not listed there).
 
     Returns
     -------
@@ -82,8 +80,7 @@ def fig_scenario(
         If no recording matches ``condition``.
     """
     condition = (float(condition[0]), float(condition[1]))
-    if number is None:
-        number = PAPER_FIGURE_NUMBERS.get(condition, "X")
+    number = PAPER_FIGURE_NUMBERS.get(condition, "X")
     groups: dict[str, list[Any]] = {}
     for rec in recordings:
         if _matches(rec, condition):

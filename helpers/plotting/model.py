@@ -25,15 +25,13 @@ FIG12_X_F_MM = 20.0
 and the case of the paper's Fig. 9, so the model figure sits beside a measured one."""
 
 
-def mode_shapes(n_modes: int = 4, n_points: int = 401) -> plt.Figure:
+def mode_shapes(n_modes: int = 4) -> plt.Figure:
     """Plot the tip-normalised mode shapes ``phi_n(x/L)`` of modes 1..n_modes.
 
     Parameters
     ----------
     n_modes : int
         Number of modes.
-    n_points : int
-        Points along the arm.
 
     Returns
     -------
@@ -41,7 +39,7 @@ def mode_shapes(n_modes: int = 4, n_points: int = 401) -> plt.Figure:
         One axes, shape against x/L.
     """
     beta = model.cantilever_roots(n_modes)
-    x = np.linspace(0.0, 1.0, n_points)
+    x = np.linspace(0.0, 1.0, 401)
     fig, ax = plt.subplots(figsize=(6.0, 3.2))
     for n in range(1, n_modes + 1):
         ax.plot(x, model.mode_shape(x, n), label=f"mode {n} (beta = {beta[n - 1]:.4f})")
@@ -82,14 +80,8 @@ def pole_zero_map(params: model.ArmParameters, zoom: float = 60.0) -> plt.Figure
         ax.plot(p.real, p.imag, "x", color="C3", ms=7, mew=1.5, label="poles")
         ax.plot(z.real, z.imag, "o", mfc="none", color="C0", ms=7, label="zeros (uncoupled modes)")
         for i, (wi, style) in enumerate(zip(w[:2], ("--", ":"), strict=True)):
-            for sign in (1, -1):
-                ax.axhline(
-                    sign * wi,
-                    ls=style,
-                    color="0.4",
-                    lw=0.8,
-                    label=rf"$\pm\omega_{i + 1}$ = {wi:.2f} rad/s" if sign > 0 else None,
-                )
+            ax.axhline(wi, ls=style, color="0.4", lw=0.8, label=rf"$\pm\omega_{i + 1}$ = {wi:.2f} rad/s")
+            ax.axhline(-wi, ls=style, color="0.4", lw=0.8)
         ax.plot(dom.pole.real, dom.pole.imag, "o", ms=14, mfc="none", color="C2", mew=1.2, label="dominant")
         ax.plot(dom.pole.real, -dom.pole.imag, "o", ms=14, mfc="none", color="C2", mew=1.2)
         ax.axhline(0.0, color="k", lw=0.6)
@@ -173,12 +165,7 @@ def shaping_response(
     )
 
 
-def fig12(
-    params: model.ArmParameters | None = None,
-    v_in_mm_s: float = FIG12_V_IN_MM_S,
-    x_f_mm: float = FIG12_X_F_MM,
-    response: ShapingResponse | None = None,
-) -> plt.Figure:
+def fig12(response: ShapingResponse) -> plt.Figure:
     """The paper's Fig. 12: model tension response to the velocity pulse, without and with input shaping.
 
     Top: the three cable-velocity commands; middle: the model tension over the whole run; bottom: the
@@ -186,21 +173,14 @@ def fig12(
 
     Parameters
     ----------
-    params : helpers.paper.model.ArmParameters, optional
-        The model; default :data:`helpers.paper.model.FITTED`.
-    v_in_mm_s, x_f_mm : float
-        The pulse (default 200 mm/s, 20 mm; the paper does not say which it used).
-    response : ShapingResponse, optional
-        A precomputed :func:`shaping_response` (then ``params``, ``v_in_mm_s`` and ``x_f_mm`` are ignored).
+    response : ShapingResponse
+        The model's responses (:func:`shaping_response`).
 
     Returns
     -------
     matplotlib.figure.Figure
         The figure (also written to ``figures/``).
     """
-    if response is None:
-        params = model.FITTED if params is None else params
-        response = shaping_response(params, v_in_mm_s, x_f_mm)
     labels = {"unshaped": "Pulse (unshaped)", "zv": "Non-robust TDF (ZV)", "zvd": "Robust TDF (ZVD)"}
     t = response.t
     fig = plt.figure(figsize=(7.2, 6.4))
