@@ -21,12 +21,6 @@ PAPER_FIGURE_NUMBERS: dict[tuple[float, float], int | str] = {
 """The paper's figure number for each (v_in mm/s, x_f mm) condition; the 10 mm case has no figure there."""
 
 
-def scenario_figure_name(condition: tuple[float, float], number: int | str) -> str:
-    """File name of a scenario figure, e.g. ``fig9_20mm_200mms.png`` for ``(200, 20)`` and number 9."""
-    v_in, x_f = condition
-    return f"fig{number}_{x_f:g}mm_{v_in:g}mms.png"
-
-
 def _matches(rec: Any, condition: tuple[float, float]) -> bool:
     sc = rec.meta["scenario"]
     return (
@@ -136,4 +130,4 @@ def fig_scenario(
     title = f"Fig. {number}: {what}" if isinstance(number, int) else f"{what} (no figure in the paper)"
     reps = f", {n_reps} repetitions per system" if n_reps > 1 else ""
     fig.suptitle(title + (" (virtual rig" + reps + ")" if virtual else reps), fontsize=10)
-    return finish(fig, scenario_figure_name(condition, number) if save else None)
+    return finish(fig, f"fig{number}_{condition[1]:g}mm_{condition[0]:g}mms.png" if save else None)

@@ -171,8 +171,7 @@ def _table(source: str, label: str, data: Any, keys: tuple[Key, ...]) -> dict[st
         if key.name not in data:
             if key.default is REQUIRED:
                 raise _problem(source, where, f"missing ({key.doc}, {key.unit})")
-            default = key.default
-            out[key.name] = tuple(default) if isinstance(default, list) else default
+            out[key.name] = key.default
             continue
         out[key.name] = _value(source, where, key, data[key.name])
     return out
@@ -186,7 +185,6 @@ def loads(text: str, source: str = "<string>") -> RigFile:
     RigFileError
         One line naming ``source``, the key and the problem.
     """
-    from_bytes = text.encode("utf-8")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -228,7 +226,7 @@ def loads(text: str, source: str = "<string>") -> RigFile:
     rig = RigFile(
         name=top["name"], description=top["description"], schema_version=top["schema_version"],
         hardware=Hardware(**hw), arm=Arm(**arm), boards=Boards(**boards), tendons=tuple(tendons),
-        explicit_tendons=explicit, text=text, source=source, hash=rig_hash(from_bytes),
+        explicit_tendons=explicit, text=text, source=source, hash=rig_hash(text.encode("utf-8")),
     )  # fmt: skip
     check(rig)  # the rig as a whole: safe and feasible
     return rig
@@ -247,5 +245,4 @@ def load(path: str | Path) -> RigFile:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise RigFileError(f"{p}: not UTF-8 text") from None
-    rig = loads(text, source=str(p))
-    return dataclasses.replace(rig, hash=rig_hash(data))
+    return loads(text, source=str(p))  # its hash: of the text's UTF-8 bytes, which are the file's

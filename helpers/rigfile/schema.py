@@ -231,7 +231,7 @@ ARM: tuple[Key, ...] = (
         "gravity_direction",
         "vector3",
         "-",
-        [-1.0, 0.0, 0.0],
+        (-1.0, 0.0, 0.0),
         "direction of gravity in the clamp frame (z along the backbone, x towards tendon 1): [-1, 0, 0] "
         "horizontal with tendon 1 on top, [0, 0, 1] hanging",
     ),  # fmt: skip
