@@ -19,11 +19,6 @@ from helpers.plotting import SYSTEM_COLOURS, finish, save
 FIG12_NAME = "fig12_model_shaping.png"
 """File name of the paper's Fig. 12 under ``figures/``."""
 
-FIG12_V_IN_MM_S = 200.0
-FIG12_X_F_MM = 20.0
-"""Fig. 12's pulse: the paper does not state it; we use 200 mm/s and 20 mm, the middle row of Table I
-and the case of the paper's Fig. 9, so the model figure sits beside a measured one."""
-
 
 def mode_shapes(n_modes: int = 4) -> plt.Figure:
     """Plot the tip-normalised mode shapes ``phi_n(x/L)`` of modes 1..n_modes.
@@ -121,8 +116,8 @@ class ShapingResponse:
 
 def shaping_response(
     params: model.ArmParameters,
-    v_in_mm_s: float = FIG12_V_IN_MM_S,
-    x_f_mm: float = FIG12_X_F_MM,
+    v_in_mm_s: float,
+    x_f_mm: float,
     t_end: float = 12.0,
     rate_hz: int = 2000,
 ) -> ShapingResponse:
@@ -139,7 +134,9 @@ def shaping_response(
     params : helpers.paper.model.ArmParameters
         The model.
     v_in_mm_s, x_f_mm : float
-        Pulse velocity (mm/s) and cable displacement (mm).
+        Pulse velocity (mm/s) and cable displacement (mm). The paper does not state Fig. 12's; notebook 01
+        uses 200 mm/s and 20 mm, the middle row of Table I and the case of the paper's Fig. 9, so the model
+        figure sits beside a measured one.
     t_end : float
         Simulated span, s.
     rate_hz : int
