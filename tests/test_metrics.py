@@ -394,7 +394,7 @@ def test_scenario_figure_is_written(tmp_path, monkeypatch):
         for s, z in (("unshaped", 0.05), ("zv", 0.3), ("zvd", 0.6))
         for r in (1, 2)
     ]
-    fig = plots.fig_scenario(recs, (200, 20), 9, save=True)
+    fig = plots.fig_scenario(recs, (200, 20), save=True)
     assert (tmp_path / "fig9_20mm_200mms.png").stat().st_size > 0
     assert "virtual rig" in fig._suptitle.get_text() and fig._suptitle.get_text().startswith("Fig. 9")
     assert len(fig.axes) == 4  # one row per system (the traces cannot hide each other) and the cable
@@ -404,15 +404,13 @@ def test_scenario_figure_is_written(tmp_path, monkeypatch):
         expected = (pair[0].frame["tension_n"].to_numpy() + pair[1].frame["tension_n"].to_numpy()) / 2
         np.testing.assert_allclose(mean_line.get_ydata(), expected)
         assert len(ax.collections) == 1  # the band between the repetitions
-    by_system = {"unshaped": recs[:2], "zv": recs[2:4], "zvd": recs[4:6]}
-    plots.fig_scenario(by_system, (200.0, 20.0), save=True)  # number from the paper's numbering
-    fig_a = plots.fig_scenario(recs, (200, 10), save=True)
+        fig_a = plots.fig_scenario(recs, (200, 10), save=True)
     assert (tmp_path / "figA_10mm_200mms.png").exists()
     assert "no figure in the paper" in fig_a._suptitle.get_text()
     with pytest.raises(ValueError, match="no recording"):
-        plots.fig_scenario(recs, (300, 20), 11)
+        plots.fig_scenario(recs, (300, 20))
     hw = [fake_recording(200, 20, "zv", 1, 0.3, source="hardware")]
-    assert "virtual" not in plots.fig_scenario(hw, (200, 20), 9)._suptitle.get_text()
+    assert "virtual" not in plots.fig_scenario(hw, (200, 20))._suptitle.get_text()
     plt.close("all")
 
 
@@ -512,7 +510,7 @@ def test_the_scenario_figure_marks_clipped_samples():
 
     y = np.maximum(tension(T, zeta=0.05, low=2.0, high=13.0), 0.0)
     rec = _counts_recording(y, round(20.5e-3 * 150 * 1024 / 5), "hardware")
-    fig = plots.fig_scenario([rec], (200, 20), 9)
+    fig = plots.fig_scenario([rec], (200, 20))
     labels = [line.get_label() for line in fig.axes[0].lines]
     assert any("clipped" in label for label in labels)
     plt.close("all")

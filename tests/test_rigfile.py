@@ -47,7 +47,7 @@ def test_paper_rig_derives_todays_limits():
     assert d.offset_counts == pytest.approx(122.88)
     assert d.gain_counts_per_n[0] == pytest.approx(24.576)  # 16 mA over 20 N through 150 ohm, 10 bits of 5 V
     assert d.readable_n[0] == pytest.approx((628 - 122.88) / 24.576)
-    assert d.pull_out_n[0] == pytest.approx(19.4624, abs=1e-3)  # docs/virtual_rig.md: 19.5 N
+    assert rig.tendons[0].pull_out_n == pytest.approx(19.4624, abs=1e-3)  # docs/virtual_rig.md: 19.5 N
     hw = rig.hardware
     assert (hw.daq_rate_min_hz, hw.daq_rate_max_hz, hw.daq_rate_default_hz) == (100, 2000, 1000)
     assert (hw.daq_baud, hw.stepper_baud, hw.programme_max_items, hw.max_dwell_ms) == (

@@ -121,7 +121,7 @@ def report(rig: RigFile, points: int = 5) -> dict[str, Any]:
         "adc_clip_low_counts": d.clip_low_counts, "adc_clip_high_counts": d.clip_high_counts,
         "adc_range_n": [[(d.clip_low_counts - d.offset_counts) / g, r]
                         for g, r in zip(d.gain_counts_per_n, d.readable_n, strict=True)],
-        "pull_out_n": list(d.pull_out_n), "hold_estimate_n": list(d.hold_n),
+        "pull_out_n": [t.pull_out_n for t in rig.tendons], "hold_estimate_n": list(d.hold_n),
         "cable_stiffness_n_m": t1.cable_stiffness_n_m, "series_stiffness_n_m": p.k,
         "pretension_n": t1.pretension_n,
         "rod_bending_stiffness_n_m2": p.E * p.second_moment,
@@ -138,10 +138,10 @@ def report(rig: RigFile, points: int = 5) -> dict[str, Any]:
         "twin's parameters absent from the file (rotor, spool and carriage inertia, amplifier, noise) are "
         "the paper rig's"
     )
-    if top > d.pull_out_n[0]:
+    if top > t1.pull_out_n:
         raise RigFileError(
             f"{rig.source}: [hardware] travel_mm: the stepper cannot hold {hw.travel_mm:g} mm: the twin's "
-            f"static tension there is {top:.1f} N, above its pull-out tension {d.pull_out_n[0]:.1f} N"
+            f"static tension there is {top:.1f} N, above its pull-out tension {t1.pull_out_n:.1f} N"
         )
     return out
 

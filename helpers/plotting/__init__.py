@@ -13,7 +13,8 @@ import matplotlib.pyplot as plt
 from helpers.base.paths import figure_path
 from helpers.base.style import STYLE, SYSTEM_COLOURS, apply_style
 
-__all__ = ["STYLE", "SYSTEM_COLOURS", "apply_style", "save"]
+__all__ = ["STYLE", "SYSTEM_COLOURS", "apply_style", "save", "finish"]
+
 
 def save(fig: plt.Figure, name: str) -> Path:
     """Save ``fig`` as ``figures/<name>`` (PNG unless ``name`` says otherwise) and return the path.
@@ -33,3 +34,11 @@ def save(fig: plt.Figure, name: str) -> Path:
     path = figure_path(name)
     fig.savefig(path, metadata={"Software": None} if path.suffix == ".png" else None)
     return path
+
+
+def finish(fig: plt.Figure, name: str | None) -> plt.Figure:
+    """The figure laid out (``tight_layout``) and, unless ``name`` is None, saved as ``figures/<name>``."""
+    fig.tight_layout()
+    if name:
+        save(fig, name)
+    return fig

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import matplotlib.pyplot as plt
@@ -10,8 +10,7 @@ import numpy as np
 
 from helpers.paper import numbers as paper
 from helpers.paper.metrics import clipped_samples
-from helpers.plotting import SYSTEM_COLOURS
-from helpers.plotting import save as save_figure
+from helpers.plotting import SYSTEM_COLOURS, finish
 
 PAPER_FIGURE_NUMBERS: dict[tuple[float, float], int | str] = {
     (200.0, 20.0): 9,
@@ -20,36 +19,6 @@ PAPER_FIGURE_NUMBERS: dict[tuple[float, float], int | str] = {
     (200.0, 10.0): "A",
 }
 """The paper's figure number for each (v_in mm/s, x_f mm) condition; the 10 mm case has no figure there."""
-
-
-def scenario_figure_name(condition: tuple[float, float], number: int | str) -> str:
-    """File name of a scenario figure, e.g. ``fig9_20mm_200mms.png`` for ``(200, 20)`` and number 9."""
-    v_in, x_f = condition
-    return f"fig{number}_{x_f:g}mm_{v_in:g}mms.png"
-
-
-def source_kind(meta: Mapping[str, Any]) -> str | None:
-    """The recording's source (``"hardware"`` or ``"virtual-rig"``) from its metadata.
-
-    Accepts ``meta["source"]`` as a string or as a dict with a ``kind``, ``type`` or ``name`` entry.
-    """
-    src = meta.get("source")
-    if isinstance(src, str):
-        return src
-    if isinstance(src, Mapping):
-        for key in ("kind", "type", "name"):
-            if isinstance(src.get(key), str):
-                return src[key]
-    return None
-
-
-def _group(recordings: Mapping[str, Sequence[Any]] | Iterable[Any]) -> dict[str, list[Any]]:
-    if isinstance(recordings, Mapping):
-        return {str(k): list(v) for k, v in recordings.items()}
-    groups: dict[str, list[Any]] = {}
-    for rec in recordings:
-        groups.setdefault(str(rec.meta["scenario"]["system"]), []).append(rec)
-    return groups
 
 
 def _matches(rec: Any, condition: tuple[float, float]) -> bool:
@@ -68,9 +37,8 @@ def _common_grid(recs: Sequence[Any], column: str) -> tuple[np.ndarray, np.ndarr
 
 
 def fig_scenario(
-    recordings_by_system: Mapping[str, Sequence[Any]] | Iterable[Any],
+    recordings: Iterable[Any],
     condition: tuple[float, float],
-    number: int | str | None = None,
     *,
     save: bool = False,
 ) -> plt.Figure:
@@ -85,16 +53,15 @@ def fig_scenario(
 
     Parameters
     ----------
-    recordings_by_system : mapping or iterable
-        ``{"unshaped": [...], "zv": [...], "zvd": [...]}`` of recordings (objects with ``.frame`` holding
-        ``t_s``, ``tension_n`` and ``cable_mm`` or ``steps``, and ``.meta`` with ``"scenario"``), or a flat
-        iterable of recordings grouped by ``meta["scenario"]["system"]``.
+    recordings : iterable
+        Recordings (objects with ``.frame`` holding ``t_s``, ``tension_n`` and ``cable_mm`` or ``steps``, and
+        ``.meta`` with ``"scenario"``; a ``source.kind`` of ``"virtual-rig"`` is named in the title), grouped
+        by ``meta["scenario"]["system"]``.
     condition : (float, float)
         ``(v_in in mm/s, x_f in mm)``.
-    number : int or str, optional
-        The paper's figure number (default from :data:`PAPER_FIGURE_NUMBERS`); names the saved file.
     save : bool
-        Save as ``figures/fig<number>_<x_f>mm_<v_in>mms.png``.
+        Save as ``figures/fig<number>_<x_f>mm_<v_in>mms.png``, with the paper's figure number
+        (:data:`PAPER_FIGURE_NUMBERS`; ``X`` for a condition not listed there).
 
     Returns
     -------
@@ -107,12 +74,11 @@ def fig_scenario(
         If no recording matches ``condition``.
     """
     condition = (float(condition[0]), float(condition[1]))
-    if number is None:
-        number = PAPER_FIGURE_NUMBERS.get(condition, "X")
-    groups = {
-        s: [r for r in recs if _matches(r, condition)] for s, recs in _group(recordings_by_system).items()
-    }
-    groups = {s: recs for s, recs in groups.items() if recs}
+    number = PAPER_FIGURE_NUMBERS.get(condition, "X")
+    groups: dict[str, list[Any]] = {}
+    for rec in recordings:
+        if _matches(rec, condition):
+            groups.setdefault(str(rec.meta["scenario"]["system"]), []).append(rec)
     if not groups:
         raise ValueError(
             f"no recording matches the condition v_in = {condition[0]:g} mm/s, x_f = {condition[1]:g} mm"
@@ -133,7 +99,7 @@ def fig_scenario(
         colour = SYSTEM_COLOURS.get(system, "C7")
         label = paper.SYSTEM_LABELS.get(system, system) + (" TDF" if system in ("zv", "zvd") else "")
         recs = sorted(groups[system], key=lambda r: int(r.meta["scenario"].get("repetition", 0)))
-        virtual |= any(source_kind(r.meta) == "virtual-rig" for r in recs)
+        virtual |= any(r.meta.get("source", {}).get("kind") == "virtual-rig" for r in recs)
         t, tension = _common_grid(recs, "tension_n")
         if len(recs) > 1:
             ax_t.fill_between(t, tension.min(axis=0), tension.max(axis=0), color=colour, alpha=0.3, lw=0,
@@ -164,7 +130,4 @@ def fig_scenario(
     title = f"Fig. {number}: {what}" if isinstance(number, int) else f"{what} (no figure in the paper)"
     reps = f", {n_reps} repetitions per system" if n_reps > 1 else ""
     fig.suptitle(title + (" (virtual rig" + reps + ")" if virtual else reps), fontsize=10)
-    fig.tight_layout()
-    if save:
-        save_figure(fig, scenario_figure_name(condition, number))
-    return fig
+    return finish(fig, f"fig{number}_{condition[1]:g}mm_{condition[0]:g}mms.png" if save else None)

@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 
 from helpers.paper import numbers as paper
 from helpers.paper.identify import IdentificationResult
-from helpers.plotting import save as save_figure
+from helpers.plotting import finish
 
 FIG5_NAME = "fig5_force_response.png"
 FIG6_NAME = "fig6_logdec_fft.png"
@@ -112,10 +112,7 @@ def fig5_force_response(
         )
     ax.set_title(f"Fig. 5{_source_note(source)}: force response to the velocity pulse{what}", fontsize=10)
     ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    if save:
-        save_figure(fig, FIG5_NAME)
-    return fig
+    return finish(fig, FIG5_NAME if save else None)
 
 
 def fig6_logdec_fft(
@@ -123,7 +120,6 @@ def fig6_logdec_fft(
     t: ArrayLike,
     y: ArrayLike,
     *,
-    unit: str = "ADC counts",
     source: str | None = None,
     save: bool = False,
 ) -> plt.Figure:
@@ -134,9 +130,7 @@ def fig6_logdec_fft(
     result : IdentificationResult
         From :func:`helpers.paper.identify.identify` on (a window of) ``t, y``.
     t, y : array_like
-        The signal; only ``result.window`` is drawn when it is set.
-    unit : str
-        The unit of ``y`` for the axis labels.
+        The signal (ADC counts); only ``result.window`` is drawn when it is set.
     source : str, optional
         ``"virtual-rig"`` is named in the title.
     save : bool
@@ -167,7 +161,7 @@ def fig6_logdec_fft(
     ax1.plot(ld.trough_times, ld.trough_values, "^", color="C2", label=f"{ld.trough_times.size} troughs")
     ax1.axhline(ld.baseline, color="0.5", lw=0.8)
     ax1.set_xlabel("time (s)")
-    ax1.set_ylabel(unit)
+    ax1.set_ylabel("ADC counts")
     ax1.set_title(
         f"Fig. 6{_source_note(source)}: identified zeta = {result.zeta:.4f}, omega_d = {result.omega_d:.3f} "
         f"rad/s ({METHOD_NAMES.get(result.method, result.method)})\nthe log decrement's envelope and the FFT",
@@ -194,11 +188,8 @@ def fig6_logdec_fft(
         ),
     )
     ax2.set_xlabel("frequency (Hz)")
-    ax2.set_ylabel(f"amplitude ({unit})")
+    ax2.set_ylabel("amplitude (ADC counts)")
     ax2.set_xlim(0.0, f_top)
     ax2.set_title("Single-sided amplitude spectrum (Hann window)")
     ax2.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    if save:
-        save_figure(fig, FIG6_NAME)
-    return fig
+    return finish(fig, FIG6_NAME if save else None)

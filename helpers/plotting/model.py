@@ -14,26 +14,19 @@ from helpers.paper import model
 from helpers.paper import numbers as paper
 from helpers.paper.profiles import velocity_pulse
 from helpers.paper.shapers import paper_tdfs
-from helpers.plotting import SYSTEM_COLOURS, save
+from helpers.plotting import SYSTEM_COLOURS, finish, save
 
 FIG12_NAME = "fig12_model_shaping.png"
 """File name of the paper's Fig. 12 under ``figures/``."""
 
-FIG12_V_IN_MM_S = 200.0
-FIG12_X_F_MM = 20.0
-"""Fig. 12's pulse: the paper does not state it; we use 200 mm/s and 20 mm, the middle row of Table I
-and the case of the paper's Fig. 9, so the model figure sits beside a measured one."""
 
-
-def mode_shapes(n_modes: int = 4, n_points: int = 401) -> plt.Figure:
+def mode_shapes(n_modes: int = 4) -> plt.Figure:
     """Plot the tip-normalised mode shapes ``phi_n(x/L)`` of modes 1..n_modes.
 
     Parameters
     ----------
     n_modes : int
         Number of modes.
-    n_points : int
-        Points along the arm.
 
     Returns
     -------
@@ -41,7 +34,7 @@ def mode_shapes(n_modes: int = 4, n_points: int = 401) -> plt.Figure:
         One axes, shape against x/L.
     """
     beta = model.cantilever_roots(n_modes)
-    x = np.linspace(0.0, 1.0, n_points)
+    x = np.linspace(0.0, 1.0, 401)
     fig, ax = plt.subplots(figsize=(6.0, 3.2))
     for n in range(1, n_modes + 1):
         ax.plot(x, model.mode_shape(x, n), label=f"mode {n} (beta = {beta[n - 1]:.4f})")
@@ -82,14 +75,8 @@ def pole_zero_map(params: model.ArmParameters, zoom: float = 60.0) -> plt.Figure
         ax.plot(p.real, p.imag, "x", color="C3", ms=7, mew=1.5, label="poles")
         ax.plot(z.real, z.imag, "o", mfc="none", color="C0", ms=7, label="zeros (uncoupled modes)")
         for i, (wi, style) in enumerate(zip(w[:2], ("--", ":"), strict=True)):
-            for sign in (1, -1):
-                ax.axhline(
-                    sign * wi,
-                    ls=style,
-                    color="0.4",
-                    lw=0.8,
-                    label=rf"$\pm\omega_{i + 1}$ = {wi:.2f} rad/s" if sign > 0 else None,
-                )
+            ax.axhline(wi, ls=style, color="0.4", lw=0.8, label=rf"$\pm\omega_{i + 1}$ = {wi:.2f} rad/s")
+            ax.axhline(-wi, ls=style, color="0.4", lw=0.8)
         ax.plot(dom.pole.real, dom.pole.imag, "o", ms=14, mfc="none", color="C2", mew=1.2, label="dominant")
         ax.plot(dom.pole.real, -dom.pole.imag, "o", ms=14, mfc="none", color="C2", mew=1.2)
         ax.axhline(0.0, color="k", lw=0.6)
@@ -101,8 +88,7 @@ def pole_zero_map(params: model.ArmParameters, zoom: float = 60.0) -> plt.Figure
     axes[1].set_ylim(-1.1 * w[1], 1.1 * w[1])
     axes[1].set_title(rf"zoom: dominant pair, $\omega_d$ = {dom.omega_d:.3f} rad/s")
     axes[1].legend(loc="lower left", fontsize=7)
-    fig.tight_layout()
-    return fig
+    return finish(fig, None)
 
 
 @dataclass(frozen=True)
@@ -117,8 +103,6 @@ class ShapingResponse:
         Cable velocity command per system (``"unshaped"``, ``"zv"``, ``"zvd"``), mm/s.
     tension : dict of str to numpy.ndarray
         Model tension per system, N.
-    tip : dict of str to numpy.ndarray
-        Model tip displacement per system, m.
     v_in_mm_s, x_f_mm : float
         The pulse.
     """
@@ -128,13 +112,12 @@ class ShapingResponse:
     t: np.ndarray
     commands: dict[str, np.ndarray]
     tension: dict[str, np.ndarray]
-    tip: dict[str, np.ndarray]
 
 
 def shaping_response(
     params: model.ArmParameters,
-    v_in_mm_s: float = FIG12_V_IN_MM_S,
-    x_f_mm: float = FIG12_X_F_MM,
+    v_in_mm_s: float,
+    x_f_mm: float,
     t_end: float = 12.0,
     rate_hz: int = 2000,
 ) -> ShapingResponse:
@@ -151,7 +134,9 @@ def shaping_response(
     params : helpers.paper.model.ArmParameters
         The model.
     v_in_mm_s, x_f_mm : float
-        Pulse velocity (mm/s) and cable displacement (mm).
+        Pulse velocity (mm/s) and cable displacement (mm). The paper does not state Fig. 12's; notebook 01
+        uses 200 mm/s and 20 mm, the middle row of Table I and the case of the paper's Fig. 9, so the model
+        figure sits beside a measured one.
     t_end : float
         Simulated span, s.
     rate_hz : int
@@ -161,7 +146,7 @@ def shaping_response(
     Returns
     -------
     ShapingResponse
-        Commands, tensions and tip displacements on one grid.
+        Commands and tensions on one grid.
     """
     if not (int(rate_hz) == rate_hz and rate_hz > 0 and t_end > 8.0 + x_f_mm / v_in_mm_s):
         raise ValueError(
@@ -171,21 +156,13 @@ def shaping_response(
     pulse = np.asarray(velocity_pulse(t, v_in_mm_s, x_f_mm), dtype=float)
     zv, zvd = paper_tdfs()
     commands = {"unshaped": pulse, "zv": zv.apply(t, pulse), "zvd": zvd.apply(t, pulse)}
-    tension: dict[str, np.ndarray] = {}
-    tip: dict[str, np.ndarray] = {}
-    for name, v in commands.items():
-        tension[name], tip[name] = model.linear_response(params, t, v * 1e-3)
+    tension = {name: model.linear_response(params, t, v * 1e-3)[0] for name, v in commands.items()}
     return ShapingResponse(
-        v_in_mm_s=float(v_in_mm_s), x_f_mm=float(x_f_mm), t=t, commands=commands, tension=tension, tip=tip
+        v_in_mm_s=float(v_in_mm_s), x_f_mm=float(x_f_mm), t=t, commands=commands, tension=tension
     )
 
 
-def fig12(
-    params: model.ArmParameters | None = None,
-    v_in_mm_s: float = FIG12_V_IN_MM_S,
-    x_f_mm: float = FIG12_X_F_MM,
-    response: ShapingResponse | None = None,
-) -> plt.Figure:
+def fig12(response: ShapingResponse) -> plt.Figure:
     """The paper's Fig. 12: model tension response to the velocity pulse, without and with input shaping.
 
     Top: the three cable-velocity commands; middle: the model tension over the whole run; bottom: the
@@ -193,21 +170,14 @@ def fig12(
 
     Parameters
     ----------
-    params : helpers.paper.model.ArmParameters, optional
-        The model; default :data:`helpers.paper.model.FITTED`.
-    v_in_mm_s, x_f_mm : float
-        The pulse (default 200 mm/s, 20 mm; the paper does not say which it used).
-    response : ShapingResponse, optional
-        A precomputed :func:`shaping_response` (then ``params``, ``v_in_mm_s`` and ``x_f_mm`` are ignored).
+    response : ShapingResponse
+        The model's responses (:func:`shaping_response`).
 
     Returns
     -------
     matplotlib.figure.Figure
         The figure (also written to ``figures/``).
     """
-    if response is None:
-        params = model.FITTED if params is None else params
-        response = shaping_response(params, v_in_mm_s, x_f_mm)
     labels = {"unshaped": "Pulse (unshaped)", "zv": "Non-robust TDF (ZV)", "zvd": "Robust TDF (ZVD)"}
     t = response.t
     fig = plt.figure(figsize=(7.2, 6.4))
@@ -227,13 +197,11 @@ def fig12(
     ax_all.set_ylabel("tension (N)")
     ax_all.set_xlabel("time (s)")
     ax_all.set_xlim(t[0], t[-1])
-    ax_up.set_xlim(paper.PULSE_T_UP_S - 0.1, paper.PULSE_T_UP_S + 2.4)
-    ax_down.set_xlim(paper.PULSE_T_DOWN_S - 0.1, paper.PULSE_T_DOWN_S + 2.4)
-    ax_up.set_title("Up", fontsize=9)
-    ax_down.set_title("Down", fontsize=9)
-    ax_up.set_ylabel("tension (N)")
-    for ax in (ax_up, ax_down):
+    for ax, t_move, title in ((ax_up, paper.PULSE_T_UP_S, "Up"), (ax_down, paper.PULSE_T_DOWN_S, "Down")):
+        ax.set_xlim(t_move - 0.1, t_move + 2.4)
+        ax.set_title(title, fontsize=9)
         ax.set_xlabel("time (s)")
+    ax_up.set_ylabel("tension (N)")
     ax_down.tick_params(labelleft=False)
     lowest = min(float(np.min(response.tension[name])) for name in paper.SYSTEMS)
     if lowest < 0.0:  # the linear model has no slack: say where it stops being physical

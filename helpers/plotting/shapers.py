@@ -1,6 +1,6 @@
 """Figures of the shaper design (notebook 03): impulse sequences, sensitivity curves, shaped commands.
 
-Every function returns the figure and, when given a file name, saves it under ``figures/``.
+Every function returns the figure and saves it under ``figures/`` (the file names below).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from helpers.paper import numbers as paper
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile
 from helpers.paper.shapers import Shaper
-from helpers.plotting import SYSTEM_COLOURS, save
+from helpers.plotting import SYSTEM_COLOURS, finish
 
 SENSITIVITY_NAME = "shaper_sensitivity.png"
 IMPULSES_NAME = "shaper_impulses.png"
@@ -32,15 +32,13 @@ def _colour(name: str, i: int) -> str:
     return SYSTEM_COLOURS.get(key, _OTHER_COLOURS[i % len(_OTHER_COLOURS)])
 
 
-def impulse_sequences(shapers: Sequence[Shaper], name: str | None = IMPULSES_NAME) -> plt.Figure:
+def impulse_sequences(shapers: Sequence[Shaper]) -> plt.Figure:
     """Stem plots of impulse sequences, one axes per shaper, times in ms.
 
     Parameters
     ----------
     shapers : sequence of Shaper
         E.g. the paper's two TDFs.
-    name : str, optional
-        File name under ``figures/``; None to not save.
 
     Returns
     -------
@@ -62,10 +60,7 @@ def impulse_sequences(shapers: Sequence[Shaper], name: str | None = IMPULSES_NAM
         ax.set_title(f"{label} TDF ({s.name.upper()})" if label else s.name)
     axes[0, 0].set_ylabel("impulse amplitude")
     axes[0, 0].set_ylim(min(0.0, min(s.amplitudes.min() for s in shapers)) - 0.05, 0.75)
-    fig.tight_layout()
-    if name:
-        save(fig, name)
-    return fig
+    return finish(fig, IMPULSES_NAME)
 
 
 def sensitivity_curves(
@@ -73,8 +68,6 @@ def sensitivity_curves(
     omega_model: float,
     zeta: float,
     vtol: float = 0.05,
-    ratios: np.ndarray | None = None,
-    name: str | None = SENSITIVITY_NAME,
 ) -> plt.Figure:
     """Residual vibration against ``omega / omega_model`` for several shapers, with the ``vtol`` line.
 
@@ -88,16 +81,12 @@ def sensitivity_curves(
         Damping ratio of the mode the curves are evaluated at.
     vtol : float
         Tolerance line (5 %).
-    ratios : numpy.ndarray, optional
-        Frequency ratios; default 0.2 to 1.8.
-    name : str, optional
-        File name under ``figures/``; None to not save.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    r = np.linspace(0.2, 1.8, 1601) if ratios is None else ratios
+    r = np.linspace(0.2, 1.8, 1601)
     fig, ax = plt.subplots(figsize=(7.0, 3.8))
     others = 0
     for s in shapers:
@@ -114,17 +103,12 @@ def sensitivity_curves(
     ax.set_ylabel("residual vibration V (%)")
     ax.set_title(f"Sensitivity of the shapers (zeta = {zeta:.3f})")
     ax.legend(ncol=3, loc="upper center")
-    fig.tight_layout()
-    if name:
-        save(fig, name)
-    return fig
+    return finish(fig, SENSITIVITY_NAME)
 
 
 def shaped_commands(
     commands: Mapping[tuple[float, float], Mapping[str, VelocityProfile]],
-    programmes: Mapping[tuple[float, float], Mapping[str, Programme]] | None = None,
-    window: tuple[float, float] = (0.95, 1.55),
-    name: str | None = COMMANDS_NAME,
+    programmes: Mapping[tuple[float, float], Mapping[str, Programme]],
 ) -> plt.Figure:
     """The up move of each condition: shaped velocity (left) and cable displacement with steps (right).
 
@@ -132,12 +116,8 @@ def shaped_commands(
     ----------
     commands : mapping
         ``(v_in_mm_s, x_f_mm) -> {system: VelocityProfile}``.
-    programmes : mapping, optional
+    programmes : mapping
         Same keys -> ``{system: Programme}``; their step positions are drawn as staircases.
-    window : (float, float)
-        Time window (s) shown.
-    name : str, optional
-        File name under ``figures/``; None to not save.
 
     Returns
     -------
@@ -145,26 +125,22 @@ def shaped_commands(
     """
     keys = list(commands)
     fig, axes = plt.subplots(len(keys), 2, figsize=(8.0, 1.9 * len(keys)), sharex=True, squeeze=False)
-    t = np.linspace(window[0], window[1], 3001)
+    t = np.linspace(0.95, 1.55, 3001)
     for row, key in enumerate(keys):
         ax_v, ax_x = axes[row]
         for i, (system, prof) in enumerate(commands[key].items()):
             colour = _colour(system, i)
             ax_v.plot(t, prof.sample(t), color=colour, label=system, drawstyle="steps-post")
             ax_x.plot(t, prof.displacement(t), color=colour, lw=0.9, label=f"{system} (exact)")
-            if programmes is not None and system in programmes.get(key, {}):
+            if system in programmes.get(key, {}):
                 pos = programmes[key][system].position_steps(t) * MM_PER_STEP
                 ax_x.plot(t, pos, color=colour, lw=0.6, ls=":", drawstyle="steps-post")
         ax_v.set_ylabel("v (mm/s)")
         ax_x.set_ylabel("u (mm)")
         ax_v.set_title(f"{key[1]:.0f} mm at {key[0]:.0f} mm/s", fontsize=8, loc="left")
     axes[0, 0].legend(loc="upper right")
-    if programmes is not None:
-        axes[0, 1].plot([], [], color="k", ls=":", lw=0.6, label="stepper programme")
-        axes[0, 1].legend(loc="lower right")
+    axes[0, 1].plot([], [], color="k", ls=":", lw=0.6, label="stepper programme")
+    axes[0, 1].legend(loc="lower right")
     axes[-1, 0].set_xlabel("time (s)")
     axes[-1, 1].set_xlabel("time (s)")
-    fig.tight_layout()
-    if name:
-        save(fig, name)
-    return fig
+    return finish(fig, COMMANDS_NAME)

@@ -19,8 +19,7 @@ from helpers.rigfile.schema import MAX_TENDONS, RIG_SCHEMA_VERSION
 __all__ = [
     "RigFile", "RigFileError", "Tendon", "Hardware", "Arm", "Boards", "Derived", "load", "loads", "rig_hash",
     "derived", "check", "hold_tension_n", "loop_counts", "MAX_TENDONS", "RIG_SCHEMA_VERSION", "RIGS_DIR",
-    "DEFAULT_RIG", "ENV_VAR", "resolve", "selected_path", "selected", "in_use", "default_rig", "shipped",
-    "use",
+    "DEFAULT_RIG", "ENV_VAR", "resolve", "selected_path", "selected", "in_use", "default_rig", "use",
 ]  # fmt: skip
 
 RIGS_DIR: Path = Path(__file__).resolve().parents[2] / "rigs"
@@ -83,11 +82,6 @@ def in_use() -> RigFile:
 def default_rig() -> RigFile:
     """The paper's rig (``rigs/paper.toml``)."""
     return _load_cached(DEFAULT_RIG)
-
-
-def shipped() -> dict[str, Path]:
-    """The rig files shipped in ``rigs/``: name -> path."""
-    return {p.stem: p for p in sorted(RIGS_DIR.glob("*.toml"))}
 
 
 def use(name_or_path: str | os.PathLike[str]) -> RigFile:

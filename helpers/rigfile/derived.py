@@ -55,8 +55,6 @@ class Derived:
         or the ADC's top).
     readable_n : tuple of float
         Each channel's largest tension read before clipping, N.
-    pull_out_n : tuple of float
-        Each stepper's pull-out tension ``T_h / R``, N.
     hold_n : tuple of float
         Estimate of each tendon's static tension at full travel, N (:func:`hold_tension_n`).
     """
@@ -73,7 +71,6 @@ class Derived:
     clip_low_counts: int
     clip_high_counts: int
     readable_n: tuple[float, ...]
-    pull_out_n: tuple[float, ...]
     hold_n: tuple[float, ...]
 
 
@@ -128,7 +125,6 @@ def derived(rig: Any) -> Derived:
         min_interval_us=min_interval, max_interval_us=hw.max_interval_us, adc_max=adc_max,
         offset_counts=offset, gain_counts_per_n=gains,
         clip_low_counts=clip_low, clip_high_counts=clip_high, readable_n=readable,
-        pull_out_n=tuple(t.pull_out_n for t in rig.tendons),
         hold_n=tuple(hold_tension_n(rig, i) for i in range(len(rig.tendons))),
     )  # fmt: skip
 

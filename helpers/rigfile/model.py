@@ -27,6 +27,7 @@ from helpers.rigfile.schema import (
     REQUIRED,
     RIG_SCHEMA_VERSION,
     TENDON,
+    TENDON_FALLBACK,
     TOP,
     Key,
 )
@@ -55,20 +56,11 @@ Boards.__doc__ = "The ``[boards]`` table (``helpers.rigfile.schema.BOARDS``)."
 
 
 @dataclass(frozen=True)
-class Tendon:
+class Tendon(dataclasses.make_dataclass("TendonKeys", _fields(TENDON), frozen=True)):
     """One tendon with its stepper and load cell, every value resolved (absent keys: its tables).
 
-    Units in the names; ``docs/rig_file.md``.
+    Its fields are the keys of ``helpers.rigfile.schema.TENDON``; units in the names; ``docs/rig_file.md``.
     """
-
-    angle_deg: float
-    offset_mm: float
-    spool_diameter_mm: float
-    steps_per_rev: int
-    holding_torque_n_m: float
-    load_cell_range_n: float
-    pretension_n: float
-    cable_stiffness_n_m: float
 
     @property
     def mm_per_step(self) -> float:
@@ -121,11 +113,6 @@ class RigFile:
     def n_tendons(self) -> int:
         """Number of tendons (axes and load-cell channels)."""
         return len(self.tendons)
-
-    @property
-    def mm_per_step(self) -> float:
-        """Tendon 1's (the ``[hardware]`` stepper's) cable per microstep, mm."""
-        return self.tendons[0].mm_per_step
 
 
 def _problem(source: str, where: str, problem: str) -> RigFileError:
@@ -184,8 +171,7 @@ def _table(source: str, label: str, data: Any, keys: tuple[Key, ...]) -> dict[st
         if key.name not in data:
             if key.default is REQUIRED:
                 raise _problem(source, where, f"missing ({key.doc}, {key.unit})")
-            default = key.default
-            out[key.name] = tuple(default) if isinstance(default, list) else default
+            out[key.name] = key.default
             continue
         out[key.name] = _value(source, where, key, data[key.name])
     return out
@@ -199,7 +185,6 @@ def loads(text: str, source: str = "<string>") -> RigFile:
     RigFileError
         One line naming ``source``, the key and the problem.
     """
-    from_bytes = text.encode("utf-8")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -225,23 +210,14 @@ def loads(text: str, source: str = "<string>") -> RigFile:
     hw = _table(source, "[hardware]", data["hardware"], HARDWARE)
     arm = _table(source, "[arm]", data["arm"], ARM)
     boards = _table(source, "[boards]", data.get("boards", {}), BOARDS)
-    raw_tendons = data.get("tendon")
-    explicit = raw_tendons is not None
-    if raw_tendons is None:
-        raw_tendons = [{"angle_deg": 0.0}]
+    explicit = "tendon" in data
+    raw_tendons = data.get("tendon", [{"angle_deg": 0.0}])
     if not isinstance(raw_tendons, list) or not all(isinstance(t, dict) for t in raw_tendons):
         raise _problem(source, "[[tendon]]", "must be an array of tables ([[tendon]] blocks)")
     if not 1 <= len(raw_tendons) <= MAX_TENDONS:
         raise _problem(source, "[[tendon]]", f"{len(raw_tendons)} tendons: a rig has 1 to {MAX_TENDONS}")
-    fallback = {
-        "offset_mm": arm["cable_offset_mm"],
-        "spool_diameter_mm": hw["spool_diameter_mm"],
-        "steps_per_rev": hw["steps_per_rev"],
-        "holding_torque_n_m": hw["holding_torque_n_m"],
-        "load_cell_range_n": hw["load_cell_range_n"],
-        "pretension_n": arm["pretension_n"],
-        "cable_stiffness_n_m": arm["cable_stiffness_n_m"],
-    }
+    tables = {"hardware": hw, "arm": arm}
+    fallback = {name: tables[table][key] for name, (table, key, _) in TENDON_FALLBACK.items()}
     tendons = []
     for i, raw in enumerate(raw_tendons):
         values = _table(source, f"[[tendon]] #{i + 1}", raw, TENDON)
@@ -250,7 +226,7 @@ def loads(text: str, source: str = "<string>") -> RigFile:
     rig = RigFile(
         name=top["name"], description=top["description"], schema_version=top["schema_version"],
         hardware=Hardware(**hw), arm=Arm(**arm), boards=Boards(**boards), tendons=tuple(tendons),
-        explicit_tendons=explicit, text=text, source=source, hash=rig_hash(from_bytes),
+        explicit_tendons=explicit, text=text, source=source, hash=rig_hash(text.encode("utf-8")),
     )  # fmt: skip
     check(rig)  # the rig as a whole: safe and feasible
     return rig
@@ -269,5 +245,4 @@ def load(path: str | Path) -> RigFile:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise RigFileError(f"{p}: not UTF-8 text") from None
-    rig = loads(text, source=str(p))
-    return dataclasses.replace(rig, hash=rig_hash(data))
+    return loads(text, source=str(p))  # its hash: of the text's UTF-8 bytes, which are the file's

@@ -6,7 +6,7 @@ these tables, so a key exists in exactly one place. Standard library only.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 RIG_SCHEMA_VERSION = 1
@@ -231,7 +231,7 @@ ARM: tuple[Key, ...] = (
         "gravity_direction",
         "vector3",
         "-",
-        [-1.0, 0.0, 0.0],
+        (-1.0, 0.0, 0.0),
         "direction of gravity in the clamp frame (z along the backbone, x towards tendon 1): [-1, 0, 0] "
         "horizontal with tendon 1 on top, [0, 0, 1] hanging",
     ),  # fmt: skip
@@ -253,6 +253,25 @@ BOARDS: tuple[Key, ...] = (
     Key("load_cell", "str", "-", "", "the load cell and its amplifier"),
 )
 
+TENDON_FALLBACK: dict[str, tuple[str, str, str]] = {
+    "offset_mm": ("arm", "cable_offset_mm", "eyelet offset from the backbone's axis"),
+    "spool_diameter_mm": ("hardware", "spool_diameter_mm", "its spool"),
+    "steps_per_rev": ("hardware", "steps_per_rev", "its microsteps per revolution"),
+    "holding_torque_n_m": ("hardware", "holding_torque_n_m", "its stepper's holding torque"),
+    "load_cell_range_n": ("hardware", "load_cell_range_n", "its load cell's span"),
+    "pretension_n": ("arm", "pretension_n", "its tension at rest"),
+    "cable_stiffness_n_m": ("arm", "cable_stiffness_n_m", "its cables and load cell"),
+}
+"""A ``[[tendon]]`` key -> the ``[hardware]`` or ``[arm]`` key whose value it takes when absent, and what it
+means. It is that key again (the same kind, unit, checks and plausible range) under its own name."""
+
+
+def _tendon_key(name: str, table: str, source: str, meaning: str) -> Key:
+    key = next(k for k in {"hardware": HARDWARE, "arm": ARM}[table] if k.name == source)
+    absent = "[hardware]'s" if table == "hardware" else f"[arm] {source}"
+    return replace(key, name=name, default=None, doc=f"{meaning} (absent: {absent})")
+
+
 TENDON: tuple[Key, ...] = (
     Key(
         "angle_deg",
@@ -261,45 +280,5 @@ TENDON: tuple[Key, ...] = (
         REQUIRED,
         "angle of the tendon around the backbone, counter-clockwise seen from the tip's side, 0 = tendon 1",
     ),
-    _pos(
-        "offset_mm",
-        "mm",
-        None,
-        "eyelet offset from the backbone's axis (absent: [arm] cable_offset_mm)",
-        (0.1, 500.0),
-    ),  # fmt: skip
-    _pos("spool_diameter_mm", "mm", None, "its spool (absent: [hardware]'s)", (2.0, 500.0)),
-    Key(
-        "steps_per_rev",
-        "int",
-        "-",
-        None,
-        "its microsteps per revolution (absent: [hardware]'s)",
-        lo=1,
-        hi=1_000_000,
-    ),  # fmt: skip
-    _pos(
-        "holding_torque_n_m",
-        "N m",
-        None,
-        "its stepper's holding torque (absent: [hardware]'s)",
-        (0.001, 100.0),
-    ),  # fmt: skip
-    _pos("load_cell_range_n", "N", None, "its load cell's span (absent: [hardware]'s)", (0.01, 100_000.0)),
-    Key(
-        "pretension_n",
-        "float",
-        "N",
-        None,
-        "its tension at rest (absent: [arm] pretension_n)",
-        lo=0.0,
-        plausible=(0.0, 10_000.0),
-    ),  # fmt: skip
-    _pos(
-        "cable_stiffness_n_m",
-        "N/m",
-        None,
-        "its cables and load cell (absent: [arm] cable_stiffness_n_m)",
-        (1.0, 1e9),
-    ),  # fmt: skip
+    *(_tendon_key(name, *fallback) for name, fallback in TENDON_FALLBACK.items()),
 )

@@ -498,7 +498,7 @@ def spatial_map() -> pd.DataFrame:
     """
     frames = []
     for name in SPATIAL_MAP_RIGS:
-        rig = spatial_rig(rigfile.load(rigfile.shipped()[name]))
+        rig = spatial_rig(rigfile.load(rigfile.resolve(name)))
         df = spatial_frequency_map(rig, SPATIAL_MAP_DIRECTIONS_DEG, SPATIAL_MAP_BENDS_MM, n_modes=4)
         frames.append(df.assign(rig=name))
     out = pd.concat(frames, ignore_index=True)
