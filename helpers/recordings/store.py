@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import hashlib
 import io
 import json
@@ -35,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from helpers.base.jsonfile import dumps, process_alive, remove_stale_temporaries, write_temp
-from helpers.base.locks import LOCK_NAME, FolderBusy, folder_lock
+from helpers.base.locks import LOCK_NAME, FolderBusy, folder_lock, take_lock
 from helpers.base.paths import DATA_DIR
 from helpers.base.signals import signals_held
 from helpers.recordings.format import (
@@ -98,36 +97,14 @@ def aborted_path(path: str | os.PathLike, started_utc: str, status: str = "abort
     return p.with_name(f"{p.stem}_{status}_{stamp}.csv")
 
 
-class Reservation:
-    """A recording's name held by one run from before it starts until it is saved (:func:`reserve`)."""
-
-    def __init__(self, lock: Path, fd: int) -> None:
-        self.lock = lock
-        self._fd: int | None = fd
-
-    def release(self) -> None:
-        """Give the name back (idempotent)."""
-        if self._fd is None:
-            return
-        with signals_held():
-            with contextlib.suppress(OSError):
-                self.lock.unlink()  # still holding the lock: nobody can have taken this file meanwhile
-            os.close(self._fd)
-            self._fd = None
-
-    def __enter__(self) -> Reservation:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.release()
-
-
-def reserve(target: str | os.PathLike, replace: bool = False) -> Reservation:
-    """Refuse an existing recording (unless replacing) and hold its name until :meth:`Reservation.release`.
+@contextlib.contextmanager
+def reserve(target: str | os.PathLike, replace: bool = False) -> Iterator[Path]:
+    """Refuse an existing recording (unless replacing) and hold its name for the ``with`` block.
 
     A second run asking for the same name meanwhile, in another process or this one, is refused at once,
     before it starts, instead of learning of the conflict only when its finished run is saved. The hold is a
-    ``flock`` on ``.<name>.reserved.lock`` beside the recording (released by the kernel if the process dies).
+    ``flock`` on ``.<name>.reserved.lock`` beside the recording (released by the kernel if the process dies),
+    removed when the block ends; the block gets its path.
 
     Raises
     ------
@@ -137,32 +114,22 @@ def reserve(target: str | os.PathLike, replace: bool = False) -> Reservation:
     csv = _csv_path(target)
     refuse_existing(csv, replace)
     csv.parent.mkdir(parents=True, exist_ok=True)
-    with signals_held():  # an interrupt cannot leave the name held by a lost file descriptor
-        return _reserve(csv, csv.with_name(f".{csv.stem}.reserved.lock"))
+    lock = csv.with_name(f".{csv.stem}.reserved.lock")
 
+    def busy(who: str) -> RecordingExists:
+        return RecordingExists(f"{csv}: {who} is recording under this name right now; choose another name")
 
-def _reserve(csv: Path, lock: Path) -> Reservation:
-    while True:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.read(fd, 32).decode("ascii", "replace").strip()
-            os.close(fd)
-            who = f"process {holder}" if holder.isdigit() else "another run"
-            raise RecordingExists(
-                f"{csv}: {who} is recording under this name right now; choose another name"
-            ) from None
-        try:  # the previous holder may have removed the file between our open and our lock: try again
-            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    os.ftruncate(fd, 0)
-    os.write(fd, str(os.getpid()).encode())
-    return Reservation(lock, fd)
+    fd = None
+    try:
+        with signals_held():  # an interrupt cannot leave the name held by a lost file descriptor
+            fd = take_lock(lock, busy)
+        yield lock
+    finally:
+        if fd is not None:
+            with signals_held():
+                with contextlib.suppress(OSError):
+                    lock.unlink()  # still holding the lock: nobody can have taken this file meanwhile
+                os.close(fd)
 
 
 def _csv_path(path: str | os.PathLike) -> Path:
@@ -311,21 +278,16 @@ def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exist
 @contextlib.contextmanager
 def _shared_lock(folder: Path) -> Iterator[None]:
     """Hold the folder's lock shared (readers do not block each other; a writer waits for them)."""
+
+    def busy(who: str) -> FolderBusy:
+        return FolderBusy(f"{folder} is busy: {who} is saving a recording there")
+
     try:
-        fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = take_lock(folder / LOCK_NAME, busy, SAVE_WAIT_S, shared=True)
     except OSError:  # a read-only folder: nobody can be writing into it
         yield
         return
     try:
-        deadline = time.monotonic() + SAVE_WAIT_S
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-                break
-            except BlockingIOError:
-                if time.monotonic() >= deadline:
-                    raise FolderBusy(f"{folder} is busy: a recording is being saved there") from None
-                time.sleep(0.02)
         yield
     finally:
         os.close(fd)
