@@ -192,12 +192,8 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
     try:
         with folder_lock(target.parent, wait_s=SAVE_WAIT_S, what="saving a recording"):
             tidy_folder(target.parent)
-            exists = target.exists() or json_target.exists()
-            if exists and not replace:
-                raise RecordingExists(
-                    f"{target}: a recording of that name exists; choose another name or ask to replace it"
-                )
-            _write_pair(target, json_target, data, text.encode("utf-8"), exists)
+            refuse_existing(target, replace)
+            _write_pair(target, json_target, data, text.encode("utf-8"))
     except OSError as exc:
         raise _write_error(target, exc) from None
     recording.meta = json.loads(text)
@@ -240,7 +236,7 @@ def tidy_folder(folder: Path) -> None:
             os.replace(p, folder / f"{stem}{suffix}")
 
 
-def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exists: bool) -> None:
+def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes) -> None:
     """Temporary files first; then (old JSON and CSV aside), the new CSV, then the new JSON; then tidy up."""
     tmp_csv = write_temp(csv_path.parent, csv_path.name, data)
     try:
@@ -251,12 +247,12 @@ def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exist
     backups: list[tuple[Path, Path]] = []
     placed: list[Path] = []
     try:
-        if exists:  # the JSON goes aside first: meanwhile the pair reads as incomplete, never as torn
-            for p in (json_path, csv_path):
-                if p.exists():
-                    aside = p.with_name(f".{p.name}.replaced-{os.getpid()}.tmp")
-                    os.replace(p, aside)
-                    backups.append((aside, p))
+        # an old pair goes aside, the JSON first: meanwhile the pair reads as incomplete, never as torn
+        for p in (json_path, csv_path):
+            if p.exists():
+                aside = p.with_name(f".{p.name}.replaced-{os.getpid()}.tmp")
+                os.replace(p, aside)
+                backups.append((aside, p))
         os.link(tmp_csv, csv_path)  # a hard link fails rather than overwrite
         placed.append(csv_path)
         os.link(tmp_json, json_path)
