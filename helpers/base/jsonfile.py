@@ -33,12 +33,10 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
     error (a full disk, a signal) the temporary file is removed and the error re-raised: nothing else changed.
     """
     folder = Path(folder)
+    tmp: str | None = None
     try:
         folder.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.{os.getpid()}-", suffix=".tmp")
-    except OSError as exc:  # a read-only or full file system: name the file it was for
-        raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
-    try:
         umask = os.umask(0)
         os.umask(umask)
         os.fchmod(fd, 0o666 & ~umask)
@@ -47,9 +45,9 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
     except BaseException as exc:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        if isinstance(exc, OSError):
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):  # a read-only or full file system: name the file it was for
             raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
         raise
     return Path(tmp)

@@ -111,11 +111,6 @@ class Recording:
         return str(self.meta.get("status"))
 
     @property
-    def is_virtual(self) -> bool:
-        """True when the data come from the virtual rig (simulation, not a measurement)."""
-        return self.meta.get("source", {}).get("kind") == "virtual-rig"
-
-    @property
     def tendons(self) -> int:
         """Number of tendons recorded (1 for versions 1 and 2)."""
         return tendon_count(self.meta)
