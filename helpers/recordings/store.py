@@ -301,14 +301,18 @@ def _read_pair(csv_path: Path) -> tuple[bytes, Any]:
             raise RecordingError(f"{json_path}: missing JSON metadata file")
         if not has_csv:
             raise RecordingError(f"{csv_path}: missing CSV file")
-        raw_meta = json_path.read_bytes()
+        meta = _read_json(json_path)
         data = csv_path.read_bytes()
+    return data, meta
+
+
+def _read_json(json_path: Path) -> Any:
+    """The parsed JSON file, or one :class:`RecordingError`: unreadable JSON (and why)."""
     try:
-        meta = json.loads(raw_meta.decode("utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        return json.loads(json_path.read_bytes().decode("utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         why = f"{type(exc).__name__}: {str(exc)[:80]}"
         raise RecordingError(f"{json_path}: unreadable JSON ({why})") from None
-    return data, meta
 
 
 def _parse_csv(data: bytes, csv_path: Path, header: bytes = HEADER) -> pd.DataFrame:
@@ -367,10 +371,23 @@ def load(path: str | os.PathLike, derive: bool = True) -> Recording:
     return rec.derive() if derive else rec
 
 
-CATALOGUE_COLUMNS = [
-    "group", "name", "source", "kind", "system", "v_in_mm_s", "x_f_mm", "repetition", "status", "samples",
-    "dropped", "corrupted", "overruns", "rate_hz", "started_utc", "path", "problem",
-]  # fmt: skip
+FROM_METADATA = {
+    "source": "source.kind", "kind": "scenario.kind", "system": "scenario.system",
+    "v_in_mm_s": "scenario.v_in_mm_s", "x_f_mm": "scenario.x_f_mm", "repetition": "scenario.repetition",
+    "status": "status", "samples": "counts.samples", "dropped": "counts.dropped",
+    "corrupted": "counts.corrupted", "overruns": "counts.overruns", "rate_hz": "rate_hz",
+    "started_utc": "started_utc",
+}  # fmt: skip
+"""The catalogue's columns read from the metadata: column -> its dotted key."""
+
+CATALOGUE_COLUMNS = ["group", "name", *FROM_METADATA, "path", "problem"]
+
+
+def _dotted(meta: Any, key: str) -> Any:
+    """The value at a dotted key, or None where a part is missing or not an object."""
+    for part in key.split("."):
+        meta = meta.get(part) if isinstance(meta, dict) else None
+    return meta
 
 
 def _catalogue_row(root: Path, csv_path: Path) -> dict[str, Any]:
@@ -387,25 +404,13 @@ def _catalogue_row(root: Path, csv_path: Path) -> dict[str, Any]:
         return row
     meta: Any = {}
     try:
-        meta = json.loads(json_path.read_text(encoding="utf-8"))
+        meta = _read_json(json_path)
         validate_meta(meta, json_path)
         if not csv_path.exists():
             row["problem"] = "missing CSV file"
     except RecordingError as exc:
         row["problem"] = str(exc).removeprefix(f"{json_path}: ")[:200]
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        row["problem"] = f"unreadable JSON ({type(exc).__name__}: {str(exc)[:120]})"
-    meta = meta if isinstance(meta, dict) else {}
-
-    def section(key: str) -> dict[str, Any]:
-        value = meta.get(key)
-        return value if isinstance(value, dict) else {}
-
-    sc, counts, source = section("scenario"), section("counts"), section("source")
-    row.update({key: sc.get(key) for key in ("kind", "system", "v_in_mm_s", "x_f_mm", "repetition")})
-    row.update({key: counts.get(key) for key in ("samples", "dropped", "corrupted", "overruns")})
-    row.update({key: meta.get(key) for key in ("status", "rate_hz", "started_utc")})
-    row["source"] = source.get("kind")
+    row.update({column: _dotted(meta, key) for column, key in FROM_METADATA.items()})
     return row
 
 
@@ -418,8 +423,8 @@ def is_other_document(path: Path) -> bool:
     if path.suffix != ".json" or path.with_suffix(".csv").exists():
         return False
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+        doc = _read_json(path)
+    except RecordingError:
         return False
     return isinstance(doc, dict) and isinstance(doc.get("format"), str) and "csv_sha256" not in doc
 
