@@ -371,21 +371,18 @@ def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
         raise _fail(path, f"counts.samples says {expected} rows, the CSV has {len(frame)}")
     seq = frame["seq"].to_numpy(np.int64)
     t_us = frame["t_us"].to_numpy(np.int64)
-    if len(seq) > 1:
-        dseq = np.diff(seq)
-        if np.any(dseq <= 0):
-            i = int(np.argmax(dseq <= 0))
-            raise _fail(path, f"seq does not increase at row {i + 1} ({seq[i]} then {seq[i + 1]})")
-        gaps = int(np.sum(dseq - 1))
-        admitted = int(meta.get("counts", {}).get("dropped", 0))
-        if gaps > admitted:
-            raise _fail(
-                path, f"gap in seq: {gaps} samples missing but the metadata admits {admitted} dropped"
-            )
-        dt = np.diff(t_us)
-        if np.any(dt <= 0):
-            i = int(np.argmax(dt <= 0))
-            raise _fail(path, f"non-monotonic time at row {i + 1} (t_us {t_us[i]} then {t_us[i + 1]})")
+    dseq = np.diff(seq)
+    if np.any(dseq <= 0):
+        i = int(np.argmax(dseq <= 0))
+        raise _fail(path, f"seq does not increase at row {i + 1} ({seq[i]} then {seq[i + 1]})")
+    gaps = int(np.sum(dseq - 1))
+    admitted = int(meta.get("counts", {}).get("dropped", 0))
+    if gaps > admitted:
+        raise _fail(path, f"gap in seq: {gaps} samples missing but the metadata admits {admitted} dropped")
+    dt = np.diff(t_us)
+    if np.any(dt <= 0):
+        i = int(np.argmax(dt <= 0))
+        raise _fail(path, f"non-monotonic time at row {i + 1} (t_us {t_us[i]} then {t_us[i + 1]})")
     for col in (c for c in columns if c.startswith("adc")):
         adc = frame[col].to_numpy(np.int64)
         if len(adc) and (adc.min() < 0 or adc.max() > ADC_MAX):
@@ -410,13 +407,10 @@ def _rig_limits(meta: dict[str, Any]) -> tuple[int, float]:
     is checked against that rig, not this process's.
     """
     section = meta.get("rig")
-    if section is None or section.get("hash") == HW_RIG.hash:
-        if section is None and HW_RIG.hash != rigfile.default_rig().hash:
-            rig = rigfile.default_rig()
-        else:
-            return LIMITS.max_position_steps, LIMITS.max_step_rate_hz
-    else:
-        rig = recording_rig(meta)
+    made_on = rigfile.default_rig().hash if section is None else section.get("hash")
+    if made_on == HW_RIG.hash:
+        return LIMITS.max_position_steps, LIMITS.max_step_rate_hz
+    rig = recording_rig(meta)
     d = rigfile.derived(rig)
     span = max(t + r for t, r in zip(d.travel_steps, d.release_steps, strict=True))
     return span, float(rig.hardware.step_rate_cap_hz)
