@@ -7,6 +7,7 @@ The one atomic writer of the package: every JSON result, calibration and recordi
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -68,27 +69,21 @@ def process_alive(pid: int) -> bool:
     return True
 
 
-def remove_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
-    """Remove the temporary files of :func:`write_temp` in ``folder`` whose writer has died; return them.
+def remove_stale_temporaries(folder: str | os.PathLike) -> None:
+    """Remove the temporary files of :func:`write_temp` in ``folder`` whose writer has died.
 
     A live writer's file is never touched (its pid is in the name and the process exists). Callers hold the
     folder's lock, so that no writer of theirs can be starting meanwhile.
     """
-    removed = []
     try:
         entries = list(Path(folder).iterdir())
     except OSError:
-        return removed
+        return
     for path in entries:
         m = TEMP_PATTERN.match(path.name)
-        if m is None or process_alive(int(m["pid"])):
-            continue
-        try:
-            path.unlink()
-        except OSError:
-            continue
-        removed.append(path)
-    return removed
+        if m is not None and not process_alive(int(m["pid"])):
+            with contextlib.suppress(OSError):
+                path.unlink()
 
 
 def atomic_write(path: str | os.PathLike, data: bytes) -> Path:

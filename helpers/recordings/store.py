@@ -38,7 +38,6 @@ from helpers.base.locks import LOCK_NAME, FolderBusy, folder_lock, take_lock
 from helpers.base.paths import DATA_DIR
 from helpers.base.signals import signals_held
 from helpers.recordings.format import (
-    RAW_COLUMNS,
     REQUIRED_META,
     SCHEMA_VERSION,
     Recording,
@@ -53,8 +52,6 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}\Z")
 
 RESERVED_NAMES = frozenset({"calibration", "result"})
 """Stems of the project's own JSON files (``calibration.json``, ``result.json``): never a recording's name."""
-
-HEADER = ",".join(RAW_COLUMNS).encode("ascii")
 
 SAVE_WAIT_S = 10.0
 """How long a save waits for another process's save in the same folder."""
@@ -138,7 +135,7 @@ def _csv_path(path: str | os.PathLike) -> Path:
 
 
 # -- writing -----------------------------------------------------------------------------------------------
-def _csv_bytes(frame: pd.DataFrame, columns: tuple[str, ...] = RAW_COLUMNS) -> bytes:
+def _csv_bytes(frame: pd.DataFrame, columns: tuple[str, ...]) -> bytes:
     buf = io.StringIO()
     frame.loc[:, list(columns)].astype(np.int64).to_csv(buf, index=False, lineterminator="\n")
     return buf.getvalue().encode("ascii")
@@ -315,7 +312,7 @@ def _read_json(json_path: Path) -> Any:
         raise RecordingError(f"{json_path}: unreadable JSON ({why})") from None
 
 
-def _parse_csv(data: bytes, csv_path: Path, header: bytes = HEADER) -> pd.DataFrame:
+def _parse_csv(data: bytes, csv_path: Path, header: bytes) -> pd.DataFrame:
     first, _, _ = data.partition(b"\n")
     if first.rstrip(b"\r") != header:
         raise RecordingError(
@@ -365,8 +362,7 @@ def load(path: str | os.PathLike, derive: bool = True) -> Recording:
         )
     columns = raw_columns(meta)
     frame = _parse_csv(data, csv_path, ",".join(columns).encode("ascii"))
-    validate(frame, meta, csv_path)
-    frame = frame.loc[:, list(columns)].astype(np.int64)
+    validate(frame, meta, csv_path)  # its columns are the header's: exactly these, int64
     rec = Recording(frame=frame, meta=meta, path=csv_path)
     return rec.derive() if derive else rec
 
