@@ -218,15 +218,12 @@ METADATA: tuple[tuple[str, Kind], ...] = (
     ("source", OBJECT),
     ("source.kind", _one_of(SOURCES)),
     ("source.parameters?", (_flat_object, "an object of flat values")),
-)
-"""The keys every recording's metadata is checked for, in order: ``(dotted key, kind)``; a key ending in
-``?`` may be absent, and a key's parent is an object checked by an earlier row."""
-
-SCENARIO: tuple[tuple[str, Kind], ...] = (
     ("scenario", OBJECT),
     ("scenario.kind", TEXT),
     ("scenario.repetition?", INTEGER),
 )
+"""The keys every recording's metadata is checked for, in order: ``(dotted key, kind)``; a key ending in
+``?`` may be absent, and a key's parent is an object checked by an earlier row."""
 
 PULSE: tuple[tuple[str, Kind], ...] = (
     ("scenario.system", TEXT),
@@ -325,7 +322,6 @@ def validate_meta(meta: Any, path: Path) -> None:
         raise _fail(path, problem)
     if version == TENDON_SCHEMA_VERSION and recording_rig(meta).n_tendons != meta["tendons"]:
         raise _fail(path, f"tendons: {meta['tendons']}, but the rig file has {recording_rig(meta).n_tendons}")
-    check_keys(meta, SCENARIO, path)
     kind = meta["scenario"]["kind"]
     check_keys(meta, PULSE if kind == "pulse" else STREAM if kind == "stream" else (), path)
     if kind == "stream":
