@@ -235,25 +235,21 @@ def tidy_folder(folder: Path) -> None:
 
 def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes) -> None:
     """Temporary files first; then (old JSON and CSV aside), the new CSV, then the new JSON; then tidy up."""
-    tmp_csv = write_temp(csv_path.parent, csv_path.name, data)
-    try:
-        tmp_json = write_temp(json_path.parent, json_path.name, text)
-    except BaseException:
-        tmp_csv.unlink(missing_ok=True)
-        raise
+    temps: list[Path] = []
     backups: list[tuple[Path, Path]] = []
     placed: list[Path] = []
     try:
+        for dest, content in ((csv_path, data), (json_path, text)):
+            temps.append(write_temp(dest.parent, dest.name, content))
         # an old pair goes aside, the JSON first: meanwhile the pair reads as incomplete, never as torn
         for p in (json_path, csv_path):
             if p.exists():
                 aside = p.with_name(f".{p.name}.replaced-{os.getpid()}.tmp")
                 os.replace(p, aside)
                 backups.append((aside, p))
-        os.link(tmp_csv, csv_path)  # a hard link fails rather than overwrite
-        placed.append(csv_path)
-        os.link(tmp_json, json_path)
-        placed.append(json_path)
+        for tmp, dest in zip(temps, (csv_path, json_path), strict=True):
+            os.link(tmp, dest)  # a hard link fails rather than overwrite
+            placed.append(dest)
     except BaseException:
         for p in placed:  # the new files that made it
             p.unlink(missing_ok=True)
@@ -261,8 +257,8 @@ def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes) -> No
             os.replace(aside, dest)
         raise
     finally:
-        tmp_csv.unlink(missing_ok=True)
-        tmp_json.unlink(missing_ok=True)
+        for tmp in temps:
+            tmp.unlink(missing_ok=True)
     for aside, _ in backups:
         aside.unlink(missing_ok=True)
 
@@ -322,10 +318,9 @@ def _parse_csv(data: bytes, csv_path: Path, header: bytes) -> pd.DataFrame:
         pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError, OverflowError,
     )  # fmt: skip
     try:
-        frame = pd.read_csv(io.BytesIO(data), dtype=np.int64)
+        return pd.read_csv(io.BytesIO(data), dtype=np.int64)
     except unreadable as e:
         raise RecordingError(f"{csv_path}: unreadable CSV ({str(e).splitlines()[0][:100]})") from None
-    return frame
 
 
 def load(path: str | os.PathLike, derive: bool = True) -> Recording:
