@@ -113,14 +113,12 @@ def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
 
 def json_safe(value: Any) -> Any:
     """Make ``value`` JSON-safe: numpy to Python, tuples to lists, paths to text, NaN to None."""
+    if isinstance(value, np.ndarray | np.generic):
+        value = value.tolist()  # Python lists and scalars
     if isinstance(value, dict):
         return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [json_safe(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [json_safe(v) for v in value.tolist()]
-    if isinstance(value, np.generic):
-        value = value.item()
     if isinstance(value, Path):
         return str(value)
     if isinstance(value, float) and not math.isfinite(value):

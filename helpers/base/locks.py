@@ -8,6 +8,7 @@ the recordings' store's shared reader lock and name reservations.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import time
@@ -60,12 +61,9 @@ def take_lock(path: Path, busy: Callable[[str], Exception], wait_s: float = 0.0,
                 raise busy(_holder(path)) from None
             time.sleep(0.02)
             continue
-        try:
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
+        with contextlib.suppress(FileNotFoundError):  # removed meanwhile by a holder letting go: try again
+            if os.path.samestat(os.fstat(fd), os.stat(path)):
+                break
         os.close(fd)
     if not shared:
         os.ftruncate(fd, 0)
