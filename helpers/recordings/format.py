@@ -186,6 +186,7 @@ POSITIVE: Kind = (lambda v: is_finite_number(v) and v > 0, "a finite number > 0"
 INTEGERS: Kind = (lambda v: isinstance(v, list) and all(is_int(x) for x in v), "a list of integers")
 SHA256: Kind = (lambda v: isinstance(v, str) and _SHA256.match(v) is not None, "64 lower-case hex digits")
 LINES: Kind = (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of notice lines")
+TENDONS: Kind = (lambda v: is_int(v) and 2 <= v <= rigfile.MAX_TENDONS, f"an integer 2-{rigfile.MAX_TENDONS}")
 DAQ_RATES = f"{DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ}"
 RATE: Kind = (lambda v: is_int(v) and DAQ_RATE_MIN_HZ <= v <= DAQ_RATE_MAX_HZ, f"an integer in {DAQ_RATES}")
 
@@ -309,10 +310,8 @@ def validate_meta(meta: Any, path: Path) -> None:
         raise _fail(path, f"metadata lacks {', '.join(missing)}")
     check_keys(meta, METADATA, path)
     if version == TENDON_SCHEMA_VERSION:
-        n = meta.get("tendons")
-        if not (is_int(n) and 2 <= n <= rigfile.MAX_TENDONS):
-            raise _fail(path, f"tendons: expected an integer 2-{rigfile.MAX_TENDONS}, got {n!r}")
-        check_keys(meta, _tendon_keys(n), path)
+        check_keys(meta, (("tendons", TENDONS),), path)
+        check_keys(meta, _tendon_keys(meta["tendons"]), path)
         if "rig" not in meta:
             raise _fail(path, "rig: missing (a recording of several tendons keeps its rig file)")
     else:
