@@ -19,9 +19,6 @@ folder, so that running the tests writes nothing into the working tree)."""
 FIGURES_DIR: Path = Path(os.environ.get(FIGURES_ENV) or REPO_ROOT / "figures")
 """Regenerated figures and tables: ``figures/``, or the folder named by ``HELPERS_FIGURES_DIR``."""
 
-NOTEBOOKS_DIR: Path = REPO_ROOT / "notebooks"
-"""The numbered notebooks."""
-
 IDENTIFICATION_RESULT: Path = DATA_DIR / "identification" / "result.json"
 """The identified dominant mode: written by ``helpers.paper.identify.save_identification`` (notebook 02's
 live cell

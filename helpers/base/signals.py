@@ -28,8 +28,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
-"""The documented exit status of a command interrupted by each signal (128 + the signal's number)."""
 
 
 class Interrupted(KeyboardInterrupt):
