@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from helpers.base.paths import STORED_TABLES_DIR
 from helpers.paper.identify import IdentifiedMode
 from helpers.paper.shapers import Shaper, zv, zvd
 from helpers.research.modemap import ModeMap
@@ -22,7 +23,6 @@ from helpers.research.robustness import (
     tune_family,
     uncertainty_model,
 )
-from helpers.virtual.studies import STORED_TABLES_DIR
 
 IDENT = IdentifiedMode(omega_d=25.0, zeta=0.05, omega_d_std=0.0, zeta_std=0.0)
 

@@ -584,7 +584,8 @@ def test_the_stored_convergence_study_is_what_the_rig_computes():
     # python -m helpers virtual-rig studies --only convergence
     import pandas as pd
 
-    from helpers.virtual.studies import STUDY_FILES, convergence, stored_table
+    from helpers.base.paths import stored_table
+    from helpers.virtual.studies import STUDY_FILES, convergence
 
     stored = pd.read_csv(stored_table(STUDY_FILES["convergence"]))
     fresh = convergence()
@@ -599,7 +600,8 @@ def test_the_stored_pulse_and_spatial_studies_are_what_the_twin_computes(study):
     # twin changed since they were stored: python -m helpers virtual-rig studies --only pulses spatial
     import pandas as pd
 
-    from helpers.virtual.studies import STUDY_FILES, pulse_study, spatial_map, stored_table
+    from helpers.base.paths import stored_table
+    from helpers.virtual.studies import STUDY_FILES, pulse_study, spatial_map
 
     stored = pd.read_csv(stored_table(STUDY_FILES[study]))
     fresh = {"pulses": pulse_study, "spatial": spatial_map}[study]()

@@ -19,6 +19,11 @@ folder, so that running the tests writes nothing into the working tree)."""
 FIGURES_DIR: Path = Path(os.environ.get(FIGURES_ENV) or REPO_ROOT / "figures")
 """Regenerated figures and tables: ``figures/``, or the folder named by ``HELPERS_FIGURES_DIR``."""
 
+STORED_TABLES_DIR: Path = REPO_ROOT / "figures"
+"""The repository's own ``figures/`` folder, never redirected: the tables that commands store there for the
+notebooks to *read* (the previous virtual rig's Table II, the virtual rig's study tables). Notebooks write
+through :func:`figure_path`; they read these through :func:`stored_table`."""
+
 IDENTIFICATION_RESULT: Path = DATA_DIR / "identification" / "result.json"
 """The identified dominant mode: written by ``helpers.paper.identify.save_identification`` (notebook 02's
 live cell
@@ -52,6 +57,23 @@ def figure_path(name: str) -> Path:
     """
     FIGURES_DIR.mkdir(parents=True, exist_ok=True)
     return FIGURES_DIR / name
+
+
+def stored_table(name: str) -> Path:
+    """Return ``figures/<name>`` in the repository (not redirected by ``HELPERS_FIGURES_DIR``), for reading.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the table is not there, naming the command that makes it.
+    """
+    path = STORED_TABLES_DIR / name
+    if not path.exists():
+        raise FileNotFoundError(
+            f"{path} is missing: the virtual rig's study tables are written by "
+            "`python -m helpers virtual-rig studies`; table2_previous_rig.csv is kept in the repository"
+        )
+    return path
 
 
 def shown(path: str | os.PathLike | None, root: Path | None = None) -> str:

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from helpers import rigfile
-from helpers.base.paths import DATA_DIR, REPO_ROOT
+from helpers.base.paths import DATA_DIR, STORED_TABLES_DIR
 from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
 from helpers.paper.identify import identify
@@ -77,8 +77,6 @@ __all__ = [
     "pulse_study",
     "write_studies",
     "STUDY_FILES",
-    "STORED_TABLES_DIR",
-    "stored_table",
     "RETUNED",
 ]
 
@@ -93,29 +91,6 @@ STUDY_FILES = {
     "pulses": "virtual_pulse_table.csv",
 }
 """Study name -> the CSV in ``figures/`` that :func:`write_studies` writes and notebook 06 reads."""
-
-STORED_TABLES_DIR: Path = REPO_ROOT / "figures"
-"""The repository's own ``figures/`` folder, never redirected: the tables that commands store there for the
-notebooks to *read* (the previous virtual rig's Table II, the virtual rig's study tables). Notebooks write
-through :func:`helpers.base.paths.figure_path`; they read these through :func:`stored_table`."""
-
-
-def stored_table(name: str) -> Path:
-    """Return ``figures/<name>`` in the repository (not redirected by ``HELPERS_FIGURES_DIR``), for reading.
-
-    Raises
-    ------
-    FileNotFoundError
-        If the table is not there, naming the command that makes it.
-    """
-    path = STORED_TABLES_DIR / name
-    if not path.exists():
-        raise FileNotFoundError(
-            f"{path} is missing: the virtual rig's study tables are written by "
-            "`python -m helpers virtual-rig studies`; table2_previous_rig.csv is kept in the repository"
-        )
-    return path
-
 
 RETUNED: dict[str, dict[str, float]] = {
     "mass": {"r": 7.943e-3, "k": 18629.0, "pretension": 2.534},
@@ -533,7 +508,7 @@ def spatial_map() -> pd.DataFrame:
 def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = True) -> list[Path]:
     """Run the studies and write their CSVs into the repository's ``figures/`` (6 significant digits).
 
-    They go to :data:`STORED_TABLES_DIR` even when ``HELPERS_FIGURES_DIR`` redirects the
+    They go to :data:`helpers.base.paths.STORED_TABLES_DIR` even when ``HELPERS_FIGURES_DIR`` redirects the
     notebooks' output: notebook 06 reads them from there.
     """
     funcs = {"layouts": damping_layouts, "friction": eyelet_friction, "actuator": actuator_effects,

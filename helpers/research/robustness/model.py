@@ -36,11 +36,10 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm, qmc
 
-from helpers.base.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR, stored_table
 from helpers.paper.identify import IdentifiedMode, load_identification
 from helpers.paper.shapers import Shaper
 from helpers.research.modemap import ModeMap, load_map
-from helpers.virtual.studies import stored_table
 
 __all__ = [
     "MEASURED_MAP",
