@@ -362,23 +362,10 @@ def load(path: str | os.PathLike, derive: bool = True) -> Recording:
     return rec.derive() if derive else rec
 
 
-FROM_METADATA = {
-    "source": "source.kind", "kind": "scenario.kind", "system": "scenario.system",
-    "v_in_mm_s": "scenario.v_in_mm_s", "x_f_mm": "scenario.x_f_mm", "repetition": "scenario.repetition",
-    "status": "status", "samples": "counts.samples", "dropped": "counts.dropped",
-    "corrupted": "counts.corrupted", "overruns": "counts.overruns", "rate_hz": "rate_hz",
-    "started_utc": "started_utc",
-}  # fmt: skip
-"""The catalogue's columns read from the metadata: column -> its dotted key."""
-
-CATALOGUE_COLUMNS = ["group", "name", *FROM_METADATA, "path", "problem"]
-
-
-def _dotted(meta: Any, key: str) -> Any:
-    """The value at a dotted key, or None where a part is missing or not an object."""
-    for part in key.split("."):
-        meta = meta.get(part) if isinstance(meta, dict) else None
-    return meta
+CATALOGUE_COLUMNS = [
+    "group", "name", "source", "kind", "system", "v_in_mm_s", "x_f_mm", "repetition", "status", "samples",
+    "dropped", "corrupted", "overruns", "rate_hz", "started_utc", "path", "problem",
+]  # fmt: skip
 
 
 def _catalogue_row(root: Path, csv_path: Path) -> dict[str, Any]:
@@ -401,7 +388,17 @@ def _catalogue_row(root: Path, csv_path: Path) -> dict[str, Any]:
             row["problem"] = "missing CSV file"
     except RecordingError as exc:
         row["problem"] = str(exc).removeprefix(f"{json_path}: ")[:200]
-    row.update({column: _dotted(meta, key) for column, key in FROM_METADATA.items()})
+    meta = meta if isinstance(meta, dict) else {}
+
+    def section(key: str) -> dict[str, Any]:
+        value = meta.get(key)
+        return value if isinstance(value, dict) else {}
+
+    sc, counts, source = section("scenario"), section("counts"), section("source")
+    row.update({key: sc.get(key) for key in ("kind", "system", "v_in_mm_s", "x_f_mm", "repetition")})
+    row.update({key: counts.get(key) for key in ("samples", "dropped", "corrupted", "overruns")})
+    row.update({key: meta.get(key) for key in ("status", "rate_hz", "started_utc")})
+    row["source"] = source.get("kind")
     return row
 
 
