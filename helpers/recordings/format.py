@@ -195,11 +195,10 @@ def _one_of(names: tuple[str, ...]) -> Kind:
     return (lambda v: v in names, f"one of {', '.join(names)}")
 
 
-def _per_tendon(n: int, positive: bool) -> Kind:
-    number = POSITIVE if positive else NUMBER
+def _per_tendon(n: int, number: Kind) -> Kind:
     return (
         lambda v: isinstance(v, list) and len(v) == n and all(number[0](x) for x in v),
-        f"a list of {n} {'positive ' if positive else ''}finite numbers (one per tendon)",
+        f"a list of {n} {'positive ' if number is POSITIVE else ''}finite numbers (one per tendon)",
     )
 
 
@@ -253,22 +252,17 @@ STREAM: tuple[tuple[str, Kind], ...] = (
 """The keys of a streamed run's ``scenario`` (``kind`` ``"stream"``; ``docs/recording_format.md``)."""
 
 
-def _tendon_keys(n: int) -> tuple[tuple[str, Kind], ...]:
-    """The calibration of a recording of ``n`` tendons (version 3): a list of ``n`` numbers per key."""
-    return (
-        ("calibration.newtons_per_count", _per_tendon(n, positive=True)),
-        ("calibration.offset_counts", _per_tendon(n, positive=False)),
-        ("calibration.mm_per_step", _per_tendon(n, positive=True)),
-        ("tip?", (OBJECT[0], "an object (the twin-provided tip columns' origin)")),
+CALIBRATION = {"newtons_per_count": POSITIVE, "offset_counts": NUMBER, "mm_per_step": POSITIVE}
+"""The calibration's keys, each one number of its kind for one tendon (versions 1 and 2)."""
+
+TIP: Kind = (OBJECT[0], "an object (the twin-provided tip columns' origin)")
+
+
+def _calibration_keys(n: int) -> tuple[tuple[str, Kind], ...]:
+    """The calibration of a recording of ``n`` tendons: a list of ``n`` numbers per key for several."""
+    return tuple(
+        (f"calibration.{key}", kind if n == 1 else _per_tendon(n, kind)) for key, kind in CALIBRATION.items()
     )
-
-
-ONE_TENDON: tuple[tuple[str, Kind], ...] = (
-    ("calibration.newtons_per_count", POSITIVE),
-    ("calibration.offset_counts", NUMBER),
-    ("calibration.mm_per_step", POSITIVE),
-)
-"""The calibration of a recording of one tendon (versions 1 and 2)."""
 
 
 def check_keys(meta: dict[str, Any], keys: tuple[tuple[str, Kind], ...], path: Path) -> None:
@@ -310,12 +304,10 @@ def validate_meta(meta: Any, path: Path) -> None:
         raise _fail(path, f"metadata lacks {', '.join(missing)}")
     check_keys(meta, METADATA, path)
     if version == TENDON_SCHEMA_VERSION:
-        check_keys(meta, (("tendons", TENDONS),), path)
-        check_keys(meta, _tendon_keys(meta["tendons"]), path)
+        check_keys(meta, (("tendons", TENDONS), ("tip?", TIP)), path)
         if "rig" not in meta:
             raise _fail(path, "rig: missing (a recording of several tendons keeps its rig file)")
-    else:
-        check_keys(meta, ONE_TENDON, path)
+    check_keys(meta, _calibration_keys(tendon_count(meta)), path)
     problem = validate_rig_section(meta, path)
     if problem is not None:
         raise _fail(path, problem)
