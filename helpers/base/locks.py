@@ -2,8 +2,8 @@
 
 The kernel releases a ``flock`` when its process ends, however it ends, so a crashed recorder leaves no stale
 lock behind. The lock file (``.lock`` in the folder, ignored by git) holds the owner's pid for the message a
-second process sees. :func:`take_lock` is the one way the package takes a ``flock``: a folder's lock here, and
-the recordings' store's shared reader lock and name reservations.
+second process sees. :func:`take_lock` takes every lock of the package's files: a folder's lock here, and the
+recordings' store's shared reader lock and name reservations.
 """
 
 from __future__ import annotations
