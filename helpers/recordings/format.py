@@ -60,17 +60,6 @@ STATUSES = ("complete", "aborted", "deviated")
 its command (a stream whose host fell behind, or whose shaped motion the board clamped; ``deviation`` says
 how)."""
 
-REQUIRED_META = (
-    "schema_version",
-    "source",
-    "scenario",
-    "calibration",
-    "rate_hz",
-    "status",
-    "counts",
-    "csv_sha256",
-)
-
 STREAM_AMP_ONE = 4096
 """A streamed run's impulse amplitudes are in units of 1/4096 and sum to exactly this (the board's 1.0)."""
 
@@ -224,6 +213,10 @@ METADATA: tuple[tuple[str, Kind], ...] = (
 )
 """The keys every recording's metadata is checked for, in order: ``(dotted key, kind)``; a key ending in
 ``?`` may be absent, and a key's parent is an object checked by an earlier row."""
+
+REQUIRED_META = ("schema_version", *(key for key, _ in METADATA if "." not in key and not key.endswith("?")))
+"""The top-level keys every recording's metadata holds: the version and the rows of :data:`METADATA` that
+may not be absent."""
 
 PULSE: tuple[tuple[str, Kind], ...] = (
     ("scenario.system", TEXT),
