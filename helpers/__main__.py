@@ -22,7 +22,7 @@ from pathlib import Path
 # are
 # in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
 from helpers.base.paths import shown
-from helpers.base.signals import EXIT_STATUS, Interrupted, interrupts_from_signals
+from helpers.base.signals import Interrupted, interrupts_from_signals
 from helpers.rigfile import use  # standard library only, like the line above
 from helpers.rigfile.option import take_rig_option
 
@@ -122,7 +122,7 @@ def error_line(exc: BaseException) -> tuple[str, int]:
     if isinstance(exc, KeyboardInterrupt):
         signum = exc.signum if isinstance(exc, Interrupted) else 2
         what = str(exc) if isinstance(exc, Interrupted) else "interrupted by Ctrl-C"
-        return f"{what}{_run_outcome(exc)}", EXIT_STATUS.get(signum, 128 + signum)
+        return f"{what}{_run_outcome(exc)}", 128 + signum  # the documented status: 130, 143, 129
     first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
     missing = exc.name.split(".")[0] if isinstance(exc, ModuleNotFoundError) and exc.name else None
     if missing in EXTRAS:  # the paper's part runs without them; this command needs one

@@ -70,7 +70,7 @@ def test_round_trip_and_derived_columns(tmp_path):
     np.testing.assert_allclose(f["tension_n"], (raw["adc"] - 60.0) * 0.025)
     np.testing.assert_allclose(f["cable_mm"], raw["steps"] * 0.25525)
     assert rec.meta["counts"]["samples"] == 50
-    assert rec.is_virtual and rec.status == "complete"
+    assert rec.meta["source"]["kind"] == "virtual-rig" and rec.status == "complete"
 
 
 def test_csv_is_placed_before_json_and_no_temporary_file_is_left(tmp_path, monkeypatch):

@@ -19,8 +19,9 @@ import nbformat
 import numpy as np
 import pytest
 
-from helpers.base.paths import NOTEBOOKS_DIR, REPO_ROOT
+from helpers.base.paths import REPO_ROOT
 from helpers.commands import reproduce
+from helpers.commands.reproduce import NOTEBOOKS_DIR
 
 SENSITIVE = r"""
 import json

@@ -7,6 +7,7 @@ The one atomic writer of the package: every JSON result, calibration and recordi
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -33,12 +34,10 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
     error (a full disk, a signal) the temporary file is removed and the error re-raised: nothing else changed.
     """
     folder = Path(folder)
+    tmp: str | None = None
     try:
         folder.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{name}.{os.getpid()}-", suffix=".tmp")
-    except OSError as exc:  # a read-only or full file system: name the file it was for
-        raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
-    try:
         umask = os.umask(0)
         os.umask(umask)
         os.fchmod(fd, 0o666 & ~umask)
@@ -47,9 +46,9 @@ def write_temp(folder: str | os.PathLike, name: str, data: bytes) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
     except BaseException as exc:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        if isinstance(exc, OSError):
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):  # a read-only or full file system: name the file it was for
             raise type(exc)(exc.errno, exc.strerror, str(folder / name)) from None
         raise
     return Path(tmp)
@@ -70,27 +69,21 @@ def process_alive(pid: int) -> bool:
     return True
 
 
-def remove_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
-    """Remove the temporary files of :func:`write_temp` in ``folder`` whose writer has died; return them.
+def remove_stale_temporaries(folder: str | os.PathLike) -> None:
+    """Remove the temporary files of :func:`write_temp` in ``folder`` whose writer has died.
 
     A live writer's file is never touched (its pid is in the name and the process exists). Callers hold the
     folder's lock, so that no writer of theirs can be starting meanwhile.
     """
-    removed = []
     try:
         entries = list(Path(folder).iterdir())
     except OSError:
-        return removed
+        return
     for path in entries:
         m = TEMP_PATTERN.match(path.name)
-        if m is None or process_alive(int(m["pid"])):
-            continue
-        try:
-            path.unlink()
-        except OSError:
-            continue
-        removed.append(path)
-    return removed
+        if m is not None and not process_alive(int(m["pid"])):
+            with contextlib.suppress(OSError):
+                path.unlink()
 
 
 def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
@@ -120,14 +113,12 @@ def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
 
 def json_safe(value: Any) -> Any:
     """Make ``value`` JSON-safe: numpy to Python, tuples to lists, paths to text, NaN to None."""
+    if isinstance(value, np.ndarray | np.generic):
+        value = value.tolist()  # Python lists and scalars
     if isinstance(value, dict):
         return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [json_safe(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [json_safe(v) for v in value.tolist()]
-    if isinstance(value, np.generic):
-        value = value.item()
     if isinstance(value, Path):
         return str(value)
     if isinstance(value, float) and not math.isfinite(value):

@@ -24,9 +24,6 @@ STORED_TABLES_DIR: Path = REPO_ROOT / "figures"
 notebooks to *read* (the previous virtual rig's Table II, the virtual rig's study tables). Notebooks write
 through :func:`figure_path`; they read these through :func:`stored_table`."""
 
-NOTEBOOKS_DIR: Path = REPO_ROOT / "notebooks"
-"""The numbered notebooks."""
-
 IDENTIFICATION_RESULT: Path = DATA_DIR / "identification" / "result.json"
 """The identified dominant mode: written by ``helpers.paper.identify.save_identification`` (notebook 02's
 live cell

@@ -28,8 +28,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-EXIT_STATUS = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
-"""The documented exit status of a command interrupted by each signal (128 + the signal's number)."""
 
 
 class Interrupted(KeyboardInterrupt):
@@ -63,14 +61,14 @@ def _handler(signum: int, frame: object) -> None:
     raise Interrupted(signum)
 
 
-def _main_thread() -> bool:
-    return threading.current_thread() is threading.main_thread()
-
-
 @contextmanager
-def _handlers() -> Iterator[bool]:
-    """Install :func:`_handler` for :data:`HELD` for the block (main thread); yield whether it could."""
-    if not _main_thread():
+def interrupts_from_signals() -> Iterator[bool]:
+    """Within the block, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted` (main thread; else a no-op).
+
+    Installs :func:`_handler` for :data:`HELD` for the block; yields whether it could (only the main thread
+    can).
+    """
+    if threading.current_thread() is not threading.main_thread():
         yield False
         return
     previous = {s: signal.getsignal(s) for s in HELD}
@@ -85,27 +83,15 @@ def _handlers() -> Iterator[bool]:
                 signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
-def _redeliver(pending: list[int]) -> None:
-    """Deliver the first deferred signal again to whatever handles it now (ours raises, the default kills)."""
-    if pending:
-        signal.raise_signal(pending[0])
-
-
 @contextmanager
-def interrupts_from_signals() -> Iterator[None]:
-    """Within the block, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted` (main thread; else a no-op)."""
-    with _handlers():
-        yield
+def signals_held() -> Iterator[tuple[bool, int]]:
+    """Defer SIGINT, SIGTERM and SIGHUP for the block; one that arrived is delivered when the block ends.
 
-
-@contextmanager
-def _deferred() -> Iterator[tuple[bool, int]]:
-    """Defer :data:`HELD` for the block; yield whether the handler is installed and the depth before it.
-
-    A signal deferred at the outermost level is delivered when the block ends without an exception (with one,
-    that exception goes on and the signal is dropped).
+    If the block ends with an exception, that exception goes on and a deferred signal is dropped (it asked
+    to stop, and the run is stopping). Only a signal deferred at the outermost level is delivered. Yields
+    whether the handler is installed and the depth of deferral before the block (for :func:`run_guard`).
     """
-    with _handlers() as installed:
+    with interrupts_from_signals() as installed:
         if not installed:
             yield False, _state.depth
             return
@@ -120,19 +106,8 @@ def _deferred() -> Iterator[tuple[bool, int]]:
             pending = [] if base else _state.pending[:]
             if not base:
                 _state.pending.clear()
-    if not failed:
-        _redeliver(pending)
-
-
-@contextmanager
-def signals_held() -> Iterator[None]:
-    """Defer SIGINT, SIGTERM and SIGHUP for the block; one that arrived is delivered when the block ends.
-
-    If the block ends with an exception, that exception goes on and a deferred signal is dropped (it asked
-    to stop, and the run is stopping).
-    """
-    with _deferred():
-        yield
+    if not failed and pending:  # delivered again to whatever handles it now (ours raises, the default kills)
+        signal.raise_signal(pending[0])
 
 
 @dataclass
@@ -171,7 +146,7 @@ def run_guard() -> Iterator[Guard]:
     A signal deferred in the guard and not taken (:meth:`Guard.take_pending`) is delivered when the guard
     ends without an exception; with one, that exception goes on.
     """
-    with _deferred() as (installed, base):
+    with signals_held() as (installed, base):
         try:
             yield Guard(installed, base)
         finally:

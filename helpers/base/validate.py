@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -32,27 +33,27 @@ def is_finite_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
-def _real(value: Any, name: str, what: str) -> float:
-    """``value`` as a ``float`` if it is a real number (not a bool), else ``ValueError`` naming ``name``."""
+def _real(value: Any, name: str, what: str, within: Callable[[float], bool], need: str) -> float:
+    """``value`` as a finite ``float`` that is ``within`` range, else ``ValueError`` naming ``name``.
+
+    ``what`` names the kind of number and ``need`` its range, for the messages; a bool is not a number.
+    """
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
         raise ValueError(f"{name} must be {what}, got {value!r}")
-    return float(value)
+    value = float(value)
+    if not (math.isfinite(value) and within(value)):
+        raise ValueError(f"{name} must be finite and {need}, got {value!r}")
+    return value
 
 
 def check_positive(value: Any, name: str) -> float:
     """Return ``value`` as a finite ``float`` > 0 or raise ``ValueError`` naming ``name``."""
-    value = _real(value, name, "a number")
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
-    return value
+    return _real(value, name, "a number", lambda v: v > 0, "> 0")
 
 
 def check_time(value: Any, name: str) -> float:
     """Return ``value`` as a finite number of seconds >= 0 or raise ``ValueError`` naming ``name``."""
-    value = _real(value, name, "a number of seconds")
-    if not math.isfinite(value) or value < 0:
-        raise ValueError(f"{name} must be finite and >= 0 s, got {value!r}")
-    return value
+    return _real(value, name, "a number of seconds", lambda v: v >= 0, ">= 0 s")
 
 
 RIG_NAME = re.compile(r"[A-Za-z0-9_.-]{1,64}\Z")

@@ -25,8 +25,11 @@ from nbclient.exceptions import CellExecutionError
 
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.notebook import BATCH_ENV
-from helpers.base.paths import FIGURES_DIR, NOTEBOOKS_DIR, REPO_ROOT
+from helpers.base.paths import FIGURES_DIR, REPO_ROOT
 from helpers.commands.summary import print_summary
+
+NOTEBOOKS_DIR: Path = REPO_ROOT / "notebooks"
+"""The numbered notebooks."""
 
 
 class NotebookFailed(RuntimeError):

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import hashlib
 import io
 import json
@@ -35,11 +34,10 @@ import numpy as np
 import pandas as pd
 
 from helpers.base.jsonfile import dumps, process_alive, remove_stale_temporaries, write_temp
-from helpers.base.locks import LOCK_NAME, FolderBusy, folder_lock
+from helpers.base.locks import LOCK_NAME, FolderBusy, folder_lock, take_lock
 from helpers.base.paths import DATA_DIR
 from helpers.base.signals import signals_held
 from helpers.recordings.format import (
-    RAW_COLUMNS,
     REQUIRED_META,
     SCHEMA_VERSION,
     Recording,
@@ -54,8 +52,6 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}\Z")
 
 RESERVED_NAMES = frozenset({"calibration", "result"})
 """Stems of the project's own JSON files (``calibration.json``, ``result.json``): never a recording's name."""
-
-HEADER = ",".join(RAW_COLUMNS).encode("ascii")
 
 SAVE_WAIT_S = 10.0
 """How long a save waits for another process's save in the same folder."""
@@ -98,36 +94,14 @@ def aborted_path(path: str | os.PathLike, started_utc: str, status: str = "abort
     return p.with_name(f"{p.stem}_{status}_{stamp}.csv")
 
 
-class Reservation:
-    """A recording's name held by one run from before it starts until it is saved (:func:`reserve`)."""
-
-    def __init__(self, lock: Path, fd: int) -> None:
-        self.lock = lock
-        self._fd: int | None = fd
-
-    def release(self) -> None:
-        """Give the name back (idempotent)."""
-        if self._fd is None:
-            return
-        with signals_held():
-            with contextlib.suppress(OSError):
-                self.lock.unlink()  # still holding the lock: nobody can have taken this file meanwhile
-            os.close(self._fd)
-            self._fd = None
-
-    def __enter__(self) -> Reservation:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.release()
-
-
-def reserve(target: str | os.PathLike, replace: bool = False) -> Reservation:
-    """Refuse an existing recording (unless replacing) and hold its name until :meth:`Reservation.release`.
+@contextlib.contextmanager
+def reserve(target: str | os.PathLike, replace: bool = False) -> Iterator[Path]:
+    """Refuse an existing recording (unless replacing) and hold its name for the ``with`` block.
 
     A second run asking for the same name meanwhile, in another process or this one, is refused at once,
     before it starts, instead of learning of the conflict only when its finished run is saved. The hold is a
-    ``flock`` on ``.<name>.reserved.lock`` beside the recording (released by the kernel if the process dies).
+    ``flock`` on ``.<name>.reserved.lock`` beside the recording (released by the kernel if the process dies),
+    removed when the block ends; the block gets its path.
 
     Raises
     ------
@@ -137,32 +111,22 @@ def reserve(target: str | os.PathLike, replace: bool = False) -> Reservation:
     csv = _csv_path(target)
     refuse_existing(csv, replace)
     csv.parent.mkdir(parents=True, exist_ok=True)
-    with signals_held():  # an interrupt cannot leave the name held by a lost file descriptor
-        return _reserve(csv, csv.with_name(f".{csv.stem}.reserved.lock"))
+    lock = csv.with_name(f".{csv.stem}.reserved.lock")
 
+    def busy(who: str) -> RecordingExists:
+        return RecordingExists(f"{csv}: {who} is recording under this name right now; choose another name")
 
-def _reserve(csv: Path, lock: Path) -> Reservation:
-    while True:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.read(fd, 32).decode("ascii", "replace").strip()
-            os.close(fd)
-            who = f"process {holder}" if holder.isdigit() else "another run"
-            raise RecordingExists(
-                f"{csv}: {who} is recording under this name right now; choose another name"
-            ) from None
-        try:  # the previous holder may have removed the file between our open and our lock: try again
-            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    os.ftruncate(fd, 0)
-    os.write(fd, str(os.getpid()).encode())
-    return Reservation(lock, fd)
+    fd = None
+    try:
+        with signals_held():  # an interrupt cannot leave the name held by a lost file descriptor
+            fd = take_lock(lock, busy)
+        yield lock
+    finally:
+        if fd is not None:
+            with signals_held():
+                with contextlib.suppress(OSError):
+                    lock.unlink()  # still holding the lock: nobody can have taken this file meanwhile
+                os.close(fd)
 
 
 def _csv_path(path: str | os.PathLike) -> Path:
@@ -171,7 +135,7 @@ def _csv_path(path: str | os.PathLike) -> Path:
 
 
 # -- writing -----------------------------------------------------------------------------------------------
-def _csv_bytes(frame: pd.DataFrame, columns: tuple[str, ...] = RAW_COLUMNS) -> bytes:
+def _csv_bytes(frame: pd.DataFrame, columns: tuple[str, ...]) -> bytes:
     buf = io.StringIO()
     frame.loc[:, list(columns)].astype(np.int64).to_csv(buf, index=False, lineterminator="\n")
     return buf.getvalue().encode("ascii")
@@ -225,12 +189,8 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
     try:
         with folder_lock(target.parent, wait_s=SAVE_WAIT_S, what="saving a recording"):
             tidy_folder(target.parent)
-            exists = target.exists() or json_target.exists()
-            if exists and not replace:
-                raise RecordingExists(
-                    f"{target}: a recording of that name exists; choose another name or ask to replace it"
-                )
-            _write_pair(target, json_target, data, text.encode("utf-8"), exists)
+            refuse_existing(target, replace)
+            _write_pair(target, json_target, data, text.encode("utf-8"))
     except OSError as exc:
         raise _write_error(target, exc) from None
     recording.meta = json.loads(text)
@@ -273,27 +233,23 @@ def tidy_folder(folder: Path) -> None:
             os.replace(p, folder / f"{stem}{suffix}")
 
 
-def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exists: bool) -> None:
+def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes) -> None:
     """Temporary files first; then (old JSON and CSV aside), the new CSV, then the new JSON; then tidy up."""
-    tmp_csv = write_temp(csv_path.parent, csv_path.name, data)
-    try:
-        tmp_json = write_temp(json_path.parent, json_path.name, text)
-    except BaseException:
-        tmp_csv.unlink(missing_ok=True)
-        raise
+    temps: list[Path] = []
     backups: list[tuple[Path, Path]] = []
     placed: list[Path] = []
     try:
-        if exists:  # the JSON goes aside first: meanwhile the pair reads as incomplete, never as torn
-            for p in (json_path, csv_path):
-                if p.exists():
-                    aside = p.with_name(f".{p.name}.replaced-{os.getpid()}.tmp")
-                    os.replace(p, aside)
-                    backups.append((aside, p))
-        os.link(tmp_csv, csv_path)  # a hard link fails rather than overwrite
-        placed.append(csv_path)
-        os.link(tmp_json, json_path)
-        placed.append(json_path)
+        for dest, content in ((csv_path, data), (json_path, text)):
+            temps.append(write_temp(dest.parent, dest.name, content))
+        # an old pair goes aside, the JSON first: meanwhile the pair reads as incomplete, never as torn
+        for p in (json_path, csv_path):
+            if p.exists():
+                aside = p.with_name(f".{p.name}.replaced-{os.getpid()}.tmp")
+                os.replace(p, aside)
+                backups.append((aside, p))
+        for tmp, dest in zip(temps, (csv_path, json_path), strict=True):
+            os.link(tmp, dest)  # a hard link fails rather than overwrite
+            placed.append(dest)
     except BaseException:
         for p in placed:  # the new files that made it
             p.unlink(missing_ok=True)
@@ -301,8 +257,8 @@ def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exist
             os.replace(aside, dest)
         raise
     finally:
-        tmp_csv.unlink(missing_ok=True)
-        tmp_json.unlink(missing_ok=True)
+        for tmp in temps:
+            tmp.unlink(missing_ok=True)
     for aside, _ in backups:
         aside.unlink(missing_ok=True)
 
@@ -311,21 +267,16 @@ def _write_pair(csv_path: Path, json_path: Path, data: bytes, text: bytes, exist
 @contextlib.contextmanager
 def _shared_lock(folder: Path) -> Iterator[None]:
     """Hold the folder's lock shared (readers do not block each other; a writer waits for them)."""
+
+    def busy(who: str) -> FolderBusy:
+        return FolderBusy(f"{folder} is busy: {who} is saving a recording there")
+
     try:
-        fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = take_lock(folder / LOCK_NAME, busy, SAVE_WAIT_S, shared=True)
     except OSError:  # a read-only folder: nobody can be writing into it
         yield
         return
     try:
-        deadline = time.monotonic() + SAVE_WAIT_S
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-                break
-            except BlockingIOError:
-                if time.monotonic() >= deadline:
-                    raise FolderBusy(f"{folder} is busy: a recording is being saved there") from None
-                time.sleep(0.02)
         yield
     finally:
         os.close(fd)
@@ -343,17 +294,21 @@ def _read_pair(csv_path: Path) -> tuple[bytes, Any]:
             raise RecordingError(f"{json_path}: missing JSON metadata file")
         if not has_csv:
             raise RecordingError(f"{csv_path}: missing CSV file")
-        raw_meta = json_path.read_bytes()
+        meta = _read_json(json_path)
         data = csv_path.read_bytes()
-    try:
-        meta = json.loads(raw_meta.decode("utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
-        why = f"{type(exc).__name__}: {str(exc)[:80]}"
-        raise RecordingError(f"{json_path}: unreadable JSON ({why})") from None
     return data, meta
 
 
-def _parse_csv(data: bytes, csv_path: Path, header: bytes = HEADER) -> pd.DataFrame:
+def _read_json(json_path: Path) -> Any:
+    """The parsed JSON file, or one :class:`RecordingError`: unreadable JSON (and why)."""
+    try:
+        return json.loads(json_path.read_bytes().decode("utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        why = f"{type(exc).__name__}: {str(exc)[:80]}"
+        raise RecordingError(f"{json_path}: unreadable JSON ({why})") from None
+
+
+def _parse_csv(data: bytes, csv_path: Path, header: bytes) -> pd.DataFrame:
     first, _, _ = data.partition(b"\n")
     if first.rstrip(b"\r") != header:
         raise RecordingError(
@@ -363,10 +318,9 @@ def _parse_csv(data: bytes, csv_path: Path, header: bytes = HEADER) -> pd.DataFr
         pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError, OverflowError,
     )  # fmt: skip
     try:
-        frame = pd.read_csv(io.BytesIO(data), dtype=np.int64)
+        return pd.read_csv(io.BytesIO(data), dtype=np.int64)
     except unreadable as e:
         raise RecordingError(f"{csv_path}: unreadable CSV ({str(e).splitlines()[0][:100]})") from None
-    return frame
 
 
 def load(path: str | os.PathLike, derive: bool = True) -> Recording:
@@ -403,8 +357,7 @@ def load(path: str | os.PathLike, derive: bool = True) -> Recording:
         )
     columns = raw_columns(meta)
     frame = _parse_csv(data, csv_path, ",".join(columns).encode("ascii"))
-    validate(frame, meta, csv_path)
-    frame = frame.loc[:, list(columns)].astype(np.int64)
+    validate(frame, meta, csv_path)  # its columns are the header's: exactly these, int64
     rec = Recording(frame=frame, meta=meta, path=csv_path)
     return rec.derive() if derive else rec
 
@@ -429,14 +382,12 @@ def _catalogue_row(root: Path, csv_path: Path) -> dict[str, Any]:
         return row
     meta: Any = {}
     try:
-        meta = json.loads(json_path.read_text(encoding="utf-8"))
+        meta = _read_json(json_path)
         validate_meta(meta, json_path)
         if not csv_path.exists():
             row["problem"] = "missing CSV file"
     except RecordingError as exc:
         row["problem"] = str(exc).removeprefix(f"{json_path}: ")[:200]
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        row["problem"] = f"unreadable JSON ({type(exc).__name__}: {str(exc)[:120]})"
     meta = meta if isinstance(meta, dict) else {}
 
     def section(key: str) -> dict[str, Any]:
@@ -460,8 +411,8 @@ def is_other_document(path: Path) -> bool:
     if path.suffix != ".json" or path.with_suffix(".csv").exists():
         return False
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
+        doc = _read_json(path)
+    except RecordingError:
         return False
     return isinstance(doc, dict) and isinstance(doc.get("format"), str) and "csv_sha256" not in doc
 
