@@ -97,7 +97,7 @@ def check_programme(programme: Any, start_position: int = 0) -> None:
     if not isinstance(programme, Programme):
         raise SafetyError(f"expected a helpers.board.programmes.Programme, got {type(programme).__name__}")
     try:
-        programme.check_limits(start_position=start_position, limits=LIMITS)
+        programme.check_limits(start_position=start_position)
     except ValueError as exc:
         raise SafetyError(f"programme refused: {exc}") from None
     if programme.duration_s > MAX_PROGRAMME_S:
