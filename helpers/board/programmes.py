@@ -385,8 +385,7 @@ class _Builder:
         b, disp, merged = _merge_short_pieces(profile.breakpoints, profile.piece_displacements, MIN_PIECE_S)
         cum_mm = np.concatenate([[0.0], np.cumsum(disp)]) * direction
         cum_steps = np.rint(cum_mm / MM_PER_STEP).astype(np.int64)
-        cum_steps[-1] = n_total
-        cum_steps[0] = 0
+        cum_steps[-1] = n_total  # cum_steps[0] is 0: the move starts from its first breakpoint
         min_iv = LIMITS.min_interval_us
         carried = 0
         # the last piece cannot pass steps on: hand its excess back to its predecessor (1 us of margin)
@@ -577,8 +576,7 @@ def programmes_table(
     pandas.DataFrame
     """
     rows = []
-    for key, (prog, rep) in programmes:
-        system, v, x = key
+    for (system, v, x), (prog, rep) in programmes:
         rows.append(
             {
                 "system": system,

@@ -93,16 +93,6 @@ def check_firmware(kind: str, version: str, rig: Any = None) -> None:
         )
 
 
-def check_protocol_1(parser: StreamParser, port_name: str) -> None:
-    """Raise :class:`OldFirmware` once the parser saw a line of a protocol-1 board (firmware 1.x: XOR)."""
-    if parser.legacy is not None:
-        raise OldFirmware(
-            f"the board on {port_name} runs firmware 1.x (protocol 1, XOR checksums; it sent "
-            f"{parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
-            f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
-        )
-
-
 def expected_reply(command: str) -> str:
     """The start of the reply a command gets besides ``ERR``: ``PONG``, ``ABORTED`` or ``OK <WORD>``."""
     word = command.split(" ", 1)[0]
@@ -167,7 +157,10 @@ class PortLink:
         return Waiter(timeout, getattr(self.port, "device_time", None))
 
     def read(self, wait: Waiter | None = None, block: bool = True) -> int:
-        """Read what the port has (if ``block``, waiting up to its read timeout); return the bytes read."""
+        """Read what the port has (if ``block``, waiting up to its read timeout); return the bytes read.
+
+        Raises :class:`OldFirmware` once the parser saw a line of a protocol-1 board (firmware 1.x: XOR).
+        """
         try:
             n = self.port.in_waiting
             data = self.port.read(max(n, 1)) if n or block else b""
@@ -179,7 +172,12 @@ class PortLink:
         with signals_held():  # the parser's counts and the kept rows change together
             rows, messages = self.parser.feed(data)
             self.rows += rows
-        check_protocol_1(self.parser, self.port.port)
+        if self.parser.legacy is not None:
+            raise OldFirmware(
+                f"the board on {self.port.port} runs firmware 1.x (protocol 1, XOR checksums; it sent "
+                f"{self.parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
+                f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
+            )
         for msg in messages:
             self._message(msg)
         return len(data)
