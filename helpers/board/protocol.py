@@ -55,8 +55,6 @@ MAX_PENDING = 4 * (MAX_LINE + 1)
 """Bytes of an unterminated line kept before it is declared corrupted (garbage without newlines)."""
 
 _HEX = "0123456789ABCDEF"
-_INT = re.compile(r"-?[0-9]+\Z")
-_UINT = re.compile(r"[0-9]+\Z")
 _LEGACY_BODY = re.compile(r"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
 
 
@@ -164,7 +162,7 @@ class Overrun:
 
 
 def parse_body(body: str) -> Sample | Overrun | str:
-    """Classify a checked line body.
+    """Classify a checked line body (printable ASCII, :func:`unframe`'s).
 
     Returns
     -------
@@ -181,7 +179,7 @@ def parse_body(body: str) -> Sample | Overrun | str:
         if len(parts) != 5:
             raise FramingError(f"data line with {len(parts)} fields, expected 5")
         seq_s, t_s, adc_s, steps_s = parts[1:]
-        if not (_UINT.match(seq_s) and _UINT.match(t_s) and _UINT.match(adc_s) and _INT.match(steps_s)):
+        if not all(f.isdigit() for f in (seq_s, t_s, adc_s, steps_s.removeprefix("-"))):
             raise FramingError("data line with a non-integer field")
         seq, t_us, adc = int(seq_s), int(t_s), int(adc_s)
         if t_us >= WRAP_US or adc > ADC_MAX:
@@ -189,7 +187,7 @@ def parse_body(body: str) -> Sample | Overrun | str:
         return Sample(seq, t_us, adc, int(steps_s))
     if body.startswith("W,"):
         parts = body.split(",")
-        if len(parts) != 3 or parts[1] != "OVERRUN" or not _UINT.match(parts[2]):
+        if len(parts) != 3 or parts[1] != "OVERRUN" or not parts[2].isdigit():
             raise FramingError(f"malformed warning {body!r}")
         return Overrun(int(parts[2]))
     return body
