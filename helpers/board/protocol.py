@@ -119,8 +119,7 @@ def unframe(line: bytes) -> str:
         Non-ASCII or control bytes, too long, missing or malformed or wrong checksum
         (:class:`LegacyChecksum` when the wrong checksum is the XOR of protocol 1).
     """
-    if line.endswith(b"\r"):
-        line = line[:-1]
+    line = line.removesuffix(b"\r")
     if len(line) > MAX_LINE:
         raise FramingError(f"line of {len(line)} characters exceeds {MAX_LINE}")
     try:
@@ -264,11 +263,9 @@ class StreamParser:
     def _plausible(self, t_us: int, steps: int) -> bool:
         """A step count the motor can have reached: no faster than the step-rate limit allows."""
         last = self._last_sample
-        if last is not None and self.max_step_rate_hz is not None:
-            dt = max(t_us - last[0], 0)
-            if abs(steps - last[1]) > self.max_step_rate_hz * dt * 1e-6 + 1:
-                return False
-        return True
+        if last is None or self.max_step_rate_hz is None:
+            return True
+        return abs(steps - last[1]) <= self.max_step_rate_hz * max(t_us - last[0], 0) * 1e-6 + 1
 
     def _accept(self, sample: Sample, line: bytes, out: list) -> None:
         """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
