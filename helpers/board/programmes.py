@@ -35,7 +35,6 @@ class ShapesMoves(Protocol):
         self, v_in_mm_s: float, x_f_mm: float, t_up: float, t_down: float
     ) -> tuple[VelocityProfile, VelocityProfile]:
         """The exact Up move (positive velocities, from ``t_up``) and Down move (negative, ``t_down``)."""
-        ...
 
 
 MIN_PIECE_S = 2e-3

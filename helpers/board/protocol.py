@@ -243,22 +243,19 @@ class StreamParser:
 
     def __init__(self, max_step_rate_hz: float | None = None) -> None:
         self.splitter = LineSplitter()
-        self.stats = StreamStats()
         self.legacy: str | None = None
         """The first line from a protocol-1 board (XOR-framed ``HELLO``/``PONG`` 1.x or ``ERR CHECKSUM``)."""
         self.max_step_rate_hz = max_step_rate_hz
         """Step-rate limit used to reject impossible step counts (None: no check)."""
+        self.restart()
+
+    def restart(self) -> None:
+        """Forget the counts and the sequence and clock state (after ``START``: its ``seq`` restarts at 0)."""
+        self.stats = StreamStats()
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
         self._t_offset = 0
         self._last_sample: tuple[int, int] | None = None  # (t_us unwrapped, steps) of the last accepted one
-
-    def restart(self) -> None:
-        """Forget the sequence and clock state (after ``START``, whose ``seq`` restarts at 0)."""
-        self.last_seq = None
-        self._last_raw_t = None
-        self._t_offset = 0
-        self._last_sample = None
 
     def _plausible(self, t_us: int, steps: int) -> bool:
         """A step count the motor can have reached: no faster than the step-rate limit allows."""

@@ -277,7 +277,6 @@ class LiveRig(BoardPair):
         self.daq.command(f"RATE {rate_hz}")
         self.daq.rows.clear()
         self.daq.parser.restart()
-        self.daq.parser.stats = type(self.daq.parser.stats)()
         self.daq.command("START")
 
     def _stop(self, timeout: float | None = None) -> None:
