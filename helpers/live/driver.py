@@ -27,12 +27,11 @@ from helpers import recordings
 from helpers.base.noise import white_noise_std
 from helpers.base.signals import run_guard
 from helpers.board.programmes import Programme, experiment_programme
-from helpers.board.protocol import StreamParser
 from helpers.live.link import BoardError, BoardTimeout, Link
 from helpers.live.ports import virtual_source_for
 from helpers.live.safety import SafetyError, check_programme, check_request
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import DAQ_BAUD, MAX_PROGRAMME_S, MAX_STEP_RATE_HZ, RIG, STEPPER_BAUD
+from helpers.paper.hardware import DAQ_BAUD, MAX_PROGRAMME_S, RIG, STEPPER_BAUD
 from helpers.paper.tension import LoadCellCalibration, load_calibration
 from helpers.recordings.shaping import pulse_metadata
 from helpers.rigfile.recorded import rig_section
@@ -202,8 +201,7 @@ class LiveRig(BoardPair):
         if isinstance(calibration, dict):
             calibration = LoadCellCalibration.from_dict(calibration)
         self.calibration = load_calibration() if calibration is None else calibration
-        parser = StreamParser(max_step_rate_hz=MAX_STEP_RATE_HZ)
-        self.daq = Link.open(daq_url, "daq", DAQ_BAUD, timeout, parser)
+        self.daq = Link.open(daq_url, "daq", DAQ_BAUD, timeout)
         try:
             self.stepper = Link.open(stepper_url, "stepper", STEPPER_BAUD, timeout)
         except BaseException:

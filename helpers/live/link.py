@@ -21,7 +21,7 @@ import serial
 from helpers.base.signals import signals_held
 from helpers.board.protocol import PAPER_RIG_HASH, PROTOCOL_MAJOR, StreamParser, frame
 from helpers.live.ports import open_port
-from helpers.paper.hardware import RIG
+from helpers.paper.hardware import MAX_STEP_RATE_HZ, RIG
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
 
@@ -209,6 +209,8 @@ class Link(PortLink):
 
     Attributes
     ----------
+    parser : helpers.board.protocol.StreamParser
+        Its lines' parser, rejecting step counts that change faster than the step-rate limit allows.
     rows : list of (seq, t_us, adc, steps)
         The samples received (a DAQ board's), ``t_us`` unwrapped.
     done_position : int or None
@@ -217,9 +219,9 @@ class Link(PortLink):
         The firmware version from ``PONG``, checked by :func:`check_firmware`.
     """
 
-    def __init__(self, port: serial.SerialBase, kind: str, timeout: float = 2.0, parser: Any = None) -> None:
+    def __init__(self, port: serial.SerialBase, kind: str, timeout: float = 2.0) -> None:
         self.port, self.kind, self.timeout = port, kind, timeout
-        self.parser = StreamParser() if parser is None else parser
+        self.parser = StreamParser(max_step_rate_hz=MAX_STEP_RATE_HZ)
         self.rows: list[tuple[int, int, int, int]] = []
         self.replies: list[str] = []
         self.hello = 0
@@ -227,9 +229,9 @@ class Link(PortLink):
         self.version: str | None = None
 
     @classmethod
-    def open(cls, url: str, kind: str, baudrate: int, timeout: float = 2.0, parser: Any = None) -> Link:
+    def open(cls, url: str, kind: str, baudrate: int, timeout: float = 2.0) -> Link:
         """Open ``url`` (a device path or a pyserial URL) and wait for the board (:meth:`sync`)."""
-        link = cls(open_exclusive(url, kind, baudrate, 0.05, timeout), kind, timeout, parser)
+        link = cls(open_exclusive(url, kind, baudrate, 0.05, timeout), kind, timeout)
         try:
             link.sync()
         except BaseException:
