@@ -201,14 +201,13 @@ class Programme:
         ValueError
             Empty programme, programme length, interval (speed), dwell length, or travel.
         """
-        start_position = check_int(start_position, "start_position")
+        position = check_int(start_position, "start_position")
         if not self.items:
             raise ValueError("programme length: the programme is empty (the board refuses GO)")
         if len(self.items) > LIMITS.max_items:
             raise ValueError(
                 f"programme length: {len(self.items)} items exceed the maximum of {LIMITS.max_items} items"
             )
-        position = start_position
         if not LIMITS.min_position_steps <= position <= LIMITS.max_position_steps:
             raise ValueError(
                 f"travel limit: start position {position} steps is outside "

@@ -192,35 +192,6 @@ def parse_body(body: str) -> Sample | Overrun | str:
     return body
 
 
-class LineSplitter:
-    r"""Split a byte stream into lines; a run of bytes without ``\\n`` longer than allowed is cut off.
-
-    ``feed(data)`` returns the complete lines (without ``\\n``); an over-long fragment is returned as one
-    line (so it is flagged corrupted) and the rest of it up to the next ``\\n`` is discarded into a second
-    corrupted line at most.
-    """
-
-    def __init__(self) -> None:
-        self._buf = bytearray()
-
-    def feed(self, data: bytes) -> list[bytes]:
-        """Append ``data`` and return the complete lines it finishes."""
-        self._buf += data
-        parts = self._buf.split(b"\n")
-        rest = parts.pop()
-        lines = [bytes(p) for p in parts]
-        if len(rest) > MAX_PENDING:
-            lines.append(bytes(rest))
-            rest = b""
-        self._buf = bytearray(rest)
-        return lines
-
-    @property
-    def pending(self) -> int:
-        """Bytes of an unfinished line held back."""
-        return len(self._buf)
-
-
 @dataclass
 class StreamStats:
     """Exact counts of what went wrong in a stream."""
@@ -242,7 +213,7 @@ class StreamParser:
     """
 
     def __init__(self, max_step_rate_hz: float | None = None) -> None:
-        self.splitter = LineSplitter()
+        self._buf = bytearray()  # an unfinished line
         self.legacy: str | None = None
         """The first line from a protocol-1 board (XOR-framed ``HELLO``/``PONG`` 1.x or ``ERR CHECKSUM``)."""
         self.max_step_rate_hz = max_step_rate_hz
@@ -279,6 +250,28 @@ class StreamParser:
         self._last_sample = (t_us, sample.steps)
         out.append((sample.seq, t_us, sample.adc, sample.steps))
 
+    def _lines(self, data: bytes) -> list[bytes]:
+        r"""Append ``data`` and return the complete lines it finishes (without ``\\n``).
+
+        A run of bytes without ``\\n`` longer than :data:`MAX_PENDING` is returned as one line (so it is
+        flagged corrupted) and the rest of it up to the next ``\\n`` is discarded into a second corrupted line
+        at most.
+        """
+        self._buf += data
+        parts = self._buf.split(b"\n")
+        rest = parts.pop()
+        lines = [bytes(p) for p in parts]
+        if len(rest) > MAX_PENDING:
+            lines.append(bytes(rest))
+            rest = b""
+        self._buf = bytearray(rest)
+        return lines
+
+    @property
+    def pending(self) -> int:
+        """Bytes of an unfinished line held back."""
+        return len(self._buf)
+
     def _corrupt(self, line: bytes, why: str) -> None:
         self.stats.corrupted += 1
         if len(self.stats.corrupted_examples) < 5:
@@ -300,7 +293,7 @@ class StreamParser:
         """Parse ``data`` (any chunking) and return the samples and messages it completes."""
         samples: list[tuple[int, int, int, int]] = []
         messages: list[str] = []
-        for line in self.splitter.feed(data):
+        for line in self._lines(data):
             if not line.strip(b"\r"):
                 continue
             try:
