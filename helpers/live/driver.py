@@ -94,9 +94,8 @@ def pulse_scenario(
     v, x = check_request(v_in_mm_s, x_f_mm)
     if not (isinstance(t_end_s, int | float) and math.isfinite(t_end_s) and 0 < t_end_s <= MAX_PROGRAMME_S):
         raise SafetyError(f"programme length: t_end {t_end_s!r} s is outside (0, {MAX_PROGRAMME_S:.0f}] s")
-    t_up, t_down = paper.PULSE_T_UP_S, paper.PULSE_T_DOWN_S
-    try:
-        programme, report = experiment_programme(v, x, shaper, t_up=t_up, t_down=t_down, t_end=t_end_s)
+    try:  # the up and down moves at experiment_programme's default times, the paper's
+        programme, report = experiment_programme(v, x, shaper, t_end=t_end_s)
     except ValueError as exc:
         raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
     check_programme(programme)
@@ -106,8 +105,8 @@ def pulse_scenario(
         "x_f_mm": x,
         **pulse_metadata(shaper, system),
         "repetition": int(repetition),
-        "t_up_s": t_up,
-        "t_down_s": t_down,
+        "t_up_s": paper.PULSE_T_UP_S,
+        "t_down_s": paper.PULSE_T_DOWN_S,
         "quantisation": report.to_dict(),
     }
     return programme, scenario
