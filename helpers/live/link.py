@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from contextlib import suppress
 from typing import Any
 
 import serial
@@ -198,10 +199,8 @@ class PortLink:
 
     def close(self) -> None:
         """Close the port."""
-        try:
+        with suppress(serial.SerialException, OSError):
             self.port.close()
-        except (serial.SerialException, OSError):
-            pass
 
 
 class Link(PortLink):
