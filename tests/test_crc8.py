@@ -40,7 +40,6 @@ def test_variant_and_check_value():
         LINK["xorout"],
     )
     assert hc.crc8(b"123456789") == hc.CHECK == LINK_CHECK == 0x20
-    assert hc.crc8_hex("123456789") == "20"
 
 
 def test_table_driven_crc_matches_the_bitwise_reference():

@@ -273,7 +273,7 @@ def test_experiment_programme_table_i(system, v, x):
 def test_quantisation_report_accounts_for_rounding():
     prog, rep = programmes.experiment_programme(200.0, 30.0, ZVD)
     assert rep.realised_mm == pytest.approx(118 * MM_PER_STEP)
-    assert rep.displacement_error_mm == pytest.approx(118 * MM_PER_STEP - 30.0)
+    assert rep.realised_mm - rep.requested_mm == pytest.approx(118 * MM_PER_STEP - 30.0)
     seg = rep.pieces[rep.pieces["item"] == "SEG"]
     assert seg.loc[seg["move"] == "up", "steps"].sum() == 118
     assert seg.loc[seg["move"] == "down", "steps"].sum() == -118

@@ -37,8 +37,6 @@ def _entry(byte: int) -> int:
 TABLE = bytes(_entry(b) for b in range(256))
 """``TABLE[i]``: the register after shifting the byte ``i`` through it (reflected form); 256 bytes."""
 
-_HEX = "0123456789ABCDEF"
-
 
 def crc8(data: bytes | str, crc: int = INIT) -> int:
     """Return the CRC-8 of ``data``.
@@ -56,13 +54,6 @@ def crc8(data: bytes | str, crc: int = INIT) -> int:
         0..255; e.g. ``crc8(b"123456789") == 0x20``.
     """
     raw = data.encode("ascii") if isinstance(data, str) else data
-    table = TABLE
     for b in raw:
-        crc = table[crc ^ b]
+        crc = TABLE[crc ^ b]
     return crc ^ XOROUT
-
-
-def crc8_hex(data: bytes | str) -> str:
-    """Return :func:`crc8` of ``data`` as two upper-case hex digits (what a line carries after its ``*``)."""
-    x = crc8(data)
-    return _HEX[x >> 4] + _HEX[x & 15]

@@ -14,7 +14,7 @@ of any shaping that makes its own (:class:`ShapesMoves`: the research wing's des
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -22,22 +22,10 @@ import pandas as pd
 
 from helpers.base.validate import check_int, check_time
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import LIMITS, MM_PER_STEP, Limits
+from helpers.paper.hardware import LIMITS, MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile, pulse_time, single_pulse
 from helpers.paper.shapers import Shaper
 
-__all__ = [
-    "Segment",
-    "Dwell",
-    "Item",
-    "Programme",
-    "QuantisationReport",
-    "ShapesMoves",
-    "MIN_PIECE_S",
-    "experiment_programme",
-    "table_i_programmes",
-    "programmes_table",
-]
 
 @runtime_checkable
 class ShapesMoves(Protocol):
@@ -47,7 +35,6 @@ class ShapesMoves(Protocol):
         self, v_in_mm_s: float, x_f_mm: float, t_up: float, t_down: float
     ) -> tuple[VelocityProfile, VelocityProfile]:
         """The exact Up move (positive velocities, from ``t_up``) and Down move (negative, ``t_down``)."""
-        ...
 
 
 MIN_PIECE_S = 2e-3
@@ -201,60 +188,57 @@ class Programme:
         """The lines that load the programme: ``CLEAR``, then one ``SEG``/``WAIT`` per item (no ``GO``)."""
         return ["CLEAR", *(item.command() for item in self.items)]
 
-    def check_limits(self, start_position: int = 0, limits: Limits = LIMITS) -> None:
-        """Raise ``ValueError`` naming the first limit the programme violates (see :class:`Limits`).
+    def check_limits(self, start_position: int = 0) -> None:
+        """Raise ``ValueError`` naming the first of the board's limits (``LIMITS``) the programme violates.
 
         Parameters
         ----------
         start_position : int
             Motor position (steps from zero) when ``GO`` is sent.
-        limits : Limits
-            The board's limits.
 
         Raises
         ------
         ValueError
             Empty programme, programme length, interval (speed), dwell length, or travel.
         """
-        start_position = check_int(start_position, "start_position")
+        position = check_int(start_position, "start_position")
         if not self.items:
             raise ValueError("programme length: the programme is empty (the board refuses GO)")
-        if len(self.items) > limits.max_items:
+        if len(self.items) > LIMITS.max_items:
             raise ValueError(
-                f"programme length: {len(self.items)} items exceed the maximum of {limits.max_items} items"
+                f"programme length: {len(self.items)} items exceed the maximum of {LIMITS.max_items} items"
             )
-        position = start_position
-        if not limits.min_position_steps <= position <= limits.max_position_steps:
+        if not LIMITS.min_position_steps <= position <= LIMITS.max_position_steps:
             raise ValueError(
                 f"travel limit: start position {position} steps is outside "
-                f"{limits.min_position_steps}..{limits.max_position_steps} steps"
+                f"{LIMITS.min_position_steps}..{LIMITS.max_position_steps} steps"
             )
         for i, item in enumerate(self.items):
             if isinstance(item, Dwell):
-                if item.ms > limits.max_dwell_ms:
+                if item.ms > LIMITS.max_dwell_ms:
                     raise ValueError(
                         f"dwell limit: item {i} ({item.command()}) exceeds the maximum dwell of "
-                        f"{limits.max_dwell_ms} ms"
+                        f"{LIMITS.max_dwell_ms} ms"
                     )
                 continue
-            if item.interval_us < limits.min_interval_us:
+            if item.interval_us < LIMITS.min_interval_us:
                 speed = MM_PER_STEP / item.interval_us * 1e6
                 raise ValueError(
                     f"interval limit: item {i} ({item.command()}) steps every {item.interval_us} us "
-                    f"({speed:.0f} mm/s), below the minimum interval of {limits.min_interval_us} us "
-                    f"({limits.max_speed_mm_s:.0f} mm/s)"
+                    f"({speed:.0f} mm/s), below the minimum interval of {LIMITS.min_interval_us} us "
+                    f"({LIMITS.max_speed_mm_s:.0f} mm/s)"
                 )
-            if item.interval_us > limits.max_interval_us:
+            if item.interval_us > LIMITS.max_interval_us:
                 raise ValueError(
                     f"interval limit: item {i} ({item.command()}) steps every {item.interval_us} us, above "
-                    f"the maximum interval of {limits.max_interval_us} us"
+                    f"the maximum interval of {LIMITS.max_interval_us} us"
                 )
             position += item.direction * item.n_steps
-            if not limits.min_position_steps <= position <= limits.max_position_steps:
+            if not LIMITS.min_position_steps <= position <= LIMITS.max_position_steps:
                 raise ValueError(
                     f"travel limit: item {i} ({item.command()}) takes the position to {position} steps "
-                    f"({position * MM_PER_STEP:.2f} mm), outside {limits.min_position_steps}.."
-                    f"{limits.max_position_steps} steps (40 mm)"
+                    f"({position * MM_PER_STEP:.2f} mm), outside {LIMITS.min_position_steps}.."
+                    f"{LIMITS.max_position_steps} steps (40 mm)"
                 )
 
     def to_dict(self) -> dict[str, Any]:
@@ -262,15 +246,7 @@ class Programme:
 
         :func:`helpers.rig.stepper.programme_from_dict` reads it back.
         """
-        items: list[dict[str, Any]] = []
-        for item in self.items:
-            if isinstance(item, Segment):
-                items.append(
-                    {"kind": "SEG", "direction": item.direction, "n_steps": item.n_steps,
-                     "interval_us": item.interval_us}
-                )
-            else:
-                items.append({"kind": "WAIT", "ms": item.ms})
+        items = [{"kind": item.command().split()[0], **asdict(item)} for item in self.items]  # SEG or WAIT
         return {"items": items, "duration_s": self.duration_s, "net_steps": self.net_steps}
 
 
@@ -310,11 +286,6 @@ class QuantisationReport:
     carried_steps: int = 0
 
     @property
-    def displacement_error_mm(self) -> float:
-        """``realised_mm - requested_mm``."""
-        return self.realised_mm - self.requested_mm
-
-    @property
     def max_timing_error_us(self) -> float:
         """Largest absolute piece-end timing error (us)."""
         return float(np.max(np.abs(self.pieces["timing_error_us"]))) if len(self.pieces) else 0.0
@@ -327,7 +298,7 @@ class QuantisationReport:
                     "N_steps": self.n_steps,
                     "requested_mm": self.requested_mm,
                     "realised_mm": self.realised_mm,
-                    "error_mm": self.displacement_error_mm,
+                    "error_mm": self.realised_mm - self.requested_mm,
                     "max_piece_timing_error_us": self.max_timing_error_us,
                     "down_start_error_ms": 1e3 * self.down_start_error_s,
                 }
@@ -371,13 +342,13 @@ def _merge_short_pieces(
 class _Builder:
     """Accumulates programme items while keeping the realised clock in whole microseconds."""
 
-    def __init__(self, limits: Limits) -> None:
+    def __init__(self) -> None:
         self.items: list[Item] = []
         self.clock_us = 0
-        self.limits = limits
         self.piece_rows: list[dict[str, Any]] = []
+        self.dwell_rows: list[dict[str, Any]] = []
 
-    def dwell_until(self, target_s: float) -> int:
+    def dwell_until(self, name: str, target_s: float) -> None:
         """Append dwells (split at the maximum) ending as close as 1 ms allows to ``target_s``."""
         ms = int(round((target_s * 1e6 - self.clock_us) / 1000.0))
         if ms < 0:
@@ -385,14 +356,11 @@ class _Builder:
                 f"cannot dwell until {target_s:.6f} s: the programme already runs to "
                 f"{self.clock_us / 1e6:.6f} s"
             )
-        remaining = ms
-        while remaining > self.limits.max_dwell_ms:
-            self.items.append(Dwell(self.limits.max_dwell_ms))
-            remaining -= self.limits.max_dwell_ms
-        if remaining > 0 or ms == 0:
-            self.items.append(Dwell(remaining))
+        whole, rest = divmod(ms, LIMITS.max_dwell_ms)
+        self.items += [Dwell(LIMITS.max_dwell_ms)] * whole + ([Dwell(rest)] if rest or not whole else [])
         self.clock_us += ms * 1000
-        return ms
+        error_us = self.clock_us - target_s * 1e6
+        self.dwell_rows.append({"dwell": name, "requested_s": target_s, "ms": ms, "error_us": error_us})
 
     def move(self, name: str, profile: VelocityProfile, direction: int, n_total: int) -> tuple[int, int]:
         """Quantise one move (all its pieces) so that it ends exactly ``n_total`` steps further on.
@@ -403,9 +371,8 @@ class _Builder:
         b, disp, merged = _merge_short_pieces(profile.breakpoints, profile.piece_displacements, MIN_PIECE_S)
         cum_mm = np.concatenate([[0.0], np.cumsum(disp)]) * direction
         cum_steps = np.rint(cum_mm / MM_PER_STEP).astype(np.int64)
-        cum_steps[-1] = n_total
-        cum_steps[0] = 0
-        min_iv = self.limits.min_interval_us
+        cum_steps[-1] = n_total  # cum_steps[0] is 0: the move starts from its first breakpoint
+        min_iv = LIMITS.min_interval_us
         carried = 0
         # the last piece cannot pass steps on: hand its excess back to its predecessor (1 us of margin)
         if disp.size > 1:
@@ -425,6 +392,7 @@ class _Builder:
             row = {
                 "move": name,
                 "piece": k,
+                "item": "WAIT" if n_k == 0 else "SEG",
                 "t_start_s": b[k],
                 "t_end_s": b[k + 1],
                 "v_mm_s": disp[k] / (b[k + 1] - b[k]),
@@ -435,7 +403,7 @@ class _Builder:
                 if ms > 0:
                     self.items.append(Dwell(ms))
                 self.clock_us += ms * 1000
-                row.update(item="WAIT", steps=0, interval_us=0, realised_v_mm_s=0.0)
+                row.update(steps=0, interval_us=0, realised_v_mm_s=0.0)
             else:
                 # never faster than the board allows: a piece that cannot fit ends late (reported)
                 interval = max(min_iv, int(round((end_us - self.clock_us) / abs(n_k))))
@@ -443,7 +411,6 @@ class _Builder:
                 self.items.append(Segment(sign, abs(n_k), interval))
                 self.clock_us += abs(n_k) * interval
                 row.update(
-                    item="SEG",
                     steps=n_k * direction,
                     interval_us=interval,
                     realised_v_mm_s=sign * MM_PER_STEP / interval * 1e6,
@@ -460,7 +427,6 @@ def experiment_programme(
     t_up: float = paper.PULSE_T_UP_S,
     t_down: float = paper.PULSE_T_DOWN_S,
     t_end: float = 12.0,
-    limits: Limits = LIMITS,
 ) -> tuple[Programme, QuantisationReport]:
     """The whole Up-hold-Down experiment as one board-timed programme, quantised to whole steps.
 
@@ -490,8 +456,6 @@ def experiment_programme(
         schedule computed for this ``v_in_mm_s`` and ``x_f_mm``, or a design) gives them.
     t_up, t_down, t_end : float
         Start of the up move, start of the down move, end of the programme (s from ``GO``).
-    limits : Limits
-        Board limits the result is checked against.
 
     Returns
     -------
@@ -503,34 +467,23 @@ def experiment_programme(
         Bad arguments, or a programme outside the board's limits (the message names the limit).
     """
     t_up, t_down, t_end = check_time(t_up, "t_up"), check_time(t_down, "t_down"), check_time(t_end, "t_end")
-    up, down, n_total = _shaped_moves(v_in_mm_s, x_f_mm, shaper, t_up, t_down, t_end, limits)
-    build = _Builder(limits)
-    dwell_rows: list[dict[str, Any]] = []
-
-    def dwell(name: str, target_s: float) -> None:
-        ms = build.dwell_until(target_s)
-        dwell_rows.append(
-            {"dwell": name, "requested_s": target_s, "ms": ms, "error_us": build.clock_us - target_s * 1e6}
-        )
-
-    dwell("lead-in", t_up)
+    up, down, n_total = _shaped_moves(v_in_mm_s, x_f_mm, shaper, t_up, t_down, t_end)
+    build = _Builder()
+    build.dwell_until("lead-in", t_up)
     merged_up, carried_up = build.move("up", up, +1, n_total)
-    dwell("hold", t_down)
+    build.dwell_until("hold", t_down)
     down_start_error = build.clock_us / 1e6 - t_down
     merged_down, carried_down = build.move("down", down, -1, n_total)
-    dwell("trailing", t_end)
+    build.dwell_until("trailing", t_end)
 
     programme = Programme(tuple(build.items))
-    programme.check_limits(limits=limits)
+    programme.check_limits()
     report = QuantisationReport(
         n_steps=n_total,
         requested_mm=float(x_f_mm),
         realised_mm=n_total * MM_PER_STEP,
-        pieces=pd.DataFrame(build.piece_rows)[
-            ["move", "piece", "item", "t_start_s", "t_end_s", "v_mm_s", "requested_mm", "steps",
-             "interval_us", "realised_v_mm_s", "realised_end_s", "timing_error_us"]
-        ],
-        dwells=pd.DataFrame(dwell_rows),
+        pieces=pd.DataFrame(build.piece_rows),
+        dwells=pd.DataFrame(build.dwell_rows),
         down_start_error_s=down_start_error,
         merged_pieces=merged_up + merged_down,
         carried_steps=carried_up + carried_down,
@@ -539,8 +492,8 @@ def experiment_programme(
 
 
 def _shaped_moves(
-    v_in_mm_s: float, x_f_mm: float, shaper: Shaper | ShapesMoves | None, t_up: float,
-    t_down: float, t_end: float, limits: Limits,
+    v_in_mm_s: float, x_f_mm: float, shaper: Shaper | ShapesMoves | None, t_up: float, t_down: float,
+    t_end: float,
 ) -> tuple[VelocityProfile, VelocityProfile, int]:  # fmt: skip
     """The shaped up and down moves and their whole number of steps, checked against the limits and times."""
     pulse_time(v_in_mm_s, x_f_mm)
@@ -558,10 +511,10 @@ def _shaped_moves(
             f"got {shaper!r}"
         )
     peak = max(float(np.max(np.abs(up.velocities))), float(np.max(np.abs(down.velocities))))
-    if peak > limits.max_speed_mm_s:
+    if peak > LIMITS.max_speed_mm_s:
         raise ValueError(
             f"interval limit: the command's peak speed {peak:.1f} mm/s needs steps faster than the minimum "
-            f"interval of {limits.min_interval_us} us ({limits.max_speed_mm_s:.0f} mm/s)"
+            f"interval of {LIMITS.min_interval_us} us ({LIMITS.max_speed_mm_s:.0f} mm/s)"
         )
     if up.end > t_down:
         raise ValueError(f"the shaped up move ends at {up.end:.4f} s, after t_down = {t_down} s")
@@ -609,8 +562,7 @@ def programmes_table(
     pandas.DataFrame
     """
     rows = []
-    for key, (prog, rep) in programmes:
-        system, v, x = key
+    for (system, v, x), (prog, rep) in programmes:
         rows.append(
             {
                 "system": system,

@@ -28,12 +28,11 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from functools import reduce
+from operator import xor
 
-import numpy as np
-
-from helpers.board.crc8 import INIT, crc8, crc8_hex
-from helpers.board.crc8 import TABLE as _CRC_TABLE
-from helpers.paper.hardware import ADC_MAX, RIG
+from helpers.board.crc8 import crc8
+from helpers.paper.hardware import ADC_MAX
 
 FW_VERSION = "2.3.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
@@ -41,23 +40,6 @@ FW_VERSION = "2.3.0"
 PAPER_RIG_HASH = "481e87e3"
 """The rig hash the paper's one-tendon build reports: the hash of ``rigs/paper.toml``, generated into
 ``firmware/common/rig_config_paper.h`` (a test checks that the three agree)."""
-
-
-def board_version(rig_hash: str | None = None) -> str:
-    """The version token of ``HELLO``/``PONG``: ``<FW_VERSION>+<rig hash>`` (semantic-version build metadata).
-
-    Parameters
-    ----------
-    rig_hash : str, optional
-        The 8 hex characters of the rig the board was built for; by default the rig the host runs
-        (``helpers.paper.hardware.RIG``, the emulated boards' build).
-
-    Returns
-    -------
-    str
-        E.g. ``"2.3.0+481e87e3"``.
-    """
-    return f"{FW_VERSION}+{RIG.hash if rig_hash is None else rig_hash}"
 
 
 MAX_LINE = 63
@@ -73,9 +55,6 @@ MAX_PENDING = 4 * (MAX_LINE + 1)
 """Bytes of an unterminated line kept before it is declared corrupted (garbage without newlines)."""
 
 _HEX = "0123456789ABCDEF"
-_INT = re.compile(r"-?[0-9]+\Z")
-_UINT = re.compile(r"[0-9]+\Z")
-_FAST_DATA = re.compile(rb"D,([0-9]{1,10}),([0-9]{1,10}),([0-9]{1,4}),(-?[0-9]{1,10})\*([0-9A-F]{2})")
 _LEGACY_BODY = re.compile(r"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
 
 
@@ -85,13 +64,6 @@ class FramingError(ValueError):
 
 class LegacyChecksum(FramingError):
     """The line's CRC-8 is wrong but its ``*hh`` is the XOR checksum of protocol 1 (firmware 1.x)."""
-
-
-def _xor(data: bytes) -> int:
-    x = 0
-    for b in data:
-        x ^= b
-    return x
 
 
 def checksum(body: bytes | str) -> str:
@@ -107,7 +79,7 @@ def checksum(body: bytes | str) -> str:
     str
         E.g. ``"FD"`` for ``b"PONG daq 2.0.0"``.
     """
-    return crc8_hex(body)
+    return f"{crc8(body):02X}"
 
 
 def frame(body: str) -> bytes:
@@ -127,15 +99,14 @@ def frame(body: str) -> bytes:
     return (line + "\n").encode("ascii")
 
 
-def unframe(line: bytes, require_checksum: bool = True) -> str:
+def unframe(line: bytes) -> str:
     r"""Check one line (without its ``\\n``) and return its body.
 
     Parameters
     ----------
     line : bytes
-        The raw line; a trailing ``\\r`` is ignored.
-    require_checksum : bool
-        Every line of protocol 2.0.0 carries one, commands included; False accepts a line without it.
+        The raw line; a trailing ``\\r`` is ignored. Every line of protocol 2 carries a checksum, commands
+        included.
 
     Returns
     -------
@@ -148,8 +119,7 @@ def unframe(line: bytes, require_checksum: bool = True) -> str:
         Non-ASCII or control bytes, too long, missing or malformed or wrong checksum
         (:class:`LegacyChecksum` when the wrong checksum is the XOR of protocol 1).
     """
-    if line.endswith(b"\r"):
-        line = line[:-1]
+    line = line.removesuffix(b"\r")
     if len(line) > MAX_LINE:
         raise FramingError(f"line of {len(line)} characters exceeds {MAX_LINE}")
     try:
@@ -158,21 +128,18 @@ def unframe(line: bytes, require_checksum: bool = True) -> str:
         raise FramingError("non-ASCII bytes") from None
     if not text.isprintable():
         raise FramingError("control characters")
-    star = text.rfind("*")
-    if star < 0:
-        if require_checksum:
-            raise FramingError("missing checksum")
-        return text
-    body, given = text[:star], text[star + 1 :]
+    body, star, given = text.rpartition("*")
+    if not star:
+        raise FramingError("missing checksum")
     if "*" in body:
         raise FramingError("more than one '*'")
     if len(given) != 2 or any(c not in _HEX for c in given):
         raise FramingError(f"malformed checksum {given!r}")
     x = crc8(body)
     if x != int(given, 16):
-        if _xor(body.encode("ascii")) == int(given, 16):
+        if reduce(xor, body.encode("ascii"), 0) == int(given, 16):
             raise LegacyChecksum(f"checksum {given} is the XOR of protocol 1 (firmware 1.x), not the CRC-8")
-        raise FramingError(f"checksum {given} does not match {_HEX[x >> 4] + _HEX[x & 15]}")
+        raise FramingError(f"checksum {given} does not match {x:02X}")
     return body
 
 
@@ -194,7 +161,7 @@ class Overrun:
 
 
 def parse_body(body: str) -> Sample | Overrun | str:
-    """Classify a checked line body.
+    """Classify a checked line body (printable ASCII, :func:`unframe`'s).
 
     Returns
     -------
@@ -211,7 +178,7 @@ def parse_body(body: str) -> Sample | Overrun | str:
         if len(parts) != 5:
             raise FramingError(f"data line with {len(parts)} fields, expected 5")
         seq_s, t_s, adc_s, steps_s = parts[1:]
-        if not (_UINT.match(seq_s) and _UINT.match(t_s) and _UINT.match(adc_s) and _INT.match(steps_s)):
+        if not all(f.isdigit() for f in (seq_s, t_s, adc_s, steps_s.removeprefix("-"))):
             raise FramingError("data line with a non-integer field")
         seq, t_us, adc = int(seq_s), int(t_s), int(adc_s)
         if t_us >= WRAP_US or adc > ADC_MAX:
@@ -219,42 +186,10 @@ def parse_body(body: str) -> Sample | Overrun | str:
         return Sample(seq, t_us, adc, int(steps_s))
     if body.startswith("W,"):
         parts = body.split(",")
-        if len(parts) != 3 or parts[1] != "OVERRUN" or not _UINT.match(parts[2]):
+        if len(parts) != 3 or parts[1] != "OVERRUN" or not parts[2].isdigit():
             raise FramingError(f"malformed warning {body!r}")
         return Overrun(int(parts[2]))
     return body
-
-
-class LineSplitter:
-    r"""Split a byte stream into lines; a run of bytes without ``\\n`` longer than allowed is cut off.
-
-    ``feed(data)`` returns the complete lines (without ``\\n``); an over-long fragment is returned as one
-    line (so it is flagged corrupted) and the rest of it up to the next ``\\n`` is discarded into a second
-    corrupted line at most.
-    """
-
-    def __init__(self, max_pending: int = MAX_PENDING) -> None:
-        self._buf = bytearray()
-        self._max = max_pending
-
-    def feed(self, data: bytes) -> list[bytes]:
-        """Append ``data`` and return the complete lines it finishes."""
-        self._buf += data
-        if b"\n" not in data and len(self._buf) <= self._max:
-            return []
-        parts = self._buf.split(b"\n")
-        rest = parts.pop()
-        lines = [bytes(p) for p in parts]
-        if len(rest) > self._max:
-            lines.append(bytes(rest))
-            rest = b""
-        self._buf = bytearray(rest)
-        return lines
-
-    @property
-    def pending(self) -> int:
-        """Bytes of an unfinished line held back."""
-        return len(self._buf)
 
 
 @dataclass
@@ -278,48 +213,64 @@ class StreamParser:
     """
 
     def __init__(self, max_step_rate_hz: float | None = None) -> None:
-        self.splitter = LineSplitter()
-        self.stats = StreamStats()
+        self._buf = bytearray()  # an unfinished line
         self.legacy: str | None = None
         """The first line from a protocol-1 board (XOR-framed ``HELLO``/``PONG`` 1.x or ``ERR CHECKSUM``)."""
         self.max_step_rate_hz = max_step_rate_hz
         """Step-rate limit used to reject impossible step counts (None: no check)."""
+        self.restart()
+
+    def restart(self) -> None:
+        """Forget the counts and the sequence and clock state (after ``START``: its ``seq`` restarts at 0)."""
+        self.stats = StreamStats()
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
         self._t_offset = 0
         self._last_sample: tuple[int, int] | None = None  # (t_us unwrapped, steps) of the last accepted one
 
-    def restart(self) -> None:
-        """Forget the sequence and clock state (after ``START``, whose ``seq`` restarts at 0)."""
-        self.last_seq = None
-        self._last_raw_t = None
-        self._t_offset = 0
-        self._last_sample = None
-
     def _plausible(self, t_us: int, steps: int) -> bool:
         """A step count the motor can have reached: no faster than the step-rate limit allows."""
         last = self._last_sample
-        if last is not None and self.max_step_rate_hz is not None:
-            dt = max(t_us - last[0], 0)
-            if abs(steps - last[1]) > self.max_step_rate_hz * dt * 1e-6 + 1:
-                return False
-        return True
+        if last is None or self.max_step_rate_hz is None:
+            return True
+        return abs(steps - last[1]) <= self.max_step_rate_hz * max(t_us - last[0], 0) * 1e-6 + 1
 
-    def _accept(self, seq: int, t_raw: int, adc: int, steps: int, line: bytes, out: list) -> None:
+    def _accept(self, sample: Sample, line: bytes, out: list) -> None:
         """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
-        t_us = self._unwrapped(t_raw)
-        if not self._plausible(t_us, steps):
+        t_us = self._unwrapped(sample.t_us)
+        if not self._plausible(t_us, sample.steps):
             self.stats.implausible += 1
             if len(self.stats.corrupted_examples) < 5:
-                self.stats.corrupted_examples.append(f"{line[:40]!r}: implausible step count {steps}")
+                self.stats.corrupted_examples.append(f"{line[:40]!r}: implausible step count {sample.steps}")
             return
-        self.unwrap(t_raw)
-        stats = self.stats
-        stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
-        self.last_seq = seq
-        stats.samples += 1
-        self._last_sample = (t_us, steps)
-        out.append((seq, t_us, adc, steps))
+        self.unwrap(sample.t_us)
+        self.stats.dropped += sample.seq - (0 if self.last_seq is None else self.last_seq + 1)
+        self.last_seq = sample.seq
+        self.stats.samples += 1
+        self._last_sample = (t_us, sample.steps)
+        out.append((sample.seq, t_us, sample.adc, sample.steps))
+
+    def _lines(self, data: bytes) -> list[bytes]:
+        r"""Append ``data`` and return the complete lines it finishes (without ``\\n``).
+
+        A run of bytes without ``\\n`` longer than :data:`MAX_PENDING` is returned as one line (so it is
+        flagged corrupted) and the rest of it up to the next ``\\n`` is discarded into a second corrupted line
+        at most.
+        """
+        self._buf += data
+        parts = self._buf.split(b"\n")
+        rest = parts.pop()
+        lines = [bytes(p) for p in parts]
+        if len(rest) > MAX_PENDING:
+            lines.append(bytes(rest))
+            rest = b""
+        self._buf = bytearray(rest)
+        return lines
+
+    @property
+    def pending(self) -> int:
+        """Bytes of an unfinished line held back."""
+        return len(self._buf)
 
     def _corrupt(self, line: bytes, why: str) -> None:
         self.stats.corrupted += 1
@@ -342,18 +293,7 @@ class StreamParser:
         """Parse ``data`` (any chunking) and return the samples and messages it completes."""
         samples: list[tuple[int, int, int, int]] = []
         messages: list[str] = []
-        lines = self.splitter.feed(data)
-        if not lines:
-            return samples, messages
-        crcs = _body_crcs(lines)
-        stats = self.stats
-        for line, x in zip(lines, crcs, strict=True):
-            m = _FAST_DATA.fullmatch(line)
-            if m is not None and int(m[5], 16) == x:  # the common case: a well-formed data line
-                seq, t_raw, adc = int(m[1]), int(m[2]), int(m[3])
-                if adc <= ADC_MAX and t_raw < WRAP_US and (self.last_seq is None or seq > self.last_seq):
-                    self._accept(seq, t_raw, adc, int(m[4]), line, samples)
-                    continue
+        for line in self._lines(data):
             if not line.strip(b"\r"):
                 continue
             try:
@@ -369,39 +309,10 @@ class StreamParser:
                 if self.last_seq is not None and item.seq <= self.last_seq:
                     self._corrupt(line, f"seq {item.seq} after {self.last_seq}")
                     continue
-                self._accept(item.seq, item.t_us, item.adc, item.steps, line, samples)
+                self._accept(item, line, samples)
             elif isinstance(item, Overrun):
-                stats.overruns += item.n
+                self.stats.overruns += item.n
             else:
                 messages.append(item)
         return samples, messages
 
-
-def crc8_many(chunks: list[bytes]) -> np.ndarray:
-    """The CRC-8 (:func:`~helpers.board.crc8.crc8`) of each of ``chunks``, vectorised over the chunks.
-
-    One row per chunk, left-aligned; the register advances one byte column at a time, only while a row has
-    bytes left (the host's parser and the emulated DAQ board both frame or check thousands of lines a second).
-    """
-    lens = np.fromiter(map(len, chunks), dtype=np.int64, count=len(chunks))
-    flat = np.frombuffer(b"".join(chunks) + b"\0", dtype=np.uint8)
-    starts = np.concatenate([[0], np.cumsum(lens)[:-1]])
-    cols = np.arange(int(lens.max(initial=0)))
-    grid = flat[np.minimum(starts[:, None] + cols[None, :], len(flat) - 1)]
-    live = cols[None, :] < lens[:, None]
-    table = np.frombuffer(_CRC_TABLE, dtype=np.uint8)
-    crc = np.full(len(chunks), INIT, dtype=np.uint8)
-    for j in range(cols.size):
-        crc = np.where(live[:, j], table[crc ^ grid[:, j]], crc)
-    return crc
-
-
-def _body_crcs(lines: list[bytes]) -> list[int]:
-    """CRC-8 of each line's bytes except its last three (the ``*hh`` of a well-formed line).
-
-    Lines shorter than 4 bytes get -1 (they take the slow path).
-    """
-    if len(lines) < 24:  # numpy's call overhead dominates for a few lines
-        return [crc8(line[:-3]) if len(line) >= 4 else -1 for line in lines]
-    crcs = crc8_many([line[:-3] for line in lines]).tolist()
-    return [c if len(line) >= 4 else -1 for line, c in zip(lines, crcs, strict=True)]

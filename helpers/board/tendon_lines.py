@@ -59,7 +59,7 @@ class TendonStreamParser(StreamParser):
         """Parse ``data`` (any chunking) and return the samples and messages it completes."""
         samples: list[tuple[int, ...]] = []
         messages: list[str] = []
-        for line in self.splitter.feed(data):
+        for line in self._lines(data):
             if not line.strip(b"\r"):
                 continue
             try:

@@ -27,12 +27,11 @@ from helpers import recordings
 from helpers.base.noise import white_noise_std
 from helpers.base.signals import run_guard
 from helpers.board.programmes import Programme, experiment_programme
-from helpers.board.protocol import StreamParser
 from helpers.live.link import BoardError, BoardTimeout, Link
 from helpers.live.ports import virtual_source_for
 from helpers.live.safety import SafetyError, check_programme, check_request
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import DAQ_BAUD, MAX_PROGRAMME_S, MAX_STEP_RATE_HZ, RIG, STEPPER_BAUD
+from helpers.paper.hardware import DAQ_BAUD, MAX_PROGRAMME_S, RIG, STEPPER_BAUD
 from helpers.paper.tension import LoadCellCalibration, load_calibration
 from helpers.recordings.shaping import pulse_metadata
 from helpers.rigfile.recorded import rig_section
@@ -51,6 +50,12 @@ SILENCE_S = 2.0
 
 DONE_GRACE_S = 1.0
 """Device seconds after the programme's end by which the stepper board's ``DONE`` must have come."""
+
+RATE_HZ = 1000
+"""The DAQ's sample rate in a live run (the paper's 1 kHz)."""
+
+T_END_S = 12.0
+"""A live run's programme (and recording) length, s after ``GO``: the paper's 12 s."""
 
 
 class NotAtRest(BoardError):
@@ -89,9 +94,8 @@ def pulse_scenario(
     v, x = check_request(v_in_mm_s, x_f_mm)
     if not (isinstance(t_end_s, int | float) and math.isfinite(t_end_s) and 0 < t_end_s <= MAX_PROGRAMME_S):
         raise SafetyError(f"programme length: t_end {t_end_s!r} s is outside (0, {MAX_PROGRAMME_S:.0f}] s")
-    t_up, t_down = paper.PULSE_T_UP_S, paper.PULSE_T_DOWN_S
-    try:
-        programme, report = experiment_programme(v, x, shaper, t_up=t_up, t_down=t_down, t_end=t_end_s)
+    try:  # the up and down moves at experiment_programme's default times, the paper's
+        programme, report = experiment_programme(v, x, shaper, t_end=t_end_s)
     except ValueError as exc:
         raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
     check_programme(programme)
@@ -101,8 +105,8 @@ def pulse_scenario(
         "x_f_mm": x,
         **pulse_metadata(shaper, system),
         "repetition": int(repetition),
-        "t_up_s": t_up,
-        "t_down_s": t_down,
+        "t_up_s": paper.PULSE_T_UP_S,
+        "t_down_s": paper.PULSE_T_DOWN_S,
         "quantisation": report.to_dict(),
     }
     return programme, scenario
@@ -202,8 +206,7 @@ class LiveRig(BoardPair):
         if isinstance(calibration, dict):
             calibration = LoadCellCalibration.from_dict(calibration)
         self.calibration = load_calibration() if calibration is None else calibration
-        parser = StreamParser(max_step_rate_hz=MAX_STEP_RATE_HZ)
-        self.daq = Link.open(daq_url, "daq", DAQ_BAUD, timeout, parser)
+        self.daq = Link.open(daq_url, "daq", DAQ_BAUD, timeout)
         try:
             self.stepper = Link.open(stepper_url, "stepper", STEPPER_BAUD, timeout)
         except BaseException:
@@ -227,11 +230,11 @@ class LiveRig(BoardPair):
         shaper: Any = None,
         system: str | None = None,
         repetition: int = 1,
-        t_end_s: float = 12.0,
-        rate_hz: int = 1000,
         scenario_extra: dict[str, Any] | None = None,
     ) -> recordings.Recording:
         """Run the paper's pulse (up at 1 s, down at 8 s after ``GO``), shaped by ``shaper``, from position 0.
+
+        The run lasts :data:`T_END_S` after ``GO``, sampled at :data:`RATE_HZ`.
 
         Parameters
         ----------
@@ -245,10 +248,6 @@ class LiveRig(BoardPair):
             Its name in :data:`helpers.recordings.shaping.SYSTEMS` (default: the shaper's).
         repetition : int
             Repetition number written into the scenario.
-        t_end_s : float
-            Programme (and recording) length, s after ``GO``.
-        rate_hz : int
-            DAQ sample rate.
         scenario_extra : dict, optional
             More scenario metadata (e.g. the mode the shaper was designed from).
 
@@ -257,7 +256,7 @@ class LiveRig(BoardPair):
         helpers.recordings.Recording
             The saved recording (``complete``).
         """
-        programme, scenario = pulse_scenario(v_in_mm_s, x_f_mm, shaper, system, repetition, t_end_s)
+        programme, scenario = pulse_scenario(v_in_mm_s, x_f_mm, shaper, system, repetition, T_END_S)
         scenario.update(scenario_extra or {})
         scenario["programme"] = programme.to_dict()
         target = Path(path).with_suffix(".csv")
@@ -269,20 +268,19 @@ class LiveRig(BoardPair):
                     f"the cable is at {position} steps, not at 0: run `python -m helpers home` first"
                 )
             scenario["start_position_steps"] = position
-            return self._guarded(programme, scenario, target, rate_hz)
+            return self._guarded(programme, scenario, target)
 
-    def _start(self, rate_hz: int) -> None:
+    def _start(self) -> None:
         """``STOP`` whatever streams, set the rate and ``START`` a new stream (its ``seq`` from 0)."""
         self.daq.command("STOP")
-        self.daq.command(f"RATE {rate_hz}")
+        self.daq.command(f"RATE {RATE_HZ}")
         self.daq.rows.clear()
         self.daq.parser.restart()
-        self.daq.parser.stats = type(self.daq.parser.stats)()
         self.daq.command("START")
 
-    def _stop(self, timeout: float | None = None) -> None:
+    def _stop(self) -> None:
         """``STOP`` the stream; count as dropped the samples it sent that never arrived."""
-        sent = int(self.daq.command("STOP", timeout).split()[-1])
+        sent = int(self.daq.command("STOP").split()[-1])
         last = self.daq.parser.last_seq
         self.daq.parser.stats.dropped += max(0, sent - (0 if last is None else last + 1))
 
@@ -299,14 +297,14 @@ class LiveRig(BoardPair):
             raise BoardTimeout(f"the daq board sent no sample for {SILENCE_S:.1f} s (it stopped answering)")
         return silence
 
-    def _wait_for_rest(self, rate_hz: int) -> dict[str, Any]:
+    def _wait_for_rest(self) -> dict[str, Any]:
         """Stream until the tension is steady (:func:`rest_of`); :class:`NotAtRest` after the timeout."""
-        self._start(rate_hz)
+        self._start()
         silence = self.daq.waiter(SILENCE_S)
         while True:
             silence = self._read(silence)
             rows = self.daq.rows
-            steady, std, noise = rest_of([r[2] for r in rows[-rate_hz:]], rate_hz)
+            steady, std, noise = rest_of([r[2] for r in rows[-RATE_HZ:]], RATE_HZ)
             waited = (rows[-1][1] - rows[0][1]) / 1e6 if rows else 0.0
             if steady:
                 self._stop()
@@ -317,14 +315,14 @@ class LiveRig(BoardPair):
                     f"counts against a noise of {noise:.2f}): is the arm still moving?"
                 )
 
-    def _pulse(self, programme: Any, scenario: dict[str, Any], rate_hz: int, run: dict[str, Any]) -> None:
+    def _pulse(self, programme: Any, scenario: dict[str, Any], run: dict[str, Any]) -> None:
         """Wait for rest, load the programme, start the DAQ, ``GO``, read until the end and ``DONE``."""
-        scenario["rest"] = self._wait_for_rest(rate_hz)
+        scenario["rest"] = self._wait_for_rest()
         self.stepper.command("ABORT")  # a programme left running by an earlier session stops
         for line in programme.commands():  # CLEAR first: loading starts from nothing
             self.stepper.command(line)
         self.daq.command("ZERO")
-        self._start(rate_hz)
+        self._start()
         run["go"] = True  # from here on the DAQ's rows are this run's
         self.stepper.command("EN 1")
         self.stepper.done_position = None
@@ -337,7 +335,7 @@ class LiveRig(BoardPair):
             silence = self._read(silence)
             rows = self.daq.rows
             if run["t_go_us"] is None and len(rows) > before:
-                run["t_go_us"] = rows[before][1] - round(1e6 / rate_hz)
+                run["t_go_us"] = rows[before][1] - round(1e6 / RATE_HZ)
             late_us = rows[-1][1] - run["t_go_us"] - end_us if rows and run["t_go_us"] is not None else -1
             if late_us >= 0.1e6 and self.stepper.done_position is not None:
                 break
@@ -360,9 +358,7 @@ class LiveRig(BoardPair):
                 problems.append(f"{body} to the {board.kind} board failed: {type(exc).__name__}: {exc}")
         return problems
 
-    def _guarded(
-        self, programme: Any, scenario: dict[str, Any], target: Path, rate_hz: int
-    ) -> recordings.Recording:
+    def _guarded(self, programme: Any, scenario: dict[str, Any], target: Path) -> recordings.Recording:
         """Run :meth:`_pulse` so that every way it ends leaves the boards safe and its recording on disk.
 
         On an exception, the stepper is stopped and disabled and what was recorded is saved as ``aborted``
@@ -374,12 +370,12 @@ class LiveRig(BoardPair):
         with run_guard() as guard:
             try:
                 with guard.interruptible():
-                    self._pulse(programme, scenario, rate_hz, run)
+                    self._pulse(programme, scenario, run)
             except BaseException as exc:
                 problems = self._cleanup()
                 reason = f"{type(exc).__name__}: {exc}"
                 reason += " | cleanup: " + "; ".join(problems) if problems else ""
-                rec = self._recording(scenario, rate_hz, run, "aborted", reason)
+                rec = self._recording(scenario, run, "aborted", reason)
                 exc.cleanup, exc.saved_path, exc.save_error = problems, None, None  # type: ignore[attr-defined]
                 aborted = recordings.aborted_path(target, run["started_utc"])
                 try:
@@ -387,12 +383,12 @@ class LiveRig(BoardPair):
                 except (recordings.RecordingError, OSError) as save_exc:
                     exc.save_error = str(save_exc)  # type: ignore[attr-defined]
                 raise
-            rec = self._recording(scenario, rate_hz, run, "complete", None)
+            rec = self._recording(scenario, run, "complete", None)
             recordings.save(rec, target)
         return rec.derive()
 
     def _recording(
-        self, scenario: dict[str, Any], rate_hz: int, run: dict[str, Any], status: str, reason: str | None
+        self, scenario: dict[str, Any], run: dict[str, Any], status: str, reason: str | None
     ) -> recordings.Recording:
         rows = list(self.daq.rows) if run["go"] else []  # the run's samples since its START
-        return recording_of(self, scenario, rate_hz, run["started_utc"], run["t_go_us"], status, reason, rows)
+        return recording_of(self, scenario, RATE_HZ, run["started_utc"], run["t_go_us"], status, reason, rows)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from contextlib import suppress
 from typing import Any
 
 import serial
@@ -21,7 +22,7 @@ import serial
 from helpers.base.signals import signals_held
 from helpers.board.protocol import PAPER_RIG_HASH, PROTOCOL_MAJOR, StreamParser, frame
 from helpers.live.ports import open_port
-from helpers.paper.hardware import RIG
+from helpers.paper.hardware import MAX_STEP_RATE_HZ, RIG
 
 REPLY_PREFIXES = ("OK", "ERR", "PONG", "ABORTED")
 
@@ -93,16 +94,6 @@ def check_firmware(kind: str, version: str, rig: Any = None) -> None:
         )
 
 
-def check_protocol_1(parser: StreamParser, port_name: str) -> None:
-    """Raise :class:`OldFirmware` once the parser saw a line of a protocol-1 board (firmware 1.x: XOR)."""
-    if parser.legacy is not None:
-        raise OldFirmware(
-            f"the board on {port_name} runs firmware 1.x (protocol 1, XOR checksums; it sent "
-            f"{parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
-            f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
-        )
-
-
 def expected_reply(command: str) -> str:
     """The start of the reply a command gets besides ``ERR``: ``PONG``, ``ABORTED`` or ``OK <WORD>``."""
     word = command.split(" ", 1)[0]
@@ -167,7 +158,10 @@ class PortLink:
         return Waiter(timeout, getattr(self.port, "device_time", None))
 
     def read(self, wait: Waiter | None = None, block: bool = True) -> int:
-        """Read what the port has (if ``block``, waiting up to its read timeout); return the bytes read."""
+        """Read what the port has (if ``block``, waiting up to its read timeout); return the bytes read.
+
+        Raises :class:`OldFirmware` once the parser saw a line of a protocol-1 board (firmware 1.x: XOR).
+        """
         try:
             n = self.port.in_waiting
             data = self.port.read(max(n, 1)) if n or block else b""
@@ -179,7 +173,12 @@ class PortLink:
         with signals_held():  # the parser's counts and the kept rows change together
             rows, messages = self.parser.feed(data)
             self.rows += rows
-        check_protocol_1(self.parser, self.port.port)
+        if self.parser.legacy is not None:
+            raise OldFirmware(
+                f"the board on {self.port.port} runs firmware 1.x (protocol 1, XOR checksums; it sent "
+                f"{self.parser.legacy!r}); this host speaks protocol {PROTOCOL_MAJOR} (CRC-8 checksums): "
+                f"flash firmware {PROTOCOL_MAJOR}.x (make -C firmware upload-daq / upload-stepper PORT=...)"
+            )
         for msg in messages:
             self._message(msg)
         return len(data)
@@ -200,10 +199,8 @@ class PortLink:
 
     def close(self) -> None:
         """Close the port."""
-        try:
+        with suppress(serial.SerialException, OSError):
             self.port.close()
-        except (serial.SerialException, OSError):
-            pass
 
 
 class Link(PortLink):
@@ -211,6 +208,8 @@ class Link(PortLink):
 
     Attributes
     ----------
+    parser : helpers.board.protocol.StreamParser
+        Its lines' parser, rejecting step counts that change faster than the step-rate limit allows.
     rows : list of (seq, t_us, adc, steps)
         The samples received (a DAQ board's), ``t_us`` unwrapped.
     done_position : int or None
@@ -219,9 +218,9 @@ class Link(PortLink):
         The firmware version from ``PONG``, checked by :func:`check_firmware`.
     """
 
-    def __init__(self, port: serial.SerialBase, kind: str, timeout: float = 2.0, parser: Any = None) -> None:
+    def __init__(self, port: serial.SerialBase, kind: str, timeout: float = 2.0) -> None:
         self.port, self.kind, self.timeout = port, kind, timeout
-        self.parser = StreamParser() if parser is None else parser
+        self.parser = StreamParser(max_step_rate_hz=MAX_STEP_RATE_HZ)
         self.rows: list[tuple[int, int, int, int]] = []
         self.replies: list[str] = []
         self.hello = 0
@@ -229,9 +228,9 @@ class Link(PortLink):
         self.version: str | None = None
 
     @classmethod
-    def open(cls, url: str, kind: str, baudrate: int, timeout: float = 2.0, parser: Any = None) -> Link:
+    def open(cls, url: str, kind: str, baudrate: int, timeout: float = 2.0) -> Link:
         """Open ``url`` (a device path or a pyserial URL) and wait for the board (:meth:`sync`)."""
-        link = cls(open_exclusive(url, kind, baudrate, 0.05, timeout), kind, timeout, parser)
+        link = cls(open_exclusive(url, kind, baudrate, 0.05, timeout), kind, timeout)
         try:
             link.sync()
         except BaseException:

@@ -54,8 +54,6 @@ def open_port(url: str, baudrate: int, timeout: float, write_timeout: float) -> 
 def announced_virtual_rigs() -> list[dict[str, Any]]:
     """Return the announcements of running ``serve-virtual-rig`` processes (dead ones are ignored)."""
     out = []
-    if not VIRTUAL_RIG_REGISTRY.is_dir():
-        return out
     for f in VIRTUAL_RIG_REGISTRY.glob("*.json"):
         try:
             info = json.loads(f.read_text())

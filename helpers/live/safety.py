@@ -8,9 +8,9 @@ one of its own: a programme may last at most ``MAX_PROGRAMME_S`` (a recording is
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
+from helpers.base.validate import check_positive
 from helpers.board.programmes import Programme
 from helpers.paper.hardware import (
     LIMITS,
@@ -25,15 +25,6 @@ from helpers.paper.hardware import (
 
 class SafetyError(ValueError):
     """A request outside the rig's limits; nothing was sent to the boards."""
-
-
-def _number(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) and not hasattr(value, "__float__"):
-        raise SafetyError(f"{name} must be a number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise SafetyError(f"{name} must be finite, got {x}")
-    return x
 
 
 def check_request(v_in_mm_s: Any, x_f_mm: Any) -> tuple[float, float]:
@@ -56,16 +47,15 @@ def check_request(v_in_mm_s: Any, x_f_mm: Any) -> tuple[float, float]:
     SafetyError
         Naming the limit.
     """
-    v = _number(v_in_mm_s, "speed v_in_mm_s")
-    x = _number(x_f_mm, "displacement x_f_mm")
-    if v <= 0:
-        raise SafetyError(f"speed must be > 0 mm/s, got {v}")
+    try:
+        v = check_positive(v_in_mm_s, "speed v_in_mm_s (mm/s)")
+        x = check_positive(x_f_mm, "displacement x_f_mm (mm)")
+    except ValueError as exc:
+        raise SafetyError(str(exc)) from None
     if v > MAX_SPEED_MM_S:
         raise SafetyError(f"speed {v} mm/s exceeds the limit of {MAX_SPEED_MM_S:.0f} mm/s")
     if v / MM_PER_STEP > MAX_STEP_RATE_HZ:
         raise SafetyError(f"speed {v} mm/s needs {v / MM_PER_STEP:.0f} steps/s, above {MAX_STEP_RATE_HZ:.0f}")
-    if x <= 0:
-        raise SafetyError(f"displacement must be > 0 mm, got {x}")
     if x > MAX_TRAVEL_MM:
         raise SafetyError(f"displacement {x} mm exceeds the travel limit of {MAX_TRAVEL_MM:.0f} mm")
     if round(x / MM_PER_STEP) < 1:
@@ -97,7 +87,7 @@ def check_programme(programme: Any, start_position: int = 0) -> None:
     if not isinstance(programme, Programme):
         raise SafetyError(f"expected a helpers.board.programmes.Programme, got {type(programme).__name__}")
     try:
-        programme.check_limits(start_position=start_position, limits=LIMITS)
+        programme.check_limits(start_position=start_position)
     except ValueError as exc:
         raise SafetyError(f"programme refused: {exc}") from None
     if programme.duration_s > MAX_PROGRAMME_S:

@@ -106,7 +106,6 @@ class DaqBoard(BoardLink):
         """``START``: begin streaming; ``seq`` restarts at 0 and the counts are reset. Returns the rate."""
         self.rows.clear()
         self.parser.restart()
-        self.parser.stats = StreamStats()
         self.parser.steps_range = None
         self.parser.step_windows = None
         reply = self.command("START")

@@ -3,7 +3,7 @@
 The boards follow ``firmware/PROTOCOL.md``: the same replies, error codes, limits
 (:mod:`helpers.paper.hardware`),
 ``HELLO`` on reset, ``W,OVERRUN`` reporting, CRC-8 checksums and version
-(:data:`helpers.board.protocol.FW_VERSION`). They live in a
+(:data:`helpers.board.protocol.FW_VERSION`, :func:`board_version`). They live in a
 :class:`helpers.virtual.emulator.world.VirtualWorld`, which owns
 the device clock and the plant; a board sees the world only through the attributes it reads (``t``, ``seed``,
 ``t0_us``, ``go_times``).
@@ -23,9 +23,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from helpers.board.protocol import MAX_LINE, WRAP_US, board_version, checksum, frame
+from helpers.board.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, frame
 from helpers.board.stream_reference import MAX_DELAY_US
-from helpers.paper.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS
+from helpers.paper.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, RIG
 from helpers.virtual.emulator.framing import frame_many
 from helpers.virtual.emulator.stream_mode import ShaperLoader, StreamMode
 
@@ -39,6 +39,24 @@ INT32_MAX = 2**31 - 1
 MEM_FREE_BYTES = 560
 """What the emulated stepper answers to ``MEM``: the least free stack measured for the firmware in simavr
 (``firmware/README.md``); the emulated board has no stack of its own."""
+
+
+def board_version(rig_hash: str | None = None) -> str:
+    """The version token of ``HELLO``/``PONG``: ``<FW_VERSION>+<rig hash>`` (semantic-version build metadata).
+
+    Parameters
+    ----------
+    rig_hash : str, optional
+        The 8 hex characters of the rig the board was built for; by default the rig the host runs
+        (``helpers.paper.hardware.RIG``, the emulated boards' build).
+
+    Returns
+    -------
+    str
+        E.g. ``"2.3.0+481e87e3"``.
+    """
+    return f"{FW_VERSION}+{RIG.hash if rig_hash is None else rig_hash}"
+
 
 class Plant(Protocol):
     """What the boards need from a plant (``helpers.virtual.ArmPlant`` or a test double)."""
