@@ -26,6 +26,19 @@ from helpers.paper.hardware import LIMITS, MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile, pulse_time, single_pulse
 from helpers.paper.shapers import Shaper
 
+__all__ = [
+    "Segment",
+    "Dwell",
+    "Item",
+    "Programme",
+    "QuantisationReport",
+    "ShapesMoves",
+    "MIN_PIECE_S",
+    "experiment_programme",
+    "table_i_programmes",
+    "programmes_table",
+]
+
 
 @runtime_checkable
 class ShapesMoves(Protocol):

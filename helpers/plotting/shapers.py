@@ -68,6 +68,7 @@ def sensitivity_curves(
     omega_model: float,
     zeta: float,
     vtol: float = 0.05,
+    name: str = SENSITIVITY_NAME,
 ) -> plt.Figure:
     """Residual vibration against ``omega / omega_model`` for several shapers, with the ``vtol`` line.
 
@@ -81,6 +82,9 @@ def sensitivity_curves(
         Damping ratio of the mode the curves are evaluated at.
     vtol : float
         Tolerance line (5 %).
+    name : str
+        File name under ``figures/`` (notebook 03's paper TDFs keep the default; another notebook's set of
+        shapers gets its own name, so that neither overwrites the other).
 
     Returns
     -------
@@ -103,7 +107,7 @@ def sensitivity_curves(
     ax.set_ylabel("residual vibration V (%)")
     ax.set_title(f"Sensitivity of the shapers (zeta = {zeta:.3f})")
     ax.legend(ncol=3, loc="upper center")
-    return finish(fig, SENSITIVITY_NAME)
+    return finish(fig, name)
 
 
 def shaped_commands(
