@@ -131,7 +131,7 @@ def error_line(exc: BaseException) -> tuple[str, int]:
         return f'error: {why}: pip install -e ".[{extra}]"', 1
     if _is(exc, ("helpers.rig.safety", "SafetyError")):
         status = 3
-    elif _is(exc, ("helpers.rig.boards", "BoardError")):
+    elif _is(exc, ("helpers.rig.link", "BoardError")):
         status = 4
     elif _is(
         exc, ("helpers.recordings.format", "RecordingError"), ("helpers.base.jsonfile", "DataFileError"),

@@ -1,11 +1,13 @@
 """Stepper programmes: the board's command format, its limits, and the quantiser that makes whole steps.
 
-The stepper board runs a :class:`Programme` of :class:`Segment` (n steps, one every ``interval_us``) and
-:class:`Dwell` (ms) items, with the timing of ``firmware/PROTOCOL.md``: step k (k = 1..n) of a segment at
-``t0 + k * interval_us``. :func:`experiment_programme` turns a whole Up-hold-Down experiment (a
+The stepper board runs a :class:`Programme` of items with the timing of ``firmware/PROTOCOL.md``:
+:class:`Segment` (``SEG``: axis 0 makes n steps, one every ``interval_us``), :class:`Move` (``MSEG``: every
+axis its signed steps in one window; step k of n on tick ``ceil(k W / n)`` of 0.5 us) and :class:`Dwell`
+(``WAIT``, ms). One programme serves rigs of 1 to 4 tendons; the paper's pulses are segments and dwells.
+:func:`experiment_programme` turns a whole Up-hold-Down experiment (a
 :class:`helpers.paper.profiles.VelocityProfile` per move) into one such programme and reports every rounding
-it made (:class:`QuantisationReport`). The board's compiled-in limits are
-:data:`helpers.paper.hardware.LIMITS`.
+it made (:class:`QuantisationReport`). The board's compiled-in limits follow from the rig file:
+:meth:`Limits.of`, and :meth:`Programme.check_limits` is the one check of a programme against them.
 
 The quantiser takes the moves it quantises: the paper's pulse shaped by one shaper (or none), or the moves
 of any shaping that makes its own (:class:`ShapesMoves`: the research wing's designs), never a design type.
@@ -20,16 +22,18 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import pandas as pd
 
+from helpers import rigfile
 from helpers.base.validate import check_int, check_time
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import LIMITS, MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile, pulse_time, single_pulse
 from helpers.paper.shapers import Shaper
 
 __all__ = [
     "Segment",
+    "Move",
     "Dwell",
     "Item",
+    "Limits",
     "Programme",
     "QuantisationReport",
     "ShapesMoves",
@@ -55,8 +59,48 @@ MIN_PIECE_S = 2e-3
 
 
 @dataclass(frozen=True)
+class Limits:
+    """The stepper board's compiled-in limits (its build of the rig file), and the host's programme length.
+
+    Per axis (one per tendon): ``travel_steps``, ``release_steps`` (positions ``-release..travel``) and
+    ``mm_per_step``; for every axis: step intervals, programme length and dwell, speed and step-rate caps.
+    """
+
+    travel_steps: tuple[int, ...]
+    release_steps: tuple[int, ...]
+    mm_per_step: tuple[float, ...]
+    min_interval_us: int
+    max_interval_us: int
+    max_items: int
+    max_dwell_ms: int
+    max_speed_mm_s: float
+    max_step_rate_hz: float
+    max_programme_s: float
+
+    @classmethod
+    def of(cls, rig: rigfile.RigFile) -> Limits:
+        """The limits of ``rig`` (``helpers.rigfile.derived``; the firmware header holds the same)."""
+        d, hw = rigfile.derived(rig), rig.hardware
+        return cls(d.travel_steps, d.release_steps, d.mm_per_step, d.min_interval_us, d.max_interval_us,
+                   hw.programme_max_items, hw.max_dwell_ms, hw.speed_limit_mm_s, hw.step_rate_cap_hz,
+                   hw.max_programme_s)  # fmt: skip
+
+    @property
+    def axes(self) -> int:
+        """The number of axes (tendons)."""
+        return len(self.travel_steps)
+
+    def travel_text(self, i: int) -> str:
+        """Axis ``i``'s travel for a refusal: ``0-156 steps (39.8 mm)``, ``-78-156 steps (-19.9-39.8 mm)``."""
+        travel, release, mm = self.travel_steps[i], self.release_steps[i], self.mm_per_step[i]
+        if not release:
+            return f"0-{travel} steps ({travel * mm:.1f} mm)"
+        return f"-{release}-{travel} steps ({-release * mm:.1f}-{travel * mm:.1f} mm)"
+
+
+@dataclass(frozen=True)
 class Segment:
-    """``SEG <direction> <n_steps> <interval_us>``: ``n_steps`` steps, step k at ``t0 + k * interval_us``.
+    """``SEG <direction> <n_steps> <interval_us>``: axis 0's ``n_steps``, step k at ``t0 + k interval_us``.
 
     Parameters
     ----------
@@ -85,9 +129,49 @@ class Segment:
         """``n_steps * interval_us``."""
         return self.n_steps * self.interval_us
 
-    def command(self) -> str:
+    def counts(self, axes: int) -> tuple[int, ...]:
+        """Every axis's signed steps: axis 0's, the others hold still."""
+        return (self.direction * self.n_steps,) + (0,) * (axes - 1)
+
+    def command(self, axes: int = 1) -> str:
         """The protocol line, e.g. ``SEG 1 78 1282``."""
         return f"SEG {self.direction} {self.n_steps} {self.interval_us}"
+
+
+@dataclass(frozen=True)
+class Move:
+    """``MSEG <window_us> <n_0> ... <n_{A-1}>``: every axis its signed ``steps`` (+ pulls) in one window.
+
+    Parameters
+    ----------
+    window_us : int
+        The window (us), >= 1.
+    steps : tuple of int
+        One signed step count per tendon, at least one of them non-zero (a pause is a :class:`Dwell`).
+    """
+
+    window_us: int
+    steps: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "window_us", check_int(self.window_us, "window_us", 1))
+        steps = tuple(check_int(n, "steps") for n in self.steps)
+        if not any(steps):
+            raise ValueError("no tendon moves in this item (a pause is a Dwell)")
+        object.__setattr__(self, "steps", steps)
+
+    @property
+    def duration_us(self) -> int:
+        """The window."""
+        return self.window_us
+
+    def counts(self, axes: int) -> tuple[int, ...]:
+        """Every axis's signed steps (a board's further axes hold still)."""
+        return self.steps + (0,) * (axes - len(self.steps))
+
+    def command(self, axes: int = 1) -> str:
+        """The protocol line for a board of ``axes`` axes, e.g. ``MSEG 200000 10 -7 0 0``."""
+        return f"MSEG {self.window_us} " + " ".join(map(str, self.counts(max(axes, len(self.steps)))))
 
 
 @dataclass(frozen=True)
@@ -110,12 +194,16 @@ class Dwell:
         """``ms * 1000``."""
         return self.ms * 1000
 
-    def command(self) -> str:
+    def counts(self, axes: int) -> tuple[int, ...]:
+        """No axis moves."""
+        return (0,) * axes
+
+    def command(self, axes: int = 1) -> str:
         """The protocol line, e.g. ``WAIT 1000``."""
         return f"WAIT {self.ms}"
 
 
-Item = Segment | Dwell
+Item = Segment | Move | Dwell
 
 
 @dataclass(frozen=True)
@@ -124,7 +212,7 @@ class Programme:
 
     Parameters
     ----------
-    items : tuple of Segment and Dwell
+    items : tuple of Segment, Move and Dwell
         The programme, in order.
     """
 
@@ -133,8 +221,8 @@ class Programme:
     def __post_init__(self) -> None:
         items = tuple(self.items)
         for i, item in enumerate(items):
-            if not isinstance(item, Segment | Dwell):
-                raise ValueError(f"programme item {i} must be a Segment or a Dwell, got {item!r}")
+            if not isinstance(item, Segment | Move | Dwell):
+                raise ValueError(f"programme item {i} must be a Segment, a Move or a Dwell, got {item!r}")
         object.__setattr__(self, "items", items)
 
     def __len__(self) -> int:
@@ -151,115 +239,125 @@ class Programme:
         return self.duration_us / 1e6
 
     @property
-    def net_steps(self) -> int:
-        """Signed sum of all steps (the position change)."""
-        return sum(item.direction * item.n_steps for item in self.items if isinstance(item, Segment))
+    def axes(self) -> int:
+        """The axes the programme moves: 1, or its moves' tendon count."""
+        return max([1] + [len(item.steps) for item in self.items if isinstance(item, Move)])
 
     @property
-    def n_steps(self) -> int:
-        """Total number of steps, either direction."""
-        return sum(item.n_steps for item in self.items if isinstance(item, Segment))
+    def net_steps(self) -> int:
+        """Signed sum of axis 0's steps (its position change)."""
+        return sum(item.counts(1)[0] for item in self.items)
+
+    def end_positions(self, start: Sequence[int]) -> tuple[int, ...]:
+        """Every axis's position after the programme, from ``start`` (one per axis)."""
+        moved = [item.counts(len(start)) for item in self.items]
+        return tuple(int(p) + sum(c[a] for c in moved) for a, p in enumerate(start))
 
     def item_starts_us(self) -> np.ndarray:
         """Start time (us from ``GO``) of every item."""
         durations = np.array([item.duration_us for item in self.items], dtype=np.int64)
         return np.concatenate([[0], np.cumsum(durations)[:-1]]).astype(np.int64)
 
-    def step_times_us(self) -> tuple[np.ndarray, np.ndarray]:
-        """Step instants in whole microseconds from ``GO`` and their signs (+1/-1), exactly."""
-        times: list[np.ndarray] = []
-        signs: list[np.ndarray] = []
-        for start, item in zip(self.item_starts_us(), self.items, strict=True):
-            if isinstance(item, Segment):
-                k = np.arange(1, item.n_steps + 1, dtype=np.int64)
-                times.append(int(start) + k * item.interval_us)
-                signs.append(np.full(item.n_steps, item.direction, dtype=np.int8))
-        if not times:
-            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int8)
-        return np.concatenate(times), np.concatenate(signs)
+    def step_times_us(self, axes: int = 1) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Every axis's step instants (us from ``GO``, on the board's 0.5 us ticks) and signs (+1/-1).
+
+        Step k of n in an item of window W falls on tick ``ceil(k 2W / n)`` from the item's start (a
+        segment's exactly on ``k interval_us``).
+        """
+        out = []
+        for a in range(axes):
+            times, signs = [np.zeros(0)], [np.zeros(0, dtype=np.int8)]
+            for start, item in zip(self.item_starts_us(), self.items, strict=True):
+                n = item.counts(axes)[a]
+                if n:
+                    k = np.arange(1, abs(n) + 1, dtype=np.int64)
+                    times.append(int(start) + -(-k * 2 * item.duration_us // abs(n)) / 2.0)
+                    signs.append(np.full(abs(n), 1 if n > 0 else -1, dtype=np.int8))
+            out.append((np.concatenate(times), np.concatenate(signs)))
+        return out
 
     def step_times(self) -> tuple[np.ndarray, np.ndarray]:
-        """Step instants (s from ``GO``) and signs (+1 pull, -1 release).
-
-        Returns
-        -------
-        times_s : numpy.ndarray
-            Non-decreasing step times in s.
-        signs : numpy.ndarray
-            +1 or -1 per step (int8).
-        """
-        t_us, signs = self.step_times_us()
+        """Axis 0's step instants (s from ``GO``, non-decreasing) and signs (+1 pull, -1 release, int8)."""
+        t_us, signs = self.step_times_us()[0]
         return t_us / 1e6, signs
 
     def position_steps(self, t: np.ndarray | float, start_position: int = 0) -> np.ndarray:
-        """Motor position (steps) at times ``t`` (s from ``GO``); a step counts from its instant on."""
+        """Axis 0's position (steps) at times ``t`` (s from ``GO``); a step counts from its instant on."""
         t_s, signs = self.step_times()
         cum = np.concatenate([[0], np.cumsum(signs.astype(np.int64))])
         return start_position + cum[np.searchsorted(t_s, np.asarray(t, dtype=float), side="right")]
 
-    def commands(self) -> list[str]:
-        """The lines that load the programme: ``CLEAR``, then one ``SEG``/``WAIT`` per item (no ``GO``)."""
-        return ["CLEAR", *(item.command() for item in self.items)]
+    def commands(self, axes: int = 1) -> list[str]:
+        """The lines that load the programme on a board of ``axes`` axes: ``CLEAR``, its items (no ``GO``)."""
+        return ["CLEAR", *(item.command(axes) for item in self.items)]
 
-    def check_limits(self, start_position: int = 0) -> None:
-        """Raise ``ValueError`` naming the first of the board's limits (``LIMITS``) the programme violates.
+    def check_limits(self, limits: Limits | None = None, start_position: int | Sequence[int] = 0) -> None:
+        """Raise ``ValueError`` naming the first limit the programme violates (the one check of a programme).
 
         Parameters
         ----------
-        start_position : int
-            Motor position (steps from zero) when ``GO`` is sent.
+        limits : Limits, optional
+            The rig's (:meth:`Limits.of`); default the paper's rig.
+        start_position : int or sequence of int
+            Every axis's position (steps from zero) when ``GO`` is sent (an int: axis 0's, the others at 0).
 
         Raises
         ------
         ValueError
-            Empty programme, programme length, interval (speed), dwell length, or travel.
+            Empty programme, programme length (items or seconds), interval (speed), dwell length, travel, or
+            a move for more tendons than the rig has; a refusal about one tendon of several names it.
         """
-        position = check_int(start_position, "start_position")
+        lim = Limits.of(rigfile.default_rig()) if limits is None else limits
+        n = lim.axes
+        start = [start_position] + [0] * (n - 1) if isinstance(start_position, int) else list(start_position)
+        pos = [check_int(p, "start_position") for p in start]
+        if len(pos) != n:
+            raise ValueError(f"{len(pos)} start positions for the rig's {n} tendon(s)")
         if not self.items:
             raise ValueError("programme length: the programme is empty (the board refuses GO)")
-        if len(self.items) > LIMITS.max_items:
-            raise ValueError(
-                f"programme length: {len(self.items)} items exceed the maximum of {LIMITS.max_items} items"
-            )
-        if not LIMITS.min_position_steps <= position <= LIMITS.max_position_steps:
-            raise ValueError(
-                f"travel limit: start position {position} steps is outside "
-                f"{LIMITS.min_position_steps}..{LIMITS.max_position_steps} steps"
-            )
+        if len(self.items) > lim.max_items:
+            raise ValueError(f"programme length: {len(self.items)} items exceed the maximum {lim.max_items}")
+        if self.duration_s > lim.max_programme_s:
+            limit, s = lim.max_programme_s, self.duration_s
+            raise ValueError(f"programme length: {s:.1f} s exceeds the host's limit of {limit:.0f} s")
+        for a in range(n):
+            if not -lim.release_steps[a] <= pos[a] <= lim.travel_steps[a]:
+                who = f"tendon {a + 1}: " if n > 1 else ""
+                raise ValueError(f"{who}travel limit: start position {pos[a]} outside {lim.travel_text(a)}")
         for i, item in enumerate(self.items):
+            where = f"item {i + 1} ({item.command(n)})"
             if isinstance(item, Dwell):
-                if item.ms > LIMITS.max_dwell_ms:
-                    raise ValueError(
-                        f"dwell limit: item {i} ({item.command()}) exceeds the maximum dwell of "
-                        f"{LIMITS.max_dwell_ms} ms"
-                    )
+                if item.ms > lim.max_dwell_ms:
+                    raise ValueError(f"dwell limit: {where} exceeds the longest dwell, {lim.max_dwell_ms} ms")
                 continue
-            if item.interval_us < LIMITS.min_interval_us:
-                speed = MM_PER_STEP / item.interval_us * 1e6
-                raise ValueError(
-                    f"interval limit: item {i} ({item.command()}) steps every {item.interval_us} us "
-                    f"({speed:.0f} mm/s), below the minimum interval of {LIMITS.min_interval_us} us "
-                    f"({LIMITS.max_speed_mm_s:.0f} mm/s)"
-                )
-            if item.interval_us > LIMITS.max_interval_us:
-                raise ValueError(
-                    f"interval limit: item {i} ({item.command()}) steps every {item.interval_us} us, above "
-                    f"the maximum interval of {LIMITS.max_interval_us} us"
-                )
-            position += item.direction * item.n_steps
-            if not LIMITS.min_position_steps <= position <= LIMITS.max_position_steps:
-                raise ValueError(
-                    f"travel limit: item {i} ({item.command()}) takes the position to {position} steps "
-                    f"({position * MM_PER_STEP:.2f} mm), outside {LIMITS.min_position_steps}.."
-                    f"{LIMITS.max_position_steps} steps (40 mm)"
-                )
+            if isinstance(item, Move) and len(item.steps) > n:
+                raise ValueError(f"{where}: {len(item.steps)} step counts, but the rig has {n} tendon(s)")
+            for a, steps in enumerate(item.counts(n)):
+                if not steps:
+                    continue
+                who = f"tendon {a + 1}, " if n > 1 else ""
+                interval = item.duration_us / abs(steps)
+                if interval < lim.min_interval_us:
+                    speed = lim.mm_per_step[a] / interval * 1e6
+                    raise ValueError(
+                        f"{who}{where}: interval limit: a step every {interval:.0f} us ({speed:.0f} mm/s) is "
+                        f"below the minimum interval {lim.min_interval_us} us ({lim.max_speed_mm_s:.0f} mm/s)"
+                    )
+                if interval > lim.max_interval_us:
+                    raise ValueError(
+                        f"{who}{where}: interval limit: a step every {interval:.0f} us is above the maximum "
+                        f"interval of {lim.max_interval_us} us (slower is a dwell)"
+                    )
+                pos[a] += steps
+                if not -lim.release_steps[a] <= pos[a] <= lim.travel_steps[a]:
+                    raise ValueError(
+                        f"{who}{where}: travel limit: position {pos[a]} steps "
+                        f"({pos[a] * lim.mm_per_step[a]:.2f} mm) is past {lim.travel_text(a)}"
+                    )
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description for a recording's metadata.
-
-        :func:`helpers.rig.stepper.programme_from_dict` reads it back.
-        """
-        items = [{"kind": item.command().split()[0], **asdict(item)} for item in self.items]  # SEG or WAIT
+        """JSON-ready description for a recording's metadata (``kind``: ``SEG``, ``MSEG`` or ``WAIT``)."""
+        items = [{"kind": item.command().split()[0], **asdict(item)} for item in self.items]
         return {"items": items, "duration_s": self.duration_s, "net_steps": self.net_steps}
 
 
@@ -271,9 +369,9 @@ class QuantisationReport:
     Attributes
     ----------
     n_steps : int
-        Steps per move, ``N = round(x_f / MM_PER_STEP)``.
+        Steps per move, ``N = round(x_f / mm_per_step)`` (axis 0's).
     requested_mm, realised_mm : float
-        ``x_f`` and ``N * MM_PER_STEP``.
+        ``x_f`` and ``N * mm_per_step``.
     pieces : pandas.DataFrame
         One row per piece of each move: ``move``, ``piece``, ``item`` (SEG/WAIT), nominal ``t_start_s``,
         ``t_end_s``, ``v_mm_s``, ``requested_mm``; realised ``steps`` (signed), ``interval_us``,
@@ -355,7 +453,8 @@ def _merge_short_pieces(
 class _Builder:
     """Accumulates programme items while keeping the realised clock in whole microseconds."""
 
-    def __init__(self) -> None:
+    def __init__(self, limits: Limits) -> None:
+        self.limits, self.mm_per_step = limits, limits.mm_per_step[0]
         self.items: list[Item] = []
         self.clock_us = 0
         self.piece_rows: list[dict[str, Any]] = []
@@ -369,8 +468,9 @@ class _Builder:
                 f"cannot dwell until {target_s:.6f} s: the programme already runs to "
                 f"{self.clock_us / 1e6:.6f} s"
             )
-        whole, rest = divmod(ms, LIMITS.max_dwell_ms)
-        self.items += [Dwell(LIMITS.max_dwell_ms)] * whole + ([Dwell(rest)] if rest or not whole else [])
+        longest = self.limits.max_dwell_ms
+        whole, rest = divmod(ms, longest)
+        self.items += [Dwell(longest)] * whole + ([Dwell(rest)] if rest or not whole else [])
         self.clock_us += ms * 1000
         error_us = self.clock_us - target_s * 1e6
         self.dwell_rows.append({"dwell": name, "requested_s": target_s, "ms": ms, "error_us": error_us})
@@ -383,9 +483,9 @@ class _Builder:
         """
         b, disp, merged = _merge_short_pieces(profile.breakpoints, profile.piece_displacements, MIN_PIECE_S)
         cum_mm = np.concatenate([[0.0], np.cumsum(disp)]) * direction
-        cum_steps = np.rint(cum_mm / MM_PER_STEP).astype(np.int64)
+        cum_steps = np.rint(cum_mm / self.mm_per_step).astype(np.int64)
         cum_steps[-1] = n_total  # cum_steps[0] is 0: the move starts from its first breakpoint
-        min_iv = LIMITS.min_interval_us
+        min_iv = self.limits.min_interval_us
         carried = 0
         # the last piece cannot pass steps on: hand its excess back to its predecessor (1 us of margin)
         if disp.size > 1:
@@ -426,7 +526,7 @@ class _Builder:
                 row.update(
                     steps=n_k * direction,
                     interval_us=interval,
-                    realised_v_mm_s=sign * MM_PER_STEP / interval * 1e6,
+                    realised_v_mm_s=sign * self.mm_per_step / interval * 1e6,
                 )
             row.update(realised_end_s=self.clock_us / 1e6, timing_error_us=self.clock_us - end_us)
             self.piece_rows.append(row)
@@ -440,13 +540,15 @@ def experiment_programme(
     t_up: float = paper.PULSE_T_UP_S,
     t_down: float = paper.PULSE_T_DOWN_S,
     t_end: float = 12.0,
+    *,
+    rig: rigfile.RigFile | None = None,
 ) -> tuple[Programme, QuantisationReport]:
     """The whole Up-hold-Down experiment as one board-timed programme, quantised to whole steps.
 
     Lead-in dwell to ``t_up``; the up move (each constant piece of the shaped velocity becomes a segment,
     a piece with no step a dwell); a hold dwell to ``t_down``; the down move (direction -1: the mirror image
     for one shaper, the Down shaper of a pair, the Down sub-moves of a schedule); a trailing dwell to
-    ``t_end``. Each move lands exactly on ``N = round(x_f / MM_PER_STEP)`` steps:
+    ``t_end``. Each move lands exactly on ``N = round(x_f / mm_per_step)`` steps:
     the steps of each piece are the differences of the cumulative displacement at the piece boundaries,
     rounded to whole steps. Each piece's integer interval is chosen so that it ends as close as possible to
     its nominal end on the realised clock, so rounding never accumulates (dwells are whole ms; the next
@@ -469,6 +571,8 @@ def experiment_programme(
         schedule computed for this ``v_in_mm_s`` and ``x_f_mm``, or a design) gives them.
     t_up, t_down, t_end : float
         Start of the up move, start of the down move, end of the programme (s from ``GO``).
+    rig : RigFile, optional
+        The rig whose steps and limits the programme is made for (axis 0's); default the paper's rig.
 
     Returns
     -------
@@ -480,8 +584,9 @@ def experiment_programme(
         Bad arguments, or a programme outside the board's limits (the message names the limit).
     """
     t_up, t_down, t_end = check_time(t_up, "t_up"), check_time(t_down, "t_down"), check_time(t_end, "t_end")
-    up, down, n_total = _shaped_moves(v_in_mm_s, x_f_mm, shaper, t_up, t_down, t_end)
-    build = _Builder()
+    limits = Limits.of(rigfile.default_rig() if rig is None else rig)
+    up, down, n_total = _shaped_moves(v_in_mm_s, x_f_mm, shaper, (t_up, t_down, t_end), limits)
+    build = _Builder(limits)
     build.dwell_until("lead-in", t_up)
     merged_up, carried_up = build.move("up", up, +1, n_total)
     build.dwell_until("hold", t_down)
@@ -490,11 +595,11 @@ def experiment_programme(
     build.dwell_until("trailing", t_end)
 
     programme = Programme(tuple(build.items))
-    programme.check_limits()
+    programme.check_limits(limits)
     report = QuantisationReport(
         n_steps=n_total,
         requested_mm=float(x_f_mm),
-        realised_mm=n_total * MM_PER_STEP,
+        realised_mm=n_total * limits.mm_per_step[0],
         pieces=pd.DataFrame(build.piece_rows),
         dwells=pd.DataFrame(build.dwell_rows),
         down_start_error_s=down_start_error,
@@ -505,14 +610,16 @@ def experiment_programme(
 
 
 def _shaped_moves(
-    v_in_mm_s: float, x_f_mm: float, shaper: Shaper | ShapesMoves | None, t_up: float, t_down: float,
-    t_end: float,
+    v_in_mm_s: float, x_f_mm: float, shaper: Shaper | ShapesMoves | None, times: tuple[float, float, float],
+    limits: Limits,
 ) -> tuple[VelocityProfile, VelocityProfile, int]:  # fmt: skip
     """The shaped up and down moves and their whole number of steps, checked against the limits and times."""
+    t_up, t_down, t_end = times
     pulse_time(v_in_mm_s, x_f_mm)
-    n_total = int(round(x_f_mm / MM_PER_STEP))
+    mm = limits.mm_per_step[0]
+    n_total = int(round(x_f_mm / mm))
     if n_total < 1:
-        raise ValueError(f"x_f_mm = {x_f_mm} mm is less than half a step ({MM_PER_STEP:.5f} mm)")
+        raise ValueError(f"x_f_mm = {x_f_mm} mm is less than half a step ({mm:.5f} mm)")
     if shaper is None or isinstance(shaper, Shaper):
         up = single_pulse(v_in_mm_s, x_f_mm, t_up, +1).shaped(shaper)
         down = single_pulse(v_in_mm_s, x_f_mm, t_down, -1).shaped(shaper)
@@ -524,10 +631,10 @@ def _shaped_moves(
             f"got {shaper!r}"
         )
     peak = max(float(np.max(np.abs(up.velocities))), float(np.max(np.abs(down.velocities))))
-    if peak > LIMITS.max_speed_mm_s:
+    if peak > limits.max_speed_mm_s:
         raise ValueError(
             f"interval limit: the command's peak speed {peak:.1f} mm/s needs steps faster than the minimum "
-            f"interval of {LIMITS.min_interval_us} us ({LIMITS.max_speed_mm_s:.0f} mm/s)"
+            f"interval of {limits.min_interval_us} us ({limits.max_speed_mm_s:.0f} mm/s)"
         )
     if up.end > t_down:
         raise ValueError(f"the shaped up move ends at {up.end:.4f} s, after t_down = {t_down} s")
@@ -537,7 +644,7 @@ def _shaped_moves(
 
 
 def table_i_programmes(
-    shapers: dict[str, Shaper | None], t_end: float = 12.0
+    shapers: dict[str, Shaper | None], t_end: float = 12.0, rig: rigfile.RigFile | None = None
 ) -> dict[tuple[str, float, float], tuple[Programme, QuantisationReport]]:
     """Programmes of every Table I scenario.
 
@@ -547,6 +654,8 @@ def table_i_programmes(
         System name -> shaper (None for ``unshaped``), e.g. ``{"unshaped": None, "zv": zv, "zvd": zvd}``.
     t_end : float
         End of each programme (s).
+    rig : RigFile, optional
+        The rig (default the paper's).
 
     Returns
     -------
@@ -556,7 +665,7 @@ def table_i_programmes(
     out = {}
     for system, shaper in shapers.items():
         for v, x in paper.TABLE_I_CONDITIONS:
-            out[(system, v, x)] = experiment_programme(v, x, shaper, t_end=t_end)
+            out[(system, v, x)] = experiment_programme(v, x, shaper, t_end=t_end, rig=rig)
     return out
 
 

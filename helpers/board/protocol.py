@@ -1,6 +1,6 @@
 """The serial protocol of both boards (``firmware/PROTOCOL.md``): framing, checksums, line splitting, parsing.
 
-The host drivers (``helpers.live``, ``helpers.rig``) and the emulated boards (``helpers.virtual.emulator``)
+The host driver (``helpers.rig``) and the emulated boards (``helpers.virtual.emulator``)
 both speak it through this module. Every line a board sends ends in ``*hh``, the CRC-8 of all bytes before the
 ``*`` (:mod:`helpers.board.crc8`) as two upper-case hex digits. This module turns a byte stream into
 classified lines and never raises on garbage: a line that fails any check (non-ASCII, missing or wrong
@@ -9,16 +9,17 @@ protocol 1 (firmware 1.x) is also corrupted, and when it is such a board's ``HEL
 ``ERR CHECKSUM``, :attr:`StreamParser.legacy` keeps it so that the driver can stop with one clear error (there
 is no fallback to XOR).
 
-:class:`StreamParser` is the one place where the DAQ stream's bookkeeping happens: it counts exactly
+:class:`StreamParser` is the one place where the DAQ stream's bookkeeping happens, for a board of any number
+of load-cell channels and step counters (``D,<seq>,<t_us>,<adc_0>,...,<adc_{C-1}>,<steps_0>,...,
+<steps_{A-1}>``): it counts exactly
 
 - ``dropped``: sequence numbers missing between consecutive data lines that arrived intact (lines lost in
   transport or destroyed by corruption; a corrupted data line's ``seq`` is therefore also counted as dropped),
 - ``overruns``: sample periods the board itself reports as missed (``W,OVERRUN,<n>``),
 - ``corrupted``: non-blank lines that failed a check,
-- ``implausible``: data lines that passed every check but describe the impossible: a step count that changed
-  faster than the step-rate limit allows (the full rig's parser,
-  :class:`helpers.rig.daq.ProgrammeStreamParser`, also rejects one outside the range the running programme
-  can reach or one that changed while the programme makes no step); they are rejected (their ``seq`` then
+- ``implausible``: data lines that passed every check but describe the impossible: an axis's step count that
+  changed faster than the step-rate limit allows, one outside the range the running programme can reach, or
+  one that changed while the programme makes no step on that axis; they are rejected (their ``seq`` then
   counts as dropped too),
 
 and unwraps the board's 32-bit microsecond clock.
@@ -31,8 +32,9 @@ from dataclasses import dataclass, field
 from functools import reduce
 from operator import xor
 
+import numpy as np
+
 from helpers.board.crc8 import crc8
-from helpers.paper.hardware import ADC_MAX
 
 FW_VERSION = "2.3.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
@@ -41,6 +43,9 @@ PAPER_RIG_HASH = "481e87e3"
 """The rig hash the paper's one-tendon build reports: the hash of ``rigs/paper.toml``, generated into
 ``firmware/common/rig_config_paper.h`` (a test checks that the three agree)."""
 
+
+ADC_MAX = 1023
+"""The largest count of the DAQ board's 10-bit ADC (``firmware/PROTOCOL.md``: ``adc`` 0-1023)."""
 
 MAX_LINE = 63
 """Characters a line may hold before its ``\\n`` (PROTOCOL.md)."""
@@ -144,46 +149,41 @@ def unframe(line: bytes) -> str:
 
 
 @dataclass(frozen=True)
-class Sample:
-    """One data line ``D,<seq>,<t_us>,<adc>,<steps>`` (``t_us`` as sent, before unwrapping)."""
-
-    seq: int
-    t_us: int
-    adc: int
-    steps: int
-
-
-@dataclass(frozen=True)
 class Overrun:
     """``W,OVERRUN,<n>``: the board missed ``n`` sample periods."""
 
     n: int
 
 
-def parse_body(body: str) -> Sample | Overrun | str:
-    """Classify a checked line body (printable ASCII, :func:`unframe`'s).
+def parse_body(
+    body: str, channels: int = 1, axes: int = 1, adc_max: int = ADC_MAX
+) -> tuple[int, ...] | Overrun | str:
+    """Classify a checked line body (printable ASCII, :func:`unframe`'s) of a board with C channels, A axes.
 
     Returns
     -------
-    Sample, Overrun or str
-        A data line, an overrun warning, or any other message (replies, ``HELLO``, ``DONE``) as text.
+    tuple of int, Overrun or str
+        A data line ``(seq, t_us, adc_0..adc_{C-1}, steps_0..steps_{A-1})`` (``t_us`` as sent), an overrun
+        warning, or any other message (replies, ``HELLO``, ``DONE``) as text.
 
     Raises
     ------
     FramingError
-        A body starting with ``D,`` or ``W,`` whose fields are malformed or out of range.
+        A body starting with ``D,`` or ``W,`` whose fields are malformed (another number of them too) or out
+        of range.
     """
     if body.startswith("D,"):
-        parts = body.split(",")
-        if len(parts) != 5:
-            raise FramingError(f"data line with {len(parts)} fields, expected 5")
-        seq_s, t_s, adc_s, steps_s = parts[1:]
-        if not all(f.isdigit() for f in (seq_s, t_s, adc_s, steps_s.removeprefix("-"))):
+        parts = body.split(",")[1:]
+        if len(parts) != 2 + channels + axes:
+            raise FramingError(f"data line with {len(parts) + 1} fields, expected {3 + channels + axes}")
+        if not all(f.isdigit() for f in parts[: 2 + channels]) or not all(
+            f.removeprefix("-").isdigit() for f in parts[2 + channels :]
+        ):
             raise FramingError("data line with a non-integer field")
-        seq, t_us, adc = int(seq_s), int(t_s), int(adc_s)
-        if t_us >= WRAP_US or adc > ADC_MAX:
+        values = tuple(int(f) for f in parts)
+        if values[1] >= WRAP_US or max(values[2 : 2 + channels]) > adc_max:
             raise FramingError("data line field out of range")
-        return Sample(seq, t_us, adc, int(steps_s))
+        return values
     if body.startswith("W,"):
         parts = body.split(",")
         if len(parts) != 3 or parts[1] != "OVERRUN" or not parts[2].isdigit():
@@ -205,50 +205,76 @@ class StreamStats:
 
 
 class StreamParser:
-    """Turn DAQ bytes into samples, messages and exact fault counts; never raises on garbage.
+    """Turn a board's bytes into samples, messages and exact fault counts; never raises on garbage.
 
-    ``feed(data)`` returns ``(samples, messages)``: the new samples as tuples ``(seq, t_us_unwrapped, adc,
-    steps)`` and the other lines' bodies (replies, ``HELLO ...``). ``stats`` holds the counts.
-    A data line whose ``seq`` does not increase is counted as corrupted (it cannot be placed).
+    ``feed(data)`` returns ``(samples, messages)``: the new samples as tuples ``(seq, t_us_unwrapped,
+    adc_0..adc_{C-1}, steps_0..steps_{A-1})`` and the other lines' bodies (replies, ``HELLO ...``). ``stats``
+    holds the counts. A data line whose ``seq`` does not increase is counted as corrupted (it cannot be
+    placed).
+
+    Parameters
+    ----------
+    channels, axes : int
+        The board's load cells and step counters (``CONFIG``): the fields of its data lines.
+    max_step_rate_hz : float, optional
+        A step count that changes faster than this is implausible (None: no check).
+    adc_max : int
+        The largest ADC count (a data line beyond it is corrupted).
     """
 
-    def __init__(self, max_step_rate_hz: float | None = None) -> None:
+    def __init__(
+        self, channels: int = 1, axes: int = 1, max_step_rate_hz: float | None = None, adc_max: int = ADC_MAX
+    ) -> None:
         self._buf = bytearray()  # an unfinished line
+        self.channels, self.axes, self.adc_max = channels, axes, adc_max
         self.legacy: str | None = None
         """The first line from a protocol-1 board (XOR-framed ``HELLO``/``PONG`` 1.x or ``ERR CHECKSUM``)."""
         self.max_step_rate_hz = max_step_rate_hz
-        """Step-rate limit used to reject impossible step counts (None: no check)."""
         self.restart()
 
     def restart(self) -> None:
-        """Forget the counts and the sequence and clock state (after ``START``: its ``seq`` restarts at 0)."""
+        """Forget the counts, the sequence and clock state and the expectations (after ``START``)."""
         self.stats = StreamStats()
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
         self._t_offset = 0
-        self._last_sample: tuple[int, int] | None = None  # (t_us unwrapped, steps) of the last accepted one
+        self._last: tuple[int, tuple[int, ...]] | None = None  # (t_us unwrapped, steps) of the last one
+        self.steps_range: list[tuple[int, int]] | None = None
+        """Every axis's step counts the running programme can reach (from ``ZERO``), or None (no check)."""
+        self.step_windows: list[tuple[np.ndarray, np.ndarray]] | None = None
+        """Every axis's sorted, disjoint ``(starts, ends)`` in device us where the programme steps it, or None
+        (no check): a count that changes outside them is impossible."""
 
-    def _plausible(self, t_us: int, steps: int) -> bool:
-        """A step count the motor can have reached: no faster than the step-rate limit allows."""
-        last = self._last_sample
-        if last is None or self.max_step_rate_hz is None:
-            return True
-        return abs(steps - last[1]) <= self.max_step_rate_hz * max(t_us - last[0], 0) * 1e-6 + 1
+    def _plausible(self, t_us: int, steps: tuple[int, ...]) -> bool:
+        """Every axis within its range, no faster than the step-rate limit, changed only while it steps."""
+        for a, n in enumerate(steps):
+            if self.steps_range is not None and not self.steps_range[a][0] <= n <= self.steps_range[a][1]:
+                return False
+            if self._last is None or n == self._last[1][a]:
+                continue
+            t_last, rate = self._last[0], self.max_step_rate_hz
+            if rate is not None and abs(n - self._last[1][a]) > rate * max(t_us - t_last, 0) * 1e-6 + 1:
+                return False
+            if self.step_windows is not None:  # the count changed in (last t, t]: a window must overlap it
+                starts, ends = self.step_windows[a]
+                i = int(np.searchsorted(starts, t_us, side="right")) - 1
+                if i < 0 or ends[i] < t_last:
+                    return False
+        return True
 
-    def _accept(self, sample: Sample, line: bytes, out: list) -> None:
+    def _accept(self, sample: tuple[int, ...], line: bytes, out: list) -> None:
         """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
-        t_us = self._unwrapped(sample.t_us)
-        if not self._plausible(t_us, sample.steps):
+        seq, t_us, steps = sample[0], self._unwrapped(sample[1]), sample[2 + self.channels :]
+        if not self._plausible(t_us, steps):
             self.stats.implausible += 1
-            if len(self.stats.corrupted_examples) < 5:
-                self.stats.corrupted_examples.append(f"{line[:40]!r}: implausible step count {sample.steps}")
+            self._example(line, f"implausible step count {steps}")
             return
-        self.unwrap(sample.t_us)
-        self.stats.dropped += sample.seq - (0 if self.last_seq is None else self.last_seq + 1)
-        self.last_seq = sample.seq
+        self.unwrap(sample[1])
+        self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
+        self.last_seq = seq
         self.stats.samples += 1
-        self._last_sample = (t_us, sample.steps)
-        out.append((sample.seq, t_us, sample.adc, sample.steps))
+        self._last = (t_us, steps)
+        out.append((seq, t_us, *sample[2:]))
 
     def _lines(self, data: bytes) -> list[bytes]:
         r"""Append ``data`` and return the complete lines it finishes (without ``\\n``).
@@ -272,8 +298,7 @@ class StreamParser:
         """Bytes of an unfinished line held back."""
         return len(self._buf)
 
-    def _corrupt(self, line: bytes, why: str) -> None:
-        self.stats.corrupted += 1
+    def _example(self, line: bytes, why: str) -> None:
         if len(self.stats.corrupted_examples) < 5:
             self.stats.corrupted_examples.append(f"{line[:40]!r}: {why}")
 
@@ -289,25 +314,27 @@ class StreamParser:
         self._last_raw_t = t_raw
         return t_raw + self._t_offset
 
-    def feed(self, data: bytes) -> tuple[list[tuple[int, int, int, int]], list[str]]:
+    def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
         """Parse ``data`` (any chunking) and return the samples and messages it completes."""
-        samples: list[tuple[int, int, int, int]] = []
+        samples: list[tuple[int, ...]] = []
         messages: list[str] = []
         for line in self._lines(data):
             if not line.strip(b"\r"):
                 continue
             try:
-                item = parse_body(unframe(line))
+                item = parse_body(unframe(line), self.channels, self.axes, self.adc_max)
             except FramingError as exc:
-                self._corrupt(line, str(exc))
+                self.stats.corrupted += 1
+                self._example(line, str(exc))
                 if isinstance(exc, LegacyChecksum) and self.legacy is None:
                     body = line.rstrip(b"\r").rpartition(b"*")[0].decode("ascii")
                     if _LEGACY_BODY.fullmatch(body):
                         self.legacy = body
                 continue
-            if isinstance(item, Sample):
-                if self.last_seq is not None and item.seq <= self.last_seq:
-                    self._corrupt(line, f"seq {item.seq} after {self.last_seq}")
+            if isinstance(item, tuple):
+                if self.last_seq is not None and item[0] <= self.last_seq:
+                    self.stats.corrupted += 1
+                    self._example(line, f"seq {item[0]} after {self.last_seq}")
                     continue
                 self._accept(item, line, samples)
             elif isinstance(item, Overrun):
@@ -315,4 +342,3 @@ class StreamParser:
             else:
                 messages.append(item)
         return samples, messages
-

@@ -404,6 +404,18 @@ class Planner:
     def _v(self, j: int) -> int:
         return self.hist.get(j, 0)
 
+    def checkpoint(self) -> tuple:
+        """The planner's state now, for :meth:`rollback` (a host planning ahead of the board; O(history))."""
+        flags = (self._speed_this, self._speed_clamped, self._travel_clamped, self._period)
+        return self.c, self.r, dict(self.hist), flags, len(self.ticks), len(self.notices)
+
+    def rollback(self, state: tuple) -> None:
+        """Return to a :meth:`checkpoint` (the periods planned since are forgotten)."""
+        self.c, self.r, hist, flags, n_steps, n_notices = state
+        self.hist = dict(hist)
+        self._speed_this, self._speed_clamped, self._travel_clamped, self._period = flags
+        del self.ticks[n_steps:], self.dirs[n_steps:], self.notices[n_notices:]
+
     def plan_period(self, k: int, v: int) -> None:
         """Take set-point ``v`` for period ``k`` and plan the period's steps."""
         self.hist[k] = v
@@ -522,23 +534,6 @@ class StreamRun:
         if self.finish_tick is None and state != "active" and k - self.last_nonzero >= self.planner.q_max + 2:
             self.finish_tick = k + 3
         return True
-
-    def checkpoint(self) -> tuple:
-        """The run's state now, for :meth:`rollback` (a host planning ahead of the board; O(history))."""
-        p = self.planner
-        flags = (p._speed_this, p._speed_clamped, p._travel_clamped, p._period)
-        lengths = (len(p.ticks), len(p.notices), len(self.v_by_period))
-        run = (self.finish_tick, self.last_nonzero, self.watchdog_seen)
-        return (p.c, p.r, dict(p.hist), flags, lengths, *run)
-
-    def rollback(self, state: tuple) -> None:
-        """Return to a :meth:`checkpoint` (the periods planned since are forgotten)."""
-        p = self.planner
-        p.c, p.r, hist, flags, lengths, self.finish_tick, self.last_nonzero, self.watchdog_seen = state
-        p.hist = dict(hist)
-        p._speed_this, p._speed_clamped, p._travel_clamped, p._period = flags
-        n_steps, n_notices, n_v = lengths
-        del p.ticks[n_steps:], p.dirs[n_steps:], p.notices[n_notices:], self.v_by_period[n_v:]
 
     def result(self) -> StreamResult:
         """What the board has done so far (all of it once the stream has stopped)."""
@@ -717,6 +712,20 @@ class AxesRun:
         if self.finish_tick is None and state != "active" and k - self.last_nonzero >= self.q_max + 2:
             self.finish_tick = k + 3
         return True
+
+    def checkpoint(self) -> tuple:
+        """The run's state now, for :meth:`rollback` (a host planning ahead of the board)."""
+        planners = [p.checkpoint() for p in self.planners]
+        return planners, [len(v) for v in self.v_by_axis], len(self.notices), self.finish_tick, \
+            self.last_nonzero, self.watchdog_seen
+
+    def rollback(self, state: tuple) -> None:
+        """Return to a :meth:`checkpoint` (the periods planned since are forgotten)."""
+        planners, lengths, n_notices, self.finish_tick, self.last_nonzero, self.watchdog_seen = state
+        for p, st, v, n in zip(self.planners, planners, self.v_by_axis, lengths, strict=True):
+            p.rollback(st)
+            del v[n:]
+        del self.notices[n_notices:]
 
     def results(self) -> list[StreamResult]:
         """What the board has done so far, one result per axis (the ``WATCHDOG`` notice in axis 0's)."""

@@ -23,130 +23,111 @@ import math
 
 from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number, arg_rig_name
-from helpers.board.programmes import Programme, Segment
-from helpers.paper.hardware import MAX_SPEED_MM_S, MM_PER_STEP
-from helpers.rig.boards import BoardError, BoardTimeout
-from helpers.rig.discovery import find_rig_ports
+from helpers.board.programmes import Move, Programme, Segment
+from helpers.paper.hardware import MAX_SPEED_MM_S
+from helpers.rig.link import BoardError, Link, ints
+from helpers.rig.ports import rig_urls
 from helpers.rig.safety import SafetyError, check_programme
-from helpers.rig.stepper import StepperBoard
-from helpers.rig.tendon_safety import TendonItem, TendonProgramme, check_tendon_programme
+from helpers.rigfile import RigFile
 
 HOME_SPEED_MM_S = 50.0
 """Cable speed of the way home, mm/s (gentle: a quarter of the experiments' slowest move)."""
+
+SILENCE_S = 2.0
+"""Seconds the stepper board may take to answer ``POS`` on its way home before it counts as gone."""
 
 
 class PositionUnknown(SafetyError):
     """The stepper board rebooted, so nobody knows where the cable is; the user must confirm it is slack."""
 
 
-def home_programme(position: int, speed_mm_s: float = HOME_SPEED_MM_S) -> Programme:
-    """The programme that moves the cable from ``position`` (steps) to 0 at ``speed_mm_s``."""
-    if position == 0:
-        raise ValueError("the cable is at 0 already: there is nothing to move")
-    interval = max(1, round(MM_PER_STEP / speed_mm_s * 1e6))
-    return Programme((Segment(-1 if position > 0 else 1, abs(position), interval),))
+def home_programme(
+    positions: tuple[int, ...], mm_per_step: float, speed_mm_s: float = HOME_SPEED_MM_S
+) -> Programme:
+    """The programme that moves every tendon from ``positions`` (steps) to 0 in one item.
+
+    The farthest at ``speed_mm_s`` (``mm_per_step`` is its); one tendon: a ``SEG``, several: one ``MSEG``.
+    """
+    if not any(positions):
+        raise ValueError("every tendon is at 0 already: there is nothing to move")
+    interval = max(1, round(mm_per_step / speed_mm_s * 1e6))
+    if len(positions) == 1:
+        return Programme((Segment(-1 if positions[0] > 0 else 1, abs(positions[0]), interval),))
+    return Programme((Move(interval * max(map(abs, positions)), tuple(-p for p in positions)),))
 
 
 def _rest_state(tendons: int) -> str:
-    """What the rest (position 0) is, for the user to set up by hand.
-
-    The paper's one cable slack, or several tendons at their pretension.
-    """
+    """What the rest (position 0) is, for the user to set up by hand: one cable slack, or every pretension."""
     if tendons > 1:
         return "every tendon is at its rest pretension (the arm straight, at rest)"
     return "the cable is slack and the arm down at rest"
 
 
-def home(stepper: StepperBoard, confirm_slack: bool = False, speed_mm_s: float = HOME_SPEED_MM_S) -> str:
-    """Return the cable to 0 (or accept 0 where the user confirmed the rest state); return what happened.
+def home(
+    stepper: Link, rig: RigFile, confirm_slack: bool = False, speed_mm_s: float = HOME_SPEED_MM_S
+) -> str:
+    """Return every tendon to 0 (or accept 0 where the user confirmed the rest state); return what happened.
 
-    The rest state to confirm is the selected rig file's: on a rig of several tendons every tendon at its
-    rest pretension, else the cable slack.
+    ``ABORT`` first: a programme or stream an earlier session left running stops, the driver goes off, and the
+    reply says where the tendons are. The way home is checked against every tendon's limits, then run until
+    ``DONE``: while ``POS`` shows the board moving it is alive; a board that stops short fails, and one that
+    does not answer ``POS`` within :data:`SILENCE_S` is gone. The driver is disabled on the way out, always.
 
     Raises
     ------
     PositionUnknown
         The board rebooted as its port opened and ``confirm_slack`` is False.
     helpers.rig.BoardError
-        The board refused or stopped answering (the driver is disabled on the way out either way).
+        The board refused or stopped answering.
     """
+    n = rig.n_tendons
     if stepper.booted_on_open:
-        tendons = rigfile.selected().n_tendons
-        what = "every tendon's" if tendons > 1 else "the cable's"
+        what = "every tendon's" if n > 1 else "the cable's"
         if not confirm_slack:
             raise PositionUnknown(
                 f"the stepper board restarted when its port opened, so {what} position is unknown (there "
-                f"is no limit switch): make sure {_rest_state(tendons)}, then run "
+                f"is no limit switch): make sure {_rest_state(n)}, then run "
                 "`python -m helpers home --confirm-slack` to count from there"
             )
-        stepper.enable(False)
-        if tendons > 1:
+        stepper.command("EN 0")
+        if n > 1:
             return (
                 "every tendon was confirmed at its rest pretension: the stepper counts from 0 here "
                 "(driver disabled)"
             )
         return "the cable was confirmed slack: the stepper counts from 0 here (driver disabled)"
-    # ABORT first: a programme or stream an earlier session left running stops (CLEAR would be refused while
-    # it runs), the driver goes off, and the reply says where the cable is
-    reply = stepper.command("ABORT")
-    words = reply.split()[1:]
-    if not words or not all(w.lstrip("-").isdigit() for w in words):
-        raise BoardError(f"the stepper board's reply to ABORT is malformed: {reply!r}")
-    positions = tuple(int(w) for w in words)
-    if len(positions) > 1:  # a build for several tendons: every axis's position, every axis homed at once
-        return _home_every_axis(stepper, positions, speed_mm_s)
-    position = positions[0]
-    if position == 0:
-        stepper.enable(False)
-        return "the cable is at position 0 already (driver disabled)"
-    programme = home_programme(position, speed_mm_s)
-    check_programme(programme, start_position=position)
-    stepper.load(programme, start_position=position)
-    _run_home(stepper, programme.duration_s)
-    return (
-        f"moved {abs(position)} steps ({abs(position) * MM_PER_STEP:.2f} mm) back to position "
-        f"{stepper.done_position} at {speed_mm_s:g} mm/s (driver disabled)"
-    )
-
-
-def _run_home(stepper: StepperBoard, duration_s: float) -> None:
-    """Run the loaded homing programme of ``duration_s`` until ``DONE``; the driver off afterwards, always."""
+    positions = ints(stepper.command("ABORT"), 1)[:n]
+    if not any(positions):
+        stepper.command("EN 0")
+        return "every tendon is at position 0 already (driver disabled)" if n > 1 else \
+            "the cable is at position 0 already (driver disabled)"
+    far = max(range(n), key=lambda i: abs(positions[i]))
+    programme = home_programme(positions, rigfile.derived(rig).mm_per_step[far], speed_mm_s)
+    check_programme(programme, rig, positions, rest_ok=True)
     try:
-        stepper.enable(True)
-        stepper.go()
-        wait = stepper.waiter(duration_s + 2.0)
-        while stepper.done_position is None:
-            stepper.pump()
-            stepper.check_reset()
-            if wait.expired:
-                raise BoardTimeout("the stepper board did not report DONE on its way home")
-            wait.idle(stepper.port.timeout or 0.0)
+        stepper.send_all(programme.commands(len(positions)))
+        stepper.command("EN 1")
+        stepper.done = None
+        stepper.command("GO")
+        last = None
+        while stepper.done is None:
+            wait = stepper.waiter(0.25)
+            while stepper.done is None and not wait.expired:
+                stepper.read(wait)
+                stepper.check_reset()
+            where = ints(stepper.command("POS", timeout=SILENCE_S))[:n]
+            if stepper.done is None and where == last:
+                raise BoardError(f"the stepper board stopped at {where} steps on its way home, without DONE")
+            last = where
     finally:
         try:
-            stepper.enable(False)
+            stepper.command("EN 0")
         except BoardError:
             pass
-
-
-def _home_every_axis(stepper: StepperBoard, positions: tuple[int, ...], speed_mm_s: float) -> str:
-    """Every axis back to 0 in one ``MSEG`` at ``speed_mm_s`` for the farthest one (the others slower)."""
-    if not any(positions):
-        stepper.enable(False)
-        return f"every tendon is at position 0 already ({len(positions)} axes; driver disabled)"
-    interval = max(1, round(MM_PER_STEP / speed_mm_s * 1e6))
-    rig = rigfile.selected()
-    window = interval * max(map(abs, positions))
-    if rig.n_tendons == len(positions):  # the per-tendon limits (docs/safety.md), homing to the rest state
-        back = TendonProgramme((TendonItem(window, tuple(-p for p in positions)),))
-        check_tendon_programme(back, rig, positions, rest_ok=True)
-    stepper.send_all(["CLEAR", f"MSEG {window} " + " ".join(str(-p) for p in positions)])
-    _run_home(stepper, window * 1e-6)
-    now = stepper.command("POS").split()[2:]
     moved = ", ".join(f"tendon {i + 1} {abs(p)}" for i, p in enumerate(positions) if p)
-    return (
-        f"moved every tendon back to position 0 ({moved} steps; the farthest at {speed_mm_s:g} mm/s): "
-        f"positions {' '.join(now)} (driver disabled)"
-    )
+    mm = abs(positions[far]) * rigfile.derived(rig).mm_per_step[far]
+    return (f"moved {moved} steps ({mm:.2f} mm the farthest) back to position 0 at {speed_mm_s:g} mm/s: "
+            f"positions {' '.join(map(str, stepper.done))} (driver disabled)")  # fmt: skip
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -179,15 +160,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _stepper_url(ports: str, rig_name: str) -> str:
-    if ports == "virtual":
-        return f"virtual://stepper?rig={rig_name}"
-    if ports == "auto":
-        return find_rig_ports()[1]
-    parts = [p.strip() for p in ports.split(",")]
-    return parts[-1]
-
-
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers home``."""
     if not math.isfinite(args.speed):
@@ -198,9 +170,11 @@ def run(args: argparse.Namespace) -> int:
             "home (a virtual rig that keeps running is serve-virtual-rig's: home --ports DAQ,STEPPER)"
         )
         return 0
-    stepper = StepperBoard.open(_stepper_url(args.ports, args.rig_name), rig=rigfile.selected())
+    rig = rigfile.selected()
+    url = args.ports if "," not in args.ports and args.ports != "auto" else rig_urls(args.ports, rig, "")[1]
+    stepper = Link.open(url, "stepper", rig, rig.hardware.stepper_baud)
     try:
-        print(home(stepper, confirm_slack=args.confirm_slack, speed_mm_s=args.speed))
+        print(home(stepper, rig, confirm_slack=args.confirm_slack, speed_mm_s=args.speed))
     finally:
         stepper.close()
     return 0

@@ -64,7 +64,6 @@ from helpers.paper.identify import identify_recording, load_identification, save
 from helpers.paper.modes import omega_n_from_damped
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.recordings import RecordingExists, check_name, refuse_existing
-from helpers.recordings import save as save_recording
 from helpers.research.design import SYSTEMS, Design, Schedule, load_design, up_down
 from helpers.research.families import ei
 from helpers.research.modemap import load_map
@@ -74,11 +73,8 @@ from helpers.research.task_space import check_travel
 from helpers.research.teleop import record_streams
 from helpers.research.tip_stream import FIGURES as TIP_FIGURES
 from helpers.rig import Rig, SafetyError, check_programme, check_request
-from helpers.rig.loadcell import CALIBRATION_MASSES_KG, record_calibration
-from helpers.rig.stream_rig import StreamRig
+from helpers.rig.static import calibration_masses_kg, record_calibration
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
-from helpers.rig.tendon_safety import check_tendon_programme
-from helpers.rig.tendons import TendonRig
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
 """Systems ``record`` designs itself from one identified mode (the others come from a --design file)."""
@@ -540,7 +536,7 @@ def dry_run(args: argparse.Namespace) -> int:
     _calibration_for(args.what, args.data_dir)
     rows = []
     if args.what == "calibration":
-        for grams in (round(1000 * m) for m in CALIBRATION_MASSES_KG):
+        for grams in (round(1000 * m) for m in _masses()):
             target = recording_path(args.group, f"load_{grams:04d}g", args.data_dir)
             if not args.replace:
                 refuse_existing(target)
@@ -550,12 +546,13 @@ def dry_run(args: argparse.Namespace) -> int:
             target = recording_path(group, name, args.data_dir)
             if not args.replace:
                 refuse_existing(target)
-            v, x = check_request(v, x)
+            v, x = check_request(v, x, rigfile.selected())
             try:
-                programme, report = experiment_programme(v, x, shaper, t_end=args.t_end)
+                programme, report = experiment_programme(v, x, shaper, t_end=args.t_end,
+                                                         rig=rigfile.selected())  # fmt: skip
             except ValueError as exc:
                 raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
-            check_programme(programme)
+            check_programme(programme, rigfile.selected())
             what = _describe(system, shaper)
             rows.append(
                 f"  {repo_path(target)}: {x:g} mm at {v:g} mm/s, {what}, {report.n_steps} steps per move, "
@@ -566,14 +563,19 @@ def dry_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _masses() -> tuple[float, ...]:
+    """The calibration's masses for the rig's load cell (tendon 1's)."""
+    return calibration_masses_kg(rigfile.selected().tendons[0].load_cell_range_n)
+
+
 def _refuse_existing_targets(args: argparse.Namespace) -> None:
     """Refuse a request whose recordings exist already, naming the options that avoid it."""
     if args.what == "calibration":
-        names = [(args.group, f"load_{round(1000 * m):04d}g") for m in CALIBRATION_MASSES_KG]
+        names = [(args.group, f"load_{round(1000 * m):04d}g") for m in _masses()]
     elif args.what in ("pulse", "table-i", "all"):
         names = [(g, n) for g, n, *_ in _planned_pulses(args, quiet=True)]
     else:
-        return  # streams: each is checked by StreamRig.stream before anything moves
+        return  # streams: each is checked by helpers.rig.stream.stream before anything moves
     how = "choose another --name" if args.what == "pulse" else "choose another --group"
     for group, name in names:
         target = recording_path(group, name, args.data_dir)
@@ -647,25 +649,23 @@ def _record_move(args: argparse.Namespace) -> int:
     if args.dry_run:
         _print_move(args, rig, move)
         check_travel(plan, rig, start=move.start)  # from rest: every tendon at position 0 (or pre-pulled)
-        check_tendon_programme(programme, rig)
+        check_programme(programme, rig, (0,) * rig.n_tendons)
         _print_move_programme(args, rig, programme, target)
         return 0
     check_travel(plan, rig, start=move.start)
-    check_tendon_programme(programme, rig)
-    with tendons_at_rest(TendonRig.connect, args, rig, "a move") as (trig, noise_seed):
+    check_programme(programme, rig, (0,) * rig.n_tendons)
+    with tendons_at_rest(args, rig, "a move") as (trig, noise_seed):
         print(f"  shaper: {design.describe()}")
-        frame = trig.run(programme, rate_hz=args.rate)
-        rec = trig.recording(frame, programme, rate_hz=args.rate)
-        rec.meta["scenario"] = {
+        scenario = {
             "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm,
             "shaper": design.name, **move.metadata(),
             "speed_mm_s": args.v_in if args.v_in is not None else MOVE_SPEED_MM_S,
             "steps": list(plan.steps), "planned_tension_n": list(plan.tension_n),
             "tension_floor_n": plan.floor_n, "trimmed_steps": list(plan.trimmed),
-            "items": rec.meta["scenario"]["items"], "noise_seed": noise_seed,
         }  # fmt: skip
-        path = save_recording(rec, target, replace=args.replace)
-    print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(path)}")
+        rec = trig.run(programme, path=target, scenario=scenario, rate_hz=args.rate, tail_s=0.5,
+                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet)  # fmt: skip
+    print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0
 
 
@@ -701,13 +701,13 @@ def run(args: argparse.Namespace) -> int:
             stack.enter_context(  # beside the group, so that deleting its folder cannot let a second in
                 folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK, beside=True)
             )
-        rig = StreamRig.connect(args.ports, rig_name=args.rig_name, calibration=calibration)
+        rig = Rig(args.ports, rigfile.selected(), calibration=calibration, world=args.rig_name)
         stack.callback(rig.close)
         print(
             f"connected: daq firmware {rig.daq.version}, stepper firmware {rig.stepper.version}, "
             f"source {rig.source['kind']}"
         )
-        seeds = NoiseSeeds(args.seed if rig.virtual_world is not None else None)
+        seeds = NoiseSeeds(args.seed if rig.world is not None else None)
         RECORDERS[args.what](rig, args, seeds)
     return 0
 

@@ -8,7 +8,7 @@ The path (:func:`helpers.research.tip_stream.figure_path`) is planned and checke
 tendon's set-points by the statics, the static tensions at every period against the rig file's floor, and the
 stream's own checks (travel, speed, the board's shaped motion). The dry run prints each tendon's range of
 set-points and least planned tension against the floor, the shaper and the modes it was designed from, then
-names the recording it would make. Without it the stream is recorded (``TendonStreamRig.stream``; the tendons
+names the recording it would make. Without it the stream is recorded (``helpers.rig.stream``; the tendons
 must stand at rest) into ``data/<group>/tip_<path>_<shaper>_b<bend>``.
 """
 
@@ -32,7 +32,7 @@ from helpers.research.tip_stream import (
     stream_design,
 )
 from helpers.rig import SafetyError
-from helpers.rig.tendon_stream import TendonStreamRig
+from helpers.rig.stream import stream
 
 __all__ = ["record_tip_stream", "TIP_SPEED_MM_S", "TIP_TAIL_S"]
 
@@ -123,10 +123,10 @@ def record_tip_stream(args: argparse.Namespace) -> int:
         "design": design.metadata(), **plan.metadata(), "speed_mm_s": path.speed_mm_s,
         "board_count_min_static_tension_n": [round(float(t), 6) for t in forecast],
     }  # fmt: skip
-    with tendons_at_rest(TendonStreamRig.connect, args, rig, "a tip stream") as (trig, noise_seed):
-        scenario["noise_seed"] = noise_seed
+    with tendons_at_rest(args, rig, "a tip stream") as (trig, noise_seed):
         print(f"  {path.summary()}; shaper: {design.describe()}")
-        rec = trig.stream(plan.setpoints_mm_s, design.shaper, path=target, scenario=scenario,
-                          rate_hz=args.rate, replace=args.replace, tail_s=TIP_TAIL_S)  # fmt: skip
+        rec = stream(trig, plan.setpoints_mm_s, design.shaper, path=target, scenario=scenario, lead_in_s=0.2,
+                     rate_hz=args.rate, replace=args.replace, tail_s=TIP_TAIL_S, noise_seed=noise_seed,
+                     progress=False)  # fmt: skip
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0

@@ -6,7 +6,7 @@ slope and intercept; ``newtons_per_count = 1 / gain`` with the error propagated 
 written to ``data/calibration/calibration.json`` (:data:`helpers.base.paths.LOADCELL_CALIBRATION`), which
 every run reads through :func:`helpers.paper.tension.load_calibration` (the reader and the calibration's
 type live there, so that a run does not carry the fit). Recording the known loads is
-:mod:`helpers.rig.loadcell`'s job.
+:mod:`helpers.rig.static`'s job.
 
 (Not to be confused with the virtual rig's *tuning*, :mod:`helpers.virtual.tuning`, or the linear model's
 *fit*, :func:`helpers.research.model_fit.fit_to_mode`.)

@@ -77,12 +77,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from helpers.board.programmes import Dwell, Move, Programme
 from helpers.paper.modes import omega_n_from_damped
 from helpers.paper.shapers import Shaper
 from helpers.research.families import FAMILIES, multi_mode, zv, zvd
 from helpers.research.task_space import MovePlan, move_programme, plan_move
 from helpers.rig.safety import SafetyError
-from helpers.rig.tendon_safety import TendonItem, TendonProgramme
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 from helpers.virtual.spatial.direction_map import bend_command, bend_equilibrium
@@ -538,26 +538,13 @@ def design_move(
 
 
 # --- the twin's dynamics of a move -------------------------------------------------------------------------
-def programme_step_times(programme: TendonProgramme, n_tendons: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Each tendon's step instants (s from GO) and signs, as the boards step them.
+def programme_step_times(programme: Programme, n_tendons: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each tendon's step instants (s from GO) and signs (+1.0/-1.0), as the boards step them.
 
-    Step ``k`` of ``n`` in an item of ``W`` us falls on the firmware's 0.5 us tick ``ceil(2 k W / n)`` from
-    the item's start (``firmware/PROTOCOL.md``).
+    :meth:`helpers.board.programmes.Programme.step_times_us`: step ``k`` of ``n`` in an item of ``W`` us on
+    the firmware's 0.5 us tick ``ceil(2 k W / n)`` from the item's start (``firmware/PROTOCOL.md``).
     """
-    times: list[list[np.ndarray]] = [[] for _ in range(n_tendons)]
-    signs: list[list[np.ndarray]] = [[] for _ in range(n_tendons)]
-    start_us = 0
-    for it in programme.items:
-        if it.steps is not None:
-            for i, c in enumerate(it.steps):
-                m = abs(int(c))
-                if m:
-                    k = np.arange(1, m + 1, dtype=np.int64)
-                    times[i].append((start_us + (-(-k * 2 * it.window_us // m)) / 2.0) * 1e-6)
-                    signs[i].append(np.full(m, 1.0 if c > 0 else -1.0))
-        start_us += it.window_us
-    return [(np.concatenate(t) if t else np.zeros(0), np.concatenate(s) if s else np.zeros(0))
-            for t, s in zip(times, signs, strict=True)]  # fmt: skip
+    return [(t * 1e-6, s.astype(float)) for t, s in programme.step_times_us(n_tendons)]
 
 
 def pretensioned(rig: RigFile, twin: SpatialRig, k: int) -> SpatialRig:
@@ -585,8 +572,8 @@ def pretensioned(rig: RigFile, twin: SpatialRig, k: int) -> SpatialRig:
 
 
 def prepull_programme(
-    programme: TendonProgramme, k: int, n_tendons: int
-) -> tuple[TendonProgramme, float, float]:
+    programme: Programme, k: int, n_tendons: int
+) -> tuple[Programme, float, float]:
     """``programme`` with every tendon pulled ``k`` steps in before it and let out after it.
 
     The pull: every tendon at once, ``k`` steps in ``k`` ms, then :data:`PREPULL_SETTLE_MS` of dwell (all four
@@ -596,16 +583,16 @@ def prepull_programme(
     """
     if k == 0:
         return programme, 0.0, programme.duration_s
-    pull = [TendonItem(1000 * k, (k,) * n_tendons), TendonItem.dwell(PREPULL_SETTLE_MS)]
+    pull = [Move(1000 * k, (k,) * n_tendons), Dwell(PREPULL_SETTLE_MS)]
     order = list(range(0, n_tendons, 2)) + list(range(1, n_tendons, 2))
     release = []
     for j in order:
         release += [
-            TendonItem(1000 * k, tuple(-k * (i == j) for i in range(n_tendons))),
-            TendonItem.dwell(RELEASE_GAP_MS),
+            Move(1000 * k, tuple(-k * (i == j) for i in range(n_tendons))),
+            Dwell(RELEASE_GAP_MS),
         ]
-    moved = TendonProgramme(tuple(pull) + programme.items + tuple(release))
-    start = sum(it.window_us for it in pull) / 1e6
+    moved = Programme(tuple(pull) + programme.items + tuple(release))
+    start = sum(it.duration_us for it in pull) / 1e6
     return moved, start, start + programme.duration_s
 
 
@@ -969,7 +956,7 @@ class ShapedMove:
     plan: MovePlan
     shaping: MoveShaping
     check: FloorCheck | None
-    programme: TendonProgramme
+    programme: Programme
     prepull: int
 
     @property

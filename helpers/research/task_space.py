@@ -21,8 +21,8 @@ to its stepper's pull-out tension, a direction no tendon faces, and (:func:`chec
 a tendon's travel from where it stands: ``-release..travel`` steps, position 0 being the rest and ``release``
 the rig file's ``[hardware] release_mm`` below it (a rig without one cannot pay a tendon out from rest).
 
-:func:`move_programme` makes the coordinated programme (``MSEG``/``WAIT`` items of
-:class:`~helpers.rig.tendon_safety.TendonProgramme`): a lead-in, the move out (every tendon's steps in the
+:func:`move_programme` makes the coordinated programme (``MSEG``/``WAIT`` items of a
+:class:`~helpers.board.programmes.Programme`): a lead-in, the move out (every tendon's steps in the
 same window, the lead tendon at the given speed), a hold, the move back, a tail; a shaper convolves every
 tendon's move with the same impulses (each constant piece of the shaped velocity one item).
 :func:`move_design` designs the paper's ZV/ZVD from the direction map's dominant mode at the bend.
@@ -36,9 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from helpers.board.programmes import Dwell, Move, Programme
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.rig.safety import SafetyError
-from helpers.rig.tendon_safety import TendonItem, TendonProgramme
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 from helpers.virtual.spatial.direction_map import bend_command, bend_equilibrium, frequency_map
@@ -303,7 +303,7 @@ def move_design(
     return MoveDesign(zv if shaper == "zv" else zvd, shaper, omega_d, zeta, int(np.argmax(u)))
 
 
-def _pieces(steps: Sequence[int], window_s: float, shaper: Shaper | None, sign: int) -> list[TendonItem]:
+def _pieces(steps: Sequence[int], window_s: float, shaper: Shaper | None, sign: int) -> list[Move | Dwell]:
     """The items of one move: every tendon's ramp convolved with the shaper, each constant piece an item."""
     amps, times = ((1.0,), (0.0,)) if shaper is None else (tuple(shaper.amplitudes), tuple(shaper.times))
     edges_us = sorted({round(1e6 * t) for t in times} | {round(1e6 * (t + window_s)) for t in times})
@@ -315,7 +315,7 @@ def _pieces(steps: Sequence[int], window_s: float, shaper: Shaper | None, sign: 
         )
         return np.round(sign * n * frac).astype(int)
 
-    items: list[TendonItem] = []
+    items: list[Move | Dwell] = []
     carry_us = 0
     for a, b in zip(edges_us[:-1], edges_us[1:], strict=True):
         counts = reached(b) - reached(a)
@@ -323,10 +323,10 @@ def _pieces(steps: Sequence[int], window_s: float, shaper: Shaper | None, sign: 
         if not counts.any():  # a pause between impulses: whole ms, the rest carried into the next item
             ms, carry_us = divmod(width, 1000)
             if ms:
-                items.append(TendonItem.dwell(ms))
+                items.append(Dwell(ms))
             continue
         carry_us = 0
-        items.append(TendonItem(int(width), tuple(int(c) for c in counts)))
+        items.append(Move(int(width), tuple(int(c) for c in counts)))
     return items
 
 
@@ -338,12 +338,13 @@ def move_programme(
     t_up_s: float = 1.0,
     t_down_s: float = 8.0,
     t_end_s: float = 12.0,
-) -> TendonProgramme:
+) -> Programme:
     """The coordinated Up-hold-Down programme of a move (starting and ending where the tendons stand).
 
     A lead-in dwell to ``t_up_s``; the move out: every tendon's steps in one window, the lead tendon's cable
     at ``speed_mm_s`` (convolved with ``shaper`` if given); a hold to ``t_down_s``; the move back (the
-    mirror); a tail to ``t_end_s``. The board checks (``check_tendon_programme``) are the rig's, at run time.
+    mirror); a tail to ``t_end_s``. The board's checks
+    (:func:`helpers.rig.safety.check_programme`) are the rig's, at run time.
     """
     if not (math.isfinite(speed_mm_s) and speed_mm_s > 0):
         raise ValueError(f"speed_mm_s must be > 0, got {speed_mm_s!r}")
@@ -360,18 +361,18 @@ def move_programme(
     up = _pieces(plan.steps, window_s, shaper, +1)
     down = _pieces(plan.steps, window_s, shaper, -1)
 
-    def span_ms(items: list[TendonItem]) -> float:
-        return sum(it.window_us for it in items) / 1000
+    def span_ms(items: list[Move | Dwell]) -> float:
+        return sum(it.duration_us for it in items) / 1000
 
-    items: list[TendonItem] = []
+    items: list[Move | Dwell] = []
     if round(1000 * t_up_s):
-        items.append(TendonItem.dwell(round(1000 * t_up_s)))
+        items.append(Dwell(round(1000 * t_up_s)))
     items += up
     hold = round(1000 * t_down_s - 1000 * t_up_s - span_ms(up))
     if hold > 0:
-        items.append(TendonItem.dwell(hold))
+        items.append(Dwell(hold))
     items += down
     tail = round(1000 * t_end_s - 1000 * t_down_s - span_ms(down))
     if tail > 0:
-        items.append(TendonItem.dwell(tail))
-    return TendonProgramme(tuple(items))
+        items.append(Dwell(tail))
+    return Programme(tuple(items))

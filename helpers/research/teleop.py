@@ -29,6 +29,7 @@ from helpers.paper.modes import omega_n_from_damped
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.research.families import FAMILIES
 from helpers.research.modemap import ModeMap
+from helpers.rig.stream import stream
 from helpers.virtual import RigParameters, simulate
 
 PERIOD_S = 0.01
@@ -295,7 +296,7 @@ def record_streams(
     seeds: Any = lambda: None,
     rate_hz: int = 1000,
 ) -> list[Any]:
-    """Record every command of :data:`COMMANDS` with every system of :data:`SYSTEMS` through ``rig.stream``.
+    """Record every command of :data:`COMMANDS` with every system of :data:`SYSTEMS` as a stream of ``rig``.
 
     Parameters
     ----------
@@ -334,7 +335,7 @@ def record_streams(
             scenario = {"kind": "stream", "system": system, "command": command, "setpoints_are": what,
                         "command_setpoints_mm_s": [float(x) for x in v]}  # fmt: skip
             path = Path(folder) / f"{command}_{system}"
-            rec = rig.stream(setpoints, shaper, path=path, scenario=scenario, tail_s=2.0, rate_hz=rate_hz,
-                             replace=replace, noise_seed=seeds(), progress=False)  # fmt: skip
+            rec = stream(rig, setpoints, shaper, path=path, scenario=scenario, tail_s=2.0, rate_hz=rate_hz,
+                         replace=replace, noise_seed=seeds(), progress=False)  # fmt: skip
             out.append(rec)
     return out

@@ -30,7 +30,7 @@ each starting and ending at rest with stops; :func:`velocity_path` integrates an
 be at or above the rig file's ``[arm] tension_floor_n``; a path that leaves one below is refused in one line
 naming the tendon, the period and time, the bend and the figure (:class:`~helpers.rig.safety.SafetyError`,
 exit status 3, ``docs/safety.md``). The travel and the speed limits, and the board's shaped motion, are the
-stream's own checks (:func:`~helpers.rig.tendon_stream.check_tendon_stream`, called by :func:`check_plan`).
+stream's own checks (:func:`~helpers.rig.stream.check_stream`, called by :func:`check_plan`).
 
 **One shaper for every tendon** (:func:`stream_design`): the paper's ZV or ZVD designed from the direction
 map's dominant mode, averaged over the path's stops away from rest (each stop's ``dominant_omega_d_rad_s``
@@ -48,11 +48,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from helpers.board import stream_reference as hs
+from helpers.board.programmes import Limits
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.research.task_space import MAX_TRIM_STEPS
 from helpers.rig.safety import SafetyError
-from helpers.rig.tendon_safety import travel_text
-from helpers.rig.tendon_stream import TendonStreamPlan, check_tendon_stream, tendon_units
+from helpers.rig.stream import CheckedStream, SetpointSource, check_stream
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 from helpers.virtual.spatial.direction_map import bend_equilibrium, frequency_map
@@ -367,7 +367,7 @@ class StreamPlan:
     units : numpy.ndarray
         Set-points in board units, shape (periods, tendons).
     setpoints_mm_s : numpy.ndarray
-        The same as cable speeds (mm/s, + pulls), what :meth:`TendonStreamRig.stream` takes.
+        The same as cable speeds (mm/s, + pulls), what :func:`helpers.rig.stream.stream` takes.
     positions : numpy.ndarray
         Each tendon's planned position (steps from rest, the integrated set-points) at every boundary,
         shape (periods + 1, tendons).
@@ -414,8 +414,8 @@ class StreamPlan:
             v = self.setpoints_mm_s[:, i]
             out.append(
                 f"tendon {i + 1}: positions {lo:+.2f} to {hi:+.2f} steps ({lo * mm[i]:+.2f} to "
-                f"{hi * mm[i]:+.2f} mm; its travel {travel_text(rig, i)}), speeds {v.min():+.1f} to "
-                f"{v.max():+.1f} mm/s; least static tension "
+                f"{hi * mm[i]:+.2f} mm; its travel {Limits.of(rig).travel_text(i)}), speeds {v.min():+.1f} "
+                f"to {v.max():+.1f} mm/s; least static tension "
                 f"{t:.2f} N at {self.path.where(k)} (floor {self.floor_n:.2f} N, margin "
                 f"{t - self.floor_n:+.2f} N)"
             )
@@ -566,7 +566,7 @@ def plan_stream(
     cum[0] = 0.0
     units = np.diff(cum, axis=0).astype(np.int64)
     mm_s = units * hs.STEPS_PER_S_PER_UNIT * (mm_m * 1e3)
-    tendon_units(mm_s, rig)  # the speed limit, one line naming the tendon and the set-point
+    SetpointSource(mm_s, rig).check_all()  # the speed limit, one line naming the tendon and the set-point
     positions = cum / UNITS_PER_STEP
     tension, tip = _tensions(twin, positions * mm_m, knots, eqs, what, path)
     check_floor(tension, floor, path, what)
@@ -639,16 +639,16 @@ def check_plan(
     rig: RigFile,
     shaper: Shaper | hs.StreamShaper | None,
     start: Sequence[int] | None = None,
-) -> TendonStreamPlan:
+) -> CheckedStream:
     """The stream's own checks of the plan (travel, speed, the board's shaped motion) before any byte.
 
     Raises
     ------
     SafetyError
-        As :func:`~helpers.rig.tendon_stream.check_tendon_stream`: one line naming the tendon and the figure.
+        As :func:`~helpers.rig.stream.check_stream`: one line naming the tendon and the figure.
     """
     start = tuple(start) if start is not None else (0,) * rig.n_tendons
-    return check_tendon_stream(tendon_units(plan.setpoints_mm_s, rig), rig, start, hs.board_shaper(shaper))
+    return check_stream(plan.setpoints_mm_s, rig, start, shaper)
 
 
 def board_path(plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper | None) -> np.ndarray:

@@ -1,6 +1,6 @@
 """What a recorded tip stream did: the tip at the stops and along the plan, every tendon's least tension.
 
-A recording of :mod:`helpers.research.tip_stream`'s plan (``TendonStreamRig.stream``; on the virtual rig its
+A recording of :mod:`helpers.research.tip_stream`'s plan (``helpers.rig.stream``; on the virtual rig its
 frame has the twin's tip, ``tip_x_mm`` ..) is measured against the plan:
 
 - :func:`stop_metrics`: at every stop away from the start, the window of ``window_s`` from the end of the

@@ -457,9 +457,9 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda _line: None) if args.quiet else (lambda line: print(line, file=sys.stderr))
     with contextlib.ExitStack() as stack:
         stack.enter_context(folder_lock(tuning, what="tuning", name=".tuning.lock"))
-        rig = stack.enter_context(Rig.connect(args.ports, rig_name="tune", calibration=calibration))
+        rig = stack.enter_context(Rig(args.ports, selected, calibration=calibration, world="tune"))
         counter = itertools.count(args.seed)
-        seeds = (lambda: next(counter)) if rig.virtual_world is not None else (lambda: None)
+        seeds = (lambda: next(counter)) if rig.world is not None else (lambda: None)
         if not args.reuse_map and map_path.exists() and not args.replace:
             raise RecordingExists(
                 f"{repo_path(map_path)} exists; pass --replace to survey again, or --reuse-map"
@@ -517,7 +517,7 @@ def run(args: argparse.Namespace) -> int:
             "repetitions": repetitions,
             "rate_hz": args.rate,
             "t_end_s": T_END_S,
-            "seed": args.seed if rig.virtual_world is not None else None,
+            "seed": args.seed if rig.world is not None else None,
         },
         "notes": {condition_name(v, x): n for (v, x), n in candidates.notes.items()},
         "chosen": {k: v for k, v in chosen.items() if k != "table"},

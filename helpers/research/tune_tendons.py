@@ -43,7 +43,6 @@ import numpy as np
 import pandas as pd
 
 from helpers import __version__ as HELPERS_VERSION
-from helpers import recordings
 from helpers.base.jsonfile import atomic_write, write_json
 from helpers.base.locks import folder_lock
 from helpers.base.paths import repo_path
@@ -61,10 +60,9 @@ from helpers.research.task_shaping import (
 )
 from helpers.research.task_space import MoveDesign, MovePlan, check_travel, move_programme, plan_move
 from helpers.research.tendon_residuals import move_residuals_tendons
+from helpers.rig import Rig
 from helpers.rig.safety import SafetyError
-from helpers.rig.tendons import TendonRig
 from helpers.rigfile import RigFile
-from helpers.virtual.emulator.world import get_world
 from helpers.virtual.spatial.direction_map import frequency_map
 from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.plant import SpatialPlant
@@ -155,7 +153,7 @@ def design_for(system: str, points: Sequence[MapPoint], direction_deg: float, be
 
 
 def run_move(
-    trig: TendonRig,
+    trig: Rig,
     plan: MovePlan,
     design: MoveDesign,
     target: Path,
@@ -173,23 +171,20 @@ def run_move(
     (:func:`helpers.research.task_shaping.prepull_programme`); ``plan`` counts from there.
     """
     rig = trig.rig
-    check_travel(plan, rig, tuple(p + prepull for p in trig.positions))
+    check_travel(plan, rig, tuple(p + prepull for p in trig.positions()))
     programme = move_programme(plan, rig, SPEED_MM_S, design.shaper, *MOVE_TIMES_S)
     programme, _, _ = prepull_programme(programme, prepull, rig.n_tendons)
     if reseed is not None and seed is not None:
         reseed(seed)
-    frame = trig.run(programme, rate_hz=rate_hz)
-    rec = trig.recording(frame, programme, rate_hz=rate_hz)
-    rec.meta["scenario"] = {
+    scenario = {
         "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm, "shaper": design.name,
         "design": design.metadata(), "speed_mm_s": SPEED_MM_S, "steps": list(plan.steps),
         "planned_tension_n": list(plan.tension_n), "tension_floor_n": plan.floor_n,
-        "trimmed_steps": list(plan.trimmed), "items": rec.meta["scenario"]["items"], "noise_seed": seed,
-        "prepull_steps": prepull,
+        "trimmed_steps": list(plan.trimmed), "noise_seed": seed, "prepull_steps": prepull,
         **(extra or {}),
     }  # fmt: skip
-    recordings.save(rec, target, replace=replace)
-    return rec
+    return trig.run(programme, path=target, scenario=scenario, rate_hz=rate_hz, tail_s=0.5, replace=replace,
+                    progress=False)  # fmt: skip
 
 
 def _hold_window(rec: Recording, lead: int) -> tuple[float, float]:
@@ -296,7 +291,7 @@ def choose_prepull(
 
 
 def measure_map(
-    trig: TendonRig,
+    trig: Rig,
     folder: Path,
     directions: Sequence[float] = DIRECTIONS_DEG,
     bends: Sequence[float] = BENDS_MM,
@@ -342,7 +337,7 @@ def _auto_design(rig: RigFile, plan: MovePlan, prepull: int) -> MoveDesign:
 
 
 def verify(
-    trig: TendonRig,
+    trig: Rig,
     points: Sequence[MapPoint],
     folder: Path,
     repetitions: int,
@@ -416,7 +411,7 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def tune_tendons(
-    trig: TendonRig,
+    trig: Rig,
     folder: Path,
     repetitions: int = 3,
     *,
@@ -511,13 +506,13 @@ def run_tendons(args: Any, rig: RigFile) -> int:
     )
     with contextlib.ExitStack() as stack:
         stack.enter_context(folder_lock(folder, what="tuning", name=".tuning.lock"))
-        trig = stack.enter_context(TendonRig.connect(args.ports, rig=rig, rig_name="tune"))
-        if any(trig.positions):
+        trig = stack.enter_context(Rig(args.ports, rig, world="tune"))
+        if any(trig.positions()):
             raise SafetyError(
-                f"tendons 1-{rig.n_tendons}: the stepper stands at {trig.positions}, not at rest (0); run "
+                f"tendons 1-{rig.n_tendons}: the stepper stands at {trig.positions()}, not at rest (0); run "
                 "python -m helpers home first"
             )
-        world = get_world("tune") if args.ports == "virtual" else None
+        world = trig.world
         counter = itertools.count(args.seed)
         seeds = (lambda: next(counter)) if world is not None else (lambda: None)
         if (folder / "verification.json").exists() and not args.replace:

@@ -1,21 +1,23 @@
-"""Serial I/O to the rig's two boards (real hardware or the virtual rig) with pyserial.
+"""The host side of the rig's two boards (hardware or the virtual rig, 1 to 4 tendons), with pyserial.
 
-- :mod:`helpers.live`: what the full rig is built on (opening a port, one board's link, the safety limits);
-- :mod:`helpers.rig.boards`: the link shared by both drivers (commands, replies, timeouts, resets);
-- :mod:`helpers.rig.daq`, :mod:`helpers.rig.stepper`: the DAQ and stepper drivers;
-- :mod:`helpers.rig.safety`: the limits checked before any byte is sent;
-- :mod:`helpers.rig.discovery`: finding the boards by USB VID:PID, and announced virtual rigs;
-- :mod:`helpers.rig.experiment`: :class:`Rig`, one board-timed experiment per call (a programme, or a stream
-  of set-points through the board's shaper), safe on any error;
-- :mod:`helpers.rig.stream`: a stream's set-points, their checks, the pacing and what the recording says;
-- :mod:`helpers.rig.loadcell`: recording the load-cell calibration under known loads.
+- :mod:`helpers.rig.driver`: :class:`Rig`, the one driver: both boards, their builds checked against the rig
+  file, one board-timed run per call -> a recording, safe however it ends; homing;
+- :mod:`helpers.rig.link`: :class:`~helpers.rig.link.Link`, one board's link (commands, replies, resending
+  over a noisy line, timeouts, resets) and the boards' errors;
+- :mod:`helpers.rig.ports`: which ports: the in-process virtual rig, USB discovery, announced virtual rigs;
+- :mod:`helpers.rig.safety`: the limits checked before any byte is sent (``docs/safety.md``);
+- :mod:`helpers.rig.stream`: streams of every tendon's set-points through the board's shaper (not imported
+  here: the paper's live cells do not need it);
+- :mod:`helpers.rig.static`: recording with the motor idle, the load-cell calibration's procedure;
+- :mod:`helpers.rig.table_i`: the paper's Table I experiment on a rig.
 
 The line protocol itself is :mod:`helpers.board.protocol`. Nothing here needs numba or the virtual rig's
-physics:
-the in-process virtual rig is reached through its ``virtual://`` URL (:mod:`helpers.virtual.emulator`).
+physics: the in-process virtual rig is reached through its ``virtual://`` URL
+(:mod:`helpers.virtual.emulator`).
 """
 
-from helpers.rig.boards import (
+from helpers.rig.driver import NotAtRest, NotAtZero, Rig, RunAborted
+from helpers.rig.link import (
     BoardDisconnected,
     BoardError,
     BoardReset,
@@ -26,10 +28,7 @@ from helpers.rig.boards import (
     PortBusy,
     WrongRig,
 )
-from helpers.rig.daq import DaqBoard
-from helpers.rig.experiment import Rig, RunAborted
 from helpers.rig.safety import SafetyError, check_programme, check_request
-from helpers.rig.stepper import StepperBoard
 
 __all__ = [
     "BoardDisconnected",
@@ -37,15 +36,15 @@ __all__ = [
     "BoardReset",
     "BoardTimeout",
     "CommandRefused",
-    "DaqBoard",
     "LinkCorrupted",
+    "NotAtRest",
+    "NotAtZero",
     "OldFirmware",
-    "WrongRig",
     "PortBusy",
     "Rig",
     "RunAborted",
     "SafetyError",
-    "StepperBoard",
+    "WrongRig",
     "check_programme",
     "check_request",
 ]

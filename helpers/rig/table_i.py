@@ -1,7 +1,7 @@
 """The paper's experiment on a rig: the twelve scenarios of Table I, each repeated, recorded into ``data/``.
 
 The procedure of ``python -m helpers record table-i`` (notebook 04's live cell writes the same loop with
-:class:`helpers.live.LiveRig`): for each system
+:class:`helpers.rig.Rig`): for each system
 (unshaped, the non-robust TDF, the robust TDF) and each condition of Table I (scaled by
 :mod:`helpers.paper.scenarios` on a rig it does not fit), one
 :meth:`helpers.rig.Rig.run_pulse` per repetition, saved as ``<system>_v<v_in>_x<x_f>_r<n>``

@@ -2,7 +2,7 @@
 
 Start ``python -m helpers serve-virtual-rig --rig RIG`` (a rig file of several tendons: the emulated boards of
 its build and the spatial twin, paced at ``speed`` x real time), connect a
-:class:`~helpers.rig.tendons.TendonRig` to its two pseudo-terminals by device path exactly as to hardware, and
+:class:`~helpers.rig.Rig` to its two pseudo-terminals by device path exactly as to hardware, and
 run a coordinated programme of ``device_s`` seconds (a small pull of tendon 0, a hold, the pull back) at
 ``rate_hz``: report the samples received, the dropped / corrupted / overrun counts (target 0 dropped), the
 bytes per data line the DAQ sent and the link's load at the build's baud rate (``firmware/PROTOCOL.md``, link
@@ -11,14 +11,16 @@ budget), and the sustained rate per wall and per device second.
 
 from __future__ import annotations
 
+import tempfile
 import time
+from pathlib import Path
 from typing import Any
 
 from helpers import rigfile
+from helpers.board.programmes import Dwell, Move, Programme
 from helpers.board.protocol import frame
 from helpers.commands.benchmarks.serial import start_server
-from helpers.rig.tendon_safety import TendonItem, TendonProgramme
-from helpers.rig.tendons import TendonRig
+from helpers.rig import Rig
 
 PULL_STEPS = 4
 """Steps of tendon 0's pull: small enough that no tendon leaves its pretension's neighbourhood."""
@@ -35,18 +37,19 @@ def pty_stream_tendons(device_s: float = 60.0, rate_hz: int = 1000, speed: float
     rig_file = rigfile.load(rigfile.resolve(rig_name))
     proc, daq, stepper = start_server(speed, rig=str(rigfile.resolve(rig_name)))
     try:
-        rig = TendonRig.connect((daq, stepper), rig=rig_file, hello_timeout=120.0)
+        rig = Rig((daq, stepper), rig_file, hello_timeout=120.0)
         n = rig_file.n_tendons
         window_us = 100_000
         hold_ms = int(round(device_s * 1000)) - 2 * window_us // 1000
         pull = (PULL_STEPS,) + (0,) * (n - 1)
         back = (-PULL_STEPS,) + (0,) * (n - 1)
-        items = (TendonItem(window_us, pull), TendonItem.dwell(hold_ms), TendonItem(window_us, back))
-        prog = TendonProgramme(items)
-        t0 = time.perf_counter()
-        frame_ = rig.run(prog, rate_hz=rate_hz, tail_s=0.2)
-        wall = time.perf_counter() - t0
-        stats = rig.daq.stats
+        prog = Programme((Move(window_us, pull), Dwell(hold_ms), Move(window_us, back)))
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            rec = rig.run(prog, path=Path(tmp) / "bench", rate_hz=rate_hz, tail_s=0.2, progress=False)
+            frame_ = rec.frame
+            wall = time.perf_counter() - t0
+        stats = rig.daq.parser.stats
         rows = list(rig.daq.rows)
         baud = rig_file.hardware.daq_baud
         rig.close()
