@@ -6,8 +6,9 @@ import itertools
 
 import numpy as np
 
+from helpers import rigfile
 from helpers.paper.hardware import MM_PER_STEP
-from helpers.rig.stream_rig import StreamRig
+from helpers.rig import Rig
 from helpers.virtual.emulator.world import VirtualWorld, forget_world, register_world
 
 K_N_PER_MM = 0.5
@@ -66,17 +67,22 @@ def make_world(**kwargs) -> VirtualWorld:
 
 
 def make_rig(
-    daq_options: str = "", stepper_options: str = "", **world_kwargs
-) -> tuple[StreamRig, VirtualWorld]:
-    """A connected rig (a StreamRig: it streams too) on a fresh test-double world; options are URL query
-    strings like '&hang_at=1'."""
+    daq_options: str = "", stepper_options: str = "", rig: rigfile.RigFile | None = None, silence_s: float = 2.0,
+    **world_kwargs,
+) -> tuple[Rig, VirtualWorld]:
+    """A connected rig on a fresh test-double world; options are URL query strings like '&hang_at=1'.
+
+    ``rig``: the rig file (default the one this process's emulated boards are built for).
+    """
     world = make_world(**world_kwargs)
-    rig = StreamRig.connect(
+    rig = Rig(
         "virtual",
-        rig_name=world.name,
+        rigfile.selected() if rig is None else rig,
         calibration=CALIBRATION,
+        world=world.name,
         timeout=0.5,
         hello_timeout=1.0,
+        silence_s=silence_s,
         daq_options=daq_options,
         stepper_options=stepper_options,
     )

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from rig_fakes import CALIBRATION, GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_rig, make_world
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.board.programmes import Dwell, Programme, Segment, experiment_programme
 from helpers.board.protocol import frame
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import Rig
-from helpers.rig.discovery import KNOWN_BOARDS, candidate_ports, find_rig_ports
+from helpers.rig.ports import KNOWN_BOARDS, find_rig_ports
 from helpers.rig.static import record_static
 
 PROG = Programme((Dwell(100), Segment(1, 20, 1000), Dwell(200), Segment(-1, 20, 1000), Dwell(100)))
@@ -19,7 +19,7 @@ PROG = Programme((Dwell(100), Segment(1, 20, 1000), Dwell(200), Segment(-1, 20, 
 
 def test_run_records_the_whole_programme(tmp_path):
     rig, world = make_rig()
-    rec = rig.run(PROG, scenario={"kind": "test"}, path=tmp_path / "g" / "r1", progress=False, margin_s=0.05)
+    rec = rig.run(PROG, scenario={"kind": "test"}, path=tmp_path / "g" / "r1", progress=False, tail_s=0.05)
     assert rec.status == "complete"
     back = recordings.load(tmp_path / "g" / "r1")
     f = back.frame
@@ -34,7 +34,7 @@ def test_run_records_the_whole_programme(tmp_path):
         "n_steps": 20,
         "interval_us": 1000,
     }
-    # it recorded past the programme's end (0.44 s) plus the margin, and DONE arrived
+    # it recorded past the programme's end (0.44 s) plus the tail, and DONE arrived
     t_go = back.meta["t_go_us"]
     assert f["t_us"].iloc[-1] - t_go >= PROG.duration_us + 50_000
     assert back.meta["done_position"] == 0
@@ -78,9 +78,10 @@ def test_sync_by_ping_when_the_board_does_not_reset_on_open():
     world = make_world()
     world.daq.take_output()
     world.stepper.take_output()
-    rig = Rig.connect(
+    rig = Rig(
         "virtual",
-        rig_name=world.name,
+        rigfile.selected(),
+        world=world.name,
         calibration=CALIBRATION,
         daq_options="&reset_on_open=0",
         stepper_options="&reset_on_open=0",
@@ -96,7 +97,7 @@ def test_static_recording_for_calibration(tmp_path):
     world.hang_load(2.5)
     rec = record_static(rig, 0.3, {"kind": "calibration", "load_n": 2.5}, path=tmp_path / "c", rate_hz=500)
     assert len(rec.frame) >= 150 and set(rec.frame["adc"]) == {round(OFFSET + GAIN * 2.5)}
-    assert rec.meta["rate_hz"] == 500 and world.stepper.received[-1] == "PING"  # the stepper was not touched
+    assert rec.meta["rate_hz"] == 500 and set(world.stepper.received) == {"PING", "CONFIG"}  # not touched
 
 
 def test_discovery_by_vid_pid(monkeypatch):
@@ -111,12 +112,11 @@ def test_discovery_by_vid_pid(monkeypatch):
         Port("/dev/ttyUSB9", 0x0403, 0x6001),
     ]
     monkeypatch.setattr("serial.tools.list_ports.comports", lambda: ports)
-    cands = candidate_ports()
-    assert [(c.device, c.role) for c in cands] == [("/dev/ttyACM0", "daq"), ("/dev/ttyACM1", "stepper")]
-    assert find_rig_ports() == ("/dev/ttyACM0", "/dev/ttyACM1")
+    rig = rigfile.default_rig()
+    assert find_rig_ports(rig) == ("/dev/ttyACM0", "/dev/ttyACM1")  # genuine boards: by their PIDs, unopened
     monkeypatch.setattr("serial.tools.list_ports.comports", lambda: ports[:1])
-    with pytest.raises(RuntimeError, match="expected one DAQ board"):
-        find_rig_ports()
+    with pytest.raises(RuntimeError, match=r"expected one DAQ board .* /dev/ttyACM1 \(2341:0043 Arduino Uno R3\)"):
+        find_rig_ports(rig)
     assert KNOWN_BOARDS[(0x1A86, 0x7523)][0] == "either"
 
 
@@ -136,7 +136,7 @@ def test_boards_built_for_another_rig_are_refused_with_the_rebuild_command(monke
     monkeypatch.setattr(emulated, "board_version", lambda: version)
     world = make_world()
     with pytest.raises(WrongRig) as info:
-        Rig.connect("virtual", rig_name=world.name, calibration=CALIBRATION, timeout=0.5, hello_timeout=1.0)
+        Rig("virtual", rigfile.selected(), CALIBRATION, world=world.name, timeout=0.5, hello_timeout=1.0)
     message = str(info.value)
     assert version.split("+")[1] in message and shipped_rig.hash in message
     assert "make -C firmware RIG=" in message and shipped_rig.path.name in message
@@ -148,7 +148,7 @@ def test_a_board_without_a_rig_hash_is_the_paper_rigs(monkeypatch):
 
     monkeypatch.setattr(emulated, "board_version", lambda: "2.1.0")
     world = make_world()
-    rig = Rig.connect("virtual", rig_name=world.name, calibration=CALIBRATION, timeout=0.5, hello_timeout=1.0)
+    rig = Rig("virtual", rigfile.selected(), CALIBRATION, world=world.name, timeout=0.5, hello_timeout=1.0)
     try:
         assert rig.daq.version == rig.stepper.version == "2.1.0"
     finally:

@@ -248,6 +248,11 @@ class Programme:
         """Signed sum of axis 0's steps (its position change)."""
         return sum(item.counts(1)[0] for item in self.items)
 
+    @property
+    def n_steps(self) -> int:
+        """Total number of steps, every axis, either direction."""
+        return sum(abs(n) for item in self.items for n in item.counts(self.axes))
+
     def end_positions(self, start: Sequence[int]) -> tuple[int, ...]:
         """Every axis's position after the programme, from ``start`` (one per axis)."""
         moved = [item.counts(len(start)) for item in self.items]
