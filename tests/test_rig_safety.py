@@ -9,6 +9,7 @@ import warnings
 import pytest
 from rig_fakes import SpyPort, make_rig
 
+from helpers import rigfile
 from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.rig import SafetyError, check_request
 
@@ -63,7 +64,7 @@ def test_check_request_accepts_the_rigs_scenarios(shipped_rig):  # rig-parametri
     r = shipped_rig
     paper_sets = [(100, 10), (200, 10), (200, 20), (200, 30), (300, 20)]
     for v, x in r.scaled(paper_sets) + [(r.fastest_mm_s, r.longest_mm)]:
-        assert check_request(v, x) == (float(v), float(x))
+        assert check_request(v, x, rigfile.load(r.path)) == (float(v), float(x))
 
 
 def _longer_than_the_host_allows(r):
@@ -104,9 +105,10 @@ def test_bad_sample_rates_are_refused_before_sending(spied, shipped_rig, tmp_pat
             spied.run(Programme((Dwell(10),)), rate_hz=rate, path=tmp_path / "never", progress=False)
 
 
-def test_not_a_programme(spied):
+def test_not_a_programme(spied, tmp_path):
     with pytest.raises(SafetyError, match="Programme"):
-        spied.run([("SEG", 1, 10, 1000)], progress=False)
+        spied.run([("SEG", 1, 10, 1000)], path=tmp_path / "never", progress=False)
+    assert not tmp_path.joinpath("never.csv").exists()
 
 
 def test_negative_or_nan_items_cannot_even_be_built():
@@ -115,8 +117,8 @@ def test_negative_or_nan_items_cannot_even_be_built():
             build()
 
 
-def test_hardware_with_a_virtual_rig_calibration_warns():
-    from helpers.rig import Rig
+def test_hardware_with_a_virtual_rig_calibration_warns(monkeypatch):
+    from helpers.rig import Rig, driver
 
     virtual_cal = {
         "newtons_per_count": 0.02,
@@ -125,9 +127,16 @@ def test_hardware_with_a_virtual_rig_calibration_warns():
         "origin": "data/calibration/calibration.json",
         "source": "virtual-rig",
     }
+    first, world = make_rig()
+    first.close()
+    connect = dict(world=world.name, timeout=0.5, hello_timeout=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the virtual rig with a virtual calibration: as it should be
+        Rig("virtual", rigfile.selected(), virtual_cal, **connect).close()
+    monkeypatch.setattr(driver, "virtual_source_for", lambda urls: None)  # these ports: as hardware
+    monkeypatch.setattr(Rig, "world", property(lambda self: None))
     with pytest.warns(UserWarning, match="recorded on the virtual rig"):
-        Rig(None, None, calibration=virtual_cal, source={"kind": "hardware"})
+        Rig("virtual", rigfile.selected(), virtual_cal, **connect).close()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        Rig(None, None, calibration=virtual_cal, source={"kind": "virtual-rig"})
-        Rig(None, None, calibration=dict(virtual_cal, source="hardware"), source={"kind": "hardware"})
+        Rig("virtual", rigfile.selected(), dict(virtual_cal, source="hardware"), **connect).close()
