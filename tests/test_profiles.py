@@ -9,14 +9,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from helpers import rigfile
 from helpers.board import programmes
-from helpers.board.programmes import Dwell, Programme, Segment
+from helpers.board.programmes import Dwell, Limits, Move, Programme, Segment
 from helpers.paper import hardware, modes, profiles, shapers
 from helpers.paper import numbers as paper
 from helpers.paper.hardware import LIMITS, MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile
 from helpers.research import families
-from helpers.rig.stepper import programme_from_dict
 
 ZV, ZVD = shapers.paper_tdfs()
 OMEGA_N = modes.omega_n_from_damped(paper.OMEGA_D, paper.ZETA)
@@ -174,34 +174,38 @@ LIMIT_CASES = {
 }
 
 
+def _limits(r):
+    return Limits.of(rigfile.load(r.path))
+
+
 @pytest.mark.parametrize("case", list(LIMIT_CASES))
-def test_limits_refused_with_named_limit(shipped_rig, case):  # rig-parametrised
+def test_limits_refused_with_named_limit(rig_file, case):  # every shipped rig, as a value
     items, limit = LIMIT_CASES[case]
     with pytest.raises(ValueError, match=limit):
-        Programme(items(shipped_rig)).check_limits()
+        Programme(items(rig_file)).check_limits(_limits(rig_file))
 
 
-def test_limits_accept_the_extremes(shipped_rig):  # rig-parametrised
-    r = shipped_rig
+def test_limits_accept_the_extremes(rig_file):  # every shipped rig, as a value
+    r = rig_file
     Programme(
         (Segment(1, r.travel_steps, r.min_interval_us), Dwell(r.hw("max_dwell_ms")),
          Segment(-1, r.travel_steps, r.hw("max_interval_us")))
         + tuple(Dwell(0) for _ in range(r.hw("programme_max_items") - 3))
-    ).check_limits()  # fmt: skip
+    ).check_limits(_limits(r))  # fmt: skip
 
 
-def test_travel_checked_from_start_position(shipped_rig):  # rig-parametrised
+def test_travel_checked_from_start_position(rig_file):  # every shipped rig, as a value
     prog = Programme((Segment(1, 10, 1000),))
-    prog.check_limits(start_position=shipped_rig.travel_steps - 10)
+    prog.check_limits(_limits(rig_file), start_position=rig_file.travel_steps - 10)
     with pytest.raises(ValueError, match="travel"):
-        prog.check_limits(start_position=shipped_rig.travel_steps - 9)
+        prog.check_limits(_limits(rig_file), start_position=rig_file.travel_steps - 9)
 
 
-def test_the_quantiser_lands_on_whole_steps_of_the_rig(shipped_rig):  # rig-parametrised
-    r = shipped_rig
+def test_the_quantiser_lands_on_whole_steps_of_the_rig(rig_file):  # every shipped rig, as a value
+    r = rig_file
     moves = ((100.0, 10.0, ZV), (r.fastest_mm_s, r.longest_mm, None), (50.0, 0.6 * r.mm_per_step, None))
     for v, x, shaper in moves:
-        prog, rep = programmes.experiment_programme(v, x, shaper)
+        prog, rep = programmes.experiment_programme(v, x, shaper, rig=rigfile.load(r.path))
         n = round(x / r.mm_per_step)
         assert rep.n_steps == n and rep.realised_mm == pytest.approx(n * r.mm_per_step, rel=1e-12)
         t, signs = prog.step_times()
@@ -210,24 +214,63 @@ def test_the_quantiser_lands_on_whole_steps_of_the_rig(shipped_rig):  # rig-para
         assert min(it.interval_us for it in prog.items if isinstance(it, Segment)) >= r.min_interval_us
 
 
-def test_a_request_faster_than_the_rig_is_refused(shipped_rig):  # rig-parametrised
-    r = shipped_rig
+def test_a_request_faster_than_the_rig_is_refused(rig_file):  # every shipped rig, as a value
+    r = rig_file
     with pytest.raises(ValueError, match=f"interval limit.*{r.min_interval_us} us"):
-        programmes.experiment_programme(r.hw("speed_limit_mm_s") + 1.0, 5.0)
+        programmes.experiment_programme(r.hw("speed_limit_mm_s") + 1.0, 5.0, rig=rigfile.load(r.path))
     with pytest.raises(ValueError, match="travel"):
-        programmes.experiment_programme(50.0, r.longest_mm + r.mm_per_step)
+        programmes.experiment_programme(50.0, r.longest_mm + r.mm_per_step, rig=rigfile.load(r.path))
 
 
-def test_to_dict_round_trip_through_json():
+def test_to_dict_states_every_item_as_json():
     prog, _ = programmes.experiment_programme(200.0, 20.0, ZVD)
-    again = programme_from_dict(json.loads(json.dumps(prog.to_dict())))
-    assert again == prog
-    bad = prog.to_dict()
-    bad["net_steps"] += 1
-    with pytest.raises(ValueError, match="net_steps"):
-        programme_from_dict(bad)
-    with pytest.raises(ValueError, match="kind"):
-        programme_from_dict({"items": [{"kind": "GO"}]})
+    data = json.loads(json.dumps(prog.to_dict()))
+    assert [d["kind"] for d in data["items"]] == [it.command().split()[0] for it in prog.items]
+    assert data["items"][1] == {"kind": "SEG", **{k: getattr(prog.items[1], k) for k in
+                                                  ("direction", "n_steps", "interval_us")}}  # fmt: skip
+    assert data["net_steps"] == 0 and data["duration_s"] == prog.duration_s
+    moved = Programme((Move(7001, (3, 0, -1, 2)), Dwell(5))).to_dict()
+    assert json.loads(json.dumps(moved))["items"] == [
+        {"kind": "MSEG", "window_us": 7001, "steps": [3, 0, -1, 2]}, {"kind": "WAIT", "ms": 5},
+    ]  # fmt: skip
+
+
+def test_moves_step_every_axis_on_the_firmware_ticks():
+    """MSEG's step k of n on tick ceil(k 2W / n) of 0.5 us (firmware/PROTOCOL.md); SEG's at k x interval.
+
+    By hand: W = 7001 us = 14002 ticks: 3 steps at 4668, 9335, 14002 ticks (2334, 4667.5, 7001 us); 2 steps at
+    7001, 14002 ticks; then a 1 ms dwell and axis 0's SEG of 2 steps, 1000 us apart, from 8001 us.
+    """
+    prog = Programme((Move(7001, (3, 0, 1, -2)), Dwell(1), Segment(1, 2, 1000)))
+    (t0, s0), (t1, s1), (t2, s2), (t3, s3) = prog.step_times_us(4)
+    np.testing.assert_array_equal(t0, [2334.0, 4667.5, 7001.0, 9001.0, 10001.0])
+    assert len(t1) == 0 and list(t2) == [7001.0] and list(t3) == [3500.5, 7001.0]
+    assert list(s0) == [1] * 5 and list(s3) == [-1, -1]
+    assert prog.commands(4) == ["CLEAR", "MSEG 7001 3 0 1 -2", "WAIT 1", "SEG 1 2 1000"]
+    assert prog.end_positions((0, 0, 0, 5)) == (5, 0, 1, 3) and prog.n_steps == 8
+
+
+FOUR = {  # four-tendon rig: 156 steps of travel, 78 of release, a step at most every 639 us
+    "past the travel": ((Move(200000, (0, 0, 0, 157)),), "tendon 4, item 1 .* travel limit: position 157"),
+    "past the release": ((Move(200000, (0, 0, -79, 0)),), r"tendon 3, item 1 .* position -79 .* -78-156"),
+    "too fast": ((Move(10000, (0, 16, 0, 0)),), "tendon 2, item 1 .* interval limit: a step every 625 us"),
+    "too slow": ((Move(3_000_000, (0, 0, 2, 0)),), "tendon 3, item 1 .* above the maximum interval"),
+    "more tendons than the rig": ((Move(100000, (1, 1, 1, 1, 1)),), "5 step counts, but the rig has 4"),
+}
+
+
+@pytest.mark.parametrize("case", list(FOUR))
+def test_several_tendons_are_checked_each_against_its_limits(case):
+    items, message = FOUR[case]
+    limits = Limits.of(rigfile.load(rigfile.resolve("four-tendon")))
+    with pytest.raises(ValueError, match=message):
+        Programme(items).check_limits(limits, (0, 0, 0, 0))
+    Programme((Move(200000, (156, -78, 0, 3)),)).check_limits(limits, (0, 0, 0, 0))  # the extremes pass
+
+
+def test_a_move_without_motion_is_no_item():
+    with pytest.raises(ValueError, match="no tendon moves"):
+        Move(1000, (0, 0, 0))
 
 
 # -- the experiment programme ----------------------------------------------------------------------
