@@ -20,14 +20,12 @@ from helpers.board.protocol import (
     FramingError,
     LegacyChecksum,
     Overrun,
-    Sample,
     StreamParser,
     checksum,
     frame,
     parse_body,
     unframe,
 )
-from helpers.rig.daq import ProgrammeStreamParser
 
 STRUCTURED_EXAMPLES = 1000
 FUZZ_EXAMPLES = 750
@@ -90,7 +88,8 @@ def test_frame_refuses_what_cannot_be_sent():
 
 
 def test_parse_body_classifies():
-    assert parse_body("D,5,1000,512,-3") == Sample(5, 1000, 512, -3)
+    assert parse_body("D,5,1000,512,-3") == (5, 1000, 512, -3)
+    assert parse_body("D,5,1000,512,7,0,-3,156", channels=2, axes=3) == (5, 1000, 512, 7, 0, -3, 156)
     assert parse_body("W,OVERRUN,2") == Overrun(2)
     assert parse_body("OK STOP 7") == "OK STOP 7"
     for bad in (
@@ -106,6 +105,9 @@ def test_parse_body_classifies():
     ):
         with pytest.raises(FramingError):
             parse_body(bad)
+    for bad in ("D,5,1000,512,7,0,-3", "D,5,1000,512,-7,0,-3,1", "D,5,1000,1024,7,0,-3,1", "D,5,9,5,7,0,x,1"):
+        with pytest.raises(FramingError):  # fields of 2 channels and 3 axes: too few, negative, too big, junk
+            parse_body(bad, channels=2, axes=3)
 
 
 def test_time_unwraps_across_the_32_bit_boundary():
@@ -283,8 +285,8 @@ def test_total_fuzzed_streams_is_at_least_ten_thousand():
 
 def test_impossible_step_counts_are_rejected_and_counted():
     """A bit error that survives the checksum can still describe the impossible: reject and count it."""
-    p = ProgrammeStreamParser(max_step_rate_hz=2000.0)
-    p.steps_range = (0, 78)
+    p = StreamParser(max_step_rate_hz=2000.0)
+    p.steps_range = [(0, 78)]
     lines = [
         frame("D,0,1000,600,10"),
         frame("D,1,2000,600,11"),  # 1 step in 1 ms: fine
@@ -303,8 +305,8 @@ def test_impossible_step_counts_are_rejected_and_counted():
 
 def test_a_step_while_the_programme_makes_none_is_rejected_and_counted():
     """Steps happen only inside the programme's segments; a count that changes in a dwell is impossible."""
-    p = ProgrammeStreamParser(max_step_rate_hz=2000.0)
-    p.step_windows = (np.array([2_000, 9_000]), np.array([4_000, 10_000]))  # two segments, a dwell between
+    p = StreamParser(max_step_rate_hz=2000.0)
+    p.step_windows = [(np.array([2_000, 9_000]), np.array([4_000, 10_000]))]  # two segments, a dwell between
     lines = [
         frame("D,0,1000,600,0"),
         frame("D,1,3000,600,2"),  # inside the first segment
@@ -320,16 +322,36 @@ def test_a_step_while_the_programme_makes_none_is_rejected_and_counted():
 
 def test_step_windows_cover_every_step_of_a_programme_and_no_dwell():
     from helpers.board.programmes import Dwell, Programme, Segment
-    from helpers.rig.experiment import GO_LATENCY_US, step_windows
+    from helpers.rig.driver import GO_LATENCY_US, step_windows
 
     prog = Programme((Dwell(1000), Segment(1, 10, 1000), Dwell(500), Segment(-1, 10, 2000)))
-    starts, ends = step_windows(prog, t_go_us=100_000)
-    times, _ = prog.step_times_us()
+    [(starts, ends)] = step_windows(prog, 1)
+    starts, ends = starts + 100_000, ends + 100_000  # GO at 100 ms of device time
+    times, _ = prog.step_times_us()[0]
     for t in times + 100_000:  # every step of the programme lies in a window
         i = np.searchsorted(starts, t, side="right") - 1
         assert i >= 0 and t <= ends[i]
     assert starts[0] == 100_000 + 1_001_000 - GO_LATENCY_US and len(starts) == 2
     assert ends[0] < 100_000 + 1_000_000 + 10_000 + 500_000  # the dwell between the segments stays closed
+
+
+def test_several_axes_are_judged_each_on_its_own():
+    """Two axes: axis 1 steps only in its window; a count of axis 0 that moves there is impossible."""
+    p = StreamParser(channels=2, axes=2, max_step_rate_hz=2000.0)
+    p.steps_range = [(0, 0), (-78, 156)]  # axis 0 holds still; axis 1 may pay out and pull
+    p.step_windows = [(np.array([], dtype=np.int64),) * 2, (np.array([2_000]), np.array([6_000]))]
+    lines = [
+        frame("D,0,1000,600,601,0,0"),
+        frame("D,1,3000,600,601,0,-2"),  # axis 1 in its window
+        frame("D,2,4000,600,601,1,-2"),  # axis 0 moved: outside its range
+        frame("D,3,5000,600,601,0,-60"),  # axis 1: 58 steps in 2 ms, faster than 2000 steps/s
+        frame("D,4,7000,600,601,0,-3"),  # axis 1 moved in (5000, 7000]: its window ends at 6000: fine
+        frame("D,5,9000,600,601,0,-4"),  # axis 1 moved outside its window
+    ]
+    rows, _ = p.feed(b"".join(lines))
+    assert [r[0] for r in rows] == [0, 1, 4]
+    assert p.stats.implausible == 3 and rows[-1] == (4, 7000, 600, 601, 0, -3)
+    assert p.stats.dropped == 2  # seq 2 and 3 before the last one accepted (seq 5's gap is known at STOP)
 
 
 def test_frame_command_prints_what_to_type(capsys):
