@@ -5,10 +5,11 @@ from __future__ import annotations
 import pytest
 from crc_reference import link_hex, xor_hex
 
+from helpers import rigfile
 from helpers.rig import OldFirmware
-from helpers.rig.boards import BoardLink
-from helpers.rig.daq import DaqBoard
-from helpers.rig.stepper import StepperBoard
+from helpers.rig.link import Link
+
+PAPER = rigfile.default_rig()
 
 
 class FakeBoard:
@@ -52,24 +53,24 @@ class FakeBoard:
 
 
 @pytest.mark.parametrize("hello", [False, True])
-@pytest.mark.parametrize("cls", [DaqBoard, StepperBoard])
-def test_a_1x_board_is_refused_with_one_clear_error(cls, hello):
-    port = FakeBoard(cls.kind, "1.0.0", xor_hex, hello=hello)
-    link = cls(port, timeout=0.5)
+@pytest.mark.parametrize("kind", ["daq", "stepper"])
+def test_a_1x_board_is_refused_with_one_clear_error(kind, hello):
+    port = FakeBoard(kind, "1.0.0", xor_hex, hello=hello)
+    link = Link(port, kind, PAPER, timeout=0.5)
     with pytest.raises(OldFirmware, match=r"firmware 1\.x .*XOR.*flash firmware 2\.x") as info:
         link.sync(hello_timeout=0.5)
     # without HELLO the old board answered the host's CRC-framed PING with an XOR-framed ERR CHECKSUM
-    expected = f"HELLO {cls.kind} 1.0.0" if hello else "ERR CHECKSUM bad checksum"
+    expected = f"HELLO {kind} 1.0.0" if hello else "ERR CHECKSUM bad checksum"
     assert repr(expected) in str(info.value)
 
 
 def test_the_current_firmware_is_accepted():
-    link = DaqBoard(FakeBoard("daq", "2.0.0", link_hex), timeout=0.5)
+    link = Link(FakeBoard("daq", "2.0.0", link_hex), "daq", PAPER, timeout=0.5)
     assert link.sync(hello_timeout=0.5) == "2.0.0"
 
 
 @pytest.mark.parametrize("version", ["3.0.0", "1.9.9"])
 def test_a_crc_framed_board_of_another_major_version_is_refused(version):
-    link = BoardLink(FakeBoard("board", version, link_hex), timeout=0.5)
+    link = Link(FakeBoard("board", version, link_hex), "board", PAPER, timeout=0.5)
     with pytest.raises(OldFirmware, match=rf"firmware {version}; this host speaks protocol 2"):
         link.sync(hello_timeout=0.5)
