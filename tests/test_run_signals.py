@@ -22,7 +22,7 @@ from helpers.base import signals
 from helpers.base.signals import Interrupted, interrupts_from_signals
 from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.recordings import RecordingExists
-from helpers.rig import experiment
+from helpers.rig import driver
 
 PROGRAMME = Programme((Dwell(50), Segment(1, 10, 2000), Dwell(50), Segment(-1, 10, 2000), Dwell(50)))
 
@@ -44,7 +44,7 @@ def _only_pair(folder):
 def test_a_signal_after_the_last_sample_still_saves_the_whole_run(tmp_path, monkeypatch, where):
     rig, world = make_rig()
     full = rig.run(PROGRAMME, path=tmp_path / "ref" / "r", progress=False)  # the same run, undisturbed
-    rig.stepper.enable(False)
+    rig.stepper.command("EN 0")
     fired = []
 
     def once(fn):
@@ -57,19 +57,19 @@ def test_a_signal_after_the_last_sample_still_saves_the_whole_run(tmp_path, monk
         return wrapped
 
     if where == "the final EN 0":  # the body's last command, after its last sample
-        real_enable = rig.stepper.enable
+        real_command = rig.stepper.command
 
-        def enable(on, *a, **k):
-            if not on and not fired:
+        def command(body, *a, **k):
+            if body == "EN 0" and not fired:
                 fired.append(where)
                 _signal_self()
-            return real_enable(on, *a, **k)
+            return real_command(body, *a, **k)
 
-        monkeypatch.setattr(rig.stepper, "enable", enable)
+        monkeypatch.setattr(rig.stepper, "command", command)
     elif where == "building the recording":
-        monkeypatch.setattr(rig, "_recording", once(rig._recording))
+        monkeypatch.setattr(rig, "recording", once(rig.recording))
     elif where == "the save":
-        monkeypatch.setattr(experiment.recordings, "save", once(recordings.save))
+        monkeypatch.setattr(driver.recordings, "save", once(recordings.save))
     with interrupts_from_signals(), pytest.raises(Interrupted) as info:
         rig.run(PROGRAMME, path=tmp_path / "g" / "p", progress=False)
         if where == "after the save":
@@ -117,7 +117,7 @@ def test_signals_at_random_instants_never_lose_a_finished_run(tmp_path):
         else:
             assert rec.status == "aborted" and len(rec.frame) <= len(full.frame)
         outcomes[rec.status] += 1
-        rig.stepper.enable(False)
+        rig.stepper.command("EN 0")
     assert sum(outcomes.values()) == 30
 
 
@@ -132,7 +132,7 @@ def test_a_second_run_to_the_same_name_is_refused_before_it_starts(tmp_path, mon
             with pytest.raises(RecordingExists, match=f"process {os.getpid()} is recording under this name"):
                 other.run(PROGRAMME, path=tmp_path / "p", progress=False)
             inner.append("refused")
-            assert set(other_world.stepper.received) == {"PING"}  # nothing was asked of its boards
+            assert set(other_world.stepper.received) == {"PING", "CONFIG"}  # nothing asked but its build
 
     world.listeners.append(lambda w: while_running(None) if w.t > 0.6 else None)
     rec = rig.run(PROGRAMME, path=tmp_path / "p", progress=False)
