@@ -17,7 +17,7 @@ CASES = [
     ("daq", "hang_at", BoardTimeout, "daq board sent no sample"),
     ("daq", "disconnect_at", BoardDisconnected, "daq board disconnected"),
     ("stepper", "reset_at", BoardReset, "stepper board reset"),
-    ("stepper", "hang_at", BoardTimeout, "did not report DONE"),
+    ("stepper", "hang_at", BoardTimeout, "stepper board did not answer 'POS' in 0.5 s"),  # DONE late: asked
     ("stepper", "disconnect_at", BoardDisconnected, "stepper board disconnected"),
 ]
 
@@ -25,17 +25,18 @@ CASES = [
 @pytest.mark.parametrize("board, fault, error, message", CASES)
 def test_board_fault_aborts_cleanly(tmp_path, board, fault, error, message):
     opts = f"&{fault}={FAULT_AT}"
-    rig, world = make_rig(**({"daq_options": opts} if board == "daq" else {"stepper_options": opts}))
+    where = {"daq_options": opts} if board == "daq" else {"stepper_options": opts}
+    rig, world = make_rig(silence_s=0.5, **where)
     path = tmp_path / "aborted"
     with pytest.raises(error, match=message) as info:
-        rig.run(PROG, path=path, progress=False, silence_timeout=0.5)
+        rig.run(PROG, path=path, progress=False)
     # every sample received before the fault is on disk, in an aborted recording that loads
     assert not path.with_suffix(".csv").exists()  # an aborted run never takes the run's own name
     assert info.value.saved_path.name.startswith("aborted_aborted_")
     rec = recordings.load(info.value.saved_path)
     assert rec.status == "aborted" and error.__name__ in rec.meta["abort_reason"]
     assert info.value.recording.meta["status"] == "aborted"
-    assert len(rec.frame) == rig.daq.stats.samples > 100
+    assert len(rec.frame) == rig.daq.parser.stats.samples > 100
     if board == "daq":
         assert rec.frame["t_us"].iloc[-1] <= (FAULT_AT + 1e-3) * 1e6 + world.t0_us
     # the driver is disabled: the stepper heard ABORT and EN 0 ...
@@ -64,7 +65,7 @@ def test_keyboard_interrupt_mid_run_saves_and_disables(tmp_path):
     assert rec.status == "aborted" and "KeyboardInterrupt" in rec.meta["abort_reason"]
     assert world.stepper.received[-2:] == ["ABORT", "EN 0"] and not world.stepper.enabled
     assert not world.daq.streaming
-    assert len(rec.frame) == rig.daq.stats.samples > 0
+    assert len(rec.frame) == rig.daq.parser.stats.samples > 0
 
 
 def _injected_during_the_run(world):
@@ -110,9 +111,9 @@ def test_a_stream_of_garbage_aborts_with_a_clear_reason(tmp_path):
 
 
 def test_a_run_that_fails_before_any_sample_saves_an_empty_loadable_recording(tmp_path):
-    rig, world = make_rig(daq_options="&disconnect_at=0.01")
+    rig, world = make_rig(daq_options="&disconnect_at=0.01", silence_s=0.5)
     with pytest.raises(BoardDisconnected) as info:
-        rig.run(PROG, path=tmp_path / "early", progress=False, silence_timeout=0.5)
+        rig.run(PROG, path=tmp_path / "early", progress=False)
     rec = recordings.load(info.value.saved_path)
     assert rec.status == "aborted" and len(rec.frame) == 0
 
