@@ -18,13 +18,14 @@ from pathlib import Path
 
 import pytest
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.base.paths import DATA_DIR, REPO_ROOT
 from helpers.board.programmes import Programme, Segment
 from helpers.commands.home import PositionUnknown, home
 from helpers.rig import PortBusy, Rig
-from helpers.rig.daq import DaqBoard
-from helpers.rig.stepper import StepperBoard
+from helpers.rig.link import Link, ints
+
+PAPER = rigfile.default_rig()
 
 PY = sys.executable
 
@@ -71,8 +72,8 @@ class Server:
         assert set(paths) == {"daq", "stepper"}, self.proc.stderr.read()[-500:]
         self.daq, self.stepper = paths["daq"], paths["stepper"]
         # ready when both boards answer (on a loaded machine the server's first answers can take seconds)
-        for board, path in ((DaqBoard, self.daq), (StepperBoard, self.stepper)):
-            board.open(path, hello_timeout=READY_S).close()
+        for kind, path in (("daq", self.daq), ("stepper", self.stepper)):
+            _board(path, kind).close()
 
     @property
     def ports(self) -> str:
@@ -145,11 +146,30 @@ def _message_lines(err: str) -> list[str]:
 
 def _boards_idle(server: Server) -> tuple[str, str]:
     """Ask both boards, as a new client, whether anything is still running: (CLEAR reply, RATE reply)."""
-    rig = Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=READY_S)
+    rig = Rig(server.ports, PAPER, recordings_calibration(), hello_timeout=READY_S)
     try:
         return rig.stepper.command("CLEAR"), rig.daq.command("RATE 1000")
     finally:
         rig.close()
+
+
+def _board(path: str, kind: str = "stepper", **kwargs) -> Link:
+    """One board of the server, as a client opens it (the paper's rig)."""
+    baud = getattr(PAPER.hardware, f"{kind}_baud")
+    return Link.open(path, kind, PAPER, baud, hello_timeout=READY_S, **kwargs)
+
+
+def _position(stepper: Link) -> int:
+    return ints(stepper.command("POS"))[0]
+
+
+def _pull(stepper: Link, steps: int) -> None:
+    """Another client pulls the cable in by ``steps`` and leaves it there."""
+    stepper.send_all(Programme((Segment(1, steps, 2000),)).commands())
+    stepper.command("EN 1")
+    stepper.command("GO")
+    while stepper.done is None:
+        stepper.read()
 
 
 def recordings_calibration() -> dict:
@@ -190,20 +210,20 @@ def _signal_mid_run(server: Server, data_dir: Path, sig: int, status: int) -> No
     # the boards are idle: no programme running (CLEAR is accepted), no stream running (RATE is accepted)
     assert _boards_idle(server) == ("OK CLEAR", "OK RATE 1000")
     # the cable stopped part-way: home brings it back from where the board says it is
-    stepper = StepperBoard.open(server.stepper, hello_timeout=READY_S)
+    stepper = _board(server.stepper)
     try:
-        assert stepper.position() > 0
-        assert "back to position 0" in home(stepper)
-        assert stepper.position() == 0
+        assert _position(stepper) > 0
+        assert "back to position 0" in home(stepper, PAPER)
+        assert _position(stepper) == 0
     finally:
         stepper.close()
 
 
 def test_a_second_client_on_the_same_ports_gets_port_busy(server, data_dir):
-    first = Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=READY_S)
+    first = Rig(server.ports, PAPER, recordings_calibration(), hello_timeout=READY_S)
     try:
         with pytest.raises(PortBusy, match="port busy"):
-            Rig.connect(server.ports, calibration=recordings_calibration(), hello_timeout=READY_S)
+            Rig(server.ports, PAPER, recordings_calibration(), hello_timeout=READY_S)
         proc = _record(data_dir, server.ports)
         _, err = proc.communicate(timeout=PROCESS_S)
         assert proc.returncode == 4 and err.count("\n") == 1 and "port busy" in err
@@ -228,14 +248,10 @@ def test_a_server_killed_mid_run_is_reported_and_the_data_kept(own_server, data_
 
 
 def test_home_returns_the_cable_from_where_the_board_says_it_is(server):
-    stepper = StepperBoard.open(server.stepper, hello_timeout=READY_S)
+    stepper = _board(server.stepper)
     try:  # another client leaves the cable pulled in by 40 steps
-        stepper.load(Programme((Segment(1, 40, 2000),)))
-        stepper.enable(True)
-        stepper.go()
-        while stepper.done_position is None:
-            stepper.pump()
-        assert stepper.position() == 40
+        _pull(stepper, 40)
+        assert _position(stepper) == 40
     finally:
         stepper.close()
     # a pulse refuses to start from there ...
@@ -243,9 +259,9 @@ def test_home_returns_the_cable_from_where_the_board_says_it_is(server):
     done = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT, timeout=PROCESS_S)
     assert done.returncode == 0, done.stderr
     assert "moved 40 steps" in done.stdout
-    stepper = StepperBoard.open(server.stepper, hello_timeout=READY_S)
+    stepper = _board(server.stepper)
     try:
-        assert stepper.position() == 0
+        assert _position(stepper) == 0
     finally:
         stepper.close()
 
@@ -253,13 +269,9 @@ def test_home_returns_the_cable_from_where_the_board_says_it_is(server):
 @pytest.mark.slow
 def test_a_pulse_refuses_to_start_away_from_zero(own_server, data_dir):
     server = own_server
-    stepper = StepperBoard.open(server.stepper, timeout=10.0, hello_timeout=READY_S)
+    stepper = _board(server.stepper, timeout=10.0)
     try:
-        stepper.load(Programme((Segment(1, 10, 2000),)))
-        stepper.enable(True)
-        stepper.go()
-        while stepper.done_position is None:
-            stepper.pump()
+        _pull(stepper, 10)
     finally:
         stepper.close()
     proc = _record(data_dir, server.ports)
@@ -272,12 +284,12 @@ def test_a_pulse_refuses_to_start_away_from_zero(own_server, data_dir):
 def test_home_after_a_board_reset_asks_for_confirmation():
     # the in-process virtual stepper restarts when its port opens, as an Arduino does (`home --ports virtual`
     # itself makes a new rig at 0 and says there is nothing to home: tests/test_cli_refusals.py)
-    stepper = StepperBoard.open("virtual://stepper?rig=home-after-reset")
+    stepper = _board("virtual://stepper?world=home-after-reset")
     try:
         assert stepper.booted_on_open
         with pytest.raises(PositionUnknown, match="position is unknown.*--confirm-slack"):
-            home(stepper)
-        assert "confirmed slack" in home(stepper, confirm_slack=True)
+            home(stepper, PAPER)
+        assert "confirmed slack" in home(stepper, PAPER, confirm_slack=True)
     finally:
         stepper.close()
 

@@ -124,10 +124,12 @@ def home(
             stepper.command("EN 0")
         except BoardError:
             pass
-    moved = ", ".join(f"tendon {i + 1} {abs(p)}" for i, p in enumerate(positions) if p)
+    moved = ", ".join(f"tendon {i + 1} {abs(p)}" for i, p in enumerate(positions) if p) if n > 1 else None
+    moved = moved or abs(positions[0])
     mm = abs(positions[far]) * rigfile.derived(rig).mm_per_step[far]
-    return (f"moved {moved} steps ({mm:.2f} mm the farthest) back to position 0 at {speed_mm_s:g} mm/s: "
-            f"positions {' '.join(map(str, stepper.done))} (driver disabled)")  # fmt: skip
+    at = " ".join(map(str, stepper.done))
+    return (f"moved {moved} steps ({mm:.2f} mm{' the farthest' if n > 1 else ''}) back to position 0 at "
+            f"{speed_mm_s:g} mm/s: positions {at} (driver disabled)")  # fmt: skip
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
