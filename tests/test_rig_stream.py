@@ -1,6 +1,6 @@
-"""StreamRig.stream on the in-process virtual rig (test-double plant): a stream of set-points through the
-board's
-shaper -> one recording, paced by the device clock, checked before sending, and safe however it ends.
+"""helpers.rig.stream.stream on the in-process virtual rig (test-double plant, one tendon): a stream of
+set-points through the board's shaper -> one recording, paced by the device clock, checked before sending, and
+safe however it ends.
 
 The oracle for what the board does is helpers.board.stream_reference (the firmware's reference, checked
 against the
@@ -20,7 +20,7 @@ from helpers import recordings
 from helpers.board import stream_reference as hs
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import BoardReset, BoardTimeout, SafetyError
-from helpers.rig.stream import StreamLimit, StreamStarved
+from helpers.rig.stream import StreamStarved, stream
 
 pytestmark = pytest.mark.streaming
 
@@ -65,7 +65,7 @@ def test_a_stream_records_what_the_reference_says_the_board_does(tmp_path, monke
     fifo = FifoWatch(monkeypatch)
     t_stream = _stream_start(world)
     setpoints = np.array(PROFILE) if kind == "array" else (v for v in PROFILE)
-    rec = rig.stream(setpoints, SHAPER, path=tmp_path / "s", progress=False, lead_periods=3)
+    rec = stream(rig, setpoints, SHAPER, path=tmp_path / "s", progress=False, lead_periods=3)
     assert rec.status == "complete"
     back = recordings.load(tmp_path / "s")
     sc = back.meta["scenario"]
@@ -121,16 +121,18 @@ REFUSED = [
     ({"setpoints": [0.0, "fast"]}, SafetyError, "set-point 1: 'fast' is not a number"),
     ({"setpoints": []}, SafetyError, "no set-points"),
     ({"setpoints": "abc"}, SafetyError, "array or an iterable"),
-    ({"setpoints": [[1.0, 2.0]]}, SafetyError, "one-dimensional"),
+    ({"setpoints": [[1.0, 2.0]]}, SafetyError, "set-point 0: 2 speeds for the rig's 1 tendon(s)"),
     ({"shaper": _Shaper([0.5, 0.4], [0.0, 0.1])}, ValueError, "sum to 0.9, not 1"),
     ({"shaper": _Shaper([0.5, 0.5], [0.0, 1.5])}, ValueError, "cannot be loaded on the board"),
-    ({"stream_rate_hz": 50}, ValueError, "stream_rate_hz must be 100"),
     ({"lead_periods": 8}, ValueError, "lead must be"),
     ({"tail_s": -1.0}, ValueError, "tail_s"),
     ({"rate_hz": 50}, SafetyError, "DAQ rate"),
-    # the whole shaped motion, from where the cable is, with the board's planner:
-    ({"setpoints": [390.0] * 50}, SafetyError, "would reach the travel limit (156 steps)"),
-    ({"setpoints": [-100.0] * 5}, SafetyError, "would reach the travel limit (0 steps)"),
+    # the whole command and its shaped motion, from where the cable is, with the board's planner:
+    ({"setpoints": [390.0] * 50}, SafetyError, "set-point 10: the set-points integrate to 168.06 steps"),
+    ({"setpoints": [-100.0] * 5}, SafetyError, "set-point 0: the set-points integrate to -3.92 steps"),
+    # 100 mm/s = 411 units = 3.92 steps a period: 38 periods command 148.9 steps, the overshoot of 1.5 v
+    # before -0.5 v (5 periods later) adds 0.5 x 3.92 x 5 = 9.8 steps: 158.7 > 156
+    ({"setpoints": [100.0] * 38, "shaper": OVERSHOOT}, SafetyError, "would reach the travel limit (156"),
     ({"setpoints": [365.0] * 10, "shaper": OVERSHOOT}, SafetyError, "would exceed the speed limit"),
 ]
 
@@ -139,7 +141,7 @@ REFUSED = [
 def test_bad_streams_are_refused_before_anything_moves(spied, tmp_path, kwargs, error, message):
     kwargs = {"setpoints": [0.0, 100.0, 0.0], "shaper": None, **kwargs}
     with pytest.raises(error, match=message.replace("(", r"\(").replace(")", r"\)")):
-        spied.stream(path=tmp_path / "never", progress=False, **kwargs)
+        stream(spied, path=tmp_path / "never", progress=False, **kwargs)
     assert not list(tmp_path.iterdir())
 
 
@@ -172,54 +174,57 @@ ENDINGS = [
     ("reset", BoardReset, "stepper board reset", True),
     ("hang", BoardTimeout, "did not answer 'V", False),
     ("host stalls", StreamStarved, r"watchdog fired \(N,WATCHDOG,", True),
-    ("clamp after END", StreamLimit, r"clamped the shaped motion \(N,LIMIT,TRAVEL,156\)", True),
+    ("past the travel", SafetyError, "set-point 10: the set-points integrate to 168.06 steps", True),
 ]
 
 
 @pytest.mark.parametrize("what, error, message, heard", ENDINGS, ids=[e[0] for e in ENDINGS])
 def test_every_way_a_stream_ends_early_cleans_up_and_saves(tmp_path, what, error, message, heard):
     options = {"reset": "&reset_at=2.0", "hang": "&hang_at=2.0"}.get(what, "")
-    rig, world = make_rig(stepper_options=options)
+    rig, world = make_rig(stepper_options=options, silence_s=0.5)
     shaper = hs.StreamShaper.quantise([0.25, 0.5, 0.25], [0.0, 0.125, 0.25])  # ZVD-like: 250 ms
     setpoints = {
         "too fast": _too_fast_at(25),
         "host stalls": _stalling_host(world, 20, 0.15),
-        "clamp after END": iter([390.0] * 11),  # 172 steps in all: only the shaper's tail reaches 156
+        "past the travel": iter([390.0] * 11),  # 15.28 steps a period: the 11th commands 168 > 156 steps
     }.get(what, iter([50.0] * 300))
     if what == "ctrl-c":
         _interrupt_after(world, 0.5)
     with pytest.raises(error, match=message) as info:
-        rig.stream(setpoints, shaper, path=tmp_path / "s", progress=False, silence_timeout=0.5)
+        stream(rig, setpoints, shaper, path=tmp_path / "s", progress=False)
     saved = info.value.saved_path
     assert saved.name.startswith("s_aborted_") and not (tmp_path / "s.csv").exists()
     rec = recordings.load(saved)
     assert rec.status == "aborted" and error.__name__ in rec.meta["abort_reason"]
     st = rec.meta["scenario"]["stream"]
-    assert 0 < st["n_setpoints"] == len(st["periods"]) and len(rec.frame) == rig.daq.stats.samples > 1000
+    assert 0 < st["n_setpoints"] == len(st["periods"])
+    assert len(rec.frame) == rig.daq.parser.stats.samples > 1000
     if heard:  # ABORT (the stream stops at once) and EN 0 (driver off) reached the stepper
         assert world.stepper.received[-2:] == ["ABORT", "EN 0"] and not world.stepper.enabled
         assert world.stepper.stream is None
     else:
         assert "cleanup: ABORT to the stepper board failed" in rec.meta["abort_reason"]
     assert not world.daq.streaming and world.daq.received[-1] == "STOP"
-    if what == "clamp after END":
-        assert st["notices"] == ["N,LIMIT,TRAVEL,156"] and st["clamps"] == {"speed": 0, "travel": 1}
+    if what == "past the travel":  # refused before the 11th set-point was sent
+        assert st["n_setpoints"] == 10 and st["notices"] == []
     if what == "host stalls":
         assert st["watchdog"] and not world.stepper.enabled
 
 
 def test_clamps_may_be_allowed_and_are_counted(tmp_path):
     rig, world = make_rig()
-    shaper = hs.StreamShaper.quantise([0.25, 0.5, 0.25], [0.0, 0.125, 0.25])
-    rec = rig.stream(iter([390.0] * 11 + [0.0] * 30 + [-390.0] * 11), shaper, path=tmp_path / "c",
-                     progress=False, allow_clamps=True)  # fmt: skip
+    # the command stays within the travel (148.9 steps up and back), the overshooting shaper does not
+    setpoints = [100.0] * 38 + [0.0] * 30 + [-100.0] * 38
+    rec = stream(rig, iter(setpoints), OVERSHOOT, path=tmp_path / "c", progress=False, allow_clamps=True)
     st = rec.meta["scenario"]["stream"]
     # the motion was not the command's (clamped): never complete, and saved beside the name it asked for
     assert rec.status == "deviated" and "clamped" in rec.meta["deviation"]
     assert rec.path.name.startswith("c_deviated_") and not (tmp_path / "c.csv").exists()
     assert st["clamps"] == {"speed": 0, "travel": 2}
     assert st["notices"] == ["N,LIMIT,TRAVEL,156", "N,LIMIT,TRAVEL,0"]
-    assert rec.frame["steps"].max() == 156 and rec.meta["done_position"] == 0
+    sent = dict(zip(st["periods"], st["setpoints"], strict=True))
+    ref = hs.simulate(OVERSHOOT, hs.PeriodCommands(sent, st["end_period"]))
+    assert rec.frame["steps"].max() == 156 and rec.meta["done_position"] == ref.position != 0
     assert recordings.load(rec.path).status == "deviated"
 
 

@@ -109,7 +109,8 @@ class SetpointSource:
 
     def __init__(self, setpoints: Any, rig: RigFile, name: str | None = None) -> None:
         if isinstance(setpoints, str | bytes) or not isinstance(setpoints, Iterable):
-            raise SafetyError(f"set-points must be an array or iterable of speeds in mm/s, got {setpoints!r}")
+            got = repr(setpoints)
+            raise SafetyError(f"set-points must be an array or an iterable of speeds in mm/s, got {got}")
         self.rig, self.n = rig, rig.n_tendons
         self.sized = isinstance(setpoints, np.ndarray) or hasattr(setpoints, "__len__")
         self.name = name or ("array" if self.sized else type(setpoints).__name__)
@@ -602,12 +603,16 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
     ended: list[Any] = []  # (finish us from GO, every tendon's end) once END is sent
     noticed = 0
 
-    def step(now: int) -> Any:
-        nonlocal pending, noticed
+    def take_notices() -> None:
+        nonlocal noticed
         for line in stepper.notices[noticed:]:
             noticed += 1
             record.notice(line)
             refuse_notice(line, allow_clamps)
+
+    def step(now: int) -> Any:
+        nonlocal pending
+        take_notices()
         now += state.t_go_us
         while not ended and pacer.due(now):
             if pending is None:
@@ -625,8 +630,7 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
                 period: int | None = ints(stepper.command(f"{word} " + " ".join(map(str, row))))[-1]
             except CommandRefused as exc:
                 if exc.code != "FULL":
-                    for line in stepper.notices[noticed:]:  # a stream the board has ended refuses: say why
-                        refuse_notice(line, allow_clamps)
+                    take_notices()  # a stream the board has ended (the watchdog) refuses: say why
                     raise
                 period = None
             rig.daq.read(block=False)  # device time went on while the source and the board were asked
