@@ -67,8 +67,8 @@ def make_world(**kwargs) -> VirtualWorld:
 
 
 def make_rig(
-    daq_options: str = "", stepper_options: str = "", rig: rigfile.RigFile | None = None, silence_s: float = 2.0,
-    **world_kwargs,
+    daq_options: str = "", stepper_options: str = "", rig: rigfile.RigFile | None = None,
+    silence_s: float = 2.0, **world_kwargs,
 ) -> tuple[Rig, VirtualWorld]:
     """A connected rig on a fresh test-double world; options are URL query strings like '&hang_at=1'.
 

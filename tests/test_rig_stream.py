@@ -20,7 +20,7 @@ from helpers import recordings
 from helpers.board import stream_reference as hs
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import BoardReset, BoardTimeout, SafetyError
-from helpers.rig.stream import StreamStarved, stream
+from helpers.rig.stream import StreamLimit, StreamStarved, stream
 
 pytestmark = pytest.mark.streaming
 
@@ -127,9 +127,11 @@ REFUSED = [
     ({"lead_periods": 8}, ValueError, "lead must be"),
     ({"tail_s": -1.0}, ValueError, "tail_s"),
     ({"rate_hz": 50}, SafetyError, "DAQ rate"),
-    # the whole command and its shaped motion, from where the cable is, with the board's planner:
-    ({"setpoints": [390.0] * 50}, SafetyError, "set-point 10: the set-points integrate to 168.06 steps"),
-    ({"setpoints": [-100.0] * 5}, SafetyError, "set-point 0: the set-points integrate to -3.92 steps"),
+    # the whole shaped motion, from where the cable is, with the board's planner:
+    ({"setpoints": [390.0] * 50}, SafetyError, "would reach the travel limit (156 steps)"),
+    ({"setpoints": [-100.0] * 5}, SafetyError, "would reach the travel limit (0 steps)"),
+    # where clamps are allowed, a command past the travel is refused still: 390 mm/s is 15.28 steps a period
+    ({"setpoints": [390.0] * 50, "allow_clamps": True}, SafetyError, "set-point 10: the set-points integ"),
     # 100 mm/s = 411 units = 3.92 steps a period: 38 periods command 148.9 steps, the overshoot of 1.5 v
     # before -0.5 v (5 periods later) adds 0.5 x 3.92 x 5 = 9.8 steps: 158.7 > 156
     ({"setpoints": [100.0] * 38, "shaper": OVERSHOOT}, SafetyError, "would reach the travel limit (156"),
@@ -174,7 +176,7 @@ ENDINGS = [
     ("reset", BoardReset, "stepper board reset", True),
     ("hang", BoardTimeout, "did not answer 'V", False),
     ("host stalls", StreamStarved, r"watchdog fired \(N,WATCHDOG,", True),
-    ("past the travel", SafetyError, "set-point 10: the set-points integrate to 168.06 steps", True),
+    ("clamp in the tail", StreamLimit, r"after the last set-point, the shaped stream would reach the", True),
 ]
 
 
@@ -186,7 +188,7 @@ def test_every_way_a_stream_ends_early_cleans_up_and_saves(tmp_path, what, error
     setpoints = {
         "too fast": _too_fast_at(25),
         "host stalls": _stalling_host(world, 20, 0.15),
-        "past the travel": iter([390.0] * 11),  # 15.28 steps a period: the 11th commands 168 > 156 steps
+        "clamp in the tail": iter([390.0] * 11),  # 168 steps in all: only the shaper's tail reaches 156
     }.get(what, iter([50.0] * 300))
     if what == "ctrl-c":
         _interrupt_after(world, 0.5)
@@ -205,8 +207,8 @@ def test_every_way_a_stream_ends_early_cleans_up_and_saves(tmp_path, what, error
     else:
         assert "cleanup: ABORT to the stepper board failed" in rec.meta["abort_reason"]
     assert not world.daq.streaming and world.daq.received[-1] == "STOP"
-    if what == "past the travel":  # refused before the 11th set-point was sent
-        assert st["n_setpoints"] == 10 and st["notices"] == []
+    if what == "clamp in the tail":  # the host planned the tail before END: stopped before the board clamped
+        assert st["notices"] == [] and st["n_setpoints"] == 11 and st["end_period"] is None
     if what == "host stalls":
         assert st["watchdog"] and not world.stepper.enabled
 

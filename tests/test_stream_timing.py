@@ -19,7 +19,7 @@ from helpers import recordings
 from helpers.board import stream_reference as hs
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import BoardError
-from helpers.rig.stream import StreamLimit
+from helpers.rig.stream import StreamLimit, stream
 
 STEPS_PER_UNIT_PERIOD = 625 / 2**16
 """Steps one set-point unit moves in one period (PROTOCOL.md: 2^-16 step per 16 us, 625 x 16 us)."""
@@ -52,7 +52,7 @@ def test_a_late_host_never_moves_the_cable_further_than_commanded(tmp_path, late
     rig, world = make_rig()
     shaper = hs.StreamShaper.quantise([0.25, 0.5, 0.25], [0.0, 0.125, 0.25]) if shaped else None
     command = [50.0] * 8 + [0.0] * 5 + [-25.0] * 4 + [0.0] * 5  # up 4 mm, back 1 mm
-    rec = rig.stream(_source(world, command, LATENESS[late]), shaper, path=tmp_path / "s", progress=False)
+    rec = stream(rig, _source(world, command, LATENESS[late]), shaper, path=tmp_path / "s", progress=False)
     st = rec.meta["scenario"]["stream"]
     sent = [_units(v) for v in command]
     assert st["setpoints"] == sent
@@ -92,8 +92,8 @@ def test_a_stall_that_would_make_the_shaped_motion_clamp_stops_the_stream_before
     assert not whole.notices and max(np.cumsum(whole.directions)) < hs.TRAVEL_MAX  # on time: no clamp
     late = {15: 0.09}
     with pytest.raises(StreamLimit, match="fell behind") as info:
-        rig.stream(_source(world, command, lambda i: late.get(i, 0.0)), zvd, path=tmp_path / "t",
-                   progress=False)  # fmt: skip
+        stream(rig, _source(world, command, lambda i: late.get(i, 0.0)), zvd, path=tmp_path / "t",
+               progress=False)  # fmt: skip
     saved = recordings.load(info.value.saved_path)
     st = saved.meta["scenario"]["stream"]
     assert saved.status == "aborted" and st["notices"] == [] and st["clamps"]["travel"] == 0
@@ -104,6 +104,6 @@ def test_a_stepper_with_firmware_2_0_is_refused_a_stream_before_anything_moves(t
     rig, world = make_rig()
     rig.stepper.version = "2.0.0"  # as a board of that firmware reports itself
     with pytest.raises(BoardError, match="firmware 2.0.0.*hold the last set-point"):
-        rig.stream([50.0] * 5, None, path=tmp_path / "u", progress=False)
+        stream(rig, [50.0] * 5, None, path=tmp_path / "u", progress=False)
     assert not any(c.startswith(("STREAM", "V ", "SHAPER")) for c in world.stepper.received)
     assert not (tmp_path / "u.csv").exists()

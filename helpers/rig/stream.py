@@ -10,9 +10,10 @@ axes) and shapes every tendon with the one loaded shaper. :func:`stream` runs a 
   speed limit, at most ``max_programme_s`` long;
 - :class:`ShapedCheck`: the board's own planner (:class:`~helpers.board.stream_reference.AxesRun`) run ahead
   of the board on what the host is about to send, with the commanded cable of every tendon: a set-point is
-  refused before it is sent when it would take a tendon past its travel (``-release..travel``), leave every
-  tendon slack (the rig file's statics, :func:`~helpers.rig.safety.check_slack`) or, unless ``allow_clamps``,
-  make the board clamp the shaped motion (travel, speed); an array as a whole before the run;
+  refused before it is sent when it would leave every tendon slack (the rig file's statics,
+  :func:`~helpers.rig.safety.check_slack`) or make the board clamp the shaped motion (travel
+  ``-release..travel``, speed); with ``allow_clamps``, when its integral takes a tendon past its travel; an
+  array as a whole before the run;
 - :class:`Pacer`: when to send the next set-point, from the DAQ's clock, so that the FIFO holds about
   ``lead`` of them: neither ``ERR FULL`` nor an underrun;
 - :class:`StreamRecord`: what the recording's ``scenario.stream`` says (the shaper as loaded, every set-point
@@ -184,8 +185,7 @@ class ShapedCheck:
         Every tendon's step count at ``STREAM``.
     rig : RigFile
     refuse : bool
-        Raise on a predicted clamp (False: ``allow_clamps``; the travel and slack of the command are refused
-        either way).
+        Raise on a predicted clamp (False: ``allow_clamps``: then a command past the travel is refused).
     """
 
     def __init__(self, shaper: hs.StreamShaper, start: tuple[int, ...], rig: RigFile, refuse: bool = True
@@ -200,7 +200,7 @@ class ShapedCheck:
         self.gaps = 0
         """Periods the board got no set-point for, so far."""
 
-    def _plan(self, row: tuple[int, ...] | None, late: str = "") -> None:
+    def _plan(self, row: tuple[int, ...] | None, late: str = "", where: str = "") -> None:
         self.period += 1
         k = self.period
         before = len(self.run.notices)
@@ -213,8 +213,8 @@ class ShapedCheck:
                     else "exceed the speed limit (the shaper overshoots)")  # fmt: skip
             if self.gaps and not late:
                 late = f"the host fell behind earlier ({self.gaps} period(s) without a set-point), so "
-            raise StreamLimit(f"{who}set-point {k - 1}: {late}the shaped stream would {what} in period "
-                              f"{x.period}")  # fmt: skip
+            where = where or f"set-point {k - 1}: "
+            raise StreamLimit(f"{who}{where}{late}the shaped stream would {what} in period {x.period}")
 
     def checkpoint(self) -> tuple:
         """The prediction's state, to go back to when the board assigns the set-point another period."""
@@ -229,10 +229,14 @@ class ShapedCheck:
         self.rules.state, self.rules.underruns, self.rules.watchdog_period, self.rules.end_period = rules
 
     def setpoint(self, row: tuple[int, ...]) -> None:
-        """Plan the next period with ``row``; ``SafetyError`` if the command or the board's motion fails."""
+        """Plan the next period with ``row``; ``SafetyError`` if the command or the board's motion fails.
+
+        The board's planner refuses any clamp of the shaped motion; where clamps are allowed, a command whose
+        integral leaves a tendon's travel is refused still (a clamp would be certain, not an overshoot).
+        """
         self.commanded = self.commanded + np.asarray(row) * STEPS_PER_UNIT_PERIOD
         for i, x in enumerate(self.commanded):
-            if not -self.release[i] - 1e-9 <= x <= self.travel[i] + 1e-9:
+            if not self.refuse and not -self.release[i] - 1e-9 <= x <= self.travel[i] + 1e-9:
                 who = f"tendon {i + 1}, " if self.rig.n_tendons > 1 else ""
                 lim = -self.release[i], self.travel[i]
                 raise SafetyError(
@@ -264,7 +268,7 @@ class ShapedCheck:
         """Plan the stream's end (``END``: zeros until the shaped motion is over); the tendons' positions."""
         self.rules.end_period = self.period + 1
         while self.run.finish_tick is None:
-            self._plan(None)
+            self._plan(None, where="after the last set-point, ")
         return tuple(p.c for p in self.run.planners)
 
     def reach(self) -> list[tuple[int, int]]:
@@ -618,10 +622,11 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
             if pending is None:
                 try:
                     pending = next(feed)
-                except StopIteration:
+                except StopIteration:  # the shaper's tail planned first: refused before the board clamps
+                    end = check.end()
                     end_period = ints(stepper.command("END"))[-1]
                     record.data["end_period"] = end_period
-                    ended.append((pacer.finish_us(end_period, record.q_max) - state.t_go_us, check.end()))
+                    ended.append((pacer.finish_us(end_period, record.q_max) - state.t_go_us, end))
                     break
             planned = check.checkpoint()
             check.setpoint(pending)  # refused before the byte is sent if the board would clamp
