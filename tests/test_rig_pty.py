@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from rig_fakes import CALIBRATION, make_world
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.board import stream_reference as hs
 from helpers.board.programmes import Dwell, Programme, Segment
-from helpers.rig.stream import StreamStarved
-from helpers.rig.stream_rig import StreamRig
+from helpers.rig import Rig
+from helpers.rig.stream import StreamStarved, stream
 from helpers.virtual.emulator.server import serve
 
 READY_S = 60.0
@@ -48,7 +48,7 @@ def _serve(speed: float):
 
 def test_record_over_pseudo_terminals(tmp_path):
     ports, world, finish = _serve(speed=4.0)
-    rig = StreamRig.connect(ports, calibration=CALIBRATION, hello_timeout=READY_S)
+    rig = Rig(ports, rigfile.selected(), CALIBRATION, hello_timeout=READY_S)
     prog = Programme((Dwell(100), Segment(1, 20, 1000), Dwell(100), Segment(-1, 20, 1000), Dwell(50)))
     rec = rig.run(prog, path=tmp_path / "pty", progress=False)
     rig.close()
@@ -64,16 +64,15 @@ def test_record_over_pseudo_terminals(tmp_path):
 @pytest.mark.slow  # streams in-process: tests/test_rig_stream.py (default suite)
 @pytest.mark.streaming
 def test_stream_over_pseudo_terminals_in_real_time(tmp_path):
-    """The same StreamRig.stream as in-process, paced by the server's device clock through the ports (at half
-    real
-    time: the host may stall 140 ms, a busy shared machine, before the board runs short)."""
+    """The same stream as in-process, paced by the server's device clock through the ports (at half real time:
+    the host may stall 140 ms, a busy shared machine, before the board runs short)."""
     ports, world, finish = _serve(speed=0.5)
-    rig = StreamRig.connect(ports, calibration=CALIBRATION, hello_timeout=READY_S)
+    rig = Rig(ports, rigfile.selected(), CALIBRATION, hello_timeout=READY_S)
     shaper = hs.StreamShaper((1024, 2048, 1024), (0, 40_000, 80_000))
     setpoints = [150.0] * 8 + [0.0] * 10 + [-150.0] * 8 + [0.0] * 4
     # a lead of 7 periods (70 ms of device time) before the board would run short
-    rec = rig.stream(setpoints, shaper, path=tmp_path / "s", progress=False, lead_in_s=0.3, tail_s=0.3,
-                     lead_periods=7)  # fmt: skip
+    rec = stream(rig, setpoints, shaper, path=tmp_path / "s", progress=False, lead_in_s=0.3, tail_s=0.3,
+                 lead_periods=7)  # fmt: skip
     rig.close()
     finish()
     back = recordings.load(tmp_path / "s")
@@ -120,14 +119,14 @@ def test_slow_bursty_and_stalling_sources_never_move_the_cable_further_than_comm
     tmp_path, busy_machine, source
 ):
     ports, world, finish = _serve(speed=1.0)
-    rig = StreamRig.connect(ports, calibration=CALIBRATION, hello_timeout=30.0)
+    rig = Rig(ports, rigfile.selected(), CALIBRATION, hello_timeout=30.0)
     command = [100.0] * 10 + [0.0] * 4 + [-50.0] * 6 + [0.0] * 4  # 10 mm up, 3 mm back
     unit = (1 / 2**16) / 16e-6 * 0.25525  # mm/s of one set-point unit (PROTOCOL.md)
     try:
         if source == "stalling":
             with pytest.raises(StreamStarved, match="watchdog") as info:
-                rig.stream(_paced(command, SOURCES[source]), None, path=tmp_path / "s", progress=False,
-                           lead_in_s=0.3, tail_s=0.3)  # fmt: skip
+                stream(rig, _paced(command, SOURCES[source]), None, path=tmp_path / "s", progress=False,
+                       lead_in_s=0.3, tail_s=0.3)  # fmt: skip
             rec = recordings.load(info.value.saved_path)
             assert rec.status == "aborted" and rec.meta["scenario"]["stream"]["watchdog"]
         else:
@@ -135,8 +134,8 @@ def test_slow_bursty_and_stalling_sources_never_move_the_cable_further_than_comm
             # board's 100 ms watchdog: the board then ends the stream, which is safe, and the run is kept.
             # The claim under test holds either way: the cable never goes further than commanded.
             try:
-                rec = rig.stream(_paced(command, SOURCES[source]), None, path=tmp_path / "s",
-                                 progress=False, lead_in_s=0.3, tail_s=0.3)  # fmt: skip
+                rec = stream(rig, _paced(command, SOURCES[source]), None, path=tmp_path / "s",
+                             progress=False, lead_in_s=0.3, tail_s=0.3)  # fmt: skip
             except StreamStarved as starved:
                 rec = recordings.load(starved.saved_path)
                 assert rec.status == "aborted" and rec.meta["scenario"]["stream"]["watchdog"]
