@@ -10,12 +10,12 @@ import shutil
 import pytest
 from rig_fakes import make_rig
 
+from helpers import rigfile
 from helpers.__main__ import main
 from helpers.base.paths import DATA_DIR
 from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.commands.home import home
-from helpers.rig import SafetyError, check_request, discovery, experiment
-from helpers.rig.experiment import NotAtZero
+from helpers.rig import NotAtZero, SafetyError, check_request, link
 
 
 @pytest.fixture
@@ -29,7 +29,7 @@ def data(tmp_path, monkeypatch):
     def no_port(*a, **k):
         raise AssertionError("a port was opened")
 
-    monkeypatch.setattr(experiment.Rig, "connect", classmethod(lambda cls, *a, **k: no_port()))
+    monkeypatch.setattr(link, "open_port", no_port)
     return tmp_path
 
 
@@ -55,7 +55,7 @@ def test_the_longest_pulse_the_help_promises_is_accepted_for_every_shaper(data, 
     assert _status([*args[:5], "40", *args[6:], "--dry-run"]) == 2
     assert "--x-f: 40 is outside (0, 39.82]" in _one_line(capsys)
     with pytest.raises(SafetyError, match="157 steps, beyond the travel of 156 steps"):
-        check_request(200, 40)
+        check_request(200, 40, rigfile.default_rig())
 
 
 def test_an_existing_recording_is_refused_before_connecting_naming_the_ways_out(data, capsys):
@@ -76,7 +76,7 @@ def test_a_missing_identification_is_a_data_error(data, capsys):
 
 
 def test_no_boards_found_by_usb_is_a_board_fault(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(discovery, "candidate_ports", lambda: [])
+    monkeypatch.setattr("serial.tools.list_ports.comports", lambda: [])
     for sub in ("calibration",):
         (tmp_path / sub).mkdir()
         shutil.copy(DATA_DIR / "calibration" / "calibration.json", tmp_path / sub)
@@ -116,13 +116,13 @@ def test_home_on_the_in_process_rig_says_there_is_nothing_to_do(capsys):
 
 def test_home_stops_a_programme_an_earlier_session_left_running():
     rig, world = make_rig()
-    rig.stepper.load(Programme((Segment(1, 40, 1000), Dwell(60_000))), start_position=0)
-    rig.stepper.enable(True)
-    rig.stepper.go()
+    rig.stepper.send_all(Programme((Segment(1, 40, 1000), Dwell(60_000))).commands())
+    rig.stepper.command("EN 1")
+    rig.stepper.command("GO")
     world.advance_to(world.t + 0.1)  # 40 steps done, a minute's dwell to go: the programme runs
     assert world.stepper.running and world.stepper.position == 40
     rig.stepper.booted_on_open = False  # as a board that kept running (serve-virtual-rig, no reset-on-open)
-    said = home(rig.stepper)
+    said = home(rig.stepper, rig.rig)
     assert said.startswith("moved 40 steps") and world.stepper.position == 0 and not world.stepper.enabled
     assert world.stepper.received.index("ABORT") > world.stepper.received.index("GO")
 
@@ -130,7 +130,7 @@ def test_home_stops_a_programme_an_earlier_session_left_running():
 def test_a_pulse_away_from_zero_names_the_way_home_for_these_ports(tmp_path):
     rig, world = make_rig()
     rig.run(Programme((Dwell(50), Segment(1, 10, 1000), Dwell(50))), path=tmp_path / "a", progress=False)
-    with pytest.raises(NotAtZero, match=r"helpers\.commands\.home\.home\(rig\.stepper\)"):
+    with pytest.raises(NotAtZero, match=r"helpers\.commands\.home\.home\(rig\.stepper, rig\.rig\)"):
         rig.run_pulse(100, 5, path=tmp_path / "b", progress=False)
     rig.source["ports"] = {"daq": "/dev/pts/5", "stepper": "/dev/pts/6"}  # as over serve-virtual-rig
     with pytest.raises(NotAtZero, match="python -m helpers home --ports /dev/pts/5,/dev/pts/6"):

@@ -9,11 +9,11 @@ import shutil
 import pytest
 from rig_fakes import GAIN, OFFSET, make_world
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.base.paths import DATA_DIR
 from helpers.commands import record
 from helpers.paper import calibration as loadcell
-from helpers.rig import loadcell as loadcell_recording
+from helpers.rig import static as loadcell_recording
 
 
 def _args(*argv):
@@ -31,7 +31,7 @@ def test_record_calibration_recovers_the_sensor_line(tmp_path):
     assert data["offset_counts"] == pytest.approx(OFFSET, abs=0.5)
     assert data["source"] == {"kind": "virtual-rig"}
     recs = loadcell_recording.load_calibration_recordings(tmp_path / "calibration")
-    assert [r.meta["scenario"]["mass_kg"] for r in recs] == list(loadcell_recording.CALIBRATION_MASSES_KG)
+    assert [r.meta["scenario"]["mass_kg"] for r in recs] == [0.0, 0.2, 0.5, 1.0, 1.5, 1.9]  # 20 N cell
     assert all(r.meta["scenario"]["fixture"].startswith("VIRTUAL") for r in recs)
     assert world.load_n is None  # the fixture is removed afterwards
 
@@ -101,7 +101,7 @@ def test_dry_run_refuses_what_the_real_run_would_refuse(tmp_path):
         record.run(_args("pulse", "--v-in", "400", "--x-f", "40", *common))
     assert record.run(_args("pulse", "--v-in", "400", "--x-f", "39.82", *common)) == 0  # 156 steps: the top
     with pytest.raises(record.SafetyError, match="beyond the travel of 156 steps"):  # and the API says why
-        record.check_request(400, 40)
+        record.check_request(400, 40, rigfile.default_rig())
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "unshaped_v200_x10.json").write_text("{}")
     with pytest.raises(recordings.RecordingExists, match="exists"):

@@ -404,9 +404,13 @@ class Rig:
             start = self.positions()
             check_programme(programme, self.rig, start, rest_ok)
             if from_zero and any(start):
+                ports = self.source["ports"]
+                home = ("helpers.commands.home.home(rig.stepper, rig.rig) (the in-process rig lives here)"
+                        if ports["daq"].startswith("virtual://") else
+                        f"`python -m helpers home --ports {ports['daq']},{ports['stepper']}`")  # fmt: skip
                 raise NotAtZero(
                     f"the cable is at {start} steps, not at 0 (the paper's experiments start from the down "
-                    f"position): run `python -m helpers home --ports ...` (or Rig.home()) first"
+                    f"position): run {home} first"
                 )
             self._note_start(scenario, start, noise_seed)
             cum = np.cumsum([[0] * self.n] + [item.counts(self.n) for item in programme.items], axis=0)
