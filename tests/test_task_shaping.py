@@ -19,11 +19,11 @@ import pytest
 
 from helpers import rigfile
 from helpers.__main__ import main
+from helpers.board.programmes import Dwell, Move, Programme
 from helpers.paper.shapers import Shaper
 from helpers.research import task_shaping as ts
 from helpers.research.task_space import MovePlan, move_programme, plan_move
 from helpers.rig.safety import SafetyError
-from helpers.rig.tendon_safety import TendonItem, TendonProgramme
 from helpers.virtual.spatial.direction_map import frequency_map
 from helpers.virtual.spatial.from_rig import spatial_rig
 
@@ -181,7 +181,7 @@ def test_auto_picks_the_shortest_candidate_within_the_tolerance(four) -> None:
 
 
 def test_the_programme_steps_fall_on_the_firmwares_ticks() -> None:
-    prog = TendonProgramme((TendonItem.dwell(2), TendonItem(1000, (3, -1)), TendonItem(500, (0, 1))))
+    prog = Programme((Dwell(2), Move(1000, (3, -1)), Move(500, (0, 1))))
     (t1, s1), (t2, s2) = ts.programme_step_times(prog, 2)
     np.testing.assert_allclose(t1, np.array([2333.5, 2667.0, 3000.0]) * 1e-6)  # ceil(2k 1000/3)/2 + 2 ms
     np.testing.assert_array_equal(s1, [1, 1, 1])
@@ -192,10 +192,10 @@ def test_the_programme_steps_fall_on_the_firmwares_ticks() -> None:
 def test_a_prepull_pulls_every_tendon_in_first_and_lets_each_out_alone_after(four) -> None:
     prog = move_programme(_plan(), four, 200.0, None, 1.0, 3.0, 5.0)
     pre, start, release = ts.prepull_programme(prog, 2, 4)
-    assert pre.items[0] == TendonItem(2000, (2, 2, 2, 2))
+    assert pre.items[0] == Move(2000, (2, 2, 2, 2))
     assert start == pytest.approx(2.0e-3 + ts.PREPULL_SETTLE_MS / 1e3)
     assert release == pytest.approx(start + prog.duration_s)
-    outs = [it.steps for it in pre.items[len(prog.items) + 2 :] if it.steps is not None]
+    outs = [it.steps for it in pre.items[len(prog.items) + 2 :] if isinstance(it, Move)]
     assert outs == [(-2, 0, 0, 0), (0, 0, -2, 0), (0, -2, 0, 0), (0, 0, 0, -2)]
     assert pre.end_positions((0, 0, 0, 0)) == (0, 0, 0, 0)
     assert ts.prepull_programme(prog, 0, 4) == (prog, 0.0, prog.duration_s)

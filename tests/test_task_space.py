@@ -20,8 +20,7 @@ from helpers import recordings, rigfile
 from helpers.__main__ import main
 from helpers.paper.shapers import Shaper
 from helpers.research.task_space import MovePlan, check_travel, move_design, move_programme, plan_move
-from helpers.rig.safety import SafetyError
-from helpers.rig.tendon_safety import check_tendon_programme
+from helpers.rig.safety import SafetyError, check_programme
 from helpers.virtual.emulator.world import forget_world
 
 MM = math.pi * 65 / 800
@@ -143,7 +142,7 @@ def test_a_shaped_programme_convolves_every_tendon_with_the_same_impulses(four) 
     assert cmds[5:8] == [f"MSEG {w} -14 -14 14 14", "WAIT 64", f"MSEG {w + 264} -14 -14 13 13"]
     assert prog.end_positions((30, 30, 30, 30)) == (30, 30, 30, 30)
     assert prog.duration_s == pytest.approx(5.0, abs=2e-3)
-    check_tendon_programme(prog, four, start=(30, 0, 30, 30))
+    check_programme(prog, four, start=(30, 0, 30, 30))
 
 
 def test_the_design_uses_the_direction_maps_mode_at_the_bend(hanging) -> None:

@@ -25,8 +25,7 @@ from helpers.research import tip_stream as ts
 from helpers.research import tip_stream_metrics as tm
 from helpers.research.task_space import plan_move
 from helpers.rig.safety import SafetyError
-from helpers.rig.stream import StreamLimit
-from helpers.rig.tendon_stream import check_tendon_stream, tendon_units
+from helpers.rig.stream import StreamLimit, check_stream
 from helpers.virtual.emulator.world import forget_world
 
 MM = math.pi * 65 / 800
@@ -172,9 +171,9 @@ def test_the_stream_checks_a_shaped_motion_after_a_lead_at_rest(four) -> None:
     overshoot = hs.StreamShaper((6144, -2048), (0, 50_000), allow_negative=True)
     sp = np.zeros((23, 4))
     sp[20:, 3] = 365.0
-    with pytest.raises(StreamLimit, match=r"^tendon 4: the shaped stream would exceed the speed limit .* in "
-                                          r"period 21$"):  # fmt: skip
-        check_tendon_stream(tendon_units(sp, four), four, (0, 0, 0, 0), overshoot)
+    with pytest.raises(StreamLimit, match=r"^tendon 4, set-point 20: the shaped stream would exceed the "
+                                          r"speed limit .* in period 21$"):  # fmt: skip
+        check_stream(sp, four, (0, 0, 0, 0), overshoot)
 
 
 # --- the shaper ---------------------------------------------------------------------------------------------
