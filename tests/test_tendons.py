@@ -21,15 +21,14 @@ from tendon_fakes import Clock, talk
 
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
+from helpers.board.programmes import Dwell, Move, Programme
 from helpers.board.protocol import frame
 from helpers.commands.benchmarks.serial_tendons import pty_stream_tendons
 from helpers.commands.home import PositionUnknown, home
 from helpers.commands.metrics_tendons import tendon_table, tip_table
-from helpers.rig.boards import BoardError, WrongRig
-from helpers.rig.safety import SafetyError
-from helpers.rig.stepper import StepperBoard
-from helpers.rig.tendon_safety import TendonProgramme, check_tendon_programme, slack_tendons
-from helpers.rig.tendons import TendonRig, TendonStepper
+from helpers.rig import BoardError, Rig, SafetyError, WrongRig
+from helpers.rig.link import Link
+from helpers.rig.safety import check_programme, static_tensions
 from helpers.virtual.emulator.tendon_boards import (
     BuildLimits,
     TendonDaqEmulator,
@@ -177,27 +176,27 @@ def test_intervals_ending_mid_conversion_give_the_samples_of_whole_ones(four: ri
 
 # --- the host: safety per tendon, connecting, running, homing ------------------------------------------
 def _programme(*moves):
-    return TendonProgramme.moves(moves)
+    """Items from ``(window_us, steps)`` pairs (``steps`` None: a dwell of the window)."""
+    return Programme(tuple(Dwell(w // 1000) if n is None else Move(w, n) for w, n in moves))
 
 
 @pytest.mark.parametrize(
     ("moves", "message"),
     [
         ([(200_000, (100, 0, 0, 0)), (200_000, (57, 0, 0, 0))],
-         "tendon 1, item 2: position 157 steps is past its travel of -78-156 steps (-19.9-39.8 mm)"),
-        ([(100_000, (0, 0, -79, 0))],
-         "tendon 3, item 1: position -79 steps is past its travel of -78-156 steps"),
+         "tendon 1, item 2 (MSEG 200000 57 0 0 0): travel limit: position 157 steps (40.07 mm) is past "
+         "-78-156 steps (-19.9-39.8 mm)"),
+        ([(100_000, (0, 0, -79, 0))], "tendon 3, item 1 (MSEG 100000 0 0 -79 0): travel limit: position -79"),
         ([(10_000, (0, 16, 0, 0))],
-         "tendon 2, item 1: 16 steps in 10000 us is a step every 625 us, below the step-interval floor of "
-         "639 us"),
-        ([(100_000, (1, 1, 1))], "item 1: 3 step counts for the rig's 4 tendons"),
-        ([(100_000, (0, 0, 0, 0))], "item 1: no tendon moves"),
-        ([(61_000_000, None)], "item 1: dwell 61000 ms outside 0-60000 ms"),
+         "tendon 2, item 1 (MSEG 10000 0 16 0 0): interval limit: a step every 625 us (408 mm/s) is below "
+         "the minimum interval 639 us"),
+        ([(100_000, (1, 1, 1, 1, 1))], "item 1 (MSEG 100000 1 1 1 1 1): 5 step counts, but the rig has 4"),
+        ([(61_000_000, None)], "dwell limit: item 1 (WAIT 61000) exceeds the longest dwell, 60000 ms"),
     ],
 )  # fmt: skip
 def test_programmes_past_a_tendons_limit_are_refused_in_one_line(four, moves, message) -> None:
     with pytest.raises(SafetyError) as info:
-        check_tendon_programme(_programme(*moves), four)
+        check_programme(_programme(*moves), four, (0, 0, 0, 0))
     assert message in str(info.value) and "\n" not in str(info.value)
     assert error_line(info.value)[1] == 3  # docs/faults.md: refused by the safety limits
 
@@ -206,16 +205,14 @@ def test_a_state_with_every_tendon_slack_is_refused(four) -> None:
     """With no pretension, pretension + k pull = 0 N at position 0: returning every tendon there leaves the
     arm on no tendon (71706.96 N/m x 10 steps x 0.255254 mm = 183.0 N while pulled)."""
     slack = rigfile.loads(four.text.replace("pretension_n = 2.3554", "pretension_n = 0.0"), "slack.toml")
-    ok = _programme((100_000, (10, 0, 0, 0)))
-    assert check_tendon_programme(ok, slack) == (10, 0, 0, 0)
+    check_programme(_programme((100_000, (10, 0, 0, 0))), slack, (0, 0, 0, 0))
     refusal = r"tendons 1-4, item 2: every tendon slack at positions \(0, 0, 0, 0\)"
     with pytest.raises(SafetyError, match=refusal):
-        check_tendon_programme(_programme((100_000, (10, 0, 0, 0)), (100_000, (-10, 0, 0, 0))), slack)
-    assert slack_tendons(slack, (0, 0, 0, 0)) == [True] * 4
-    assert slack_tendons(four, (0, 0, 0, 0)) == [False] * 4  # 2.3554 N each
+        check_programme(_programme((100_000, (10, 0, 0, 0)), (100_000, (-10, 0, 0, 0))), slack, (0, 0, 0, 0))
+    np.testing.assert_allclose(static_tensions(slack, (10, 0, 0, 0)), [183.035, 0, 0, 0], atol=1e-3)
+    np.testing.assert_allclose(static_tensions(four, (0, 0, 0, 0)), [2.3554] * 4)
     # homing returns to the rest the rig file describes
-    back = _programme((100_000, (-10, 0, 0, 0)))
-    assert check_tendon_programme(back, slack, (10, 0, 0, 0), rest_ok=True) == (0, 0, 0, 0)
+    check_programme(_programme((100_000, (-10, 0, 0, 0))), slack, (10, 0, 0, 0), rest_ok=True)
 
 
 def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> None:
@@ -225,13 +222,14 @@ def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> 
     register_world(w)
     try:
         with pytest.raises(WrongRig) as info:
-            TendonRig.connect("virtual", rig=four, rig_name=w.name)
+            Rig("virtual", four, world=w.name)
     finally:
         forget_world(w.name)
     assert str(info.value).startswith(
-        "the daq board reports 2 load-cell channel(s) and 4 step counter(s), but rig 'four-tendon' has 4 "
-        "tendons"
+        "the daq board was built for 2 load cell(s) and 4 step counter(s), but rig 'four-tendon' has 4 "
+        "tendon(s)"
     )
+    assert "CONFIG" in w.daq.received and not [c for c in w.stepper.received if c not in ("PING", "CONFIG")]
     assert "make -C firmware RIG=" in str(info.value) and error_line(info.value)[1] == 4
 
 
@@ -243,68 +241,82 @@ def test_a_stepper_built_without_the_rig_files_release_is_refused(four) -> None:
     register_world(w)
     try:
         with pytest.raises(WrongRig) as info:
-            TendonRig.connect("virtual", rig=four, rig_name=w.name)
+            Rig("virtual", four, world=w.name)
     finally:
         forget_world(w.name)
     assert str(info.value).startswith(
-        "the stepper board's axis 0 pays out 0 steps below position 0, but rig 'four-tendon' gives tendon 1 "
-        "78 (release_mm)"
+        "the stepper board was built for axis 0 travelling -0..156 steps, but rig 'four-tendon' has 4 "
+        "tendon(s), tendon 1 travelling -78..156"
     )
     assert "\n" not in str(info.value) and error_line(info.value)[1] == 4
 
 
-class _Configured(TendonStepper):
-    """A stepper driver whose ``CONFIG`` reply is given (no port)."""
+class _Configured:
+    """A board whose ``CONFIG`` reply is given (no port)."""
 
     def __init__(self, reply: str) -> None:
-        super().__init__(None)
-        self.reply = reply
+        self.reply, self.sent = reply, []
 
     def command(self, line: str, *args, **kwargs) -> str:  # noqa: D102
-        assert line == "CONFIG"
+        self.sent.append(line)
         return self.reply
 
 
-def test_config_lists_the_releases_after_the_travels_or_none() -> None:
+def _builds(four, stepper_reply: str) -> None:
+    """The rig's check of both boards' builds (``CONFIG``) against ``four``, boards answering as given."""
+    rig = type("R", (), {"n": 4, "rig": four, "_config": staticmethod(Rig._config)})()
+    rig.daq, rig.stepper = _Configured("OK CONFIG 4 4 100 2000"), _Configured(stepper_reply)
+    Rig._check_builds(rig)
+
+
+def test_config_lists_the_releases_after_the_travels_or_none(four) -> None:
     head = "OK CONFIG 4 64 639 1000000 156 156 156 156"
-    s = _Configured(head)
-    assert s.configure() == (4, (156,) * 4) and s.release == (0,) * 4  # a build without a release
-    s = _Configured(head + " 78 78 78 78")
-    assert s.configure() == (4, (156,) * 4) and s.release == (78,) * 4
-    with pytest.raises(BoardError, match="malformed reply"):
-        _Configured(head + " 78").configure()  # neither A nor 2A numbers after the limits
+    _builds(four, head + " 78 78 78 78")  # the four-tendon build: its releases after the travels
+    with pytest.raises(WrongRig, match="axis 0 travelling -0..156 steps"):  # a build without a release
+        _builds(four, head)
+    with pytest.raises(BoardError, match="malformed CONFIG"):
+        _builds(four, head + " 78")  # neither A nor 2A numbers after the limits
+    with pytest.raises(WrongRig, match="built for 3 axis/axes, but rig 'four-tendon' has 4 tendon"):
+        _builds(four, "OK CONFIG 3 64 639 1000000 156 156 156 78 78 78")
 
 
 def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
     register_world(default_world("tendons-test-paper"))  # the paper's boards: one axis, the paper's hash
     try:
         with pytest.raises(WrongRig, match="built for rig 481e87e3, but this host runs rig 'four-tendon'"):
-            TendonRig.connect("virtual", rig=four, rig_name="tendons-test-paper")
+            Rig("virtual", four, world="tendons-test-paper")
     finally:
         forget_world("tendons-test-paper")
 
 
 @pytest.fixture(scope="module")
 def four_rig(four):
-    register_world(tendon_world(four, "tendons-test-rig"))
-    rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-rig")
+    register_world(tendon_world(four, "tendons-test-rig")).stepper.take_output()  # its HELLO at power-up
+    # a stepper that keeps counting when its port opens (no reset): home() may trust its count
+    rig = Rig("virtual", four, world="tendons-test-rig", stepper_options="&reset_on_open=0")
     yield rig
     rig.close()
     forget_world("tendons-test-rig")
 
 
-def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(four_rig) -> None:
+def _run(rig, programme, tmp_path, tail_s=0.2):
+    """Run ``programme`` (a recording under ``tmp_path``); its frame."""
+    name = f"r{len(list(tmp_path.glob('*.csv')))}"
+    return rig.run(programme, path=tmp_path / name, tail_s=tail_s, progress=False).frame
+
+
+def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(four_rig, tmp_path) -> None:
     world = get_world("tendons-test-rig")
     sent = len(world.stepper.received)
-    with pytest.raises(SafetyError, match="tendon 4, item 1: position 157"):
-        four_rig.run(_programme((200_000, (0, 0, 0, 157))))
+    with pytest.raises(SafetyError, match="tendon 4, item 1 .* position 157"):
+        _run(four_rig, _programme((200_000, (0, 0, 0, 157))), tmp_path)
     assert len(world.stepper.received) == sent  # refused before any byte
     # two coordinated moves from zero, then back to one tendon pulled
-    f = four_rig.run(_programme((40_000, (8, 0, 0, 5))), tail_s=0.2)
-    assert four_rig.positions == (8, 0, 0, 5)
+    f = _run(four_rig, _programme((40_000, (8, 0, 0, 5))), tmp_path)
+    assert four_rig.positions() == (8, 0, 0, 5)
     back = _programme((40_000, (0, 6, 0, -5)), (10_000, None), (40_000, (-8, 0, 0, 0)))
-    f = four_rig.run(back, tail_s=0.3)
-    assert four_rig.positions == (0, 6, 0, 0)
+    f = _run(four_rig, back, tmp_path, tail_s=0.3)
+    assert four_rig.positions() == (0, 6, 0, 0)
     assert list(f.columns[:10]) == ["seq", "t_us"] + [f"adc_{i}" for i in range(4)] + [
         f"steps_{i}" for i in range(4)
     ]
@@ -314,23 +326,23 @@ def test_a_coordinated_programme_records_every_tendon_and_home_brings_them_back(
     assert [last[f"steps_{i}"] for i in range(4)] == [0, 6, 0, 0]
     assert last["cable_mm_1"] == pytest.approx(6 * 3.14159265 * 65 / 800)
     assert f["tension_n_0"].iloc[0] == pytest.approx((first["adc_0"] - 122.88) / 24.576)
-    assert four_rig.home() is not None and four_rig.positions == (0, 0, 0, 0)
-    assert four_rig.stepper.positions() == (0, 0, 0, 0)
-    assert four_rig.home() is None  # nothing to do
+    assert "moved tendon 2 6 steps" in home(four_rig.stepper, four_rig.rig)
+    assert four_rig.positions() == (0, 0, 0, 0)
+    assert home(four_rig.stepper, four_rig.rig).startswith("every tendon is at position 0 already")
 
 
-def test_tendons_pay_out_below_rest_down_to_the_release_and_home_pulls_them_back(four_rig) -> None:
-    assert four_rig.stepper.release == (78, 78, 78, 78)  # CONFIG's releases, the rig file's 78 steps
+def test_tendons_pay_out_below_rest_down_to_the_release_and_home_pulls_them_back(four_rig, tmp_path) -> None:
     world = get_world("tendons-test-rig")
     sent = len(world.stepper.received)
-    with pytest.raises(SafetyError, match=r"^tendon 3, item 2: position -79 steps is past its travel of -78"):
-        four_rig.run(_programme((100_000, (0, 0, -40, 0)), (100_000, (0, 0, -39, 0))))
+    with pytest.raises(SafetyError, match=r"^programme refused: tendon 3, item 2 .* position -79 .* -78"):
+        _run(four_rig, _programme((100_000, (0, 0, -40, 0)), (100_000, (0, 0, -39, 0))), tmp_path)
     assert len(world.stepper.received) == sent  # refused before any byte
-    f = four_rig.run(_programme((100_000, (20, 0, -78, -5))), tail_s=0.2)
-    assert four_rig.positions == (20, 0, -78, -5)
+    f = _run(four_rig, _programme((100_000, (20, 0, -78, -5))), tmp_path)
+    assert four_rig.positions() == (20, 0, -78, -5)
     assert [f.iloc[-1][f"steps_{i}"] for i in range(4)] == [20, 0, -78, -5]
     assert f.iloc[-1]["cable_mm_2"] == pytest.approx(-78 * 3.14159265 * 65 / 800)
-    assert four_rig.home() is not None and four_rig.stepper.positions() == (0, 0, 0, 0)
+    home(four_rig.stepper, four_rig.rig)
+    assert four_rig.positions() == (0, 0, 0, 0)
 
 
 # --- recordings: version 3 for several tendons, version 2 for one ----------------------------------------
@@ -353,10 +365,9 @@ def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
 @pytest.fixture(scope="module")
 def tendon_recording_path(four_rig, tmp_path_factory):
     programme = _programme((40_000, (5, 0, 0, 4)), (40_000, (-5, 3, 0, -4)))
-    frame = four_rig.run(programme, tail_s=0.2)
-    rec = four_rig.recording(frame, programme)
-    path = recordings.save(rec, tmp_path_factory.mktemp("tendon_rec") / "g" / "four")
-    four_rig.home()
+    path = four_rig.run(programme, path=tmp_path_factory.mktemp("tendon_rec") / "g" / "four", tail_s=0.2,
+                        progress=False).path  # fmt: skip
+    home(four_rig.stepper, four_rig.rig)
     return path
 
 
@@ -455,11 +466,11 @@ def pulse_recording_path(four, tmp_path_factory):
     """Tendons 1 and 2 (0-based 0 and 1) pulled 6 and 4 steps together after 0.6 s, held 1.6 s, released
     (a rig of its own: the twin at rest)."""
     register_world(tendon_world(four, "tendons-test-pulse"))
-    four_rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-pulse")
+    four_rig = Rig("virtual", four, world="tendons-test-pulse")
     pull, hold = (20_000, (6, 4, 0, 0)), (1_600_000, None)
     programme = _programme((600_000, None), pull, hold, (20_000, (-6, -4, 0, 0)))
-    frame = four_rig.run(programme, tail_s=1.6)
-    path = recordings.save(four_rig.recording(frame, programme), tmp_path_factory.mktemp("pulse") / "g" / "p")
+    path = four_rig.run(programme, path=tmp_path_factory.mktemp("pulse") / "g" / "p", tail_s=1.6,
+                        progress=False).path  # fmt: skip
     four_rig.close()
     forget_world("tendons-test-pulse")
     return path
@@ -539,10 +550,10 @@ def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(mon
     monkeypatch.setenv("HELPERS_RIG", "four-tendon")
     forget_world("tendons-test-url")
     try:
-        rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-url")
+        rig = Rig("virtual", four, world="tendons-test-url")
         try:
             assert isinstance(get_world("tendons-test-url"), TendonWorld)
-            assert rig.stepper.configure() == (4, (156, 156, 156, 156))
+            assert rig.stepper.command("CONFIG") == "OK CONFIG 4 64 639 1000000 156 156 156 156 78 78 78 78"
         finally:
             rig.close()
     finally:
@@ -589,13 +600,14 @@ def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monk
     try:
         assert talk(w.stepper, "EN 1", "MSEG 40000 5 -3 0 7", "GO")[-1] == "OK GO 1"
         w.advance_to(0.1)
-        stepper = StepperBoard.open("virtual://stepper?rig=tendons-test-home&reset_on_open=0", rig=four)
+        url = "virtual://stepper?world=tendons-test-home&reset_on_open=0"
+        stepper = Link.open(url, "stepper", four, four.hardware.stepper_baud)
         try:
-            said = home(stepper)
+            said = home(stepper, four)
         finally:
             stepper.close()
         assert w.stepper.positions == [0, 0, 0, 0] and not w.stepper.enabled
-        assert said.startswith("moved every tendon back to position 0 (tendon 1 5, tendon 2 3, tendon 4 7")
+        assert said.startswith("moved tendon 1 5, tendon 2 3, tendon 4 7 steps (1.79 mm the farthest) back")
         assert "MSEG 35735 -5 3 0 -7" in w.stepper.received
     finally:
         forget_world("tendons-test-home")
@@ -607,37 +619,24 @@ class _RebootedStepper:
     booted_on_open = True
 
     def __init__(self) -> None:
-        self.enabled: list[bool] = []
+        self.sent: list[str] = []
 
-    def enable(self, on: bool) -> None:
-        self.enabled.append(on)
+    def command(self, line: str) -> str:
+        self.sent.append(line)
+        return f"OK {line}"
 
 
-def test_home_after_a_restart_asks_for_every_tendon_at_its_rest_pretension(monkeypatch) -> None:
-    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+def test_home_after_a_restart_asks_for_every_tendon_at_its_rest_pretension(four) -> None:
     stepper = _RebootedStepper()
     with pytest.raises(PositionUnknown) as info:
-        home(stepper)  # type: ignore[arg-type]
+        home(stepper, four)  # type: ignore[arg-type]
     text = str(info.value)
     assert "every tendon's position is unknown" in text and "every tendon is at its rest pretension" in text
     assert "slack" not in text.replace("--confirm-slack", "") and "\n" not in text
-    assert "confirmed at its rest pretension" in home(stepper, confirm_slack=True)  # type: ignore[arg-type]
-    assert stepper.enabled == [False]
-    monkeypatch.setenv("HELPERS_RIG", "paper")  # the paper's one tendon: its slack cable, as before
+    assert "confirmed at its rest pretension" in home(stepper, four, confirm_slack=True)  # type: ignore[arg-type]
+    assert stepper.sent == ["EN 0"]
     with pytest.raises(PositionUnknown, match="make sure the cable is slack and the arm down at rest"):
-        home(stepper)  # type: ignore[arg-type]
-
-
-def test_the_one_tendon_rig_refuses_a_rig_file_of_several_tendons(monkeypatch, four) -> None:
-    from helpers.rig import experiment
-    from helpers.virtual.emulator import world as world_module
-
-    monkeypatch.setattr(experiment, "RIG", four)
-    with pytest.raises(ValueError) as info:
-        experiment.Rig.connect("virtual", rig_name="tendons-test-one")
-    assert str(info.value).startswith("rig 'four-tendon' has 4 tendons, but Rig drives one")
-    assert error_line(info.value)[1] == 2
-    assert "tendons-test-one" not in world_module._WORLDS  # no port opened, so no world was made
+        home(stepper, rigfile.default_rig())  # type: ignore[arg-type]  # the paper's one tendon: its slack cable
 
 
 @pytest.mark.slow

@@ -233,7 +233,8 @@ class Rig:
             raise
         world_ = self.world
         if world_ is not None:
-            self.source = {"kind": "virtual-rig", "via": "in-process", "rig": world_.name, **world_.info}
+            info = world_.info if self.n == 1 else {}  # the spatial twin's nested parameters: not a v3 key
+            self.source = {"kind": "virtual-rig", "via": "in-process", "rig": world_.name, **info}
         else:
             self.source = virtual_source_for(urls) or {"kind": "hardware"}
         self.source["ports"] = {"daq": urls[0].split("?")[0], "stepper": urls[1].split("?")[0]}
