@@ -1,6 +1,6 @@
 """Streams of several tendons: the emulated four-tendon stepper's multi-axis stream mode, and the host's
-:class:`~helpers.rig.tendon_stream.TendonStreamRig` (checks before any byte, the stream, its recording, a
-board reset mid-stream).
+:func:`helpers.rig.stream.stream` on a rig of four tendons (checks before any byte, the stream, its
+recording, a board reset mid-stream).
 
 Expected values by hand from ``rigs/four-tendon.toml``: pi 65 / 800 = 0.2552544 mm per step, so one
 set-point unit (2^-16 step per 16 us = 0.95367 steps/s) is 0.2434288 mm/s, and a unit held for one 10 ms
@@ -20,10 +20,10 @@ from tendon_fakes import Clock, talk
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line
 from helpers.board import stream_reference as hs
-from helpers.rig.boards import BoardReset
-from helpers.rig.safety import SafetyError
-from helpers.rig.stream import StreamLimit
-from helpers.rig.tendon_stream import TendonStreamRig, check_tendon_stream, tendon_units
+from helpers.commands.home import home
+from helpers.rig import BoardReset, Rig, SafetyError
+from helpers.rig.stream import SetpointSource, StreamLimit, check_stream
+from helpers.rig.stream import stream as run_stream
 from helpers.virtual.emulator.tendon_boards import TendonStepperEmulator, build_limits
 from helpers.virtual.emulator.tendon_world import tendon_world
 from helpers.virtual.emulator.world import forget_world, get_world, register_world
@@ -119,25 +119,25 @@ def _rows(n: int, **columns: float) -> np.ndarray:
 @pytest.mark.parametrize(
     ("setpoints", "message"),
     [
-        # 50 mm/s = 205.40 -> 205 units = 1.95503 steps per period: 80 periods reach 156.40 steps (39.9 mm)
-        (_rows(100, t2=50.0), "tendon 2, set-point 79: the set-points integrate to 156.40 steps (39.92 mm), "
-                              "past its travel of -78-156 steps (-19.9-39.8 mm)"),
-        # -50 mm/s = -205 units = -1.95503 steps per period: 40 periods reach -78.20 steps (-19.96 mm), past
-        # the release of 78 steps below rest
-        (_rows(50, t1=-50.0), "tendon 1, set-point 39: the set-points integrate to -78.20 steps (-19.96 mm), "
-                              "past its travel of -78-156 steps (-19.9-39.8 mm)"),
+        # 50 mm/s = 205.40 -> 205 units = 1.95503 steps per period: the (unit-shaped) motion of period 80
+        # passes 156 steps (79.8 periods)
+        (_rows(100, t2=50.0), "tendon 2, set-point 79: the shaped stream would reach the travel limit (156 "
+                              "steps) in period 80"),
+        # -50 mm/s = -205 units = -1.95503 steps per period: period 40 passes -78 steps (the release)
+        (_rows(50, t1=-50.0), "tendon 1, set-point 39: the shaped stream would reach the travel limit (-78 "
+                              "steps) in period 40"),
         # 400 mm/s = 1643.2 units > 1640 (399.2 mm/s)
         (_rows(3, t3=400.0), "tendon 3, set-point 0: 400 mm/s exceeds the stream's speed limit of 399.2 mm/s "
                              "(1640 board units)"),
         (np.full((2, 4), np.nan), "tendon 1, set-point 0: nan mm/s is not finite"),
-        (np.zeros((5, 3)), "set-points of shape (5, 3): expected (periods, 4), one speed per tendon"),
+        (np.zeros((5, 3)), "set-point 0: 3 speeds for the rig's 4 tendon(s)"),
         (np.zeros((0, 4)), "no set-points: the stream is empty"),
         (np.zeros((60_001, 4)), "60001 set-points last 600 s, over the host's limit of 600 s"),
     ],
 )  # fmt: skip
 def test_streams_past_a_tendons_limit_are_refused_in_one_line(four, setpoints, message) -> None:
     with pytest.raises(SafetyError) as info:
-        check_tendon_stream(tendon_units(setpoints, four), four, (0, 0, 0, 0), hs.UNIT_SHAPER)
+        check_stream(setpoints, four, (0, 0, 0, 0), hs.UNIT_SHAPER)
     assert message in str(info.value) and "\n" not in str(info.value)
     assert error_line(info.value)[1] == 3  # docs/faults.md: refused by the safety limits
 
@@ -147,39 +147,40 @@ def test_a_period_with_every_tendon_slack_is_refused(four) -> None:
     five periods and releasing it for five brings every tendon back to 0 steps at set-point 9."""
     slack = rigfile.loads(four.text.replace("pretension_n = 2.3554", "pretension_n = 0.0"), "slack.toml")
     there = _rows(5, t1=10.0)
-    plan = check_tendon_stream(tendon_units(there, slack), slack, (0, 0, 0, 0), hs.UNIT_SHAPER)
+    plan = check_stream(there, slack, (0, 0, 0, 0), hs.UNIT_SHAPER)
     assert plan.end == (1, 0, 0, 0)  # 5 x 41 x 625 / 65536 = 1.955 steps
     back = np.vstack([there, -there])
     with pytest.raises(SafetyError) as info:
-        check_tendon_stream(tendon_units(back, slack), slack, (0, 0, 0, 0), hs.UNIT_SHAPER)
+        check_stream(back, slack, (0, 0, 0, 0), hs.UNIT_SHAPER)
     assert str(info.value).startswith(
-        "tendons 1-4, set-point 9: every tendon slack at positions (0.0, 0.0, 0.0, 0.0) steps "
+        "tendons 1-4, set-point 9: every tendon slack at positions (0, 0, 0, 0) steps "
         "(pretension + k pull = 0.00, 0.00, 0.00, 0.00 N <= 0)"
     )
     # with the rig file's pretension (2.3554 N each) the same stream is allowed
-    assert check_tendon_stream(tendon_units(back, four), four, (0, 0, 0, 0), hs.UNIT_SHAPER).end == (0,) * 4
+    assert check_stream(back, four, (0, 0, 0, 0), hs.UNIT_SHAPER).end == (0,) * 4
 
 
 def test_a_shaped_overshoot_is_refused_naming_the_tendon(four) -> None:
     """A 1.5 / -0.5 shaper (the second impulse 50 ms later) makes 365 mm/s (1499 units) on tendon 4 a shaped
     1.5 x 1499 = 2248.5 units in period 1, over the 1640 limit; allowed, the plan says so with the notice."""
     overshoot = hs.StreamShaper((6144, -2048), (0, 50_000), allow_negative=True)
-    units = tendon_units(_rows(3, t4=365.0), four)
-    assert units[0].tolist() == [0, 0, 0, 1499]
-    with pytest.raises(StreamLimit, match=r"^tendon 4: the shaped stream would exceed the speed limit .* in "
-                                          r"period 1$"):  # fmt: skip
-        check_tendon_stream(units, four, (0, 0, 0, 0), overshoot)
-    assert check_tendon_stream(units, four, (0, 0, 0, 0), overshoot, allow_clamps=True).end[3] > 0
+    rows = _rows(3, t4=365.0)
+    assert SetpointSource(rows, four).check_all()[0].tolist() == [0, 0, 0, 1499]
+    with pytest.raises(StreamLimit, match=r"^tendon 4, set-point 0: the shaped stream would exceed the speed "
+                                          r"limit .* in period 1$"):  # fmt: skip
+        check_stream(rows, four, (0, 0, 0, 0), overshoot)
+    assert check_stream(rows, four, (0, 0, 0, 0), overshoot, allow_clamps=True).end[3] > 0
     long = hs.StreamShaper((2048, 2048), (0, 700_000))
     with pytest.raises(SafetyError, match="beyond the 0.62 s a stepper board with several axes holds"):
-        check_tendon_stream(units, four, (0, 0, 0, 0), long)
+        check_stream(rows, four, (0, 0, 0, 0), long)
 
 
 # --- the host: streaming on the virtual four-tendon rig ----------------------------------------------------
 @pytest.fixture(scope="module")
 def stream_rig(four):
-    register_world(tendon_world(four, "tendon-streams-test"))
-    rig = TendonStreamRig.connect("virtual", rig=four, rig_name="tendon-streams-test")
+    register_world(tendon_world(four, "tendon-streams-test")).stepper.take_output()  # its HELLO at power-up
+    # a stepper that keeps counting when its port opens (no reset): home() may trust its count
+    rig = Rig("virtual", four, world="tendon-streams-test", stepper_options="&reset_on_open=0")
     yield rig
     rig.close()
     forget_world("tendon-streams-test")
@@ -188,11 +189,14 @@ def stream_rig(four):
 def test_refused_streams_send_nothing(stream_rig) -> None:
     world = get_world("tendon-streams-test")
     sent = len(world.stepper.received), len(world.daq.received)
-    with pytest.raises(SafetyError, match="tendon 2, set-point 79"):
-        stream_rig.stream(_rows(100, t2=50.0), path="unused/never")
+    with pytest.raises(SafetyError, match="tendon 2, set-point 0: 400 mm/s exceeds"):
+        run_stream(stream_rig, _rows(100, t2=400.0), path="unused/never")
     with pytest.raises(ValueError, match="lead must be an integer number of periods in 1-7"):
-        stream_rig.stream(_rows(3), lead_periods=8)
-    assert (len(world.stepper.received), len(world.daq.received)) == sent
+        run_stream(stream_rig, _rows(3), path="unused/never", lead_periods=8)
+    with pytest.raises(SafetyError, match="tendon 2, set-point 79: the shaped stream would reach"):
+        run_stream(stream_rig, _rows(100, t2=50.0), path="unused/never")  # asked where the tendons are first
+    assert (len(world.stepper.received) - sent[0], len(world.daq.received)) == (1, sent[1])  # POS alone
+    assert world.stepper.received[-1] == "POS"
 
 
 def test_a_four_tendon_stream_records_every_channel(stream_rig, tmp_path) -> None:
@@ -204,8 +208,9 @@ def test_a_four_tendon_stream_records_every_channel(stream_rig, tmp_path) -> Non
     sp = _rows(40)
     sp[:20, 0], sp[20:30, 1], sp[:10, 3], sp[:10, 2] = 20.0, 15.0, 30.0, -30.0
     shaper = hs.StreamShaper((2048, 2048), (0, 50_000))
-    rec = stream_rig.stream(sp, shaper, path=tmp_path / "g" / "four_stream", tail_s=0.3)
-    assert rec.status == "complete" and stream_rig.positions == (15, 5, -11, 11)
+    rec = run_stream(stream_rig, sp, shaper, path=tmp_path / "g" / "four_stream", tail_s=0.3, lead_in_s=0.2,
+                     progress=False)  # fmt: skip
+    assert rec.status == "complete" and stream_rig.positions() == (15, 5, -11, 11)
     stream = rec.meta["scenario"]["stream"]
     assert rec.meta["scenario"]["kind"] == "stream" and rec.meta["tendons"] == 4
     assert stream["periods"] == list(range(1, 41)) and stream["end_period"] == 41  # no underrun (one clock)
@@ -222,20 +227,26 @@ def test_a_four_tendon_stream_records_every_channel(stream_rig, tmp_path) -> Non
     assert [int(f[f"steps_{i}"].iloc[0]) for i in range(4)] == [0, 0, 0, 0]
     # tendon 1's first step: period 1 drives from 20 ms after STREAM, half of it (the first impulse) at once:
     # 65536 / (0.5 x 82) x 16 us = 25.6 ms more, 45.6 ms after STREAM (the DAQ's sample then, within 2 ms)
-    first = f["t_us"][f["steps_0"] > 0].iloc[0] - rec.meta["scenario"]["t_stream_us"]
+    first = f["t_us"][f["steps_0"] > 0].iloc[0] - rec.meta["t_go_us"]  # GO is STREAM here
     assert 45_000 <= first <= 48_000, first
     # tendon 2: period 21 drives from 220 ms, its first step 65536 / (0.5 x 62) x 16 us = 33.8 ms later
-    first = f["t_us"][f["steps_1"] > 0].iloc[0] - rec.meta["scenario"]["t_stream_us"]
+    first = f["t_us"][f["steps_1"] > 0].iloc[0] - rec.meta["t_go_us"]
     assert 253_800 <= first <= 256_800, first
-    stream_rig.home()
-    assert stream_rig.positions == (0, 0, 0, 0)
+    home(stream_rig.stepper, stream_rig.rig)
+    assert stream_rig.positions() == (0, 0, 0, 0)
 
 
 def test_a_board_reset_mid_stream_stops_it_and_saves_what_was_recorded(stream_rig, tmp_path) -> None:
     world = get_world("tendon-streams-test")
-    world.stepper.faults.reset_at = world.t + 0.4  # 0.2 s of lead-in, then about 0.2 s into the stream
+    def reset_into_the_stream(w):  # the stepper reboots 0.2 s of device time after STREAM
+        if w.stepper.stream is not None and w.t > w.stepper.stream.t0 + 0.2:
+            w.listeners.remove(reset_into_the_stream)
+            w.stepper.faults.reset_at = w.t + 1e-3
+
+    world.listeners.append(reset_into_the_stream)
     with pytest.raises(BoardReset) as info:
-        stream_rig.stream(_rows(60, t1=20.0), path=tmp_path / "g" / "reset")
+        run_stream(stream_rig, _rows(60, t1=20.0), path=tmp_path / "g" / "reset", lead_in_s=0.2,
+                   progress=False)  # fmt: skip
     exc = info.value
     assert error_line(exc)[1] != 0 and exc.cleanup == []  # the rebooted board took ABORT and EN 0
     assert exc.saved_path.name.startswith("reset_aborted_") and not (tmp_path / "g" / "reset.csv").exists()
@@ -251,13 +262,13 @@ def test_an_allowed_clamp_is_recorded_as_deviated(stream_rig, tmp_path) -> None:
     names axis 3), the run goes on and is saved as ``deviated`` beside the name; the tendon ends where the
     board's planner said."""
     overshoot = hs.StreamShaper((6144, -2048), (0, 50_000), allow_negative=True)
-    plan = check_tendon_stream(tendon_units(_rows(3, t4=365.0), stream_rig.rig), stream_rig.rig,
-                               tuple(stream_rig.positions), overshoot, allow_clamps=True)  # fmt: skip
-    rec = stream_rig.stream(_rows(3, t4=365.0), overshoot, path=tmp_path / "g" / "clamped", allow_clamps=True,
-                            tail_s=0.2)  # fmt: skip
+    rows = _rows(3, t4=365.0)
+    plan = check_stream(rows, stream_rig.rig, stream_rig.positions(), overshoot, allow_clamps=True)
+    rec = run_stream(stream_rig, rows, overshoot, path=tmp_path / "g" / "clamped", allow_clamps=True,
+                     tail_s=0.2, lead_in_s=0.2, progress=False)  # fmt: skip
     assert rec.status == "deviated" and "clamped the shaped motion" in rec.meta["deviation"]
     assert rec.meta["scenario"]["stream"]["notices"] == ["N,LIMIT,SPEED,1,3"]
     assert rec.meta["scenario"]["stream"]["clamps"] == {"speed": 1, "travel": 0}
     assert rec.path.name.startswith("clamped_deviated_") and not (tmp_path / "g" / "clamped.csv").exists()
-    assert stream_rig.positions == plan.end and plan.end[3] > 0
-    stream_rig.home()
+    assert stream_rig.positions() == plan.end and plan.end[3] > 0
+    home(stream_rig.stepper, stream_rig.rig)
