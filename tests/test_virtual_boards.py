@@ -10,7 +10,6 @@ from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
 
 from helpers.board import stream_reference as hs
 from helpers.board.protocol import StreamParser, checksum, frame
-from helpers.live.ports import open_port
 from helpers.paper.hardware import MM_PER_STEP
 from helpers.virtual.emulator.boards import Faults
 
@@ -176,7 +175,10 @@ def test_reset_sends_hello_and_forgets_state():
 
 
 def _open(url, timeout=None):
-    return open_port(url, baudrate=115200, timeout=timeout, write_timeout=1.0)
+    """The URL opened with pyserial, as the host driver opens it (the emulator's package registered)."""
+    if "helpers.virtual.emulator" not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append("helpers.virtual.emulator")
+    return serial.serial_for_url(url, baudrate=115200, timeout=timeout, write_timeout=1.0, exclusive=True)
 
 
 def test_url_handler_same_rig_name_same_world():
