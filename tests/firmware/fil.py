@@ -34,6 +34,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -50,9 +51,9 @@ from helpers.board.programmes import Programme, experiment_programme  # noqa: E4
 from helpers.paper import metrics  # noqa: E402
 from helpers.paper.hardware import MM_PER_STEP  # noqa: E402
 from helpers.paper.shapers import paper_tdfs  # noqa: E402
-from helpers.rig import DaqBoard, StepperBoard  # noqa: E402
-from helpers.rig.stream import PERIOD_US, units  # noqa: E402
-from helpers.rig.stream_rig import StreamRig  # noqa: E402
+from helpers.rig import Rig  # noqa: E402
+from helpers.rig.stream import PERIOD_US, stream  # noqa: E402
+from helpers.rigfile import default_rig  # noqa: E402
 from helpers.virtual import ArmPlant, LoadCell, RigParameters, simulate  # noqa: E402
 from helpers.virtual.emulator.world import VirtualWorld, forget_world, parameters_dict, register_world  # noqa: E402
 
@@ -244,16 +245,17 @@ def record(wave: Waveform, action: str, kwargs: dict[str, Any], tmp: Path, pace:
     )
     t0 = time.monotonic()
     try:
-        daq = DaqBoard.open(daq_path, timeout=60.0, hello_timeout=60.0)
-        stepper = StepperBoard.open(stepper_path, timeout=60.0, hello_timeout=60.0)
-        source = {
+        with warnings.catch_warnings():  # the simavr ports look like hardware until the source is said below
+            warnings.simplefilter("ignore", UserWarning)
+            rig = Rig((daq_path, stepper_path), default_rig(), _truth(wave.params, wave.sensor), timeout=60.0,
+                      hello_timeout=60.0)  # fmt: skip
+        rig.source = {
             "kind": "virtual-rig",
             "via": "firmware in the loop (both sketches in simavr, plant from helpers.virtual)",
             "parameters": parameters_dict(wave.params),
         }
-        rig = StreamRig(daq, stepper, calibration=_truth(wave.params, wave.sensor), source=source)
         try:
-            rec = getattr(rig, action)(**kwargs, path=tmp / f"fil_{action}", progress=False)
+            rec = _act(rig, action, kwargs, tmp / f"fil_{action}")
         finally:
             rig.close()
     finally:
@@ -404,13 +406,20 @@ def in_process(action: str, kwargs: dict[str, Any], tmp: Path, params: RigParame
     info = {"parameters": parameters_dict(params), "note": "noise-free load cell, for the FIL comparison"}
     register_world(VirtualWorld(ArmPlant(params), sensor, name=name, info=info))
     try:
-        rig = StreamRig.connect("virtual", rig_name=name, calibration=_truth(params, sensor))
+        rig = Rig("virtual", default_rig(), _truth(params, sensor), world=name)
         try:
-            return getattr(rig, action)(**kwargs, path=tmp / f"inproc_{action}", progress=False)
+            return _act(rig, action, kwargs, tmp / f"inproc_{action}")
         finally:
             rig.close()
     finally:
         forget_world(name)
+
+
+def _act(rig: Rig, action: str, kwargs: dict[str, Any], path: Path) -> Any:
+    """``rig.run_pulse(**kwargs)`` or ``stream(rig, **kwargs)``, saved at ``path``."""
+    if action == "stream":
+        return stream(rig, **kwargs, path=path, progress=False)
+    return rig.run_pulse(**kwargs, path=path, progress=False)
 
 
 # --- the two scenarios ------------------------------------------------------------------------------------
@@ -423,14 +432,14 @@ def table_i_case(v_mm_s: float = 200.0, x_mm: float = 20.0, t_end_s: float = 10.
 
 
 def stream_case(v_mm_s: float = 200.0, move_periods: int = 10, hold_s: float = 4.0):
-    """A streamed up-hold-down move through the board-loaded ZV shaper: set-points and ``StreamRig.stream``'s
+    """A streamed up-hold-down move through the board-loaded ZV shaper: set-points and ``stream``'s
     arguments."""
     zv, _ = paper_tdfs()
     hold = round(hold_s * 100)
     mm_s = [0.0] * 10 + [v_mm_s] * move_periods + [0.0] * hold + [-v_mm_s] * move_periods + [0.0] * 10
     shaper = hs.board_shaper(zv)
     kwargs = {"setpoints": mm_s, "shaper": zv, "lead_in_s": 1.0, "tail_s": 4.0}
-    return shaper, [units(v) for v in mm_s], kwargs
+    return shaper, [hs.velocity_units(v, MM_PER_STEP) for v in mm_s], kwargs
 
 
 def run_case(which: str, tmp: Path, pace: float = 1.0) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""The host drivers of helpers.rig talk to the firmware (in simavr) through the harness's pseudo-terminals.
+"""The host driver of helpers.rig talks to the firmware (in simavr) through the harness's pseudo-terminals.
 
 Both boards run in one harness process, in lockstep, paced to real time as the hardware would be, and wired as
 on the bench: the Uno's STEP (D5) and DIR (D6) go to the Mega's D2 and D4, so the DAQ counts the steps the
@@ -15,7 +15,9 @@ import pytest
 
 pytestmark = pytest.mark.firmware
 
-rig = pytest.importorskip("helpers.rig", reason="helpers.rig (the host drivers) is not importable")
+rig = pytest.importorskip("helpers.rig", reason="helpers.rig (the host driver) is not importable")
+link = pytest.importorskip("helpers.rig.link")
+rigfile = pytest.importorskip("helpers.rigfile")
 programmes = pytest.importorskip("helpers.board.programmes")
 
 READY_S = 60.0
@@ -37,36 +39,40 @@ def rig_paths(firmware_build):
             proc.wait()
 
 
-def test_daq_driver_streams_from_the_firmware(rig_paths):
-    daq = rig.DaqBoard.open(rig_paths[0], timeout=READY_S, hello_timeout=READY_S)
+def _link(path: str, kind: str):
+    paper = rigfile.default_rig()
+    return link.Link.open(path, kind, paper, getattr(paper.hardware, f"{kind}_baud"), READY_S, READY_S)
+
+
+def test_the_link_streams_the_daq_firmwares_samples(rig_paths):
+    daq = _link(rig_paths[0], "daq")
     try:
         assert daq.version == "2.3.0+481e87e3"
-        assert daq.set_rate(500) == 500
-        daq.zero()
-        assert daq.start() == 500
-        rows = []
+        assert daq.command("RATE 500") == "OK RATE 500"
+        daq.command("ZERO")
+        assert daq.command("START") == "OK START 500"
         deadline = time.monotonic() + 30.0  # the simulation may run slower than real time on a busy machine
-        while len(rows) < 200 and time.monotonic() < deadline:  # 0.4 s of device time
-            rows += daq.read_rows()
-        n = daq.stop()
-        rows += daq.take_rows()
+        while len(daq.rows) < 200 and time.monotonic() < deadline:  # 0.4 s of device time
+            daq.read()
+        n = link.ints(daq.command("STOP"))[0]
+        rows = daq.rows
         assert n == len(rows) >= 200
         seq = np.array([r[0] for r in rows])
         np.testing.assert_array_equal(seq, np.arange(n))
         t_us = np.array([r[1] for r in rows])
         assert np.all(np.abs(np.diff(t_us) - 2000) <= 4)  # 500 Hz on the board's clock
-        stats = daq.stats
+        stats = daq.parser.stats
         assert (stats.dropped, stats.overruns, stats.corrupted) == (0, 0, 0)
         with pytest.raises(rig.CommandRefused) as err:
-            daq.command("RATE 5")  # bypasses the driver's own range check: the firmware refuses
+            daq.command("RATE 5")  # the firmware refuses
         assert err.value.code == "RANGE"
-        assert daq.ping() == "2.3.0+481e87e3"
+        assert daq.command("PING") == "PONG daq 2.3.0+481e87e3"
     finally:
         daq.close()
 
 
-def test_stepper_driver_runs_a_programme_on_the_firmware(rig_paths):
-    stepper = rig.StepperBoard.open(rig_paths[1], timeout=READY_S, hello_timeout=READY_S)
+def test_the_link_runs_a_programme_on_the_stepper_firmware(rig_paths):
+    stepper = _link(rig_paths[1], "stepper")
     try:
         assert stepper.version == "2.3.0+481e87e3"
         prog = programmes.Programme(
@@ -77,40 +83,30 @@ def test_stepper_driver_runs_a_programme_on_the_firmware(rig_paths):
                 programmes.Segment(-1, 15, 851),
             )
         )
-        start = stepper.position()
-        assert stepper.load(prog, start_position=start) == 4
-        stepper.enable(True)
-        assert stepper.go() == 4
+        start = link.ints(stepper.command("POS"))[0]
+        assert stepper.send_all(prog.commands())[-1] == "OK SEG 4"
+        stepper.command("EN 1")
+        assert stepper.command("GO") == "OK GO 4"
         deadline = time.monotonic() + 30.0
-        while stepper.done_position is None and time.monotonic() < deadline:
-            stepper.pump()
-        assert stepper.done_position == start + 25
-        assert stepper.position() == start + 25
+        while stepper.done is None and time.monotonic() < deadline:
+            stepper.read()
+        assert stepper.done == (start + 25,)
+        assert link.ints(stepper.command("POS")) == (start + 25,)
         with pytest.raises(rig.CommandRefused) as err:
             stepper.command("SEG 1 10 100")  # 2.5 m/s: refused by the firmware itself
         assert err.value.code == "RANGE"
-        assert stepper.abort() == start + 25
+        assert stepper.command("ABORT") == f"ABORTED {start + 25}"
         with pytest.raises(rig.CommandRefused) as err:
-            stepper.go()  # ABORT disabled the driver
+            stepper.command("GO")  # ABORT disabled the driver
         assert err.value.code == "STATE"
     finally:
         stepper.close()
 
 
 def test_rig_records_the_steps_the_stepper_firmware_issues(rig_paths, tmp_path):
-    daq = rig.DaqBoard.open(rig_paths[0], timeout=READY_S, hello_timeout=READY_S)
-    stepper = rig.StepperBoard.open(rig_paths[1], timeout=READY_S, hello_timeout=READY_S)
-    the_rig = rig.Rig(
-        daq,
-        stepper,
-        calibration={
-            "newtons_per_count": 0.01,
-            "offset_counts": 0.0,
-            "mm_per_step": 0.25525,
-            "origin": "test",
-        },
-        source={"kind": "simavr-firmware", "note": "both firmwares in simavr, no physics"},
-    )
+    calibration = {"newtons_per_count": 0.01, "offset_counts": 0.0, "mm_per_step": 0.25525, "origin": "test"}
+    the_rig = rig.Rig(rig_paths, rigfile.default_rig(), calibration, timeout=READY_S, hello_timeout=READY_S)
+    assert the_rig.source["kind"] == "hardware"  # pseudo-terminals that no serve-virtual-rig announced
     try:
         n_up, iv, hold_ms = 10, 1276, 200
         prog = programmes.Programme(
