@@ -21,7 +21,8 @@ import pytest
 from rig_fakes import make_world
 
 from helpers.board.protocol import frame
-from helpers.rig.daq import DaqBoard
+from helpers.rig.link import Link
+from helpers.rigfile import default_rig
 
 BAUD = {"daq": 500_000, "stepper": 115_200}
 PING = b"PING*79\n"
@@ -62,20 +63,20 @@ def test_over_the_pseudo_terminal_the_daq_answers_within_a_second_after_a_burst(
     lines: the newest when the host's write has returned, and the newest when PONG arrives."""
     proc, path = fwsim.pty_process("daq", pace=0.0)
     try:
-        daq = DaqBoard.open(path, hello_timeout=60.0, timeout=60.0)
-        daq.start()
+        daq = Link.open(path, "daq", default_rig(), BAUD["daq"], timeout=60.0, hello_timeout=60.0)
+        daq.command("START")
         junk = np.random.default_rng(3).integers(0, 256, 100_000, dtype=np.uint8).tobytes() + b"\n"
         writer = threading.Thread(target=daq.port.write, args=(junk,))
         writer.start()
         while writer.is_alive() or not daq.rows:
-            daq.pump()
+            daq.read()
         writer.join()
         ended_us = daq.rows[-1][1]  # device time when the burst had been written
         daq.replies.clear()
         while not any(r.startswith("PONG") for r in daq.replies):
             daq.write_line("PING")
             for _ in range(20):  # a PING every 20 reads (reads wait at most 50 ms each)
-                daq.pump()
+                daq.read()
                 if any(r.startswith("PONG") for r in daq.replies):
                     break
         assert daq.rows[-1][1] - ended_us <= 1_000_000
