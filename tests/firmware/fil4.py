@@ -1,5 +1,5 @@
 """Firmware in the loop for several tendons: a coordinated four-tendon programme recorded through
-:class:`helpers.rig.tendons.TendonRig` from both firmware images built for ``rigs/four-tendon.toml``
+:class:`helpers.rig.Rig` from both firmware images built for ``rigs/four-tendon.toml``
 (``firmware/common/rig_config_four_tendon.h``) in simavr, with the spatial twin's physics.
 
 The one-tendon check's three passes (``fil.py``), for four axes and four channels:
@@ -15,7 +15,7 @@ The one-tendon check's three passes (``fil.py``), for four axes and four channel
    channel ``a``'s waveform in millivolts, 0.05 ms apart plus the values just before and at every step of
    any axis.
 3. **Record.** Both sketches run in one harness, in lockstep, every axis wired as on the bench (Uno STEP/DIR
-   of axis ``a`` into the Mega's counter inputs of axis ``a``); ``TendonRig.connect`` opens their
+   of axis ``a`` into the Mega's counter inputs of axis ``a``); ``Rig`` opens their
    pseudo-terminals as hardware, checks both builds against the rig file, and records the programme. The
    Mega converts channel ``c`` ``c`` conversions (104 us) after channel 0; the harness reads every
    channel's waveform at each conversion start, so each channel is the twin at its own instant, as in the
@@ -49,12 +49,12 @@ if str(fwsim.REPO) not in sys.path:  # run as a script from anywhere: this repos
     sys.path.insert(0, str(fwsim.REPO))
 
 from helpers import rigfile  # noqa: E402
+from helpers.board.programmes import Dwell, Move, Programme  # noqa: E402
 from helpers.commands.metrics_tendons import tendon_table  # noqa: E402
 from helpers.paper import metrics  # noqa: E402
 from helpers.recordings import Recording  # noqa: E402
-from helpers.rig.boards import Waiter  # noqa: E402
-from helpers.rig.tendon_safety import TendonProgramme  # noqa: E402
-from helpers.rig.tendons import TendonRig  # noqa: E402
+from helpers.rig import Rig  # noqa: E402
+from helpers.rig.link import Waiter  # noqa: E402
 from helpers.virtual.emulator.tendon_world import ADC_CONVERSION_S, tendon_world  # noqa: E402
 from helpers.virtual.emulator.world import forget_world, register_world  # noqa: E402
 from helpers.virtual.sensor import LoadCell  # noqa: E402
@@ -107,7 +107,7 @@ class Edges:
     signs: np.ndarray
 
 
-def programme_edges(programme: TendonProgramme, elf: Path, axes: int = 4) -> Edges:
+def programme_edges(programme: Programme, elf: Path, axes: int = 4) -> Edges:
     """Pass 1: ``EN 1``, the programme's commands and ``GO`` to the stepper sketch alone."""
     commands = ["EN 1", *programme.commands(axes), "GO"]
     script = [(0.05 + 0.01 * i, fwsim.command(c)) for i, c in enumerate(commands)]
@@ -183,9 +183,9 @@ class FilRun:
     wall_s: float
 
 
-def record(wave: Waveform, programme: TendonProgramme, elfs: dict[str, Path], tmp: Path,
+def record(wave: Waveform, programme: Programme, elfs: dict[str, Path], tmp: Path,
            tail_s: float, pace: float = 0.0) -> FilRun:  # fmt: skip
-    """Both sketches on pseudo-terminals with the waveform; ``TendonRig.run(programme)`` through them."""
+    """Both sketches on pseudo-terminals with the waveform; ``Rig.run(programme)`` through them."""
     wave_path, adc_path = tmp / "wave.txt", tmp / "adc.log"
     wave_path.write_text(
         "".join(f"{t:.9f} " + " ".join(f"{v:.4f}" for v in row) + "\n" for t, row in zip(wave.t, wave.mv,
@@ -204,14 +204,14 @@ def record(wave: Waveform, programme: TendonProgramme, elfs: dict[str, Path], tm
         raise RuntimeError(f"harness did not report two pseudo-terminals: {first!r} {second!r}")
     t0 = time.monotonic()
     try:
-        rig = TendonRig.connect(f"{first[1]},{second[1]}", rig=four_rig(), timeout=60.0, hello_timeout=60.0)
+        rig = Rig(f"{first[1]},{second[1]}", four_rig(), timeout=60.0, hello_timeout=60.0)
         rig.source = {"kind": "virtual-rig", "via": "firmware in the loop (both four-tendon sketches in "
                       "simavr, plant from helpers.virtual.spatial)"}  # fmt: skip
-        # simavr runs the two boards below real time: the host's wall-clock wait for DONE, stretched
+        # simavr runs the two boards below real time: the silence interval (wall time here), stretched
         rig.daq.waiter = lambda timeout: Waiter(SIMAVR_SLOWDOWN * timeout, None)  # type: ignore[method-assign]
         try:
-            frame = rig.run(programme, tail_s=tail_s)
-            rec = rig.recording(frame, programme)
+            rec = rig.run(programme, path=tmp / "fil4", tail_s=tail_s, progress=False)
+            frame = rec.frame
         finally:
             rig.close()
     finally:
@@ -270,7 +270,7 @@ def check_alignment(fil: FilRun, edges: Edges, wave: Waveform, channels: int = 4
 
 
 # --- the in-process virtual rig, noise-free, for comparison ----------------------------------------------
-def in_process(programme: TendonProgramme, tail_s: float) -> Recording:
+def in_process(programme: Programme, tail_s: float, tmp: Path) -> Recording:
     """The same programme on the in-process four-tendon virtual rig (``virtual://``, noise-free cells)."""
     rig = four_rig()
     name = f"fil4-reference-{next(_names)}"
@@ -278,9 +278,9 @@ def in_process(programme: TendonProgramme, tail_s: float) -> Recording:
     world.sensor = noise_free_cells(rig)
     register_world(world)
     try:
-        host = TendonRig.connect("virtual", rig=rig, rig_name=name)
+        host = Rig("virtual", rig, world=name)
         try:
-            return host.recording(host.run(programme, tail_s=tail_s), programme)
+            return host.run(programme, path=tmp / name, tail_s=tail_s, progress=False)
         finally:
             host.close()
     finally:
@@ -358,14 +358,12 @@ def phase_spread(edges: Edges, duration_s: float, rig: rigfile.RigFile, n: int =
 
 
 # --- the scenario -------------------------------------------------------------------------------------
-def four_tendon_programme(hold_ms: int = 3000) -> TendonProgramme:
+def four_tendon_programme(hold_ms: int = 3000) -> Programme:
     """A coordinated up-hold-down move of every tendon: 1 s at rest (the metrics' baseline), 16, 10, 6 and 8
     steps (4.1, 2.6, 1.5 and 2.0 mm at 0.2553 mm per step) in 0.1 s, a dwell, and back in 0.1 s. Axis 0 has
     the most steps of the move: it steps first (the waveform's origin)."""
     up = (16, 10, 6, 8)
-    return TendonProgramme.moves(
-        [(1_000_000, None), (100_000, up), (1000 * hold_ms, None), (100_000, tuple(-n for n in up))]
-    )
+    return Programme((Dwell(1000), Move(100_000, up), Dwell(hold_ms), Move(100_000, tuple(-n for n in up))))
 
 
 def run_case(tmp: Path, elfs: dict[str, Path], hold_ms: int = 3000, tail_s: float = 3.0) -> dict[str, Any]:
@@ -374,7 +372,7 @@ def run_case(tmp: Path, elfs: dict[str, Path], hold_ms: int = 3000, tail_s: floa
     edges = programme_edges(programme, elfs["stepper"])
     wave = tension_waveform(edges, programme.duration_s + tail_s + 2.0, four_rig())
     fil = record(wave, programme, elfs, tmp, tail_s)
-    ref = in_process(programme, tail_s)
+    ref = in_process(programme, tail_s, tmp)
     duration = float(fil.recording.frame["t_s"].iloc[-1]) - 1.0  # the recording's end, from the first step
     return {
         "fil": per_tendon(fil.recording),

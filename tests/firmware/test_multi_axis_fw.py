@@ -610,7 +610,7 @@ def test_four_tendon_firmware_in_the_loop_short(
     fil4 = pytest.importorskip("fil4")
     build, _ = four_build
     elfs = {"daq": build / "daq_mega.elf", "stepper": build / "stepper_uno.elf"}
-    programme = fil4.TendonProgramme.moves([(50_000, (6, 4, 2, 3)), (30_000, (-6, -4, -2, -3))])
+    programme = fil4.Programme((fil4.Move(50_000, (6, 4, 2, 3)), fil4.Move(30_000, (-6, -4, -2, -3))))
     edges = fil4.programme_edges(programme, elfs["stepper"])
     # by hand: 6 + 6, 4 + 4, 2 + 2, 3 + 3 steps; axis 0's first at 50 ms / 6 = 8.33 ms after GO, first of all
     assert [int((edges.axes == a).sum()) for a in range(4)] == [12, 8, 4, 6] and edges.axes[0] == 0
