@@ -35,8 +35,10 @@ def _boards_module():
 
 
 def _open(url: str, timeout: float):
-    ports = pytest.importorskip("helpers.live.ports")
-    return ports.open_port(url, baudrate=115200, timeout=timeout, write_timeout=1.0)
+    """The emulated board's URL opened with pyserial (the emulator's package registered, as the host does)."""
+    if "helpers.virtual.emulator" not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append("helpers.virtual.emulator")
+    return serial.serial_for_url(url, baudrate=115200, timeout=timeout, write_timeout=1.0, exclusive=True)
 
 
 class _FlatPlant:

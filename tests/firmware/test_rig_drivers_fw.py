@@ -50,6 +50,7 @@ def test_the_link_streams_the_daq_firmwares_samples(rig_paths):
         assert daq.version == "2.3.0+481e87e3"
         assert daq.command("RATE 500") == "OK RATE 500"
         daq.command("ZERO")
+        daq.parser.restart()  # the stream's counts start at START, as the driver's do
         assert daq.command("START") == "OK START 500"
         deadline = time.monotonic() + 30.0  # the simulation may run slower than real time on a busy machine
         while len(daq.rows) < 200 and time.monotonic() < deadline:  # 0.4 s of device time
