@@ -33,7 +33,6 @@ WINGS: dict[str, str] = {
     "helpers.recordings": "core",
     "helpers.board": "core",
     "helpers.rig": "core",
-    "helpers.live": "core",
     "helpers.rigfile": "core",
     "helpers.plotting": "core",
     "helpers.virtual": "twin",
@@ -252,12 +251,19 @@ def test_wings_import_without_what_they_do_not_need(module, blocked):
     assert proc.returncode == 0, proc.stderr[-1500:]
 
 
+def test_the_drivers_package_leaves_streams_to_those_who_import_them():
+    """The notebooks' live cells import ``helpers.rig``: its streams (``helpers.rig.stream``) are not loaded."""
+    code = "import sys, helpers.rig; assert 'helpers.rig.stream' not in sys.modules, sorted(sys.modules)"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-1500:]
+
+
 def test_virtual_scheme_is_registered_by_opening_a_port_not_by_importing():
     code = (
         "import serial, helpers.rig\n"
         "assert 'helpers.virtual.emulator' not in serial.protocol_handler_packages, 'registered on import'\n"
-        "from helpers.live.ports import open_port\n"
-        "p = open_port('virtual://daq?rig=arch', baudrate=500000, timeout=0.01, write_timeout=1.0)\n"
+        "from helpers.rig.link import open_port\n"
+        "p = open_port('virtual://daq?world=arch', 'daq', 500000, 1.0)\n"
         "assert 'helpers.virtual.emulator' in serial.protocol_handler_packages\n"
         "p.close()\n"
     )

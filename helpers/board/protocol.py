@@ -44,9 +44,6 @@ PAPER_RIG_HASH = "481e87e3"
 ``firmware/common/rig_config_paper.h`` (a test checks that the three agree)."""
 
 
-ADC_MAX = 1023
-"""The largest count of the DAQ board's 10-bit ADC (``firmware/PROTOCOL.md``: ``adc`` 0-1023)."""
-
 MAX_LINE = 63
 """Characters a line may hold before its ``\\n`` (PROTOCOL.md)."""
 
@@ -156,7 +153,7 @@ class Overrun:
 
 
 def parse_body(
-    body: str, channels: int = 1, axes: int = 1, adc_max: int = ADC_MAX
+    body: str, channels: int = 1, axes: int = 1, adc_max: int = 1023
 ) -> tuple[int, ...] | Overrun | str:
     """Classify a checked line body (printable ASCII, :func:`unframe`'s) of a board with C channels, A axes.
 
@@ -219,11 +216,12 @@ class StreamParser:
     max_step_rate_hz : float, optional
         A step count that changes faster than this is implausible (None: no check).
     adc_max : int
-        The largest ADC count (a data line beyond it is corrupted).
+        The largest ADC count (a data line beyond it is corrupted): the 10-bit ADC's 1023 of
+        ``firmware/PROTOCOL.md`` unless the rig file says otherwise.
     """
 
     def __init__(
-        self, channels: int = 1, axes: int = 1, max_step_rate_hz: float | None = None, adc_max: int = ADC_MAX
+        self, channels: int = 1, axes: int = 1, max_step_rate_hz: float | None = None, adc_max: int = 1023
     ) -> None:
         self._buf = bytearray()  # an unfinished line
         self.channels, self.axes, self.adc_max = channels, axes, adc_max
