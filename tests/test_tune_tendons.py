@@ -112,7 +112,7 @@ def test_a_short_tune_measures_the_map_and_zvd_leaves_less_than_unshaped(tmp_pat
     import itertools
 
     from helpers.research import tune_tendons as tt
-    from helpers.rig.tendons import TendonRig
+    from helpers.rig import Rig
     from helpers.virtual.emulator.tendon_world import tendon_world
     from helpers.virtual.emulator.world import forget_world, register_world
 
@@ -120,7 +120,7 @@ def test_a_short_tune_measures_the_map_and_zvd_leaves_less_than_unshaped(tmp_pat
     world = register_world(tendon_world(rig, "tune-tendons-test"))
     seeds = itertools.count(7)
     try:
-        with TendonRig.connect("virtual", rig=rig, rig_name="tune-tendons-test") as trig:
+        with Rig("virtual", rig, world="tune-tendons-test") as trig:
             doc = tt.tune_tendons(trig, tmp_path / "out", 1, directions=(0.0, 45.0), bends=(10.0,),
                                   seeds=lambda: next(seeds), reseed=world.reseed)  # fmt: skip
     finally:
