@@ -252,7 +252,7 @@ def test_wings_import_without_what_they_do_not_need(module, blocked):
 
 
 def test_the_drivers_package_leaves_streams_to_those_who_import_them():
-    """The notebooks' live cells import ``helpers.rig``: its streams (``helpers.rig.stream``) are not loaded."""
+    """The notebooks' live cells import ``helpers.rig``: its streams (``helpers.rig.stream``) stay out."""
     code = "import sys, helpers.rig; assert 'helpers.rig.stream' not in sys.modules, sorted(sys.modules)"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-1500:]

@@ -1,5 +1,5 @@
 """Firmware in the loop for four tendons (``fil4.py``): a coordinated up-hold-down move of every tendon,
-recorded through ``helpers.rig.Rig`` from both firmware images built for ``rigs/four-tendon.toml`` in simavr with
+recorded through ``Rig`` from both firmware images built for ``rigs/four-tendon.toml`` in simavr with
 the spatial twin's physics, gives the in-process four-tendon virtual rig's per-tendon Table II metrics
 (``python -m helpers metrics``' per-tendon table).
 
