@@ -26,7 +26,7 @@ from helpers.board.protocol import frame
 from helpers.commands.benchmarks.serial_tendons import pty_stream_tendons
 from helpers.commands.home import PositionUnknown, home
 from helpers.commands.metrics_tendons import tendon_table, tip_table
-from helpers.rig import BoardError, Rig, SafetyError, WrongRig
+from helpers.rig import Rig, SafetyError, WrongRig
 from helpers.rig.link import Link
 from helpers.rig.safety import check_programme, static_tensions
 from helpers.virtual.emulator.tendon_boards import (
@@ -245,8 +245,8 @@ def test_a_stepper_built_without_the_rig_files_release_is_refused(four) -> None:
     finally:
         forget_world(w.name)
     assert str(info.value).startswith(
-        "the stepper board was built for axis 0 travelling -0..156 steps, but rig 'four-tendon' has 4 "
-        "tendon(s), tendon 1 travelling -78..156"
+        "the stepper board's axis 0 travels -0..156 steps, but rig 'four-tendon' gives tendon 1 -78..156 "
+        "(release_mm, travel_mm)"
     )
     assert "\n" not in str(info.value) and error_line(info.value)[1] == 4
 
@@ -272,12 +272,14 @@ def _builds(four, stepper_reply: str) -> None:
 def test_config_lists_the_releases_after_the_travels_or_none(four) -> None:
     head = "OK CONFIG 4 64 639 1000000 156 156 156 156"
     _builds(four, head + " 78 78 78 78")  # the four-tendon build: its releases after the travels
-    with pytest.raises(WrongRig, match="axis 0 travelling -0..156 steps"):  # a build without a release
+    with pytest.raises(WrongRig, match="axis 0 travels -0..156 steps"):  # a build without a release
         _builds(four, head)
-    with pytest.raises(BoardError, match="malformed CONFIG"):
+    with pytest.raises(WrongRig, match=r"built for CONFIG \(4, 64, .*, 78\), but rig 'four-tendon'"):
         _builds(four, head + " 78")  # neither A nor 2A numbers after the limits
     with pytest.raises(WrongRig, match="built for 3 axis/axes, but rig 'four-tendon' has 4 tendon"):
         _builds(four, "OK CONFIG 3 64 639 1000000 156 156 156 78 78 78")
+    with pytest.raises(WrongRig, match="built for 5 axis/axes, but rig 'four-tendon' has 4 tendon"):
+        _builds(four, "OK CONFIG 5 64 639 1000000 " + " ".join(["156"] * 5 + ["78"] * 5))
 
 
 def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:

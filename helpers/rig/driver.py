@@ -267,27 +267,26 @@ class Rig:
 
     def _check_builds(self) -> None:
         """``CONFIG`` of both boards against the rig file's tendons (firmware 2.1 has none: one of each)."""
-        n, d = self.n, derived(self.rig)
+        n, d, name = self.n, derived(self.rig), self.rig.name
         channels, axes = self._config(self.daq, (1, 1))[:2]
-        if channels < n or axes < n:
+        if (channels, axes) != (n, n):
             raise WrongRig(
                 f"the daq board was built for {channels} load cell(s) and {axes} step counter(s), but rig "
-                f"'{self.rig.name}' has {n} tendon(s): " + rebuild_hint(self.rig, "daq")
+                f"'{name}' has {n} tendon(s): " + rebuild_hint(self.rig, "daq")
             )
-        self.daq.parser = StreamParser(channels, axes, self.rig.hardware.step_rate_cap_hz, d.adc_max)
+        self.daq.parser = StreamParser(n, n, self.rig.hardware.step_rate_cap_hz, d.adc_max)
         values = self._config(self.stepper, (1, 0, 0, 0, d.travel_steps[0]))
-        self.axes, limits = values[0], values[4:]
-        if len(limits) not in (self.axes, 2 * self.axes):
-            raise BoardError(f"malformed CONFIG from the stepper board: {values}")
-        travel, release = limits[: self.axes], limits[self.axes :] or (0,) * self.axes
+        built = values[4 : 4 + n], values[4 + n :] or (0,) * n  # every axis's travel and release
+        if values[0] != n or len(values) not in (4 + n, 4 + 2 * n):
+            got = f"{values[0]} axis/axes" if values[0] != n else f"CONFIG {values}"
+            raise WrongRig(f"the stepper board was built for {got}, but rig '{name}' has {n} tendon(s): "
+                           + rebuild_hint(self.rig, "stepper"))  # fmt: skip
         for i in range(n):
-            if self.axes < n or travel[i] < d.travel_steps[i] or release[i] != d.release_steps[i]:
-                got = (f"{self.axes} axis/axes" if self.axes < n else
-                       f"axis {i} travelling -{release[i]}..{travel[i]} steps")  # fmt: skip
+            if built[0][i] < d.travel_steps[i] or built[1][i] != d.release_steps[i]:
                 raise WrongRig(
-                    f"the stepper board was built for {got}, but rig '{self.rig.name}' has {n} tendon(s), "
-                    f"tendon {i + 1} travelling -{d.release_steps[i]}..{d.travel_steps[i]}: "
-                    + rebuild_hint(self.rig, "stepper")
+                    f"the stepper board's axis {i} travels -{built[1][i]}..{built[0][i]} steps, but rig "
+                    f"'{name}' gives tendon {i + 1} -{d.release_steps[i]}..{d.travel_steps[i]} (release_mm, "
+                    "travel_mm): " + rebuild_hint(self.rig, "stepper")
                 )
 
     @staticmethod
@@ -421,7 +420,7 @@ class Rig:
                 scenario["rest"] = self.wait_for_rest(rate_hz)
                 self.stepper.command("ABORT")  # a programme or stream an earlier session left running stops
                 self.daq.command("STOP")  # a stream left running by an earlier session stops
-                replies = self.stepper.send_all(programme.commands(self.axes))  # CLEAR first
+                replies = self.stepper.send_all(programme.commands(self.n))  # CLEAR first
                 if ints(replies[-1])[-1] != len(programme):
                     raise BoardError(f"the stepper board holds {replies[-1]}, not {len(programme)} items")
                 state.windows = step_windows(programme, self.n)

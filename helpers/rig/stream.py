@@ -530,7 +530,7 @@ def stream(
     rig._check_run(rate_hz, noise_seed, tail_s)
     if type(lead_in_s) not in (int, float) or not 0 <= lead_in_s <= 60:
         raise ValueError(f"lead_in_s must be a number of seconds in 0-60, got {lead_in_s!r}")
-    board = board_shaper(shaper, rig.axes)
+    board = board_shaper(shaper, rig.n)
     Pacer(0, lead_periods)  # refuses a bad lead before anything is sent
     source = SetpointSource(setpoints, rig.rig, source_name)
     units = source.check_all() if source.sized else None
@@ -602,7 +602,7 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
     stepper.command("EN 1")
     rig._go(state, "STREAM", rate_hz)
     pacer = Pacer(rows[-1][1], record.lead_periods)
-    word = "V" if rig.axes == 1 else "MV"
+    word = "V" if rig.n == 1 else "MV"
     pending: tuple[int, ...] | None = None  # a set-point the board refused with ERR FULL, to send again
     ended: list[Any] = []  # (finish us from GO, every tendon's end) once END is sent
     noticed = 0
@@ -630,9 +630,8 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
                     break
             planned = check.checkpoint()
             check.setpoint(pending)  # refused before the byte is sent if the board would clamp
-            row = list(pending) + [0] * (rig.axes - len(pending))  # a board's further axes: 0
             try:
-                period: int | None = ints(stepper.command(f"{word} " + " ".join(map(str, row))))[-1]
+                period: int | None = ints(stepper.command(f"{word} " + " ".join(map(str, pending))))[-1]
             except CommandRefused as exc:
                 if exc.code != "FULL":
                     take_notices()  # a stream the board has ended (the watchdog) refuses: say why
