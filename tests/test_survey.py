@@ -11,6 +11,7 @@ from helpers.paper.hardware import MAX_TRAVEL_MM, MM_PER_STEP
 from helpers.research.ringdown import fit_two_modes
 from helpers.research.survey import KICK_MM, map_from_rows, survey_plan
 from helpers.rig import check_programme
+from helpers.rigfile import default_rig
 
 FS = 1000.0
 
@@ -48,7 +49,7 @@ def test_plans_ring_at_the_position_and_beside_it_within_the_travel():
     kick = round(KICK_MM / MM_PER_STEP) * MM_PER_STEP
     for x in (0.0, 20.0, 40.0):
         plan = survey_plan(x)
-        check_programme(plan.programme)  # raises if any limit is passed
+        check_programme(plan.programme, default_rig())  # raises if any limit is passed (the paper's rig)
         assert plan.programme.net_steps == 0  # ends where it started
         away, back = plan.rings
         assert back[0] == pytest.approx(plan.position_mm)
