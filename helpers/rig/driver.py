@@ -49,7 +49,7 @@ from helpers import __version__ as HELPERS_VERSION
 from helpers import recordings
 from helpers.base.noise import white_noise_std
 from helpers.base.signals import Interrupted, run_guard
-from helpers.board.programmes import Limits, Programme, experiment_programme
+from helpers.board.programmes import Programme, experiment_programme
 from helpers.board.protocol import StreamParser
 from helpers.paper import numbers as paper
 from helpers.paper.tension import LoadCellCalibration, load_calibration
@@ -159,14 +159,11 @@ class _Bar:
     def __init__(self, total_s: float | None, show: bool) -> None:
         fmt = "{l_bar}{bar}| {n:.1f}/{total:.1f} s" if total_s is not None else "{desc}: {n:.1f} s"
         total = None if total_s is None else round(total_s, 1)
-        self.bar = None if tqdm is None or not show else tqdm(total=total, unit="s", desc="device time",
-                                                                bar_format=fmt)  # fmt: skip
-        self.shown = 0.0
+        self.bar = tqdm(total=total, unit="s", desc="device time", bar_format=fmt) if tqdm and show else None
 
     def show(self, elapsed_s: float) -> None:
-        if self.bar is not None and elapsed_s - self.shown >= 0.1:
-            self.bar.update(round(elapsed_s - self.shown, 1))
-            self.shown += round(elapsed_s - self.shown, 1)
+        if self.bar is not None and elapsed_s - self.bar.n >= 0.1:
+            self.bar.update(round(elapsed_s - self.bar.n, 1))
 
     def close(self) -> None:
         if self.bar is not None:
@@ -216,17 +213,13 @@ class Rig:
     ) -> None:  # fmt: skip
         if not isinstance(rig, RigFile):
             raise ValueError(f"rig must be a rig file loaded by helpers.rigfile.load, got {rig!r}")
-        self.rig, self.limits, self.n, self.silence_s = rig, Limits.of(rig), rig.n_tendons, silence_s
+        self.rig, self.n, self.silence_s, self.last_cleanup = rig, rig.n_tendons, silence_s, []
         self.calibration = self._calibrations(calibration)
         urls = rig_urls(ports, rig, world or rig.name, (daq_options, stepper_options))
-        hw = rig.hardware
-        self.daq = Link.open(urls[0], "daq", rig, hw.daq_baud, timeout, hello_timeout)
+        self.daq = Link.open(urls[0], "daq", rig, rig.hardware.daq_baud, timeout, hello_timeout)
         try:
-            self.stepper = Link.open(urls[1], "stepper", rig, hw.stepper_baud, timeout, hello_timeout)
-        except BaseException:
-            self.daq.close()
-            raise
-        try:
+            self.stepper = Link.open(urls[1], "stepper", rig, rig.hardware.stepper_baud, timeout,
+                                     hello_timeout)  # fmt: skip
             self._check_builds()
         except BaseException:
             self.close()
@@ -244,7 +237,6 @@ class Rig:
                 "will be wrong; calibrate this load cell first (python -m helpers record calibration)",
                 UserWarning, stacklevel=2,
             )  # fmt: skip
-        self.last_cleanup: list[str] = []
 
     @classmethod
     def connect(cls, ports: Any, rig: RigFile, **kwargs: Any) -> Rig:
@@ -427,11 +419,8 @@ class Rig:
                 self._start(state, rate_hz, list(zip(cum.min(axis=0), cum.max(axis=0), strict=True)))
                 self.stepper.command("EN 1")
                 self._go(state, "GO", rate_hz)
-                bar = _Bar(programme.duration_s + tail_s, progress)
-                try:
-                    self._until_done(state, lambda now: (programme.duration_us, end), rate_hz, bar, tail_s)
-                finally:
-                    bar.close()
+                done, total = (programme.duration_us, end), programme.duration_s + tail_s
+                self._until_done(state, lambda now: done, rate_hz, tail_s, total, progress)
                 self._finish(state)
 
             return self._guarded(body, scenario, target, rate_hz, replace, start)
@@ -557,8 +546,9 @@ class Rig:
         return 0, silence
 
     def _until_done(
-        self, state: RunState, step: Callable[[int], Any], rate_hz: int, bar: _Bar, tail_s: float
-    ) -> None:
+        self, state: RunState, step: Callable[[int], Any], rate_hz: int, tail_s: float, total_s: float | None,
+        progress: bool,
+    ) -> None:  # fmt: skip
         """Read until ``DONE`` and ``tail_s`` past the end (``step(now)``: ``(end us, positions)`` or None).
 
         ``step`` runs at each read with the device time from ``GO`` (a stream feeds its set-points there) and
@@ -569,35 +559,37 @@ class Rig:
         stopped short. A board that sends no sample, or does not answer ``POS``, within the silence interval
         is gone.
         """
-        silence, asked, last = self.daq.waiter(self.silence_s), 0, None
-        while True:
-            new, silence = self._read(silence)
-            rows = self.daq.rows
-            if new and state.t_go_us is None:
-                self._went(state, rows[-new][1] - round(1e6 / rate_hz))
-            if state.t_go_us is None:
-                continue
-            now = rows[-1][1] - state.t_go_us
-            bar.show(now / 1e6)
-            due = step(now)
-            if due is None:
-                if self.stepper.done is not None:
-                    raise BoardError(f"the stepper board ended before it was asked to (DONE at {now} us)")
-                continue
-            end_us, end = due
-            if self.stepper.done is not None:
-                if now >= end_us + tail_s * 1e6:
+        silence, asked, last, bar = self.daq.waiter(self.silence_s), 0, None, _Bar(total_s, progress)
+        try:
+            while True:
+                new, silence = self._read(silence)
+                rows = self.daq.rows
+                if new and state.t_go_us is None:
+                    self._went(state, rows[-new][1] - round(1e6 / rate_hz))
+                if state.t_go_us is None:
+                    continue
+                now = rows[-1][1] - state.t_go_us
+                bar.show(now / 1e6)
+                due = step(now)
+                if due is None:
+                    if self.stepper.done is not None:
+                        raise BoardError(f"the stepper board ended before it was asked to (DONE at {now} us)")
+                    continue
+                end_us, end = due
+                if self.stepper.done is not None and now >= end_us + tail_s * 1e6:
                     break
-            elif now >= end_us + DONE_GRACE_S * 1e6 * (asked + 1):
-                asked, where = asked + 1, self.positions()
-                if where == end:
-                    self.stepper.done = where  # its DONE was lost on the link (a corrupted line)
-                elif where == last:
-                    raise BoardError(
-                        f"the stepper board stopped at {where} steps without DONE, not at the end {end} "
-                        f"({asked * DONE_GRACE_S:.0f} s of device time after it was due)"
-                    )
-                last = where
+                if self.stepper.done is None and now >= end_us + DONE_GRACE_S * 1e6 * (asked + 1):
+                    asked, where = asked + 1, self.positions()
+                    if where == end:
+                        self.stepper.done = where  # its DONE was lost on the link (a corrupted line)
+                    elif where == last:
+                        raise BoardError(
+                            f"the stepper board stopped at {where} steps without DONE, not at the end {end} "
+                            f"({asked * DONE_GRACE_S:.0f} s of device time after it was due)"
+                        )
+                    last = where
+        finally:
+            bar.close()
         if self.stepper.done[: self.n] != end:
             raise BoardError(f"the stepper board ended at {self.stepper.done}, not at the end {end}")
 

@@ -37,7 +37,7 @@ import numpy as np
 
 from helpers.board import stream_reference as hs
 from helpers.recordings import Recording, reserve
-from helpers.rig.driver import Rig, RunState, _Bar
+from helpers.rig.driver import Rig, RunState
 from helpers.rig.link import BoardError, CommandRefused, ints
 from helpers.rig.safety import SafetyError, check_slack
 from helpers.rigfile import RigFile, derived
@@ -559,12 +559,11 @@ def stream(
             timeout = rig.daq.port.timeout
             rig.daq.port.timeout = min(timeout or FEED_READ_S, FEED_READ_S)  # device time in small steps
             expected_s = None if units is None else len(units) / STREAM_RATE_HZ + board.duration_s + tail_s
-            bar = _Bar(expected_s, progress)
             try:
-                _feed(rig, state, feed, check, record, (lead_in_s, tail_s, allow_clamps, rate_hz), bar)
+                _feed(rig, state, feed, check, record, (lead_in_s, tail_s, allow_clamps, rate_hz, expected_s,
+                                                         progress))  # fmt: skip
             finally:
                 rig.daq.port.timeout = timeout
-                bar.close()
             state.deviation = record.deviation()
             rig._finish(state)
 
@@ -591,10 +590,10 @@ def _check_firmware(version: str | None) -> None:
         )
 
 
-def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: StreamRecord, opts: tuple,
-          bar: _Bar) -> None:  # fmt: skip
+def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: StreamRecord, opts: tuple
+          ) -> None:  # fmt: skip
     """The lead-in, ``STREAM``, the set-points as they fall due, ``END``, ``DONE``, the tail."""
-    lead_in_s, tail_s, allow_clamps, rate_hz = opts
+    lead_in_s, tail_s, allow_clamps, rate_hz, expected_s, progress = opts
     rows, stepper = rig.daq.rows, rig.stepper
     silence = rig.daq.waiter(rig.silence_s)
     while not rows or rows[-1][1] - rows[0][1] < lead_in_s * 1e6:
@@ -651,4 +650,4 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
             record.counts(pacer)
         return ended[0] if ended else None
 
-    rig._until_done(state, step, rate_hz, bar, tail_s)
+    rig._until_done(state, step, rate_hz, tail_s, expected_s, progress)
