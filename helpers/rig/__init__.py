@@ -27,24 +27,11 @@ from helpers.rig.link import (
     OldFirmware,
     PortBusy,
     WrongRig,
-)
+)  # fmt: skip
 from helpers.rig.safety import SafetyError, check_programme, check_request
 
 __all__ = [
-    "BoardDisconnected",
-    "BoardError",
-    "BoardReset",
-    "BoardTimeout",
-    "CommandRefused",
-    "LinkCorrupted",
-    "NotAtRest",
-    "NotAtZero",
-    "OldFirmware",
-    "PortBusy",
-    "Rig",
-    "RunAborted",
-    "SafetyError",
-    "WrongRig",
-    "check_programme",
-    "check_request",
-]
+    "BoardDisconnected", "BoardError", "BoardReset", "BoardTimeout", "CommandRefused", "LinkCorrupted",
+    "NotAtRest", "NotAtZero", "OldFirmware", "PortBusy", "Rig", "RunAborted", "SafetyError", "WrongRig",
+    "check_programme", "check_request",
+]  # fmt: skip
