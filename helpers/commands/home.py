@@ -134,7 +134,7 @@ def _home_every_axis(stepper: StepperBoard, positions: tuple[int, ...], speed_mm
         stepper.enable(False)
         return f"every tendon is at position 0 already ({len(positions)} axes; driver disabled)"
     interval = max(1, round(MM_PER_STEP / speed_mm_s * 1e6))
-    rig = rigfile.selected()
+    rig = rigfile.selected()  # transitional: the one driver (issue 36) carries the rig
     window = interval * max(map(abs, positions))
     if rig.n_tendons == len(positions):  # the per-tendon limits (docs/safety.md), homing to the rest state
         back = TendonProgramme((TendonItem(window, tuple(-p for p in positions)),))
@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
             "home (a virtual rig that keeps running is serve-virtual-rig's: home --ports DAQ,STEPPER)"
         )
         return 0
-    stepper = StepperBoard.open(_stepper_url(args.ports, args.rig_name), rig=rigfile.selected())
+    stepper = StepperBoard.open(_stepper_url(args.ports, args.rig_name), rig=args.rig)
     try:
         print(home(stepper, confirm_slack=args.confirm_slack, speed_mm_s=args.speed))
     finally:

@@ -34,7 +34,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import MissingDataError
 from helpers.base.locks import folder_lock
@@ -46,11 +45,11 @@ from helpers.commands.tip_stream import record_tip_stream
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
 from helpers.paper.calibration import (
-    UNCALIBRATED,
     LoadCellCalibration,
     fit_calibration,
     load_calibration,
     save_calibration,
+    uncalibrated,
 )
 from helpers.paper.hardware import (
     DAQ_RATE_DEFAULT_HZ,
@@ -79,6 +78,7 @@ from helpers.rig.stream_rig import StreamRig
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
 from helpers.rig.tendon_safety import check_tendon_programme
 from helpers.rig.tendons import TendonRig
+from helpers.rigfile import RigFile, derived
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
 """Systems ``record`` designs itself from one identified mode (the others come from a --design file)."""
@@ -360,13 +360,13 @@ def record_all(
         Folder of the Table I recordings under ``data_dir``.
     """
     seeds = seeds or NoiseSeeds(None)
-    run = scenarios.identification_run()
+    run = scenarios.identification_run(rig.rig)
     rec = rig.run_pulse(
         run["v_in_mm_s"],
         run["x_f_mm"],
         None,
         system="unshaped",
-        path=Path(data_dir) / "identification" / scenarios.identification_name(),
+        path=Path(data_dir) / "identification" / scenarios.identification_name(rig.rig),
         t_end_s=t_end_s,
         rate_hz=rate_hz,
         progress=False,
@@ -476,14 +476,14 @@ RECORDERS: dict[str, Callable[[Rig, argparse.Namespace, NoiseSeeds], None]] = {
 """What ``record`` can record -> the function that does it."""
 
 
-def _calibration_for(what: str, data_dir: Path) -> LoadCellCalibration | None:
+def _calibration_for(what: str, data_dir: Path, rig: RigFile) -> LoadCellCalibration | None:
     """The load-cell calibration a run uses: the saved one; recording a new one may start without any."""
     path = data_dir / "calibration" / "calibration.json"
     try:
         return load_calibration(path)
     except MissingDataError:
         if what == "calibration":
-            return UNCALIBRATED
+            return uncalibrated(derived(rig).mm_per_step[0])
         raise
 
 
@@ -500,11 +500,11 @@ def _planned_pulses(
             for rep in range(1, reps + 1)
         ]
     planned = []
-    scaling_notes.announce()
+    scaling_notes.announce(args.rig)
     if args.what == "all":
-        run = scenarios.identification_run()
+        run = scenarios.identification_run(args.rig)
         v, x = run["v_in_mm_s"], run["x_f_mm"]
-        planned.append(("identification", scenarios.identification_name(), v, x, "unshaped", None))
+        planned.append(("identification", scenarios.identification_name(args.rig), v, x, "unshaped", None))
         if not quiet:
             print("dry run: the shapers of Table I are designed from the identification run once recorded;")
             print("         the plan below checks them with the current identification result")
@@ -514,7 +514,7 @@ def _planned_pulses(
         shapers, _ = _shapers(args, quiet=quiet)
     reps = args.repetitions or 3
     for system in paper.SYSTEMS:
-        for v, x in scenarios.table_i_conditions():
+        for v, x in scenarios.table_i_conditions(args.rig):
             for rep in range(1, reps + 1):
                 planned.append((args.group, scenario_name(system, v, x, rep), v, x, system, shapers[system]))
     return planned
@@ -537,7 +537,7 @@ def dry_run(args: argparse.Namespace) -> int:
     int
         0 when the run would start; otherwise an exception names the first problem.
     """
-    _calibration_for(args.what, args.data_dir)
+    _calibration_for(args.what, args.data_dir, args.rig)
     rows = []
     if args.what == "calibration":
         for grams in (round(1000 * m) for m in CALIBRATION_MASSES_KG):
@@ -638,7 +638,7 @@ def _print_move(args: argparse.Namespace, rig: Any, move: Any) -> None:
 
 def _record_move(args: argparse.Namespace) -> int:
     """``record move``: plan, check, print (dry run) or record one move on a rig with several tendons."""
-    rig = rigfile.selected()
+    rig = args.rig
     move = _plan_move(args, rig)
     plan, design, programme = move.plan, move.shaping, move.programme
     target = recording_path(args.group, _move_name(args), args.data_dir)
@@ -687,13 +687,13 @@ def run(args: argparse.Namespace) -> int:
     if args.what != "pulse" and args.design is not None:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
     if args.what in ("table-i", "all"):
-        scaling_notes.announce()  # once: which of the paper's scenarios this rig scales, and to what
+        scaling_notes.announce(args.rig)  # once: which of the paper's scenarios this rig scales, and to what
     if args.dry_run:
         return dry_run(args)
     if args.what == "pulse":  # refuse a bad request before any port is opened
         args.pulse_request = _pulse_request(args)
     groups = {args.group, "identification"} if args.what == "all" else {args.group}
-    calibration = _calibration_for(args.what, args.data_dir)
+    calibration = _calibration_for(args.what, args.data_dir, args.rig)
     if not args.replace:  # before any port is opened (opening one resets an Arduino)
         _refuse_existing_targets(args)
     with contextlib.ExitStack() as stack:

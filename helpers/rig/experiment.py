@@ -266,6 +266,7 @@ class Rig(BoardPair):
                 UserWarning,
                 stacklevel=2,
             )
+        self.rig = RIG  # transitional: the rig file (the one driver of issue 36 takes it as a value)
         self.cleanup_timeout = 2.0  # s per cleanup command: a board answers in ms, a busy pty server in < 2 s
         self.last_cleanup: list[str] = []
 

@@ -540,7 +540,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument("--max-evaluations", type=int, default=100, help="Nelder-Mead budget of 'tune'")
     parser.add_argument("--data-dir", type=Path, default=None,
-                        help="'tune': tune the selected rig file's twin on this data folder's identification "
+                        help="'tune': tune the --rig file's twin on this data folder's identification "
                              "result and unshaped recordings, written as a new rig file (docs/rig_file.md); "
                              "default for a rig other than the paper's: data/")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None,
@@ -560,17 +560,17 @@ def run(args: argparse.Namespace) -> int:
     if args.action == "frequency-map":
         if args.modes < 1:
             raise ValueError(f"--modes must be >= 1, got {args.modes}")
-        rig = preset(args.preset) if args.preset is not None else spatial_rig(rigfile.selected())
+        rig = preset(args.preset) if args.preset is not None else spatial_rig(args.rig)
         directions = "0" if rig.n_tendons == 1 and args.directions == "0:360:15" else args.directions
         print(frequency_map_csv(rig, directions, args.bends, n_modes=args.modes), end="")
         return 0
     if args.action == "studies":
         write_studies(tuple(args.only) if args.only else tuple(STUDY_FILES))
         return 0
-    own_rig = rigfile.selected().hash != rigfile.default_rig().hash
+    own_rig = args.rig.hash != rigfile.default_rig().hash
     if args.action == "tune" and (args.data_dir is not None or own_rig):
         data_dir = args.data_dir if args.data_dir is not None else DATA_DIR
-        return rig_file_tuning.run_tune(data_dir, args.out, args.max_evaluations)
+        return rig_file_tuning.run_tune(args.rig, data_dir, args.out, args.max_evaluations)
     if args.action == "tune":
         params, history = tune(max_evaluations=args.max_evaluations, verbose=True)
         print(

@@ -17,10 +17,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from helpers.paper.calibration import UNCALIBRATED
+from helpers.paper.calibration import uncalibrated
 from helpers.paper.shapers import paper_tdfs
 from helpers.rig import Rig
 from helpers.rig.static import record_static
+from helpers.rigfile import default_rig, derived
 
 
 def start_server(
@@ -57,7 +58,7 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) 
     try:
         rig = Rig.connect(
             (daq, stepper),
-            calibration=UNCALIBRATED,
+            calibration=uncalibrated(derived(default_rig()).mm_per_step[0]),
         )
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()

@@ -25,7 +25,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.paper import hardware
 from helpers.virtual.parameters import RigParameters
 
 __all__ = [
@@ -339,10 +338,8 @@ class SpatialRig:
 
     def gain_counts_per_n(self, i: int) -> float:
         """ADC counts per newton of tendon ``i``'s load-cell chain."""
-        return (
-            hardware.loop_counts(hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A)
-            / self.tendons[i].load_cell_range_n
-        )
+        zero, full, _, _ = self.arm.loop_a
+        return self.arm.loop_counts(full - zero) / self.tendons[i].load_cell_range_n
 
     def metadata(self) -> dict[str, Any]:
         """Every field as flat JSON values (the arm's under ``arm``, one dict per tendon)."""
