@@ -9,17 +9,19 @@ import shutil
 import pytest
 from rig_fakes import GAIN, OFFSET, make_world
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.base.paths import DATA_DIR
 from helpers.commands import record
 from helpers.paper import calibration as loadcell
 from helpers.rig import loadcell as loadcell_recording
 
 
-def _args(*argv):
+def _args(*argv, rig: str = "paper"):
     p = argparse.ArgumentParser()
     record.add_arguments(p)
-    return p.parse_args(list(argv))
+    args = p.parse_args(list(argv))
+    args.rig = rigfile.load(rigfile.resolve(rig))  # as python -m helpers passes it: the rig as a value
+    return args
 
 
 def test_record_calibration_recovers_the_sensor_line(tmp_path):

@@ -91,8 +91,8 @@ def test_the_report_orders_its_columns_the_same_for_a_summary_read_back_from_jso
 
 
 def test_tune_on_several_tendons_refuses_the_one_tendon_options(monkeypatch, tmp_path, capsys) -> None:
-    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
-    assert main(["tune", "--grid", "wide", "--data-dir", str(tmp_path)]) == 2
+    rig_args = ["--rig", "four-tendon"]
+    assert main(rig_args + ["tune", "--grid", "wide", "--data-dir", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--grid apply to a rig with one tendon" in err
     assert not any(tmp_path.iterdir())
