@@ -100,17 +100,22 @@ class StreamMode:
         Device time of ``STREAM`` (s): control tick k falls at ``t0 + k * PERIOD_S``.
     send : callable
         Queues one line from the board (notices).
+    travel : int
+        The axis's travel (the build's; the reference's default is the paper's 156 steps).
     """
 
     def __init__(
-        self, shaper: hs.StreamShaper, position: int, t0: float, send: Callable[[str], None]
-    ) -> None:
+        self, shaper: hs.StreamShaper, position: int, t0: float, send: Callable[[str], None],
+        travel: int = hs.TRAVEL_MAX,
+    ) -> None:  # fmt: skip
         self.session = hs.StreamSession(shaper, position)
+        self.session.run.planner.travel = travel  # the build's travel (the reference's default: the paper's)
         self.t0 = t0
         self._send = send
         self._planned = 0  # planned steps already moved to the pending arrays
         self._noticed = 0
         self._times = np.zeros(0)
+        self._axes = np.zeros(0, dtype=np.int64)
         self._signs = np.zeros(0, dtype=np.int64)
         self.finished = False
         """True once the stream has stopped (``DONE`` is due)."""
@@ -141,11 +146,11 @@ class StreamMode:
         except hs.StreamRefused as exc:
             return str(exc)
 
-    def _take(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def _take(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         j = int(np.searchsorted(self._times, t + 1e-12, side="right"))
-        times, signs = self._times[:j], self._signs[:j]
-        self._times, self._signs = self._times[j:], self._signs[j:]
-        return times, signs
+        out = self._times[:j], self._axes[:j], self._signs[:j]
+        self._times, self._axes, self._signs = self._times[j:], self._axes[j:], self._signs[j:]
+        return out
 
     def _tick(self) -> None:
         alive = self.session.tick()
@@ -158,25 +163,23 @@ class StreamMode:
             ticks = np.asarray(planner.ticks[self._planned :], dtype=np.int64)
             new_times = self.t0 + ticks * hs.TICK_S + STEP_EDGE_S
             self._times = np.concatenate([self._times, new_times])
+            self._axes = np.zeros(len(self._times), dtype=np.int64)
             self._signs = np.concatenate([self._signs, np.asarray(planner.dirs[self._planned :], np.int64)])
             self._planned = len(planner.ticks)
         self.finished = not alive
 
-    def steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
-        """Run the control ticks due by ``t1`` and take the steps due by ``t1`` (times in s, signs).
+    def steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Run the control ticks due by ``t1`` and take the steps due by ``t1``: ``(times, axes, signs)``.
 
-        Stops at the tick where the stream finishes (:attr:`finished`): every step it planned is due by then.
+        Times in s (the STEP edges). Stops at the tick where the stream finishes (:attr:`finished`): every
+        step it planned is due by then.
         """
-        times, signs = [], []
+        parts = []
         while not self.finished and self.next_tick <= t1 + 1e-12:
-            due = self._take(self.next_tick)
-            times.append(due[0])
-            signs.append(due[1])
+            parts.append(self._take(self.next_tick))
             self._tick()
-        due = self._take(t1)
-        times.append(due[0])
-        signs.append(due[1])
-        return np.concatenate(times), np.concatenate(signs)
+        parts.append(self._take(t1))
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))  # type: ignore[return-value]
 
 
 class AxesStreamMode(StreamMode):
@@ -205,13 +208,6 @@ class AxesStreamMode(StreamMode):
         super().__init__(shaper, positions[0], t0, send)
         self.session = hs.AxesSession(shaper, positions, travels, releases)
         self._planned_axes = [0] * len(positions)
-        self._axes = np.zeros(0, dtype=np.int64)
-
-    def _take_axes(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        j = int(np.searchsorted(self._times, t + 1e-12, side="right"))
-        out = self._times[:j], self._axes[:j], self._signs[:j]
-        self._times, self._axes, self._signs = self._times[j:], self._axes[j:], self._signs[j:]
-        return out
 
     def _tick(self) -> None:
         alive = self.session.tick()
@@ -233,12 +229,3 @@ class AxesStreamMode(StreamMode):
             order = np.lexsort((ax, t))  # by time, steps on one tick in the axes' order
             self._times, self._axes, self._signs = t[order], ax[order], np.concatenate(signs)[order]
         self.finished = not alive
-
-    def axis_steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Run the control ticks due by ``t1`` and take the steps due by ``t1``: ``(times, axes, signs)``."""
-        parts = []
-        while not self.finished and self.next_tick <= t1 + 1e-12:
-            parts.append(self._take_axes(self.next_tick))
-            self._tick()
-        parts.append(self._take_axes(t1))
-        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))  # type: ignore[return-value]
