@@ -302,3 +302,20 @@ def test_mseg_spreads_its_steps_over_the_window_on_the_firmware_ticks():
     # (7001 us / 3 = 2333.67 us -> 2334.0; 4667.33 -> 4667.5; the window's end; then 7001 + 2000)
     np.testing.assert_allclose((times - go) * 1e6, [2334.0, 4667.5, 7001.0, 9001.0], atol=1e-3)
     assert list(signs) == [1, 1, 1, -1] and list(axes) == [0] * 4
+
+
+def test_a_one_axis_stream_clamps_at_the_travel_of_its_build(rig_file):  # rig-parametrised
+    """PROTOCOL.md: a stream holds each axis within its build's travel (the paper's 156 steps, the long arm's
+    254): 20 periods at the top speed, 1640 x 625 / 2^16 = 15.64 steps each, would be 312.8 steps."""
+    w = make_world(**built_for(rig_file))
+    w.stepper.take_output()
+    talk(w.stepper, *hs.UNIT_SHAPER.commands(), "EN 1", "STREAM")
+    t0, heard = w.t, []
+    for i in range(20):
+        w.advance_to(t0 + 0.004 + 0.01 * i)
+        heard += [m for m in talk(w.stepper, f"V {hs.V_MAX}") if not m.startswith("OK V")]
+    assert talk(w.stepper, "END") == ["OK END 21"]
+    w.advance_to(t0 + 0.6)
+    heard += talk(w.stepper)
+    travel = rig_file.travel_steps
+    assert heard == [f"N,LIMIT,TRAVEL,{travel}", f"DONE {travel}"] and w.stepper.position == travel
