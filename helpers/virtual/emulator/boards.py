@@ -42,7 +42,7 @@ from helpers.board.stream_reference import MAX_DELAY_US, MAX_DELAY_US_AXES
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 from helpers.virtual.emulator.framing import frame_many
-from helpers.virtual.emulator.stream_mode import AxesStreamMode, ShaperLoader, StreamMode
+from helpers.virtual.emulator.stream_mode import ShaperLoader, StreamMode
 
 __all__ = ["BuildLimits", "build_limits", "board_version", "Faults", "Disconnected", "EmulatedBoard",
            "DaqEmulator", "StepperEmulator", "MEM_FREE_BYTES"]  # fmt: skip
@@ -781,13 +781,11 @@ class StepperEmulator(EmulatedBoard):
             return "ERR STATE no shaper"
         if not self.enabled:
             return "ERR STATE driver disabled"
-        lim, t = self.limits, self.world.t
-        if lim.axes == 1:
-            self.stream = StreamMode(self.shaper.ready, self.positions[0], t, self.send, lim.travel_steps[0])
-        else:
+        lim = self.limits
+        if lim.axes > 1:
             self.items = []  # the stream's state takes the programme table's RAM
-            self.stream = AxesStreamMode(self.shaper.ready, list(self.positions), lim.travel_steps, t,
-                                         self.send, lim.releases)  # fmt: skip
+        self.stream = StreamMode(self.shaper.ready, list(self.positions), lim.travel_steps, self.world.t,
+                                 self.send, lim.releases)  # fmt: skip
         return f"OK STREAM {self.positions[0]}"
 
     def cmd_V(self, cmd: _Command) -> str:  # noqa: N802, D102
