@@ -30,8 +30,10 @@ READY_S = 120.0
 SHIPPED = sorted(rigfile.RIGS_DIR.glob("*.toml"))
 
 
-def _lines_until(port: serial.Serial, want: str) -> list[str]:
-    """Every line's body (its CRC-8 checked) up to and including the first that starts with ``want``."""
+def _lines_until(port: serial.Serial, want) -> list[str]:
+    """Every line's body (its CRC-8 checked) up to and including the first that starts with ``want`` (a str)
+    or that ``want`` accepts (a callable)."""
+    accepts = want if callable(want) else lambda body: body.startswith(want)
     out: list[str] = []
     deadline = time.monotonic() + READY_S
     while time.monotonic() < deadline:
@@ -41,7 +43,7 @@ def _lines_until(port: serial.Serial, want: str) -> list[str]:
         body, star, given = raw.rstrip(b"\n").rpartition(b"*")
         assert star and given.decode() == checksum(body), raw
         out.append(body.decode())
-        if out[-1].startswith(want):
+        if accepts(out[-1]):
             return out
     raise AssertionError(f"no {want!r} within {READY_S} s; got {out[-5:]}")
 
@@ -83,8 +85,18 @@ def test_the_server_serves_every_shipped_rig_at_half_speed(path) -> None:
             for c in ("EN 1", there, "WAIT 100", back, "GO"):
                 assert _ask(st, c, "OK").startswith("OK")
             assert _lines_until(st, "DONE")[-1] == "DONE " + " ".join(["0"] * n)
+            moved: list[bool] = []
+
+            def back_home(body: str) -> bool:  # a sample after the last step: every count back at 0
+                if not body.startswith("D,"):
+                    return False
+                counts = [int(x) for x in body.split(",")[-n:]]
+                moved.append(any(counts))
+                return any(moved) and not any(counts)
+
+            got = _lines_until(daq, back_home)
             daq.write(frame("STOP"))
-            got = _lines_until(daq, "OK STOP")
+            got += _lines_until(daq, "OK STOP")
     finally:
         stop.set()
         thread.join(timeout=READY_S)
