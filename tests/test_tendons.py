@@ -30,14 +30,15 @@ from helpers.rig.safety import SafetyError
 from helpers.rig.stepper import StepperBoard
 from helpers.rig.tendon_safety import TendonProgramme, check_tendon_programme, slack_tendons
 from helpers.rig.tendons import TendonRig, TendonStepper
-from helpers.virtual.emulator.tendon_boards import (
-    BuildLimits,
-    TendonDaqEmulator,
-    TendonStepperEmulator,
-    build_limits,
+from helpers.virtual.emulator.boards import BuildLimits, DaqEmulator, StepperEmulator, build_limits
+from helpers.virtual.emulator.world import (
+    VirtualWorld,
+    build_world,
+    find_world,
+    forget_world,
+    get_world,
+    register_world,
 )
-from helpers.virtual.emulator.tendon_world import TendonWorld, tendon_world
-from helpers.virtual.emulator.world import default_world, forget_world, get_world, register_world
 
 REST_COUNTS = 122.88 + 2.3554 * 491.52 / 20.0
 
@@ -47,9 +48,9 @@ def four() -> rigfile.RigFile:
     return rigfile.load(rigfile.resolve("four-tendon"))
 
 
-def _stepper(four: rigfile.RigFile) -> tuple[TendonStepperEmulator, Clock]:
+def _stepper(four: rigfile.RigFile) -> tuple[StepperEmulator, Clock]:
     clock = Clock()
-    s = TendonStepperEmulator(clock, build_limits(four))
+    s = StepperEmulator(clock, build_limits(four))
     s.reset()
     s.out.clear()
     return s, clock
@@ -88,7 +89,7 @@ def test_emulated_stepper_replies_per_axis(four: rigfile.RigFile) -> None:
 def test_emulated_stepper_steps_on_the_firmware_ticks(four: rigfile.RigFile) -> None:
     s, clock = _stepper(four)
     assert talk(s, "EN 1", "MSEG 7001 3 0 1 2", "WAIT 1", "SEG 1 2 1000", "GO")[-1] == "OK GO 3"
-    times, axes, signs = s.axis_steps_until(1.0)
+    times, axes, signs = s.steps_until(1.0)
     # step k of n in W: tick ceil(k 2W / n) (0.5 us): 14002/3 -> 4668, 9335, 14002 ticks; one step at the
     # window's end; 14002/2 -> 7001, 14002; then the dwell (1 ms) and 1000 us per SEG step
     want = {0: [2334.0, 4667.5, 7001.0, 9001.0, 10001.0], 2: [7001.0], 3: [3500.5, 7001.0]}
@@ -101,7 +102,7 @@ def test_emulated_stepper_steps_on_the_firmware_ticks(four: rigfile.RigFile) -> 
 
 def test_emulated_daq_sends_every_channel_and_axis(four: rigfile.RigFile) -> None:
     clock = Clock()
-    d = TendonDaqEmulator(clock, build_limits(four))
+    d = DaqEmulator(clock, build_limits(four))
     d.reset()
     assert talk(d, "CONFIG", "RATE 50")[1:] == ["OK CONFIG 4 4 100 2000", "ERR RANGE rate 100-2000 Hz"]
     body = d.payload(np.array([[180, 181, 182, 183]]), np.array([[0, 5, -3, 156]]))
@@ -110,7 +111,7 @@ def test_emulated_daq_sends_every_channel_and_axis(four: rigfile.RigFile) -> Non
 
 @pytest.fixture(scope="module")
 def world_at_rest(four: rigfile.RigFile):
-    w = tendon_world(four, "tendons-test-rest")
+    w = build_world(four, "tendons-test-rest")
     w.daq.take_output()
     w.daq.receive(frame("START"))
     w.advance_to(0.3 + 3 * 104e-6)  # the sample at 0.3 s is complete once its fourth channel is read
@@ -132,7 +133,7 @@ def test_twin_at_rest_reads_the_pretension_on_every_channel(world_at_rest) -> No
 
 
 def test_world_drives_each_tendon_from_its_axis(four: rigfile.RigFile) -> None:
-    w = tendon_world(four, "tendons-test-pull")
+    w = build_world(four, "tendons-test-pull")
     for b in (w.daq, w.stepper):
         b.take_output()
     talk(w.daq, "START")
@@ -162,9 +163,9 @@ def test_intervals_ending_mid_conversion_give_the_samples_of_whole_ones(four: ri
     # the pseudo-terminal server advances the world to wall-clock instants, often between a sample's
     # channel 0 and its channel 3 (312 us later): every sample must still come, from the twin at each
     # channel's own instant, as when the world moves on whole milliseconds
-    whole = _pull_data(tendon_world(four, "tendons-test-whole"), np.arange(1, 201) * 1e-3)
+    whole = _pull_data(build_world(four, "tendons-test-whole"), np.arange(1, 201) * 1e-3)
     ragged_ends = np.cumsum(np.tile([0.37e-3, 0.05e-3, 0.21e-3, 0.53e-3, 0.11e-3], 200))
-    ragged = _pull_data(tendon_world(four, "tendons-test-ragged"), ragged_ends[ragged_ends <= 0.2])
+    ragged = _pull_data(build_world(four, "tendons-test-ragged"), ragged_ends[ragged_ends <= 0.2])
     n = min(len(whole), len(ragged))
     assert n >= 195  # 1 kHz for 0.2 s, the last sample still converting at 0.2 s in one of them
     np.testing.assert_array_equal(ragged[:n, :2], whole[:n, :2])  # seq and t_us: no sample lost or repeated
@@ -219,7 +220,7 @@ def test_a_state_with_every_tendon_slack_is_refused(four) -> None:
 
 
 def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> None:
-    w = tendon_world(four, "tendons-test-two-channels")
+    w = build_world(four, "tendons-test-two-channels")
     w.limits = BuildLimits(four.hash, (156, 156, 156, 156), channels=2)
     w.daq.limits = w.limits
     register_world(w)
@@ -236,7 +237,7 @@ def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> 
 
 
 def test_a_stepper_built_without_the_rig_files_release_is_refused(four) -> None:
-    w = tendon_world(four, "tendons-test-no-release")
+    w = build_world(four, "tendons-test-no-release")
     # a build without RIG_AXIS_RELEASE_STEPS: its CONFIG lists no release
     w.limits = dataclasses.replace(w.limits, release_steps=())
     w.stepper.limits = w.limits
@@ -276,7 +277,7 @@ def test_config_lists_the_releases_after_the_travels_or_none() -> None:
 
 
 def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
-    register_world(default_world("tendons-test-paper"))  # the paper's boards: one axis, the paper's hash
+    register_world(build_world(rigfile.default_rig(), "tendons-test-paper"))  # one axis, the paper's hash
     try:
         with pytest.raises(WrongRig, match="built for rig 481e87e3, but this host runs rig 'four-tendon'"):
             TendonRig.connect("virtual", rig=four, rig_name="tendons-test-paper")
@@ -286,7 +287,7 @@ def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
 
 @pytest.fixture(scope="module")
 def four_rig(four):
-    register_world(tendon_world(four, "tendons-test-rig"))
+    register_world(build_world(four, "tendons-test-rig"))
     rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-rig")
     yield rig
     rig.close()
@@ -454,7 +455,7 @@ def test_a_step_count_within_the_release_and_the_travel_is_a_recording_the_rig_c
 def pulse_recording_path(four, tmp_path_factory):
     """Tendons 1 and 2 (0-based 0 and 1) pulled 6 and 4 steps together after 0.6 s, held 1.6 s, released
     (a rig of its own: the twin at rest)."""
-    register_world(tendon_world(four, "tendons-test-pulse"))
+    register_world(build_world(four, "tendons-test-pulse"))
     four_rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-pulse")
     pull, hold = (20_000, (6, 4, 0, 0)), (1_600_000, None)
     programme = _programme((600_000, None), pull, hold, (20_000, (-6, -4, 0, 0)))
@@ -541,7 +542,7 @@ def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(mon
     try:
         rig = TendonRig.connect("virtual", rig=four, rig_name="tendons-test-url")
         try:
-            assert isinstance(get_world("tendons-test-url"), TendonWorld)
+            assert get_world("tendons-test-url").limits.axes == 4
             assert rig.stepper.configure() == (4, (156, 156, 156, 156))
         finally:
             rig.close()
@@ -569,7 +570,7 @@ class _MicrosecondSensor:
 
 def test_each_channel_is_read_one_conversion_after_the_previous(four) -> None:
     """PROTOCOL.md: channel c is converted c x 104 us after channel 0, whose instant is ``t_us``."""
-    w = TendonWorld(_ClockPlant(), [_MicrosecondSensor()] * 4, name="skew", limits=build_limits(four))
+    w = VirtualWorld(_ClockPlant(), [_MicrosecondSensor()] * 4, name="skew", limits=build_limits(four))
     w.daq.take_output()
     w.daq.receive(frame("START"))
     w.advance_to(0.0101)
@@ -585,7 +586,7 @@ def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monk
     7 steps, at 50 mm/s: 0.255254 / 50 mm/s = 5105 us per step, a 35.7 ms window); tendon 2, paid out 3 steps
     below its rest, is pulled back up to it."""
     monkeypatch.setenv("HELPERS_RIG", "four-tendon")
-    w = register_world(tendon_world(four, "tendons-test-home"))
+    w = register_world(build_world(four, "tendons-test-home"))
     try:
         assert talk(w.stepper, "EN 1", "MSEG 40000 5 -3 0 7", "GO")[-1] == "OK GO 1"
         w.advance_to(0.1)
@@ -630,14 +631,13 @@ def test_home_after_a_restart_asks_for_every_tendon_at_its_rest_pretension(monke
 
 def test_the_one_tendon_rig_refuses_a_rig_file_of_several_tendons(monkeypatch, four) -> None:
     from helpers.rig import experiment
-    from helpers.virtual.emulator import world as world_module
 
     monkeypatch.setattr(experiment, "RIG", four)
     with pytest.raises(ValueError) as info:
         experiment.Rig.connect("virtual", rig_name="tendons-test-one")
     assert str(info.value).startswith("rig 'four-tendon' has 4 tendons, but Rig drives one")
     assert error_line(info.value)[1] == 2
-    assert "tendons-test-one" not in world_module._WORLDS  # no port opened, so no world was made
+    assert find_world("tendons-test-one") is None  # no port opened, so no world was made
 
 
 @pytest.mark.slow

@@ -113,11 +113,10 @@ def test_a_short_tune_measures_the_map_and_zvd_leaves_less_than_unshaped(tmp_pat
 
     from helpers.research import tune_tendons as tt
     from helpers.rig.tendons import TendonRig
-    from helpers.virtual.emulator.tendon_world import tendon_world
-    from helpers.virtual.emulator.world import forget_world, register_world
+    from helpers.virtual.emulator.world import build_world, forget_world, register_world
 
     rig = rigfile.load(_two_tendon_rig(tmp_path))
-    world = register_world(tendon_world(rig, "tune-tendons-test"))
+    world = register_world(build_world(rig, "tune-tendons-test"))
     seeds = itertools.count(7)
     try:
         with TendonRig.connect("virtual", rig=rig, rig_name="tune-tendons-test") as trig:

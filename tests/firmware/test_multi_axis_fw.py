@@ -531,20 +531,20 @@ class _Clock:
 
 
 def _emulated(board: str, cmds: list[str], duration: float, spacing: float = 0.02):
-    """The emulated four-tendon board (``helpers.virtual.emulator.tendon_boards``) sent the same commands at
+    """The emulated four-tendon board (``helpers.virtual.emulator.boards``) sent the same commands at
     the same device times as ``_stepper``: its reply bodies, and each axis's step times from GO (s)."""
-    tb = pytest.importorskip("helpers.virtual.emulator.tendon_boards")
+    tb = pytest.importorskip("helpers.virtual.emulator.boards")
     rigfile = pytest.importorskip("helpers.rigfile")
     limits = tb.build_limits(rigfile.load(fwsim.REPO / "rigs" / "four-tendon.toml"))
     clock = _Clock()
-    dev = (tb.TendonStepperEmulator if board == "stepper" else tb.TendonDaqEmulator)(clock, limits)
+    dev = (tb.StepperEmulator if board == "stepper" else tb.DaqEmulator)(clock, limits)
     dev.reset()
     steps: list[list[float]] = [[] for _ in range(limits.axes)]
     bodies = []
     for i, c in enumerate([*cmds, None]):
         t = 0.05 + spacing * i if c is not None else duration
         if board == "stepper":
-            times, axes, _ = dev.axis_steps_until(t)
+            times, axes, _ = dev.steps_until(t)
             for ti, a in zip(times.tolist(), axes.tolist(), strict=True):
                 steps[a].append(ti - clock.go_times[-1])
             dev.finish_if_due(t)
