@@ -113,16 +113,22 @@ def test_the_server_serves_every_shipped_rig_at_half_speed(path) -> None:
 def test_serve_virtual_rig_builds_the_boards_of_the_rig_named_by_rig() -> None:
     parser = argparse.ArgumentParser()
     server.add_arguments(parser)
+
+    def args(rig: str, *argv: str) -> argparse.Namespace:  # as python -m helpers passes --rig: a value
+        parsed = parser.parse_args(list(argv))
+        parsed.rig = rigfile.load(rigfile.resolve(rig))
+        return parsed
+
     four = rigfile.load(rigfile.resolve("four-tendon"))
-    world = server.world_of(parser.parse_args(["--rig", "four-tendon", "--speed", "0.5", "--seed", "3"]))
+    world = server.world_of(args("four-tendon", "--speed", "0.5", "--seed", "3"))
     assert (world.rig_hash, world.limits.axes, world.limits.channels) == (four.hash, 4, 4)
     assert world.info["tendons"] == 4 and world.info["seed"] == 3 and world.name == "pty"
     path = rigfile.RIGS_DIR / "long-arm.toml"
-    world = server.world_of(parser.parse_args(["--rig", str(path), "--stepper-faults", "hang_at=2"]))
+    world = server.world_of(args(str(path), "--stepper-faults", "hang_at=2"))
     assert world.rig_hash == rigfile.load(path).hash and world.limits.travel_steps == (254,)
     assert world.stepper.faults.hang_at == 2.0
     with pytest.raises(SystemExit, match="unknown hang"):
-        server.world_of(parser.parse_args(["--rig", "paper", "--daq-faults", "hang=1"]))
+        server.world_of(args("paper", "--daq-faults", "hang=1"))
 
 
 @pytest.mark.slow

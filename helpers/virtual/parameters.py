@@ -435,6 +435,12 @@ class RigParameters(Backbone):
             "gain_counts_per_n": self.gain_counts_per_n,
             "offset_counts": self.offset_counts,
             "saturation_n": self.saturation_n,
+            "loop_zero_a": self.loop_a[0],
+            "loop_full_a": self.loop_a[1],
+            "loop_min_a": self.loop_a[2],
+            "loop_max_a": self.loop_a[3],
+            "shunt_ohm": self.shunt_ohm,
+            "adc_vref_v": self.adc_vref_v,
         }
         out.update({f"derived_{k}": v for k, v in derived.items()})
         return out

@@ -43,7 +43,7 @@ from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import VIRTUAL_RIG_REGISTRY
 from helpers.virtual.emulator.boards import FAULT_OPTIONS, EmulatedBoard, Faults
-from helpers.virtual.emulator.world import VirtualWorld, build_world, legacy_rig
+from helpers.virtual.emulator.world import VirtualWorld, build_world
 
 CATCH_UP_S = 0.02
 """Wall seconds the server integrates at most before it reads and answers the ports again."""
@@ -214,9 +214,6 @@ def serve(
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``serve-virtual-rig`` options (every range refused up front)."""
     parser.formatter_class = DefaultsHelp
-    parser.add_argument("--rig", default=None, metavar="FILE",
-                        help="the rig file whose boards to serve (a path, or a shipped rig's name such as "
-                             "paper or four-tendon; default: the rig the command line selected)")  # fmt: skip
     parser.add_argument(
         "--speed",
         type=arg_number(0, 1000),
@@ -262,7 +259,7 @@ def world_of(args: argparse.Namespace) -> VirtualWorld:
     options = {"seed": str(args.seed)}
     if args.load_n is not None:
         options["load_n"] = str(args.load_n)
-    rig = rigfile.load(rigfile.resolve(args.rig)) if args.rig else legacy_rig()
+    rig = args.rig if isinstance(args.rig, rigfile.RigFile) else rigfile.load(rigfile.resolve(args.rig))
     world = build_world(rig, args.rig_name, options)
     world.daq.faults = _faults(args.daq_faults)
     world.stepper.faults = _faults(args.stepper_faults)
