@@ -336,10 +336,13 @@ def test_tendons_pay_out_below_rest_down_to_the_release_and_home_pulls_them_back
 
 # --- recordings: version 3 for several tendons, version 2 for one ----------------------------------------
 def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
+    """A version-2 recording (the one-tendon layout before version 4) loads with the one-tendon names too."""
     meta = {
         "schema_version": 2, "source": {"kind": "virtual-rig"}, "scenario": {"kind": "programme"},
-        "calibration": {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.25525},
+        "calibration": {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.2552544,
+                        "origin": "test"},
         "rate_hz": 1000, "status": "complete", "counts": {"dropped": 0},
+        "rig": recordings.rig_section(rigfile.default_rig()),
     }  # fmt: skip
     rows = [(s, 1000 * s, 100 + s, s // 4) for s in range(20)]
     rec = recordings.Recording(recordings.frame_from_rows(rows), meta)
@@ -347,7 +350,8 @@ def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
     assert path.read_text().splitlines()[:2] == ["seq,t_us,adc,steps", "0,0,100,0"]
     rec = recordings.load(path)
     assert rec.meta["schema_version"] == 2 and rec.tendons == 1
-    assert list(rec.frame.columns) == ["seq", "t_us", "adc", "steps", "t_s", "tension_n", "cable_mm"]
+    assert list(rec.frame.columns) == ["seq", "t_us", "adc_0", "steps_0", "t_s", "tension_n_0", "cable_mm_0",
+                                       "adc", "steps", "tension_n", "cable_mm"]  # fmt: skip
     assert rec.frame["tension_n"].iloc[3] == pytest.approx((103 - 60.0) * 0.025)
 
 
@@ -406,14 +410,14 @@ def test_a_recording_without_the_tip_loads_unchanged(tendon_recording_path, tmp_
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        (lambda m: m.update(tendons=3), "calibration.newtons_per_count: expected a list of 3 positive"),
+        (lambda m: m.update(tendons=3), "tendons: 3, but the rig file has 4"),
         (lambda m: (m.update(tendons=3), [m["calibration"][k].pop() for k in ("newtons_per_count",
                     "offset_counts", "mm_per_step")]), "tendons: 3, but the rig file has 4"),
         (lambda m: m["calibration"].update(mm_per_step=[0.25, 0.25]),
-         "calibration.mm_per_step: expected a list of 4 positive finite numbers (one per tendon)"),
-        (lambda m: m.pop("rig"), "rig: missing (a recording of several tendons keeps its rig file)"),
-        (lambda m: m.update(schema_version=4), "schema_version: unknown 4 (this code reads (1, 2, 3))"),
-        (lambda m: m.update(tip="twin"), "tip: expected an object (the twin-provided tip columns' origin)"),
+         "calibration.mm_per_step: expected a list of 4 numbers > 0 (mm per step, one per tendon)"),
+        (lambda m: m.pop("rig"), "rig: missing (a recording of schema_version 3 keeps its rig file)"),
+        (lambda m: m.update(schema_version=5), "schema_version: unknown 5 (this code reads (1, 2, 3, 4))"),
+        (lambda m: m.update(tip="twin"), "tip: expected an object (the twin-provided tip columns' origin"),
         (lambda m: m.pop("tip"), "header"),  # tip columns without the key: not the contract's header
     ],
 )  # fmt: skip

@@ -54,7 +54,7 @@ from numpy.typing import ArrayLike, NDArray
 from helpers import rigfile
 from helpers.base.noise import white_noise_std
 from helpers.paper import numbers as paper
-from helpers.rigfile.recorded import recording_rig
+from helpers.rigfile.recorded import calibration_of, recording_rig
 
 FloatArray = NDArray[np.float64]
 
@@ -563,7 +563,8 @@ def metrics_by_run(
                 f"recordings of {len(rigs)} rigs in one table ({', '.join(sorted(rigs.values()))}): "
                 "pass mix_rigs=True to mix them"
             )
-        df = recording_metrics(rec.frame, band, calibration=meta.get("calibration"), rig=rig, **kwargs)
+        calibration = calibration_of(meta) if "calibration" in meta else None  # tendon 1's, any version
+        df = recording_metrics(rec.frame, band, calibration=calibration, rig=rig, **kwargs)
         for key, value in sc.items():
             df[key] = value
         parts.append(df)
