@@ -421,9 +421,10 @@ def catalogue(root: str | os.PathLike = DATA_DIR) -> pd.DataFrame:
     """List every recording under ``root`` with its key metadata (without loading the samples).
 
     JSON documents of other formats (designs, mode maps: :func:`is_other_document`) are not recordings and
-    are left out, as is ``data/external/`` (data made elsewhere, in their own formats). Files that are not sound are listed too, never skipped: ``problem`` says what is wrong
-    (malformed metadata, an incomplete run whose CSV has no JSON, a missing CSV); it is ``""`` for sound
-    metadata (the samples and their checksum are checked by :func:`load`).
+    are left out, as is ``data/external/`` (data made elsewhere, in their own formats). Files that are not
+    sound are listed too, never skipped: ``problem`` says what is wrong (malformed metadata, an incomplete run
+    whose CSV has no JSON, a missing CSV); it is ``""`` for sound metadata (the samples and their checksum are
+    checked by :func:`load`).
 
     Parameters
     ----------
