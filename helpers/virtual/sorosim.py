@@ -110,30 +110,21 @@ def rod_file_text(test: SoroSimTest, segments: int = 20, alpha_per_s: float = 0.
     """
     if np.any(test.mid_moment != 0.0) or np.any(test.tip_moment != 0.0):
         raise ValueError(f"{test.path}: holding moments are not supported (the twin holds the rod by forces)")
-    g = float(np.linalg.norm(test.gravity))
-    return "\n".join([
-        "# A bare rod for the spatial twin (docs/rig_file.md, [rod]), made from SoroSim's tip-release test",
-        f"# {test.name} ({test.path.name}, sha256 {test.sha256[:16]}...) and its rod's description",
-        f"# {test.description.name}. Every value is the test's; the clamp frame's z is the file's x (along",
-        "# the rod), its x the file's y and its y the file's z. Simulated by both solvers, never measured.",
-        "schema_version = 1",
-        f'name = "{("sorosim-" + test.name)[:32]}"',
-        f'description = "SoroSim tip-release test {test.name}: {test.length_m:g} m rod, held and released"',
-        "",
-        "[rod]",
-        f"length_mm = {test.length_m * 1e3:.10g}",
-        f"radius_mm = {test.radius_m * 1e3:.10g}",
-        f"youngs_modulus_gpa = {test.youngs_modulus_pa / 1e9:.10g}",
-        f"density_kg_m3 = {test.density_kg_m3:.10g}",
-        f"shear_modulus_gpa = {test.shear_modulus_pa / 1e9:.10g}  # E / (2 (1 + {test.poisson_ratio:g}))",
-        f"gravity_direction = {_vector(to_clamp(test.gravity / g))}",
-        f"gravity_m_s2 = {g:.10g}",
-        f"segments = {int(segments)}",
-        f"held_mid_force_n = {_vector(to_clamp(test.mid_force))}",
-        f"held_tip_force_n = {_vector(to_clamp(test.tip_force))}",
-        f"damping_alpha_per_s = {alpha_per_s:.10g}  # fitted to the test's tip decay (virtual.sorosim)",
-        "",
-    ])  # fmt: skip
+    return bare_rod.rod_file_text(
+        f"sorosim-{test.name}", length_m=test.length_m, radius_m=test.radius_m,
+        youngs_modulus_pa=test.youngs_modulus_pa, density_kg_m3=test.density_kg_m3,
+        shear_modulus_pa=test.shear_modulus_pa, gravity=to_clamp(test.gravity), segments=segments,
+        mid_force_n=to_clamp(test.mid_force), tip_force_n=to_clamp(test.tip_force), alpha_per_s=alpha_per_s,
+        description=f"SoroSim tip-release test {test.name}: {test.length_m:g} m rod, held and released",
+        comments=(
+            "A bare rod for the spatial twin (docs/rig_file.md, [rod]), made from SoroSim's tip-release test",
+            f"{test.name} ({test.path.name}, sha256 {test.sha256[:16]}...) and its rod's description",
+            f"{test.description.name}. Every value is the test's; the clamp frame's z is the file's x (along",
+            "the rod), its x the file's y and its y the file's z. Simulated by both solvers, never measured.",
+        ),
+        notes={"shear_modulus_gpa": f"E / (2 (1 + {test.poisson_ratio:g}))",
+               "damping_alpha_per_s": "fitted to the test's tip decay (helpers.virtual.sorosim)"},
+    )  # fmt: skip
 
 
 def _fit(t: np.ndarray, y: np.ndarray) -> IdentificationResult:

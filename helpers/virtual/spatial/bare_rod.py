@@ -37,10 +37,63 @@ from helpers.virtual.spatial.statics import (
     stable_max_step,
 )
 
-__all__ = ["HOLD_STAGES", "rod_rig", "held_forces", "held_state", "Release", "release", "first_modes"]
+__all__ = [
+    "HOLD_STAGES", "rod_file_text", "rod_rig", "held_forces", "held_state", "Release", "release",
+    "first_modes",
+]  # fmt: skip
 
 HOLD_STAGES = 10
 """Continuation steps from the straight rod to the held state (gravity and forces raised together)."""
+
+
+def _vector(v: npt.ArrayLike) -> str:
+    return "[" + ", ".join(f"{float(c):.10g}" for c in np.asarray(v, dtype=float)) + "]"
+
+
+def rod_file_text(
+    name: str,
+    *,
+    length_m: float,
+    radius_m: float,
+    youngs_modulus_pa: float,
+    density_kg_m3: float,
+    shear_modulus_pa: float,
+    gravity: npt.ArrayLike,
+    segments: int,
+    mid_force_n: npt.ArrayLike = (0.0, 0.0, 0.0),
+    tip_force_n: npt.ArrayLike = (0.0, 0.0, 0.0),
+    alpha_per_s: float = 0.0,
+    comments: tuple[str, ...] = (),
+    description: str = "",
+    notes: dict[str, str] | None = None,
+) -> str:
+    """A bare rod's file (``docs/rig_file.md``, ``[rod]``) in SI arguments (``gravity``: m/s^2, clamp frame).
+
+    ``comments`` head the file; ``notes`` are end-of-line comments by key. Read it back with
+    ``helpers.rigfile.model.loads(text, bare_rod=True)``.
+    """
+    g = np.asarray(gravity, dtype=float)
+    size = float(np.linalg.norm(g))
+    direction = g / size if size > 0 else np.array([1.0, 0.0, 0.0])
+    values = {
+        "length_mm": f"{length_m * 1e3:.10g}",
+        "radius_mm": f"{radius_m * 1e3:.10g}",
+        "youngs_modulus_gpa": f"{youngs_modulus_pa / 1e9:.10g}",
+        "density_kg_m3": f"{density_kg_m3:.10g}",
+        "shear_modulus_gpa": f"{shear_modulus_pa / 1e9:.10g}",
+        "gravity_direction": _vector(direction),
+        "gravity_m_s2": f"{size:.10g}",
+        "segments": f"{int(segments)}",
+        "held_mid_force_n": _vector(mid_force_n),
+        "held_tip_force_n": _vector(tip_force_n),
+        "damping_alpha_per_s": f"{alpha_per_s:.10g}",
+    }
+    notes = notes or {}
+    lines = [*(f"# {c}" for c in comments), "schema_version = 1", f'name = "{name[:32]}"',
+             f'description = "{description}"', "", "[rod]"]  # fmt: skip
+    for key, value in values.items():
+        lines.append(f"{key} = {value}" + (f"  # {notes[key]}" if key in notes else ""))
+    return "\n".join(lines) + "\n"
 
 
 def rod_rig(rig: RigFile, segments: int | None = None, **damping: float) -> SpatialRig:
