@@ -287,18 +287,19 @@ TENDON: tuple[Key, ...] = (
 )
 
 
-def _arm_key(name: str, default: Any = REQUIRED, doc: str | None = None, source: str | None = None) -> Key:
-    """An ``[arm]`` key again (kind, unit, checks, plausible range) for the ``[rod]`` table."""
-    key = next(k for k in ARM if k.name == (source or name))
-    return replace(key, name=name, default=default, doc=doc or key.doc)
+def _arm_key(name: str, default: Any = REQUIRED, doc: str | None = None, plausible: Any = None) -> Key:
+    """An ``[arm]`` key again (kind, unit, checks, plausible range unless given) for the ``[rod]`` table."""
+    key = next(k for k in ARM if k.name == name)
+    return replace(key, default=default, doc=doc or key.doc, plausible=plausible or key.plausible)
 
 
 ROD: tuple[Key, ...] = (
     _arm_key("length_mm", doc="length of the rod from the clamp to its free tip"),
-    _pos("radius_mm", "mm", REQUIRED, "radius of the rod's circular cross-section", (0.025, 25.0)),
-    _arm_key("youngs_modulus_gpa"),
+    _pos("radius_mm", "mm", REQUIRED, "radius of the rod's circular cross-section", (0.025, 100.0)),
+    _arm_key("youngs_modulus_gpa", doc="Young's modulus of the rod (soft rods too: 1e-5 GPa is 10 kPa)",
+             plausible=(1e-5, 1000.0)),  # fmt: skip
     _arm_key("density_kg_m3"),
-    _arm_key("shear_modulus_gpa", doc="shear modulus of the rod (torsion)"),
+    _arm_key("shear_modulus_gpa", doc="shear modulus of the rod (torsion)", plausible=(1e-6, 500.0)),
     _arm_key("gravity_direction", doc="direction of gravity in the clamp frame (z along the unloaded rod)"),
     _arm_key("gravity_m_s2"),
     Key("segments", "int", "-", 20, "constant-strain elements of the spatial twin's rod (the discretisation)",
