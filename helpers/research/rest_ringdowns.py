@@ -80,6 +80,7 @@ FORMATS = {"dropbear": (read_dropbear, ("low_g_accel_v", "accel_v"))}
 COLUMNS: dict[str, tuple[str, str]] = {
     "t_stop_s": ("%.4f", "when the configuration signal came to rest, s from the file's start"),
     "position": ("%.4f", "the configuration signal at rest (its median over the rest), in its unit"),
+    "start": ("%.4f", "the previous rest's position: where the move that ended here began"),
     "direction": ("%s", "up or down: the rest's position against the previous rest's"),
     "rest_s": ("%.3f", "how long the rest lasted, s"),
     "window_s": ("%.3f", "the window analysed, from the stop, s"),
@@ -319,6 +320,7 @@ def identify_ringdowns(
                     other = math.nan
         rows.append({
             **where,
+            "start": rest.previous,
             "direction": rest.direction,
             "window_s": length,
             "f_hz": res.fit.omega_d / (2.0 * math.pi),
