@@ -1,8 +1,8 @@
 """DROPBEAR Dataset-8 as recordings (helpers.recordings.external) and its ring-downs (``ringdowns``).
 
-The reference figures are the issue's, measured independently of this code over all 11 repeats of the 10-step
-series (a damped-sine fit to the low-g channel, band-passed 10-80 Hz, the 0.6 s after each stop): 26.20 Hz at
-PinLoc 1.23 V, 30.79 at 2.08, 33.88 at 2.51, 37.51 at 2.93, 41.85 at 3.35 V; up and down sweeps within 0.1 Hz;
+The reference figures were measured independently of this code over all 11 repeats of the 10-step series
+(a damped-sine fit to the low-g channel, band-passed 10-80 Hz, the 0.6 s after each stop): 26.20 Hz at PinLoc
+1.23 V, 30.79 at 2.08, 33.88 at 2.51, 37.51 at 2.93, 41.85 at 3.35 V; up and down sweeps within 0.1 Hz;
 median damping ratios 0.0013-0.0039 per position, a range of 0.0001-0.018. Nothing here compares the code with
 numbers it computed itself.
 """
@@ -24,7 +24,7 @@ DROPBEAR = DATA_DIR / "external" / "dropbear"
 STEPS = [DROPBEAR / "10steps_test0.txt", DROPBEAR / "10steps_test1.txt"]
 RANDOM = DROPBEAR / "random_dwell_set0_test0.txt"
 QUOTED_HZ = {1.23: 26.20, 2.08: 30.79, 2.51: 33.88, 2.93: 37.51, 3.35: 41.85}
-"""The issue's independent figures: PinLoc (V) -> first mode (Hz), means over the 11 repeats."""
+"""The independent figures: PinLoc (V) -> first mode (Hz), means over the dataset's 11 repeats."""
 
 
 def _nearest(position: float) -> float:

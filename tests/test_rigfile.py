@@ -231,7 +231,7 @@ def test_docs_name_every_key_and_macro():
     doc = (REPO_ROOT / "docs" / "rig_file.md").read_text()
     keys = [
         k.name
-        for table in (schema.TOP, schema.HARDWARE, schema.ARM, schema.BOARDS, schema.TENDON)
+        for table in (schema.TOP, schema.HARDWARE, schema.ARM, schema.BOARDS, schema.TENDON, schema.ROD)
         for k in table
     ]
     missing = [k for k in keys if f"`{k}`" not in doc]

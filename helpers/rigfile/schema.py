@@ -301,7 +301,7 @@ ROD: tuple[Key, ...] = (
     _arm_key("density_kg_m3"),
     _arm_key("shear_modulus_gpa", doc="shear modulus of the rod (torsion)", plausible=(1e-6, 500.0)),
     _arm_key("gravity_direction", doc="direction of gravity in the clamp frame (z along the unloaded rod)"),
-    _arm_key("gravity_m_s2"),
+    _arm_key("gravity_m_s2", 9.81),
     Key("segments", "int", "-", 20, "constant-strain elements of the spatial twin's rod (the discretisation)",
         lo=1, hi=400),  # fmt: skip
     Key("held_mid_force_n", "vector3", "N", (0.0, 0.0, 0.0),
