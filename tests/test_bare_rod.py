@@ -20,8 +20,8 @@ from helpers.base.paths import DATA_DIR
 from helpers.paper.identify import identify
 from helpers.recordings import RecordingError
 from helpers.recordings.sorosim import read_sorosim
-from helpers.rigfile import RigFileError
-from helpers.rigfile.model import load, loads
+from helpers.rigfile import RigFileError, load
+from helpers.rigfile.rod import load_rod, loads_rod
 from helpers.virtual.sorosim import rod_file_text, to_clamp, to_file
 from helpers.virtual.spatial import _kernel as kern
 from helpers.virtual.spatial import bare_rod
@@ -38,7 +38,7 @@ STEEL = dict(length_m=0.5, radius_m=0.5e-3, youngs_modulus_pa=200e9, density_kg_
 def _rod(segments: int = 20, gravity=(0.0, 0.0, 0.0), tip=(0.0, 0.0, 0.0), mid=(0.0, 0.0, 0.0), **kw):
     text = bare_rod.rod_file_text("steel", **STEEL, gravity=gravity, segments=segments, tip_force_n=tip,
                                   mid_force_n=mid, **kw)  # fmt: skip
-    return loads(text, bare_rod=True)
+    return loads_rod(text)
 
 
 def _ei() -> float:
@@ -48,12 +48,12 @@ def _ei() -> float:
 def test_a_rod_file_is_read_only_as_a_rod_and_a_rig_reader_refuses_it(tmp_path):
     path = tmp_path / "rod.toml"
     path.write_text(bare_rod.rod_file_text("steel", **STEEL, gravity=(9.81, 0, 0), segments=10))
-    rod = load(path, bare_rod=True)
+    rod = load_rod(path)
     assert rod.rod.segments == 10 and rod.rod.radius_mm == pytest.approx(0.5) and rod.n_tendons == 0
     with pytest.raises(RigFileError, match=r"rod.toml: \[rod\]: this file describes a bare rod"):
         load(path)
     with pytest.raises(RigFileError, match=r"\[rod\]: missing table"):
-        load(DATA_DIR.parent / "rigs" / "paper.toml", bare_rod=True)
+        load_rod(DATA_DIR.parent / "rigs" / "paper.toml")
 
 
 @pytest.mark.parametrize(
@@ -71,7 +71,7 @@ def test_a_rod_file_is_read_only_as_a_rod_and_a_rig_reader_refuses_it(tmp_path):
 def test_a_bad_rod_file_is_one_line_naming_the_key(edit, message):
     text = bare_rod.rod_file_text("steel", **STEEL, gravity=(9.81, 0, 0), segments=10)
     with pytest.raises(RigFileError, match=message) as info:
-        loads(edit(text), source="rod.toml", bare_rod=True)
+        loads_rod(edit(text), source="rod.toml")
     assert len(str(info.value).splitlines()) == 1 and str(info.value).startswith("rod.toml: ")
 
 
@@ -115,7 +115,7 @@ def test_the_first_mode_converges_to_euler_bernoulli():
 
 def test_the_held_state_of_sorosim_test_1_is_the_files_pose_at_release():
     test = read_sorosim(TEST1)
-    rig = loads(rod_file_text(test, 20), bare_rod=True)
+    rig = loads_rod(rod_file_text(test, 20))
     twin = bare_rod.rod_rig(rig)
     nodes = spatial_model(twin).chain.positions(bare_rod.held_state(twin, bare_rod.held_forces(rig, twin)))
     assert np.linalg.norm(to_file(nodes[-1]) - test.tip[0]) < 1e-3  # m: of a 261 mm deflection
@@ -126,7 +126,7 @@ def test_the_held_state_of_sorosim_test_1_is_the_files_pose_at_release():
 def test_the_released_rod_rings_at_the_files_frequency():
     """Ten segments, three seconds: the twin's tip within 1 % of the 3.13 Hz measured on the file."""
     test = read_sorosim(TEST1)
-    rig = loads(rod_file_text(test, 10, 1.57), bare_rod=True)
+    rig = loads_rod(rod_file_text(test, 10, 1.57))
     twin = bare_rod.rod_rig(rig)
     times = test.t[test.t <= 3.0]
     rel = bare_rod.release(twin, bare_rod.held_state(twin, bare_rod.held_forces(rig, twin)), times)

@@ -2,11 +2,8 @@
 
 Every problem is one :class:`RigFileError` line naming the file, the key and the problem (an unknown key with
 the nearest known one, a wrong type, a wrong sign or an implausible size that is probably a wrong unit, a
-missing key, more than four tendons, an unsafe or impossible rig: ``helpers.rigfile.derived``).
-
-A file whose one table is ``[rod]`` describes a bare rod for the spatial twin (no discs, no cable, no boards):
-:func:`load` and :func:`loads` read it only when asked (``bare_rod=True``); every rig's reader refuses it in
-one line.
+missing key, more than four tendons, an unsafe or impossible rig: ``helpers.rigfile.derived``). A bare rod's
+file (``[rod]``, ``helpers.rigfile.rod``) is no rig: refused in one line.
 """
 
 from __future__ import annotations
@@ -30,16 +27,13 @@ from helpers.rigfile.schema import (
     MAX_TENDONS,
     REQUIRED,
     RIG_SCHEMA_VERSION,
-    ROD,
     TENDON,
     TENDON_FALLBACK,
     TOP,
     Key,
 )
 
-__all__ = [
-    "RigFileError", "Hardware", "Arm", "Boards", "Rod", "Tendon", "RigFile", "loads", "load", "rig_hash",
-]  # fmt: skip
+__all__ = ["RigFileError", "Hardware", "Arm", "Boards", "Tendon", "RigFile", "loads", "load", "rig_hash"]
 
 NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}\Z")
 
@@ -60,8 +54,6 @@ Arm = dataclasses.make_dataclass("Arm", _fields(ARM), frozen=True)
 Arm.__doc__ = "The ``[arm]`` table, every key resolved (``helpers.rigfile.schema.ARM``)."
 Boards = dataclasses.make_dataclass("Boards", _fields(BOARDS), frozen=True)
 Boards.__doc__ = "The ``[boards]`` table (``helpers.rigfile.schema.BOARDS``)."
-Rod = dataclasses.make_dataclass("Rod", _fields(ROD), frozen=True)
-Rod.__doc__ = "The ``[rod]`` table of a bare rod's file, every key resolved (``helpers.rigfile.schema.ROD``)."
 
 
 @dataclass(frozen=True)
@@ -93,7 +85,7 @@ class RigFile:
     schema_version : int
         The file's format version.
     hardware, arm, boards : Hardware, Arm, Boards
-        The tables, defaults filled in (None in a bare rod's file).
+        The tables, defaults filled in.
     tendons : tuple of Tendon
         One to four; a file without ``[[tendon]]`` has one tendon at 0 degrees at the arm's cable offset.
     explicit_tendons : bool
@@ -104,8 +96,8 @@ class RigFile:
         Where it came from (a path, or ``<string>``).
     hash : str
         :func:`rig_hash` of the file's bytes (UTF-8).
-    rod : Rod or None
-        A bare rod's ``[rod]`` table (its file has no other table and no tendons); None for a rig.
+    rod : helpers.rigfile.rod.Rod or None
+        A bare rod's ``[rod]`` table (``helpers.rigfile.rod``: then no hardware, arm, boards or tendons).
     """
 
     name: str
@@ -143,9 +135,8 @@ def _value(source: str, where: str, key: Key, value: Any) -> Any:
         ok = ok and all(
             isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
         )
-        if not ok or (key.nonzero and math.sqrt(sum(float(v) ** 2 for v in value)) < 1e-12):
-            what = "a nonzero vector" if key.nonzero else "a vector"
-            raise _problem(source, where, f"must be {what} of three numbers, got {value!r}")
+        if not ok or math.sqrt(sum(float(v) ** 2 for v in value)) < 1e-12:
+            raise _problem(source, where, f"must be a nonzero vector of three numbers, got {value!r}")
         return tuple(float(v) for v in value)
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise _problem(source, where, f"must be a number{unit}, got {value!r}")
@@ -190,15 +181,8 @@ def _table(source: str, label: str, data: Any, keys: tuple[Key, ...]) -> dict[st
     return out
 
 
-def loads(text: str, source: str = "<string>", *, bare_rod: bool = False) -> RigFile:
+def loads(text: str, source: str = "<string>") -> RigFile:
     """Read a rig file from its text and check it (derived limits and refusals included).
-
-    Parameters
-    ----------
-    text, source : str
-        The file's content, and where it came from (for the messages).
-    bare_rod : bool
-        Read a bare rod's file (only ``[rod]``) instead of a rig's; each kind refuses the other.
 
     Raises
     ------
@@ -209,15 +193,23 @@ def loads(text: str, source: str = "<string>", *, bare_rod: bool = False) -> Rig
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise RigFileError(f"{source}: not valid TOML: {exc}") from None
-    if bare_rod or "rod" in data:
-        return _bare_rod(text, data, source, bare_rod)
+    if "rod" in data:  # helpers.rigfile.rod reads it
+        raise _problem(source, "[rod]", "this file describes a bare rod (docs/rig_file.md), not a rig")
     allowed = {k.name for k in TOP} | {"hardware", "arm", "boards", "tendon"}
     for name in data:
         if name not in allowed:
             near = difflib.get_close_matches(name, sorted(allowed), n=1, cutoff=0.6)
             hint = f" (did you mean {near[0]!r}?)" if near else ""
             raise _problem(source, name, f"unknown key or table{hint}")
-    top = _top(source, data)
+    top = _table(source, "(top level)", {k: v for k, v in data.items() if k in {t.name for t in TOP}}, TOP)
+    if top["schema_version"] != RIG_SCHEMA_VERSION:
+        raise _problem(
+            source, "schema_version",
+            f"{top['schema_version']} is not supported (this version reads {RIG_SCHEMA_VERSION}); "
+            "see docs/rig_file.md",
+        )  # fmt: skip
+    if not NAME.match(top["name"]):
+        raise _problem(source, "name", f"{top['name']!r}: letters, digits, '_', '-', '.' (at most 32)")
     for required in ("hardware", "arm"):
         if required not in data:
             raise _problem(source, f"[{required}]", "missing table")
@@ -246,47 +238,8 @@ def loads(text: str, source: str = "<string>", *, bare_rod: bool = False) -> Rig
     return rig
 
 
-def _top(source: str, data: dict[str, Any]) -> dict[str, Any]:
-    top = _table(source, "(top level)", {k: v for k, v in data.items() if k in {t.name for t in TOP}}, TOP)
-    if top["schema_version"] != RIG_SCHEMA_VERSION:
-        raise _problem(
-            source, "schema_version",
-            f"{top['schema_version']} is not supported (this version reads {RIG_SCHEMA_VERSION}); "
-            "see docs/rig_file.md",
-        )  # fmt: skip
-    if not NAME.match(top["name"]):
-        raise _problem(source, "name", f"{top['name']!r}: letters, digits, '_', '-', '.' (at most 32)")
-    return top
-
-
-def _bare_rod(text: str, data: dict[str, Any], source: str, asked: bool) -> RigFile:
-    """A bare rod's file: the top-level keys and ``[rod]``, nothing else (``asked``: a rod was expected)."""
-    if not asked:
-        raise _problem(source, "[rod]", "this file describes a bare rod (docs/rig_file.md), not a rig: "
-                       "only python -m helpers virtual-rig sorosim reads it")  # fmt: skip
-    if "rod" not in data:
-        raise _problem(source, "[rod]", "missing table (a bare rod's file: docs/rig_file.md)")
-    allowed = {k.name for k in TOP} | {"rod"}
-    for name in data:
-        if name not in allowed:
-            raise _problem(source, name, "a bare rod's file holds only the top-level keys and [rod]")
-    top = _top(source, data)
-    rod = Rod(**_table(source, "[rod]", data["rod"], ROD))
-    if any(rod.held_mid_force_n) and rod.segments % 2:
-        raise _problem(source, "[rod] segments", f"{rod.segments} is odd: a force on the middle needs a node "
-                       "there (an even number of segments)")  # fmt: skip
-    return RigFile(
-        name=top["name"], description=top["description"], schema_version=top["schema_version"],
-        hardware=None, arm=None, boards=None, tendons=(), explicit_tendons=False, text=text, source=source,
-        hash=rig_hash(text.encode("utf-8")), rod=rod,
-    )  # fmt: skip
-
-
-def load(path: str | Path, *, bare_rod: bool = False) -> RigFile:
-    """Read and check the rig file at ``path`` (:func:`loads`); its hash is of the file's bytes.
-
-    ``bare_rod``: read a bare rod's file (``[rod]``) instead of a rig's.
-    """
+def load(path: str | Path) -> RigFile:
+    """Read and check the rig file at ``path`` (:func:`loads`); its hash is of the file's bytes."""
     p = Path(path)
     try:
         data = p.read_bytes()
@@ -298,4 +251,4 @@ def load(path: str | Path, *, bare_rod: bool = False) -> RigFile:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise RigFileError(f"{p}: not UTF-8 text") from None
-    return loads(text, source=str(p), bare_rod=bare_rod)  # its hash: of the text's UTF-8 bytes
+    return loads(text, source=str(p))  # its hash: of the text's UTF-8 bytes, which are the file's

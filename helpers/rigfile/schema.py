@@ -41,8 +41,6 @@ class Key:
         ``lo`` excluded (a positive quantity).
     plausible : tuple of two floats or None
         A plausible range: a value outside it is refused as a probable wrong unit.
-    nonzero : bool
-        A ``vector3`` that must not be zero (a direction); False for a vector that may be (a force).
     """
 
     name: str
@@ -54,7 +52,6 @@ class Key:
     hi: float | None = None
     lo_open: bool = False
     plausible: tuple[float, float] | None = None
-    nonzero: bool = True
 
 
 def _pos(name: str, unit: str, default: Any, doc: str, plausible: tuple[float, float] | None = None,
@@ -285,38 +282,3 @@ TENDON: tuple[Key, ...] = (
     ),
     *(_tendon_key(name, *fallback) for name, fallback in TENDON_FALLBACK.items()),
 )
-
-
-def _arm_key(name: str, default: Any = REQUIRED, doc: str | None = None, plausible: Any = None) -> Key:
-    """An ``[arm]`` key again (kind, unit, checks, plausible range unless given) for the ``[rod]`` table."""
-    key = next(k for k in ARM if k.name == name)
-    return replace(key, default=default, doc=doc or key.doc, plausible=plausible or key.plausible)
-
-
-ROD: tuple[Key, ...] = (
-    _arm_key("length_mm", doc="length of the rod from the clamp to its free tip"),
-    _pos("radius_mm", "mm", REQUIRED, "radius of the rod's circular cross-section", (0.025, 100.0)),
-    _arm_key("youngs_modulus_gpa", doc="Young's modulus of the rod (soft rods too: 1e-5 GPa is 10 kPa)",
-             plausible=(1e-5, 1000.0)),  # fmt: skip
-    _arm_key("density_kg_m3"),
-    _arm_key("shear_modulus_gpa", doc="shear modulus of the rod (torsion)", plausible=(1e-6, 500.0)),
-    _arm_key("gravity_direction", doc="direction of gravity in the clamp frame (z along the unloaded rod)"),
-    _arm_key("gravity_m_s2", 9.81),
-    Key("segments", "int", "-", 20, "constant-strain elements of the spatial twin's rod (the discretisation)",
-        lo=1, hi=400),  # fmt: skip
-    Key("held_mid_force_n", "vector3", "N", (0.0, 0.0, 0.0),
-        "constant force on the rod's middle (clamp frame) holding it deflected until the release at t = 0; "
-        "needs an even number of segments", nonzero=False),  # fmt: skip
-    Key("held_tip_force_n", "vector3", "N", (0.0, 0.0, 0.0),
-        "constant force on the rod's tip (clamp frame) holding it deflected until the release at t = 0",
-        nonzero=False),  # fmt: skip
-    _arm_key("damping_alpha_per_s", 0.0, "mass-proportional damping of the twin (0: none)"),
-    _arm_key("damping_beta_chord_s", 0.0, "wire material damping of the twin, dashpots beta EI / l between "
-             "elements (0: none)"),  # fmt: skip
-    Key("damping_floor_zeta", "float", "-", 0.0, "the twin's high-mode damping floor: about this damping "
-        "ratio on every mode above 1000 rad/s (0: none)", lo=0.0, hi=0.99),  # fmt: skip
-)
-"""The ``[rod]`` table: a bare rod for the spatial twin (no discs, no cable), held deflected and released.
-
-A file with ``[rod]`` describes a bare rod, not a rig, and holds no other table; only the bare rod's readers
-accept it (``helpers.rigfile.load(path, bare_rod=True)``; ``docs/rig_file.md``)."""

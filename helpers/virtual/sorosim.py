@@ -41,7 +41,8 @@ import numpy as np
 
 from helpers.paper.identify import IdentificationResult, identify
 from helpers.recordings.sorosim import SoroSimTest, read_sorosim
-from helpers.rigfile.model import RigFile, loads
+from helpers.rigfile.model import RigFile
+from helpers.rigfile.rod import loads_rod
 from helpers.virtual.spatial import bare_rod
 
 __all__ = [
@@ -106,7 +107,7 @@ def rod_file_text(test: SoroSimTest, segments: int = 20, alpha_per_s: float = 0.
     Returns
     -------
     str
-        TOML text; ``helpers.rigfile.model.loads(text, bare_rod=True)`` reads it.
+        TOML text; :func:`helpers.rigfile.rod.loads_rod` reads it.
     """
     if np.any(test.mid_moment != 0.0) or np.any(test.tip_moment != 0.0):
         raise ValueError(f"{test.path}: holding moments are not supported (the twin holds the rod by forces)")
@@ -276,9 +277,9 @@ def compare(
     axis = np.linalg.svd(motion - motion.mean(axis=0), full_matrices=False)[2][0]
     axis = axis if axis[np.argmax(np.abs(axis))] > 0 else -axis
     file_fit = _fit(test.t, (file_tip - end) @ axis)
-    rig = loads(rod_file_text(test, segments, 0.0), source=f"<rod of {test.name}>", bare_rod=True)
+    rig = loads_rod(rod_file_text(test, segments, 0.0), source=f"<rod of {test.name}>")
     alpha = _alpha(rig, segments, file_fit.zeta)
-    rig = loads(rod_file_text(test, segments, alpha), source=f"<rod of {test.name}>", bare_rod=True)
+    rig = loads_rod(rod_file_text(test, segments, alpha), source=f"<rod of {test.name}>")
     rel = _release(rig, segments, alpha, test.t)
     twin_tip = to_file(rel.tip)
     twin_fit = _fit(test.t, (twin_tip - to_file(rel.tip_rest)) @ axis)

@@ -41,7 +41,7 @@ except ModuleNotFoundError as exc:  # the optional extra
     ) from None
 
 from helpers import __version__
-from helpers.rigfile.model import loads
+from helpers.rigfile.rod import loads_rod
 from helpers.virtual.spatial import bare_rod
 from helpers.virtual.spatial.chain import skew, so3_functions
 from helpers.virtual.spatial.plant import SpatialPlant
@@ -114,7 +114,7 @@ class TwinSolver:
             gravity=R.T @ np.asarray(scenario.gravity, dtype=float), segments=n_elements,
             tip_force_n=R.T @ tip_force, comments=("a cosseratbench scenario's rod (clamp frame)",),
         )  # fmt: skip
-        rig = loads(text, source="<cosseratbench scenario>", bare_rod=True)
+        rig = loads_rod(text, source="<cosseratbench scenario>")
         twin = bare_rod.rod_rig(rig, alpha=0.0, beta_chord=0.0, floor_zeta=0.0)
         return rig, twin, origin, R, bare_rod.held_forces(rig, twin)
 
