@@ -193,7 +193,8 @@ class SpatialRig:
         object.__setattr__(self, "tendons", tendons)
         if not 0 <= len(tendons) <= MAX_TENDONS or not all(isinstance(t, TendonSpec) for t in tendons):
             raise ValueError(
-                f"SpatialRig.tendons must hold 0 to {MAX_TENDONS} TendonSpec, got {len(tendons)}"
+                f"SpatialRig.tendons must hold 1 to {MAX_TENDONS} TendonSpec (none: a bare rod), "
+                f"got {len(tendons)}"
             )
         angles = [t.angle_deg % 360.0 for t in tendons]
         for i in range(len(angles)):
