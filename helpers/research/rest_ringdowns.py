@@ -43,7 +43,7 @@ from scipy import signal
 
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import atomic_write
-from helpers.paper.identify import identify
+from helpers.paper.identify import IdentificationResult, identify
 from helpers.recordings.external import configuration_column, read_dropbear
 from helpers.recordings.format import Recording, RecordingError
 
@@ -232,20 +232,21 @@ def _bandpassed(recording: Recording, channels: tuple[str, ...], band_hz: tuple[
     return {c: signal.sosfiltfilt(sos, recording.frame[c].to_numpy(dtype=float)) for c in channels}
 
 
-def _estimates(t: np.ndarray, y: np.ndarray, t0: float, length: float) -> tuple[list, list]:
-    """``(frequencies_hz, zeta intervals)``: the fit and the log decrement, the window and its halves."""
-    freqs, zetas = [], []
-    for lo, hi in ((t0, t0 + length), (t0, t0 + 0.5 * length), (t0 + 0.5 * length, t0 + length)):
-        try:
-            res = identify(t, y, window=(lo, hi))
-        except (ValueError, RuntimeError):
-            continue
-        for est in (res.fit, res.logdec):
-            if est is None or not math.isfinite(est.zeta_std):
-                continue
-            freqs.append(est.omega_d / (2.0 * math.pi))
-            zetas.append((max(0.0, est.zeta - Z95 * est.zeta_std), est.zeta + Z95 * est.zeta_std))
-    return freqs, zetas
+def _identify(t: np.ndarray, y: np.ndarray, window: tuple[float, float]) -> IdentificationResult | None:
+    try:
+        return identify(t, y, window=window)
+    except (ValueError, RuntimeError):
+        return None
+
+
+def _intervals(results: list[IdentificationResult | None]) -> list[tuple[float, float]]:
+    """The 95 % intervals of zeta of the fit and the log decrement of every result."""
+    out = []
+    for res in results:
+        for est in () if res is None else (res.fit, res.logdec):
+            if est is not None and math.isfinite(est.zeta_std):
+                out.append((max(0.0, est.zeta - Z95 * est.zeta_std), est.zeta + Z95 * est.zeta_std))
+    return out
 
 
 def identify_ringdowns(
@@ -307,17 +308,14 @@ def identify_ringdowns(
             skipped.append({**where, "reason": f"identification failed: {exc}"})
             continue
         assert res.fit is not None
-        freqs, zetas = [], []
-        other = math.nan
+        halves = [(window[0], window[0] + 0.5 * length), (window[0] + 0.5 * length, window[1])]
+        results: list[IdentificationResult | None] = [res]
         for i, c in enumerate(channels):
-            f_c, z_c = _estimates(t, filtered[c], rest.t_start_s, length)
-            freqs += f_c
-            zetas += z_c
-            if i == 1:
-                try:
-                    other = identify(t, filtered[c], window=window).zeta
-                except (ValueError, RuntimeError):
-                    other = math.nan
+            if i > 0:
+                results.append(_identify(t, filtered[c], window))
+            results += [_identify(t, filtered[c], half) for half in halves]
+        zetas = _intervals(results)
+        other = results[3] if len(channels) > 1 else None
         rows.append({
             **where,
             "start": rest.previous,
@@ -332,7 +330,7 @@ def identify_ringdowns(
             "zeta_logdec": res.logdec.zeta,
             "zeta_lo": min(z[0] for z in zetas),
             "zeta_hi": max(z[1] for z in zetas),
-            "zeta_other": other,
+            "zeta_other": math.nan if other is None else other.zeta,
             "n_estimates": len(zetas),
             "n_cycles": res.n_cycles,
         })  # fmt: skip
