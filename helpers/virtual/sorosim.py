@@ -46,8 +46,8 @@ from helpers.rigfile.rod import loads_rod
 from helpers.virtual.spatial import bare_rod
 
 __all__ = [
-    "FIT_WINDOW_S", "RMS_WINDOWS_S", "PHASE_AT_S", "CONVERGENCE_LINEAR", "CONVERGENCE_TIME", "to_clamp",
-    "to_file", "rod_file_text", "euler_bernoulli_hz", "Comparison", "compare", "run_command",
+    "FIT_WINDOW_S", "RMS_WINDOWS_S", "PHASE_AT_S", "CONVERGENCE_LINEAR", "CONVERGENCE_TIME", "MAX_SEGMENTS",
+    "to_clamp", "to_file", "rod_file_text", "euler_bernoulli_hz", "Comparison", "compare", "run_command",
 ]  # fmt: skip
 
 FIT_WINDOW_S = (0.0, 6.0)
@@ -61,6 +61,9 @@ PHASE_AT_S = 2.0
 
 CONVERGENCE_LINEAR = (10, 20, 40, 80)
 """Segment counts of the convergence row's linearised lowest mode."""
+
+MAX_SEGMENTS = 80
+"""Most elements a comparison integrates (the explicit step shrinks with the element: 80 take minutes)."""
 
 CONVERGENCE_TIME = (10,)
 """Segment counts, besides the rod file's, whose release is integrated for the convergence row."""
@@ -268,8 +271,8 @@ def compare(
     -------
     Comparison
     """
-    if segments < 2 or segments % 2:
-        raise ValueError(f"segments must be even and >= 2 (the middle is a node), got {segments!r}")
+    if not 2 <= segments <= MAX_SEGMENTS or segments % 2:
+        raise ValueError(f"segments must be even, 2-{MAX_SEGMENTS} (the middle is a node), got {segments!r}")
     file_tip = test.tip
     end = file_tip[-1]
     window = (test.t >= FIT_WINDOW_S[0]) & (test.t <= FIT_WINDOW_S[1])
