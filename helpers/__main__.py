@@ -55,6 +55,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "helpers.commands.rig_file",
         "check a rig file (limits, ADC range, predicted modes); write a template",
     ),
+    "ringdowns": (
+        "helpers.research.rest_ringdowns",
+        "identify the ring-down after every rest of an external recording (DROPBEAR); CSV",
+    ),
 }
 """command name -> (module, one-line help)."""
 

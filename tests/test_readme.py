@@ -72,6 +72,10 @@ HOW: dict[str, str] = {
     "python -m helpers bench sweep": "slow",
     "python -m helpers bench spatial": "slow",
     "python -m helpers virtual-rig frequency-map --preset hanging --directions 0,45 --bends 10": "quick",
+    # real and independent data: tests/test_external_dropbear.py::test_the_command_prints_csv_and_notes,
+    # tests/test_bare_rod.py::test_the_command_compares_the_twin_with_test_1_within_1_percent (slow)
+    "python -m helpers ringdowns data/external/dropbear/10steps_test0.txt": "quick",
+    "python -m helpers virtual-rig sorosim data/external/sorosim/SpringSteelRodMuJoCo_1.txt": "slow",
     "python -m helpers rig new my_rig.toml": "quick",  # test_a_new_rig_file_is_written_and_checked
     "python -m helpers rig check my_rig.toml": "quick",
     "python -m helpers rig check long-arm --json": "quick",

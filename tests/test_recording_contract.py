@@ -38,8 +38,11 @@ def _tracked_json() -> list[Path]:
 
 
 def _is_recording(path: Path) -> bool:
-    """A recording's JSON, not another document: those (designs, mode maps, results) declare a ``format``."""
-    if path.name in NOT_RECORDINGS:
+    """A recording's JSON, not another document: those (designs, mode maps, results) declare a ``format``.
+
+    ``data/external/`` holds data made elsewhere in their own formats (docs/external_data.md), not recordings.
+    """
+    if path.name in NOT_RECORDINGS or path.relative_to(DATA_DIR).parts[0] == "external":
         return False
     doc = json.loads(path.read_text())
     return not (isinstance(doc, dict) and "format" in doc and "schema_version" not in doc)

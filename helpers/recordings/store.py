@@ -36,7 +36,7 @@ import pandas as pd
 
 from helpers.base.jsonfile import dumps, process_alive, remove_stale_temporaries, write_temp
 from helpers.base.locks import LOCK_NAME, FolderBusy, folder_lock, take_lock
-from helpers.base.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR, EXTERNAL_DATA_DIR
 from helpers.base.signals import signals_held
 from helpers.recordings.checks import required_keys, validate, validate_meta
 from helpers.recordings.format import Recording, RecordingError, raw_columns
@@ -424,9 +424,10 @@ def catalogue(root: str | os.PathLike = DATA_DIR) -> pd.DataFrame:
     """List every recording under ``root`` with its key metadata (without loading the samples).
 
     JSON documents of other formats (designs, mode maps: :func:`is_other_document`) are not recordings and
-    are left out. Files that are not sound are listed too, never skipped: ``problem`` says what is wrong
-    (malformed metadata, an incomplete run whose CSV has no JSON, a missing CSV); it is ``""`` for sound
-    metadata (the samples and their checksum are checked by :func:`load`).
+    are left out, as is ``data/external/`` (data made elsewhere, in their own formats). Files that are not
+    sound are listed too, never skipped: ``problem`` says what is wrong (malformed metadata, an incomplete run
+    whose CSV has no JSON, a missing CSV); it is ``""`` for sound metadata (the samples and their checksum are
+    checked by :func:`load`).
 
     Parameters
     ----------
@@ -444,6 +445,8 @@ def catalogue(root: str | os.PathLike = DATA_DIR) -> pd.DataFrame:
     root = Path(root)
     stems = set()
     for p in root.rglob("*"):
+        if p.resolve().is_relative_to(EXTERNAL_DATA_DIR.resolve()):
+            continue
         ours = p.suffix in (".csv", ".json") and not p.name.startswith(".")
         if ours and p.stem.lower() not in RESERVED_NAMES and not is_other_document(p):
             stems.add(p.with_suffix(".csv"))

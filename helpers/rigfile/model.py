@@ -2,7 +2,8 @@
 
 Every problem is one :class:`RigFileError` line naming the file, the key and the problem (an unknown key with
 the nearest known one, a wrong type, a wrong sign or an implausible size that is probably a wrong unit, a
-missing key, more than four tendons, an unsafe or impossible rig: ``helpers.rigfile.derived``).
+missing key, more than four tendons, an unsafe or impossible rig: ``helpers.rigfile.derived``). A bare rod's
+file (``[rod]``, ``helpers.rigfile.rod``) is no rig: refused in one line.
 """
 
 from __future__ import annotations
@@ -95,6 +96,8 @@ class RigFile:
         Where it came from (a path, or ``<string>``).
     hash : str
         :func:`rig_hash` of the file's bytes (UTF-8).
+    rod : helpers.rigfile.rod.Rod or None
+        A bare rod's ``[rod]`` table (``helpers.rigfile.rod``: then no hardware, arm, boards or tendons).
     """
 
     name: str
@@ -108,6 +111,7 @@ class RigFile:
     text: str = field(repr=False)
     source: str = "<string>"
     hash: str = ""
+    rod: Any = None
 
     @property
     def n_tendons(self) -> int:
@@ -189,6 +193,8 @@ def loads(text: str, source: str = "<string>") -> RigFile:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise RigFileError(f"{source}: not valid TOML: {exc}") from None
+    if "rod" in data:  # helpers.rigfile.rod reads it
+        raise _problem(source, "[rod]", "this file describes a bare rod (docs/rig_file.md), not a rig")
     allowed = {k.name for k in TOP} | {"hardware", "arm", "boards", "tendon"}
     for name in data:
         if name not in allowed:

@@ -49,6 +49,7 @@ from helpers.virtual import (
     simulate,
 )
 from helpers.virtual.parameters import KG_CM
+from helpers.virtual.sorosim import run_command as sorosim_command
 from helpers.virtual.spatial.direction_map import frequency_map as spatial_frequency_map
 from helpers.virtual.spatial.direction_map import frequency_map_csv
 from helpers.virtual.spatial.from_rig import spatial_rig
@@ -532,12 +533,17 @@ def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = T
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``virtual-rig`` command's options."""
     parser.add_argument(
-        "action", choices=["check", "tune", "studies", "frequency-map"],
+        "action", choices=["check", "tune", "studies", "frequency-map", "sorosim"],
         help="check: the tuned rig's identified mode and unshaped rows (seconds); tune: re-derive the tuned "
              "literals (minutes); studies: rewrite figures/virtual_*.csv for notebook 06 (a few minutes); "
              "frequency-map: print the spatial twin's modes against bend direction and magnitude as CSV "
-             "(docs/spatial_twin.md; about a second per row)",
+             "(docs/spatial_twin.md; about a second per row); sorosim FILE: the twin as a bare rod against a "
+             "SoroSim tip-release test (docs/external_data.md; about 30 s)",
     )  # fmt: skip
+    parser.add_argument("file", nargs="?", type=Path, help="'sorosim': the SoroSim test's file")
+    parser.add_argument("--segments", type=int, default=20, help="'sorosim': the twin's elements (even)")
+    parser.add_argument("--print-rod-file", action="store_true",
+                        help="'sorosim': print the bare rod's file the twin is built from")  # fmt: skip
     parser.add_argument("--max-evaluations", type=int, default=100, help="Nelder-Mead budget of 'tune'")
     parser.add_argument("--data-dir", type=Path, default=None,
                         help="'tune': tune the --rig file's twin on this data folder's identification "
@@ -557,6 +563,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the ``virtual-rig`` command."""
     t0 = time.perf_counter()
+    if args.action == "sorosim":
+        if args.file is None:
+            raise ValueError("virtual-rig sorosim needs the SoroSim test's FILE")
+        return sorosim_command(args.file, args.segments, args.print_rod_file)
+    if args.file is not None:
+        raise ValueError(f"virtual-rig {args.action} takes no FILE (only 'sorosim' does)")
     if args.action == "frequency-map":
         if args.modes < 1:
             raise ValueError(f"--modes must be >= 1, got {args.modes}")
