@@ -12,6 +12,7 @@ import difflib
 import hashlib
 import math
 import re
+import reprlib
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,10 +32,27 @@ from helpers.rigfile.schema import (
     TOP,
     Key,
 )
+from helpers.rigfile.toml_depth import deepest
 
 __all__ = ["RigFileError", "Hardware", "Arm", "Boards", "Tendon", "RigFile", "loads", "load", "rig_hash"]
 
 NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}\Z")
+
+INT64 = (-(2**63), 2**63 - 1)
+"""TOML's integers are 64-bit signed (the TOML specification); ``tomllib`` reads longer ones as ints."""
+
+VECTOR_MAX = 1e6
+"""A direction's components are at most this in magnitude (only the direction counts; this keeps its norm
+finite)."""
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxlist, _REPR.maxdict = 2, 4, 4
+_REPR.maxstring = _REPR.maxother = _REPR.maxlong = 40
+
+
+def _shown(value: Any) -> str:
+    """A value as a refusal shows it: short, and safe for values nested any depth."""
+    return _REPR.repr(value)
 
 
 def rig_hash(data: bytes) -> str:
@@ -124,18 +142,24 @@ def _value(source: str, where: str, key: Key, value: Any) -> Any:
     unit = "" if key.unit == "-" else f" {key.unit}"
     if key.kind == "str":
         if not isinstance(value, str):
-            raise _problem(source, where, f"must be a string, got {value!r}")
+            raise _problem(source, where, f"must be a string, got {_shown(value)}")
         return value
     if key.kind == "vector3":
         ok = isinstance(value, list) and len(value) == 3
         ok = ok and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
-        )
+            isinstance(v, int | float) and not isinstance(v, bool) and abs(v) <= VECTOR_MAX for v in value
+        )  # NaN fails the comparison too
         if not ok or math.sqrt(sum(float(v) ** 2 for v in value)) < 1e-12:
-            raise _problem(source, where, f"must be a nonzero vector of three numbers, got {value!r}")
+            raise _problem(
+                source, where,
+                f"must be a nonzero vector of three numbers of at most {VECTOR_MAX:g} in magnitude, got "
+                f"{_shown(value)}",
+            )  # fmt: skip
         return tuple(float(v) for v in value)
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise _problem(source, where, f"must be a number{unit}, got {value!r}")
+        raise _problem(source, where, f"must be a number{unit}, got {_shown(value)}")
+    if isinstance(value, int) and not INT64[0] <= value <= INT64[1]:
+        raise _problem(source, where, f"{_shown(value)} is beyond TOML's 64-bit integers")
     if key.kind == "int":
         if isinstance(value, float):
             raise _problem(source, where, f"must be a whole number{unit}, got {value!r}")
@@ -189,6 +213,13 @@ def loads(text: str, source: str = "<string>") -> RigFile:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise RigFileError(f"{source}: not valid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables by recursion
+        deep = deepest(text)
+        raise _problem(
+            source, deep.where or "(top level)",
+            f"arrays or inline tables nested {deep.depth} deep (line {deep.line}): a rig file nests at most "
+            "one (gravity_direction)",
+        ) from None  # fmt: skip
     allowed = {k.name for k in TOP} | {"hardware", "arm", "boards", "tendon"}
     for name in data:
         if name not in allowed:
