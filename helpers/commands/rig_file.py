@@ -1,4 +1,4 @@
-"""``python -m helpers rig check FILE [--json]`` and ``rig new FILE``: the rig file (``docs/rig_file.md``).
+"""``python -m helpers rig check FILE [--json]``, ``rig new FILE`` and ``rig firmware FILE``: the rig file.
 
 ``check`` validates a rig file and prints what follows from it: cable per step, the limits in steps and step
 intervals, the ADC range in newtons, and the arm's **predicted** modes at rest and across its travel from
@@ -6,10 +6,10 @@ its geometry (the twin's statics and linearisation with the file's values: untun
 tuned values, as the paper's does). A rig whose twin cannot hold its travel (static tension at full travel
 above the stepper's pull-out tension) is refused, and so is one the boards cannot hold
 (``helpers.rigfile.capacity``). ``new`` writes a commented template from the paper's rig and never overwrites
-a file.
+a file. ``firmware`` builds and uploads the boards' firmware for it (``helpers.commands.rig_firmware``).
 
 Exit status: 0; 2 for a bad rig file or argument (one line naming the file, the key and the problem); 5 if
-``new`` would overwrite a file.
+``new`` would overwrite a file; ``firmware``: see its module.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import numpy as np
 
 from helpers import rigfile
 from helpers.base.jsonfile import DataFileError
+from helpers.commands import rig_firmware
 from helpers.rigfile import RigFile, RigFileError, capacity
 from helpers.rigfile.template import template_text
 from helpers.virtual import statics
@@ -49,6 +50,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     new = sub.add_parser("new", help="write a commented rig file template from the paper's rig")
     new.add_argument("file", help="the file to write (refused if it exists)")
     new.add_argument("--name", default=None, help="the rig's name (default: the file's stem)")
+    firmware = sub.add_parser(
+        "firmware", help="build (and upload) both boards' firmware for a rig file",
+        description=rig_firmware.__doc__.split("\n\n")[1].replace("``", ""),
+    )  # fmt: skip
+    rig_firmware.add_arguments(firmware)
 
 
 def _mode_rows(df: Any, n: int) -> list[dict[str, float]]:
@@ -225,7 +231,9 @@ def _finite(obj: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``rig check`` or ``rig new``; return the exit status."""
+    """Run ``rig check``, ``rig new`` or ``rig firmware``; return the exit status."""
+    if args.rig_command == "firmware":
+        return rig_firmware.run(args)
     if args.rig_command == "new":
         path = Path(args.file)
         if path.exists():
