@@ -50,7 +50,8 @@ class Board:
 
 BOARDS: dict[str, Board] = {
     # The Mega 2560's stk500v2 bootloader, reset through DTR ("wiring"); the Uno's optiboot ("arduino"). Both
-    # at 115200 baud, with -D: the bootloaders write page by page and cannot erase the whole chip.
+    # at 115200 baud, with -D (no chip erase first: the bootloaders erase each page as they write it), as the
+    # Arduino IDE uploads them.
     "daq": Board("daq_mega", "Arduino Mega 2560", "atmega2560", "wiring", 115200),
     "stepper": Board("stepper_uno", "Arduino Uno", "atmega328p", "arduino", 115200),
 }
