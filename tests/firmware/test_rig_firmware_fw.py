@@ -172,3 +172,18 @@ def test_the_daq_conversion_rule_agrees_with_the_sketch(tmp_path: Path, rate: in
     assert (proc.returncode == 0) == ok, proc.stderr[-2000:]
     if not ok:
         assert "too many channels for the rate" in proc.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(p.name for p in (fwsim.REPO / "rigs").glob("*.toml")))
+def test_every_shipped_rig_builds_and_prints_its_ram_budget(tmp_path: Path, name: str) -> None:
+    """Both sketches build for each shipped rig file and print both RAM lines (the stepper's: the model's)."""
+    proc = _make(fwsim.REPO / "rigs", f"RIG={name}", f"BUILD={tmp_path / 'build'}", "firmware", "size")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    ram = _static_bytes(proc.stdout)
+    assert set(ram) == {"daq_mega", "stepper_uno"}
+    rig = rigfile.load(fwsim.REPO / "rigs" / name)
+    d = rigfile.derived(rig)
+    model = capacity.stepper_ram(rig.n_tendons, d.min_interval_us, rig.hardware.programme_max_items)
+    assert ram["stepper_uno"] == model.static_bytes
+    print(f"{name}: stepper {ram['stepper_uno']} B, DAQ {ram['daq_mega']} B of static RAM")
