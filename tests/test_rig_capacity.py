@@ -18,7 +18,7 @@ import pytest
 
 from helpers import rigfile
 from helpers.rigfile import RigFileError, capacity, schema
-from helpers.rigfile.toml_depth import deepest
+from helpers.rigfile.model import _deepest
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = (ROOT / "rigs" / "paper.toml").read_text()
@@ -239,10 +239,8 @@ def test_nesting_is_located_past_strings_and_comments():
         "x = [[1], [2, [3]]]\n"
         "[[tendon]]\n[[tendon]]\ny = [{a = [1]}]\n"
     )
-    found = deepest(text)
-    assert (found.depth, found.line, found.where) == (3, 7, "[hardware] x")
-    found = deepest(text.replace("[[1], [2, [3]]]", "1"))
-    assert (found.depth, found.line, found.where) == (3, 10, "[[tendon]] #2 y")
+    assert _deepest(text) == ("[hardware] x", 3, 7)
+    assert _deepest(text.replace("[[1], [2, [3]]]", "1")) == ("[[tendon]] #2 y", 3, 10)
 
 
 TABLES = (("hardware", schema.HARDWARE), ("arm", schema.ARM), ("tendon", schema.TENDON))

@@ -32,27 +32,34 @@ from helpers.rigfile.schema import (
     TOP,
     Key,
 )
-from helpers.rigfile.toml_depth import deepest
 
 __all__ = ["RigFileError", "Hardware", "Arm", "Boards", "Tendon", "RigFile", "loads", "load", "rig_hash"]
 
 NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}\Z")
 
-INT64 = (-(2**63), 2**63 - 1)
-"""TOML's integers are 64-bit signed (the TOML specification); ``tomllib`` reads longer ones as ints."""
-
-VECTOR_MAX = 1e6
-"""A direction's components are at most this in magnitude (only the direction counts; this keeps its norm
-finite)."""
-
-_REPR = reprlib.Repr()
-_REPR.maxlevel, _REPR.maxlist, _REPR.maxdict = 2, 4, 4
-_REPR.maxstring = _REPR.maxother = _REPR.maxlong = 40
+_NOT_CODE = re.compile(r'"""(?:\\?[\s\S])*?"""' r"|'''[\s\S]*?'''" r'|"(?:\\.|[^"\\\n])*"' r"|'[^'\n]*'|#.*")
+"""TOML strings and comments (their brackets are not nesting)."""
 
 
-def _shown(value: Any) -> str:
-    """A value as a refusal shows it: short, and safe for values nested any depth."""
-    return _REPR.repr(value)
+def _deepest(text: str) -> tuple[str, int, int]:
+    """Where ``text`` nests arrays and inline tables deepest: ``("[table] key", depth, line)``.
+
+    ``tomllib`` parses nesting by recursion, so a file nesting thousands deep ends in ``RecursionError``
+    with no line; this scan needs no recursion (strings and comments blanked, table headers followed).
+    """
+    depth, best, table, key, tendons = 0, ("", 0, 0), "", "", 0
+    bare = _NOT_CODE.sub(lambda m: "\n" * m[0].count("\n"), text)
+    for number, line in enumerate(bare.split("\n"), 1):
+        if depth == 0 and line.lstrip().startswith("["):  # a table header: [name] or [[name]]
+            tendons += (header := line.replace(" ", "").strip()) == "[[tendon]]"
+            table = f"[[tendon]] #{tendons}" if header == "[[tendon]]" else line.strip()
+            continue
+        key = line.split("=")[0].strip() if depth == 0 and "=" in line else key
+        for c in line:
+            depth += (c in "[{") - (c in "]}")
+            if depth > best[1]:
+                best = (f"{table} {key}".strip(), depth, number)
+    return best
 
 
 def rig_hash(data: bytes) -> str:
@@ -142,24 +149,21 @@ def _value(source: str, where: str, key: Key, value: Any) -> Any:
     unit = "" if key.unit == "-" else f" {key.unit}"
     if key.kind == "str":
         if not isinstance(value, str):
-            raise _problem(source, where, f"must be a string, got {_shown(value)}")
+            raise _problem(source, where, f"must be a string, got {reprlib.repr(value)}")
         return value
     if key.kind == "vector3":
         ok = isinstance(value, list) and len(value) == 3
         ok = ok and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and abs(v) <= VECTOR_MAX for v in value
-        )  # NaN fails the comparison too
+            isinstance(v, int | float) and not isinstance(v, bool) and abs(v) <= 1e6 for v in value
+        )  # at most 1e6: the norm stays finite; NaN fails the comparison too
         if not ok or math.sqrt(sum(float(v) ** 2 for v in value)) < 1e-12:
-            raise _problem(
-                source, where,
-                f"must be a nonzero vector of three numbers of at most {VECTOR_MAX:g} in magnitude, got "
-                f"{_shown(value)}",
-            )  # fmt: skip
+            why = "must be a nonzero vector of three numbers of at most 1e+06 in magnitude"
+            raise _problem(source, where, f"{why}, got {reprlib.repr(value)}")
         return tuple(float(v) for v in value)
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise _problem(source, where, f"must be a number{unit}, got {_shown(value)}")
-    if isinstance(value, int) and not INT64[0] <= value <= INT64[1]:
-        raise _problem(source, where, f"{_shown(value)} is beyond TOML's 64-bit integers")
+        raise _problem(source, where, f"must be a number{unit}, got {reprlib.repr(value)}")
+    if isinstance(value, int) and not -(2**63) <= value < 2**63:  # TOML's integers are 64-bit
+        raise _problem(source, where, f"{reprlib.repr(value)} is beyond TOML's 64-bit integers")
     if key.kind == "int":
         if isinstance(value, float):
             raise _problem(source, where, f"must be a whole number{unit}, got {value!r}")
@@ -214,12 +218,9 @@ def loads(text: str, source: str = "<string>") -> RigFile:
     except tomllib.TOMLDecodeError as exc:
         raise RigFileError(f"{source}: not valid TOML: {exc}") from None
     except RecursionError:  # tomllib parses nested arrays and inline tables by recursion
-        deep = deepest(text)
-        raise _problem(
-            source, deep.where or "(top level)",
-            f"arrays or inline tables nested {deep.depth} deep (line {deep.line}): a rig file nests at most "
-            "one (gravity_direction)",
-        ) from None  # fmt: skip
+        where, depth, line = _deepest(text)
+        why = f"arrays or inline tables nested {depth} deep (line {line}): a rig file nests at most one"
+        raise _problem(source, where or "(top level)", f"{why} (gravity_direction)") from None
     allowed = {k.name for k in TOP} | {"hardware", "arm", "boards", "tendon"}
     for name in data:
         if name not in allowed:
