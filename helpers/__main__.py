@@ -21,10 +21,9 @@ from pathlib import Path
 # Only the standard library and helpers.base.signals (standard library only) load before the signal handlers
 # are
 # in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
+from helpers import rigfile  # the standard library and numpy only
 from helpers.base.paths import shown
 from helpers.base.signals import Interrupted, interrupts_from_signals
-from helpers.rigfile import use  # standard library only, like the line above
-from helpers.rigfile.option import take_rig_option
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": (
@@ -56,8 +55,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "helpers.commands.rig_file",
         "check a rig file (limits, ADC range, predicted modes); write a template",
     ),
+    "ringdowns": (
+        "helpers.research.rest_ringdowns",
+        "identify the ring-down after every rest of an external recording (DROPBEAR); CSV",
+    ),
 }
 """command name -> (module, one-line help)."""
+
+RIG_HELP = "the rig file (a path, or a shipped rig's name: paper, four-tendon, ...; docs/rig_file.md)"
 
 EXIT_CODES: dict[int, str] = {
     0: "success",
@@ -184,21 +189,18 @@ def _main(argv: list[str]) -> int:
         epilog="exit status: " + "; ".join(f"{k} {v}" for k, v in EXIT_CODES.items()),
     )
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
-    parser.add_argument("--rig", metavar="FILE", help="the rig file every command follows (anywhere on the "
-                        "line; default $HELPERS_RIG, else rigs/paper.toml; docs/rig_file.md)")  # fmt: skip
-    argv, rig = take_rig_option(argv)  # before any command's module loads: they read the rig on import
-    if rig is not None:
-        chosen_rig, loaded = use(rig), sys.modules.get("helpers.paper.hardware")
-        if loaded is not None and loaded.RIG.hash != chosen_rig.hash:  # in-process callers (tests, notebooks)
-            raise ValueError(f"--rig {rig}: this process runs rig {loaded.RIG.name!r} already (start anew)")
+    parser.add_argument("--rig", metavar="FILE", default="paper", help=RIG_HELP)
+    rig_option = argparse.ArgumentParser(add_help=False)  # the same option after the command's name
+    rig_option.add_argument("--rig", metavar="FILE", default=argparse.SUPPRESS, help=RIG_HELP)
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")
-    chosen = next((a for a in argv if not a.startswith("-")), None)
+    chosen = next((a for a in argv if a in COMMANDS), None)
     for name, (module, help_text) in COMMANDS.items():
-        p = sub.add_parser(name, help=help_text, description=help_text)
+        p = sub.add_parser(name, help=help_text, description=help_text, parents=[rig_option])
         p.set_defaults(module=module)
         if name == chosen:
             importlib.import_module(module).add_arguments(p)
     args = parser.parse_args(argv)
+    args.rig = rigfile.load(rigfile.resolve(args.rig))  # the rig, read once, passed to the command as a value
     return int(importlib.import_module(args.module).run(args))
 
 

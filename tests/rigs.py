@@ -77,6 +77,12 @@ class ShippedRig:
         """The rig's hash: the first 8 hex digits of the sha256 of the file's bytes."""
         return hashlib.sha256(self.path.read_bytes()).hexdigest()[:8]
 
+    def load(self) -> Any:
+        """The rig file as the package reads it (a :class:`helpers.rigfile.RigFile`), to pass to the code."""
+        from helpers import rigfile  # the value the code under test takes; never its arithmetic
+
+        return rigfile.load(self.path)
+
     @property
     def mm_per_step(self) -> float:
         """Cable per step, mm: pi x spool diameter / steps per revolution."""

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from rig_fakes import make_world
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.base.jsonfile import DataFileError
 from helpers.base.paths import DATA_DIR
 from helpers.board.programmes import experiment_programme
@@ -60,10 +60,12 @@ def test_a_schedule_runs_its_sub_moves_and_only_for_its_move():
         experiment_programme(200.0, 30.0, d)
 
 
-def _args(*argv):
+def _args(*argv, rig: str = "paper"):
     p = argparse.ArgumentParser()
     record.add_arguments(p)
-    return p.parse_args(list(argv))
+    args = p.parse_args(list(argv))
+    args.rig = rigfile.load(rigfile.resolve(rig))  # as python -m helpers passes it: the rig as a value
+    return args
 
 
 def _with_calibration(tmp_path):

@@ -193,13 +193,13 @@ def test_notebook_02s_live_cell_records_the_identification_run(tmp_path):
 
 def test_notebook_04s_live_cell_records_every_system_of_a_condition(tmp_path, monkeypatch, capsys):
     world = make_world()
-    monkeypatch.setattr(scenarios, "table_i_conditions", lambda: ((200.0, 10.0),))  # one of Table I's four
+    monkeypatch.setattr(scenarios, "table_i_conditions", lambda rig: ((200.0, 10.0),))  # one of four
     zv, zvd = design_tdfs(paper.OMEGA_D, paper.ZETA)
     namespace = {
         "LIVE": True, "PORTS": _ports(world), "RIG_FILE": PAPER, "REPETITIONS": 1,
         "GROUP": tmp_path / "experiments",
         "REPO_ROOT": tmp_path, "paper": paper, "shapers": {"unshaped": None, "zv": zv, "zvd": zvd},
-        "zeta": paper.ZETA, "omega_d": paper.OMEGA_D,
+        "zeta": paper.ZETA, "omega_d": paper.OMEGA_D, "RIG_FILE": rigfile.default_rig(),
     }  # fmt: skip
     exec(_cell("04_experiments.ipynb", "run_pulse"), namespace)  # noqa: S102
     names = sorted(p.name for p in (tmp_path / "experiments").glob("*.csv"))

@@ -72,10 +72,16 @@ HOW: dict[str, str] = {
     "python -m helpers bench sweep": "slow",
     "python -m helpers bench spatial": "slow",
     "python -m helpers virtual-rig frequency-map --preset hanging --directions 0,45 --bends 10": "quick",
+    # real and independent data: tests/test_external_dropbear.py::test_the_command_prints_csv_and_notes,
+    # tests/test_bare_rod.py::test_the_command_compares_the_twin_with_test_1_within_1_percent (slow)
+    "python -m helpers ringdowns data/external/dropbear/10steps_test0.txt": "quick",
+    "python -m helpers virtual-rig sorosim data/external/sorosim/SpringSteelRodMuJoCo_1.txt": "slow",
     "python -m helpers rig new my_rig.toml": "quick",  # test_a_new_rig_file_is_written_and_checked
     "python -m helpers rig check my_rig.toml": "quick",
     "python -m helpers rig check long-arm --json": "quick",
     "python -m helpers.rigfile.firmware_header FILE -o rig_config.h": "quick",
+    # hardware only, shown as a dry run: test_your_own_rigs_firmware_upload_as_a_dry_run
+    "python -m helpers rig firmware my_rig.toml --upload --board daq --port /dev/ttyACM0": "firmware",
     # the second rig end to end: tests/test_rig_file_tuning.py::test_second_rig_end_to_end_on_its_twin
     "python -m helpers record calibration --rig long-arm --data-dir my_data": "slow",
     "python -m helpers record all --rig long-arm --data-dir my_data --repetitions 1": "slow",
@@ -217,6 +223,20 @@ def test_a_new_rig_file_is_written_and_checked(newcomer, capsys):
     proc = subprocess.run(argv, cwd=newcomer, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "#define RIG_MIN_INTERVAL_US 639\n" in (newcomer / "rig_config.h").read_text()
+
+
+def test_your_own_rigs_firmware_upload_as_a_dry_run(newcomer, capsys):
+    """The README's upload of an own rig's firmware, run with ``--dry-run``: the exact avrdude command of the
+    Mega (tests/test_rig_firmware_command.py runs the rest; tests/firmware builds for real)."""
+    command = "python -m helpers rig firmware my_rig.toml --upload --board daq --port /dev/ttyACM0"
+    assert command in readme_commands()
+    assert main(["rig", "new", "my_rig.toml"]) == 0
+    capsys.readouterr()
+    assert main([*_argv(command), "--dry-run"]) == 0
+    make, avrdude = capsys.readouterr().out.splitlines()
+    assert make.startswith("make -C ") and f"RIG={newcomer / 'my_rig.toml'} " in make
+    assert avrdude.startswith("avrdude -p atmega2560 -c wiring -P /dev/ttyACM0 -b 115200 -D -U flash:w:")
+    assert avrdude.endswith("/daq_mega.hex:i")
 
 
 def test_jupyter_lab_is_installed_with_the_widget_extension():

@@ -15,43 +15,35 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from helpers import recordings
+from helpers import recordings, rigfile
+from helpers.base.paths import DATA_DIR
 from helpers.commands.recording_paths import recording_path
+from helpers.paper import metrics
 from helpers.recordings import Recording, RecordingError, RecordingExists
 
-CAL = {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.25525, "origin": "test"}
-
-
-def _meta(dropped: int = 0, status: str = "complete") -> dict:
-    return {
-        "schema_version": recordings.SCHEMA_VERSION,
-        "source": {"kind": "virtual-rig", "version": "test"},
-        "scenario": {
-            "kind": "pulse",
-            "v_in_mm_s": 200.0,
-            "x_f_mm": 10.0,
-            "system": "unshaped",
-            "repetition": 1,
-        },
-        "calibration": CAL,
-        "rate_hz": 1000,
-        "status": status,
-        "abort_reason": None if status == "complete" else "test abort",
-        "counts": {"dropped": dropped, "corrupted": 0, "overruns": 0},
-    }
+PAPER = rigfile.default_rig()
+MM_PER_STEP = 3.141592653589793 * 65 / 800  # the paper's spool (65 mm) and 800 steps per revolution
+CAL = {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": MM_PER_STEP, "origin": "test"}
+FIRMWARE = {"daq": "test", "stepper": "test"}
+PULSE = {"kind": "pulse", "v_in_mm_s": 200.0, "x_f_mm": 10.0, "system": "unshaped", "repetition": 1}
 
 
 def _rows(n: int = 50, skip: tuple[int, ...] = (), adc0: int = 100) -> list[tuple[int, int, int, int]]:
     return [(s, 5_000 + 1000 * s, adc0 + s % 400, s // 5) for s in range(n) if s not in skip]
 
 
-def _rec(rows=None, meta=None) -> Recording:
-    frame = recordings.frame_from_rows(rows if rows is not None else _rows())
-    return Recording(frame=frame, meta=meta or _meta())
+def _rec(rows=None, dropped: int = 0, status: str = "complete") -> Recording:
+    """A run of the paper's rig as the one writer makes it (version 4, one tendon)."""
+    return recordings.from_samples(
+        rows if rows is not None else _rows(), PAPER, [CAL], source={"kind": "virtual-rig"},
+        scenario=PULSE, rate_hz=1000, started_utc="2026-12-01T15:00:00Z", firmware=FIRMWARE,
+        status=status, reason=None if status == "complete" else "test abort",
+        counts={"dropped": dropped, "corrupted": 0, "overruns": 0},
+    )  # fmt: skip
 
 
-def _save(tmp_path, name="run", rows=None, meta=None, replace=False):
-    return recordings.save(_rec(rows, meta), tmp_path / "group" / name, replace=replace)
+def _save(tmp_path, name="run", rows=None, replace=False, **kwargs):
+    return recordings.save(_rec(rows, **kwargs), tmp_path / "group" / name, replace=replace)
 
 
 def _visible(folder) -> list[str]:
@@ -63,14 +55,18 @@ def test_round_trip_and_derived_columns(tmp_path):
     assert path.suffix == ".csv" and path.with_suffix(".json").exists()
     rec = recordings.load(path)
     f = rec.frame
-    assert list(f.columns[:4]) == ["seq", "t_us", "adc", "steps"]
+    assert list(f.columns) == ["seq", "t_us", "adc_0", "steps_0", "t_s", "tension_n_0", "cable_mm_0", "adc",
+                               "steps", "tension_n", "cable_mm"]  # fmt: skip
     raw = pd.read_csv(path)
-    assert list(raw.columns) == ["seq", "t_us", "adc", "steps"]  # derived columns are never stored
+    assert list(raw.columns) == ["seq", "t_us", "adc_0", "steps_0"]  # derived columns are never stored
     np.testing.assert_allclose(f["t_s"], (raw["t_us"] - raw["t_us"][0]) / 1e6)
-    np.testing.assert_allclose(f["tension_n"], (raw["adc"] - 60.0) * 0.025)
-    np.testing.assert_allclose(f["cable_mm"], raw["steps"] * 0.25525)
-    assert rec.meta["counts"]["samples"] == 50
+    np.testing.assert_allclose(f["tension_n"], (raw["adc_0"] - 60.0) * 0.025)
+    np.testing.assert_allclose(f["tension_n_0"], (raw["adc_0"] - 60.0) * 0.025)
+    np.testing.assert_allclose(f["cable_mm"], raw["steps_0"] * 0.2552544031)
+    assert (f["adc"] == raw["adc_0"]).all() and (f["steps"] == raw["steps_0"]).all()
+    assert rec.meta["counts"]["samples"] == 50 and (rec.meta["schema_version"], rec.meta["tendons"]) == (4, 1)
     assert rec.meta["source"]["kind"] == "virtual-rig" and rec.status == "complete"
+    assert rec.meta["calibration"]["offset_counts"] == [60.0] and rec.meta["rig"]["name"] == "paper"
 
 
 def test_csv_is_placed_before_json_and_no_temporary_file_is_left(tmp_path, monkeypatch):
@@ -166,13 +162,14 @@ def test_an_aborted_run_gets_its_own_name(tmp_path):
 
 
 def test_zero_samples_round_trip(tmp_path):
-    path = _save(tmp_path, rows=[], meta=_meta(status="aborted"))
+    path = _save(tmp_path, rows=[], status="aborted")
     rec = recordings.load(path)
-    assert len(rec.frame) == 0 and list(rec.frame.columns[:4]) == ["seq", "t_us", "adc", "steps"]
+    assert len(rec.frame) == 0 and list(rec.frame.columns[:4]) == ["seq", "t_us", "adc_0", "steps_0"]
+    assert "tension_n" in rec.frame and rec.meta["abort_reason"] == "test abort"
 
 
 def test_gap_within_the_dropped_count_is_accepted(tmp_path):
-    path = _save(tmp_path, rows=_rows(20, skip=(5, 6)), meta=_meta(dropped=2))
+    path = _save(tmp_path, rows=_rows(20, skip=(5, 6)), dropped=2)
     assert len(recordings.load(path).frame) == 18
 
 
@@ -224,9 +221,9 @@ def test_each_problem_raises_one_error_naming_file_and_field(tmp_path, damage, m
     elif damage == "schema":
         _rewrite_meta(path, lambda m: m.update(schema_version=99))
     elif damage == "column":
-        _rewrite_csv(path, pd.read_csv(path).drop(columns="adc").to_csv(index=False))
+        _rewrite_csv(path, pd.read_csv(path).drop(columns="adc_0").to_csv(index=False))
     elif damage == "order":
-        _rewrite_csv(path, pd.read_csv(path)[["seq", "adc", "t_us", "steps"]].to_csv(index=False))
+        _rewrite_csv(path, pd.read_csv(path)[["seq", "adc_0", "t_us", "steps_0"]].to_csv(index=False))
     elif damage == "cut":  # cut at a row boundary: still parses, but has fewer rows than recorded
         _rewrite_csv(path, "\n".join(path.read_text().splitlines()[:15]) + "\n")
     elif damage == "gap":
@@ -265,15 +262,16 @@ def test_each_problem_raises_one_error_naming_file_and_field(tmp_path, damage, m
 
 
 def test_save_refuses_incomplete_metadata(tmp_path):
-    meta = _meta()
-    del meta["calibration"]
-    with pytest.raises(RecordingError, match="calibration"):
-        recordings.save(Recording(recordings.frame_from_rows(_rows(3)), meta), tmp_path / "x")
+    rec = _rec(_rows(3))
+    del rec.meta["calibration"]
+    with pytest.raises(RecordingError, match="metadata lacks calibration"):
+        recordings.save(rec, tmp_path / "x")
+    assert not (tmp_path / "x.csv").exists()
 
 
 def test_catalogue_lists_recordings_and_reports_bad_files(tmp_path):
     _save(tmp_path, "a")
-    _save(tmp_path, "b", meta=_meta(status="aborted"))
+    _save(tmp_path, "b", status="aborted")
     _save(tmp_path, "c")
     (tmp_path / "group" / "c.json").write_text("{broken")
     _save(tmp_path, "d")
@@ -296,7 +294,7 @@ JSON_VALUES = st.recursive(
 )
 KEYS = [
     "schema_version", "status", "abort_reason", "csv_sha256", "calibration", "rate_hz", "counts", "source",
-    "scenario",
+    "scenario", "tendons", "rig", "host", "firmware", "started_utc",
 ]  # fmt: skip
 
 
@@ -323,7 +321,7 @@ def test_fuzzed_metadata_gives_a_recording_error(tmp_path_factory, key, sub, val
 def test_fuzzed_csv_gives_a_recording_error(tmp_path_factory, blob, keep_header):
     folder = tmp_path_factory.mktemp("fuzz")
     path = recordings.save(_rec(_rows(10)), folder / "run")
-    data = (b"seq,t_us,adc,steps\n" if keep_header else b"") + blob
+    data = (b"seq,t_us,adc_0,steps_0\n" if keep_header else b"") + blob
     path.write_bytes(data)
     meta = json.loads(path.with_suffix(".json").read_text())
     meta["csv_sha256"] = hashlib.sha256(data).hexdigest()
@@ -407,3 +405,63 @@ def test_two_writers_of_one_new_name_one_wins_the_other_is_refused(tmp_path):
     outcomes = sorted(r[0] for r in _drain(results, len(writers)) if r[0] != "end")
     assert outcomes == ["refused", "saved"]
     assert len(recordings.load(tmp_path / "shared").frame) >= 5
+
+
+# -- one writer, one frame shape for every version ----------------------------------------------------------
+def test_every_version_of_one_tendon_loads_into_one_frame_and_the_same_metrics(tmp_path):
+    """A version-1 recording of data/, its samples written as version 2 (by hand) and as version 4 (by the one
+    writer): the same frame on load, and the paper's metrics read the same numbers from each."""
+    v1 = recordings.load(DATA_DIR / "experiments" / "zvd_v200_x20_r1.csv")
+    m = v1.meta
+    v4 = recordings.from_samples(
+        v1.frame[["seq", "t_us", "adc", "steps"]].to_numpy(), PAPER, [m["calibration"]], source=m["source"],
+        scenario=m["scenario"], rate_hz=m["rate_hz"], started_utc=m["started_utc"], firmware=m["firmware"],
+        counts=m["counts"], t_go_us=m["t_go_us"], done_position=m["done_position"],
+    )  # fmt: skip
+    v4 = recordings.load(recordings.save(v4, tmp_path / "g" / "v4"))
+    assert v4.path.read_text().startswith("seq,t_us,adc_0,steps_0\n")
+    v2_meta = {k: v for k, v in m.items() if k != "csv_sha256"}
+    v2_meta |= {"schema_version": 2, "rig": recordings.rig_section(PAPER)}
+    v2 = recordings.load(recordings.save(Recording(v1.frame, v2_meta), tmp_path / "g" / "v2"))
+    assert v2.path.read_text().startswith("seq,t_us,adc,steps\n")
+    expected = metrics.metrics_by_run([v1])
+    assert np.isfinite(expected["peak_n"]).all()
+    for rec in (v2, v4):
+        pd.testing.assert_frame_equal(rec.frame, v1.frame)
+        pd.testing.assert_frame_equal(metrics.metrics_by_run([rec]), expected)
+    assert recordings.calibration_of(v4.meta) == recordings.calibration_of(v1.meta) == m["calibration"]
+
+
+def test_a_recording_of_several_tendons_has_no_one_tendon_names(tmp_path):
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    rows = [(s, 1000 * s, 120, 121, 122, 123 + s % 3, s // 4, 0, 0, -(s // 4)) for s in range(40)]
+    rec = recordings.from_samples(rows, four, source={"kind": "hardware"}, scenario={"kind": "programme"},
+                                  rate_hz=1000, started_utc="2026-12-01T15:00:00Z", firmware=FIRMWARE)
+    back = recordings.load(recordings.save(rec, tmp_path / "g" / "four"))
+    assert back.path.read_text().splitlines()[:2] == [
+        "seq,t_us,adc_0,adc_1,adc_2,adc_3,steps_0,steps_1,steps_2,steps_3", "0,0,120,121,122,123,0,0,0,0"
+    ]
+    assert not {"adc", "steps", "tension_n", "cable_mm"} & set(back.frame.columns) and back.tendons == 4
+    np.testing.assert_allclose(back.frame["tension_n_3"], (back.frame["adc_3"] - 122.88) / 24.576)
+    np.testing.assert_allclose(back.frame["cable_mm_3"], -(np.arange(40) // 4) * MM_PER_STEP)
+    origin = f"nominal: rig file four-tendon ({four.hash}), [hardware] loop and load_cell_range_n"
+    assert back.meta["calibration"]["origin"] == [origin] * 4
+
+
+def test_the_writer_takes_the_tip_with_the_samples_and_nothing_else():
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    meta = {"source": {"kind": "virtual-rig"}, "scenario": {"kind": "programme"}, "rate_hz": 1000,
+            "started_utc": "2026-12-01T15:00:00Z", "firmware": {"daq": "d", "stepper": "s"}}  # fmt: skip
+    rows = np.array([(s, 1000 * s, 120, 121, 122, 123, 0, 0, 0, 0, -1000, 5, 230_000 + s) for s in range(5)])
+    rec = recordings.from_samples(rows, four, **meta)
+    assert rec.meta["tip"] == {"origin": recordings.writer.TWIN_TIP, "unit": "um"}
+    tip_z = [230.0, 230.001, 230.002, 230.003, 230.004]
+    np.testing.assert_allclose(rec.frame["tip_z_mm"], tip_z, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match=r"rows: shape \(5, 12\); a rig of 4 tendons records 10 columns"):
+        recordings.from_samples(rows[:, :12], four, **meta)
+    with pytest.raises(ValueError, match=r"rows: shape \(5, 5\); a rig of 1 tendons records 4 columns"):
+        recordings.from_samples(rows[:, :5], PAPER, **meta)
+    with pytest.raises(ValueError, match="calibration: 1 given for a rig of 4 tendons"):
+        recordings.from_samples(rows, four, [CAL], **meta)
+    with pytest.raises(RecordingError, match=r"<unsaved recording>: scenario.system: missing"):
+        recordings.from_samples(rows[:, :4], PAPER, **{**meta, "scenario": {"kind": "pulse"}})

@@ -66,7 +66,6 @@ def _helpers(*argv, cwd, env, ok=True):
 def test_second_rig_end_to_end_on_its_twin(tmp_path):
     """long-arm: record all (scaled Table I), metrics, tune, virtual-rig tune; the mode against rig check."""
     env = dict(os.environ)
-    env.pop(rigfile.ENV_VAR, None)
     data = tmp_path / "data"
     rig = ["--rig", str(LONG_ARM)]
     _helpers("record", "calibration", *rig, "--data-dir", str(data), "--quiet", cwd=tmp_path, env=env)

@@ -76,11 +76,21 @@ def test_metrics_command_refuses_two_rigs_unless_asked(tmp_path, capsys):
     for stem in ("zv_v200_x10_r2", "zv_v200_x20_r2"):
         for ext in (".csv", ".json"):
             shutil.copy(DATA_DIR / "experiments" / f"{stem}{ext}", tmp_path / f"{stem}{ext}")
-    meta_path = tmp_path / "zv_v200_x20_r2.json"
-    meta = json.loads(meta_path.read_text())
-    meta["schema_version"] = 2
-    meta["rig"] = recordings.rig_section(rigfile.load(rigfile.RIGS_DIR / "long-arm.toml"))
-    meta_path.write_text(json.dumps(meta))
+    # one run's samples as a recording of the long-arm rig (its cable per step; a speed within its 150 mm/s)
+    run = recordings.load(tmp_path / "zv_v200_x20_r2.csv")
+    m = run.meta
+    other = recordings.from_samples(
+        run.frame[["seq", "t_us", "adc", "steps"]].to_numpy(),
+        rigfile.load(rigfile.RIGS_DIR / "long-arm.toml"),
+        source=m["source"],
+        scenario={**m["scenario"], "v_in_mm_s": 100.0},
+        rate_hz=m["rate_hz"],
+        started_utc=m["started_utc"],
+        firmware=m["firmware"],
+        counts=m["counts"],
+    )
+    recordings.save(other, run.path, replace=True)
+    assert json.loads(run.path.with_suffix(".json").read_text())["rig"]["name"] == "long-arm"
     assert main(["metrics", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "2 rigs in one table (long-arm, paper)" in err and "--mix-rigs" in err

@@ -16,10 +16,12 @@ from helpers.paper import calibration as loadcell
 from helpers.rig import static as loadcell_recording
 
 
-def _args(*argv):
+def _args(*argv, rig: str = "paper"):
     p = argparse.ArgumentParser()
     record.add_arguments(p)
-    return p.parse_args(list(argv))
+    args = p.parse_args(list(argv))
+    args.rig = rigfile.load(rigfile.resolve(rig))  # as python -m helpers passes it: the rig as a value
+    return args
 
 
 def test_record_calibration_recovers_the_sensor_line(tmp_path):

@@ -12,51 +12,36 @@ from rig_fakes import make_rig
 
 from helpers import recordings, rigfile
 from helpers.board.programmes import Dwell, Programme, Segment
-from helpers.rigfile.option import take_rig_option
 
-_PROBE = (
-    "from helpers.paper import hardware as h; "
-    "print(h.RIG.name, h.LIMITS.min_interval_us, h.LIMITS.max_position_steps, round(h.MM_PER_STEP, 6))"
+PACKAGE_IMPORT = (
+    "import importlib, pkgutil, helpers; "
+    "names = [m.name for m in pkgutil.walk_packages(helpers.__path__, 'helpers.')]; "
+    "[importlib.import_module(n) for n in names]; print(len(names))"
 )
 
 
-def _python(code: str, env_rig: str | None) -> subprocess.CompletedProcess:
-    env = dict(os.environ)
-    env.pop(rigfile.ENV_VAR, None)
-    if env_rig is not None:
-        env[rigfile.ENV_VAR] = env_rig
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+def _python(code: str, env: dict[str, str] | None = None, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, *(["-c", code] if code else []), *args], capture_output=True,
+                          text=True, env=dict(os.environ, **(env or {})), timeout=300)  # fmt: skip
 
 
-def test_hardware_follows_the_environment():
-    assert _python(_PROBE, None).stdout.split() == ["paper", "639", "156", "0.255254"]
-    assert _python(_PROBE, "long-arm").stdout.split() == ["long-arm", "524", "254", "0.07854"]
+@pytest.mark.xfail(strict=True, reason="issue 36 under way: helpers.paper.hardware still reads "
+                   "the rig at import until the drivers take it as a value (this mark goes with it)")
+def test_importing_any_module_reads_no_rig_and_no_environment():
+    # the rig is a value passed down (issue 36): a bad rig named in the environment changes nothing
+    proc = _python(PACKAGE_IMPORT, {"HELPERS_RIG": "/nonexistent"})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert int(proc.stdout.split()[-1]) > 100  # every module of the package was imported
 
 
-def test_a_bad_rig_in_the_environment_is_one_line():
-    proc = _python(_PROBE, "no-such-rig.toml")
-    assert proc.returncode != 0 and "no-such-rig.toml: no such rig file" in proc.stderr
-
-
-def test_rig_option_sets_the_rig_before_the_command_loads():
-    code = (
-        "from helpers.__main__ import main; "
-        "status = main(['rig', 'check', '--rig', 'long-arm', 'paper', '--json', '--points', '2']); "
-        "from helpers.paper import hardware; print(status, hardware.RIG.name)"
-    )
-    proc = _python(code, None)
-    assert proc.returncode == 0, proc.stderr
-    last = proc.stdout.strip().splitlines()[-1]
-    assert last == "0 long-arm"
-
-
-def test_take_rig_option():
-    assert take_rig_option(["record", "--rig", "a.toml", "pulse"]) == (["record", "pulse"], "a.toml")
-    assert take_rig_option(["--rig=b", "metrics"]) == (["metrics"], "b")
-    assert take_rig_option(["metrics", "--", "--rig", "x"]) == (["metrics", "--", "--rig", "x"], None)
-    for bad in (["metrics", "--rig"], ["--rig", "--json"], ["--rig="]):
-        with pytest.raises(ValueError, match="--rig needs a rig file"):
-            take_rig_option(bad)
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_the_rig_option_is_an_ordinary_option_anywhere(where):
+    argv = ["--rig", "no-such-rig.toml", "frame", "PING"] if where == "before" else \
+        ["frame", "PING", "--rig", "no-such-rig.toml"]  # fmt: skip
+    proc = _python("", None, "-m", "helpers", *argv)
+    assert proc.returncode == 2 and proc.stderr.strip() == "error: no-such-rig.toml: no such rig file"
+    ok = _python("", None, "-m", "helpers", "frame", "--rig", "long-arm", "PING")
+    assert ok.returncode == 0 and ok.stdout.strip() == "PING*79"
 
 
 def test_the_old_rig_name_option_is_the_virtual_instance():

@@ -133,7 +133,7 @@ def test_boards_built_for_another_rig_are_refused_with_the_rebuild_command(monke
     import helpers.virtual.emulator.boards as emulated
     from helpers.rig import WrongRig
 
-    monkeypatch.setattr(emulated, "board_version", lambda: version)
+    monkeypatch.setattr(emulated, "board_version", lambda rig_hash: version)
     world = make_world()
     with pytest.raises(WrongRig) as info:
         Rig("virtual", rigfile.selected(), CALIBRATION, world=world.name, timeout=0.5, hello_timeout=1.0)
@@ -146,7 +146,7 @@ def test_boards_built_for_another_rig_are_refused_with_the_rebuild_command(monke
 def test_a_board_without_a_rig_hash_is_the_paper_rigs(monkeypatch):
     import helpers.virtual.emulator.boards as emulated
 
-    monkeypatch.setattr(emulated, "board_version", lambda: "2.1.0")
+    monkeypatch.setattr(emulated, "board_version", lambda rig_hash: "2.1.0")
     world = make_world()
     rig = Rig("virtual", rigfile.selected(), CALIBRATION, world=world.name, timeout=0.5, hello_timeout=1.0)
     try:

@@ -8,6 +8,7 @@ import math
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -120,15 +121,15 @@ def test_tendon_overrides_and_default_tendon():
     assert rigfile.derived(rig).travel_steps == (156, int(40 / (math.pi * 60 / 800)))
 
 
-def test_selected_follows_the_environment(tmp_path, monkeypatch):
-    monkeypatch.delenv(rigfile.ENV_VAR, raising=False)
-    assert rigfile.selected_path() == rigfile.DEFAULT_RIG
-    monkeypatch.setenv(rigfile.ENV_VAR, "long-arm")
-    assert rigfile.selected().name == "long-arm"
+def test_a_rig_is_named_by_a_path_or_a_shipped_name(tmp_path):
+    assert rigfile.resolve("long-arm") == rigfile.RIGS_DIR / "long-arm.toml"  # a shipped rig's name
+    assert rigfile.load(rigfile.resolve("long-arm")).name == "long-arm"
     other = tmp_path / "x.toml"
     other.write_text(_edit(PAPER_TEXT, "name", '"mine"'))
-    monkeypatch.setenv(rigfile.ENV_VAR, str(other))
-    assert rigfile.selected().name == "mine"
+    assert rigfile.resolve(other) == other and rigfile.load(rigfile.resolve(str(other))).name == "mine"
+    assert rigfile.resolve("no-such-rig") == Path("no-such-rig")  # not shipped: the path as given
+    with pytest.raises(rigfile.RigFileError, match="no-such-rig: no such rig file"):
+        rigfile.load(rigfile.resolve("no-such-rig"))
 
 
 # --- bad input: one line naming the file, the key and the problem -----------------------------------
@@ -226,12 +227,12 @@ def test_dataclasses_are_frozen():
 
 def test_docs_name_every_key_and_macro():
     from helpers.base.paths import REPO_ROOT
-    from helpers.rigfile import firmware_header, schema
+    from helpers.rigfile import firmware_header, rod, schema
 
     doc = (REPO_ROOT / "docs" / "rig_file.md").read_text()
     keys = [
         k.name
-        for table in (schema.TOP, schema.HARDWARE, schema.ARM, schema.BOARDS, schema.TENDON)
+        for table in (schema.TOP, schema.HARDWARE, schema.ARM, schema.BOARDS, schema.TENDON, rod.ROD)
         for k in table
     ]
     missing = [k for k in keys if f"`{k}`" not in doc]

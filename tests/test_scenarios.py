@@ -11,12 +11,12 @@ from rigs import SHIPPED, floor_to
 
 
 def test_the_paper_rig_keeps_the_paper_scenarios():  # paper-only: the paper's published scenarios
-    # in this process the selected rig is the paper's
-    assert scenarios.table_i_conditions() == paper.TABLE_I_CONDITIONS
-    assert scenarios.identification_name() == "pulse_v100_x10"
-    assert scenarios.survey_positions(survey.POSITIONS_MM) == (0, 5, 10, 15, 20, 25, 30, 35, 40)
-    assert tune.rig_grid("wide") == tune.GRIDS["wide"] and (400.0, 39.0) in tune.rig_grid("wide")
-    assert scaling_notes.scaling_notes({"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM) == []
+    rig = SHIPPED["paper"].load()
+    assert scenarios.table_i_conditions(rig) == paper.TABLE_I_CONDITIONS
+    assert scenarios.identification_name(rig) == "pulse_v100_x10"
+    assert scenarios.survey_positions(survey.POSITIONS_MM, rig) == (0, 5, 10, 15, 20, 25, 30, 35, 40)
+    assert tune.rig_grid("wide", rig) == tune.GRIDS["wide"] and (400.0, 39.0) in tune.rig_grid("wide", rig)
+    assert scaling_notes.scaling_notes(rig, {"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM) == []
 
 
 def test_the_rule_scales_a_whole_set_and_keeps_what_fits():
@@ -32,25 +32,26 @@ def test_the_rule_scales_a_whole_set_and_keeps_what_fits():
     )  # fmt: skip
 
 
-def test_scenarios_follow_the_selected_rig(shipped_rig):  # rig-parametrised (tests/conftest.py)
-    r = shipped_rig
-    assert scenarios.table_i_conditions() == tuple(r.scaled(list(paper.TABLE_I_CONDITIONS)))
-    assert all(v <= r.fastest_mm_s and x <= r.longest_mm for v, x in scenarios.table_i_conditions())
+def test_scenarios_follow_the_rig(rig_file):  # rig-parametrised (tests/conftest.py)
+    r, rig = rig_file, rig_file.load()
+    table_i = scenarios.table_i_conditions(rig)
+    assert table_i == tuple(r.scaled(list(paper.TABLE_I_CONDITIONS)))
+    assert all(v <= r.fastest_mm_s and x <= r.longest_mm for v, x in table_i)
     run = paper.IDENTIFICATION_RUN
     ((v, x),) = r.scaled([(run["v_in_mm_s"], run["x_f_mm"])])
-    assert scenarios.identification_name() == f"pulse_v{v:g}_x{x:g}".replace(".", "p")
+    assert scenarios.identification_name(rig) == f"pulse_v{v:g}_x{x:g}".replace(".", "p")
     # the survey's positions: the paper's 0-40 mm every 5, spread over a shorter travel in as many steps
     n = len(survey.POSITIONS_MM) - 1
     top = min(r.hw("travel_mm"), max(survey.POSITIONS_MM))
     expected = tuple(floor_to(top * k / n, 0.1) for k in range(n + 1))
-    assert scenarios.survey_positions(survey.POSITIONS_MM) == pytest.approx(expected, abs=1e-9)
-    wide = tune.rig_grid("wide")
+    assert scenarios.survey_positions(survey.POSITIONS_MM, rig) == pytest.approx(expected, abs=1e-9)
+    wide = tune.rig_grid("wide", rig)
     assert list(wide) == r.scaled(list(tune.GRIDS["wide"]))
-    notes = "\n".join(scaling_notes.scaling_notes({"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM))
-    fits = scenarios.table_i_conditions() == paper.TABLE_I_CONDITIONS
+    notes = "\n".join(scaling_notes.scaling_notes(rig, {"wide": tune.GRIDS["wide"]}, survey.POSITIONS_MM))
+    fits = table_i == paper.TABLE_I_CONDITIONS
     assert ("Table I:" in notes) == (not fits)  # a scaled set is said, an unscaled one is not
     if not fits:
-        speeds = ", ".join(f"{v:g}" for v in sorted({v for v, _ in scenarios.table_i_conditions()}))
+        speeds = ", ".join(f"{v:g}" for v in sorted({v for v, _ in table_i}))
         assert f"-> {speeds} mm/s" in notes
 
 

@@ -10,7 +10,6 @@ import sys
 
 import pytest
 
-from helpers import rigfile
 from helpers.base.paths import DATA_DIR
 from helpers.rig.static import PAPER_MASSES_KG, calibration_masses_kg
 
@@ -38,16 +37,17 @@ def _helpers(*argv: str, cwd, env) -> subprocess.CompletedProcess:
 
 @pytest.mark.slow
 def test_second_rig_identified_mode_agrees_with_its_prediction(tmp_path):
-    env = dict(os.environ, **{rigfile.ENV_VAR: "long-arm"})
+    env = dict(os.environ)
     data = tmp_path / "data"
     (data / "identification").mkdir(parents=True)
     shutil.copy(DATA_DIR / "identification" / "result.json", data / "identification" / "result.json")
-    _helpers("record", "calibration", "--data-dir", str(data), "--quiet", cwd=tmp_path, env=env)
+    _helpers("record", "calibration", "--rig", "long-arm", "--data-dir", str(data), "--quiet", cwd=tmp_path,
+             env=env)  # fmt: skip
     cal = json.loads((data / "calibration" / "calibration.json").read_text())
     assert cal["gain_counts_per_n"] == pytest.approx(49.152, rel=2e-3)  # 16 mA over 10 N, 150 ohm, 10 bits
     assert cal["mm_per_step"] == pytest.approx(0.0785398, rel=1e-6)
-    _helpers("record", "pulse", "--v-in", "100", "--x-f", "10", "--data-dir", str(data), "--group", "id",
-             "--quiet", cwd=tmp_path, env=env)  # fmt: skip
+    _helpers("record", "pulse", "--rig", "long-arm", "--v-in", "100", "--x-f", "10", "--data-dir", str(data),
+             "--group", "id", "--quiet", cwd=tmp_path, env=env)  # fmt: skip
     predicted = json.loads(_helpers("rig", "check", "long-arm", "--json", "--points", "2", cwd=tmp_path,
                                     env=env).stdout)["dominant_at_rest"]  # fmt: skip
     code = (

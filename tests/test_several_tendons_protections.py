@@ -11,6 +11,7 @@ URL options); every wait is on the device clock.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import os
 import signal
@@ -26,8 +27,7 @@ from helpers.base.signals import Interrupted, interrupts_from_signals
 from helpers.board.programmes import Dwell, Move, Programme
 from helpers.rig import BoardReset, BoardTimeout, Rig, SafetyError, WrongRig
 from helpers.rig.stream import stream
-from helpers.virtual.emulator.tendon_world import tendon_world
-from helpers.virtual.emulator.world import forget_world, register_world
+from helpers.virtual.emulator.world import build_world, forget_world, register_world
 
 PULL = (8, 0, 0, 5)
 PROGRAMME = Programme((Dwell(300), Move(100_000, PULL), Dwell(1500), Move(100_000, tuple(-n for n in PULL)),
@@ -50,7 +50,7 @@ def rig_of(four):
 
     def make(daq_options: str = "", stepper_options: str = "", silence_s: float = 2.0):
         name = f"protect-{next(_count)}"
-        world = register_world(tendon_world(four, name))
+        world = register_world(build_world(four, name))
         rig = Rig("virtual", four, world=name, daq_options=daq_options, stepper_options=stepper_options,
                   silence_s=silence_s)  # fmt: skip
         made.append((rig, name))
@@ -162,9 +162,11 @@ def test_a_one_tendon_rig_file_refuses_the_boards_of_four(four, tmp_path):
     """Boards built for another tendon count with the rig file's hash (a header edited by hand): ``CONFIG``
     names it, before any other command."""
     name = "protect-paper-on-four"
-    world = register_world(tendon_world(four, name))
     paper = rigfile.default_rig()
-    world.daq.version_token = world.stepper.version_token = lambda: f"2.3.0+{paper.hash}"
+    world = build_world(four, name)  # four axes and channels, the paper's hash: kept as the paper's world
+    limits = dataclasses.replace(world.limits, rig_hash=paper.hash)
+    world.limits = world.daq.limits = world.stepper.limits = limits
+    register_world(world)
     try:
         with pytest.raises(WrongRig) as info:
             Rig("virtual", paper, world=name)
@@ -180,7 +182,7 @@ def test_a_move_over_the_pseudo_terminal_server_at_half_speed_completes(four, tm
     """``serve-virtual-rig --speed 0.5``: the device clock at half real time; the move ends on ``DONE``."""
     from helpers.virtual.emulator.server import serve
 
-    world = tendon_world(four, "protect-pty")
+    world = build_world(four, "protect-pty")
     out, stop = io.StringIO(), threading.Event()
     server = threading.Thread(target=serve, args=(world,), kwargs={"speed": 0.5, "duration": 60.0, "out": out,
                                                                     "stop": stop}, daemon=True)  # fmt: skip

@@ -9,29 +9,21 @@ import textwrap
 
 import pytest
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.__main__ import main
 from helpers.base.jsonfile import write_temp
 from helpers.base.locks import FolderBusy, folder_lock
 from helpers.base.paths import REPO_ROOT
 from helpers.recordings import Recording
 
-CAL = {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.25525, "origin": "test"}
-
 
 def _rec(adc0: int = 100) -> Recording:
-    meta = {
-        "schema_version": recordings.SCHEMA_VERSION,
-        "source": {"kind": "virtual-rig", "version": "test"},
-        "scenario": {"kind": "programme"},
-        "calibration": CAL,
-        "rate_hz": 1000,
-        "status": "complete",
-        "abort_reason": None,
-        "counts": {"dropped": 0, "corrupted": 0, "overruns": 0},
-    }
     rows = [(s, 5_000 + 1000 * s, adc0 + s % 400, s // 5) for s in range(50)]
-    return Recording(frame=recordings.frame_from_rows(rows), meta=meta)
+    return recordings.from_samples(
+        rows, rigfile.default_rig(), source={"kind": "virtual-rig", "version": "test"},
+        scenario={"kind": "programme"}, rate_hz=1000, started_utc="2026-12-01T15:00:00Z",
+        firmware={"daq": "test", "stepper": "test"}, counts={"dropped": 0, "corrupted": 0, "overruns": 0},
+    )
 
 
 CHILD = """

@@ -7,11 +7,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from helpers.paper.hardware import MAX_TRAVEL_MM, MM_PER_STEP
 from helpers.research.ringdown import fit_two_modes
 from helpers.research.survey import KICK_MM, map_from_rows, survey_plan
 from helpers.rig import check_programme
-from helpers.rigfile import default_rig
+from rigs import SHIPPED
+
+PAPER = SHIPPED["paper"]  # the paper's rig: its cable per step and travel by hand (tests/rigs.py)
+MM_PER_STEP, MAX_TRAVEL_MM = PAPER.mm_per_step, PAPER.hw("travel_mm")
 
 FS = 1000.0
 
@@ -48,17 +50,18 @@ def test_a_single_mode_leaves_the_second_unreported():
 def test_plans_ring_at_the_position_and_beside_it_within_the_travel():
     kick = round(KICK_MM / MM_PER_STEP) * MM_PER_STEP
     for x in (0.0, 20.0, 40.0):
-        plan = survey_plan(x)
-        check_programme(plan.programme, default_rig())  # raises if any limit is passed (the paper's rig)
+        plan = survey_plan(x, PAPER.load())
+        check_programme(plan.programme, PAPER.load())  # raises if any limit is passed (the paper's rig)
         assert plan.programme.net_steps == 0  # ends where it started
         away, back = plan.rings
         assert back[0] == pytest.approx(plan.position_mm)
         assert abs(away[0] - plan.position_mm) == pytest.approx(kick)
         assert 0.0 <= away[0] <= MAX_TRAVEL_MM and away[2] - away[1] == pytest.approx(2.0)
         assert away[2] < back[1]  # the first ring-down window closes before the kick back
-    assert survey_plan(40.0).rings[0][0] < survey_plan(40.0).position_mm  # released first at the limit
+    at_limit = survey_plan(40.0, PAPER.load())
+    assert at_limit.rings[0][0] < at_limit.position_mm  # released first at the limit
     with pytest.raises(ValueError, match="outside"):
-        survey_plan(41.0)
+        survey_plan(41.0, PAPER.load())
 
 
 def test_the_map_averages_repetitions_and_keeps_the_larger_error():

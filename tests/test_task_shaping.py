@@ -287,10 +287,10 @@ def _two_tendon_rig(four: rigfile.RigFile, folder) -> str:
 
 
 def test_record_move_dry_run_names_the_design_and_its_duration(four, tmp_path, monkeypatch, capsys) -> None:
-    monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
+    rig_args = ["--rig", str(_two_tendon_rig(four, tmp_path))]
     argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--shaper", "ei", "--dry-run",
             "--no-floor-check", "--data-dir", str(tmp_path / "data")]  # fmt: skip
-    assert main(argv) == 0
+    assert main(rig_args + argv) == 0
     out = capsys.readouterr().out
     assert "shaper: ei: EI, 3 impulses over" in out and "predicted residual" in out
     assert "dynamic floor: not checked (--no-floor-check)" in out
@@ -299,14 +299,14 @@ def test_record_move_dry_run_names_the_design_and_its_duration(four, tmp_path, m
 
 
 def test_record_move_refuses_a_bad_mode_grid_in_one_line(four, tmp_path, monkeypatch, capsys) -> None:
-    monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
+    rig_args = ["--rig", str(_two_tendon_rig(four, tmp_path))]
     (tmp_path / "g.csv").write_text("x\n1\n")
     base = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--dry-run", "--data-dir",
             str(tmp_path / "data")]  # fmt: skip
-    assert main(base + ["--shaper", "scheduled", "--mode-grid", str(tmp_path / "g.csv")]) == 2
+    assert main(rig_args + base + ["--shaper", "scheduled", "--mode-grid", str(tmp_path / "g.csv")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("error: ") and "g.csv: not a mode grid" in err and len(err.splitlines()) == 1
-    assert main(base + ["--shaper", "zv", "--mode-grid", str(tmp_path / "g.csv")]) == 2
+    assert main(rig_args + base + ["--shaper", "zv", "--mode-grid", str(tmp_path / "g.csv")]) == 2
     assert "--mode-grid applies to --shaper scheduled, multimode or auto, not zv" in capsys.readouterr().err
 
 
@@ -351,10 +351,10 @@ def test_the_simulated_automatic_choice_is_the_shortest_within_its_target(four) 
 @pytest.mark.slow
 def test_on_two_tendons_that_do_not_balance_the_floor_changes_the_design(four, tmp_path, monkeypatch,
                                                                           capsys) -> None:  # fmt: skip
-    monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
+    rig_args = ["--rig", str(_two_tendon_rig(four, tmp_path))]
     argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--shaper", "zv", "--dry-run",
             "--data-dir", str(tmp_path / "data")]  # fmt: skip
-    assert main(argv) == 0
+    assert main(rig_args + argv) == 0
     out = capsys.readouterr().out
     # ZV leaves tendon 2 a few milliseconds below the floor; a pre-pull would bend this arm (tendons at 0
     # and 90 deg pull it towards 45), so the design changes: ZVD, whose three impulses keep the floor

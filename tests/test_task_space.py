@@ -167,11 +167,11 @@ def _two_tendon_rig(four: rigfile.RigFile, folder) -> str:
 
 
 def test_record_move_dry_run_pays_the_antagonists_out_below_rest(four, tmp_path, monkeypatch, capsys) -> None:
-    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    rig_args = ["--rig", "four-tendon"]
     data = tmp_path / "data"
     argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--dry-run", "--data-dir"]
     argv.append(str(data))
-    assert main(argv) == 0
+    assert main(rig_args + argv) == 0
     out = capsys.readouterr().out
     assert "tendon 1: +28 steps (+7.15 mm, pulled); static tension" in out
     assert "tendon 3: -27 steps (-6.89 mm, paid out below its rest, held at its pretension)" in out
@@ -185,7 +185,7 @@ def test_record_move_dry_run_prints_the_plan_then_refuses_a_pay_out_from_rest(fo
     path = tmp_path / "rig" / "no-release.toml"
     path.parent.mkdir()
     path.write_text(_no_release(four).text)
-    monkeypatch.setenv("HELPERS_RIG", str(path))
+    rig_args = ["--rig", str(path)]
     tmp_path = tmp_path / "data"
     argv = [
         "record",
@@ -198,7 +198,7 @@ def test_record_move_dry_run_prints_the_plan_then_refuses_a_pay_out_from_rest(fo
         "--data-dir",
         str(tmp_path),
     ]
-    assert main(argv) == 3
+    assert main(rig_args + argv) == 3
     out, err = capsys.readouterr()
     assert "tendon 1: +28 steps (+7.15 mm, pulled); static tension" in out
     assert "tendon 4: -27 steps" in out and "floor 1.00 N" in out
@@ -208,7 +208,7 @@ def test_record_move_dry_run_prints_the_plan_then_refuses_a_pay_out_from_rest(fo
 
 
 def test_record_move_dry_run_on_a_rig_that_reaches_it(four, tmp_path, monkeypatch, capsys) -> None:
-    monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
+    rig_args = ["--rig", str(_two_tendon_rig(four, tmp_path))]
     data = tmp_path / "data"
     argv = [
         "record",
@@ -221,7 +221,7 @@ def test_record_move_dry_run_on_a_rig_that_reaches_it(four, tmp_path, monkeypatc
         "--data-dir",
         str(data),
     ]
-    assert main(argv) == 0
+    assert main(rig_args + argv) == 0
     out = capsys.readouterr().out
     w = round(1e6 * 28 * MM / 200)
     assert (
@@ -235,12 +235,12 @@ def test_record_move_dry_run_on_a_rig_that_reaches_it(four, tmp_path, monkeypatc
 @pytest.mark.slow
 def test_record_move_records_a_shaped_move_whose_hold_is_the_planned_statics(four, tmp_path, monkeypatch,
                                                                             capsys) -> None:  # fmt: skip
-    monkeypatch.setenv("HELPERS_RIG", _two_tendon_rig(four, tmp_path))
+    rig_args = ["--rig", str(_two_tendon_rig(four, tmp_path))]
     argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--shaper", "zv", "--quiet",
             "--no-floor-check", "--data-dir", str(tmp_path / "data"),
             "--virtual-instance", "task-space-test"]  # fmt: skip
     try:
-        assert main(argv) == 0
+        assert main(rig_args + argv) == 0
     finally:
         forget_world("task-space-test")
     rec = recordings.load(tmp_path / "data" / "moves" / "move_zv_d45_b10.csv")
@@ -265,11 +265,11 @@ def test_a_four_tendon_move_pays_out_and_holds_the_planned_statics(tmp_path, mon
     0.020 N (0.0407 N per count), the noise averages out over the hold's 2000 samples, and 5 s after the move
     the ringing (zeta 0.045 at 24.7 rad/s) has decayed to exp(-0.045 x 24.7 x 5) = 0.4 % of its ~2 N.
     """
-    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    rig_args = ["--rig", "four-tendon"]
     argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--quiet", "--data-dir",
             str(tmp_path / "data"), "--virtual-instance", "task-space-four"]  # fmt: skip
     try:
-        assert main(argv) == 0
+        assert main(rig_args + argv) == 0
     finally:
         forget_world("task-space-four")
     rec = recordings.load(tmp_path / "data" / "moves" / "move_none_d45_b10.csv")

@@ -24,9 +24,8 @@ from helpers.commands.home import home
 from helpers.rig import BoardReset, Rig, SafetyError
 from helpers.rig.stream import SetpointSource, StreamLimit, check_stream
 from helpers.rig.stream import stream as run_stream
-from helpers.virtual.emulator.tendon_boards import TendonStepperEmulator, build_limits
-from helpers.virtual.emulator.tendon_world import tendon_world
-from helpers.virtual.emulator.world import forget_world, get_world, register_world
+from helpers.virtual.emulator.boards import StepperEmulator, build_limits
+from helpers.virtual.emulator.world import build_world, forget_world, get_world, register_world
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +42,7 @@ def test_emulated_stepper_streams_every_axis(four) -> None:
     (21.0490 ms), its edge 24 us later. The build has no release (``RIG_AXIS_RELEASE_STEPS`` absent), so
     axis 3 is held at 0."""
     clock = Clock()
-    s = TendonStepperEmulator(clock, dataclasses.replace(build_limits(four), release_steps=()))
+    s = StepperEmulator(clock, dataclasses.replace(build_limits(four), release_steps=()))
     s.reset()
     s.out.clear()
     assert talk(s, "EN 1", "MSEG 100000 1 1 1 1", *hs.UNIT_SHAPER.commands(), "STREAM") == [
@@ -51,14 +50,14 @@ def test_emulated_stepper_streams_every_axis(four) -> None:
     ]  # fmt: skip
     replies = talk(s, *["MV 1000 0 500 -100"] * 8, "MV 1000 0 500 -100")
     assert replies == [f"OK MV {k}" for k in range(1, 9)] + ["ERR FULL 8 set-points queued"]
-    s.axis_steps_until(0.0105)  # tick 1 takes period 1's set-points: axis 3 is held at 0 at once
+    s.steps_until(0.0105)  # tick 1 takes period 1's set-points: axis 3 is held at 0 at once
     assert talk(s, "MV 1000 0 500 -100", "MV 1000 0 500 -100") == [
         "N,LIMIT,TRAVEL,0,3", "OK MV 9", "ERR FULL 8 set-points queued",
     ]  # fmt: skip
-    s.axis_steps_until(0.0205)
+    s.steps_until(0.0205)
     assert talk(s, "MV 1000 0 500 -100", "V 7", "END") == ["OK MV 10", "ERR FULL 8 set-points queued",
                                                             "OK END 11"]  # fmt: skip
-    times, axes, signs = s.axis_steps_until(1.0)
+    times, axes, signs = s.steps_until(1.0)
     assert [b.decode().split("*")[0] for b in s.out] == ["DONE 95 0 47 0"]
     s.out.clear()
     assert [int((axes == a).sum()) for a in range(4)] == [95, 0, 47, 0] and set(signs.tolist()) == {1}
@@ -72,15 +71,15 @@ def test_emulated_stepper_streams_a_paid_out_axis_down_to_its_release(four) -> N
     Its first step is due 20 ms + 65536 / 1640 x 16 us = 20.639375 ms after STREAM: tick ceil(41278.75) =
     41279 (20.6395 ms), its edge 24 us later."""
     clock = Clock()
-    s = TendonStepperEmulator(clock, build_limits(four))
+    s = StepperEmulator(clock, build_limits(four))
     s.reset()
     s.out.clear()
     assert talk(s, "EN 1", *hs.UNIT_SHAPER.commands(), "STREAM", *["MV 0 0 0 -1640"] * 8) == [
         "OK EN 1", "OK SHAPER 1", "OK IMP 0", "OK STREAM 0", *[f"OK MV {k}" for k in range(1, 9)],
     ]  # fmt: skip
-    s.axis_steps_until(0.0105)
+    s.steps_until(0.0105)
     assert talk(s, "END") == ["OK END 9"]
-    times, axes, signs = s.axis_steps_until(1.0)
+    times, axes, signs = s.steps_until(1.0)
     lines = [b.decode().split("*")[0] for b in s.out]
     assert lines == ["N,LIMIT,TRAVEL,-78,3", "DONE 0 0 0 -78"]
     assert set(axes.tolist()) == {3} and len(axes) == 78 and set(signs.tolist()) == {-1}
@@ -89,7 +88,7 @@ def test_emulated_stepper_streams_a_paid_out_axis_down_to_its_release(four) -> N
 
 def test_emulated_stepper_stream_refusals(four) -> None:
     clock = Clock()
-    s = TendonStepperEmulator(clock, build_limits(four))
+    s = StepperEmulator(clock, build_limits(four))
     s.reset()
     s.out.clear()
     assert talk(s, "EN 1", "SHAPER 2 0", "IMP 0 2048 0", "IMP 1 2048 620016", "MV 0 0 0 0") == [
@@ -178,7 +177,7 @@ def test_a_shaped_overshoot_is_refused_naming_the_tendon(four) -> None:
 # --- the host: streaming on the virtual four-tendon rig ----------------------------------------------------
 @pytest.fixture(scope="module")
 def stream_rig(four):
-    register_world(tendon_world(four, "tendon-streams-test")).stepper.take_output()  # its HELLO at power-up
+    register_world(build_world(four, "tendon-streams-test")).stepper.take_output()  # its HELLO at power-up
     # a stepper that keeps counting when its port opens (no reset): home() may trust its count
     rig = Rig("virtual", four, world="tendon-streams-test", stepper_options="&reset_on_open=0")
     yield rig

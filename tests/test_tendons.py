@@ -29,14 +29,14 @@ from helpers.commands.metrics_tendons import tendon_table, tip_table
 from helpers.rig import Rig, SafetyError, WrongRig
 from helpers.rig.link import Link
 from helpers.rig.safety import check_programme, static_tensions
-from helpers.virtual.emulator.tendon_boards import (
-    BuildLimits,
-    TendonDaqEmulator,
-    TendonStepperEmulator,
-    build_limits,
+from helpers.virtual.emulator.boards import BuildLimits, DaqEmulator, StepperEmulator, build_limits
+from helpers.virtual.emulator.world import (
+    VirtualWorld,
+    build_world,
+    forget_world,
+    get_world,
+    register_world,
 )
-from helpers.virtual.emulator.tendon_world import TendonWorld, tendon_world
-from helpers.virtual.emulator.world import default_world, forget_world, get_world, register_world
 
 REST_COUNTS = 122.88 + 2.3554 * 491.52 / 20.0
 
@@ -46,9 +46,9 @@ def four() -> rigfile.RigFile:
     return rigfile.load(rigfile.resolve("four-tendon"))
 
 
-def _stepper(four: rigfile.RigFile) -> tuple[TendonStepperEmulator, Clock]:
+def _stepper(four: rigfile.RigFile) -> tuple[StepperEmulator, Clock]:
     clock = Clock()
-    s = TendonStepperEmulator(clock, build_limits(four))
+    s = StepperEmulator(clock, build_limits(four))
     s.reset()
     s.out.clear()
     return s, clock
@@ -87,7 +87,7 @@ def test_emulated_stepper_replies_per_axis(four: rigfile.RigFile) -> None:
 def test_emulated_stepper_steps_on_the_firmware_ticks(four: rigfile.RigFile) -> None:
     s, clock = _stepper(four)
     assert talk(s, "EN 1", "MSEG 7001 3 0 1 2", "WAIT 1", "SEG 1 2 1000", "GO")[-1] == "OK GO 3"
-    times, axes, signs = s.axis_steps_until(1.0)
+    times, axes, signs = s.steps_until(1.0)
     # step k of n in W: tick ceil(k 2W / n) (0.5 us): 14002/3 -> 4668, 9335, 14002 ticks; one step at the
     # window's end; 14002/2 -> 7001, 14002; then the dwell (1 ms) and 1000 us per SEG step
     want = {0: [2334.0, 4667.5, 7001.0, 9001.0, 10001.0], 2: [7001.0], 3: [3500.5, 7001.0]}
@@ -100,7 +100,7 @@ def test_emulated_stepper_steps_on_the_firmware_ticks(four: rigfile.RigFile) -> 
 
 def test_emulated_daq_sends_every_channel_and_axis(four: rigfile.RigFile) -> None:
     clock = Clock()
-    d = TendonDaqEmulator(clock, build_limits(four))
+    d = DaqEmulator(clock, build_limits(four))
     d.reset()
     assert talk(d, "CONFIG", "RATE 50")[1:] == ["OK CONFIG 4 4 100 2000", "ERR RANGE rate 100-2000 Hz"]
     body = d.payload(np.array([[180, 181, 182, 183]]), np.array([[0, 5, -3, 156]]))
@@ -109,7 +109,7 @@ def test_emulated_daq_sends_every_channel_and_axis(four: rigfile.RigFile) -> Non
 
 @pytest.fixture(scope="module")
 def world_at_rest(four: rigfile.RigFile):
-    w = tendon_world(four, "tendons-test-rest")
+    w = build_world(four, "tendons-test-rest")
     w.daq.take_output()
     w.daq.receive(frame("START"))
     w.advance_to(0.3 + 3 * 104e-6)  # the sample at 0.3 s is complete once its fourth channel is read
@@ -131,7 +131,7 @@ def test_twin_at_rest_reads_the_pretension_on_every_channel(world_at_rest) -> No
 
 
 def test_world_drives_each_tendon_from_its_axis(four: rigfile.RigFile) -> None:
-    w = tendon_world(four, "tendons-test-pull")
+    w = build_world(four, "tendons-test-pull")
     for b in (w.daq, w.stepper):
         b.take_output()
     talk(w.daq, "START")
@@ -161,9 +161,9 @@ def test_intervals_ending_mid_conversion_give_the_samples_of_whole_ones(four: ri
     # the pseudo-terminal server advances the world to wall-clock instants, often between a sample's
     # channel 0 and its channel 3 (312 us later): every sample must still come, from the twin at each
     # channel's own instant, as when the world moves on whole milliseconds
-    whole = _pull_data(tendon_world(four, "tendons-test-whole"), np.arange(1, 201) * 1e-3)
+    whole = _pull_data(build_world(four, "tendons-test-whole"), np.arange(1, 201) * 1e-3)
     ragged_ends = np.cumsum(np.tile([0.37e-3, 0.05e-3, 0.21e-3, 0.53e-3, 0.11e-3], 200))
-    ragged = _pull_data(tendon_world(four, "tendons-test-ragged"), ragged_ends[ragged_ends <= 0.2])
+    ragged = _pull_data(build_world(four, "tendons-test-ragged"), ragged_ends[ragged_ends <= 0.2])
     n = min(len(whole), len(ragged))
     assert n >= 195  # 1 kHz for 0.2 s, the last sample still converting at 0.2 s in one of them
     np.testing.assert_array_equal(ragged[:n, :2], whole[:n, :2])  # seq and t_us: no sample lost or repeated
@@ -216,7 +216,7 @@ def test_a_state_with_every_tendon_slack_is_refused(four) -> None:
 
 
 def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> None:
-    w = tendon_world(four, "tendons-test-two-channels")
+    w = build_world(four, "tendons-test-two-channels")
     w.limits = BuildLimits(four.hash, (156, 156, 156, 156), channels=2)
     w.daq.limits = w.limits
     register_world(w)
@@ -234,7 +234,7 @@ def test_boards_reporting_fewer_channels_than_the_rig_file_are_refused(four) -> 
 
 
 def test_a_stepper_built_without_the_rig_files_release_is_refused(four) -> None:
-    w = tendon_world(four, "tendons-test-no-release")
+    w = build_world(four, "tendons-test-no-release")
     # a build without RIG_AXIS_RELEASE_STEPS: its CONFIG lists no release
     w.limits = dataclasses.replace(w.limits, release_steps=())
     w.stepper.limits = w.limits
@@ -283,7 +283,7 @@ def test_config_lists_the_releases_after_the_travels_or_none(four) -> None:
 
 
 def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
-    register_world(default_world("tendons-test-paper"))  # the paper's boards: one axis, the paper's hash
+    register_world(build_world(rigfile.default_rig(), "tendons-test-paper"))  # one axis, the paper's hash
     try:
         with pytest.raises(WrongRig, match="built for rig 481e87e3, but this host runs rig 'four-tendon'"):
             Rig("virtual", four, world="tendons-test-paper")
@@ -293,7 +293,7 @@ def test_a_one_tendon_build_is_refused_by_a_four_tendon_host(four) -> None:
 
 @pytest.fixture(scope="module")
 def four_rig(four):
-    register_world(tendon_world(four, "tendons-test-rig")).stepper.take_output()  # its HELLO at power-up
+    register_world(build_world(four, "tendons-test-rig")).stepper.take_output()  # its HELLO at power-up
     # a stepper that keeps counting when its port opens (no reset): home() may trust its count
     rig = Rig("virtual", four, world="tendons-test-rig", stepper_options="&reset_on_open=0")
     yield rig
@@ -349,10 +349,13 @@ def test_tendons_pay_out_below_rest_down_to_the_release_and_home_pulls_them_back
 
 # --- recordings: version 3 for several tendons, version 2 for one ----------------------------------------
 def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
+    """A version-2 recording (the one-tendon layout before version 4) loads with the one-tendon names too."""
     meta = {
         "schema_version": 2, "source": {"kind": "virtual-rig"}, "scenario": {"kind": "programme"},
-        "calibration": {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.25525},
+        "calibration": {"newtons_per_count": 0.025, "offset_counts": 60.0, "mm_per_step": 0.2552544,
+                        "origin": "test"},
         "rate_hz": 1000, "status": "complete", "counts": {"dropped": 0},
+        "rig": recordings.rig_section(rigfile.default_rig()),
     }  # fmt: skip
     rows = [(s, 1000 * s, 100 + s, s // 4) for s in range(20)]
     rec = recordings.Recording(recordings.frame_from_rows(rows), meta)
@@ -360,7 +363,8 @@ def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
     assert path.read_text().splitlines()[:2] == ["seq,t_us,adc,steps", "0,0,100,0"]
     rec = recordings.load(path)
     assert rec.meta["schema_version"] == 2 and rec.tendons == 1
-    assert list(rec.frame.columns) == ["seq", "t_us", "adc", "steps", "t_s", "tension_n", "cable_mm"]
+    assert list(rec.frame.columns) == ["seq", "t_us", "adc_0", "steps_0", "t_s", "tension_n_0", "cable_mm_0",
+                                       "adc", "steps", "tension_n", "cable_mm"]  # fmt: skip
     assert rec.frame["tension_n"].iloc[3] == pytest.approx((103 - 60.0) * 0.025)
 
 
@@ -418,14 +422,14 @@ def test_a_recording_without_the_tip_loads_unchanged(tendon_recording_path, tmp_
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        (lambda m: m.update(tendons=3), "calibration.newtons_per_count: expected a list of 3 positive"),
+        (lambda m: m.update(tendons=3), "tendons: 3, but the rig file has 4"),
         (lambda m: (m.update(tendons=3), [m["calibration"][k].pop() for k in ("newtons_per_count",
                     "offset_counts", "mm_per_step")]), "tendons: 3, but the rig file has 4"),
         (lambda m: m["calibration"].update(mm_per_step=[0.25, 0.25]),
-         "calibration.mm_per_step: expected a list of 4 positive finite numbers (one per tendon)"),
-        (lambda m: m.pop("rig"), "rig: missing (a recording of several tendons keeps its rig file)"),
-        (lambda m: m.update(schema_version=4), "schema_version: unknown 4 (this code reads (1, 2, 3))"),
-        (lambda m: m.update(tip="twin"), "tip: expected an object (the twin-provided tip columns' origin)"),
+         "calibration.mm_per_step: expected a list of 4 numbers > 0 (mm per step, one per tendon)"),
+        (lambda m: m.pop("rig"), "rig: missing (a recording of schema_version 3 keeps its rig file)"),
+        (lambda m: m.update(schema_version=5), "schema_version: unknown 5 (this code reads (1, 2, 3, 4))"),
+        (lambda m: m.update(tip="twin"), "tip: expected an object (the twin-provided tip columns' origin"),
         (lambda m: m.pop("tip"), "header"),  # tip columns without the key: not the contract's header
     ],
 )  # fmt: skip
@@ -467,7 +471,7 @@ def test_a_step_count_within_the_release_and_the_travel_is_a_recording_the_rig_c
 def pulse_recording_path(four, tmp_path_factory):
     """Tendons 1 and 2 (0-based 0 and 1) pulled 6 and 4 steps together after 0.6 s, held 1.6 s, released
     (a rig of its own: the twin at rest)."""
-    register_world(tendon_world(four, "tendons-test-pulse"))
+    register_world(build_world(four, "tendons-test-pulse"))
     four_rig = Rig("virtual", four, world="tendons-test-pulse")
     pull, hold = (20_000, (6, 4, 0, 0)), (1_600_000, None)
     programme = _programme((600_000, None), pull, hold, (20_000, (-6, -4, 0, 0)))
@@ -554,7 +558,7 @@ def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(mon
     try:
         rig = Rig("virtual", four, world="tendons-test-url")
         try:
-            assert isinstance(get_world("tendons-test-url"), TendonWorld)
+            assert get_world("tendons-test-url", four).limits.axes == 4
             assert rig.stepper.command("CONFIG") == "OK CONFIG 4 64 639 1000000 156 156 156 156 78 78 78 78"
         finally:
             rig.close()
@@ -582,7 +586,7 @@ class _MicrosecondSensor:
 
 def test_each_channel_is_read_one_conversion_after_the_previous(four) -> None:
     """PROTOCOL.md: channel c is converted c x 104 us after channel 0, whose instant is ``t_us``."""
-    w = TendonWorld(_ClockPlant(), [_MicrosecondSensor()] * 4, name="skew", limits=build_limits(four))
+    w = VirtualWorld(_ClockPlant(), [_MicrosecondSensor()] * 4, name="skew", limits=build_limits(four))
     w.daq.take_output()
     w.daq.receive(frame("START"))
     w.advance_to(0.0101)
@@ -598,7 +602,7 @@ def test_home_command_brings_every_tendon_of_a_four_axis_stepper_back(four, monk
     7 steps, at 50 mm/s: 0.255254 / 50 mm/s = 5105 us per step, a 35.7 ms window); tendon 2, paid out 3 steps
     below its rest, is pulled back up to it."""
     monkeypatch.setenv("HELPERS_RIG", "four-tendon")
-    w = register_world(tendon_world(four, "tendons-test-home"))
+    w = register_world(build_world(four, "tendons-test-home"))
     try:
         assert talk(w.stepper, "EN 1", "MSEG 40000 5 -3 0 7", "GO")[-1] == "OK GO 1"
         w.advance_to(0.1)

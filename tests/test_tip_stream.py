@@ -193,10 +193,10 @@ def test_record_tip_stream_dry_run_prints_every_tendons_range_and_least_tension(
     """A square of 5 mm at 200 mm/s on the four-tendon rig: its corners are plan_move's bends (5 mm towards
     a tendon pulls it 5 / 0.255 = 19.6 steps and pays the opposite out about as much), within the travel
     -78..156 steps."""
-    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    rig_args = ["--rig", "four-tendon"]
     argv = ["record", "tip-stream", "--path", "square", "--bend-mm", "5", "--v-in", "200", "--dry-run",
             "--data-dir", str(tmp_path / "data")]  # fmt: skip
-    assert main(argv) == 0
+    assert main(rig_args + argv) == 0
     out = capsys.readouterr().out
     four = rigfile.load(rigfile.resolve("four-tendon"))
     corner = plan_move(four, 0.0, 5.0).steps
@@ -217,7 +217,7 @@ def test_record_tip_stream_refuses_a_figure_the_rig_cannot_reach(two, tmp_path, 
     (cos 180 deg < 0, cos 90 deg = 0)."""
     path = tmp_path / "two.toml"
     path.write_text(two.text)
-    monkeypatch.setenv("HELPERS_RIG", str(path))
+    rig_args = ["--rig", str(path)]
     argv = [
         "record",
         "tip-stream",
@@ -229,7 +229,7 @@ def test_record_tip_stream_refuses_a_figure_the_rig_cannot_reach(two, tmp_path, 
         "--data-dir",
         str(tmp_path),
     ]
-    assert main(argv) == 3
+    assert main(rig_args + argv) == 3
     err = capsys.readouterr().err.strip()
     assert (
         err.startswith("error: the star path (5 mm) refused: no tendon faces 180 deg (tendons at 0, 90 deg)")
@@ -245,12 +245,12 @@ def test_a_tip_stream_on_the_virtual_rig_stands_at_the_plan_and_records_tip_and_
     """The four-tendon square of 5 mm shaped by ZVD, recorded: every stop's step counts are the plan's, the
     stream ends at rest, the scenario names the stream, the shaper and the path; the twin's tip and every
     tension are recorded (simulated)."""
-    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
+    rig_args = ["--rig", "four-tendon"]
     data = tmp_path / "data"
     argv = ["record", "tip-stream", "--path", "square", "--bend-mm", "5", "--v-in", "200", "--shaper", "zvd",
             "--data-dir", str(data), "--virtual-instance", "tip-stream-test", "--quiet"]  # fmt: skip
     try:
-        assert main(argv) == 0
+        assert main(rig_args + argv) == 0
     finally:
         forget_world("tip-stream-test")
     rec = recordings.load(data / "tip_streams" / "tip_square_zvd_b5.csv")

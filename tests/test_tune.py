@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 import helpers.base.paths
+from helpers import rigfile
 from helpers.__main__ import main
 from helpers.base.paths import DATA_DIR
-from helpers.paper import hardware
 from helpers.paper.shapers import design_tdfs
 from helpers.research import tune
 from helpers.research.modemap import ModeMap, load_map, map_rig
@@ -86,7 +86,7 @@ def test_reuse_map_refuses_a_map_of_another_rig_before_any_port_opens(tmp_path, 
         (tmp_path / group).mkdir()
         shutil.copy(DATA_DIR / group / name, tmp_path / group / name)
     monkeypatch.setattr(tune.Rig, "connect", lambda *a, **k: pytest.fail("a port was opened"))
-    this_name, this_hash = _rig_of(hardware.RIG.source)  # the rig this process runs
+    this_name, this_hash = _rig_of(rigfile.DEFAULT_RIG)  # the rig `tune` runs without --rig: the paper's
     other = next(p for p in sorted(RIGS_DIR.glob("*.toml")) if _rig_of(p)[1] != this_hash)
     other_name, other_hash = _rig_of(other)
     source = {"kind": "virtual-rig", "method": "test", "rig": {"name": other_name, "hash": other_hash}}

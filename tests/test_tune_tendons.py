@@ -91,8 +91,8 @@ def test_the_report_orders_its_columns_the_same_for_a_summary_read_back_from_jso
 
 
 def test_tune_on_several_tendons_refuses_the_one_tendon_options(monkeypatch, tmp_path, capsys) -> None:
-    monkeypatch.setenv("HELPERS_RIG", "four-tendon")
-    assert main(["tune", "--grid", "wide", "--data-dir", str(tmp_path)]) == 2
+    rig_args = ["--rig", "four-tendon"]
+    assert main(rig_args + ["tune", "--grid", "wide", "--data-dir", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--grid apply to a rig with one tendon" in err
     assert not any(tmp_path.iterdir())
@@ -113,11 +113,10 @@ def test_a_short_tune_measures_the_map_and_zvd_leaves_less_than_unshaped(tmp_pat
 
     from helpers.research import tune_tendons as tt
     from helpers.rig import Rig
-    from helpers.virtual.emulator.tendon_world import tendon_world
-    from helpers.virtual.emulator.world import forget_world, register_world
+    from helpers.virtual.emulator.world import build_world, forget_world, register_world
 
     rig = rigfile.load(_two_tendon_rig(tmp_path))
-    world = register_world(tendon_world(rig, "tune-tendons-test"))
+    world = register_world(build_world(rig, "tune-tendons-test"))
     seeds = itertools.count(7)
     try:
         with Rig("virtual", rig, world="tune-tendons-test") as trig:

@@ -8,10 +8,16 @@ import serial
 from crc_reference import link_hex
 from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
 
+from helpers import rigfile
 from helpers.board import stream_reference as hs
 from helpers.board.protocol import StreamParser, checksum, frame
 from helpers.paper.hardware import MM_PER_STEP
-from helpers.virtual.emulator.boards import Faults
+from helpers.virtual.emulator.boards import Faults, build_limits
+
+
+def built_for(rig_file) -> dict:
+    """``make_world``'s keyword for boards built for a shipped rig file (the rig as a value)."""
+    return {"limits": build_limits(rigfile.load(rig_file.path))}
 
 
 def talk(board, *commands, checksum=True):
@@ -24,9 +30,9 @@ def talk(board, *commands, checksum=True):
     return msgs
 
 
-def test_hello_on_reset_and_pong_with_the_documented_checksum(shipped_rig):  # rig-parametrised
-    version = f"2.3.0+{shipped_rig.hash}"  # the firmware version and the rig file's hash
-    w = make_world()
+def test_hello_on_reset_and_pong_with_the_documented_checksum(rig_file):  # rig-parametrised
+    version = f"2.3.0+{rig_file.hash}"  # the firmware version and the rig file's hash
+    w = make_world(**built_for(rig_file))
     assert w.daq.take_output() == frame(f"HELLO daq {version}")
     w.daq.receive(b"PING*79\n")
     pong = f"PONG daq {version}"
@@ -86,10 +92,10 @@ def test_overruns_are_reported_never_skipped_silently():
     assert len(rows) + p.stats.overruns == 105
 
 
-def test_stepper_limits(shipped_rig):  # rig-parametrised: the limits from the rig file's keys
-    r = shipped_rig
+def test_stepper_limits(rig_file):  # rig-parametrised: the limits from the rig file's keys
+    r = rig_file
     fastest, slowest, travel = r.min_interval_us, r.hw("max_interval_us"), r.travel_steps
-    s = make_world().stepper
+    s = make_world(**built_for(r)).stepper
     s.take_output()
     assert talk(s, f"SEG 1 10 {fastest - 1}")[0].startswith("ERR RANGE")  # faster than the speed limit
     assert talk(s, f"SEG 1 10 {slowest + 1}")[0].startswith("ERR RANGE")
@@ -111,9 +117,9 @@ def test_stepper_limits(shipped_rig):  # rig-parametrised: the limits from the r
     assert talk(s, "CLEAR", "SEG 1 100 1000", f"SEG 1 {travel - 100} {fastest}", "GO")[-1].startswith("OK GO")
 
 
-def test_config_replies_are_the_rigs_limits(shipped_rig):  # rig-parametrised
-    r = shipped_rig
-    w = make_world()
+def test_config_replies_are_the_rigs_limits(rig_file):  # rig-parametrised
+    r = rig_file
+    w = make_world(**built_for(r))
     w.stepper.take_output(), w.daq.take_output()
     limits = (r.hw("programme_max_items"), r.min_interval_us, r.hw("max_interval_us"), r.travel_steps)
     assert talk(w.stepper, "CONFIG") == ["OK CONFIG 1 {} {} {} {}".format(*limits)]  # one axis
@@ -293,8 +299,25 @@ def test_mseg_spreads_its_steps_over_the_window_on_the_firmware_ticks():
     assert talk(s, "CONFIG")[0].startswith("OK CONFIG 1 ")  # the rig's limits: test_config_replies_...
     assert talk(s, "MSEG 7001 3", "MSEG 2000 -1", "EN 1", "GO")[-1] == "OK GO 2"
     go = w.go_times[-1]
-    times, signs = s.steps_until(go + 1.0)
+    times, axes, signs = s.steps_until(go + 1.0)
     # PROTOCOL.md: step k of n on the first 0.5 us tick at or after k * W / n from the window's start
     # (7001 us / 3 = 2333.67 us -> 2334.0; 4667.33 -> 4667.5; the window's end; then 7001 + 2000)
     np.testing.assert_allclose((times - go) * 1e6, [2334.0, 4667.5, 7001.0, 9001.0], atol=1e-3)
-    assert list(signs) == [1, 1, 1, -1]
+    assert list(signs) == [1, 1, 1, -1] and list(axes) == [0] * 4
+
+
+def test_a_one_axis_stream_clamps_at_the_travel_of_its_build(rig_file):  # rig-parametrised
+    """PROTOCOL.md: a stream holds each axis within its build's travel (the paper's 156 steps, the long arm's
+    254): 20 periods at the top speed, 1640 x 625 / 2^16 = 15.64 steps each, would be 312.8 steps."""
+    w = make_world(**built_for(rig_file))
+    w.stepper.take_output()
+    talk(w.stepper, *hs.UNIT_SHAPER.commands(), "EN 1", "STREAM")
+    t0, heard = w.t, []
+    for i in range(20):
+        w.advance_to(t0 + 0.004 + 0.01 * i)
+        heard += [m for m in talk(w.stepper, f"V {hs.V_MAX}") if not m.startswith("OK V")]
+    assert talk(w.stepper, "END") == ["OK END 21"]
+    w.advance_to(t0 + 0.6)
+    heard += talk(w.stepper)
+    travel = rig_file.travel_steps
+    assert heard == [f"N,LIMIT,TRAVEL,{travel}", f"DONE {travel}"] and w.stepper.position == travel

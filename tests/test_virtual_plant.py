@@ -12,9 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from helpers.paper import hardware, model
+from helpers.paper import model
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.virtual import (
     ArcChain,
     ArmPlant,
@@ -29,8 +28,10 @@ from helpers.virtual import _kernel as kern
 from helpers.virtual.reference import ReferenceArm
 from helpers.virtual.statics import equilibrium_at_tension, model_arrays
 from helpers.virtual.studies import SENSITIVITY_VARIANTS, _variant, actuator_sensitivity
+from rigs import SHIPPED
 
 CAL = RigParameters()
+MM_PER_STEP = SHIPPED["paper"].mm_per_step  # the paper's cable per step, by hand (tests/rigs.py)
 UNDAMPED = {"alpha": 0.0, "beta_chord": 0.0, "floor_zeta": 0.0, "rotor_zeta": 0.0, "carriage_zeta": 0.0}
 
 
@@ -501,8 +502,7 @@ def test_bad_input_is_refused():
 # --- sensor and simulate ----------------------------------------------------------------------------------
 def test_cable_travel_per_step_follows_the_papers_spool_and_steps():
     # 65 mm spool, 800 steps per revolution (paper): 0.25525 mm of cable per step
-    assert hardware.MM_PER_STEP == pytest.approx(math.pi * 65.0 / 800.0, rel=1e-15)
-    assert CAL.cable_per_step * 1e3 == pytest.approx(hardware.MM_PER_STEP, rel=1e-15)
+    assert CAL.cable_per_step * 1e3 == pytest.approx(math.pi * 65.0 / 800.0, rel=1e-15)
 
 
 def test_load_cell_counts_follow_the_current_loop():
@@ -532,7 +532,8 @@ def test_simulate_runs_a_programme_and_identifies_the_paper_mode():
     res = simulate(prog, rate_hz=1000.0, params=CAL, seed=0)
     assert prog.duration_s - 1e-3 < res.t[-1] <= prog.duration_s
     assert res.steps[-1] == 0 and res.steps.max() == round(10.0 / MM_PER_STEP)
-    assert np.all((res.adc > hardware.CLIP_LOW_COUNTS) & (res.adc < hardware.CLIP_HIGH_COUNTS))
+    low, high = SHIPPED["paper"].clip_counts  # the paper's chain, by hand (tests/rigs.py)
+    assert np.all((res.adc > low) & (res.adc < high))
     x, y = res.shape_at(5.0)
     assert x.shape == (CAL.n_elements + 1,)
     ident = identify(res.t, res.adc.astype(float), window=paper.IDENTIFICATION_RUN["window_s"])

@@ -19,6 +19,10 @@
 //   RIG_DAQ_BAUD, RIG_STEPPER_BAUD                                      serial line rates (8N1)
 //   RIG_ADC_CLIP_LOW_COUNTS, RIG_ADC_CLIP_HIGH_COUNTS                   the load cells' clipping levels
 //                                                                       (host-side analysis; not used on board)
+//   RIG_STEPPER_TABLES_BYTES, RIG_STEPPER_TABLES_MAX_BYTES  the stepper's RAM budget as the host computed it
+//                            (helpers/rigfile/capacity.py, the rule's one source): its programme table, stream
+//                            state and shaper, and what the Uno's RAM leaves them; the stepper sketch asserts
+//                            that its tables are exactly that size and fit
 #ifndef FIRMWARE_COMMON_RIG_CONFIG_H
 #define FIRMWARE_COMMON_RIG_CONFIG_H
 
@@ -42,6 +46,9 @@
 #if !defined(RIG_DAQ_BAUD) || !defined(RIG_STEPPER_BAUD) || !defined(RIG_ADC_CLIP_LOW_COUNTS) || \
     !defined(RIG_ADC_CLIP_HIGH_COUNTS)
 #error "rig config: RIG_DAQ_BAUD, RIG_STEPPER_BAUD and RIG_ADC_CLIP_LOW/HIGH_COUNTS are required"
+#endif
+#if !defined(RIG_STEPPER_TABLES_BYTES) || !defined(RIG_STEPPER_TABLES_MAX_BYTES)
+#error "rig config: RIG_STEPPER_TABLES_BYTES and RIG_STEPPER_TABLES_MAX_BYTES are required (generate the header: python -m helpers.rigfile.firmware_header)"
 #endif
 #if RIG_AXES < 1 || RIG_AXES > 4
 #error "rig config: RIG_AXES must be 1-4 (the stepper board has four STEP/DIR pairs)"

@@ -18,4 +18,10 @@
 #define RIG_ADC_CLIP_LOW_COUNTS 116
 #define RIG_ADC_CLIP_HIGH_COUNTS 628
 
+/* The stepper's RAM budget as helpers.rigfile.capacity computes it (the rule's one source): the
+   sketch asserts at compile time that its tables take exactly RIG_STEPPER_TABLES_BYTES and fit
+   within RIG_STEPPER_TABLES_MAX_BYTES. */
+#define RIG_STEPPER_TABLES_BYTES 878
+#define RIG_STEPPER_TABLES_MAX_BYTES 1268
+
 #endif /* RIG_CONFIG_H */

@@ -145,11 +145,17 @@ static const uint16_t TABLES_BYTES = sizeof(prog) + sizeof(StreamMem) + sizeof(S
 #endif
 static uint8_t prog_len;
 
-// RAM budget, checked at compile time: the programme table and the streaming state (the tables the rig
-// config sizes) must leave room for the rest of the static data (serial buffers, line buffers, run state:
-// about 520 bytes) and at least 256 bytes of stack (the deepest stack measured in simavr is under 200 bytes).
+// RAM budget, checked at compile time with the host's numbers: helpers/rigfile/capacity.py is the rule's one
+// source (rig check and the header generator refuse a rig whose tables do not fit) and the generated header
+// carries what it computed: the size of these tables (the programme table, the stream's state and the shaper)
+// and what the Uno's RAM leaves them beside the rest of the static data (serial and line buffers, run state:
+// 460-575 bytes by the number of axes) and 320 bytes of stack (the deepest stack measured in simavr: 239 bytes).
+// The first assertion keeps the host's model of these tables honest; the second is the rule.
 static const uint16_t RAM_BYTES = RAMEND + 1 - RAMSTART;
-static_assert(TABLES_BYTES + 520 + 256 <= RAM_BYTES,
+static_assert(TABLES_BYTES == RIG_STEPPER_TABLES_BYTES,
+              "rig config: the stepper's tables are not the size helpers/rigfile/capacity.py computes "
+              "(RIG_STEPPER_TABLES_BYTES): update its model, then regenerate the header");
+static_assert(TABLES_BYTES <= RIG_STEPPER_TABLES_MAX_BYTES && RIG_STEPPER_TABLES_MAX_BYTES < RAM_BYTES,
               "rig config: the programme table (RIG_PROGRAMME_MAX x RIG_AXES) does not fit the Uno's RAM");
 
 // Run state (ISR-owned while running).

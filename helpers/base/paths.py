@@ -24,6 +24,10 @@ STORED_TABLES_DIR: Path = REPO_ROOT / "figures"
 notebooks to *read* (the previous virtual rig's Table II, the virtual rig's study tables). Notebooks write
 through :func:`figure_path`; they read these through :func:`stored_table`."""
 
+EXTERNAL_DATA_DIR: Path = DATA_DIR / "external"
+"""Data made elsewhere, in their own formats and with their licences (``docs/external_data.md``): read only,
+never recordings of this project (``helpers.recordings.catalogue`` leaves the folder out)."""
+
 IDENTIFICATION_RESULT: Path = DATA_DIR / "identification" / "result.json"
 """The identified dominant mode: written by ``helpers.paper.identify.save_identification`` (notebook 02's
 live cell

@@ -172,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
             "home (a virtual rig that keeps running is serve-virtual-rig's: home --ports DAQ,STEPPER)"
         )
         return 0
-    rig = rigfile.selected()
+    rig = args.rig
     url = args.ports if "," not in args.ports and args.ports != "auto" else rig_urls(args.ports, rig, "")[1]
     stepper = Link.open(url, "stepper", rig, rig.hardware.stepper_baud)
     try:

@@ -34,7 +34,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import MissingDataError
 from helpers.base.locks import folder_lock
@@ -46,11 +45,11 @@ from helpers.commands.tip_stream import record_tip_stream
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
 from helpers.paper.calibration import (
-    UNCALIBRATED,
     LoadCellCalibration,
     fit_calibration,
     load_calibration,
     save_calibration,
+    uncalibrated,
 )
 from helpers.paper.hardware import (
     DAQ_RATE_DEFAULT_HZ,
@@ -75,6 +74,7 @@ from helpers.research.tip_stream import FIGURES as TIP_FIGURES
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.static import calibration_masses_kg, record_calibration
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
+from helpers.rigfile import RigFile, derived
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
 """Systems ``record`` designs itself from one identified mode (the others come from a --design file)."""
@@ -356,13 +356,13 @@ def record_all(
         Folder of the Table I recordings under ``data_dir``.
     """
     seeds = seeds or NoiseSeeds(None)
-    run = scenarios.identification_run()
+    run = scenarios.identification_run(rig.rig)
     rec = rig.run_pulse(
         run["v_in_mm_s"],
         run["x_f_mm"],
         None,
         system="unshaped",
-        path=Path(data_dir) / "identification" / scenarios.identification_name(),
+        path=Path(data_dir) / "identification" / scenarios.identification_name(rig.rig),
         t_end_s=t_end_s,
         rate_hz=rate_hz,
         progress=False,
@@ -472,14 +472,14 @@ RECORDERS: dict[str, Callable[[Rig, argparse.Namespace, NoiseSeeds], None]] = {
 """What ``record`` can record -> the function that does it."""
 
 
-def _calibration_for(what: str, data_dir: Path) -> LoadCellCalibration | None:
+def _calibration_for(what: str, data_dir: Path, rig: RigFile) -> LoadCellCalibration | None:
     """The load-cell calibration a run uses: the saved one; recording a new one may start without any."""
     path = data_dir / "calibration" / "calibration.json"
     try:
         return load_calibration(path)
     except MissingDataError:
         if what == "calibration":
-            return UNCALIBRATED
+            return uncalibrated(derived(rig).mm_per_step[0])
         raise
 
 
@@ -496,11 +496,11 @@ def _planned_pulses(
             for rep in range(1, reps + 1)
         ]
     planned = []
-    scaling_notes.announce()
+    scaling_notes.announce(args.rig)
     if args.what == "all":
-        run = scenarios.identification_run()
+        run = scenarios.identification_run(args.rig)
         v, x = run["v_in_mm_s"], run["x_f_mm"]
-        planned.append(("identification", scenarios.identification_name(), v, x, "unshaped", None))
+        planned.append(("identification", scenarios.identification_name(args.rig), v, x, "unshaped", None))
         if not quiet:
             print("dry run: the shapers of Table I are designed from the identification run once recorded;")
             print("         the plan below checks them with the current identification result")
@@ -510,7 +510,7 @@ def _planned_pulses(
         shapers, _ = _shapers(args, quiet=quiet)
     reps = args.repetitions or 3
     for system in paper.SYSTEMS:
-        for v, x in scenarios.table_i_conditions():
+        for v, x in scenarios.table_i_conditions(args.rig):
             for rep in range(1, reps + 1):
                 planned.append((args.group, scenario_name(system, v, x, rep), v, x, system, shapers[system]))
     return planned
@@ -533,10 +533,10 @@ def dry_run(args: argparse.Namespace) -> int:
     int
         0 when the run would start; otherwise an exception names the first problem.
     """
-    _calibration_for(args.what, args.data_dir)
+    _calibration_for(args.what, args.data_dir, args.rig)
     rows = []
     if args.what == "calibration":
-        for grams in (round(1000 * m) for m in _masses()):
+        for grams in (round(1000 * m) for m in _masses(args.rig)):
             target = recording_path(args.group, f"load_{grams:04d}g", args.data_dir)
             if not args.replace:
                 refuse_existing(target)
@@ -546,13 +546,13 @@ def dry_run(args: argparse.Namespace) -> int:
             target = recording_path(group, name, args.data_dir)
             if not args.replace:
                 refuse_existing(target)
-            v, x = check_request(v, x, rigfile.selected())
+            v, x = check_request(v, x, args.rig)
             try:
                 programme, report = experiment_programme(v, x, shaper, t_end=args.t_end,
-                                                         rig=rigfile.selected())  # fmt: skip
+                                                         rig=args.rig)  # fmt: skip
             except ValueError as exc:
                 raise SafetyError(f"pulse {v} mm/s, {x} mm refused: {exc}") from None
-            check_programme(programme, rigfile.selected())
+            check_programme(programme, args.rig)
             what = _describe(system, shaper)
             rows.append(
                 f"  {repo_path(target)}: {x:g} mm at {v:g} mm/s, {what}, {report.n_steps} steps per move, "
@@ -563,15 +563,15 @@ def dry_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _masses() -> tuple[float, ...]:
+def _masses(rig: RigFile) -> tuple[float, ...]:
     """The calibration's masses for the rig's load cell (tendon 1's)."""
-    return calibration_masses_kg(rigfile.selected().tendons[0].load_cell_range_n)
+    return calibration_masses_kg(rig.tendons[0].load_cell_range_n)
 
 
 def _refuse_existing_targets(args: argparse.Namespace) -> None:
     """Refuse a request whose recordings exist already, naming the options that avoid it."""
     if args.what == "calibration":
-        names = [(args.group, f"load_{round(1000 * m):04d}g") for m in _masses()]
+        names = [(args.group, f"load_{round(1000 * m):04d}g") for m in _masses(args.rig)]
     elif args.what in ("pulse", "table-i", "all"):
         names = [(g, n) for g, n, *_ in _planned_pulses(args, quiet=True)]
     else:
@@ -640,7 +640,7 @@ def _print_move(args: argparse.Namespace, rig: Any, move: Any) -> None:
 
 def _record_move(args: argparse.Namespace) -> int:
     """``record move``: plan, check, print (dry run) or record one move on a rig with several tendons."""
-    rig = rigfile.selected()
+    rig = args.rig
     move = _plan_move(args, rig)
     plan, design, programme = move.plan, move.shaping, move.programme
     target = recording_path(args.group, _move_name(args), args.data_dir)
@@ -687,13 +687,13 @@ def run(args: argparse.Namespace) -> int:
     if args.what != "pulse" and args.design is not None:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
     if args.what in ("table-i", "all"):
-        scaling_notes.announce()  # once: which of the paper's scenarios this rig scales, and to what
+        scaling_notes.announce(args.rig)  # once: which of the paper's scenarios this rig scales, and to what
     if args.dry_run:
         return dry_run(args)
     if args.what == "pulse":  # refuse a bad request before any port is opened
         args.pulse_request = _pulse_request(args)
     groups = {args.group, "identification"} if args.what == "all" else {args.group}
-    calibration = _calibration_for(args.what, args.data_dir)
+    calibration = _calibration_for(args.what, args.data_dir, args.rig)
     if not args.replace:  # before any port is opened (opening one resets an Arduino)
         _refuse_existing_targets(args)
     with contextlib.ExitStack() as stack:
@@ -701,7 +701,7 @@ def run(args: argparse.Namespace) -> int:
             stack.enter_context(  # beside the group, so that deleting its folder cannot let a second in
                 folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK, beside=True)
             )
-        rig = Rig(args.ports, rigfile.selected(), calibration=calibration, world=args.rig_name)
+        rig = Rig(args.ports, args.rig, calibration=calibration, world=args.rig_name)
         stack.callback(rig.close)
         print(
             f"connected: daq firmware {rig.daq.version}, stepper firmware {rig.stepper.version}, "

@@ -1,14 +1,15 @@
-"""``python -m helpers rig check FILE [--json]`` and ``rig new FILE``: the rig file (``docs/rig_file.md``).
+"""``python -m helpers rig check FILE [--json]``, ``rig new FILE`` and ``rig firmware FILE``: the rig file.
 
 ``check`` validates a rig file and prints what follows from it: cable per step, the limits in steps and step
 intervals, the ADC range in newtons, and the arm's **predicted** modes at rest and across its travel from
 its geometry (the twin's statics and linearisation with the file's values: untuned unless the file holds
 tuned values, as the paper's does). A rig whose twin cannot hold its travel (static tension at full travel
-above the stepper's pull-out tension) is refused. ``new`` writes a commented template from the paper's rig
-and never overwrites a file.
+above the stepper's pull-out tension) is refused, and so is one the boards cannot hold
+(``helpers.rigfile.capacity``). ``new`` writes a commented template from the paper's rig and never overwrites
+a file. ``firmware`` builds and uploads the boards' firmware for it (``helpers.commands.rig_firmware``).
 
 Exit status: 0; 2 for a bad rig file or argument (one line naming the file, the key and the problem); 5 if
-``new`` would overwrite a file.
+``new`` would overwrite a file; ``firmware``: see its module.
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ import numpy as np
 
 from helpers import rigfile
 from helpers.base.jsonfile import DataFileError
-from helpers.rigfile import RigFile, RigFileError
-from helpers.rigfile.firmware_header import firmware_problem
+from helpers.commands import rig_firmware
+from helpers.rigfile import RigFile, RigFileError, capacity
 from helpers.rigfile.template import template_text
 from helpers.virtual import statics
 from helpers.virtual.from_rig import rig_parameters
@@ -49,6 +50,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     new = sub.add_parser("new", help="write a commented rig file template from the paper's rig")
     new.add_argument("file", help="the file to write (refused if it exists)")
     new.add_argument("--name", default=None, help="the rig's name (default: the file's stem)")
+    firmware = sub.add_parser(
+        "firmware", help="build (and upload) both boards' firmware for a rig file",
+        description=rig_firmware.__doc__.split("\n\n")[1].replace("``", ""),
+    )  # fmt: skip
+    rig_firmware.add_arguments(firmware)
 
 
 def _mode_rows(df: Any, n: int) -> list[dict[str, float]]:
@@ -129,7 +135,22 @@ def report(rig: RigFile, points: int = 5) -> dict[str, Any]:
         "rod_mass_kg": p.rod_mass, "disc_mass_kg": p.disc_mass, "disc_inertia_kg_m2": p.disc_inertia,
         "total_mass_kg": p.total_mass, "gravity_direction": list(a.gravity_direction),
     }  # fmt: skip
-    out["firmware"] = firmware_problem(rig) or "fits the boards (python -m helpers.rigfile.firmware_header)"
+    ram = capacity.stepper_ram(rig.n_tendons, d.min_interval_us, hw.programme_max_items)
+    link = capacity.daq_link(rig, d.travel_steps, d.release_steps)
+    out["firmware"] = (
+        f"fits the boards: the stepper's tables take {ram.tables_bytes} of the {ram.tables_max_bytes} B its "
+        f"RAM leaves them ({hw.programme_max_items} programme items, at most {ram.max_items}); the DAQ's "
+        f"longest data lines ({link.line_bytes} bytes) at {link.rate_hz} Hz use {100 * link.share:.0f} % of "
+        f"{link.baud} baud (at most {100 * capacity.DAQ_LINK_SHARE:.0f} %; such lines fit up to "
+        f"{link.max_rate_hz} Hz)"
+    )
+    out["boards"] = {
+        "stepper_tables_bytes": ram.tables_bytes, "stepper_tables_max_bytes": ram.tables_max_bytes,
+        "stepper_static_bytes": ram.static_bytes, "programme_max_items_fit": ram.max_items,
+        "daq_line_bytes_max": link.line_bytes, "daq_bits_per_s": link.bits_per_s,
+        "daq_link_share": link.share, "daq_min_baud": link.min_baud,
+        "daq_max_rate_hz_longest_lines": link.max_rate_hz,
+    }  # fmt: skip
     out.update(predicted_modes(rig, points))
     top = out["across_travel"][-1]["static_tension_n"]
     out["static_tension_at_travel_n"] = top
@@ -210,7 +231,9 @@ def _finite(obj: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``rig check`` or ``rig new``; return the exit status."""
+    """Run ``rig check``, ``rig new`` or ``rig firmware``; return the exit status."""
+    if args.rig_command == "firmware":
+        return rig_firmware.run(args)
     if args.rig_command == "new":
         path = Path(args.file)
         if path.exists():
@@ -229,6 +252,7 @@ def run(args: argparse.Namespace) -> int:
     if args.points < 2:
         raise ValueError(f"--points must be >= 2, got {args.points}")
     rig = rigfile.load(rigfile.resolve(args.file))
+    capacity.require_fit(rig)  # a rig the boards cannot hold is refused, as the header generator refuses it
     r = report(rig, args.points)
     print(json.dumps(_finite(r), indent=1) if args.json else _text(r))
     return 0

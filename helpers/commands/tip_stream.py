@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from helpers import rigfile
 from helpers.base.paths import repo_path
 from helpers.commands.recording_paths import recording_path
 from helpers.commands.tendon_session import tendons_at_rest
@@ -90,7 +89,7 @@ def _print(rig: Any, path: Any, plan: Any, design: Any) -> None:
 
 def record_tip_stream(args: argparse.Namespace) -> int:
     """``record tip-stream``: plan, check, print (dry run) or record one figure of bends (several tendons)."""
-    rig = rigfile.selected()
+    rig = args.rig
     path, plan, design = _plan(args, rig)
     target = recording_path(args.group, _name(args), args.data_dir)
     if not args.replace:

@@ -25,15 +25,16 @@ import pandas as pd
 
 from helpers.base.jsonfile import write_json
 from helpers.base.paths import LOADCELL_CALIBRATION
-from helpers.paper.hardware import ADC_MAX, MM_PER_STEP
-from helpers.paper.tension import UNCALIBRATED, LoadCellCalibration, load_calibration
+from helpers.paper.tension import LoadCellCalibration, load_calibration, uncalibrated
+from helpers.rigfile import derived
+from helpers.rigfile.recorded import recording_rig
 
 if TYPE_CHECKING:  # the recordings are read by their owner; here they are only a type
     from helpers.recordings import Recording
 
 __all__ = [
     "LoadCellCalibration",
-    "UNCALIBRATED",
+    "uncalibrated",
     "CalibrationFit",
     "fit_calibration",
     "save_calibration",
@@ -103,8 +104,9 @@ def fit_calibration(recs: Sequence[Recording]) -> CalibrationFit:
         adc = r.frame["adc"].to_numpy(float)
         if adc.size == 0:
             raise ValueError(f"{r.name}: no samples")
-        if adc.max() >= ADC_MAX:
-            raise ValueError(f"{r.name}: the ADC saturates ({ADC_MAX} counts) at {sc['load_n']:.2f} N")
+        adc_max = derived(recording_rig(r.meta)).adc_max  # the ADC of the rig the recording was made on
+        if adc.max() >= adc_max:
+            raise ValueError(f"{r.name}: the ADC saturates ({adc_max} counts) at {sc['load_n']:.2f} N")
         rows.append(
             {
                 "mass_kg": sc.get("mass_kg", np.nan),
@@ -162,6 +164,9 @@ def save_calibration(
     """
     kinds = {r.meta.get("source", {}).get("kind") for r in recs}
     source = {"kind": kinds.pop() if len(kinds) == 1 else "mixed"}
+    steps = {derived(recording_rig(r.meta)).mm_per_step[0] for r in recs}
+    if len(steps) != 1:
+        raise ValueError("the calibration's recordings were made on rigs of different mm per step")
     data = {
         "newtons_per_count": fit.newtons_per_count,
         "newtons_per_count_stderr": fit.newtons_per_count_stderr,
@@ -170,7 +175,7 @@ def save_calibration(
         "gain_counts_per_n": fit.gain_counts_per_n,
         "r_squared": fit.r_squared,
         "reduced_chi2": fit.reduced_chi2,
-        "mm_per_step": MM_PER_STEP,
+        "mm_per_step": steps.pop(),
         "source": source,
         "recordings": [r.path.name if r.path else r.name for r in recs],
         "started_utc": min(str(r.meta.get("started_utc", "")) for r in recs),

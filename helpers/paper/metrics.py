@@ -53,9 +53,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from helpers import rigfile
 from helpers.base.noise import white_noise_std
-from helpers.paper import hardware
 from helpers.paper import numbers as paper
-from helpers.rigfile.recorded import recording_rig
+from helpers.rigfile.recorded import calibration_of, recording_rig
 
 FloatArray = NDArray[np.float64]
 
@@ -146,20 +145,16 @@ paper's current-loop chain; otherwise only the ADC's own rails bound the range."
 def clip_limits(calibration: dict[str, Any] | None = None, rig: Any = None) -> tuple[float, float]:
     """ADC counts at or beyond which a reading is clipped, for a recording's load-cell calibration.
 
-    The paper's chain (current loop, 150 ohm, 10-bit ADC): at or below
-    :data:`helpers.paper.hardware.CLIP_LOW_COUNTS` (the loop's lower saturation, 3.8 mA, and the ADC's 0) or
-    at or
-    above :data:`helpers.paper.hardware.CLIP_HIGH_COUNTS` (within the noise margin of its upper saturation,
-    20.5 mA,
-    or the ADC's 1023). A calibration whose zero reading (``offset_counts``) is not the loop's 4 mA (within
+    The rig's chain (:func:`helpers.rigfile.derived`; the paper's: current loop, 150 ohm, 10-bit ADC): at or
+    below ``clip_low_counts`` (the loop's lower saturation, 3.8 mA, and the ADC's 0) or at or above
+    ``clip_high_counts`` (within the noise margin of its upper saturation, 20.5 mA, or the ADC's 1023). A
+    calibration whose zero reading (``offset_counts``) is not the loop's 4 mA (within
     :data:`LOOP_OFFSET_TOLERANCE_COUNTS`) comes from another chain, whose saturation is unknown: then only the
-    ADC's rails, 0 and 1023, bound the range. ``rig`` (a :class:`helpers.rigfile.RigFile`, the recording's:
-    :func:`helpers.recordings.recording_rig`) gives that rig's chain instead of the host's
-    (:data:`helpers.paper.hardware.RIG`, whose limits :mod:`helpers.paper.hardware` states); either's counts
-    are :func:`helpers.rigfile.derived`'s.
+    ADC's rails, 0 and 1023, bound the range. ``rig`` is the recording's
+    (:func:`helpers.recordings.recording_rig`); None is the paper's rig (``rigs/paper.toml``).
     """
     offset = None if calibration is None else calibration.get("offset_counts")
-    d = rigfile.derived(hardware.RIG if rig is None else rig)
+    d = rigfile.derived(rigfile.default_rig() if rig is None else rig)
     if offset is not None and abs(float(offset) - d.offset_counts) > LOOP_OFFSET_TOLERANCE_COUNTS:
         return 0.0, float(d.adc_max)
     return float(d.clip_low_counts), float(d.clip_high_counts)
@@ -177,9 +172,9 @@ def clipped_samples(
     adc : array_like
         ADC counts.
     calibration : dict, optional
-        The recording's ``calibration`` metadata (``offset_counts`` decides which chain; default the paper's).
+        The recording's ``calibration`` metadata (``offset_counts`` decides which chain; default the rig's).
     rig : RigFile, optional
-        The recording's rig (its ADC chain); default the host's (:mod:`helpers.paper.hardware`).
+        The recording's rig (its ADC chain); None is the paper's rig.
 
     Returns
     -------
@@ -462,7 +457,7 @@ def recording_metrics(
     calibration : dict, optional
         The recording's ``calibration`` metadata, for the range check's limits (:func:`clip_limits`).
     rig : RigFile, optional
-        The recording's rig, whose ADC chain bounds the range (default the host's).
+        The recording's rig, whose ADC chain bounds the range (None: the paper's rig).
     **kwargs
         Passed to :func:`motion_metrics`.
 
@@ -568,7 +563,8 @@ def metrics_by_run(
                 f"recordings of {len(rigs)} rigs in one table ({', '.join(sorted(rigs.values()))}): "
                 "pass mix_rigs=True to mix them"
             )
-        df = recording_metrics(rec.frame, band, calibration=meta.get("calibration"), rig=rig, **kwargs)
+        calibration = calibration_of(meta) if "calibration" in meta else None  # tendon 1's, any version
+        df = recording_metrics(rec.frame, band, calibration=calibration, rig=rig, **kwargs)
         for key, value in sc.items():
             df[key] = value
         parts.append(df)

@@ -1,4 +1,4 @@
-"""The experiment's scenarios on the selected rig: the paper's, scaled where they do not fit the rig file.
+"""The experiment's scenarios on a rig: the paper's, scaled where they do not fit the rig file.
 
 The paper's Table I speeds (200, 300 mm/s) and distances (10-30 mm), its identification run (100 mm/s,
 10 mm), ``tune``'s grids and the survey's positions are written for the paper's rig. On another rig
@@ -26,18 +26,22 @@ import math
 from collections.abc import Sequence
 
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import (
-    MAX_PULSE_MM,
-    MAX_SPEED_MM_S,
-    MAX_STEP_RATE_HZ,
-    MAX_TRAVEL_MM,
-    MM_PER_STEP,
-)
+from helpers.rigfile import RigFile, derived
 
-FASTEST_MM_S: float = min(MAX_SPEED_MM_S, MAX_STEP_RATE_HZ * MM_PER_STEP)
-"""The fastest cable speed a pulse may ask for, mm/s (the speed limit, or the step-rate cap's speed)."""
-LONGEST_MM: float = min(MAX_TRAVEL_MM, MAX_PULSE_MM)
-"""The longest pulse the rig allows, mm (its travel in whole steps)."""
+
+def fastest_mm_s(rig: RigFile) -> float:
+    """The fastest cable speed a pulse may ask for on ``rig``, mm/s (its speed limit, or its step-rate cap's).
+
+    The slowest tendon's: a rig's scenarios are the same cable moves on every tendon.
+    """
+    hw = rig.hardware
+    return min(min(hw.speed_limit_mm_s, hw.step_rate_cap_hz * mm) for mm in derived(rig).mm_per_step)
+
+
+def longest_mm(rig: RigFile) -> float:
+    """The longest pulse ``rig`` allows, mm: its travel in whole steps (the shortest over its tendons)."""
+    d = derived(rig)
+    return min(rig.hardware.travel_mm, *(n * mm for n, mm in zip(d.travel_steps, d.mm_per_step, strict=True)))
 
 
 def scale_values(values: Sequence[float], limit: float, resolution: float) -> tuple[float, ...]:
@@ -50,9 +54,7 @@ def scale_values(values: Sequence[float], limit: float, resolution: float) -> tu
 
 
 def scale_conditions(
-    conditions: Sequence[tuple[float, float]],
-    fastest_mm_s: float = FASTEST_MM_S,
-    longest_mm: float = LONGEST_MM,
+    conditions: Sequence[tuple[float, float]], fastest: float, longest: float
 ) -> tuple[tuple[float, float], ...]:
     """Scale a set of ``(v_in mm/s, x_f mm)`` conditions to a rig by the module's rule.
 
@@ -60,24 +62,29 @@ def scale_conditions(
     ----------
     conditions : sequence of (float, float)
         The paper's conditions.
-    fastest_mm_s : float
-        The rig's fastest speed (default: the selected rig's).
-    longest_mm : float
-        The rig's longest pulse (default: the selected rig's).
+    fastest : float
+        The rig's fastest speed, mm/s (:func:`fastest_mm_s`).
+    longest : float
+        The rig's longest pulse, mm (:func:`longest_mm`).
 
     Returns
     -------
     tuple of (float, float)
         The conditions, unchanged when they fit; duplicates (after rounding) are kept once.
     """
-    speeds = scale_values([v for v, _ in conditions], fastest_mm_s, 1.0)
-    dists = scale_values([x for _, x in conditions], longest_mm, 0.1)
+    speeds = scale_values([v for v, _ in conditions], fastest, 1.0)
+    dists = scale_values([x for _, x in conditions], longest, 0.1)
     return tuple(dict.fromkeys(zip(speeds, dists, strict=True)))  # duplicates dropped, the order kept
 
 
-def table_i_conditions() -> tuple[tuple[float, float], ...]:
-    """Table I's four (v_in, x_f) conditions on the selected rig (the paper's on the paper's rig)."""
-    return scale_conditions(paper.TABLE_I_CONDITIONS)
+def scaled(conditions: Sequence[tuple[float, float]], rig: RigFile) -> tuple[tuple[float, float], ...]:
+    """``conditions`` scaled to ``rig`` (:func:`scale_conditions` with the rig's fastest and longest)."""
+    return scale_conditions(conditions, fastest_mm_s(rig), longest_mm(rig))
+
+
+def table_i_conditions(rig: RigFile) -> tuple[tuple[float, float], ...]:
+    """Table I's four (v_in, x_f) conditions on ``rig`` (the paper's on the paper's rig)."""
+    return scaled(paper.TABLE_I_CONDITIONS, rig)
 
 
 def scenario_name(system: str, v_in: float, x_f: float, repetition: int | None = None) -> str:
@@ -86,22 +93,23 @@ def scenario_name(system: str, v_in: float, x_f: float, repetition: int | None =
     return base if repetition is None else f"{base}_r{repetition}"
 
 
-def identification_run() -> dict:
-    """The identification run on the selected rig: the paper's (100 mm/s, 10 mm, 9-10 s), scaled if needed."""
+def identification_run(rig: RigFile) -> dict:
+    """The identification run on ``rig``: the paper's (100 mm/s, 10 mm, 9-10 s), scaled if needed."""
     run = paper.IDENTIFICATION_RUN
-    ((v, x),) = scale_conditions([(run["v_in_mm_s"], run["x_f_mm"])])
+    ((v, x),) = scaled([(run["v_in_mm_s"], run["x_f_mm"])], rig)
     return {"v_in_mm_s": v, "x_f_mm": x, "window_s": run["window_s"]}
 
 
-def identification_name() -> str:
-    """File name of the identification run: ``pulse_v100_x10`` on the paper's rig."""
-    run = identification_run()
+def identification_name(rig: RigFile) -> str:
+    """File name of the identification run on ``rig``: ``pulse_v100_x10`` on the paper's rig."""
+    run = identification_run(rig)
     return f"pulse_v{run['v_in_mm_s']:g}_x{run['x_f_mm']:g}".replace(".", "p")
 
 
-def survey_positions(positions_mm: Sequence[float]) -> tuple[float, ...]:
-    """Survey positions on the selected rig: ``positions_mm``, or as many spread over the travel."""
-    if max(positions_mm) <= MAX_TRAVEL_MM:
+def survey_positions(positions_mm: Sequence[float], rig: RigFile) -> tuple[float, ...]:
+    """Survey positions on ``rig``: ``positions_mm``, or as many spread over its travel."""
+    travel = rig.hardware.travel_mm
+    if max(positions_mm) <= travel:
         return tuple(float(p) for p in positions_mm)
     n = len(positions_mm) - 1
-    return tuple(round(math.floor(MAX_TRAVEL_MM * k / n * 10 + 1e-9) / 10, 6) for k in range(n + 1))
+    return tuple(round(math.floor(travel * k / n * 10 + 1e-9) / 10, 6) for k in range(n + 1))

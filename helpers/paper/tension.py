@@ -15,7 +15,7 @@ from typing import Any
 
 from helpers.base.jsonfile import DataFileError, read_json
 from helpers.base.paths import LOADCELL_CALIBRATION, repo_path
-from helpers.paper.hardware import MM_PER_STEP
+from helpers.rigfile import default_rig, derived
 
 MISSING_HINT = "record it with `python -m helpers record calibration` (add --ports for hardware)"
 
@@ -40,7 +40,7 @@ class LoadCellCalibration:
 
     newtons_per_count: float
     offset_counts: float
-    mm_per_step: float = MM_PER_STEP
+    mm_per_step: float
     origin: str = ""
     source: str | None = None
 
@@ -66,18 +66,23 @@ class LoadCellCalibration:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> LoadCellCalibration:
-        """Read a recording's ``calibration`` entry (the keys of :meth:`to_dict`)."""
+        """Read a recording's ``calibration`` entry (the keys of :meth:`to_dict`).
+
+        An entry without ``mm_per_step`` predates rig files: the paper's rig made it (its 0.25525 mm).
+        """
+        mm = data["mm_per_step"] if "mm_per_step" in data else derived(default_rig()).mm_per_step[0]
         return cls(
             newtons_per_count=data["newtons_per_count"],
             offset_counts=data["offset_counts"],
-            mm_per_step=data.get("mm_per_step", MM_PER_STEP),
+            mm_per_step=mm,
             origin=str(data.get("origin", "")),
             source=data.get("source"),
         )
 
 
-UNCALIBRATED = LoadCellCalibration(1.0, 0.0, MM_PER_STEP, "uncalibrated: tension_n equals adc counts")
-"""Explicitly no calibration (recording the calibration itself, benchmarks): tension in counts."""
+def uncalibrated(mm_per_step: float) -> LoadCellCalibration:
+    """Explicitly no calibration (recording the calibration itself, benchmarks): tension in counts."""
+    return LoadCellCalibration(1.0, 0.0, mm_per_step, "uncalibrated: tension_n equals adc counts")
 
 
 def load_calibration(path: str | os.PathLike = LOADCELL_CALIBRATION) -> LoadCellCalibration:

@@ -12,7 +12,6 @@ import numpy as np
 
 from helpers.board.programmes import Programme
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile
 from helpers.paper.shapers import Shaper
 from helpers.plotting import SYSTEM_COLOURS, finish
@@ -113,6 +112,7 @@ def sensitivity_curves(
 def shaped_commands(
     commands: Mapping[tuple[float, float], Mapping[str, VelocityProfile]],
     programmes: Mapping[tuple[float, float], Mapping[str, Programme]],
+    mm_per_step: float,
 ) -> plt.Figure:
     """The up move of each condition: shaped velocity (left) and cable displacement with steps (right).
 
@@ -122,6 +122,8 @@ def shaped_commands(
         ``(v_in_mm_s, x_f_mm) -> {system: VelocityProfile}``.
     programmes : mapping
         Same keys -> ``{system: Programme}``; their step positions are drawn as staircases.
+    mm_per_step : float
+        The rig's cable per step (``helpers.rigfile.derived(rig).mm_per_step[0]``).
 
     Returns
     -------
@@ -137,7 +139,7 @@ def shaped_commands(
             ax_v.plot(t, prof.sample(t), color=colour, label=system, drawstyle="steps-post")
             ax_x.plot(t, prof.displacement(t), color=colour, lw=0.9, label=f"{system} (exact)")
             if system in programmes.get(key, {}):
-                pos = programmes[key][system].position_steps(t) * MM_PER_STEP
+                pos = programmes[key][system].position_steps(t) * mm_per_step
                 ax_x.plot(t, pos, color=colour, lw=0.6, ls=":", drawstyle="steps-post")
         ax_v.set_ylabel("v (mm/s)")
         ax_x.set_ylabel("u (mm)")

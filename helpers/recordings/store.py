@@ -23,6 +23,7 @@ import errno
 import hashlib
 import io
 import json
+import math
 import os
 import re
 import time
@@ -35,17 +36,10 @@ import pandas as pd
 
 from helpers.base.jsonfile import dumps, process_alive, remove_stale_temporaries, write_temp
 from helpers.base.locks import LOCK_NAME, FolderBusy, folder_lock, take_lock
-from helpers.base.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR, EXTERNAL_DATA_DIR
 from helpers.base.signals import signals_held
-from helpers.recordings.format import (
-    REQUIRED_META,
-    SCHEMA_VERSION,
-    Recording,
-    RecordingError,
-    raw_columns,
-    validate,
-    validate_meta,
-)
+from helpers.recordings.checks import required_keys, validate, validate_meta
+from helpers.recordings.format import Recording, RecordingError, raw_columns
 
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}\Z")
 """A recording's name, or one component of a group."""
@@ -177,8 +171,7 @@ def save(recording: Recording, path: str | os.PathLike | None = None, *, replace
         raise RecordingError("save: no path given for the recording")
     check_name(target.stem)
     meta = dict(recording.meta)
-    meta.setdefault("schema_version", SCHEMA_VERSION)
-    missing = [k for k in REQUIRED_META if k not in meta and k != "csv_sha256"]
+    missing = [k for k in required_keys() if k not in meta and k != "csv_sha256"]
     if missing:
         raise RecordingError(f"{target}: metadata lacks {', '.join(missing)}")
     data = _csv_bytes(recording.frame, raw_columns(meta))
@@ -299,11 +292,21 @@ def _read_pair(csv_path: Path) -> tuple[bytes, Any]:
     return data, meta
 
 
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text} is not a finite number")
+    return value
+
+
 def _read_json(json_path: Path) -> Any:
-    """The parsed JSON file, or one :class:`RecordingError`: unreadable JSON (and why)."""
+    """The parsed JSON file, or one :class:`RecordingError`: unreadable JSON and why.
+
+    NaN and infinities are unreadable too: JSON has neither.
+    """
     try:
-        return json.loads(json_path.read_bytes().decode("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        return json.loads(json_path.read_bytes().decode("utf-8"), parse_float=_finite, parse_constant=_finite)
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
         why = f"{type(exc).__name__}: {str(exc)[:80]}"
         raise RecordingError(f"{json_path}: unreadable JSON ({why})") from None
 
@@ -421,9 +424,10 @@ def catalogue(root: str | os.PathLike = DATA_DIR) -> pd.DataFrame:
     """List every recording under ``root`` with its key metadata (without loading the samples).
 
     JSON documents of other formats (designs, mode maps: :func:`is_other_document`) are not recordings and
-    are left out. Files that are not sound are listed too, never skipped: ``problem`` says what is wrong
-    (malformed metadata, an incomplete run whose CSV has no JSON, a missing CSV); it is ``""`` for sound
-    metadata (the samples and their checksum are checked by :func:`load`).
+    are left out, as is ``data/external/`` (data made elsewhere, in their own formats). Files that are not
+    sound are listed too, never skipped: ``problem`` says what is wrong (malformed metadata, an incomplete run
+    whose CSV has no JSON, a missing CSV); it is ``""`` for sound metadata (the samples and their checksum are
+    checked by :func:`load`).
 
     Parameters
     ----------
@@ -441,6 +445,8 @@ def catalogue(root: str | os.PathLike = DATA_DIR) -> pd.DataFrame:
     root = Path(root)
     stems = set()
     for p in root.rglob("*"):
+        if p.resolve().is_relative_to(EXTERNAL_DATA_DIR.resolve()):
+            continue
         ours = p.suffix in (".csv", ".json") and not p.name.startswith(".")
         if ours and p.stem.lower() not in RESERVED_NAMES and not is_other_document(p):
             stems.add(p.with_suffix(".csv"))

@@ -57,8 +57,9 @@ FORMAT = "continuum-arm-mode-map"
 FORMAT_VERSION = 1
 """Version of the mode-map file layout; :func:`load_map` refuses any other."""
 
-SOURCE_KINDS = ("virtual-rig", "hardware")
-"""The vocabulary of ``source["kind"]`` (as in the recordings)."""
+SOURCE_KINDS = ("virtual-rig", "hardware", "external")
+"""The vocabulary of ``source["kind"]`` (as in the recordings; ``external``: data made elsewhere, whose
+configuration may be in another unit than mm, named by ``source["position_unit"]``)."""
 
 COLUMNS: dict[str, str] = {
     "position_mm": "cable position, mm (strictly increasing)",

@@ -39,10 +39,10 @@ import numpy as np
 import pandas as pd
 
 from helpers.board.programmes import Dwell, Programme, Segment
-from helpers.paper.hardware import MAX_TRAVEL_MM, MM_PER_STEP, RIG
 from helpers.recordings import Recording
 from helpers.research.modemap import ModeMap
 from helpers.research.ringdown import fit_two_modes
+from helpers.rigfile import RigFile, derived
 
 POSITIONS_MM = tuple(float(x) for x in range(0, 41, 5))
 """Default survey positions, mm (0-40 every 5)."""
@@ -82,20 +82,21 @@ class SurveyPlan:
     rings: tuple[tuple[float, float, float], ...]
 
 
-def _move(mm: float, speed_mm_s: float, direction: int) -> tuple[Segment, float]:
-    """A constant-speed move of whole steps: the segment and the time of its last step after its start."""
-    n = round(mm / MM_PER_STEP)
-    interval = round(MM_PER_STEP / speed_mm_s * 1e6)
+def _move(n: int, mm_per_step: float, speed_mm_s: float, direction: int) -> tuple[Segment, float]:
+    """A constant-speed move of ``n`` steps: the segment and the time of its last step after its start."""
+    interval = round(mm_per_step / speed_mm_s * 1e6)
     return Segment(direction, n, interval), (n - 1) * interval * 1e-6 if n else 0.0
 
 
-def survey_plan(position_mm: float, kick_mm: float = KICK_MM) -> SurveyPlan:
+def survey_plan(position_mm: float, rig: RigFile, kick_mm: float = KICK_MM) -> SurveyPlan:
     """The programme that holds the cable at ``position_mm``, kicks it away and back, and records both rings.
 
     Parameters
     ----------
     position_mm : float
-        Cable position, mm, in [0, 40] (rounded to whole steps, at most the travel limit).
+        Cable position, mm, within the rig's travel (rounded to whole steps, at most the travel limit).
+    rig : RigFile
+        The rig (one tendon: its cable per step and travel).
     kick_mm : float
         Kick amplitude, mm (pulled, or released where pulling would pass the travel limit).
 
@@ -108,33 +109,35 @@ def survey_plan(position_mm: float, kick_mm: float = KICK_MM) -> SurveyPlan:
     ValueError
         A position outside the travel, or a kick outside (0, 10] mm.
     """
-    if not (math.isfinite(position_mm) and 0.0 <= position_mm <= MAX_TRAVEL_MM):
-        raise ValueError(f"survey position {position_mm!r} mm is outside 0-{MAX_TRAVEL_MM:g} mm")
-    if not (0.0 < kick_mm <= MAX_TRAVEL_MM / 4):
-        raise ValueError(f"kick {kick_mm!r} mm is outside (0, {MAX_TRAVEL_MM / 4:g}] mm")
-    limit = math.floor(MAX_TRAVEL_MM / MM_PER_STEP + 1e-9)
-    n_position = min(round(position_mm / MM_PER_STEP), limit)
-    n_kick = round(kick_mm / MM_PER_STEP)
+    travel = rig.hardware.travel_mm
+    if not (math.isfinite(position_mm) and 0.0 <= position_mm <= travel):
+        raise ValueError(f"survey position {position_mm!r} mm is outside 0-{travel:g} mm")
+    if not (0.0 < kick_mm <= travel / 4):
+        raise ValueError(f"kick {kick_mm!r} mm is outside (0, {travel / 4:g}] mm")
+    mm = derived(rig).mm_per_step[0]
+    limit = derived(rig).travel_steps[0]
+    n_position = min(round(position_mm / mm), limit)
+    n_kick = round(kick_mm / mm)
     away = +1 if n_position + n_kick <= limit else -1
     items: list[Segment | Dwell] = [Dwell(round(LEAD_S * 1e3))]
     t = LEAD_S
     if n_position:
-        seg, _ = _move(n_position * MM_PER_STEP, APPROACH_MM_S, +1)
+        seg, _ = _move(n_position, mm, APPROACH_MM_S, +1)
         items.append(seg)
         t += seg.n_steps * seg.interval_us * 1e-6
     items.append(Dwell(round(SETTLE_S * 1e3)))
     t += round(SETTLE_S * 1e3) * 1e-3
     rings = []
     for direction, at in ((away, n_position + away * n_kick), (-away, n_position)):
-        seg, last = _move(n_kick * MM_PER_STEP, KICK_MM_S, direction)
+        seg, last = _move(n_kick, mm, KICK_MM_S, direction)
         items += [seg, Dwell(round(RING_S * 1e3))]
         kick_end = t + last
-        rings.append((at * MM_PER_STEP, kick_end + WINDOW_S[0], kick_end + WINDOW_S[1]))
+        rings.append((at * mm, kick_end + WINDOW_S[0], kick_end + WINDOW_S[1]))
         t += seg.n_steps * seg.interval_us * 1e-6 + round(RING_S * 1e3) * 1e-3
     if n_position:
-        items.append(_move(n_position * MM_PER_STEP, APPROACH_MM_S, -1)[0])
+        items.append(_move(n_position, mm, APPROACH_MM_S, -1)[0])
     items.append(Dwell(200))
-    return SurveyPlan(n_position * MM_PER_STEP, Programme(tuple(items)), tuple(rings))
+    return SurveyPlan(n_position * mm, Programme(tuple(items)), tuple(rings))
 
 
 def analyse(recording: Recording, plan: SurveyPlan, column: str = "tension_n") -> list[dict[str, Any]]:
@@ -267,7 +270,7 @@ def survey(
     folder = Path(folder)
     rows = []
     for x in positions_mm:
-        plan = survey_plan(float(x))
+        plan = survey_plan(float(x), rig.rig)
         for k in range(1, repetitions + 1):
             name = f"survey_x{float(x):g}_r{k}".replace(".", "p")
             scenario = {
@@ -285,7 +288,8 @@ def survey(
                              f"rad/s, zeta {row['zeta']:.4f}")  # fmt: skip
     table = pd.DataFrame(rows)
     kind = (rig.source or {}).get("kind", "hardware")
+    made_on = {"name": rig.rig.name, "hash": rig.rig.hash}
     source = {"kind": kind, "method": "survey: kick and ring-down at each position, two-mode fit",
               "kick_mm": KICK_MM, "window_s": list(WINDOW_S), "repetitions": repetitions,
-              "recordings": str(folder.name), "rig": {"name": RIG.name, "hash": RIG.hash}}  # fmt: skip
+              "recordings": str(folder.name), "rig": made_on}  # fmt: skip
     return map_from_rows(table, source), table

@@ -24,12 +24,12 @@ import pandas as pd
 
 from helpers.board.stream_reference import STEPS_PER_S_PER_UNIT
 from helpers.paper import metrics
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.paper.modes import omega_n_from_damped
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.research.families import FAMILIES
 from helpers.research.modemap import ModeMap
 from helpers.rig.stream import stream
+from helpers.rigfile import derived
 from helpers.virtual import RigParameters, simulate
 
 PERIOD_S = 0.01
@@ -48,6 +48,8 @@ def schedule_setpoints(
     family: str = "ZV",
     start_mm: float = 0.0,
     period_s: float = PERIOD_S,
+    *,
+    mm_per_step: float,
 ) -> np.ndarray:
     """Shape a velocity stream on the host with a shaper designed for the configuration of each set-point.
 
@@ -64,6 +66,8 @@ def schedule_setpoints(
         Cable position at the first set-point, mm.
     period_s : float
         The stream's period, s.
+    mm_per_step : float
+        The rig's cable per step (the board's set-point unit follows from it).
 
     Returns
     -------
@@ -92,10 +96,10 @@ def schedule_setpoints(
             j, frac = divmod(t / period_s, 1.0)
             out[k + int(j)] += a * (1.0 - frac) * v[k]
             out[k + int(j) + 1] += a * frac * v[k]
-    return on_board_units(np.trim_zeros(out, "b"))
+    return on_board_units(np.trim_zeros(out, "b"), mm_per_step)
 
 
-def on_board_units(setpoints_mm_s: np.ndarray) -> np.ndarray:
+def on_board_units(setpoints_mm_s: np.ndarray, mm_per_step: float) -> np.ndarray:
     """The set-points as the board will hold them, with their sum kept exact.
 
     The board rounds every set-point to its unit (2^-16 step per 16 us, 0.2434 mm/s): rounded one by one,
@@ -104,17 +108,20 @@ def on_board_units(setpoints_mm_s: np.ndarray) -> np.ndarray:
     every set-point stays within one unit of its value and the displacement is exactly the command's, to the
     unit.
 
+    ``mm_per_step`` is the rig's cable per step: the unit is ``STEPS_PER_S_PER_UNIT`` steps/s.
+
     Returns
     -------
     numpy.ndarray
         mm/s values that are whole board units.
     """
-    unit = MM_PER_STEP * STEPS_PER_S_PER_UNIT
+    unit = mm_per_step * STEPS_PER_S_PER_UNIT
     total = np.rint(np.cumsum(np.asarray(setpoints_mm_s, dtype=float) / unit))
     return np.diff(total, prepend=0.0) * unit
 
 
 def teleop_command(
+    mm_per_step: float,
     seed: int = 0,
     n_moves: int = 6,
     low_mm: float = 3.0,
@@ -128,7 +135,7 @@ def teleop_command(
     Each move goes to a random position in ``[low_mm, high_mm]`` with a smooth speed profile (a Hann window:
     band-limited, no overshoot below zero speed, as from a hand on a joystick) of random peak up to
     ``max_speed_mm_s``, then stops for ``stop_s``. The first move starts from 0 and the command ends at
-    :data:`END_MM` (see :func:`pick_and_place`).
+    :data:`END_MM` (see :func:`pick_and_place`). ``mm_per_step`` is the rig's (:func:`on_board_units`).
 
     Returns
     -------
@@ -148,11 +155,15 @@ def teleop_command(
         move *= distance / (move.sum() * period_s)
         parts += [move, np.zeros(round(stop_s / period_s))]
         here = target
-    return on_board_units(np.concatenate(parts))
+    return on_board_units(np.concatenate(parts), mm_per_step)
 
 
-def pick_and_place(speed_mm_s: float = 200.0, hold_s: float = 2.0, period_s: float = PERIOD_S) -> np.ndarray:
+def pick_and_place(
+    mm_per_step: float, speed_mm_s: float = 200.0, hold_s: float = 2.0, period_s: float = PERIOD_S
+) -> np.ndarray:
     """A scripted pick-and-place: 0 -> 25 -> 10 -> 30 -> 0 mm at constant speed, holding at each.
+
+    ``mm_per_step`` is the rig's (:func:`on_board_units`).
 
     Returns
     -------
@@ -166,7 +177,7 @@ def pick_and_place(speed_mm_s: float = 200.0, hold_s: float = 2.0, period_s: flo
         n = max(round(abs(distance) / speed_mm_s / period_s), 1)
         parts += [np.full(n, distance / (n * period_s)), np.zeros(round(hold_s / period_s))]
         here = target
-    return on_board_units(np.concatenate(parts))
+    return on_board_units(np.concatenate(parts), mm_per_step)
 
 
 def stops(frame: pd.DataFrame, min_stop_s: float = 1.2) -> list[tuple[float, float, float]]:
@@ -206,7 +217,7 @@ def stop_residuals(frame: pd.DataFrame, column: str = "tension_n") -> pd.DataFra
     """
     t = frame["t_s"].to_numpy()
     y = frame[column].to_numpy(dtype=float)
-    steps = frame["steps"].to_numpy()
+    cable = frame["cable_mm"].to_numpy()
     rows = []
     for start, end, _stop_end in stops(frame):
         before = (t >= start - 0.2) & (t < start)
@@ -217,7 +228,7 @@ def stop_residuals(frame: pd.DataFrame, column: str = "tension_n") -> pd.DataFra
         y0, yf = float(y[before].mean()), float(y[window].mean())
         rows.append({
             "move_start_s": float(start), "move_end_s": float(end),
-            "position_mm": float(steps[np.searchsorted(t, end)] * MM_PER_STEP), "step_n": yf - y0,
+            "position_mm": float(cable[np.searchsorted(t, end)]), "step_n": yf - y0,
             "residual_pct": metrics.residual_vibration(t, y, end, y0, yf),
         })  # fmt: skip
     return pd.DataFrame(rows)
@@ -279,8 +290,11 @@ def tip_path(frame: pd.DataFrame, params: RigParameters | None = None, rate_hz: 
     return run.t + t[0], 1e3 * x, 1e3 * y
 
 
-COMMANDS = {"teleop": lambda: teleop_command(seed=3), "pick_and_place": pick_and_place}
-"""The two commands of notebook 08, by name."""
+COMMANDS = {
+    "teleop": lambda mm_per_step: teleop_command(mm_per_step, seed=3),
+    "pick_and_place": pick_and_place,
+}
+"""The two commands of notebook 08, by name: each takes the rig's cable per step."""
 SYSTEMS = ("unshaped", "zv", "zvd", "scheduled")
 """How each command is run: unshaped, the paper's non-robust (zv) and robust (zvd) TDFs loaded into the board,
 and the ZV scheduled on the configuration by the host (the board holding the unit shaper)."""
@@ -320,14 +334,15 @@ def record_streams(
     list of helpers.recordings.Recording
     """
     from_rest = dict(zip(("zv", "zvd"), design_tdfs(*rest_mode), strict=True))
+    mm = derived(rig.rig).mm_per_step[0]
     out = []
     for command, make in COMMANDS.items():
-        v = make()
+        v = make(mm)
         runs = {
             "unshaped": (v, None, "the command"),
             "zv": (v, from_rest["zv"], "the command; the board's shaper: the paper's non-robust TDF"),
             "zvd": (v, from_rest["zvd"], "the command; the board's shaper: the paper's robust TDF"),
-            "scheduled": (schedule_setpoints(v, mode_map, "ZV"), None,
+            "scheduled": (schedule_setpoints(v, mode_map, "ZV", mm_per_step=mm), None,
                           "the command shaped on the host by ZV scheduled on the measured map"),
         }  # fmt: skip
         for system in SYSTEMS:

@@ -39,15 +39,14 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from helpers import recordings, rigfile
+from helpers import recordings
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, figure_path, repo_path
 from helpers.base.style import SYSTEM_COLOURS
-from helpers.paper import hardware, scaling_notes, scenarios
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
+from helpers.paper import scaling_notes, scenarios
 from helpers.paper.identify import load_identification
 from helpers.paper.shapers import design_tdfs
 from helpers.paper.tension import load_calibration
@@ -56,6 +55,7 @@ from helpers.research import design, residuals, tune_tendons
 from helpers.research.modemap import ModeMap, load_map, refuse_map_of_other_rig
 from helpers.research.survey import POSITIONS_MM, survey
 from helpers.rig import Rig
+from helpers.rigfile import RigFile
 from helpers.virtual.rig_file_tuning import refuse_other_rig
 
 CANDIDATES = ("zv", "zvd", "ei", "multi-mode", "scheduled", "map-following", "auto")
@@ -73,14 +73,14 @@ GRIDS = {
 travel limit."""
 
 
-def rig_grid(name: str) -> tuple[tuple[float, float], ...]:
-    """The grid ``name`` on the selected rig: :data:`GRIDS`, scaled where it does not fit."""
-    return scenarios.scale_conditions(GRIDS[name])
+def rig_grid(name: str, rig: RigFile) -> tuple[tuple[float, float], ...]:
+    """The grid ``name`` on ``rig``: :data:`GRIDS`, scaled where it does not fit."""
+    return scenarios.scaled(GRIDS[name], rig)
 
 
-def rig_positions() -> tuple[float, ...]:
-    """The survey positions on the selected rig: ``POSITIONS_MM``, spread over a shorter travel."""
-    return scenarios.survey_positions(POSITIONS_MM)
+def rig_positions(rig: RigFile) -> tuple[float, ...]:
+    """The survey positions on ``rig``: ``POSITIONS_MM``, spread over a shorter travel."""
+    return scenarios.survey_positions(POSITIONS_MM, rig)
 
 REPETITIONS = {"table-i": 3, "wide": 1}
 """Default runs per condition and candidate."""
@@ -420,9 +420,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--rate",
-        type=arg_number(DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, int),
+        type=arg_number(1, 100_000, int),
         default=RATE_HZ,
-        help="DAQ rate of the runs, Hz",
+        help="DAQ rate of the runs, Hz (within the rig file's daq_rate_min_hz-daq_rate_max_hz)",
     )
     parser.add_argument(
         "--seed",
@@ -437,23 +437,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers tune`` (a rig with several tendons: :mod:`helpers.research.tune_tendons`)."""
-    selected = rigfile.selected()
+    selected: RigFile = args.rig
+    lo, hi = selected.hardware.daq_rate_min_hz, selected.hardware.daq_rate_max_hz
+    if not lo <= args.rate <= hi:
+        raise ValueError(f"--rate {args.rate} Hz: rig {selected.name!r} samples at {lo}-{hi} Hz")
     if selected.n_tendons > 1:
         return tune_tendons.run_tendons(args, selected)
-    grid = rig_grid(args.grid)
-    positions = rig_positions()
-    scaling_notes.announce({f"tune {args.grid} grid": GRIDS[args.grid]}, POSITIONS_MM)
+    grid = rig_grid(args.grid, selected)
+    positions = rig_positions(selected)
+    scaling_notes.announce(selected, {f"tune {args.grid} grid": GRIDS[args.grid]}, POSITIONS_MM)
     repetitions = args.repetitions or REPETITIONS[args.grid]
     tuning = args.data_dir / "tuning"
     map_path = tuning / "mode_map.json"
     rest = load_identification(args.data_dir / "identification" / "result.json")
     rest_run = args.data_dir / "identification" / f"{rest.recording}.csv"
     if rest.recording and rest_run.exists():  # the mode at rest must be this rig's
-        refuse_other_rig(recordings.load(rest_run, derive=False).meta, hardware.RIG, rest_run, what="tune on")
+        refuse_other_rig(recordings.load(rest_run, derive=False).meta, selected, rest_run, what="tune on")
     calibration = load_calibration(args.data_dir / "calibration" / "calibration.json")
     reused = load_map(map_path) if args.reuse_map else None
     if reused is not None:  # before any port is opened: the map must be this rig's
-        refuse_map_of_other_rig(reused, hardware.RIG, repo_path(map_path))
+        refuse_map_of_other_rig(reused, selected, repo_path(map_path))
     say = (lambda _line: None) if args.quiet else (lambda line: print(line, file=sys.stderr))
     with contextlib.ExitStack() as stack:
         stack.enter_context(folder_lock(tuning, what="tuning", name=".tuning.lock"))

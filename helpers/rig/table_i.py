@@ -77,7 +77,7 @@ def record_table_i(
     seeds = seeds or NoiseSeeds(None)
     paths = []
     for system in paper.SYSTEMS:
-        for v, x in scenarios.table_i_conditions():
+        for v, x in scenarios.table_i_conditions(rig.rig):
             for rep in range(1, repetitions + 1):
                 path = Path(group) / scenario_name(system, v, x, rep)
                 rec = rig.run_pulse(

@@ -13,26 +13,23 @@ import sys
 import tempfile
 from pathlib import Path
 
-from helpers.rigfile import RigFile, RigFileError, derived, load, resolve
+from helpers.rigfile import RigFileError, derived, load, resolve
+from helpers.rigfile.capacity import require_fit, stepper_ram
 
-__all__ = ["MACROS", "OPTIONAL_MACROS", "header_text", "firmware_problem", "main"]
-
-MAX_TRAVEL_STEPS = 255
-"""Each axis's travel is an 8-bit table entry on the boards."""
-
-MAX_PROGRAMME_ITEMS = 255
-"""The stepper's programme table is indexed by 8 bits."""
-
-MIN_INTERVAL_US = 500
-"""The stepper board's shortest step interval."""
+__all__ = ["MACROS", "OPTIONAL_MACROS", "header_text", "main"]
 
 MACROS = (
     "RIG_HASH", "RIG_NAME", "RIG_AXES", "RIG_CHANNELS", "RIG_MIN_INTERVAL_US", "RIG_MAX_INTERVAL_US",
     "RIG_AXIS_TRAVEL_STEPS", "RIG_PROGRAMME_MAX", "RIG_DAQ_RATE_MIN_HZ", "RIG_DAQ_RATE_MAX_HZ",
     "RIG_DAQ_RATE_DEFAULT_HZ", "RIG_DAQ_BAUD", "RIG_STEPPER_BAUD", "RIG_ADC_CLIP_LOW_COUNTS",
-    "RIG_ADC_CLIP_HIGH_COUNTS",
+    "RIG_ADC_CLIP_HIGH_COUNTS", "RIG_STEPPER_TABLES_BYTES", "RIG_STEPPER_TABLES_MAX_BYTES",
 )  # fmt: skip
-"""The header's macros, in order (the contract with the firmware)."""
+"""The header's macros, in order (the contract with the firmware). The last two are the stepper's RAM budget
+as :func:`helpers.rigfile.capacity.stepper_ram` computes it: the sketch asserts that its tables are that size
+and fit (the rule's one source)."""
+
+RAM_MACROS = MACROS[-2:]
+"""The stepper's RAM budget (``RIG_STEPPER_TABLES_BYTES``, ``RIG_STEPPER_TABLES_MAX_BYTES``), written last."""
 
 OPTIONAL_MACROS = ("RIG_AXIS_RELEASE_STEPS",)
 """Macros written only when they differ from the firmware's default (``RIG_AXIS_RELEASE_STEPS``: each axis's
@@ -45,55 +42,13 @@ def _c_string(text: str) -> str:
     return f'"{safe}"'
 
 
-def firmware_problem(rig: RigFile) -> str | None:
-    """Why the boards' firmware cannot be built for ``rig`` (its fixed-size tables and timers), or None.
-
-    The limits of ``firmware/common/rig_config.h``: travel 1-255 steps per axis (8-bit table), the release
-    below position 0 and the travel together at most 255 steps per axis (an item's steps of one axis are an
-    8-bit count of at most their sum), a programme of 1-255 items, step intervals 500 us to 1 s, DAQ rates
-    31-4000 Hz.
-    """
-    d = derived(rig)
-    hw = rig.hardware
-    worst = max(d.travel_steps)
-    if worst > MAX_TRAVEL_STEPS:
-        axis = d.travel_steps.index(worst) + 1
-        return (
-            f"[hardware] travel_mm: {worst} steps on axis {axis}: the boards hold at most {MAX_TRAVEL_STEPS} "
-            f"steps of travel per axis (at most {MAX_TRAVEL_STEPS * d.mm_per_step[axis - 1]:.2f} mm)"
-        )
-    span = [t + r for t, r in zip(d.travel_steps, d.release_steps, strict=True)]
-    if max(span) > MAX_TRAVEL_STEPS:
-        axis = span.index(max(span)) + 1
-        room = MAX_TRAVEL_STEPS - d.travel_steps[axis - 1]
-        return (
-            f"[hardware] release_mm: {d.release_steps[axis - 1]} steps below position 0 and "
-            f"{d.travel_steps[axis - 1]} of travel on axis {axis}: the boards hold at most "
-            f"{MAX_TRAVEL_STEPS} steps of both together per axis (a release of at most "
-            f"{room * d.mm_per_step[axis - 1]:.2f} mm)"
-        )
-    if hw.programme_max_items > MAX_PROGRAMME_ITEMS:
-        return f"[hardware] programme_max_items: at most {MAX_PROGRAMME_ITEMS} on the boards"
-    if d.min_interval_us < MIN_INTERVAL_US:
-        return (
-            f"[hardware] speed_limit_mm_s: the fastest step interval {d.min_interval_us} us is below the "
-            f"firmware's {MIN_INTERVAL_US} us"
-        )
-    if d.max_interval_us > 1_000_000:
-        return "[hardware] max_interval_us: at most 1000000 us on the boards"
-    if hw.daq_rate_min_hz < 31 or hw.daq_rate_max_hz > 4000:
-        return "[hardware] daq_rate_*_hz: the DAQ board samples at 31-4000 Hz"
-    return None
-
-
 def header_text(path: str | Path) -> str:
     """The header for the rig file at ``path`` (checked first, then against the firmware's limits)."""
     rig = load(path)
-    problem = firmware_problem(rig)
-    if problem is not None:
-        raise RigFileError(f"{rig.source}: {problem}")
+    require_fit(rig)
     d = derived(rig)
     hw = rig.hardware
+    ram = stepper_ram(rig.n_tendons, d.min_interval_us, hw.programme_max_items)
     values = {
         "RIG_HASH": _c_string(rig.hash),
         "RIG_NAME": _c_string(rig.name),
@@ -110,6 +65,8 @@ def header_text(path: str | Path) -> str:
         "RIG_STEPPER_BAUD": f"{hw.stepper_baud}L",
         "RIG_ADC_CLIP_LOW_COUNTS": str(d.clip_low_counts),
         "RIG_ADC_CLIP_HIGH_COUNTS": str(d.clip_high_counts),
+        "RIG_STEPPER_TABLES_BYTES": str(ram.tables_bytes),
+        "RIG_STEPPER_TABLES_MAX_BYTES": str(ram.tables_max_bytes),
     }
     assert tuple(values) == MACROS
     if any(d.release_steps):
@@ -125,7 +82,16 @@ def header_text(path: str | Path) -> str:
         f"#define {guard}",
         "",
     ]
-    lines += [f"#define {name} {value}" for name, value in values.items()]
+    lines += [
+        f"#define {name} {value}" for name, value in values.items() if name not in RAM_MACROS
+    ]
+    lines += [
+        "",
+        "/* The stepper's RAM budget as helpers.rigfile.capacity computes it (the rule's one source): the",
+        "   sketch asserts at compile time that its tables take exactly RIG_STEPPER_TABLES_BYTES and fit",
+        "   within RIG_STEPPER_TABLES_MAX_BYTES. */",
+    ]
+    lines += [f"#define {name} {value}" for name, value in values.items() if name in RAM_MACROS]
     lines += ["", f"#endif /* {guard} */", ""]
     return "\n".join(lines)
 

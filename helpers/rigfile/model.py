@@ -2,7 +2,8 @@
 
 Every problem is one :class:`RigFileError` line naming the file, the key and the problem (an unknown key with
 the nearest known one, a wrong type, a wrong sign or an implausible size that is probably a wrong unit, a
-missing key, more than four tendons, an unsafe or impossible rig: ``helpers.rigfile.derived``).
+missing key, more than four tendons, an unsafe or impossible rig: ``helpers.rigfile.derived``). A bare rod's
+file (``[rod]``, ``helpers.rigfile.rod``) is no rig: refused in one line.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import difflib
 import hashlib
 import math
 import re
+import reprlib
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +37,30 @@ from helpers.rigfile.schema import (
 __all__ = ["RigFileError", "Hardware", "Arm", "Boards", "Tendon", "RigFile", "loads", "load", "rig_hash"]
 
 NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}\Z")
+
+_NOT_CODE = re.compile(r'"""(?:\\?[\s\S])*?"""' r"|'''[\s\S]*?'''" r'|"(?:\\.|[^"\\\n])*"' r"|'[^'\n]*'|#.*")
+"""TOML strings and comments (their brackets are not nesting)."""
+
+
+def _deepest(text: str) -> tuple[str, int, int]:
+    """Where ``text`` nests arrays and inline tables deepest: ``("[table] key", depth, line)``.
+
+    ``tomllib`` parses nesting by recursion, so a file nesting thousands deep ends in ``RecursionError``
+    with no line; this scan needs no recursion (strings and comments blanked, table headers followed).
+    """
+    depth, best, table, key, tendons = 0, ("", 0, 0), "", "", 0
+    bare = _NOT_CODE.sub(lambda m: "\n" * m[0].count("\n"), text)
+    for number, line in enumerate(bare.split("\n"), 1):
+        if depth == 0 and line.lstrip().startswith("["):  # a table header: [name] or [[name]]
+            tendons += (header := line.replace(" ", "").strip()) == "[[tendon]]"
+            table = f"[[tendon]] #{tendons}" if header == "[[tendon]]" else line.strip()
+            continue
+        key = line.split("=")[0].strip() if depth == 0 and "=" in line else key
+        for c in line:
+            depth += (c in "[{") - (c in "]}")
+            if depth > best[1]:
+                best = (f"{table} {key}".strip(), depth, number)
+    return best
 
 
 def rig_hash(data: bytes) -> str:
@@ -95,6 +121,8 @@ class RigFile:
         Where it came from (a path, or ``<string>``).
     hash : str
         :func:`rig_hash` of the file's bytes (UTF-8).
+    rod : helpers.rigfile.rod.Rod or None
+        A bare rod's ``[rod]`` table (``helpers.rigfile.rod``: then no hardware, arm, boards or tendons).
     """
 
     name: str
@@ -108,6 +136,7 @@ class RigFile:
     text: str = field(repr=False)
     source: str = "<string>"
     hash: str = ""
+    rod: Any = None
 
     @property
     def n_tendons(self) -> int:
@@ -124,18 +153,21 @@ def _value(source: str, where: str, key: Key, value: Any) -> Any:
     unit = "" if key.unit == "-" else f" {key.unit}"
     if key.kind == "str":
         if not isinstance(value, str):
-            raise _problem(source, where, f"must be a string, got {value!r}")
+            raise _problem(source, where, f"must be a string, got {reprlib.repr(value)}")
         return value
     if key.kind == "vector3":
         ok = isinstance(value, list) and len(value) == 3
         ok = ok and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
-        )
+            isinstance(v, int | float) and not isinstance(v, bool) and abs(v) <= 1e6 for v in value
+        )  # at most 1e6: the norm stays finite; NaN fails the comparison too
         if not ok or math.sqrt(sum(float(v) ** 2 for v in value)) < 1e-12:
-            raise _problem(source, where, f"must be a nonzero vector of three numbers, got {value!r}")
+            why = "must be a nonzero vector of three numbers of at most 1e+06 in magnitude"
+            raise _problem(source, where, f"{why}, got {reprlib.repr(value)}")
         return tuple(float(v) for v in value)
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise _problem(source, where, f"must be a number{unit}, got {value!r}")
+        raise _problem(source, where, f"must be a number{unit}, got {reprlib.repr(value)}")
+    if isinstance(value, int) and not -(2**63) <= value < 2**63:  # TOML's integers are 64-bit
+        raise _problem(source, where, f"{reprlib.repr(value)} is beyond TOML's 64-bit integers")
     if key.kind == "int":
         if isinstance(value, float):
             raise _problem(source, where, f"must be a whole number{unit}, got {value!r}")
@@ -189,6 +221,12 @@ def loads(text: str, source: str = "<string>") -> RigFile:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise RigFileError(f"{source}: not valid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables by recursion
+        where, depth, line = _deepest(text)
+        why = f"arrays or inline tables nested {depth} deep (line {line}): a rig file nests at most one"
+        raise _problem(source, where or "(top level)", f"{why} (gravity_direction)") from None
+    if "rod" in data:  # helpers.rigfile.rod reads it
+        raise _problem(source, "[rod]", "this file describes a bare rod (docs/rig_file.md), not a rig")
     allowed = {k.name for k in TOP} | {"hardware", "arm", "boards", "tendon"}
     for name in data:
         if name not in allowed:

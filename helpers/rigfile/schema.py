@@ -233,7 +233,7 @@ ARM: tuple[Key, ...] = (
         "-",
         (-1.0, 0.0, 0.0),
         "direction of gravity in the clamp frame (z along the backbone, x towards tendon 1): [-1, 0, 0] "
-        "horizontal with tendon 1 on top, [0, 0, 1] hanging",
+        "horizontal with tendon 1 on top, [0, 0, 1] hanging; components at most 1e6 in magnitude",
     ),  # fmt: skip
     Key(
         "gravity_m_s2",

@@ -1,6 +1,6 @@
 """The planar virtual rig built from a rig file (``docs/rig_file.md``): :func:`rig_parameters`.
 
-The file's ``[arm]`` and ``[hardware]`` (tendon 1's stepper, spool and load cell) become
+The file's ``[arm]`` and ``[hardware]`` (tendon 1's stepper, spool and load cell, the ADC chain) become
 :class:`~helpers.virtual.parameters.RigParameters`; the twin's parameters the file does not hold (the rotor's
 and spool's inertia, the load-cell carriage, the amplifier's bandwidth, the ADC noise, the damping floor) keep
 the paper rig's values, an assumption for any other rig. The paper's file gives ``RigParameters()`` (the
@@ -81,6 +81,13 @@ def rig_parameters(
         "holding_torque": float(t.holding_torque_n_m),
         "rotor_teeth": ROTOR_TEETH,
         "span_n": float(t.load_cell_range_n),
+        "loop_zero_ma": float(rig.hardware.loop_zero_ma),
+        "loop_full_ma": float(rig.hardware.loop_full_ma),
+        "loop_min_ma": float(rig.hardware.loop_min_ma),
+        "loop_max_ma": float(rig.hardware.loop_max_ma),
+        "shunt_ohm": float(rig.hardware.shunt_ohm),
+        "adc_vref_v": float(rig.hardware.adc_vref_v),
+        "adc_bits": int(rig.hardware.adc_bits),
     }
     fields.update(changes)
     return RigParameters(**fields)

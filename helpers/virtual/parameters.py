@@ -21,10 +21,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.paper import hardware
 from helpers.paper import numbers as paper
 from helpers.paper.backbone import SOURCES as BACKBONE_SOURCES
 from helpers.paper.backbone import Backbone
+from helpers.rigfile.units import si
 
 __all__ = ["RigParameters", "TUNED", "ACTUATORS", "KG_CM", "parameter_table"]
 
@@ -134,6 +134,16 @@ class RigParameters(Backbone):
         Load that drives the amplifier's loop to 20 mA (its full-scale setting), N. *Assumed*.
     adc_noise_counts : float
         Gaussian noise of the reading, counts rms. *Assumed*.
+    loop_zero_ma, loop_full_ma : float
+        The amplifier's current loop at zero and at full-scale load (``span_n``), mA.
+    loop_min_ma, loop_max_ma : float
+        The loop's linear range, mA: beyond it the output saturates.
+    shunt_ohm : float
+        The resistor that turns the loop current into the ADC's voltage, ohm (paper).
+    adc_vref_v : float
+        The ADC's reference voltage, V.
+    adc_bits : int
+        The ADC's resolution, bits.
     max_step : float
         Largest RK4 step, s (*numerical*).
     """
@@ -173,20 +183,30 @@ class RigParameters(Backbone):
     amp_bandwidth_hz: float = 1000.0
     span_n: float = 20.0
     adc_noise_counts: float = 0.5
+    loop_zero_ma: float = 4.0
+    loop_full_ma: float = 20.0
+    loop_min_ma: float = 3.8
+    loop_max_ma: float = 20.5
+    shunt_ohm: float = paper.SHUNT_OHM
+    adc_vref_v: float = 5.0
+    adc_bits: int = 10
     max_step: float = 2.5e-4
 
     def __post_init__(self) -> None:
         super().__post_init__()
         for name in ("r", "k", "max_step", "spool_diameter", "rotor_inertia", "holding_torque", "span_n",
-                     "carriage_mass", "disc_radius", "eyelet_v0", "floor_omega"):  # fmt: skip
+                     "carriage_mass", "disc_radius", "eyelet_v0", "floor_omega", "loop_full_ma",
+                     "loop_max_ma", "shunt_ohm", "adc_vref_v"):  # fmt: skip
             _check(getattr(self, name), name, positive=True)
         for name in ("disc_mass", "disc_thickness", "pretension", "g", "alpha", "beta_chord", "beta_disc",
                      "floor_zeta", "eyelet_mu", "spool_inertia", "rotor_zeta", "carriage_zeta",
-                     "amp_bandwidth_hz", "adc_noise_counts"):  # fmt: skip
+                     "amp_bandwidth_hz", "adc_noise_counts", "loop_zero_ma", "loop_min_ma"):  # fmt: skip
             _check(getattr(self, name), name, positive=False)
         if not math.isfinite(self.base_angle_deg):
             raise ValueError(f"RigParameters.base_angle_deg must be finite, got {self.base_angle_deg!r}")
-        for name in ("elements_per_disc", "steps_per_rev", "rotor_teeth"):
+        if not self.loop_min_ma < self.loop_zero_ma < self.loop_full_ma < self.loop_max_ma:
+            raise ValueError("RigParameters: need loop_min_ma < loop_zero_ma < loop_full_ma < loop_max_ma")
+        for name in ("elements_per_disc", "steps_per_rev", "rotor_teeth", "adc_bits"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
                 raise ValueError(f"RigParameters.{name} must be a positive integer, got {value!r}")
@@ -368,20 +388,32 @@ class RigParameters(Backbone):
 
     # --- the sensor chain -----------------------------------------------------------------------------
     @property
+    def loop_a(self) -> tuple[float, float, float, float]:
+        """The loop's currents in A: zero load, full-scale load, lower and upper saturation."""
+        zero, full, lo, hi = (si(v, -3) for v in (self.loop_zero_ma, self.loop_full_ma, self.loop_min_ma,
+                                                   self.loop_max_ma))  # fmt: skip
+        return zero, full, lo, hi
+
+    def loop_counts(self, current_a: float) -> float:
+        """ADC reading (counts, unrounded) of a loop current (A) through the shunt, ``2^bits I R / V_ref``."""
+        return float(2**self.adc_bits) * current_a * self.shunt_ohm / self.adc_vref_v
+
+    @property
     def gain_counts_per_n(self) -> float:
         """ADC counts per newton of the chain: 16 mA per ``span_n``, through the shunt, 10 bits of V_ref."""
-        return hardware.loop_counts(hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A) / self.span_n
+        zero, full, _, _ = self.loop_a
+        return self.loop_counts(full - zero) / self.span_n
 
     @property
     def offset_counts(self) -> float:
         """ADC counts at zero tension (the loop's 4 mA)."""
-        return hardware.loop_counts(hardware.LOOP_ZERO_A)
+        return self.loop_counts(self.loop_a[0])
 
     @property
     def saturation_n(self) -> float:
         """Tension at which the loop saturates (20.5 mA), N."""
-        lo, hi = hardware.LOOP_SATURATION_A
-        return (hi - hardware.LOOP_ZERO_A) / (hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A) * self.span_n
+        zero, full, _, hi = self.loop_a
+        return (hi - zero) / (full - zero) * self.span_n
 
     def metadata(self) -> dict[str, Any]:
         """Every field and the main derived values as flat JSON values (recordings' ``source.parameters``)."""
@@ -403,12 +435,12 @@ class RigParameters(Backbone):
             "gain_counts_per_n": self.gain_counts_per_n,
             "offset_counts": self.offset_counts,
             "saturation_n": self.saturation_n,
-            "loop_zero_a": hardware.LOOP_ZERO_A,
-            "loop_full_a": hardware.LOOP_FULL_A,
-            "loop_min_a": hardware.LOOP_SATURATION_A[0],
-            "loop_max_a": hardware.LOOP_SATURATION_A[1],
-            "shunt_ohm": hardware.SHUNT_OHM,
-            "adc_vref_v": hardware.ADC_VREF_V,
+            "loop_zero_a": self.loop_a[0],
+            "loop_full_a": self.loop_a[1],
+            "loop_min_a": self.loop_a[2],
+            "loop_max_a": self.loop_a[3],
+            "shunt_ohm": self.shunt_ohm,
+            "adc_vref_v": self.adc_vref_v,
         }
         out.update({f"derived_{k}": v for k, v in derived.items()})
         return out
@@ -480,6 +512,14 @@ _SOURCES: dict[str, tuple[str, str, str]] = {
     "span_n": ("N", "assumed", "4-20 mA over 0-20 N: Table II's 17.7 N reads 558 counts, nothing clips"),
     "adc_noise_counts": ("counts", "assumed", "0.5 count rms: the paper's unshaped 10 mm settling (1.2 s "
                          "in a +-0.13 N band) rules out 1 count (0.04 N) rms on this chain"),
+    "loop_zero_ma": ("mA", "assumed", "the paper's '0.6 mA' current-loop output read as a 4-20 mA loop (4 mA "
+                     "through 150 ohm is 0.6 V); rigs/paper.toml's loop_zero_ma"),
+    "loop_full_ma": ("mA", "assumed", "a standard 4-20 mA loop (rigs/paper.toml)"),
+    "loop_min_ma": ("mA", "assumed", "NAMUR NE 43 lower saturation of 4-20 mA loops (rigs/paper.toml)"),
+    "loop_max_ma": ("mA", "assumed", "NAMUR NE 43 upper saturation of 4-20 mA loops (rigs/paper.toml)"),
+    "shunt_ohm": ("ohm", "paper", "the 150 ohm resistor that turns the loop into a voltage"),
+    "adc_vref_v": ("V", "assumed", "the Arduino Mega's default reference, its 5 V supply (rigs/paper.toml)"),
+    "adc_bits": ("bits", "datasheet", "the ATmega2560's 10-bit ADC"),
     "max_step": (
         "s",
         "numerical",

@@ -104,7 +104,7 @@ def refuse_other_rig(meta: dict[str, Any], rig: RigFile, path: Path, what: str =
     kept = recording_rig(meta, source=str(path))
     if kept.hash != rig.hash:
         raise DataFileError(
-            f"{path}: recorded on rig {kept.name!r} (hash {kept.hash}), not on the selected rig {rig.name!r} "
+            f"{path}: recorded on rig {kept.name!r} (hash {kept.hash}), not on the rig {rig.name!r} "
             f"({rig.hash}); {what} a rig's own recordings (select its rig file with --rig)"
         )
 
@@ -268,9 +268,8 @@ def default_out(rig: RigFile) -> Path:
     return out
 
 
-def run_tune(data_dir: Path, out: Path | None, max_evaluations: int) -> int:
-    """``python -m helpers virtual-rig tune --rig FILE --data-dir DIR [--out NEW]``: tune and write."""
-    rig = rigfile.selected()
+def run_tune(rig: RigFile, data_dir: Path, out: Path | None, max_evaluations: int) -> int:
+    """``python -m helpers virtual-rig tune --rig FILE --data-dir DIR [--out NEW]``: tune, write anew."""
     out = out if out is not None else default_out(rig)
     if Path(out).exists():  # before minutes of tuning
         raise DataFileError(f"{out}: exists already; the tuned rig goes to a new file (choose another --out)")

@@ -7,9 +7,9 @@ that output into ADC counts::
     I = 4 mA + 16 mA * output / span_n,   clipped to the loop's linear range [3.8, 20.5] mA
     counts = clip(round(1024 * I * 150 ohm / 5 V + noise), 0, 1023)
 
-The loop, the shunt (paper) and the ADC reference are in :mod:`helpers.paper.hardware`; ``span_n`` (20 N) and
-the
-noise (0.5 count rms) are :class:`~helpers.virtual.parameters.RigParameters` fields. With the defaults: 24.58
+The loop, the shunt (paper), the ADC's reference and resolution, ``span_n`` (20 N) and the noise (0.5 count
+rms) are :class:`~helpers.virtual.parameters.RigParameters` fields (from the rig file's ``[hardware]``:
+:func:`helpers.virtual.from_rig.rig_parameters`). With the defaults: 24.58
 counts per N (0.041 N per count), 122.9 counts at 0 N, saturation at 20.6 N (629.8 counts): the paper's
 largest tension, 17.7 N, reads 558 counts. A reading at or beyond the loop's saturation (or the ADC's rails)
 is *clipped*; :func:`helpers.paper.metrics.clipped_samples` flags it, for hardware recordings too.
@@ -20,8 +20,6 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from helpers.paper import hardware
-from helpers.paper.hardware import ADC_MAX
 from helpers.virtual.parameters import RigParameters
 
 __all__ = ["LoadCell", "GAIN_COUNTS_PER_N", "OFFSET_COUNTS"]
@@ -74,12 +72,13 @@ class LoadCell:
     @property
     def gain(self) -> float:
         """Counts per newton."""
-        return hardware.loop_counts(hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A) / self.span_n
+        zero, full, _, _ = self.params.loop_a
+        return self.params.loop_counts(full - zero) / self.span_n
 
     @property
     def offset(self) -> float:
         """Counts at zero tension."""
-        return hardware.loop_counts(hardware.LOOP_ZERO_A)
+        return self.params.offset_counts
 
     @property
     def newtons_per_count(self) -> float:
@@ -94,25 +93,24 @@ class LoadCell:
     @property
     def full_scale_newtons(self) -> float:
         """Tension at which the loop saturates (20.5 mA), N."""
-        lo, hi = hardware.LOOP_SATURATION_A
-        return (hi - hardware.LOOP_ZERO_A) / (hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A) * self.span_n
+        zero, full, _, hi = self.params.loop_a
+        return (hi - zero) / (full - zero) * self.span_n
 
     def current(self, output_n: npt.ArrayLike) -> np.ndarray:
         """Loop current (A) for amplifier outputs in N, clipped to the loop's linear range."""
         lam = np.asarray(output_n, dtype=float)
-        span_a = hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A
-        lo, hi = hardware.LOOP_SATURATION_A
-        return np.clip(hardware.LOOP_ZERO_A + span_a * lam / self.span_n, lo, hi)
+        zero, full, lo, hi = self.params.loop_a
+        return np.clip(zero + (full - zero) * lam / self.span_n, lo, hi)
 
     def counts(self, output_n: npt.ArrayLike) -> np.ndarray:
         """ADC counts (int64, 0..1023) for amplifier outputs in N."""
         lam = np.asarray(output_n, dtype=float)
         if not np.all(np.isfinite(lam)):
             raise ValueError("tension must be finite")
-        v = hardware.loop_counts(1.0) * self.current(lam)
+        v = self.params.loop_counts(1.0) * self.current(lam)
         if self.noise_rms > 0:
             v = v + self._rng.normal(0.0, self.noise_rms, size=lam.shape)
-        return np.clip(np.rint(v), 0, ADC_MAX).astype(np.int64)
+        return np.clip(np.rint(v), 0, 2**self.params.adc_bits - 1).astype(np.int64)
 
     def tension(self, counts: npt.ArrayLike) -> np.ndarray:
         """Invert the true calibration: counts to N (what a calibrated user would compute)."""

@@ -49,6 +49,7 @@ from helpers.virtual import (
     simulate,
 )
 from helpers.virtual.parameters import KG_CM
+from helpers.virtual.sorosim import run_command as sorosim_command
 from helpers.virtual.spatial.direction_map import frequency_map as spatial_frequency_map
 from helpers.virtual.spatial.direction_map import frequency_map_csv
 from helpers.virtual.spatial.from_rig import spatial_rig
@@ -532,15 +533,20 @@ def write_studies(names: tuple[str, ...] = tuple(STUDY_FILES), verbose: bool = T
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``virtual-rig`` command's options."""
     parser.add_argument(
-        "action", choices=["check", "tune", "studies", "frequency-map"],
+        "action", choices=["check", "tune", "studies", "frequency-map", "sorosim"],
         help="check: the tuned rig's identified mode and unshaped rows (seconds); tune: re-derive the tuned "
              "literals (minutes); studies: rewrite figures/virtual_*.csv for notebook 06 (a few minutes); "
              "frequency-map: print the spatial twin's modes against bend direction and magnitude as CSV "
-             "(docs/spatial_twin.md; about a second per row)",
+             "(docs/spatial_twin.md; about a second per row); sorosim FILE: the twin as a bare rod against a "
+             "SoroSim tip-release test (docs/external_data.md; about 30 s)",
     )  # fmt: skip
+    parser.add_argument("file", nargs="?", type=Path, help="'sorosim': the SoroSim test's file")
+    parser.add_argument("--segments", type=int, default=20, help="'sorosim': the twin's elements (even)")
+    parser.add_argument("--print-rod-file", action="store_true",
+                        help="'sorosim': print the bare rod's file the twin is built from")  # fmt: skip
     parser.add_argument("--max-evaluations", type=int, default=100, help="Nelder-Mead budget of 'tune'")
     parser.add_argument("--data-dir", type=Path, default=None,
-                        help="'tune': tune the selected rig file's twin on this data folder's identification "
+                        help="'tune': tune the --rig file's twin on this data folder's identification "
                              "result and unshaped recordings, written as a new rig file (docs/rig_file.md); "
                              "default for a rig other than the paper's: data/")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None,
@@ -557,20 +563,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the ``virtual-rig`` command."""
     t0 = time.perf_counter()
+    if args.action == "sorosim":
+        if args.file is None:
+            raise ValueError("virtual-rig sorosim needs the SoroSim test's FILE")
+        return sorosim_command(args.file, args.segments, args.print_rod_file)
+    if args.file is not None:
+        raise ValueError(f"virtual-rig {args.action} takes no FILE (only 'sorosim' does)")
     if args.action == "frequency-map":
         if args.modes < 1:
             raise ValueError(f"--modes must be >= 1, got {args.modes}")
-        rig = preset(args.preset) if args.preset is not None else spatial_rig(rigfile.selected())
+        rig = preset(args.preset) if args.preset is not None else spatial_rig(args.rig)
         directions = "0" if rig.n_tendons == 1 and args.directions == "0:360:15" else args.directions
         print(frequency_map_csv(rig, directions, args.bends, n_modes=args.modes), end="")
         return 0
     if args.action == "studies":
         write_studies(tuple(args.only) if args.only else tuple(STUDY_FILES))
         return 0
-    own_rig = rigfile.selected().hash != rigfile.default_rig().hash
+    own_rig = args.rig.hash != rigfile.default_rig().hash
     if args.action == "tune" and (args.data_dir is not None or own_rig):
         data_dir = args.data_dir if args.data_dir is not None else DATA_DIR
-        return rig_file_tuning.run_tune(data_dir, args.out, args.max_evaluations)
+        return rig_file_tuning.run_tune(args.rig, data_dir, args.out, args.max_evaluations)
     if args.action == "tune":
         params, history = tune(max_evaluations=args.max_evaluations, verbose=True)
         print(

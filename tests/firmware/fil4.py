@@ -19,7 +19,7 @@ The one-tendon check's three passes (``fil.py``), for four axes and four channel
    pseudo-terminals as hardware, checks both builds against the rig file, and records the programme. The
    Mega converts channel ``c`` ``c`` conversions (104 us) after channel 0; the harness reads every
    channel's waveform at each conversion start, so each channel is the twin at its own instant, as in the
-   emulated world (:mod:`helpers.virtual.emulator.tendon_world`).
+   emulated world (:mod:`helpers.virtual.emulator.world`).
 
 :func:`check_alignment` sets the recording beside passes 1 and 2 sample by sample: every step count is
 pass 1's at channel 0's conversion (but for steps the DAQ counts late, within its sampling interrupt), every
@@ -55,8 +55,7 @@ from helpers.paper import metrics  # noqa: E402
 from helpers.recordings import Recording  # noqa: E402
 from helpers.rig import Rig  # noqa: E402
 from helpers.rig.link import Waiter  # noqa: E402
-from helpers.virtual.emulator.tendon_world import ADC_CONVERSION_S, tendon_world  # noqa: E402
-from helpers.virtual.emulator.world import forget_world, register_world  # noqa: E402
+from helpers.virtual.emulator.world import ADC_CONVERSION_S, build_world, forget_world, register_world  # noqa: E402
 from helpers.virtual.sensor import LoadCell  # noqa: E402
 from helpers.virtual.spatial.from_rig import spatial_rig  # noqa: E402
 from helpers.virtual.spatial.plant import SpatialPlant  # noqa: E402
@@ -274,8 +273,8 @@ def in_process(programme: Programme, tail_s: float, tmp: Path) -> Recording:
     """The same programme on the in-process four-tendon virtual rig (``virtual://``, noise-free cells)."""
     rig = four_rig()
     name = f"fil4-reference-{next(_names)}"
-    world = tendon_world(rig, name)
-    world.sensor = noise_free_cells(rig)
+    world = build_world(rig, name)
+    world.sensors = noise_free_cells(rig)
     register_world(world)
     try:
         host = Rig("virtual", rig, world=name)

@@ -113,7 +113,7 @@ def _virtual(board: str) -> tuple[list[str], list[list[str]]]:
     boards.register_world(world)
     byte_s = 10 / BAUD[BOARD[board]]
     try:
-        port = _open(f"virtual://{BOARD[board]}?rig={name}", timeout=0.001)
+        port = _open(f"virtual://{BOARD[board]}?world={name}", timeout=0.001)
         script = _script(board)
         times = fwsim.schedule(len(script), [p for _, p in script])
 

@@ -19,6 +19,8 @@ from pathlib import Path
 import fwsim
 import pytest
 
+from helpers.rigfile import capacity
+
 pytestmark = pytest.mark.firmware
 
 F = fwsim.F_CPU
@@ -67,6 +69,9 @@ def test_ram_budgets_printed_and_within_goal(four_build: tuple[Path, str], firmw
         four["stepper_uno"][4] == "rig_config_four_tendon.h"
         and paper["stepper_uno"][4] == "rig_config_paper.h"
     )
+    # the host's model of the stepper's static RAM (helpers.rigfile.capacity) is the build's, to the byte
+    assert four["stepper_uno"][0] == capacity.stepper_ram(4, 639, 64).static_bytes
+    assert paper["stepper_uno"][0] == capacity.stepper_ram(1, 639, 64).static_bytes
     # four axes and four channels cost RAM: the tables grow with the config
     assert four["stepper_uno"][0] > paper["stepper_uno"][0] and four["daq_mega"][0] > paper["daq_mega"][0]
 
@@ -105,7 +110,8 @@ def test_config_refused_at_compile_time(tmp_path: Path, changes: dict, message: 
 
 def test_make_rig_generates_the_header_then_builds_with_it(tmp_path: Path) -> None:
     """``make RIG=rigfile`` runs ``$(PYTHON) -m helpers.rigfile.firmware_header RIG -o $(BUILD)/rig_config.h``
-    from the repository root (a stand-in interpreter here records its arguments and writes the header)."""
+    from the repository root before any rule (a stand-in interpreter here records its arguments and writes the
+    header); a generator that fails stops make with its line, before anything compiles."""
     rig = tmp_path / "rig.json"
     rig.write_text("{}")
     log = tmp_path / "args.txt"
@@ -120,14 +126,15 @@ def test_make_rig_generates_the_header_then_builds_with_it(tmp_path: Path) -> No
     assert proc.returncode == 0, proc.stderr[-2000:]
     cwd, *args = log.read_text().split()
     assert Path(cwd) == fwsim.REPO
-    assert args == ["-m", "helpers.rigfile.firmware_header", str(rig), "-o", f"{build}/rig_config.h.tmp"]
+    assert args == ["-m", "helpers.rigfile.firmware_header", str(rig), "-o", f"{build}/rig_config.h"]
     assert (build / "rig_config.h").read_text() == FOUR.read_text()
     assert (build / "rig_config.path").read_text().strip() == str(build / "rig_config.h")
     assert Path(target).stat().st_size > 0
     # a generator that fails stops the build
     fake.write_text("#!/bin/sh\necho 'rig file: bad tendon count' >&2\nexit 2\n")
     proc = _make(f"RIG={rig}", f"PYTHON={fake}", f"BUILD={tmp_path / 'b2'}", "firmware", timeout=120)
-    assert proc.returncode != 0 and "bad tendon count" in proc.stderr
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "bad tendon count" in proc.stderr
+    assert not list((tmp_path / "b2").rglob("*.o"))
 
 
 def _stepper(build: Path, cmds: list[str], duration: float, spacing: float = 0.02) -> fwsim.SimRun:
@@ -531,20 +538,20 @@ class _Clock:
 
 
 def _emulated(board: str, cmds: list[str], duration: float, spacing: float = 0.02):
-    """The emulated four-tendon board (``helpers.virtual.emulator.tendon_boards``) sent the same commands at
+    """The emulated four-tendon board (``helpers.virtual.emulator.boards``) sent the same commands at
     the same device times as ``_stepper``: its reply bodies, and each axis's step times from GO (s)."""
-    tb = pytest.importorskip("helpers.virtual.emulator.tendon_boards")
+    tb = pytest.importorskip("helpers.virtual.emulator.boards")
     rigfile = pytest.importorskip("helpers.rigfile")
     limits = tb.build_limits(rigfile.load(fwsim.REPO / "rigs" / "four-tendon.toml"))
     clock = _Clock()
-    dev = (tb.TendonStepperEmulator if board == "stepper" else tb.TendonDaqEmulator)(clock, limits)
+    dev = (tb.StepperEmulator if board == "stepper" else tb.DaqEmulator)(clock, limits)
     dev.reset()
     steps: list[list[float]] = [[] for _ in range(limits.axes)]
     bodies = []
     for i, c in enumerate([*cmds, None]):
         t = 0.05 + spacing * i if c is not None else duration
         if board == "stepper":
-            times, axes, _ = dev.axis_steps_until(t)
+            times, axes, _ = dev.steps_until(t)
             for ti, a in zip(times.tolist(), axes.tolist(), strict=True):
                 steps[a].append(ti - clock.go_times[-1])
             dev.finish_if_due(t)

@@ -2,7 +2,7 @@
 set-points (different per axis, one axis driven into its travel clamp), every axis's STEP edges against
 ``helpers.board.stream_reference.simulate_axes`` step for step (within one timer tick); the multi-axis
 streaming replies and refusals (``MV``, the shorter longest delay, the programme table the stream takes).
-Every stream is also sent to the emulated four-tendon stepper (``helpers.virtual.emulator.tendon_boards``):
+Every stream is also sent to the emulated four-tendon stepper (``helpers.virtual.emulator.boards``):
 the same lines in the same order, and every emulated step on the tick of the firmware's STEP edge.
 """
 
@@ -279,21 +279,21 @@ class _Clock:
 
 
 def emulated_stepper(cmds: list[tuple[float, str]], duration: float) -> tuple[list[str], list[list[float]]]:
-    """The emulated four-tendon stepper (``helpers.virtual.emulator.tendon_boards``) sent ``cmds`` as the
+    """The emulated four-tendon stepper (``helpers.virtual.emulator.boards``) sent ``cmds`` as the
     harness sends them (each when its last byte arrives): every line it sent, and each axis's step times
     from ``STREAM`` (s; the STEP edges)."""
-    tb = pytest.importorskip("helpers.virtual.emulator.tendon_boards")
+    tb = pytest.importorskip("helpers.virtual.emulator.boards")
     rigfile = pytest.importorskip("helpers.rigfile")
     limits = tb.build_limits(rigfile.load(fwsim.REPO / "rigs" / "four-tendon.toml"))
     clock = _Clock()
-    dev = tb.TendonStepperEmulator(clock, limits)
+    dev = tb.StepperEmulator(clock, limits)
     dev.reset()
     events = sorted((t + len(fwsim.command(body)) * STEPPER_BYTE_S, body) for t, body in cmds)
     steps: list[list[float]] = [[] for _ in range(limits.axes)]
     bodies: list[str] = []
     t_stream = 0.0
     for t, body in [*events, (duration, None)]:
-        times, axes, _ = dev.axis_steps_until(t)  # the control ticks, their notices and DONE come first
+        times, axes, _ = dev.steps_until(t)  # the control ticks, their notices and DONE come first
         for ti, a in zip(times.tolist(), axes.tolist(), strict=True):
             steps[a].append(ti - t_stream)
         clock.t = t

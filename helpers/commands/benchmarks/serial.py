@@ -17,11 +17,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from helpers import rigfile
-from helpers.paper.calibration import UNCALIBRATED
+from helpers.paper.calibration import uncalibrated
 from helpers.paper.shapers import paper_tdfs
 from helpers.rig import Rig
 from helpers.rig.static import record_static
+from helpers.rigfile import default_rig, derived
 
 
 def start_server(
@@ -56,7 +56,8 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) 
     """Stream ``device_s`` of DAQ samples through the pseudo-terminal server; return the figures."""
     proc, daq, stepper = start_server(speed)
     try:
-        rig = Rig((daq, stepper), rigfile.selected(), calibration=UNCALIBRATED)
+        paper = default_rig()
+        rig = Rig((daq, stepper), paper, calibration=uncalibrated(derived(paper).mm_per_step[0]))
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
             rec = record_static(
@@ -86,7 +87,7 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) 
 def in_process_scenario() -> dict[str, Any]:
     """Wall time of one 12 s scenario on the in-process virtual rig (first run and a warm second run)."""
     _, zvd = paper_tdfs()
-    rig = Rig("virtual", rigfile.selected(), world="bench-inprocess")
+    rig = Rig("virtual", default_rig(), world="bench-inprocess")
     walls = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(2):

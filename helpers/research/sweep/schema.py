@@ -28,12 +28,11 @@ from pydantic import (
     model_validator,
 )
 
-from helpers.paper.hardware import DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ
 from helpers.research.families import FAMILIES
 
 SWEEP_LIMITS = {
     "run_s": 120.0,
-    "rate_hz": (float(DAQ_RATE_MIN_HZ), float(DAQ_RATE_MAX_HZ)),
+    "rate_hz": (100.0, 2000.0),  # the sweep format's sample rates: the paper's DAQ board's (rigs/paper.toml)
     "runs": 200_000,
     "grid_values": 10_000,
     "shapers": 256,

@@ -57,10 +57,15 @@ PHYSICS_FILES: tuple[Path, ...] = tuple(
 """The code of what a run computes: the virtual rig's physics and the backbone it shares with the linear
 model (not its exports, the batch runner, the ``solve_ivp`` oracle, the emulated boards or the plots)."""
 
-LEGACY_FINGERPRINTS: dict[str, str] = {"c7ea1e195e31eb10": "82ebe100f05565cc"}
-"""Fingerprints of the first form (a hash of the files' bytes, so a moved import or a reworded docstring
-changed it) -> the fingerprint of the same sources in the present form, computed from those very sources.
-The stored atlas (``data/sweeps/``) carries the first form."""
+LEGACY_FINGERPRINTS: dict[str, str] = {
+    "c7ea1e195e31eb10": "92779648e41140ad",
+    "82ebe100f05565cc": "92779648e41140ad",
+}
+"""Fingerprints of the same physics in an earlier form -> today's. The first form was a hash of the files'
+bytes (a moved import or a reworded docstring changed it); ``82ebe100f05565cc`` is the present form of the
+same sources before the sensor chain's constants became :class:`RigParameters` fields (the rig file as a
+value, issue 36: the same numbers, the gain, offset and every ADC count checked equal). The stored atlas
+(``data/sweeps/``) carries the first form."""
 
 
 def _canonical(source: str) -> str:

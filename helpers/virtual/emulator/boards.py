@@ -1,17 +1,31 @@
-"""Emulated DAQ and stepper boards: Python objects that behave exactly as the firmware does on the protocol.
+"""Emulated DAQ and stepper boards: the firmware built for a rig file, as Python objects on the protocol.
 
-The boards follow ``firmware/PROTOCOL.md``: the same replies, error codes, limits
-(:mod:`helpers.paper.hardware`),
-``HELLO`` on reset, ``W,OVERRUN`` reporting, CRC-8 checksums and version
-(:data:`helpers.board.protocol.FW_VERSION`, :func:`board_version`). They live in a
-:class:`helpers.virtual.emulator.world.VirtualWorld`, which owns
-the device clock and the plant; a board sees the world only through the attributes it reads (``t``, ``seed``,
-``t0_us``, ``go_times``).
+The boards follow ``firmware/PROTOCOL.md`` for a build of C load-cell channels and A stepper axes (1-4 each;
+the paper's build is C = A = 1): the same replies, error codes and limits (:class:`BuildLimits`, what the
+firmware header generated from the rig file holds: :func:`build_limits`), ``HELLO`` on reset, ``W,OVERRUN``
+reporting, CRC-8 checksums and the version token ``<FW_VERSION>+<rig hash>`` (:func:`board_version`). They
+live in a :class:`helpers.virtual.emulator.world.VirtualWorld`, which owns the device clock and the plant; a
+board sees the world only through the attributes it reads (``t``, ``seed``, ``t0_us``, ``go_times``).
 
-Fault injection (per board, for tests): ``drop`` / ``corrupt`` / ``garbage`` probabilities per data line,
-``reset_at`` (the board reboots and sends ``HELLO``), ``hang_at`` (the board stops answering),
-``disconnect_at`` (the port disappears), ``overrun_every`` (the DAQ misses one sample period every n samples
-and reports it). Everything emitted here is simulation; recordings made from it say ``virtual-rig``.
+:class:`StepperEmulator` runs a programme of ``SEG`` (axis 0), ``MSEG <window_us> <n_0> ... <n_{A-1}>``
+(every axis in one window, step k of an axis making n steps on the 0.5 us tick ``ceil(k * 2 W / n)`` from the
+item's start) and ``WAIT`` items; ``CONFIG`` reports the axes, the programme length, the interval limits and
+each axis's travel (then each axis's release, on a build with one); ``DONE``, ``ABORTED`` and ``OK POS`` list
+every axis's position; ``GO`` refuses the first axis (in axis order) that the programme would take outside
+``-release..travel``. Streams (``SHAPER``, ``IMP``, ``STREAM``, ``V``, ``MV``, ``END``) run in
+:mod:`helpers.virtual.emulator.stream_mode`: one axis as the paper's build, every axis with the one shaper on
+a build with several (``STREAM`` then empties the programme, whose table the firmware's stream state takes,
+and ``CLEAR``, ``SEG``, ``MSEG`` and ``WAIT`` get ``ERR STATE streaming`` while streaming).
+
+:class:`DaqEmulator` answers ``OK CONFIG <C> <A> <min> <max>`` and sends data lines
+``D,<seq>,<t_us>,<adc_0>,...,<adc_{C-1}>,<steps_0>,...,<steps_{A-1}>``.
+
+Fault injection (per board, :class:`Faults`; for tests, any axis count): ``drop`` / ``corrupt`` / ``garbage``
+probabilities per data line, ``drop_replies`` / ``corrupt_replies`` per other line a board sends (replies,
+``HELLO``, ``DONE``, notices), ``reset_at`` (the board reboots and sends ``HELLO``), ``hang_at`` (the board
+stops answering: a stepper never sends ``DONE``), ``disconnect_at`` (the port disappears), ``overrun_every``
+(the DAQ misses one sample period every n samples and reports it). Everything emitted here is simulation;
+recordings made from it say ``virtual-rig``.
 """
 
 from __future__ import annotations
@@ -19,65 +33,105 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from helpers.board.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, frame
-from helpers.board.stream_reference import MAX_DELAY_US
-from helpers.paper.hardware import DAQ_RATE_DEFAULT_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_MIN_HZ, LIMITS, RIG
+from helpers.board.stream_reference import MAX_DELAY_US, MAX_DELAY_US_AXES
+from helpers.rigfile import RigFile
+from helpers.rigfile.derived import derived
 from helpers.virtual.emulator.framing import frame_many
 from helpers.virtual.emulator.stream_mode import ShaperLoader, StreamMode
 
-DAQ_RATE_MIN, DAQ_RATE_MAX, DAQ_RATE_DEFAULT = DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, DAQ_RATE_DEFAULT_HZ
-MIN_INTERVAL_US = LIMITS.min_interval_us
-MAX_INTERVAL_US = LIMITS.max_interval_us
-MAX_TRAVEL_STEPS = LIMITS.max_position_steps
-MAX_ITEMS = LIMITS.max_items
-MAX_DWELL_MS = LIMITS.max_dwell_ms
+__all__ = ["BuildLimits", "build_limits", "board_version", "Faults", "Disconnected", "EmulatedBoard",
+           "DaqEmulator", "StepperEmulator", "MEM_FREE_BYTES"]  # fmt: skip
+
 INT32_MAX = 2**31 - 1
 MEM_FREE_BYTES = 560
 """What the emulated stepper answers to ``MEM``: the least free stack measured for the firmware in simavr
 (``firmware/README.md``); the emulated board has no stack of its own."""
 
 
-def board_version(rig_hash: str | None = None) -> str:
+@dataclass(frozen=True)
+class BuildLimits:
+    """The compiled-in values of one firmware build (``firmware/common/rig_config.h``'s macros).
+
+    Attributes
+    ----------
+    rig_hash : str
+        ``RIG_HASH``: the 8 hex characters in ``HELLO``/``PONG``.
+    travel_steps : tuple of int
+        ``RIG_AXIS_TRAVEL_STEPS``: one per axis (``RIG_AXES`` = its length).
+    channels : int
+        ``RIG_CHANNELS``.
+    min_interval_us, max_interval_us, programme_max, max_dwell_ms : int
+        The stepper's limits.
+    rate_min_hz, rate_max_hz, rate_default_hz : int
+        The DAQ's rates.
+    release_steps : tuple of int
+        ``RIG_AXIS_RELEASE_STEPS``: how far each axis may pay out below zero; empty (the macro absent): none.
+    """
+
+    rig_hash: str
+    travel_steps: tuple[int, ...]
+    channels: int
+    min_interval_us: int = 639
+    max_interval_us: int = 1_000_000
+    programme_max: int = 64
+    max_dwell_ms: int = 60_000
+    rate_min_hz: int = 100
+    rate_max_hz: int = 2000
+    rate_default_hz: int = 1000
+    release_steps: tuple[int, ...] = ()
+
+    @property
+    def axes(self) -> int:
+        """``RIG_AXES``."""
+        return len(self.travel_steps)
+
+    @property
+    def releases(self) -> tuple[int, ...]:
+        """Each axis's release (0 each without ``RIG_AXIS_RELEASE_STEPS``)."""
+        return self.release_steps or (0,) * self.axes
+
+    def span(self, axis: int) -> int:
+        """The most steps one item moves ``axis``: its release and travel together."""
+        return self.travel_steps[axis] + self.releases[axis]
+
+    def travel_text(self, axis: int) -> str:
+        """``GO``'s range of ``axis``: ``0-156``, or ``-78-156`` with a release."""
+        r = self.releases[axis]
+        return f"{-r if r else 0}-{self.travel_steps[axis]}"
+
+
+def build_limits(rig: RigFile) -> BuildLimits:
+    """The limits the firmware header of ``rig`` holds (``helpers.rigfile.firmware_header``)."""
+    d = derived(rig)
+    hw = rig.hardware
+    return BuildLimits(
+        rig_hash=rig.hash, travel_steps=tuple(d.travel_steps), channels=rig.n_tendons,
+        min_interval_us=d.min_interval_us, max_interval_us=d.max_interval_us,
+        programme_max=hw.programme_max_items, max_dwell_ms=hw.max_dwell_ms, rate_min_hz=hw.daq_rate_min_hz,
+        rate_max_hz=hw.daq_rate_max_hz, rate_default_hz=hw.daq_rate_default_hz,
+        release_steps=tuple(d.release_steps) if any(d.release_steps) else (),
+    )  # fmt: skip
+
+
+def board_version(rig_hash: str) -> str:
     """The version token of ``HELLO``/``PONG``: ``<FW_VERSION>+<rig hash>`` (semantic-version build metadata).
 
     Parameters
     ----------
-    rig_hash : str, optional
-        The 8 hex characters of the rig the board was built for; by default the rig the host runs
-        (``helpers.paper.hardware.RIG``, the emulated boards' build).
+    rig_hash : str
+        The 8 hex characters of the rig the board was built for.
 
     Returns
     -------
     str
         E.g. ``"2.3.0+481e87e3"``.
     """
-    return f"{FW_VERSION}+{RIG.hash if rig_hash is None else rig_hash}"
-
-
-class Plant(Protocol):
-    """What the boards need from a plant (``helpers.virtual.ArmPlant`` or a test double)."""
-
-    t: float
-
-    def advance(self, sample_times: np.ndarray, step_times: np.ndarray, step_signs: np.ndarray) -> np.ndarray:
-        """Integrate to ``sample_times[-1]``; return the cable tension (N) at the sample instants."""
-        ...
-
-
-class Sensor(Protocol):
-    """What the DAQ needs from the sensor model (``helpers.virtual.LoadCell``)."""
-
-    def counts(self, tension: np.ndarray) -> np.ndarray:
-        """Return 10-bit ADC counts for tensions in N."""
-        ...
-
-    def reseed(self, seed: int) -> None:
-        """Restart the noise from ``seed``."""
-        ...
+    return f"{FW_VERSION}+{rig_hash}"
 
 
 @dataclass
@@ -89,6 +143,9 @@ class Faults:
     drop, corrupt, garbage : float
         Probability per data line that it is lost in transport, has one byte altered, or is preceded by a line
         of random garbage bytes.
+    drop_replies, corrupt_replies : float
+        Probability per other line the board sends (a reply, ``HELLO``, ``DONE``, a notice) that it is lost or
+        has one byte altered.
     reset_at, hang_at, disconnect_at : float or None
         Device time (s) at which the board reboots (``HELLO``), stops answering, or its port vanishes.
     overrun_every : int
@@ -98,6 +155,8 @@ class Faults:
     drop: float = 0.0
     corrupt: float = 0.0
     garbage: float = 0.0
+    drop_replies: float = 0.0
+    corrupt_replies: float = 0.0
     reset_at: float | None = None
     hang_at: float | None = None
     disconnect_at: float | None = None
@@ -107,7 +166,7 @@ class Faults:
     def from_options(cls, options: dict[str, str]) -> Faults:
         """Build from URL query options (unknown keys are ignored here)."""
         kw: dict[str, Any] = {}
-        for name in ("drop", "corrupt", "garbage"):
+        for name in ("drop", "corrupt", "garbage", "drop_replies", "corrupt_replies"):
             if name in options:
                 kw[name] = float(options[name])
                 if not 0.0 <= kw[name] <= 1.0:
@@ -118,6 +177,11 @@ class Faults:
         if "overrun_every" in options:
             kw["overrun_every"] = int(options["overrun_every"])
         return cls(**kw)
+
+
+FAULT_OPTIONS = ("drop", "corrupt", "garbage", "drop_replies", "corrupt_replies", "reset_at", "hang_at",
+                 "disconnect_at", "overrun_every")  # fmt: skip
+"""The URL query options and ``--*-faults`` keys of :class:`Faults`."""
 
 
 class Disconnected(Exception):
@@ -131,18 +195,38 @@ class _Command:
     bad: bool
 
 
+def _damaged(line: bytes, rng: np.random.Generator) -> bytes:
+    """``line`` with one byte (not its newline) changed into another printable one."""
+    pos = int(rng.integers(0, len(line) - 1))
+    b = bytearray(line)
+    new = b[pos]
+    while new in (b[pos], 0x0A, 0x0D):
+        new = int(rng.integers(32, 127))
+    b[pos] = new
+    return bytes(b)
+
+
 class EmulatedBoard:
-    """Line handling shared by both boards: framing, checksums, ``TOOLONG``, faults, the output queue."""
+    """Line handling shared by both boards: framing, checksums, ``TOOLONG``, faults, the output queue.
+
+    Parameters
+    ----------
+    world : object
+        What the board reads of its world: ``t``, ``seed``, ``t0_us``, ``go_times``.
+    limits : BuildLimits
+        The build the board emulates.
+    faults : Faults, optional
+        Fault injection (none by default).
+    """
 
     kind = "board"
-    max_args = 3
-    """Arguments parsed per command (the firmware's ``PROTO_MAX_ARGS``: 3, or 1 + the axes of a build)."""
-    rig_hash: str | None = None
-    """The rig hash of the build the board emulates (None: the rig the host runs)."""
 
-    def __init__(self, world: Any, faults: Faults | None = None) -> None:
+    def __init__(self, world: Any, limits: BuildLimits, faults: Faults | None = None) -> None:
         self.world = world
+        self.limits = limits
         self.faults = faults or Faults()
+        self.max_args = max(3, limits.axes + 1)
+        """Arguments parsed per command (the firmware's ``PROTO_MAX_ARGS``: 3, or 1 + the axes of a build)."""
         self.out: deque[bytes] = deque()
         self.received: list[str] = []
         """Every command line the board accepted (checksum stripped), for tests and diagnostics."""
@@ -153,14 +237,32 @@ class EmulatedBoard:
         self.disconnected = False
         self.resets = 0
         self._rng = np.random.default_rng(world.seed + (1 if self.kind == "daq" else 2))
+        self.injected = {"dropped": 0, "corrupted": 0, "garbage": 0, "overrun_periods": 0,
+                         "replies_dropped": 0, "replies_corrupted": 0}  # fmt: skip
+        """Faults injected so far (tests compare the host's counts with these)."""
         self.port: Any = None
         """The pyserial port that has this board open (one at a time), or None."""
 
+    @property
+    def rig_hash(self) -> str:
+        """The rig hash of the build the board emulates."""
+        return self.limits.rig_hash
+
     # --- output -------------------------------------------------------------------------------------
     def send(self, body: str) -> None:
-        """Queue one line (silently lost if the board hangs or is disconnected)."""
-        if not (self.hung or self.disconnected):
-            self.out.append(frame(body))
+        """Queue one line (lost if the board hangs or is disconnected, or by the fault ``drop_replies``)."""
+        if self.hung or self.disconnected:
+            return
+        line = frame(body)
+        f = self.faults
+        if f.drop_replies or f.corrupt_replies:
+            if f.drop_replies and self._rng.random() < f.drop_replies:
+                self.injected["replies_dropped"] += 1
+                return
+            if f.corrupt_replies and self._rng.random() < f.corrupt_replies:
+                line = _damaged(line, self._rng)
+                self.injected["replies_corrupted"] += 1
+        self.out.append(line)
 
     def take_output(self, max_bytes: int | None = None) -> bytes:
         """Remove and return queued bytes (whole lines, at least one line if any is queued)."""
@@ -280,8 +382,8 @@ class EmulatedBoard:
         return None
 
     def version_token(self) -> str:
-        """``<version>+<rig hash>`` of ``HELLO``/``PONG`` (the build's hash, else the host's rig's)."""
-        return board_version() if self.rig_hash is None else board_version(self.rig_hash)
+        """``<version>+<rig hash>`` of ``HELLO``/``PONG``: the build's."""
+        return board_version(self.rig_hash)
 
     # --- lifecycle ----------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -295,27 +397,28 @@ class EmulatedBoard:
 
 
 class DaqEmulator(EmulatedBoard):
-    """The DAQ board (Arduino Mega 2560): samples the tension through the sensor and counts the steps."""
+    """The DAQ board (Arduino Mega 2560): every load cell through its sensor, every axis's step count."""
 
     kind = "daq"
 
-    def __init__(self, world: Any, faults: Faults | None = None) -> None:
-        super().__init__(world, faults)
-        self.rate = DAQ_RATE_DEFAULT
+    def __init__(self, world: Any, limits: BuildLimits, faults: Faults | None = None) -> None:
+        super().__init__(world, limits, faults)
+        self.rate = limits.rate_default_hz
         self.streaming = False
-        self.step_count = 0
+        self.step_counts = np.zeros(limits.axes, dtype=np.int64)
         self.n_sent = 0
         self._next_slot = 0
         self._t_start = 0.0
         self._pending_overrun = 0
-        self.injected = {"dropped": 0, "corrupted": 0, "garbage": 0, "overrun_periods": 0}
-        """Faults injected so far (tests compare the host's counts with these)."""
+        self.converting: dict[str, np.ndarray] | None = None
+        """The samples whose channel 0 was read but not yet their last (the world keeps them here)."""
 
     def reset(self) -> None:  # noqa: D102
-        self.rate = DAQ_RATE_DEFAULT
+        self.rate = self.limits.rate_default_hz
         self.streaming = False
-        self.step_count = 0
+        self.step_counts = np.zeros(self.limits.axes, dtype=np.int64)
         self.n_sent = 0
+        self.converting = None
         super().reset()
 
     def cmd_RATE(self, cmd: _Command) -> str:  # noqa: N802, D102
@@ -323,20 +426,22 @@ class DaqEmulator(EmulatedBoard):
             return err
         if self.streaming:
             return "ERR STATE streaming"
-        if not DAQ_RATE_MIN <= cmd.args[0] <= DAQ_RATE_MAX:
-            return f"ERR RANGE rate {DAQ_RATE_MIN}-{DAQ_RATE_MAX} Hz"
+        lo, hi = self.limits.rate_min_hz, self.limits.rate_max_hz
+        if not lo <= cmd.args[0] <= hi:
+            return f"ERR RANGE rate {lo}-{hi} Hz"
         self.rate = cmd.args[0]
         return f"OK RATE {self.rate}"
 
     def cmd_CONFIG(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 0):
             return err
-        return f"OK CONFIG 1 1 {DAQ_RATE_MIN} {DAQ_RATE_MAX}"
+        lim = self.limits
+        return f"OK CONFIG {lim.channels} {lim.axes} {lim.rate_min_hz} {lim.rate_max_hz}"
 
     def cmd_ZERO(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 0):
             return err
-        self.step_count = 0
+        self.step_counts[:] = 0
         return "OK ZERO"
 
     def cmd_START(self, cmd: _Command) -> str:  # noqa: N802, D102
@@ -349,6 +454,7 @@ class DaqEmulator(EmulatedBoard):
         self._next_slot = 1
         self._t_start = self.world.t
         self._pending_overrun = 0
+        self.converting = None
         return f"OK START {self.rate}"
 
     def cmd_STOP(self, cmd: _Command) -> str:  # noqa: N802, D102
@@ -359,10 +465,11 @@ class DaqEmulator(EmulatedBoard):
             self.send(f"W,OVERRUN,{self._pending_overrun}")
             self._pending_overrun = 0
         self.streaming = False
+        self.converting = None  # a sample still converting is not taken (the firmware sends it)
         return f"OK STOP {n}"
 
     def sample_slots(self, t0: float, t1: float) -> np.ndarray:
-        """Slot numbers k (sample at ``t_start + k / rate``) with t0 < time <= t1."""
+        """Slot numbers k (sample at ``t_start + k / rate``) not yet sent, with time <= t1."""
         if not self.streaming or self.hung or self.disconnected:
             return np.zeros(0, dtype=np.int64)
         period = 1.0 / self.rate
@@ -371,10 +478,28 @@ class DaqEmulator(EmulatedBoard):
             return np.zeros(0, dtype=np.int64)
         return np.arange(self._next_slot, k_last + 1, dtype=np.int64)
 
-    @staticmethod
-    def payload(counts: np.ndarray, steps: np.ndarray) -> list[str]:
-        """The fields after ``t_us`` of each data line: ``<adc>,<steps>`` (one channel, one axis)."""
-        return [f"{c},{s}" for c, s in zip(counts.tolist(), steps.tolist(), strict=True)]
+    def payload(self, counts: np.ndarray, steps: np.ndarray) -> list[str]:
+        """``<adc_0>,...,<adc_{C-1}>,<steps_0>,...,<steps_{A-1}>`` per row of ``counts``, ``steps``."""
+        counts, steps = np.atleast_2d(counts), np.atleast_2d(steps)
+        if counts.shape[1] == steps.shape[1] == 1:  # the paper's build, the common case: quickly
+            return [f"{c},{s}" for c, s in zip(counts[:, 0].tolist(), steps[:, 0].tolist(), strict=True)]
+        both = np.concatenate([counts, steps], axis=1).astype(np.int64)
+        return [",".join(map(str, row)) for row in both.tolist()]
+
+    def steps_at(self, times: np.ndarray, step_t: np.ndarray, step_axes: np.ndarray,
+                 step_signs: np.ndarray) -> np.ndarray:  # fmt: skip
+        """Each axis's count at the sample instants (a step at a sample's instant counts), shape (n, A)."""
+        out = np.empty((len(times), self.limits.axes), dtype=np.int64)
+        for a in range(self.limits.axes):
+            sel = step_axes == a
+            csum = np.concatenate([[0], np.cumsum(step_signs[sel])])
+            out[:, a] = self.step_counts[a] + csum[np.searchsorted(step_t[sel], times, side="right")]
+        return out
+
+    def count(self, step_axes: np.ndarray, step_signs: np.ndarray) -> None:
+        """Add the steps of an interval to each axis's count."""
+        for a in range(self.limits.axes):
+            self.step_counts[a] += int(step_signs[step_axes == a].sum())
 
     def emit_samples(
         self, slots: np.ndarray, times: np.ndarray, counts: np.ndarray, steps: np.ndarray
@@ -419,13 +544,7 @@ class DaqEmulator(EmulatedBoard):
                     continue
                 line = frame(body)
                 if f.corrupt and rng.random() < f.corrupt:
-                    pos = int(rng.integers(0, len(line) - 1))
-                    b = bytearray(line)
-                    new = b[pos]
-                    while new in (b[pos], 0x0A, 0x0D):
-                        new = int(rng.integers(32, 127))
-                    b[pos] = new
-                    line = bytes(b)
+                    line = _damaged(line, rng)
                     self.injected["corrupted"] += 1
                 lines.append(line)
             else:
@@ -437,162 +556,172 @@ class DaqEmulator(EmulatedBoard):
 
 @dataclass
 class _Item:
-    direction: int
-    n_steps: int
-    interval_us: int
-    dwell_ms: int = -1
-    window_us: int = -1
-    """``MSEG``: the window in which the ``n_steps`` are spread (step k on tick ``ceil(k * 2 W / n)``)."""
+    """One programme item: every axis's signed steps in a window (us), or a dwell (``steps`` None)."""
 
-    @property
-    def duration_us(self) -> float:
-        if self.window_us >= 0:
-            return self.window_us
-        return self.dwell_ms * 1000 if self.dwell_ms >= 0 else self.n_steps * self.interval_us
+    window_us: int
+    steps: tuple[int, ...] | None
 
-    def step_times_us(self) -> np.ndarray:
-        """The item's step instants from its start (us; ``MSEG`` on the firmware's 0.5 us ticks)."""
-        k = np.arange(1, self.n_steps + 1, dtype=np.int64)
-        if self.window_us >= 0:
-            return -(-k * (2 * self.window_us) // self.n_steps) / 2.0
-        return self.interval_us * k
+    def step_times_us(self, axis: int) -> np.ndarray:
+        """Axis ``axis``'s step instants from the item's start, us (on the firmware's 0.5 us ticks)."""
+        n = abs(self.steps[axis]) if self.steps else 0
+        k = np.arange(1, n + 1, dtype=np.int64)
+        return -(-k * (2 * self.window_us) // max(n, 1)) / 2.0
+
+
+_NO_STEPS = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
 
 
 class StepperEmulator(EmulatedBoard):
-    """The stepper board (Arduino Uno + TB6600), in device time.
-
-    It runs a programme of up to 64 items, or a stream of set-points shaped by a loaded shaper
-    (:mod:`helpers.virtual.emulator.stream_mode`).
-    """
+    """The stepper board (Arduino Uno + TB6600 per axis), in device time (see the module's docstring)."""
 
     kind = "stepper"
-    stream_max_delay_us = MAX_DELAY_US
-    """The longest shaper delay ``IMP`` accepts (1 s on a one-axis build)."""
 
-    def __init__(self, world: Any, faults: Faults | None = None) -> None:
-        super().__init__(world, faults)
+    def __init__(self, world: Any, limits: BuildLimits, faults: Faults | None = None) -> None:
+        super().__init__(world, limits, faults)
         self.items: list[_Item] = []
         self.enabled = False
-        self.position = 0
+        self.positions = [0] * limits.axes
+        """Every axis's step count (the board's position)."""
         self.running = False
-        self._step_times = np.zeros(0)
-        self._step_signs = np.zeros(0, dtype=np.int64)
+        self._step_times, self._step_axes, self._step_signs = _NO_STEPS
         self._next = 0
         self._end_t = 0.0
+        self.stream_max_delay_us = MAX_DELAY_US_AXES if limits.axes > 1 else MAX_DELAY_US
+        """The longest shaper delay ``IMP`` accepts (1 s on a one-axis build, 0.62 s on one of several)."""
         self.shaper = ShaperLoader(self.stream_max_delay_us)
         self.stream: StreamMode | None = None
         """The stream in progress (None when not streaming)."""
+
+    @property
+    def position(self) -> int:
+        """Axis 0's step count."""
+        return self.positions[0]
 
     def reset(self) -> None:  # noqa: D102
         self._stop()
         self.items = []
         self.enabled = False
-        self.position = 0
+        self.positions = [0] * self.limits.axes
         self.shaper = ShaperLoader(self.stream_max_delay_us)
         super().reset()
 
     def _stop(self) -> None:
         self.running = False
-        self._step_times = np.zeros(0)
-        self._step_signs = np.zeros(0, dtype=np.int64)
+        self._step_times, self._step_axes, self._step_signs = _NO_STEPS
         self._next = 0
         self.stream = None
 
-    def cmd_CLEAR(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 0):
-            return err
+    def _positions(self, word: str) -> str:
+        return f"{word} " + " ".join(map(str, self.positions))
+
+    # --- the programme ------------------------------------------------------------------------------
+    def _locked(self) -> str | None:
+        """The firmware's ``editable()``: no programme edit while it runs or a stream holds its table."""
         if self.running:
             return "ERR STATE running"
+        if self.stream is not None and self.limits.axes > 1:
+            return "ERR STATE streaming"
+        return None
+
+    def _add(self, item: _Item) -> str | None:
+        if len(self.items) >= self.limits.programme_max:
+            return f"ERR FULL {self.limits.programme_max} items"
+        self.items.append(item)
+        return None
+
+    def cmd_CLEAR(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 0) or self._locked():
+            return err
         self.items = []
         return "OK CLEAR"
 
     def cmd_SEG(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 3):
+        if err := self._arg_error(cmd, 3) or self._locked():
             return err
-        if self.running:
-            return "ERR STATE running"
+        lim = self.limits
         d, n, iv = cmd.args
         if d not in (1, -1):
             return "ERR RANGE dir must be 1 or -1"
-        if not 1 <= n <= MAX_TRAVEL_STEPS:
-            return f"ERR RANGE n_steps 1-{MAX_TRAVEL_STEPS}"
-        if not MIN_INTERVAL_US <= iv <= MAX_INTERVAL_US:
-            return f"ERR RANGE interval {MIN_INTERVAL_US}-{MAX_INTERVAL_US} us"
-        if len(self.items) >= MAX_ITEMS:
-            return f"ERR FULL {MAX_ITEMS} items"
-        self.items.append(_Item(d, n, iv))
-        return f"OK SEG {len(self.items)}"
+        if not 1 <= n <= lim.span(0):
+            return f"ERR RANGE n_steps 1-{lim.span(0)}"
+        if not lim.min_interval_us <= iv <= lim.max_interval_us:
+            return f"ERR RANGE interval {lim.min_interval_us}-{lim.max_interval_us} us"
+        steps = (d * n,) + (0,) * (lim.axes - 1)
+        return self._add(_Item(n * iv, steps)) or f"OK SEG {len(self.items)}"
 
     def cmd_MSEG(self, cmd: _Command) -> str:  # noqa: N802, D102
-        # one axis (the paper's build): MSEG <window_us> <n_0>
-        if err := self._arg_error(cmd, 2):
+        lim = self.limits
+        if cmd.bad or len(cmd.args) != 1 + lim.axes:
+            return f"ERR ARG MSEG needs {1 + lim.axes} integers"
+        if err := self._locked():
             return err
-        if self.running:
-            return "ERR STATE running"
-        window, n = cmd.args
-        if not 1 <= window <= 255 * MAX_INTERVAL_US:
-            return f"ERR RANGE window 1-{255 * MAX_INTERVAL_US} us"
-        if not -MAX_TRAVEL_STEPS <= n <= MAX_TRAVEL_STEPS:
-            return f"ERR RANGE axis 0 steps -{MAX_TRAVEL_STEPS}..{MAX_TRAVEL_STEPS}"
-        if n and not abs(n) * MIN_INTERVAL_US <= window <= abs(n) * MAX_INTERVAL_US:
-            return f"ERR RANGE axis 0 interval {MIN_INTERVAL_US}-{MAX_INTERVAL_US} us"
-        if n == 0:
+        window, *ns = cmd.args
+        if not 1 <= window <= 255 * lim.max_interval_us:
+            return f"ERR RANGE window 1-{255 * lim.max_interval_us} us"
+        for a, n in enumerate(ns):
+            span, m = lim.span(a), abs(n)
+            if m > span:
+                return f"ERR RANGE axis {a} steps -{span}..{span}"
+            if m and not m * lim.min_interval_us <= window <= m * lim.max_interval_us:
+                return f"ERR RANGE axis {a} interval {lim.min_interval_us}-{lim.max_interval_us} us"
+        if not any(ns):
             return "ERR RANGE no axis moves (a dwell is WAIT)"
-        if len(self.items) >= MAX_ITEMS:
-            return f"ERR FULL {MAX_ITEMS} items"
-        self.items.append(_Item(1 if n > 0 else -1, abs(n), 0, window_us=window))
-        return f"OK MSEG {len(self.items)}"
+        return self._add(_Item(window, tuple(ns))) or f"OK MSEG {len(self.items)}"
+
+    def cmd_WAIT(self, cmd: _Command) -> str:  # noqa: N802, D102
+        if err := self._arg_error(cmd, 1) or self._locked():
+            return err
+        if not 0 <= cmd.args[0] <= self.limits.max_dwell_ms:
+            return f"ERR RANGE dwell 0-{self.limits.max_dwell_ms} ms"
+        return self._add(_Item(1000 * cmd.args[0], None)) or f"OK WAIT {len(self.items)}"
 
     def cmd_CONFIG(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 0):
             return err
-        return f"OK CONFIG 1 {MAX_ITEMS} {MIN_INTERVAL_US} {MAX_INTERVAL_US} {MAX_TRAVEL_STEPS}"
+        lim = self.limits
+        travel = " ".join(map(str, lim.travel_steps + lim.release_steps))  # releases only when built with
+        return (
+            f"OK CONFIG {lim.axes} {lim.programme_max} {lim.min_interval_us} {lim.max_interval_us} {travel}"
+        )
 
-    def cmd_WAIT(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 1):
-            return err
-        if self.running:
-            return "ERR STATE running"
-        if not 0 <= cmd.args[0] <= MAX_DWELL_MS:
-            return f"ERR RANGE dwell 0-{MAX_DWELL_MS} ms"
-        if len(self.items) >= MAX_ITEMS:
-            return f"ERR FULL {MAX_ITEMS} items"
-        self.items.append(_Item(0, 0, 0, cmd.args[0]))
-        return f"OK WAIT {len(self.items)}"
-
-    def _go_refusal(self, cmd: _Command, has_programme: bool) -> str | None:
-        """``GO``'s refusals in the firmware's order (arguments, running, streaming, empty, disabled)."""
+    def cmd_GO(self, cmd: _Command) -> str:  # noqa: N802, D102
+        # the refusals in the firmware's order: arguments, running, streaming, empty, disabled, travel
         if err := self._arg_error(cmd, 0):
             return err
         if self.running:
             return "ERR STATE running"
         if self.stream is not None:
             return "ERR STATE streaming"
-        if not has_programme:
+        if not self.items:
             return "ERR STATE programme empty"
         if not self.enabled:
             return "ERR STATE driver disabled"
-        return None
-
-    def cmd_GO(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._go_refusal(cmd, bool(self.items)):
-            return err
-        pos, lo, hi = self.position, self.position, self.position
+        lim = self.limits
+        for a, (travel, release) in enumerate(zip(lim.travel_steps, lim.releases, strict=True)):
+            pos = self.positions[a]  # the firmware checks axis by axis
+            for it in self.items:
+                pos += it.steps[a] if it.steps else 0
+                if not -release <= pos <= travel:
+                    where = f"axis {a} " if lim.axes > 1 else ""
+                    return f"ERR RANGE {where}travel {lim.travel_text(a)} steps"
+        times, axes, signs, t0_us = [], [], [], 0.0
         for it in self.items:
-            if it.dwell_ms < 0:
-                pos += it.direction * it.n_steps
-                lo, hi = min(lo, pos), max(hi, pos)
-        if lo < 0 or hi > MAX_TRAVEL_STEPS:
-            return f"ERR RANGE travel 0-{MAX_TRAVEL_STEPS} steps"
-        times, signs, t0_us = [], [], 0
-        for it in self.items:
-            if it.dwell_ms < 0:
-                times.append(t0_us + it.step_times_us())
-                signs.append(np.full(it.n_steps, it.direction, dtype=np.int64))
-            t0_us += it.duration_us
+            if it.steps:
+                for a, n in enumerate(it.steps):
+                    if n:
+                        times.append(t0_us + it.step_times_us(a))
+                        axes.append(np.full(abs(n), a, dtype=np.int64))
+                        signs.append(np.full(abs(n), 1 if n > 0 else -1, dtype=np.int64))
+            t0_us += it.window_us
         go = self.world.t
-        self._step_times = go + (np.concatenate(times) * 1e-6 if times else np.zeros(0))
-        self._step_signs = np.concatenate(signs) if signs else np.zeros(0, dtype=np.int64)
+        if times:
+            t = np.concatenate(times)
+            order = np.argsort(t, kind="stable")  # steps on one tick keep the axes' order
+            self._step_times = go + t[order] * 1e-6
+            self._step_axes = np.concatenate(axes)[order]
+            self._step_signs = np.concatenate(signs)[order]
+        else:
+            self._step_times, self._step_axes, self._step_signs = _NO_STEPS
         self._next = 0
         self._end_t = go + t0_us * 1e-6
         self.running = True
@@ -604,7 +733,7 @@ class StepperEmulator(EmulatedBoard):
             return err
         self._stop()
         self.enabled = False
-        return f"ABORTED {self.position}"
+        return self._positions("ABORTED")
 
     def cmd_EN(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 1):
@@ -619,7 +748,7 @@ class StepperEmulator(EmulatedBoard):
     def cmd_POS(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 0):
             return err
-        return f"OK POS {self.position}"
+        return self._positions("OK POS")
 
     def cmd_MEM(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 0):
@@ -652,8 +781,12 @@ class StepperEmulator(EmulatedBoard):
             return "ERR STATE no shaper"
         if not self.enabled:
             return "ERR STATE driver disabled"
-        self.stream = StreamMode(self.shaper.ready, self.position, self.world.t, self.send)
-        return f"OK STREAM {self.position}"
+        lim = self.limits
+        if lim.axes > 1:
+            self.items = []  # the stream's state takes the programme table's RAM
+        self.stream = StreamMode(self.shaper.ready, list(self.positions), lim.travel_steps, self.world.t,
+                                 self.send, lim.releases)  # fmt: skip
+        return f"OK STREAM {self.positions[0]}"
 
     def cmd_V(self, cmd: _Command) -> str:  # noqa: N802, D102
         if err := self._arg_error(cmd, 1):
@@ -664,8 +797,9 @@ class StepperEmulator(EmulatedBoard):
 
     def cmd_MV(self, cmd: _Command) -> str:  # noqa: N802, D102
         # one axis (the paper's build): MV <v_0> is V <v_0>, answered OK MV
-        if err := self._arg_error(cmd, 1):
-            return err
+        axes = self.limits.axes
+        if cmd.bad or len(cmd.args) != axes:
+            return f"ERR ARG MV needs {axes} integer{'s' if axes > 1 else ''}"
         if self.stream is None:
             return "ERR STATE not streaming"
         return self.stream.setpoints(cmd.args)
@@ -678,31 +812,32 @@ class StepperEmulator(EmulatedBoard):
         return self.stream.end()
 
     # --- device time --------------------------------------------------------------------------------
-    def steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
-        """Take the steps due at or before ``t1`` (updating the position).
+    def steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Take the steps due at or before ``t1``: ``(times, axes, signs)`` (the positions updated).
 
         A programme's ``DONE`` is queued by the world (:meth:`finish_if_due`); a stream's control ticks run
         here, and its notices and ``DONE`` are queued at the tick that produces them.
         """
         if self.hung or self.disconnected:
-            return np.zeros(0), np.zeros(0, dtype=np.int64)
-        if self.stream is not None:
-            times, signs = self.stream.steps_until(t1)
-            self.position += int(signs.sum())
-            if self.stream.finished:
-                if self.stream.session.watchdog:  # the watchdog's stream ends with the driver disabled
-                    self.enabled = False
-                self.stream = None
-                self.send(f"DONE {self.position}")
-            return times, signs
-        if not self.running:
-            return np.zeros(0), np.zeros(0, dtype=np.int64)
-        j = int(np.searchsorted(self._step_times, t1 + 1e-12, side="right"))
-        times = self._step_times[self._next : j]
-        signs = self._step_signs[self._next : j]
-        self._next = j
-        self.position += int(signs.sum())
-        return times, signs
+            return _NO_STEPS
+        stream = self.stream
+        if stream is not None:
+            times, axes, signs = stream.steps_until(t1)
+        elif self.running:
+            j = int(np.searchsorted(self._step_times, t1 + 1e-12, side="right"))
+            sl = slice(self._next, j)
+            times, axes, signs = self._step_times[sl], self._step_axes[sl], self._step_signs[sl]
+            self._next = j
+        else:
+            return _NO_STEPS
+        for a in range(self.limits.axes):
+            self.positions[a] += int(signs[axes == a].sum())
+        if stream is not None and stream.finished:
+            if stream.session.watchdog:  # the watchdog's stream ends with the driver disabled
+                self.enabled = False
+            self.stream = None
+            self.send(self._positions("DONE"))
+        return times, axes, signs
 
     def next_event(self) -> float:
         """Device time of the next event (a programme's ``DONE``, a stream's control tick), or inf."""
@@ -711,7 +846,7 @@ class StepperEmulator(EmulatedBoard):
         return self._end_t if self.running else math.inf
 
     def finish_if_due(self, t1: float) -> None:
-        """Send ``DONE <position>`` once the programme's last item has finished."""
+        """Send ``DONE <position> ...`` once the programme's last item has finished."""
         if self.running and self._end_t <= t1 + 1e-12:
             self.running = False
-            self.send(f"DONE {self.position}")
+            self.send(self._positions("DONE"))

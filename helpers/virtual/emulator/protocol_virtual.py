@@ -1,13 +1,20 @@
 """pyserial URL handler ``virtual://``: the emulated boards of the virtual rig, in-process.
 
-URLs: ``virtual://daq?rig=<name>`` and ``virtual://stepper?rig=<name>``; the same rig name gives the same
-:class:`helpers.virtual.emulator.world.VirtualWorld` (one plant, one device clock). Query options:
+A driver gives the world its rig as a value: it opens ``virtual://daq?world=<name>`` and
+``virtual://stepper?world=<name>`` with ``serial.serial_for_url(url, do_not_open=True)``, sets ``port.rig =
+rig`` (a :class:`helpers.rigfile.RigFile`), then calls ``port.open()``. The port finds, or builds
+(:func:`helpers.virtual.emulator.world.build_world`), the world keyed by ``(name, rig.hash)``: one plant and
+one device clock for both boards; the default name is the rig's name. So two rigs in one process are two
+worlds. ``rig=<name>`` is the old spelling of ``world=<name>``; a port opened without ``port.rig`` (today's
+drivers) finds the one world of that name, or builds one of the transitional
+:func:`~helpers.virtual.emulator.world.legacy_rig`. Query options:
 
 - ``seed`` (sensor noise and fault generators), ``t0_us`` (clock offset), ``load_n`` (VIRTUAL calibration
-  fixture: a known load in N hung on the load cell) -- used when the world is created;
+  fixture: a known load in N hung on the load cells) -- used when the world is created;
 - ``reset_on_open`` (default 1: opening the port reboots the board and it sends ``HELLO``, as an Arduino does
   when DTR toggles; 0 keeps it running, like a board without auto-reset);
-- faults of this board: ``drop``, ``corrupt``, ``garbage`` (probabilities per data line), ``reset_at``,
+- faults of this board (:class:`helpers.virtual.emulator.boards.Faults`): ``drop``, ``corrupt``, ``garbage``
+  (probabilities per data line), ``drop_replies``, ``corrupt_replies`` (per other line), ``reset_at``,
   ``hang_at``, ``disconnect_at`` (device seconds after the port is opened), ``overrun_every`` (samples).
 
 pyserial finds this handler when ``"helpers.virtual.emulator"`` is in ``serial.protocol_handler_packages``;
@@ -25,13 +32,11 @@ from typing import Any
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from helpers.virtual.emulator.boards import Disconnected, Faults
-from helpers.virtual.emulator.tendon_world import build_world
+from helpers.virtual.emulator.boards import FAULT_OPTIONS, Disconnected, Faults
 from helpers.virtual.emulator.world import VirtualWorld, get_world
 
 _WORLD_OPTIONS = ("seed", "t0_us", "load_n")
-_PORT_OPTIONS = ("rig", "reset_on_open")
-_FAULT_OPTIONS = ("drop", "corrupt", "garbage", "reset_at", "hang_at", "disconnect_at", "overrun_every")
+_PORT_OPTIONS = ("world", "rig", "reset_on_open")
 
 
 class Serial(SerialBase):
@@ -40,6 +45,8 @@ class Serial(SerialBase):
     BAUDRATES = (9600, 19200, 38400, 57600, 115200, 230400, 250000, 500000, 1000000)
 
     def __init__(self, *args, **kwargs) -> None:
+        self.rig: Any = None
+        """The rig file (:class:`helpers.rigfile.RigFile`) whose world to open: set it before :meth:`open`."""
         self.world: VirtualWorld | None = None
         self.board = None
         self._rx = bytearray()
@@ -53,14 +60,18 @@ class Serial(SerialBase):
             raise SerialException("Port must be configured before it can be used.")
         kind, options = self.from_url(self._port)
         world_options = {k: options[k] for k in _WORLD_OPTIONS if k in options}
-        self.world = get_world(options.get("rig", "default"), world_options, build_world)
+        name = options.get("world", options.get("rig"))
+        try:
+            self.world = get_world(name, self.rig, world_options)
+        except ValueError as exc:
+            raise SerialException(f"virtual://{kind}: {exc}") from None
         board = self.world.daq if kind == "daq" else self.world.stepper
         holder = getattr(board, "port", None)
         if holder is not None and holder is not self and holder.is_open:
-            raise SerialException(f"port busy: virtual://{kind}?rig={self.world.name} is open elsewhere")
+            raise SerialException(f"port busy: virtual://{kind}?world={self.world.name} is open elsewhere")
         board.port = self
         self.board = board
-        faults = {k: options[k] for k in _FAULT_OPTIONS if k in options}
+        faults = {k: options[k] for k in FAULT_OPTIONS if k in options}
         if faults:
             self.board.faults = Faults.from_options(faults)
             for name in ("reset_at", "hang_at", "disconnect_at"):  # relative to now
@@ -78,12 +89,12 @@ class Serial(SerialBase):
         """Parse ``virtual://daq|stepper?option=value&...``."""
         parts = urllib.parse.urlsplit(url)
         if parts.scheme != "virtual":
-            raise SerialException(f"expected a URL of the form virtual://daq?rig=NAME, got {url!r}")
+            raise SerialException(f"expected a URL of the form virtual://daq?world=NAME, got {url!r}")
         kind = parts.netloc or parts.path.strip("/")
         if kind not in ("daq", "stepper"):
             raise SerialException(f"virtual board must be 'daq' or 'stepper', got {kind!r} in {url!r}")
         options = dict(urllib.parse.parse_qsl(parts.query, keep_blank_values=True))
-        unknown = set(options) - set(_WORLD_OPTIONS) - set(_PORT_OPTIONS) - set(_FAULT_OPTIONS)
+        unknown = set(options) - set(_WORLD_OPTIONS) - set(_PORT_OPTIONS) - set(FAULT_OPTIONS)
         if unknown:
             raise SerialException(f"unknown option(s) {sorted(unknown)} in {url!r}")
         return kind, options
@@ -116,10 +127,9 @@ class Serial(SerialBase):
     def twin_tip_um(self, t_us: Any) -> Any:
         """The twin's tip (integer micrometres, clamp frame) at the samples with these ``t_us``, or None.
 
-        Where the world provides it (the several-tendon world): what a recording's optional tip columns hold.
+        Where the plant provides it (the spatial twin): what a recording's optional tip columns hold.
         """
-        fn = getattr(self.world, "tip_um", None)
-        return fn(t_us) if fn is not None else None
+        return self.world.tip_um(t_us) if self.world is not None else None
 
     @property
     def in_waiting(self) -> int:

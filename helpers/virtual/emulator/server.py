@@ -1,6 +1,8 @@
-"""``python -m helpers serve-virtual-rig``: the virtual rig's two boards on pseudo-terminals.
+"""``python -m helpers serve-virtual-rig --rig FILE``: a rig file's two emulated boards on pseudo-terminals.
 
-Creates two pseudo-terminals (``os.openpty``, raw mode), prints their device paths::
+Builds the world of the rig file (:func:`helpers.virtual.emulator.world.build_world`: the boards built for
+its tendons, the planar or the spatial twin), creates two pseudo-terminals (``os.openpty``, raw mode),
+prints their device paths::
 
     daq /dev/pts/5
     stepper /dev/pts/6
@@ -37,11 +39,11 @@ from collections import deque
 from pathlib import Path
 from typing import Any
 
+from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import VIRTUAL_RIG_REGISTRY
-from helpers.virtual.emulator.boards import EmulatedBoard, Faults
-from helpers.virtual.emulator.tendon_world import build_world
-from helpers.virtual.emulator.world import VirtualWorld
+from helpers.virtual.emulator.boards import FAULT_OPTIONS, EmulatedBoard, Faults
+from helpers.virtual.emulator.world import VirtualWorld, build_world
 
 CATCH_UP_S = 0.02
 """Wall seconds the server integrates at most before it reads and answers the ports again."""
@@ -119,6 +121,7 @@ def announce(world: VirtualWorld, ports: dict[str, str], speed: float) -> Path:
     info: dict[str, Any] = {
         "pid": os.getpid(),
         "rig": world.name,
+        "rig_hash": world.rig_hash,
         "speed": speed,
         **ports,
         "source": {"rig": world.name, "speed": speed, **world.info},
@@ -226,7 +229,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="VIRTUAL calibration fixture: a known load (N) hung on the load cell",
     )
-    parser.add_argument("--daq-faults", default="", help="fault options for the DAQ board, e.g. 'drop=0.01'")
+    parser.add_argument("--daq-faults", default="", help="fault options for the DAQ board, e.g. 'drop=0.01' "
+                        "(docs/faults.md, 'Faults the virtual rig injects')")  # fmt: skip
     parser.add_argument("--stepper-faults", default="", help="fault options for the stepper board")
     parser.add_argument(
         "--duration", type=arg_number(0, 1e7, lo_open=True), default=None, help="stop after so many wall s"
@@ -240,20 +244,31 @@ def _rig_name(text: str) -> str:
 
 
 def _faults(text: str) -> Faults:
+    options = dict(urllib.parse.parse_qsl(text.replace(",", "&")))
+    unknown = sorted(set(options) - set(FAULT_OPTIONS))
     try:
-        return Faults.from_options(dict(urllib.parse.parse_qsl(text.replace(",", "&"))))
+        if unknown:
+            raise ValueError(f"unknown {', '.join(unknown)} (known: {', '.join(FAULT_OPTIONS)})")
+        return Faults.from_options(options)
     except (TypeError, ValueError) as exc:
         raise SystemExit(f"invalid fault options {text!r}: {exc}") from None
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the server until Ctrl-C, SIGTERM or SIGHUP (``python -m helpers`` turns them into an interrupt)."""
+def world_of(args: argparse.Namespace) -> VirtualWorld:
+    """The world ``serve-virtual-rig`` serves: the boards and twin of ``--rig``, its seed, load and faults."""
     options = {"seed": str(args.seed)}
     if args.load_n is not None:
         options["load_n"] = str(args.load_n)
-    world = build_world(args.rig_name, options)
+    rig = args.rig if isinstance(args.rig, rigfile.RigFile) else rigfile.load(rigfile.resolve(args.rig))
+    world = build_world(rig, args.rig_name, options)
     world.daq.faults = _faults(args.daq_faults)
     world.stepper.faults = _faults(args.stepper_faults)
+    return world
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the server until Ctrl-C, SIGTERM or SIGHUP (``python -m helpers`` turns them into an interrupt)."""
+    world = world_of(args)
     try:
         dropped = serve(world, speed=args.speed, duration=args.duration)
     except KeyboardInterrupt:

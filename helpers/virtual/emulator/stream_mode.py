@@ -1,19 +1,16 @@
-"""The emulated stepper's streaming mode (``SHAPER``, ``IMP``, ``STREAM``, ``V``, ``MV``, ``END``).
+"""The emulated stepper's streaming mode (``SHAPER``, ``IMP``, ``STREAM``, ``V``, ``MV``, ``END``), A axes.
 
 Every rule and every number comes from :mod:`helpers.board.stream_reference`, the reference of the firmware's
-streaming
-shaper: the impulse checks (:func:`~helpers.board.stream_reference.impulse_problem`), the set-point FIFO,
-``V``, ``END``,
-the watchdog and the control tick (:class:`~helpers.board.stream_reference.StreamSession`), the step times
-(:class:`~helpers.board.stream_reference.Planner`). This module only loads the shaper as the firmware's
-``IMP`` handler
-does, runs the control ticks on the world's device clock (tick k at ``STREAM`` + k x 10 ms) and words the
-replies and notices as the firmware does.
+streaming shaper: the impulse checks (:func:`~helpers.board.stream_reference.impulse_problem`), the set-point
+FIFO, ``V``, ``END``, the watchdog and the control tick (:class:`~helpers.board.stream_reference.
+StreamSession`), the step times (:class:`~helpers.board.stream_reference.Planner`). This module only loads the
+shaper as the firmware's ``IMP`` handler does, runs the control ticks on the world's device clock (tick k at
+``STREAM`` + k x 10 ms) and words the replies and notices as the firmware does.
 
-A board with several axes (:class:`AxesStreamMode`) runs
-:class:`~helpers.board.stream_reference.AxesSession` instead: every axis planned from the one shaper with its
-own travel, ``MV`` for every axis's set-point, the STEP edges 24 us after their ticks (the firmware's
-``STREAM_LEAD_AXES``), the longest delay 0.62 s.
+A build with several axes runs :class:`~helpers.board.stream_reference.AxesSession` instead of the one axis's
+``StreamSession``: every axis planned from the one shaper with its own travel, ``MV`` for every axis's
+set-point, notices naming axes 1.., the STEP edges 24 us after their ticks (the firmware's
+``STREAM_LEAD_AXES``; 16 us on a one-axis build), the longest delay 0.62 s.
 """
 
 from __future__ import annotations
@@ -88,29 +85,41 @@ class ShaperLoader:
 
 
 class StreamMode:
-    """One stream of the emulated stepper, on the world's device clock.
+    """One stream of the emulated stepper, on the world's device clock, for a build of one or several axes.
 
     Parameters
     ----------
     shaper : helpers.board.stream_reference.StreamShaper
-        The loaded shaper.
-    position : int
-        The step count at ``STREAM``.
+        The loaded shaper (every axis's).
+    positions : sequence of int
+        Each axis's step count at ``STREAM``.
+    travels : sequence of int
+        Each axis's travel (the build's).
     t0 : float
         Device time of ``STREAM`` (s): control tick k falls at ``t0 + k * PERIOD_S``.
     send : callable
-        Queues one line from the board (notices).
+        Queues one line from the board (notices, with ``,<axis>`` for axes 1..).
+    releases : sequence of int or None
+        Each axis's paid-out range below zero (the build's; default none).
     """
 
     def __init__(
-        self, shaper: hs.StreamShaper, position: int, t0: float, send: Callable[[str], None]
-    ) -> None:
-        self.session = hs.StreamSession(shaper, position)
+        self, shaper: hs.StreamShaper, positions: Sequence[int], travels: Sequence[int], t0: float,
+        send: Callable[[str], None], releases: Sequence[int] | None = None,
+    ) -> None:  # fmt: skip
+        if len(positions) == 1:  # the one-axis build (the paper's): its session, its travel
+            self.session = hs.StreamSession(shaper, positions[0])
+            self.session.run.planner.travel = travels[0]  # the reference's default is the paper's 156
+            self.edge_s = STEP_EDGE_S
+        else:
+            self.session = hs.AxesSession(shaper, positions, travels, releases)
+            self.edge_s = STEP_EDGE_AXES_S
         self.t0 = t0
         self._send = send
-        self._planned = 0  # planned steps already moved to the pending arrays
+        self._planned = [0] * len(positions)  # each axis's planned steps already moved to the pending arrays
         self._noticed = 0
         self._times = np.zeros(0)
+        self._axes = np.zeros(0, dtype=np.int64)
         self._signs = np.zeros(0, dtype=np.int64)
         self.finished = False
         """True once the stream has stopped (``DONE`` is due)."""
@@ -141,73 +150,7 @@ class StreamMode:
         except hs.StreamRefused as exc:
             return str(exc)
 
-    def _take(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        j = int(np.searchsorted(self._times, t + 1e-12, side="right"))
-        times, signs = self._times[:j], self._signs[:j]
-        self._times, self._signs = self._times[j:], self._signs[j:]
-        return times, signs
-
-    def _tick(self) -> None:
-        alive = self.session.tick()
-        run = self.session.run
-        for n in run.notices[self._noticed :]:
-            self._send(f"N,{n.kind},{n.value}")
-        self._noticed = len(run.notices)
-        planner = run.planner
-        if len(planner.ticks) > self._planned:
-            ticks = np.asarray(planner.ticks[self._planned :], dtype=np.int64)
-            new_times = self.t0 + ticks * hs.TICK_S + STEP_EDGE_S
-            self._times = np.concatenate([self._times, new_times])
-            self._signs = np.concatenate([self._signs, np.asarray(planner.dirs[self._planned :], np.int64)])
-            self._planned = len(planner.ticks)
-        self.finished = not alive
-
-    def steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
-        """Run the control ticks due by ``t1`` and take the steps due by ``t1`` (times in s, signs).
-
-        Stops at the tick where the stream finishes (:attr:`finished`): every step it planned is due by then.
-        """
-        times, signs = [], []
-        while not self.finished and self.next_tick <= t1 + 1e-12:
-            due = self._take(self.next_tick)
-            times.append(due[0])
-            signs.append(due[1])
-            self._tick()
-        due = self._take(t1)
-        times.append(due[0])
-        signs.append(due[1])
-        return np.concatenate(times), np.concatenate(signs)
-
-
-class AxesStreamMode(StreamMode):
-    """One stream of the emulated stepper of a build with several axes, on the world's device clock.
-
-    Parameters
-    ----------
-    shaper : helpers.board.stream_reference.StreamShaper
-        The loaded shaper (every axis's).
-    positions : sequence of int
-        Each axis's step count at ``STREAM``.
-    travels : sequence of int
-        Each axis's travel (the build's).
-    t0 : float
-        Device time of ``STREAM`` (s).
-    send : callable
-        Queues one line from the board (notices, with ``,<axis>`` for axes 1..).
-    releases : sequence of int or None
-        Each axis's paid-out range below zero (the build's; default none).
-    """
-
-    def __init__(
-        self, shaper: hs.StreamShaper, positions: Sequence[int], travels: Sequence[int], t0: float,
-        send: Callable[[str], None], releases: Sequence[int] | None = None,
-    ) -> None:  # fmt: skip
-        super().__init__(shaper, positions[0], t0, send)
-        self.session = hs.AxesSession(shaper, positions, travels, releases)
-        self._planned_axes = [0] * len(positions)
-        self._axes = np.zeros(0, dtype=np.int64)
-
-    def _take_axes(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _take(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         j = int(np.searchsorted(self._times, t + 1e-12, side="right"))
         out = self._times[:j], self._axes[:j], self._signs[:j]
         self._times, self._axes, self._signs = self._times[j:], self._axes[j:], self._signs[j:]
@@ -220,25 +163,29 @@ class AxesStreamMode(StreamMode):
             self._send(n.line)
         self._noticed = len(run.notices)
         times, axes, signs = [self._times], [self._axes], [self._signs]
-        for a, planner in enumerate(run.planners):
-            done = self._planned_axes[a]
+        for a, planner in enumerate(getattr(run, "planners", None) or [run.planner]):
+            done = self._planned[a]
             if len(planner.ticks) > done:
                 ticks = np.asarray(planner.ticks[done:], dtype=np.int64)
-                times.append(self.t0 + ticks * hs.TICK_S + STEP_EDGE_AXES_S)
+                times.append(self.t0 + ticks * hs.TICK_S + self.edge_s)
                 axes.append(np.full(len(ticks), a, dtype=np.int64))
                 signs.append(np.asarray(planner.dirs[done:], dtype=np.int64))
-                self._planned_axes[a] = len(planner.ticks)
+                self._planned[a] = len(planner.ticks)
         if len(times) > 1:
             t, ax = np.concatenate(times), np.concatenate(axes)
             order = np.lexsort((ax, t))  # by time, steps on one tick in the axes' order
             self._times, self._axes, self._signs = t[order], ax[order], np.concatenate(signs)[order]
         self.finished = not alive
 
-    def axis_steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Run the control ticks due by ``t1`` and take the steps due by ``t1``: ``(times, axes, signs)``."""
+    def steps_until(self, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Run the control ticks due by ``t1`` and take the steps due by ``t1``: ``(times, axes, signs)``.
+
+        Times in s (the STEP edges). Stops at the tick where the stream finishes (:attr:`finished`): every
+        step it planned is due by then.
+        """
         parts = []
         while not self.finished and self.next_tick <= t1 + 1e-12:
-            parts.append(self._take_axes(self.next_tick))
+            parts.append(self._take(self.next_tick))
             self._tick()
-        parts.append(self._take_axes(t1))
+        parts.append(self._take(t1))
         return tuple(np.concatenate(p) for p in zip(*parts, strict=True))  # type: ignore[return-value]

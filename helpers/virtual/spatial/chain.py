@@ -483,13 +483,24 @@ class SpatialChain:
                 lam = lam - np.linalg.solve(J, np.where(mask, F, 0.0)[..., None])[..., 0]
         return np.where(ctrl.tension_controlled, lamT, np.where(mask, lam, 0.0))
 
+    def force_grad(self, q: np.ndarray, forces: dict[int, np.ndarray], kin: dict | None = None) -> np.ndarray:
+        """Gradient of ``-sum F_k . p_k``: constant forces ``{node k (1..N): F_k (N, clamp frame)}``."""
+        kin = self.kinematics(q) if kin is None else kin
+        F = np.zeros(kin["p"].shape, dtype=kin["p"].dtype)
+        for node, force in forces.items():
+            if not 1 <= node <= self.N:
+                raise ValueError(f"a force's node must be 1..{self.N}, got {node!r}")
+            F[..., node, :] -= np.asarray(force, dtype=float)
+        return self._generalised(kin, F, np.zeros_like(F))
+
     def potential_grad(
-        self, q: np.ndarray, ctrl: Control, g: np.ndarray | None = None
+        self, q: np.ndarray, ctrl: Control, g: np.ndarray | None = None, forces: dict | None = None
     ) -> tuple[np.ndarray, ...]:
         """Gradient of the potential and the tensions, for the control ``ctrl``.
 
         ``V = elastic + gravity + Phi``, with the tendons' part ``Phi`` having the gradient
-        ``sum lam_i d ell_i/dq - (1/2) d(lam^T H lam)/dq`` at the tensions ``lam`` (envelope theorem).
+        ``sum lam_i d ell_i/dq - (1/2) d(lam^T H lam)/dq`` at the tensions ``lam`` (envelope theorem);
+        ``forces`` adds constant point forces on nodes (:meth:`force_grad`).
 
         Returns
         -------
@@ -502,14 +513,18 @@ class SpatialChain:
         lam = self.tensions(ctrl, ell, H)
         grad = (self.elastic_grad(q) + self.gravity_grad(q, kin, g) + np.einsum("...i,...ik->...k", lam, dl)
                 - 0.5 * self.bow_grad(q, lam, kin))  # fmt: skip
+        if forces:
+            grad = grad + self.force_grad(q, forces, kin)
         return grad, lam, ell
 
-    def hessian(self, q: np.ndarray, ctrl: Control, g: np.ndarray | None = None) -> np.ndarray:
+    def hessian(
+        self, q: np.ndarray, ctrl: Control, g: np.ndarray | None = None, forces: dict | None = None
+    ) -> np.ndarray:
         """Exact Hessian of the potential (complex step on the gradient, one batched call), symmetrised."""
         n = q.size
         h = 1e-30
         Qb = q[None, :] + 1j * h * np.eye(n)
-        grad, _, _ = self.potential_grad(Qb, ctrl, g)
+        grad, _, _ = self.potential_grad(Qb, ctrl, g, forces)
         Hs = grad.imag / h
         return 0.5 * (Hs + Hs.T)
 

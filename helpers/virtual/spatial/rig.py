@@ -25,7 +25,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from helpers.paper import hardware
 from helpers.virtual.parameters import RigParameters
 
 __all__ = [
@@ -154,7 +153,8 @@ class SpatialRig:
         The spatial twin supports the ``stepper+carriage`` actuator with the load cell on the arm side.
     tendons : tuple of TendonSpec
         One to :data:`MAX_TENDONS` tendons; the first is tendon 1. All run straight from eyelet to eyelet
-        through the clamp's guide and every disc and are knotted at the tip disc.
+        through the clamp's guide and every disc and are knotted at the tip disc. None: a bare rod
+        (:mod:`helpers.virtual.spatial.bare_rod`).
     gravity_direction : tuple of 3 floats
         Direction of gravity in the clamp frame (normalised; its size ``arm.g``): ``(-1, 0, 0)`` for the
         paper's horizontal arm with tendon 1 on top, ``(0, 0, 1)`` for an arm hanging from its clamp.
@@ -190,9 +190,10 @@ class SpatialRig:
             )
         tendons = tuple(self.tendons)
         object.__setattr__(self, "tendons", tendons)
-        if not 1 <= len(tendons) <= MAX_TENDONS or not all(isinstance(t, TendonSpec) for t in tendons):
+        if not 0 <= len(tendons) <= MAX_TENDONS or not all(isinstance(t, TendonSpec) for t in tendons):
             raise ValueError(
-                f"SpatialRig.tendons must hold 1 to {MAX_TENDONS} TendonSpec, got {len(tendons)}"
+                f"SpatialRig.tendons must hold 1 to {MAX_TENDONS} TendonSpec (none: a bare rod), "
+                f"got {len(tendons)}"
             )
         angles = [t.angle_deg % 360.0 for t in tendons]
         for i in range(len(angles)):
@@ -339,10 +340,8 @@ class SpatialRig:
 
     def gain_counts_per_n(self, i: int) -> float:
         """ADC counts per newton of tendon ``i``'s load-cell chain."""
-        return (
-            hardware.loop_counts(hardware.LOOP_FULL_A - hardware.LOOP_ZERO_A)
-            / self.tendons[i].load_cell_range_n
-        )
+        zero, full, _, _ = self.arm.loop_a
+        return self.arm.loop_counts(full - zero) / self.tendons[i].load_cell_range_n
 
     def metadata(self) -> dict[str, Any]:
         """Every field as flat JSON values (the arm's under ``arm``, one dict per tendon)."""

@@ -45,20 +45,20 @@ __all__ = [
 
 
 def _newton(chain: SpatialChain, q0: np.ndarray, ctrl: Control, g: np.ndarray | None = None,
-            tol: float = 1e-12, max_iter: int = 60) -> np.ndarray:  # fmt: skip
-    """Damped Newton on the potential's gradient with the exact Hessian."""
+            tol: float = 1e-12, max_iter: int = 60, forces: dict | None = None) -> np.ndarray:  # fmt: skip
+    """Damped Newton on the potential's gradient with the exact Hessian (``forces``: constant point loads)."""
     q = np.array(q0, dtype=float)
     scale = float(chain.kb)
-    g0, _, _ = chain.potential_grad(q, ctrl, g)
+    g0, _, _ = chain.potential_grad(q, ctrl, g, forces)
     for _ in range(max_iter):
         norm = np.linalg.norm(g0) / scale
         if norm < tol:
             return q
-        dq = -np.linalg.solve(chain.hessian(q, ctrl, g), g0)
+        dq = -np.linalg.solve(chain.hessian(q, ctrl, g, forces), g0)
         step = 1.0
         while True:
             qn = q + step * dq
-            gn, _, _ = chain.potential_grad(qn, ctrl, g)
+            gn, _, _ = chain.potential_grad(qn, ctrl, g, forces)
             if np.linalg.norm(gn) / scale < norm or step < 1e-3:
                 break
             step *= 0.5
@@ -527,7 +527,7 @@ def linearise(
     def split(z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         q = z[..., :nq]
         ps = z[..., nq : nq + nt] if free else np.broadcast_to(psi, z.shape[:-1] + (nt,))
-        xs = z[..., -nt:]
+        xs = z[..., z.shape[-1] - nt :]  # the carriages (none for a bare rod)
         return q, ps, xs
 
     def grad(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
