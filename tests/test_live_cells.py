@@ -199,7 +199,7 @@ def test_notebook_04s_live_cell_records_every_system_of_a_condition(tmp_path, mo
         "LIVE": True, "PORTS": _ports(world), "RIG_FILE": PAPER, "REPETITIONS": 1,
         "GROUP": tmp_path / "experiments",
         "REPO_ROOT": tmp_path, "paper": paper, "shapers": {"unshaped": None, "zv": zv, "zvd": zvd},
-        "zeta": paper.ZETA, "omega_d": paper.OMEGA_D, "RIG_FILE": rigfile.default_rig(),
+        "zeta": paper.ZETA, "omega_d": paper.OMEGA_D,
     }  # fmt: skip
     exec(_cell("04_experiments.ipynb", "run_pulse"), namespace)  # noqa: S102
     names = sorted(p.name for p in (tmp_path / "experiments").glob("*.csv"))

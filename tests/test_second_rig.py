@@ -18,7 +18,7 @@ def test_calibration_masses_follow_the_load_cell(shipped_rig):  # rig-parametris
     assert calibration_masses_kg(20.0) == PAPER_MASSES_KG == (0.0, 0.2, 0.5, 1.0, 1.5, 1.9)
     assert calibration_masses_kg(10.0) == (0.0, 0.1, 0.25, 0.5, 0.75, 0.95)
     # the host's masses (record calibration) are its rig's: within the load cell's range, below saturation
-    CALIBRATION_MASSES_KG = calibration_masses_kg(rigfile.load(shipped_rig.path).tendons[0].load_cell_range_n)  # noqa: N806
+    CALIBRATION_MASSES_KG = calibration_masses_kg(shipped_rig.load().tendons[0].load_cell_range_n)  # noqa: N806
     assert CALIBRATION_MASSES_KG == shipped_rig.calibration_masses_kg
     range_n = shipped_rig.hw("load_cell_range_n")
     assert max(CALIBRATION_MASSES_KG) * 9.80665 < range_n

@@ -152,12 +152,7 @@ def open_port(url: str, kind: str, baudrate: int, timeout: float, rig: Any = Non
         port = serial.serial_for_url(url, baudrate=baudrate, timeout=0.05, write_timeout=timeout,
                                      exclusive=True, do_not_open=True)  # fmt: skip
         port.rig = rig
-        try:
-            port.open()
-        except serial.SerialException as exc:  # an emulator that names its worlds by rig= (before world=)
-            if "unknown option" not in str(exc) or "world=" not in url:
-                raise
-            return open_port(url.replace("world=", "rig="), kind, baudrate, timeout, rig)
+        port.open()
         return port
     except serial.SerialException as exc:
         if "exclusive" in str(exc) or "busy" in str(exc):
