@@ -56,7 +56,7 @@ def test_a_pulse_records_its_programme_and_the_rigs_metadata(tmp_path, shaped):
     assert meta["scenario"]["system"] == ("zvd" if shaped else "unshaped")
     assert meta["rig"]["hash"] == rigfile.load(REPO_ROOT / "rigs" / "paper.toml").hash
     assert meta["firmware"]["daq"].startswith(FW_VERSION + "+") and meta["status"] == "complete"
-    assert meta["source"]["kind"] == "virtual-rig" and meta["calibration"]["origin"] == "test double"
+    assert meta["source"]["kind"] == "virtual-rig" and meta["calibration"]["origin"] == ["test double"]
     # a deterministic world: the same samples as the full rig's, and the whole programme in them
     assert live.frame[["t_us", "adc", "steps"]].equals(
         recordings.load(ref.path).frame[["t_us", "adc", "steps"]]

@@ -349,7 +349,7 @@ def test_tendons_pay_out_below_rest_down_to_the_release_and_home_pulls_them_back
     assert four_rig.positions() == (0, 0, 0, 0)
 
 
-# --- recordings: version 3 for several tendons, version 2 for one ----------------------------------------
+# --- recordings: version 4 for every tendon count, version 2 (before it) still read ---------------------
 def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
     """A version-2 recording (the one-tendon layout before version 4) loads with the one-tendon names too."""
     meta = {
@@ -379,12 +379,12 @@ def tendon_recording_path(four_rig, tmp_path_factory):
     return path
 
 
-def test_a_four_tendon_recording_round_trips_as_version_3(tendon_recording_path) -> None:
+def test_a_four_tendon_recording_round_trips_as_version_4(tendon_recording_path) -> None:
     path = tendon_recording_path
     header = "seq,t_us,adc_0,adc_1,adc_2,adc_3,steps_0,steps_1,steps_2,steps_3,tip_x_um,tip_y_um,tip_z_um"
     assert path.read_text().splitlines()[0] == header  # derived columns are never stored; the twin's tip is
     rec = recordings.load(path)
-    assert (rec.meta["schema_version"], rec.meta["tendons"], rec.tendons) == (3, 4, 4)
+    assert (rec.meta["schema_version"], rec.meta["tendons"], rec.tendons) == (4, 4, 4)
     assert rec.meta["rig"]["name"] == "four-tendon"
     f = rec.frame
     assert [f"tension_n_{i}" in f and f"cable_mm_{i}" in f for i in range(4)] == [True] * 4
@@ -429,7 +429,7 @@ def test_a_recording_without_the_tip_loads_unchanged(tendon_recording_path, tmp_
                     "offset_counts", "mm_per_step")]), "tendons: 3, but the rig file has 4"),
         (lambda m: m["calibration"].update(mm_per_step=[0.25, 0.25]),
          "calibration.mm_per_step: expected a list of 4 numbers > 0 (mm per step, one per tendon)"),
-        (lambda m: m.pop("rig"), "rig: missing (a recording of schema_version 3 keeps its rig file)"),
+        (lambda m: m.pop("rig"), "rig: missing (a recording of schema_version 4 keeps its rig file)"),
         (lambda m: m.update(schema_version=5), "schema_version: unknown 5 (this code reads (1, 2, 3, 4))"),
         (lambda m: m.update(tip="twin"), "tip: expected an object (the twin-provided tip columns' origin"),
         (lambda m: m.pop("tip"), "header"),  # tip columns without the key: not the contract's header

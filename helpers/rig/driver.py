@@ -38,14 +38,12 @@ from pathlib import Path
 from typing import Any, Self
 
 import numpy as np
-import pandas as pd
 
 try:  # a progress bar where tqdm is installed (the [virtual] extra); the paper's part runs without it
     from tqdm.auto import tqdm
 except ImportError:  # pragma: no cover - the light environment
     tqdm = None
 
-from helpers import __version__ as HELPERS_VERSION
 from helpers import recordings
 from helpers.base.noise import white_noise_std
 from helpers.base.signals import Interrupted, run_guard
@@ -55,7 +53,6 @@ from helpers.paper import numbers as paper
 from helpers.paper.tension import LoadCellCalibration, load_calibration
 from helpers.recordings import Recording, RecordingError
 from helpers.recordings.shaping import pulse_metadata
-from helpers.recordings.tendons import TENDON_SCHEMA_VERSION, TIP_COLUMNS, recorded_columns
 from helpers.rig.link import (
     BOOT_TIMEOUT_S,
     BoardError,
@@ -70,7 +67,6 @@ from helpers.rig.link import (
 from helpers.rig.ports import rig_urls, virtual_source_for
 from helpers.rig.safety import SafetyError, check_programme, check_request
 from helpers.rigfile import RigFile, derived
-from helpers.rigfile.recorded import rig_section
 
 REST_WINDOW_S = 0.5
 """Span (s) over which the tension must be steady before a run."""
@@ -226,10 +222,11 @@ class Rig:
             raise
         world_ = self.world
         if world_ is not None:
-            info = world_.info if self.n == 1 else {}  # the spatial twin's nested parameters: not a v3 key
-            self.source = {"kind": "virtual-rig", "via": "in-process", "rig": world_.name, **info}
+            self.source = {"kind": "virtual-rig", "via": "in-process", "rig": world_.name, **world_.info}
         else:
             self.source = virtual_source_for(urls) or {"kind": "hardware"}
+        if any(isinstance(v, dict | list) for v in self.source.get("parameters", {}).values()):
+            del self.source["parameters"]  # the spatial twin's: nested; they follow from `rig`
         self.source["ports"] = {"daq": urls[0].split("?")[0], "stepper": urls[1].split("?")[0]}
         if self.source["kind"] == "hardware" and any(c.source == "virtual-rig" for c in self.calibration):
             warnings.warn(  # the raw ADC counts are recorded either way, so tension can be recomputed
@@ -247,10 +244,7 @@ class Rig:
         if calibration is None and self.n == 1:
             calibration = load_calibration()
         if calibration is None:
-            d, origin = derived(self.rig), f"nominal: rig file {self.rig.name} ({self.rig.hash}), [hardware]"
-            origin += " loop and load_cell_range_n"
-            calibration = [LoadCellCalibration(1 / g, d.offset_counts, mm, origin)
-                           for g, mm in zip(d.gain_counts_per_n, d.mm_per_step, strict=True)]  # fmt: skip
+            calibration = recordings.nominal_calibration(self.rig)
         cals = list(calibration) if isinstance(calibration, list | tuple) else [calibration]
         cals = [LoadCellCalibration.from_dict(c) if isinstance(c, dict) else c for c in cals]
         if len(cals) != self.n:
@@ -685,41 +679,23 @@ class Rig:
     ) -> Recording:
         """A run's recording: its samples since ``START`` and the metadata (``docs/recording_format.md``).
 
-        The one place a run becomes a recording, for every tendon count.
+        The one place a run becomes a recording, for every tendon count: the rows (every tendon's steps from
+        where the run started; the twin's tip where the in-process virtual rig gives it) go to the one writer,
+        :func:`helpers.recordings.from_samples`.
         """
-        width = 2 + self.daq.parser.channels + self.daq.parser.axes
-        rows = np.asarray(self.daq.rows, dtype=np.int64).reshape(-1, width)
-        stats = self.daq.parser.stats
-        counts = {"samples": len(rows)}
-        counts |= {k: int(getattr(stats, k)) for k in ("dropped", "corrupted", "overruns", "implausible")}
-        meta: dict[str, Any] = {
-            "schema_version": recordings.SCHEMA_VERSION if self.n == 1 else TENDON_SCHEMA_VERSION,
-            "rig": rig_section(self.rig), "source": dict(self.source), "scenario": scenario,
-            "calibration": self.calibration[0].to_dict() if self.n == 1 else {
-                key: [getattr(c, key) for c in self.calibration]
-                for key in ("newtons_per_count", "offset_counts", "mm_per_step")
-            } | {"origin": self.calibration[0].origin},
-            "rate_hz": rate_hz, "firmware": {"daq": self.daq.version, "stepper": self.stepper.version},
-            "host": {"helpers": HELPERS_VERSION}, "started_utc": state.started_utc, "status": status,
-            "abort_reason": reason, "counts": counts, "t_go_us": state.t_go_us,
-            "t_go_s": None if state.t_go_us is None or not len(rows) else (state.t_go_us - rows[0][1]) / 1e6,
-            "done_position": None if self.stepper.done is None else self.stepper.done[0],
-        }  # fmt: skip
-        if state.deviation:
-            meta["deviation"] = state.deviation
-        if self.n == 1:
-            frame = recordings.frame_from_rows(rows) if len(rows) else recordings.empty_frame()
-            return Recording(frame=frame, meta=meta)
-        meta |= {"tendons": self.n, "done_positions": None if self.stepper.done is None else
-                 list(self.stepper.done[: self.n])}  # fmt: skip
         c = self.daq.parser.channels
-        cols: dict[str, Any] = {"seq": rows[:, 0], "t_us": rows[:, 1]}
-        cols |= {f"adc_{i}": rows[:, 2 + i] for i in range(self.n)}
-        cols |= {f"steps_{i}": rows[:, 2 + c + i] + state.start[i] for i in range(self.n)}
+        rows = np.asarray(self.daq.rows, dtype=np.int64).reshape(-1, 2 + c + self.daq.parser.axes)
+        rows = np.column_stack([rows[:, : 2 + self.n], rows[:, 2 + c : 2 + c + self.n] + state.start])
         tips = getattr(self.daq.port, "twin_tip_um", lambda t: None)(rows[:, 1]) if len(rows) else None
         if tips is not None:
-            cols |= {col: np.asarray(tips)[:, k] for k, col in enumerate(TIP_COLUMNS)}
-            meta["tip"] = {"origin": "twin-provided: the spatial twin's tip node, clamp frame, at channel "
-                           "0's instant of each sample (not measured)", "unit": "um"}  # fmt: skip
-        frame = pd.DataFrame({k: np.asarray(cols[k], dtype=np.int64) for k in recorded_columns(meta)})
-        return Recording(frame=frame, meta=meta)
+            rows = np.column_stack([rows, np.asarray(tips, dtype=np.int64)])
+        stats, done = self.daq.parser.stats, self.stepper.done
+        return recordings.from_samples(
+            rows, self.rig, self.calibration, source=self.source, scenario=scenario, rate_hz=rate_hz,
+            started_utc=state.started_utc, status=status, reason=reason, t_go_us=state.t_go_us,
+            firmware={"daq": self.daq.version, "stepper": self.stepper.version},
+            counts={k: int(getattr(stats, k)) for k in ("dropped", "corrupted", "overruns", "implausible")},
+            done_position=None if done is None else done[0],
+            done_positions=None if done is None else list(done[: self.n]),
+            **({"deviation": state.deviation} if state.deviation else {}),
+        )  # fmt: skip

@@ -352,9 +352,9 @@ class Pacer:
 class StreamRecord:
     """What a stream did, kept as it goes: the recording's ``scenario.stream`` (``docs/recording_format.md``).
 
-    ``setpoints`` lists tendon 1's set-points (axis 0), ``tendon_setpoints`` every tendon's (several
-    tendons); the digest covers every tendon's, period by period (int16, little-endian). The lists grow in
-    place, so an aborted run's recording says what was sent before it stopped.
+    ``setpoints`` lists tendon 1's set-points (axis 0), ``tendon_setpoints`` every tendon's; the digest covers
+    every tendon's, period by period (int16, little-endian). The lists grow in place, so an aborted run's
+    recording says what was sent before it stopped.
     """
 
     shaper: hs.StreamShaper
@@ -374,8 +374,7 @@ class StreamRecord:
             lead_periods=self.lead_periods, fifo_full=0, underruns=0, late_start_periods=0, notices=[],
             clamps={"speed": 0, "travel": 0}, watchdog=False,
         )  # fmt: skip
-        if self.tendons > 1:
-            self.data["tendon_setpoints"] = [[] for _ in range(self.tendons)]
+        self.data["tendon_setpoints"] = [[] for _ in range(self.tendons)]
 
     @property
     def q_max(self) -> int:
@@ -387,8 +386,7 @@ class StreamRecord:
         self.data["setpoints"].append(int(row[0]))
         for i, u in enumerate(row):
             self._digest.update(int(u).to_bytes(2, "little", signed=True))
-            if self.tendons > 1:
-                self.data["tendon_setpoints"][i].append(int(u))
+            self.data["tendon_setpoints"][i].append(int(u))
         self.data["setpoints_sha256"] = self._digest.hexdigest()
         self.data["periods"].append(int(period))
         self.data["n_setpoints"] += 1
@@ -543,8 +541,7 @@ def stream(
             reach = check_stream(units * unit_mm_s(rig.rig), rig.rig, start, board, allow_clamps).reach
         record = StreamRecord(board, source.name, lead_periods, rig.n)
         units_mm_s = unit_mm_s(rig.rig)
-        record.data.update(lead_in_s=float(lead_in_s), tail_s=float(tail_s),
-                           setpoint_unit_mm_s=units_mm_s[0] if rig.n == 1 else units_mm_s)  # fmt: skip
+        record.data.update(lead_in_s=float(lead_in_s), tail_s=float(tail_s), setpoint_unit_mm_s=units_mm_s)
         scene = {**(scenario or {}), "kind": "stream", "shaper": shaper_meta(shaper), "stream": record.data}
         rig._note_start(scene, start, noise_seed)
         feed = iter([tuple(r) for r in units.tolist()]) if units is not None else source
