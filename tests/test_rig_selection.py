@@ -83,11 +83,11 @@ def test_a_recordings_rig_section_round_trips(rig_file):  # rig-parametrised (te
 
 def test_a_recording_from_the_virtual_rig_keeps_its_rig(tmp_path, shipped_rig):  # rig-parametrised
     rec = _run(tmp_path)
-    assert rec.meta["schema_version"] == 2
+    assert rec.meta["schema_version"] == 4
     assert (rec.meta["rig"]["name"], rec.meta["rig"]["hash"]) == (shipped_rig.data["name"], shipped_rig.hash)
     loaded = recordings.load(rec.path)
     assert recordings.recording_rig(loaded.meta).text == shipped_rig.path.read_text()
-    assert loaded.meta["calibration"]["mm_per_step"] == pytest.approx(shipped_rig.mm_per_step, rel=1e-12)
+    assert loaded.meta["calibration"]["mm_per_step"] == pytest.approx([shipped_rig.mm_per_step], rel=1e-12)
 
 
 def test_a_tampered_rig_section_is_refused(tmp_path):
