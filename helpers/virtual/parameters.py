@@ -26,7 +26,9 @@ from helpers.paper import numbers as paper
 from helpers.paper.backbone import SOURCES as BACKBONE_SOURCES
 from helpers.paper.backbone import Backbone
 
-__all__ = ["RigParameters", "TUNED", "ACTUATORS", "KG_CM", "parameter_table"]
+__all__ = [
+    "RigParameters", "TUNED", "ACTUATORS", "INTEGRATORS", "DEFAULT_INTEGRATOR", "KG_CM", "parameter_table",
+]  # fmt: skip
 
 KG_CM: float = 0.0980665
 """One kilogram-force centimetre in N m."""
@@ -45,6 +47,18 @@ TUNED: dict[str, float] = {
     "beta_chord": 5.753788e-04,
 }
 """The values the rig tuning chose (the defaults of :class:`RigParameters`; ``docs/virtual_rig.md``)."""
+
+INTEGRATORS = ("rk4", "rosw")
+"""The twin's integrators (``docs/virtual_rig.md``, section 2): classical RK4, every term explicit; and the
+Rosenbrock-W step (built on RK4) with the cables' stiffness implicit and everything else explicit."""
+
+DEFAULT_INTEGRATOR: tuple[str, float] = ("rk4", 2.5e-4)
+"""The integrator and its largest step (s) of :class:`RigParameters` (``integrator``, ``max_step``).
+
+The stored data were made with RK4 at 0.25 ms; ``("rosw", 5e-4)`` is the implicit step at its own step
+(``docs/virtual_rig.md``, section 2: its convergence band), the one-line switch for a regeneration of
+``data/``.
+"""
 
 
 def _check(value: object, name: str, positive: bool) -> None:
@@ -134,8 +148,12 @@ class RigParameters(Backbone):
         Load that drives the amplifier's loop to 20 mA (its full-scale setting), N. *Assumed*.
     adc_noise_counts : float
         Gaussian noise of the reading, counts rms. *Assumed*.
+    integrator : str
+        One of :data:`INTEGRATORS` (*numerical*): ``"rk4"`` (every term explicit; its step is limited by the
+        tip disc rocking against the cable, 0.30 ms) or ``"rosw"`` (the cables' stiffness implicit, the step
+        set by the remaining modes and by accuracy).
     max_step : float
-        Largest RK4 step, s (*numerical*).
+        Largest integrator step, s (*numerical*).
     """
 
     elements_per_disc: int = 1
@@ -173,7 +191,8 @@ class RigParameters(Backbone):
     amp_bandwidth_hz: float = 1000.0
     span_n: float = 20.0
     adc_noise_counts: float = 0.5
-    max_step: float = 2.5e-4
+    integrator: str = DEFAULT_INTEGRATOR[0]
+    max_step: float = DEFAULT_INTEGRATOR[1]
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -192,6 +211,10 @@ class RigParameters(Backbone):
                 raise ValueError(f"RigParameters.{name} must be a positive integer, got {value!r}")
         if self.actuator not in ACTUATORS:
             raise ValueError(f"RigParameters.actuator must be one of {ACTUATORS}, got {self.actuator!r}")
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(
+                f"RigParameters.integrator must be one of {INTEGRATORS}, got {self.integrator!r}"
+            )
         if self.torque_law not in ("sin", "linear"):
             raise ValueError(f"RigParameters.torque_law must be 'sin' or 'linear', got {self.torque_law!r}")
         if self.load_cell_side not in ("arm", "spool"):
@@ -480,6 +503,11 @@ _SOURCES: dict[str, tuple[str, str, str]] = {
     "span_n": ("N", "assumed", "4-20 mA over 0-20 N: Table II's 17.7 N reads 558 counts, nothing clips"),
     "adc_noise_counts": ("counts", "assumed", "0.5 count rms: the paper's unshaped 10 mm settling (1.2 s "
                          "in a +-0.13 N band) rules out 1 count (0.04 N) rms on this chain"),
+    "integrator": (
+        "-",
+        "numerical",
+        "rk4: every term explicit; rosw: the cables' stiffness implicit (docs/virtual_rig.md, section 2)",
+    ),
     "max_step": (
         "s",
         "numerical",
