@@ -27,7 +27,8 @@ from helpers.paper.backbone import SOURCES as BACKBONE_SOURCES
 from helpers.paper.backbone import Backbone
 
 __all__ = [
-    "RigParameters", "TUNED", "ACTUATORS", "INTEGRATORS", "DEFAULT_INTEGRATOR", "KG_CM", "parameter_table",
+    "RigParameters", "TUNED", "ACTUATORS", "INTEGRATORS", "INTEGRATOR_STEPS", "DEFAULT_INTEGRATOR", "KG_CM",
+    "parameter_table",
 ]  # fmt: skip
 
 KG_CM: float = 0.0980665
@@ -50,14 +51,19 @@ TUNED: dict[str, float] = {
 
 INTEGRATORS = ("rk4", "rosw")
 """The twin's integrators (``docs/virtual_rig.md``, section 2): classical RK4, every term explicit; and the
-Rosenbrock-W step (built on RK4) with the cables' stiffness implicit and everything else explicit."""
+Rosenbrock-W step (built on RK4) with the elastic stiffness (bending, cables) implicit and everything else
+explicit."""
 
-DEFAULT_INTEGRATOR: tuple[str, float] = ("rk4", 2.5e-4)
-"""The integrator and its largest step (s) of :class:`RigParameters` (``integrator``, ``max_step``).
+INTEGRATOR_STEPS: dict[str, float] = {"rk4": 2.5e-4, "rosw": 5e-4}
+"""Each integrator's largest step (s) for the rig: RK4 within 90 % of its stability limit (the tip disc
+rocking against the cable), the implicit step where its convergence band is met (``docs/virtual_rig.md``,
+section 2)."""
 
-The stored data were made with RK4 at 0.25 ms; ``("rosw", 5e-4)`` is the implicit step at its own step
-(``docs/virtual_rig.md``, section 2: its convergence band), the one-line switch for a regeneration of
-``data/``.
+DEFAULT_INTEGRATOR: tuple[str, float] = ("rk4", INTEGRATOR_STEPS["rk4"])
+"""The integrator and largest step of :class:`RigParameters` (``integrator``, ``max_step``).
+
+The stored data were made with RK4 at 0.25 ms. ``("rosw", INTEGRATOR_STEPS["rosw"])`` is the one-line switch
+for a regeneration of ``data/`` (the rows it moves, and by how much: ``docs/virtual_rig.md``, section 2).
 """
 
 
@@ -235,6 +241,12 @@ class RigParameters(Backbone):
     def replace(self, **changes: object) -> RigParameters:
         """Return a copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+    def with_integrator(self, integrator: str) -> RigParameters:
+        """The same rig integrated by ``integrator`` at its step (:data:`INTEGRATOR_STEPS`)."""
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
+        return self.replace(integrator=integrator, max_step=INTEGRATOR_STEPS[integrator])
 
     # --- the arm --------------------------------------------------------------------------------------
     @property
