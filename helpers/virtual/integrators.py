@@ -278,7 +278,7 @@ def _table_ii(params: RigParameters) -> tuple[pd.DataFrame, tuple[float, float],
                              "peak_n": float(m.loc[motion, "peak_n"]),
                              "overshoot_pct": float(m.loc[motion, "overshoot_pct"]),
                              "settling_ms": float(m.loc[motion, "settling_ms"]),
-                             "steps": plant.integrator_steps})  # fmt: skip
+                             "steps": plant.integrator_steps})  # fmt: skip (that run's: reset per run)
     run = identification_run(params)
     res = identify(run.t, run.adc.astype(float), window=paper.IDENTIFICATION_RUN["window_s"])
     return pd.DataFrame(rows), (float(res.omega_d), float(res.zeta)), cpu
