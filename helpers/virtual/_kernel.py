@@ -912,85 +912,59 @@ def _wsolve(P, wf, n, gh, u, tmp):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _rosw(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, out):
-    """One Rosenbrock-W step from ``y`` (``k1 = f(y)``) over ``h`` into ``out`` (after :func:`wgeom`)."""
+def _step(scheme, y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, out):  # noqa: C901
+    """One step of ``scheme`` from ``y`` (``k1 = f(y)``) over ``h`` into ``out``.
+
+    Classical RK4, or the Rosenbrock-W step (after :func:`wgeom` at ``y``). The three right-hand sides of
+    either are evaluated at one call site (one copy of :func:`rhs_ws` in the compiled code).
+    """
     m = y.shape[0]
     n = mb.shape[0]
-    u1 = bufs[0]
-    u2 = bufs[1]
-    u3 = bufs[2]
-    u4 = bufs[3]
+    implicit = scheme == SCHEME_ROSW
     tmp = bufs[7]
     fb = bufs[8]
     wk = bufs[9]
-    wfactor(P, mb, Jb, h, wf)
-    gh = _RW_GAM * h
-    a21 = _RW_TA[1, 0]
-    a31 = _RW_TA[2, 0]
-    a32 = _RW_TA[2, 1]
-    a41 = _RW_TA[3, 0]
-    a42 = _RW_TA[3, 1]
-    a43 = _RW_TA[3, 2]
-    e21 = _RW_TE[1, 0]
-    e31 = _RW_TE[2, 0]
-    e32 = _RW_TE[2, 1]
-    e41 = _RW_TE[3, 0]
-    e42 = _RW_TE[3, 1]
-    e43 = _RW_TE[3, 2]
-    for i in range(m):
-        u1[i] = gh * k1[i]
-    _wsolve(P, wf, n, gh, u1, wk)
-    for i in range(m):
-        tmp[i] = y[i] + a21 * u1[i]
-    rhs_ws(tmp, fb, drive, P, mb, Jb, disc, W, cw, ws)
-    for i in range(m):
-        u2[i] = gh * fb[i] + e21 * u1[i]
-    _wsolve(P, wf, n, gh, u2, wk)
-    for i in range(m):
-        tmp[i] = y[i] + a31 * u1[i] + a32 * u2[i]
-    rhs_ws(tmp, fb, drive, P, mb, Jb, disc, W, cw, ws)
-    for i in range(m):
-        u3[i] = gh * fb[i] + e31 * u1[i] + e32 * u2[i]
-    _wsolve(P, wf, n, gh, u3, wk)
-    for i in range(m):
-        tmp[i] = y[i] + a41 * u1[i] + a42 * u2[i] + a43 * u3[i]
-    rhs_ws(tmp, fb, drive, P, mb, Jb, disc, W, cw, ws)
-    for i in range(m):
-        u4[i] = gh * fb[i] + e41 * u1[i] + e42 * u2[i] + e43 * u3[i]
-    _wsolve(P, wf, n, gh, u4, wk)
-    m1 = _RW_TM[0]
-    m2 = _RW_TM[1]
-    m3 = _RW_TM[2]
-    m4 = _RW_TM[3]
-    for i in range(m):
-        out[i] = y[i] + m1 * u1[i] + m2 * u2[i] + m3 * u3[i] + m4 * u4[i]
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _step(scheme, y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, out):
-    """One step of the chosen scheme from ``y`` (``k1 = f(y)``) over ``h`` into ``out``."""
-    if scheme == SCHEME_ROSW:
-        _rosw(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, out)
-    else:
-        _rk4(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, bufs[0], bufs[1], bufs[2], bufs[3], out)
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _rk4(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, out):
-    m = y.shape[0]
     hh = 0.5 * h
-    for i in range(m):
-        tmp[i] = y[i] + hh * k1[i]
-    rhs_ws(tmp, k2, drive, P, mb, Jb, disc, W, cw, ws)
-    for i in range(m):
-        tmp[i] = y[i] + hh * k2[i]
-    rhs_ws(tmp, k3, drive, P, mb, Jb, disc, W, cw, ws)
-    for i in range(m):
-        tmp[i] = y[i] + h * k3[i]
-    rhs_ws(tmp, k4, drive, P, mb, Jb, disc, W, cw, ws)
-    h6 = h / 6.0
-    for i in range(m):
-        out[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    gh = _RW_GAM * h
+    if implicit:
+        wfactor(P, mb, Jb, h, wf)
+        u1 = bufs[0]
+        for i in range(m):
+            u1[i] = gh * k1[i]
+        _wsolve(P, wf, n, gh, u1, wk)
+    for s in range(1, 4):
+        # the stage's argument
+        if implicit:
+            for i in range(m):
+                acc = y[i]
+                for j in range(s):
+                    acc += _RW_TA[s, j] * bufs[j, i]
+                tmp[i] = acc
+        else:
+            kp = k1 if s == 1 else bufs[s - 1]
+            c = h if s == 3 else hh
+            for i in range(m):
+                tmp[i] = y[i] + c * kp[i]
+        kout = fb if implicit else bufs[s]  # RK4: k2, k3, k4 in bufs[1..3]
+        rhs_ws(tmp, kout, drive, P, mb, Jb, disc, W, cw, ws)
+        if implicit:
+            u = bufs[s]
+            for i in range(m):
+                acc = gh * fb[i]
+                for j in range(s):
+                    acc += _RW_TE[s, j] * bufs[j, i]
+                u[i] = acc
+            _wsolve(P, wf, n, gh, u, wk)
+    if implicit:
+        for i in range(m):
+            acc = y[i]
+            for j in range(4):
+                acc += _RW_TM[j] * bufs[j, i]
+            out[i] = acc
+    else:
+        h6 = h / 6.0
+        for i in range(m):
+            out[i] = y[i] + h6 * (k1[i] + 2.0 * bufs[1, i] + 2.0 * bufs[2, i] + bufs[3, i])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -1040,7 +1014,6 @@ def integrate(scheme, y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, w
     m = y.shape[0]
     n = mb.shape[0]
     y1 = bufs[4]
-    yt = bufs[5]
     k1n = bufs[6]
     mode2 = P[I_MODE] == 2.0
     implicit = scheme == SCHEME_ROSW
@@ -1052,38 +1025,65 @@ def integrate(scheme, y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, w
         r1 = st[1]
         if implicit:
             wgeom(P, mb, disc, ws, r0 > 0.0, r1 > 0.0, wf)
-        while True:
-            _step(scheme, y, k1, rem, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, y1)
+        search = False  # False: a trial of the rest of the step; True: the search for a transition
+        use1 = False
+        f_lo = 0.0
+        f_hi = 0.0
+        lo = 0.0
+        hi = 0.0
+        side = 0
+        hc = rem
+        it = 0
+        while True:  # one step and one right-hand side per pass (one call site of each)
+            _step(scheme, y, k1, hc if search else rem, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, y1)
             stats[0] += 1
             e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, drive, P, mb, Jb, disc, W, cw, ws)
-            a1 = e1n if mode2 else 1.0
-            if splits >= cap or not _flip(r0, a1, r1, e2n):
-                _filter(filt, rem, _measured(P, st[2], st[3]), _measured(P, l1n, l2n))
-                break
-            stats[1] += 1
-            flip1 = (r0 > 0.0) != (a1 > 0.0)
-            flip2 = (r1 > 0.0) != (e2n > 0.0)
-            if implicit and flip1 and flip2:  # both: the one that comes first on the chord
-                use1 = r0 / (r0 - a1) <= r1 / (r1 - e2n)
-            else:
-                use1 = mode2 and flip1
-            f_lo = r0 if use1 else r1
-            f_hi = a1 if use1 else e2n
-            lo = 0.0
-            hi = rem
-            side = 0
-            hc = rem
-            for _it in range(40):
-                den = f_hi - f_lo
-                hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
-                if not (hc > lo and hc < hi):
-                    hc = 0.5 * (lo + hi)
-                _step(scheme, y, k1, hc, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, yt)
-                stats[0] += 1
-                ec1, ec2, _a, _b = rhs_ws(yt, k1n, drive, P, mb, Jb, disc, W, cw, ws)
-                fc = ec1 if use1 else ec2
-                if abs(fc) < 1e-13 or hi - lo < 1e-11:
+            if not search:
+                a1 = e1n if mode2 else 1.0
+                if splits >= cap or not _flip(r0, a1, r1, e2n):
+                    _filter(filt, rem, _measured(P, st[2], st[3]), _measured(P, l1n, l2n))
                     break
+                stats[1] += 1
+                flip1 = (r0 > 0.0) != (a1 > 0.0)
+                flip2 = (r1 > 0.0) != (e2n > 0.0)
+                if implicit and flip1 and flip2:  # both: the one that comes first on the chord
+                    use1 = r0 / (r0 - a1) <= r1 / (r1 - e2n)
+                else:
+                    use1 = mode2 and flip1
+                f_lo = r0 if use1 else r1
+                f_hi = a1 if use1 else e2n
+                lo = 0.0
+                hi = rem
+                side = 0
+                it = 0
+                search = True
+            else:
+                fc = e1n if use1 else e2n
+                it += 1
+                if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
+                    # to the transition (the search's last point); the rest of the step from there, on the
+                    # branch just crossed into
+                    x0 = _measured(P, st[2], st[3])
+                    for i in range(m):
+                        y[i] = y1[i]
+                        k1[i] = k1n[i]
+                    _filter(filt, hc, x0, _measured(P, l1n, l2n))
+                    st[0] = e1n
+                    st[1] = e2n
+                    st[2] = l1n
+                    st[3] = l2n
+                    r0 = e1n if mode2 else 1.0
+                    r1 = e2n
+                    if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
+                        r0 = 1e-300 if f_hi > 0.0 else -1e-300
+                    if not use1 and (r1 > 0.0) != (f_hi > 0.0):
+                        r1 = 1e-300 if f_hi > 0.0 else -1e-300
+                    rem = rem - hc
+                    splits += 1
+                    if implicit:
+                        wgeom(P, mb, disc, ws, r0 > 0.0, r1 > 0.0, wf)
+                    search = False
+                    continue
                 if (fc > 0.0) == (f_lo > 0.0):
                     lo = hc
                     f_lo = fc
@@ -1096,26 +1096,10 @@ def integrate(scheme, y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, w
                     if side == 1:
                         f_lo *= 0.5
                     side = 1
-            # to the transition; the rest of the step from there, on the branch just crossed into
-            x0 = _measured(P, st[2], st[3])
-            for i in range(m):
-                y[i] = yt[i]
-            ec1, ec2, lc1, lc2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
-            _filter(filt, hc, x0, _measured(P, lc1, lc2))
-            st[0] = ec1
-            st[1] = ec2
-            st[2] = lc1
-            st[3] = lc2
-            r0 = ec1 if mode2 else 1.0
-            r1 = ec2
-            if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
-                r0 = 1e-300 if f_hi > 0.0 else -1e-300
-            if not use1 and (r1 > 0.0) != (f_hi > 0.0):
-                r1 = 1e-300 if f_hi > 0.0 else -1e-300
-            rem = rem - hc
-            splits += 1
-            if implicit:
-                wgeom(P, mb, disc, ws, r0 > 0.0, r1 > 0.0, wf)
+            den = f_hi - f_lo
+            hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
+            if not (hc > lo and hc < hi):
+                hc = 0.5 * (lo + hi)
         for i in range(m):
             y[i] = y1[i]
             k1[i] = k1n[i]
@@ -1151,13 +1135,17 @@ def advance(scheme, y, t0, drive0, d_drive, sample_times, step_times, step_signs
     st[1] = e2
     st[2] = l1
     st[3] = l2
-    for qi in range(sample_times.shape[0]):
+    qi = 0
+    nq = sample_times.shape[0]
+    while qi < nq:  # to the next step or sample: one call site of the integrator
         ts = sample_times[qi]
-        while js < nst and step_times[js] <= ts:
-            integrate(scheme, y, k1, st, step_times[js] - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, wf,
-                      bufs, filt, stats, health)  # fmt: skip
-            if step_times[js] > t:
-                t = step_times[js]
+        to_step = js < nst and step_times[js] <= ts
+        target = step_times[js] if to_step else ts
+        integrate(scheme, y, k1, st, target - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, wf, bufs, filt,
+                  stats, health)  # fmt: skip
+        if target > t:
+            t = target
+        if to_step:
             drive += d_drive * step_signs[js]
             js += 1
             e1, e2, l1, l2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
@@ -1167,12 +1155,10 @@ def advance(scheme, y, t0, drive0, d_drive, sample_times, step_times, step_signs
             st[3] = l2
             if filt[0] <= 0.0:
                 filt[1] = _measured(P, l1, l2)
-        integrate(scheme, y, k1, st, ts - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, wf, bufs, filt, stats,
-                  health)  # fmt: skip
-        if ts > t:
-            t = ts
+            continue
         out_raw[qi] = _measured(P, st[2], st[3])
         out_filt[qi] = filt[1]
         for i in range(n):
             out_theta[qi, i] = y[i]
+        qi += 1
     return t, drive

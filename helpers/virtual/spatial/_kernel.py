@@ -1187,78 +1187,6 @@ def _wsolve(geo, tp, gh, wfb, wft, wfs, u, tmp):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _rosw(y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st, wfb, wft, wfs, bufs, out):
-    """One Rosenbrock-W step from ``y`` (``k1 = f(y)``) over ``h`` into ``out`` (after :func:`wgeom`)."""
-    m = y.shape[0]
-    u1 = bufs[0]
-    u2 = bufs[1]
-    u3 = bufs[2]
-    u4 = bufs[3]
-    tmp = bufs[7]
-    fb = bufs[8]
-    wk = bufs[9]
-    wfactor(geo, mb, Jd, Jp, tp, h, wfb, wft, wfs)
-    gh = _RW_GAM * h
-    a21 = _RW_TA[1, 0]
-    a31 = _RW_TA[2, 0]
-    a32 = _RW_TA[2, 1]
-    a41 = _RW_TA[3, 0]
-    a42 = _RW_TA[3, 1]
-    a43 = _RW_TA[3, 2]
-    e21 = _RW_TE[1, 0]
-    e31 = _RW_TE[2, 0]
-    e32 = _RW_TE[2, 1]
-    e41 = _RW_TE[3, 0]
-    e42 = _RW_TE[3, 1]
-    e43 = _RW_TE[3, 2]
-    for i in range(m):
-        u1[i] = gh * k1[i]
-    _wsolve(geo, tp, gh, wfb, wft, wfs, u1, wk)
-    for i in range(m):
-        tmp[i] = y[i] + a21 * u1[i]
-    rhs(tmp, fb, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for i in range(m):
-        u2[i] = gh * fb[i] + e21 * u1[i]
-    _wsolve(geo, tp, gh, wfb, wft, wfs, u2, wk)
-    for i in range(m):
-        tmp[i] = y[i] + a31 * u1[i] + a32 * u2[i]
-    rhs(tmp, fb, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for i in range(m):
-        u3[i] = gh * fb[i] + e31 * u1[i] + e32 * u2[i]
-    _wsolve(geo, tp, gh, wfb, wft, wfs, u3, wk)
-    for i in range(m):
-        tmp[i] = y[i] + a41 * u1[i] + a42 * u2[i] + a43 * u3[i]
-    rhs(tmp, fb, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for i in range(m):
-        u4[i] = gh * fb[i] + e41 * u1[i] + e42 * u2[i] + e43 * u3[i]
-    _wsolve(geo, tp, gh, wfb, wft, wfs, u4, wk)
-    m1 = _RW_TM[0]
-    m2 = _RW_TM[1]
-    m3 = _RW_TM[2]
-    m4 = _RW_TM[3]
-    for i in range(m):
-        out[i] = y[i] + m1 * u1[i] + m2 * u2[i] + m3 * u3[i] + m4 * u4[i]
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _rk4(y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st, k2, k3, k4, tmp, out):
-    m = y.shape[0]
-    hh = 0.5 * h
-    for i in range(m):
-        tmp[i] = y[i] + hh * k1[i]
-    rhs(tmp, k2, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for i in range(m):
-        tmp[i] = y[i] + hh * k2[i]
-    rhs(tmp, k3, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for i in range(m):
-        tmp[i] = y[i] + h * k3[i]
-    rhs(tmp, k4, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    h6 = h / 6.0
-    for i in range(m):
-        out[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
 def _first_flip(sa, sb, nt):
     """Index (0..2nt-1) of the first transition function that changed sign between ``sa`` and ``sb``, or -1.
 
@@ -1303,13 +1231,57 @@ def _filter(filt, tau, h, x0, x1):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _step(scheme, y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st, wfb, wft, wfs, bufs, out):
-    """One step of ``scheme`` from ``y`` (``k1 = f(y)``) over ``h`` into ``out``."""
-    if scheme == SCHEME_ROSW:
-        _rosw(y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st, wfb, wft, wfs, bufs, out)
+def _step(scheme, y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st, wfb, wft, wfs, bufs, out):  # noqa: C901
+    """One step of ``scheme`` from ``y`` (``k1 = f(y)``) over ``h`` into ``out``.
+
+    Classical RK4, or the Rosenbrock-W step (after :func:`wgeom` at ``y``); the three right-hand sides of
+    either at one call site (one copy of :func:`rhs` in the compiled code).
+    """
+    m = y.shape[0]
+    implicit = scheme == SCHEME_ROSW
+    tmp = bufs[7]
+    fb = bufs[8]
+    wk = bufs[9]
+    hh = 0.5 * h
+    gh = _RW_GAM * h
+    if implicit:
+        wfactor(geo, mb, Jd, Jp, tp, h, wfb, wft, wfs)
+        u1 = bufs[0]
+        for i in range(m):
+            u1[i] = gh * k1[i]
+        _wsolve(geo, tp, gh, wfb, wft, wfs, u1, wk)
+    for s in range(1, 4):
+        if implicit:
+            for i in range(m):
+                acc = y[i]
+                for j in range(s):
+                    acc += _RW_TA[s, j] * bufs[j, i]
+                tmp[i] = acc
+        else:
+            kp = k1 if s == 1 else bufs[s - 1]
+            c = h if s == 3 else hh
+            for i in range(m):
+                tmp[i] = y[i] + c * kp[i]
+        kout = fb if implicit else bufs[s]
+        rhs(tmp, kout, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
+        if implicit:
+            u = bufs[s]
+            for i in range(m):
+                acc = gh * fb[i]
+                for j in range(s):
+                    acc += _RW_TE[s, j] * bufs[j, i]
+                u[i] = acc
+            _wsolve(geo, tp, gh, wfb, wft, wfs, u, wk)
+    if implicit:
+        for i in range(m):
+            acc = y[i]
+            for j in range(4):
+                acc += _RW_TM[j] * bufs[j, i]
+            out[i] = acc
     else:
-        _rk4(y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st, bufs[0], bufs[1], bufs[2], bufs[3],
-             out)  # fmt: skip
+        h6 = h / 6.0
+        for i in range(m):
+            out[i] = y[i] + h6 * (k1[i] + 2.0 * bufs[1, i] + 2.0 * bufs[2, i] + bufs[3, i])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -1343,10 +1315,8 @@ def integrate(scheme, y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, w
     n = mb.shape[0]
     nt = tp.shape[0]
     y1 = bufs[4]
-    yt = bufs[5]
     k1n = bufs[6]
     s1 = sbuf[0]
-    sc = sbuf[1]
     sk = sbuf[2]
     fv = np.empty(1)
     taut1 = np.empty(nt, dtype=np.bool_)
@@ -1363,41 +1333,69 @@ def integrate(scheme, y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, w
         if implicit:
             _branch(st, taut1, taut2, nt)
             wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs)
-        while True:
-            _step(scheme, y, k1, rem, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk, wfb, wft, wfs, bufs,
-                  y1)  # fmt: skip
+        search = False  # False: a trial of the rest of the step; True: the search for a transition
+        row = 0
+        ti = 0
+        f_lo = 0.0
+        f_hi = 0.0
+        lo = 0.0
+        hi = 0.0
+        side = 0
+        hc = rem
+        it = 0
+        while True:  # one step and one right-hand side per pass (one call site of each)
+            _step(scheme, y, k1, hc if search else rem, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk,
+                  wfb, wft, wfs, bufs, y1)  # fmt: skip
             stats[0] += 1
             rhs(y1, k1n, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, s1)
-            which = -1
-            if splits < cap:
-                which = _earliest_flip(sr, s1, nt) if implicit else _first_flip(sr, s1, nt)
-            if which < 0:
-                for i in range(nt):
-                    fv[0] = filt[i]
-                    _filter(fv, tau, rem, st[3, i], s1[3, i])
-                    filt[i] = fv[0]
-                break
-            stats[1] += 1
-            row = which % 2
-            ti = which // 2
-            f_lo = sr[row, ti]
-            f_hi = s1[row, ti]
-            lo = 0.0
-            hi = rem
-            side = 0
-            hc = rem
-            for _it in range(40):
-                den = f_hi - f_lo
-                hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
-                if not (hc > lo and hc < hi):
-                    hc = 0.5 * (lo + hi)
-                _step(scheme, y, k1, hc, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk, wfb, wft, wfs,
-                      bufs, yt)  # fmt: skip
-                stats[0] += 1
-                rhs(yt, k1n, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sc)
-                fc = sc[row, ti]
-                if abs(fc) < 1e-13 or hi - lo < 1e-11:
+            if not search:
+                which = -1
+                if splits < cap:
+                    which = _earliest_flip(sr, s1, nt) if implicit else _first_flip(sr, s1, nt)
+                if which < 0:
+                    for i in range(nt):
+                        fv[0] = filt[i]
+                        _filter(fv, tau, rem, st[3, i], s1[3, i])
+                        filt[i] = fv[0]
                     break
+                stats[1] += 1
+                row = which % 2
+                ti = which // 2
+                f_lo = sr[row, ti]
+                f_hi = s1[row, ti]
+                lo = 0.0
+                hi = rem
+                side = 0
+                it = 0
+                search = True
+            else:
+                fc = s1[row, ti]
+                it += 1
+                if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
+                    # to the transition (the search's last point); the rest of the step from there, on the
+                    # branch just crossed into
+                    for i in range(m):
+                        y[i] = y1[i]
+                        k1[i] = k1n[i]
+                    for i in range(nt):
+                        fv[0] = filt[i]
+                        _filter(fv, tau, hc, st[3, i], s1[3, i])
+                        filt[i] = fv[0]
+                    for r in range(4):
+                        for i in range(nt):
+                            st[r, i] = s1[r, i]
+                    for r in range(2):
+                        for i in range(nt):
+                            sr[r, i] = s1[r, i]
+                    if (sr[row, ti] > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
+                        sr[row, ti] = 1e-300 if f_hi > 0.0 else -1e-300
+                    rem = rem - hc
+                    splits += 1
+                    if implicit:  # the branch from here: the one just crossed into, the others as they are
+                        _branch(sr, taut1, taut2, nt)
+                        wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs)
+                    search = False
+                    continue
                 if (fc > 0.0) == (f_lo > 0.0):
                     lo = hc
                     f_lo = fc
@@ -1410,27 +1408,10 @@ def integrate(scheme, y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, w
                     if side == 1:
                         f_lo *= 0.5
                     side = 1
-            # to the transition; the rest of the step from there, on the branch the trial step ended on
-            for i in range(m):
-                y[i] = yt[i]
-            rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sc)
-            for i in range(nt):
-                fv[0] = filt[i]
-                _filter(fv, tau, hc, st[3, i], sc[3, i])
-                filt[i] = fv[0]
-            for r in range(4):
-                for i in range(nt):
-                    st[r, i] = sc[r, i]
-            for r in range(2):
-                for i in range(nt):
-                    sr[r, i] = sc[r, i]
-            if (sr[row, ti] > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
-                sr[row, ti] = 1e-300 if f_hi > 0.0 else -1e-300
-            rem = rem - hc
-            splits += 1
-            if implicit:  # the branch from here: the one just crossed into, the others as they are
-                _branch(sr, taut1, taut2, nt)
-                wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs)
+            den = f_hi - f_lo
+            hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
+            if not (hc > lo and hc < hi):
+                hc = 0.5 * (lo + hi)
         for i in range(m):
             y[i] = y1[i]
             k1[i] = k1n[i]
@@ -1471,13 +1452,17 @@ def advance(scheme, y, t0, drive, d_drive, sample_times, step_times, step_tendon
     js = 0
     nsteps = step_times.shape[0]
     rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for qi in range(sample_times.shape[0]):
+    qi = 0
+    nq = sample_times.shape[0]
+    while qi < nq:  # to the next step or sample: one call site of the integrator
         ts = sample_times[qi]
-        while js < nsteps and step_times[js] <= ts:
-            integrate(scheme, y, k1, st, step_times[js] - t, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt,
-                      sp, wfb, wft, wfs, bufs, sbuf, filt, tau, stats, health)  # fmt: skip
-            if step_times[js] > t:
-                t = step_times[js]
+        to_step = js < nsteps and step_times[js] <= ts
+        target = step_times[js] if to_step else ts
+        integrate(scheme, y, k1, st, target - t, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, wfb,
+                  wft, wfs, bufs, sbuf, filt, tau, stats, health)  # fmt: skip
+        if target > t:
+            t = target
+        if to_step:
             ti = step_tendon[js]
             drive[ti] += d_drive[ti] * step_signs[js]
             js += 1
@@ -1485,10 +1470,7 @@ def advance(scheme, y, t0, drive, d_drive, sample_times, step_times, step_tendon
             if tau <= 0.0:
                 for i in range(nt):
                     filt[i] = st[3, i]
-        integrate(scheme, y, k1, st, ts - t, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, wfb, wft,
-                  wfs, bufs, sbuf, filt, tau, stats, health)  # fmt: skip
-        if ts > t:
-            t = ts
+            continue
         for i in range(nt):
             out_raw[qi, i] = st[3, i]
             out_filt[qi, i] = filt[i]
@@ -1497,4 +1479,5 @@ def advance(scheme, y, t0, drive, d_drive, sample_times, step_times, step_tendon
         out_tip[qi, 0] = wb[n - 1, W_P + 0]
         out_tip[qi, 1] = wb[n - 1, W_P + 1]
         out_tip[qi, 2] = wb[n - 1, W_P + 2]
+        qi += 1
     return t
