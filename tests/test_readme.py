@@ -71,6 +71,8 @@ HOW: dict[str, str] = {
     "python -m helpers sweep atlas --full": "help",
     "python -m helpers bench sweep": "slow",
     "python -m helpers bench spatial": "slow",
+    "python -m helpers bench segments": "slow",
+    "python -m helpers bench convergence": "slow",
     "python -m helpers virtual-rig frequency-map --preset hanging --directions 0,45 --bends 10": "quick",
     "python -m helpers rig new my_rig.toml": "quick",  # test_a_new_rig_file_is_written_and_checked
     "python -m helpers rig check my_rig.toml": "quick",
@@ -304,14 +306,17 @@ def test_record_all_regenerates_the_paper_experiment(newcomer):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("suite", ["plant", "serial", "serial-tendons", "sweep", "playground", "spatial"])
+@pytest.mark.parametrize(
+    "suite",
+    ["plant", "serial", "serial-tendons", "sweep", "playground", "spatial", "segments", "convergence"],
+)
 def test_bench_prints_its_figures(suite):
     proc = subprocess.run(
         [sys.executable, "-m", "helpers", "bench", suite], capture_output=True, text=True, timeout=3600,
         cwd=REPO_ROOT,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
-    printed = ("x real time", "samples", "scaling ratio", "s of CPU")
+    printed = ("x real time", "samples", "scaling ratio", "s of CPU", "CPU s per s", "largest |d_peak_n|")
     assert any(figure in proc.stdout for figure in printed), proc.stdout
 
 
