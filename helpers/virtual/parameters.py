@@ -518,7 +518,7 @@ _SOURCES: dict[str, tuple[str, str, str]] = {
     "integrator": (
         "-",
         "numerical",
-        "rk4: every term explicit; rosw: the cables' stiffness implicit (docs/virtual_rig.md, section 2)",
+        "rk4: every term explicit; rosw: bending and cables implicit (docs/virtual_rig.md, section 2)",
     ),
     "max_step": (
         "s",
