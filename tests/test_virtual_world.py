@@ -142,8 +142,10 @@ def session(world: VirtualWorld, axes: int) -> bytes:
 CHAIN = {"loop_zero_ma": 4.0, "loop_full_ma": 20.0, "loop_min_ma": 3.8, "loop_max_ma": 20.5,
          "shunt_ohm": 150.0,
          "adc_vref_v": 5.0, "adc_bits": 10}  # fmt: skip
-"""The sensor chain's fields the twin's parameters gained when the rig became a value (issue 36): every
-shipped rig's ``[hardware]`` chain, by hand; the rest of the provenance is as pinned."""
+"""The fields the twin's parameters gained since the pins: the sensor chain's when the rig became a value
+(every shipped rig's ``[hardware]`` chain, by hand) and the integrator (RK4, as before); the rest of the
+provenance is as pinned."""
+ADDED = {**CHAIN, "integrator": "rk4"}
 
 
 def _without_chain(info: dict) -> dict:
@@ -151,7 +153,7 @@ def _without_chain(info: dict) -> dict:
     out = json.loads(json.dumps(info, default=str))
     for holder in (out.get("parameters", {}), out.get("parameters", {}).get("arm", {})):
         if isinstance(holder, dict) and "loop_zero_ma" in holder:
-            assert {k: holder.pop(k) for k in CHAIN} == CHAIN
+            assert {k: holder.pop(k) for k in ADDED} == ADDED
     return out
 
 

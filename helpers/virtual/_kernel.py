@@ -347,6 +347,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
                     i += 1
                 ws[base + 9] = gam / ws[base + 4]  # d H / d gamma_q over the run's length
         hb *= bow
+    ws[o_e] = hb  # (eyelet block 0 is free: the guide bears no force) for the implicit step's cable stiffness
     # ---- actuator and tensions ----
     mode = P[I_MODE]
     e1 = 0.0
@@ -593,22 +594,377 @@ def _measured(P, lam1, lam2):
     return lam1 if (P[I_MODE] == 2.0 and P[I_MEAS] == 1.0) else lam2
 
 
+# ---- the linearly implicit step: the elastic stiffness implicit, everything else explicit ------------------
+# A four-stage Rosenbrock-W method built on classical RK4 (docs/virtual_rig.md, section 2). In its usual form
+#   (I - gamma h T) k_i = h f(y + sum_j a_ij k_j) + h T sum_j g_ij k_j,   y_1 = y + sum_i b_i k_i,
+# with RK4's a_ij and b_i (what T leaves out is integrated as RK4 would), and g_ij, gamma chosen so that the
+# method is of third order for *any* T (the W-method conditions up to order 3: sum b_i g_i = 0,
+# sum b_i a_ij g_j = 0, sum b_i g_ij c_j = 0, sum b_i g_ij g_j = 0, with g_i = sum_{j<=i} g_ij, c_j = sum_k
+# a_jk), L-stable (R(inf) = 0) and A-stable (gamma = 0.44) on what T holds; g_43 = -0.56 gives the smallest
+# fourth-order error on test problems. tests/test_integrators.py checks all of it. The kernel runs the
+# equivalent form with u_i = sum_{j<=i} g_ij k_j, which needs no product with T:
+#   (I - gamma h T) u_i = gamma h f(y + sum_j A_ij u_j) + sum_j E_ij u_j,   y_1 = y + sum_i m_i u_i,
+# A = a G^-1, E = -gamma (G^-1 below its diagonal), m = b G^-1 (G the lower-triangular g_ij, gamma on the
+# diagonal).
+_RW_GAM = 0.44
+_RW_G = (
+    (0.44, 0.0, 0.0, 0.0),
+    (-0.27789473684210519, 0.44, 0.0, 0.0),
+    (-0.60376971813419789, -0.43833554502369693, 0.44, 0.0),
+    (1.7633289099526062, -1.2033289099526061, -0.56, 0.44),
+)
+_RW_A = ((0.0, 0.0, 0.0, 0.0), (0.5, 0.0, 0.0, 0.0), (0.0, 0.5, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
+_RW_B = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+
+
+def _transformed() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``A = a G^-1``, ``E``, ``m = b G^-1`` of the solve-only form.
+
+    Plain float arithmetic, no BLAS: the same bits everywhere.
+    """
+    gi = [[0.0] * 4 for _ in range(4)]  # G^-1 by forward substitution
+    for c in range(4):
+        for r in range(c, 4):
+            acc = 1.0 if r == c else 0.0
+            for k in range(c, r):
+                acc -= _RW_G[r][k] * gi[k][c]
+            gi[r][c] = acc / _RW_G[r][r]
+    a = np.zeros((4, 4))
+    e = np.zeros((4, 4))
+    m = np.zeros(4)
+    for i in range(4):
+        for j in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += _RW_A[i][k] * gi[k][j]
+            a[i, j] = acc
+            if j < i:
+                e[i, j] = -_RW_GAM * gi[i][j]
+        acc = 0.0
+        for k in range(4):
+            acc += _RW_B[k] * gi[k][i]
+        m[i] = acc
+    return a, e, m
+
+
+_RW_TA, _RW_TE, _RW_TM = _transformed()
+
+SCHEMES = ("rk4", "rosw")
+"""The integrators: classical RK4 (every term explicit), and the Rosenbrock-W step with the elastic stiffness
+(bending, cables) implicit (``SCHEME_*`` are their codes in the kernels)."""
+SCHEME_RK4 = 0
+SCHEME_ROSW = 1
+# the implicit step's work array (``wf``), field by field (``F * n + i``): per body ex, ey, wx, wy (the
+# joint's motion and the chord's transform), d ell/d D, d ell/d theta, then the factor's U (3), 1/D',
+# M'^-1 d ell/dD; then the scalars
+(WF_EX, WF_EY, WF_WX, WF_WY, WF_GD, WF_GT, WF_U0, WF_U1, WF_U2, WF_ID, WF_UA) = range(11)
+N_WF_BODY = 11
+(WS_K1, WS_K2, WS_G1P, WS_G1X, WS_G2P, WS_G2X, WS_JP, WS_JX, WS_S, WS_M11, WS_M12, WS_M21, WS_M22, WS_BETA,
+ WS_DET) = range(15)  # fmt: skip
+N_WF_SCAL = 16
+MAX_SPLITS = 16
+"""The implicit step splits a step at up to this many taut/slack transitions, in time order (RK4: at the
+first only, as the stored data were made)."""
+
+
+def wf_size(n: int) -> int:
+    """Floats of the implicit step's work array for ``n`` bodies."""
+    return N_WF_BODY * n + N_WF_SCAL
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
-def _rk4(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, out):
+def wgeom(P, mb, disc, ws, taut1, taut2, wf):
+    """Store what ``T`` needs of the state whose right-hand side :func:`rhs_ws` left in ``ws``.
+
+    ``T = [[0, I], [-M^-1 K, 0]]`` in the coordinates ``z = (theta, psi, x_c)``, ``K`` the elastic stiffness:
+    the bending springs ``EI/l`` on every ``D_i = theta_i - theta_{i-1}`` (diagonal in the joint
+    coordinates), and each taut cable as a spring ``k_j G_j G_j^T`` along the gradient of its stretch: the
+    arm side ``G_2 = (d ell/d theta, 0, 1)`` (stepper: ``(d ell/d theta, R)``; ideal: ``d ell/d theta``)
+    with ``1/(1/k_2 + H)`` (the bowing's compliance in series), the spool side ``G_1 = (0, R, -1)``, ``k_1``.
+    A slack cable (``taut`` False) has none. Stored: each joint's motion (``ex, ey``), the chord's transform
+    (``wx, wy``), the cable's gradient in the joint coordinates (its unit tension's eyelet forces summed
+    inwards) and in ``theta``; the actuator's ``G`` and inverse masses; the stiffnesses. Gravity, damping,
+    eyelet friction, the tension's geometric stiffness and the bowing's gradients stay explicit (a W-method
+    is third order with any ``T``).
+    """
+    n = mb.shape[0]
+    nd = disc.shape[0]
+    ne = nd + 1
+    r = P[I_R]
+    o_e = 40 * n
+    pn = 0.0
+    px = 0.0
+    py = 0.0
+    qq = nd
+    gnext = 0.0
+    for i in range(n - 1, -1, -1):
+        ex = ws[4 * n + i]
+        ey = ws[5 * n + i]
+        wx = ws[2 * n + i]
+        wy = ws[3 * n + i]
+        wf[WF_EX * n + i] = ex
+        wf[WF_EY * n + i] = ey
+        wf[WF_WX * n + i] = wx
+        wf[WF_WY * n + i] = wy
+        if qq >= 1 and disc[qq - 1] - 1 == i:
+            base = o_e + 12 * qq
+            fx = -ws[base + 2]
+            fy = -ws[base + 3]
+            if qq + 1 < ne:
+                fx += ws[base + 12 + 2]
+                fy += ws[base + 12 + 3]
+            pn += -r * (ws[i] * fx + ws[n + i] * fy)
+            px += fx
+            py += fy
+            qq -= 1
+        g = -(pn + ex * px + ey * py)  # d ell / d D_i: minus the unit tension's force on joint i
+        wf[WF_GD * n + i] = g
+        wf[WF_GT * n + i] = g - gnext  # d ell / d theta_i
+        gnext = g
+        pn += wx * px + wy * py
+    x = N_WF_BODY * n
+    for j in range(N_WF_SCAL):
+        wf[x + j] = 0.0
+    mode = P[I_MODE]
+    if taut2 or P[I_BILAT] != 0.0:
+        wf[x + WS_K2] = 1.0 / (1.0 / P[I_K2] + ws[o_e])
+    R = P[I_RSP]
+    if mode == 1.0:
+        wf[x + WS_G2P] = R
+        wf[x + WS_JP] = 1.0 / P[I_JR]
+    elif mode == 2.0:
+        wf[x + WS_G1P] = R
+        wf[x + WS_G1X] = -1.0
+        wf[x + WS_G2X] = 1.0
+        wf[x + WS_JP] = 1.0 / P[I_JR]
+        wf[x + WS_JX] = 1.0 / P[I_MC]
+        if taut1:
+            wf[x + WS_K1] = P[I_K1]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _asolve(wf, n, tau):
+    """``tau <- M'^-1 tau`` for the arm, ``M' = M + beta K_bend`` (:func:`wfactor`'s recursion).
+
+    In: generalised forces on the joints ``D``; out: the absolute angles' response (``theta``).
+    """
+    c0 = 0.0
+    c1 = 0.0
+    c2 = 0.0
+    for i in range(n - 1, -1, -1):
+        uu = tau[i] - (c0 + wf[WF_EX * n + i] * c1 + wf[WF_EY * n + i] * c2)
+        tau[i] = uu
+        ud = uu * wf[WF_ID * n + i]
+        q0 = c0 + wf[WF_U0 * n + i] * ud
+        c1 = c1 + wf[WF_U1 * n + i] * ud
+        c2 = c2 + wf[WF_U2 * n + i] * ud
+        c0 = q0 + wf[WF_WX * n + i] * c1 + wf[WF_WY * n + i] * c2
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    for i in range(n):
+        b1 = a1 + a0 * wf[WF_WX * n + i]
+        b2 = a2 + a0 * wf[WF_WY * n + i]
+        dd = (tau[i] - (wf[WF_U0 * n + i] * a0 + wf[WF_U1 * n + i] * b1 + wf[WF_U2 * n + i] * b2)) \
+            * wf[WF_ID * n + i]  # fmt: skip
+        a0 = a0 + dd
+        a1 = b1 + wf[WF_EX * n + i] * dd
+        a2 = b2 + wf[WF_EY * n + i] * dd
+        tau[i] = a0
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def wfactor(P, mb, Jb, h, wf):
+    """Factor ``I - gamma h T`` for the step ``h`` (after :func:`wgeom`).
+
+    ``(I - gamma h T) u = r`` reduces to ``(M + beta K) u_q = M c`` (``beta = (gamma h)^2``,
+    ``c = r_q + gamma h r_v``). ``M' = M + beta K_bend`` is what the articulated-body recursion factors when
+    each joint's ``D`` gains ``beta EI/l`` (the recursion's inward pass, here, at the stored geometry); the
+    cables' rank-one or rank-two part is added by the Woodbury identity: ``M'^-1 G`` (one more pass) and the
+    2 x 2 matrix ``I + beta K G^T M'^-1 G``.
+    """
+    n = mb.shape[0]
+    gh = _RW_GAM * h
+    beta = gh * gh
+    kb = beta * P[I_KAP]
+    i00 = 0.0
+    i01 = 0.0
+    i02 = 0.0
+    i11 = 0.0
+    i12 = 0.0
+    i22 = 0.0
+    for i in range(n - 1, -1, -1):
+        I00 = Jb[i] + i00
+        I11 = mb[i] + i11
+        I22 = mb[i] + i22
+        ex = wf[WF_EX * n + i]
+        ey = wf[WF_EY * n + i]
+        U0 = I00 + i01 * ex + i02 * ey
+        U1 = i01 + I11 * ex + i12 * ey
+        U2 = i02 + i12 * ex + I22 * ey
+        iD = 1.0 / (U0 + ex * U1 + ey * U2 + kb)
+        wf[WF_U0 * n + i] = U0
+        wf[WF_U1 * n + i] = U1
+        wf[WF_U2 * n + i] = U2
+        wf[WF_ID * n + i] = iD
+        wf[WF_UA * n + i] = wf[WF_GD * n + i]
+        a00 = I00 - U0 * U0 * iD
+        a01 = i01 - U0 * U1 * iD
+        a02 = i02 - U0 * U2 * iD
+        a11 = I11 - U1 * U1 * iD
+        a12 = i12 - U1 * U2 * iD
+        a22 = I22 - U2 * U2 * iD
+        wx = wf[WF_WX * n + i]
+        wy = wf[WF_WY * n + i]
+        Mwx = a11 * wx + a12 * wy
+        Mwy = a12 * wx + a22 * wy
+        i00 = a00 + 2.0 * (a01 * wx + a02 * wy) + wx * Mwx + wy * Mwy
+        i01 = a01 + Mwx
+        i02 = a02 + Mwy
+        i11 = a11
+        i12 = a12
+        i22 = a22
+    ua = wf[WF_UA * n : (WF_UA + 1) * n]
+    _asolve(wf, n, ua)
+    x = N_WF_BODY * n
+    s = 0.0
+    for i in range(n):
+        s += wf[WF_GT * n + i] * ua[i]
+    g1p = wf[x + WS_G1P]
+    g1x = wf[x + WS_G1X]
+    g2p = wf[x + WS_G2P]
+    g2x = wf[x + WS_G2X]
+    jp = wf[x + WS_JP]
+    jx = wf[x + WS_JX]
+    s11 = g1p * g1p * jp + g1x * g1x * jx
+    s12 = g1p * g2p * jp + g1x * g2x * jx
+    s22 = s + g2p * g2p * jp + g2x * g2x * jx
+    K1 = wf[x + WS_K1]
+    K2 = wf[x + WS_K2]
+    m11 = 1.0 + beta * K1 * s11
+    m12 = beta * K1 * s12
+    m21 = beta * K2 * s12
+    m22 = 1.0 + beta * K2 * s22
+    wf[x + WS_S] = s
+    wf[x + WS_M11] = m11
+    wf[x + WS_M12] = m12
+    wf[x + WS_M21] = m21
+    wf[x + WS_M22] = m22
+    wf[x + WS_BETA] = beta
+    wf[x + WS_DET] = 1.0 / (m11 * m22 - m12 * m21)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _wsolve(P, wf, n, gh, u, tmp):
+    """``u <- (I - gh T)^-1 u`` (``tmp``: n floats of work; :func:`wfactor` done for this step).
+
+    Positions ``u_q = c - beta X``, velocities ``u_v = r_v - gh X``, ``X = (M + beta K)^-1 K c``
+    (``c = r_q + gh r_v``): ``K c`` is the bending springs' joint forces on ``c`` plus ``G K G^T c``, and
+    ``(M' + beta G K G^T)^-1`` follows from ``M'^-1`` (:func:`_asolve`) and ``M'^-1 G`` by Woodbury.
+    """
+    x = N_WF_BODY * n
+    beta = wf[x + WS_BETA]
+    kap = P[I_KAP]
+    ip = 2 * n
+    cp = u[ip] + gh * u[ip + 1]
+    cx = u[ip + 2] + gh * u[ip + 3]
+    g1p = wf[x + WS_G1P]
+    g1x = wf[x + WS_G1X]
+    g2p = wf[x + WS_G2P]
+    g2x = wf[x + WS_G2X]
+    K1 = wf[x + WS_K1]
+    K2 = wf[x + WS_K2]
+    jp = wf[x + WS_JP]
+    jx = wf[x + WS_JX]
+    w2 = g2p * cp + g2x * cx
+    cprev = 0.0
+    for i in range(n):
+        c = u[i] + gh * u[n + i]
+        w2 += wf[WF_GT * n + i] * c
+        tmp[i] = kap * (c - cprev)
+        cprev = c
+    _asolve(wf, n, tmp)  # M'^-1 of the bending springs' forces
+    kw1 = K1 * (g1p * cp + g1x * cx)
+    kw2 = K2 * w2
+    # M'^-1 K c = tmp + kw2 M'^-1 g (arm), (G K G^T c) / masses (actuator); then G^T of it
+    yp = (g1p * kw1 + g2p * kw2) * jp
+    yx = (g1x * kw1 + g2x * kw2) * jx
+    v2 = g2p * yp + g2x * yx + kw2 * wf[x + WS_S]
+    for i in range(n):
+        v2 += wf[WF_GT * n + i] * tmp[i]
+    v1 = g1p * yp + g1x * yx
+    r1 = K1 * v1
+    r2 = K2 * v2
+    z1 = (r1 * wf[x + WS_M22] - wf[x + WS_M12] * r2) * wf[x + WS_DET]
+    z2 = (wf[x + WS_M11] * r2 - wf[x + WS_M21] * r1) * wf[x + WS_DET]
+    f2 = kw2 - beta * z2
+    for i in range(n):
+        X = tmp[i] + f2 * wf[WF_UA * n + i]
+        c = u[i] + gh * u[n + i]
+        u[n + i] = u[n + i] - gh * X
+        u[i] = c - beta * X
+    Xp = yp - beta * ((g1p * z1 + g2p * z2) * jp)
+    Xx = yx - beta * ((g1x * z1 + g2x * z2) * jx)
+    u[ip + 1] = u[ip + 1] - gh * Xp
+    u[ip] = cp - beta * Xp
+    u[ip + 3] = u[ip + 3] - gh * Xx
+    u[ip + 2] = cx - beta * Xx
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _step(scheme, y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, out):  # noqa: C901
+    """One step of ``scheme`` from ``y`` (``k1 = f(y)``) over ``h`` into ``out``.
+
+    Classical RK4, or the Rosenbrock-W step (after :func:`wgeom` at ``y``). The three right-hand sides of
+    either are evaluated at one call site (one copy of :func:`rhs_ws` in the compiled code).
+    """
     m = y.shape[0]
+    n = mb.shape[0]
+    implicit = scheme == SCHEME_ROSW
+    tmp = bufs[7]
+    fb = bufs[8]
+    wk = bufs[9]
     hh = 0.5 * h
-    for i in range(m):
-        tmp[i] = y[i] + hh * k1[i]
-    rhs_ws(tmp, k2, drive, P, mb, Jb, disc, W, cw, ws)
-    for i in range(m):
-        tmp[i] = y[i] + hh * k2[i]
-    rhs_ws(tmp, k3, drive, P, mb, Jb, disc, W, cw, ws)
-    for i in range(m):
-        tmp[i] = y[i] + h * k3[i]
-    rhs_ws(tmp, k4, drive, P, mb, Jb, disc, W, cw, ws)
-    h6 = h / 6.0
-    for i in range(m):
-        out[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    gh = _RW_GAM * h
+    if implicit:
+        wfactor(P, mb, Jb, h, wf)
+        u1 = bufs[0]
+        for i in range(m):
+            u1[i] = gh * k1[i]
+        _wsolve(P, wf, n, gh, u1, wk)
+    for s in range(1, 4):
+        # the stage's argument
+        if implicit:
+            for i in range(m):
+                acc = y[i]
+                for j in range(s):
+                    acc += _RW_TA[s, j] * bufs[j, i]
+                tmp[i] = acc
+        else:
+            kp = k1 if s == 1 else bufs[s - 1]
+            c = h if s == 3 else hh
+            for i in range(m):
+                tmp[i] = y[i] + c * kp[i]
+        kout = fb if implicit else bufs[s]  # RK4: k2, k3, k4 in bufs[1..3]
+        rhs_ws(tmp, kout, drive, P, mb, Jb, disc, W, cw, ws)
+        if implicit:
+            u = bufs[s]
+            for i in range(m):
+                acc = gh * fb[i]
+                for j in range(s):
+                    acc += _RW_TE[s, j] * bufs[j, i]
+                u[i] = acc
+            _wsolve(P, wf, n, gh, u, wk)
+    if implicit:
+        for i in range(m):
+            acc = y[i]
+            for j in range(4):
+                acc += _RW_TM[j] * bufs[j, i]
+            out[i] = acc
+    else:
+        h6 = h / 6.0
+        for i in range(m):
+            out[i] = y[i] + h6 * (k1[i] + 2.0 * bufs[1, i] + 2.0 * bufs[2, i] + bufs[3, i])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -637,15 +993,19 @@ def _lag(P, drive, y, n, health):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def integrate(y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, filt, stats, health):  # noqa: C901
-    """Integrate ``y`` (in place) over ``dt`` with constant ``drive``: equal RK4 steps ``<= h_max``.
+def integrate(scheme, y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, wf, bufs, filt, stats,  # noqa: C901
+              health):  # fmt: skip
+    """Integrate ``y`` (in place) over ``dt`` with constant ``drive``: equal steps ``<= h_max`` of ``scheme``.
 
     ``k1`` holds ``f(y)`` on entry and on exit (the evaluation at a step's end is the next step's first
-    stage). ``st = [e1, e2, lam1, lam2]`` of ``y`` (updated). A step across which a cable changes between
-    taut and slack is split at the transition (Illinois method on the step size), so no step straddles the
-    kink of ``max(0, .)``. ``filt = [tau, y]``: the amplifier's low-pass, updated exactly for a tension
-    linear over each step (``tau = 0``: off). ``stats[0]`` counts RK4 steps, ``stats[1]`` transitions;
-    ``health[0]`` is the largest rotor lag ``|psi_cmd - psi|`` seen (rad).
+    stage), and ``ws`` the work of that evaluation. ``st = [e1, e2, lam1, lam2]`` of ``y`` (updated). A step
+    across which a cable changes between taut and slack is split at the transition (Illinois method on the
+    step size), so no step straddles the kink of ``max(0, .)``. With the implicit step (``SCHEME_ROSW``) each
+    step's cable stiffness ``T`` (:func:`wfactor`) is that of the branch the step lies on: the cables taut at
+    its start, and after a transition the branch the trial step ended on. ``filt = [tau, y]``: the
+    amplifier's low-pass, updated exactly for a tension linear over each step (``tau = 0``: off).
+    ``stats[0]`` counts steps, ``stats[1]`` transitions; ``health[0]`` is the largest rotor lag
+    ``|psi_cmd - psi|`` seen (rad).
     """
     if dt <= 0.0:
         return
@@ -653,40 +1013,77 @@ def integrate(y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, fil
     h = dt / nst
     m = y.shape[0]
     n = mb.shape[0]
-    k2 = bufs[0]
-    k3 = bufs[1]
-    k4 = bufs[2]
-    tmp = bufs[3]
     y1 = bufs[4]
-    yt = bufs[5]
     k1n = bufs[6]
     mode2 = P[I_MODE] == 2.0
+    implicit = scheme == SCHEME_ROSW
+    cap = MAX_SPLITS if implicit else 1
     for _ in range(nst):
-        _rk4(y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, y1)
-        stats[0] += 1
-        e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, drive, P, mb, Jb, disc, W, cw, ws)
-        a0 = st[0] if mode2 else 1.0
-        a1 = e1n if mode2 else 1.0
-        if _flip(a0, a1, st[1], e2n):
-            stats[1] += 1
-            use1 = mode2 and ((a0 > 0.0) != (a1 > 0.0))
-            f_lo = st[0] if use1 else st[1]
-            f_hi = e1n if use1 else e2n
-            lo = 0.0
-            hi = h
-            side = 0
-            hc = h
-            for _it in range(40):
-                den = f_hi - f_lo
-                hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
-                if not (hc > lo and hc < hi):
-                    hc = 0.5 * (lo + hi)
-                _rk4(y, k1, hc, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, yt)
-                stats[0] += 1
-                ec1, ec2, _a, _b = rhs_ws(yt, k2, drive, P, mb, Jb, disc, W, cw, ws)
-                fc = ec1 if use1 else ec2
-                if abs(fc) < 1e-13 or hi - lo < 1e-11:
+        rem = h
+        splits = 0
+        r0 = st[0] if mode2 else 1.0  # the transition functions at the piece's start (their signs)
+        r1 = st[1]
+        if implicit:
+            wgeom(P, mb, disc, ws, r0 > 0.0, r1 > 0.0, wf)
+        search = False  # False: a trial of the rest of the step; True: the search for a transition
+        use1 = False
+        f_lo = 0.0
+        f_hi = 0.0
+        lo = 0.0
+        hi = 0.0
+        side = 0
+        hc = rem
+        it = 0
+        while True:  # one step and one right-hand side per pass (one call site of each)
+            _step(scheme, y, k1, hc if search else rem, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, y1)
+            stats[0] += 1
+            e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, drive, P, mb, Jb, disc, W, cw, ws)
+            if not search:
+                a1 = e1n if mode2 else 1.0
+                if splits >= cap or not _flip(r0, a1, r1, e2n):
+                    _filter(filt, rem, _measured(P, st[2], st[3]), _measured(P, l1n, l2n))
                     break
+                stats[1] += 1
+                flip1 = (r0 > 0.0) != (a1 > 0.0)
+                flip2 = (r1 > 0.0) != (e2n > 0.0)
+                if implicit and flip1 and flip2:  # both: the one that comes first on the chord
+                    use1 = r0 / (r0 - a1) <= r1 / (r1 - e2n)
+                else:
+                    use1 = mode2 and flip1
+                f_lo = r0 if use1 else r1
+                f_hi = a1 if use1 else e2n
+                lo = 0.0
+                hi = rem
+                side = 0
+                it = 0
+                search = True
+            else:
+                fc = e1n if use1 else e2n
+                it += 1
+                if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
+                    # to the transition (the search's last point); the rest of the step from there, on the
+                    # branch just crossed into
+                    x0 = _measured(P, st[2], st[3])
+                    for i in range(m):
+                        y[i] = y1[i]
+                        k1[i] = k1n[i]
+                    _filter(filt, hc, x0, _measured(P, l1n, l2n))
+                    st[0] = e1n
+                    st[1] = e2n
+                    st[2] = l1n
+                    st[3] = l2n
+                    r0 = e1n if mode2 else 1.0
+                    r1 = e2n
+                    if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
+                        r0 = 1e-300 if f_hi > 0.0 else -1e-300
+                    if not use1 and (r1 > 0.0) != (f_hi > 0.0):
+                        r1 = 1e-300 if f_hi > 0.0 else -1e-300
+                    rem = rem - hc
+                    splits += 1
+                    if implicit:
+                        wgeom(P, mb, disc, ws, r0 > 0.0, r1 > 0.0, wf)
+                    search = False
+                    continue
                 if (fc > 0.0) == (f_lo > 0.0):
                     lo = hc
                     f_lo = fc
@@ -699,19 +1096,10 @@ def integrate(y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, fil
                     if side == 1:
                         f_lo *= 0.5
                     side = 1
-            # to the transition, then the rest of the step on the other branch
-            x0 = _measured(P, st[2], st[3])
-            for i in range(m):
-                y[i] = yt[i]
-            ec1, ec2, lc1, lc2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
-            xc = _measured(P, lc1, lc2)
-            _filter(filt, hc, x0, xc)
-            _rk4(y, k1, h - hc, drive, P, mb, Jb, disc, W, cw, ws, k2, k3, k4, tmp, y1)
-            stats[0] += 1
-            e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, drive, P, mb, Jb, disc, W, cw, ws)
-            _filter(filt, h - hc, xc, _measured(P, l1n, l2n))
-        else:
-            _filter(filt, h, _measured(P, st[2], st[3]), _measured(P, l1n, l2n))
+            den = f_hi - f_lo
+            hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
+            if not (hc > lo and hc < hi):
+                hc = 0.5 * (lo + hi)
         for i in range(m):
             y[i] = y1[i]
             k1[i] = k1n[i]
@@ -723,9 +1111,9 @@ def integrate(y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, fil
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def advance(y, t0, drive0, d_drive, sample_times, step_times, step_signs, h_max, P, mb, Jb, disc, W, cw,
-            filt, out_raw, out_filt, out_theta, stats, health):  # fmt: skip
-    """Advance ``y`` from ``t0`` through every sample time; return ``(t, drive)``.
+def advance(scheme, y, t0, drive0, d_drive, sample_times, step_times, step_signs, h_max, P, mb, Jb, disc, W,
+            cw, filt, out_raw, out_filt, out_theta, stats, health):  # fmt: skip
+    """Advance ``y`` from ``t0`` through every sample time with ``scheme``; return ``(t, drive)``.
 
     ``drive`` (cable displacement or commanded rotor angle) jumps by ``d_drive * sign`` at each step time;
     a step at exactly a sample time is applied before that sample. At each sample the measured tension (raw
@@ -734,7 +1122,8 @@ def advance(y, t0, drive0, d_drive, sample_times, step_times, step_signs, h_max,
     n = mb.shape[0]
     m = y.shape[0]
     ws = np.empty(N_WS_PER * n + 12 * (disc.shape[0] + 1) + 16)
-    bufs = np.empty((7, m))
+    bufs = np.empty((10, m))
+    wf = np.empty(N_WF_BODY * n + N_WF_SCAL)
     k1 = np.empty(m)
     st = np.empty(4)
     t = t0
@@ -746,13 +1135,17 @@ def advance(y, t0, drive0, d_drive, sample_times, step_times, step_signs, h_max,
     st[1] = e2
     st[2] = l1
     st[3] = l2
-    for qi in range(sample_times.shape[0]):
+    qi = 0
+    nq = sample_times.shape[0]
+    while qi < nq:  # to the next step or sample: one call site of the integrator
         ts = sample_times[qi]
-        while js < nst and step_times[js] <= ts:
-            integrate(y, k1, st, step_times[js] - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, filt,
-                      stats, health)  # fmt: skip
-            if step_times[js] > t:
-                t = step_times[js]
+        to_step = js < nst and step_times[js] <= ts
+        target = step_times[js] if to_step else ts
+        integrate(scheme, y, k1, st, target - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, wf, bufs, filt,
+                  stats, health)  # fmt: skip
+        if target > t:
+            t = target
+        if to_step:
             drive += d_drive * step_signs[js]
             js += 1
             e1, e2, l1, l2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
@@ -762,11 +1155,10 @@ def advance(y, t0, drive0, d_drive, sample_times, step_times, step_signs, h_max,
             st[3] = l2
             if filt[0] <= 0.0:
                 filt[1] = _measured(P, l1, l2)
-        integrate(y, k1, st, ts - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, bufs, filt, stats, health)
-        if ts > t:
-            t = ts
+            continue
         out_raw[qi] = _measured(P, st[2], st[3])
         out_filt[qi] = filt[1]
         for i in range(n):
             out_theta[qi, i] = y[i]
+        qi += 1
     return t, drive

@@ -26,7 +26,10 @@ from helpers.paper.backbone import SOURCES as BACKBONE_SOURCES
 from helpers.paper.backbone import Backbone
 from helpers.rigfile.units import si
 
-__all__ = ["RigParameters", "TUNED", "ACTUATORS", "KG_CM", "parameter_table"]
+__all__ = [
+    "RigParameters", "TUNED", "ACTUATORS", "INTEGRATORS", "INTEGRATOR_STEPS", "DEFAULT_INTEGRATOR", "KG_CM",
+    "parameter_table",
+]  # fmt: skip
 
 KG_CM: float = 0.0980665
 """One kilogram-force centimetre in N m."""
@@ -45,6 +48,23 @@ TUNED: dict[str, float] = {
     "beta_chord": 5.753788e-04,
 }
 """The values the rig tuning chose (the defaults of :class:`RigParameters`; ``docs/virtual_rig.md``)."""
+
+INTEGRATORS = ("rk4", "rosw")
+"""The twin's integrators (``docs/virtual_rig.md``, section 2): classical RK4, every term explicit; and the
+Rosenbrock-W step (built on RK4) with the elastic stiffness (bending, cables) implicit and everything else
+explicit."""
+
+INTEGRATOR_STEPS: dict[str, float] = {"rk4": 2.5e-4, "rosw": 5e-4}
+"""Each integrator's largest step (s) for the rig: RK4 within 90 % of its stability limit (the tip disc
+rocking against the cable), the implicit step where its convergence band is met (``docs/virtual_rig.md``,
+section 2)."""
+
+DEFAULT_INTEGRATOR: tuple[str, float] = ("rk4", INTEGRATOR_STEPS["rk4"])
+"""The integrator and largest step of :class:`RigParameters` (``integrator``, ``max_step``).
+
+The stored data were made with RK4 at 0.25 ms. ``("rosw", INTEGRATOR_STEPS["rosw"])`` is the one-line switch
+for a regeneration of ``data/`` (the rows it moves, and by how much: ``docs/virtual_rig.md``, section 2).
+"""
 
 
 def _check(value: object, name: str, positive: bool) -> None:
@@ -144,8 +164,12 @@ class RigParameters(Backbone):
         The ADC's reference voltage, V.
     adc_bits : int
         The ADC's resolution, bits.
+    integrator : str
+        One of :data:`INTEGRATORS` (*numerical*): ``"rk4"`` (every term explicit; its step is limited by the
+        tip disc rocking against the cable, 0.30 ms) or ``"rosw"`` (the cables' stiffness implicit, the step
+        set by the remaining modes and by accuracy).
     max_step : float
-        Largest RK4 step, s (*numerical*).
+        Largest integrator step, s (*numerical*).
     """
 
     elements_per_disc: int = 1
@@ -190,7 +214,8 @@ class RigParameters(Backbone):
     shunt_ohm: float = paper.SHUNT_OHM
     adc_vref_v: float = 5.0
     adc_bits: int = 10
-    max_step: float = 2.5e-4
+    integrator: str = DEFAULT_INTEGRATOR[0]
+    max_step: float = DEFAULT_INTEGRATOR[1]
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -212,6 +237,10 @@ class RigParameters(Backbone):
                 raise ValueError(f"RigParameters.{name} must be a positive integer, got {value!r}")
         if self.actuator not in ACTUATORS:
             raise ValueError(f"RigParameters.actuator must be one of {ACTUATORS}, got {self.actuator!r}")
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(
+                f"RigParameters.integrator must be one of {INTEGRATORS}, got {self.integrator!r}"
+            )
         if self.torque_law not in ("sin", "linear"):
             raise ValueError(f"RigParameters.torque_law must be 'sin' or 'linear', got {self.torque_law!r}")
         if self.load_cell_side not in ("arm", "spool"):
@@ -232,6 +261,12 @@ class RigParameters(Backbone):
     def replace(self, **changes: object) -> RigParameters:
         """Return a copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+    def with_integrator(self, integrator: str) -> RigParameters:
+        """The same rig integrated by ``integrator`` at its step (:data:`INTEGRATOR_STEPS`)."""
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
+        return self.replace(integrator=integrator, max_step=INTEGRATOR_STEPS[integrator])
 
     # --- the arm --------------------------------------------------------------------------------------
     @property
@@ -520,6 +555,11 @@ _SOURCES: dict[str, tuple[str, str, str]] = {
     "shunt_ohm": ("ohm", "paper", "the 150 ohm resistor that turns the loop into a voltage"),
     "adc_vref_v": ("V", "assumed", "the Arduino Mega's default reference, its 5 V supply (rigs/paper.toml)"),
     "adc_bits": ("bits", "datasheet", "the ATmega2560's 10-bit ADC"),
+    "integrator": (
+        "-",
+        "numerical",
+        "rk4: every term explicit; rosw: bending and cables implicit (docs/virtual_rig.md, section 2)",
+    ),
     "max_step": (
         "s",
         "numerical",

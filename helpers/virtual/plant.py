@@ -37,6 +37,7 @@ class ArmPlant:
             raise TypeError(f"params must be a RigParameters, got {type(params).__name__}")
         self.params = params
         self._arr = model_arrays(params)
+        self._scheme = kern.SCHEMES.index(params.integrator)
         self._stats = np.zeros(2, dtype=np.int64)
         self._health = np.zeros(1)
         fc = params.amp_bandwidth_hz
@@ -94,7 +95,7 @@ class ArmPlant:
 
     @property
     def integrator_steps(self) -> int:
-        """RK4 steps taken since the last reset (a cost measure)."""
+        """Integrator steps taken since the last reset (a cost measure; transition searches included)."""
         return int(self._stats[0])
 
     @property
@@ -254,8 +255,8 @@ class ArmPlant:
         angles = np.empty((ts.size, n))
         a = self._arr
         t, drive = kern.advance(
-            self._y, self._t, self._drive, a.d_drive, ts, st, sg, self.params.max_step, a.P, a.mb, a.Jb,
-            a.disc, a.W, a.cw, self._filt, out_raw, out_filt, angles, self._stats, self._health,
+            self._scheme, self._y, self._t, self._drive, a.d_drive, ts, st, sg, self.params.max_step, a.P,
+            a.mb, a.Jb, a.disc, a.W, a.cw, self._filt, out_raw, out_filt, angles, self._stats, self._health,
         )  # fmt: skip
         if not (np.all(np.isfinite(self._y)) and math.isfinite(self._filt[1])):
             raise FloatingPointError(

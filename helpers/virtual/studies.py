@@ -349,6 +349,8 @@ def _variant(params: RigParameters, changes: dict[str, float]) -> RigParameters:
     torque = kw.get("holding_torque", params.holding_torque)
     kw["k"] = 1.0 / (1.0 / k_cable + params.spool_radius**2 / (torque * params.rotor_teeth))
     p = params.replace(**kw)
+    if p.integrator != "rk4":  # the implicit step holds the cable's stiffness
+        return p
     return p.replace(max_step=min(params.max_step, stable_max_step(p)))  # a stiffer cable needs a finer step
 
 

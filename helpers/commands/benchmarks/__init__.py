@@ -1,7 +1,7 @@
 """``python -m helpers bench``: the project's speed figures, printed, never asserted in unit tests.
 
-- ``plant``: simulated seconds per wall second of the virtual rig's plant (and of a plain ``solve_ivp``
-  implementation of the same equations, measured in the same run);
+- ``plant``: the virtual rig's plant in real-time factors of CPU time, the implicit step and the RK4
+  reference on the same scenario (and a plain ``solve_ivp`` implementation of the same equations);
 - ``serial``: sustained DAQ rate over the pseudo-terminal server and the wall time to record one scenario on
   the in-process virtual rig;
 - ``serial-tendons``: the same DAQ stream for a rig of several tendons (every channel, ``four-tendon``),
@@ -9,8 +9,11 @@
 - ``playground``: CPU time of one update of notebook 03's interactive shaper study (target <= 0.3 s);
 - ``sweep``: runs per second of a sweep's tasks on 1 and 2 workers of a local Dask cluster, the scaling
   ratio, Dask's overhead against a bare loop, the per-run overhead outside the integration;
-- ``spatial``: simulated seconds per wall second of the spatial twin, a 12 s four-tendon scenario and the
-  paper's one tendon beside the planar plant.
+- ``spatial``: the spatial twin's real-time factors in CPU time, a 12 s four-tendon scenario with the implicit
+  step and the RK4 reference, and the paper's one tendon beside the planar plant;
+- ``segments``: the planar twin's cost per simulated second with 12, 24, 36 and 48 arc elements, each
+  integrator, and the modes that set each one's step;
+- ``convergence``: the implicit step against RK4 at a quarter of its step, Table I and four tendons.
 """
 
 from __future__ import annotations
@@ -21,8 +24,10 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from helpers.commands.benchmarks.convergence import run_convergence_benchmark
 from helpers.commands.benchmarks.plant import run_plant_benchmark
 from helpers.commands.benchmarks.playground import run_playground_benchmark
+from helpers.commands.benchmarks.segments import run_segments_benchmark
 from helpers.commands.benchmarks.serial import run_serial_benchmark
 from helpers.commands.benchmarks.serial_tendons import run_serial_tendons_benchmark
 from helpers.commands.benchmarks.spatial import run_spatial_benchmark
@@ -35,6 +40,8 @@ SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "serial-tendons": run_serial_tendons_benchmark,
     "sweep": run_sweep_benchmark,
     "spatial": run_spatial_benchmark,
+    "segments": run_segments_benchmark,
+    "convergence": run_convergence_benchmark,
 }
 """suite name -> function; each prints its figures and returns them as a dict."""
 

@@ -8,7 +8,8 @@ chunk, 6 tasks). Measured in one call, each configuration best of ``repeats`` (t
 with the
   time per run inside :func:`helpers.virtual.simulate` (the integration) and outside it (design, programme,
   metrics): the per-run overhead;
-- the **batch API** in one process, 1 thread and 2 threads (the kernels release the GIL);
+- the **batch API** in one process, 1 thread and 2 threads (the kernels release the GIL); and runs per CPU
+  second of one thread with each integrator (RK4, the implicit step);
 - a **local cluster** of 1 worker and of 2 workers (processes, one thread each), each started and warmed up
   (each worker has loaded the compiled kernels and run a chunk) before the clock starts, and each alone on
   the machine while it is measured: the bare loop and the 1-worker cluster take turns, ``repeats`` times, then
@@ -79,7 +80,7 @@ def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]
     dict
         ``runs``, ``bare_runs_per_s``, ``runs_per_s_1``, ``runs_per_s_2``, ``scaling``,
         ``dask_overhead_pct``, ``sim_s_per_wall_s_2``, ``simulate_ms_per_run``, ``outside_ms_per_run``,
-        ``batch_thread_scaling``, ``cluster_start_s``.
+        ``batch_thread_scaling``, ``cluster_start_s``, ``runs_per_cpu_s`` (per integrator, one thread).
     """
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats!r}")
@@ -124,6 +125,21 @@ def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]
             if wall < walls[threads]:
                 walls[threads], busy = wall, (time.process_time() - c0) / wall
     thread_scaling = walls[1] / walls[2]
+    # runs per CPU second of one thread, each integrator (one scenario per kernel call)
+    per_cpu = {}
+    for integrator in ("rk4", "rosw"):
+        runs_i = [BatchRun(prog, RigParameters().with_integrator(integrator), seed=i, t_end=t_sim)
+                  for i in range(4)]  # fmt: skip
+        run_batch(runs_i[:1])
+        best = float("inf")
+        for _ in range(repeats):
+            c0 = time.process_time()
+            run_batch(runs_i, threads=1)
+            best = min(best, time.process_time() - c0)
+        per_cpu[integrator] = len(runs_i) / best
+    say(f"  runs per CPU second, one thread, one scenario per kernel call: RK4 {per_cpu['rk4']:.2f}, "
+        f"implicit step {per_cpu['rosw']:.2f} ({per_cpu['rosw'] / per_cpu['rk4']:.2f}x); several scenarios "
+        "per call (lanes): not built (docs/virtual_rig.md, section 9)")
     # CPU time over wall time of the 2-thread batch: 2 when both threads ran at once (the kernels release the
     # GIL), 1 when another process held the second core
     say(f"  batch API, one process, 4 unshaped runs: 1 thread {walls[1]:.2f} s, 2 threads {walls[2]:.2f} s "
@@ -151,6 +167,7 @@ def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]
         "outside_ms_per_run": outside_ms,
         "batch_thread_scaling": thread_scaling,
         "cluster_start_s": started,
+        "runs_per_cpu_s": per_cpu,
     }
 
 

@@ -36,6 +36,8 @@ import math
 import numpy as np
 from numba import njit
 
+from helpers.virtual._kernel import _RW_GAM, _RW_TA, _RW_TE, _RW_TM, SCHEME_ROSW
+
 # scalar parameters (``geo``)
 (G_L, G_KB, G_KT, G_ALPHA, G_CB, G_CT, G_BOW, G_GX, G_GY, G_GZ, G_NR, G_TLAW) = range(12)
 N_GEO = 12
@@ -762,22 +764,426 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
         dy[m2 + 3 * nt + i] = (st[2, i] - lam[i] - tp[i, T_CC] * xd) / tp[i, T_MC]
 
 
+# ---- the linearly implicit step (helpers.virtual._kernel's Rosenbrock-W method, the same coefficients) -----
+# ``T = [[0, I], [-M^-1 K, 0]]``, ``K`` the elastic stiffness: the bending and twisting springs (a 3 x 3
+# diagonal block per joint) and every taut cable (spool side ``k1 G1 G1^T``, ``G1_i = R_i e_psi_i - e_x_i``;
+# the taut arm sides through the tension problem's matrix, ``G2_A C_AA^-1 G2_A^T``,
+# ``G2_i = (d ell_i/d phi, e_x_i)``).
+# Per step ``M' = M + beta K_springs`` is factored by the articulated-body recursion (each joint's ``D`` gains
+# ``beta diag(kb, kb, kt)``), and the cables enter by Woodbury with ``Q = K_a^-1 / beta + G_a^T M'^-1 G_a``
+# (symmetric positive definite, at most 2 nt x 2 nt, Cholesky).
+# per body (``wfb`` columns): S (18), node position (3), disc axis (3), U D'^-1 (18), D'^-1 (9)
+(WB_S, WB_P, WB_T, WB_UD, WB_DI) = (0, 18, 21, 24, 42)
+N_WFB = 51
+# scalars (``wfs``): beta, active cables (count, then their indices: i < nt spool side of tendon i, nt + i
+# arm side), the arm sides' C_AA (4 x 4), the active cables' Q and its Cholesky factor (8 x 8), work vectors
+(WS_BETA, WS_NA, WS_IDX, WS_CAA, WS_Q, WS_V1, WS_V2, WS_V3, WS_HP, WS_IA, WS_U) = (
+    0, 1, 2, 10, 26, 90, 98, 106, 114, 115, 151)  # fmt: skip
+N_WFS = 169
+MAX_SPLITS = 16
+"""The implicit step splits a step at up to this many taut/slack transitions (RK4: at the first only, as the
+stored data were made)."""
+
+
+def w_workspaces(n: int, nt: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Work arrays of the implicit step: per body, per tendon (its gradient and ``M'^-1`` of it), scalars."""
+    return np.zeros((n, N_WFB)), np.zeros((2, nt, 3 * n)), np.zeros(N_WFS)
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
-def _rk4(y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st, k2, k3, k4, tmp, out):
-    m = y.shape[0]
-    hh = 0.5 * h
-    for i in range(m):
-        tmp[i] = y[i] + hh * k1[i]
-    rhs(tmp, k2, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for i in range(m):
-        tmp[i] = y[i] + hh * k2[i]
-    rhs(tmp, k3, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for i in range(m):
-        tmp[i] = y[i] + h * k3[i]
-    rhs(tmp, k4, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    h6 = h / 6.0
-    for i in range(m):
-        out[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+def wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs):
+    """Store what ``T`` needs of the state whose right-hand side :func:`rhs` left in ``wb, wt, sp``.
+
+    ``taut1[i]``, ``taut2[i]``: whether tendon i's spool side and arm side are taut on the step's branch.
+    """
+    n = wb.shape[0]
+    nt = tp.shape[0]
+    ne = n + 1
+    for e in range(n):
+        o = wb[e]
+        q = wfb[e]
+        for k in range(18):
+            q[WB_S + k] = o[W_S + k]
+        q[WB_P + 0] = o[W_P + 0]
+        q[WB_P + 1] = o[W_P + 1]
+        q[WB_P + 2] = o[W_P + 2]
+        q[WB_T + 0] = o[W_R + 2]
+        q[WB_T + 1] = o[W_R + 5]
+        q[WB_T + 2] = o[W_R + 8]
+    # each tendon's d ell / d phi: minus the joint forces of its unit tension (eyelet forces summed inwards)
+    for i in range(nt):
+        m0 = 0.0
+        m1 = 0.0
+        m2 = 0.0
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        for k in range(ne - 1, 0, -1):
+            Fx = -wt[i, k, 6]
+            Fy = -wt[i, k, 7]
+            Fz = -wt[i, k, 8]
+            if k + 1 < ne:
+                Fx += wt[i, k + 1, 6]
+                Fy += wt[i, k + 1, 7]
+                Fz += wt[i, k + 1, 8]
+            Ex = wt[i, k, 0]
+            Ey = wt[i, k, 1]
+            Ez = wt[i, k, 2]
+            m0 += Ey * Fz - Ez * Fy
+            m1 += Ez * Fx - Ex * Fz
+            m2 += Ex * Fy - Ey * Fx
+            f0 += Fx
+            f1 += Fy
+            f2 += Fz
+            Sv = wfb[k - 1]
+            for c in range(3):
+                wft[0, i, 3 * (k - 1) + c] = -(Sv[WB_S + c] * m0 + Sv[WB_S + 3 + c] * m1
+                                               + Sv[WB_S + 6 + c] * m2 + Sv[WB_S + 9 + c] * f0
+                                               + Sv[WB_S + 12 + c] * f1 + Sv[WB_S + 15 + c] * f2)  # fmt: skip
+    # the active cables and the arm sides' tension matrix C_AA = diag(1/k2) + H (H = hP 11^T)
+    hP = sp[S_H]
+    na = 0
+    for i in range(nt):
+        if taut1[i]:
+            wfs[WS_IDX + na] = i
+            na += 1
+    for i in range(nt):
+        if taut2[i]:
+            wfs[WS_IDX + na] = nt + i
+            na += 1
+    wfs[WS_NA] = na
+    wfs[WS_HP] = hP
+    for i in range(nt):
+        for j in range(nt):
+            wfs[WS_CAA + 4 * i + j] = hP + (1.0 / tp[i, T_K2] if i == j else 0.0)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _gcol(c, nt, tp, wft, vec, nq):
+    """``G_c^T vec`` for cable ``c`` (``vec``: a position-space vector ``(phi, psi, x)``)."""
+    if c < nt:
+        return tp[c, T_R] * vec[nq + c] - vec[nq + nt + c]
+    i = c - nt
+    acc = vec[nq + nt + i]
+    g = wft[0, i]
+    for j in range(nq):
+        acc += g[j] * vec[j]
+    return acc
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _asolve(wfb, tau):
+    """``tau <- M'^-1 tau`` for the arm (joint forces in, joint accelerations out; :func:`wfactor`)."""
+    n = wfb.shape[0]
+    p0 = 0.0
+    p1 = 0.0
+    p2 = 0.0
+    p3 = 0.0
+    p4 = 0.0
+    p5 = 0.0
+    for e in range(n - 1, -1, -1):
+        q = wfb[e]
+        u0 = tau[3 * e] - (q[WB_S + 0] * p0 + q[WB_S + 3] * p1 + q[WB_S + 6] * p2 + q[WB_S + 9] * p3
+                           + q[WB_S + 12] * p4 + q[WB_S + 15] * p5)  # fmt: skip
+        u1 = tau[3 * e + 1] - (q[WB_S + 1] * p0 + q[WB_S + 4] * p1 + q[WB_S + 7] * p2 + q[WB_S + 10] * p3
+                               + q[WB_S + 13] * p4 + q[WB_S + 16] * p5)  # fmt: skip
+        u2 = tau[3 * e + 2] - (q[WB_S + 2] * p0 + q[WB_S + 5] * p1 + q[WB_S + 8] * p2 + q[WB_S + 11] * p3
+                               + q[WB_S + 14] * p4 + q[WB_S + 17] * p5)  # fmt: skip
+        tau[3 * e] = u0
+        tau[3 * e + 1] = u1
+        tau[3 * e + 2] = u2
+        u = q[WB_UD:WB_UD + 18]
+        p0 += u[0] * u0 + u[1] * u1 + u[2] * u2
+        p1 += u[3] * u0 + u[4] * u1 + u[5] * u2
+        p2 += u[6] * u0 + u[7] * u1 + u[8] * u2
+        p3 += u[9] * u0 + u[10] * u1 + u[11] * u2
+        p4 += u[12] * u0 + u[13] * u1 + u[14] * u2
+        p5 += u[15] * u0 + u[16] * u1 + u[17] * u2
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    a3 = 0.0
+    a4 = 0.0
+    a5 = 0.0
+    for e in range(n):
+        q = wfb[e]
+        u = q[WB_UD:WB_UD + 18]
+        d = q[WB_DI:WB_DI + 9]
+        u0 = tau[3 * e]
+        u1 = tau[3 * e + 1]
+        u2 = tau[3 * e + 2]
+        t0 = u[0] * a0 + u[3] * a1 + u[6] * a2 + u[9] * a3 + u[12] * a4 + u[15] * a5
+        t1 = u[1] * a0 + u[4] * a1 + u[7] * a2 + u[10] * a3 + u[13] * a4 + u[16] * a5
+        t2 = u[2] * a0 + u[5] * a1 + u[8] * a2 + u[11] * a3 + u[14] * a4 + u[17] * a5
+        qa = d[0] * u0 + d[1] * u1 + d[2] * u2 - t0
+        qb = d[3] * u0 + d[4] * u1 + d[5] * u2 - t1
+        qc = d[6] * u0 + d[7] * u1 + d[8] * u2 - t2
+        Sv = q[WB_S:WB_S + 18]
+        a0 += Sv[0] * qa + Sv[1] * qb + Sv[2] * qc
+        a1 += Sv[3] * qa + Sv[4] * qb + Sv[5] * qc
+        a2 += Sv[6] * qa + Sv[7] * qb + Sv[8] * qc
+        a3 += Sv[9] * qa + Sv[10] * qb + Sv[11] * qc
+        a4 += Sv[12] * qa + Sv[13] * qb + Sv[14] * qc
+        a5 += Sv[15] * qa + Sv[16] * qb + Sv[17] * qc
+        tau[3 * e] = qa
+        tau[3 * e + 1] = qb
+        tau[3 * e + 2] = qc
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def wfactor(geo, mb, Jd, Jp, tp, h, wfb, wft, wfs):
+    """Factor ``I - gamma h T`` for the step ``h`` (after :func:`wgeom`)."""
+    n = wfb.shape[0]
+    nt = tp.shape[0]
+    nq = 3 * n
+    gh = _RW_GAM * h
+    beta = gh * gh
+    wfs[WS_BETA] = beta
+    kd0 = beta * geo[G_KB]
+    kd2 = beta * geo[G_KT]
+    Ia = wfs[WS_IA:WS_IA + 36]
+    U = wfs[WS_U:WS_U + 18]
+    for k in range(36):
+        Ia[k] = 0.0
+    for e in range(n - 1, -1, -1):
+        q = wfb[e]
+        # the body's inertia about the origin (ground coordinates) plus what the child passed
+        m = mb[e]
+        px = q[WB_P + 0]
+        py = q[WB_P + 1]
+        pz = q[WB_P + 2]
+        tx = q[WB_T + 0]
+        ty = q[WB_T + 1]
+        tz = q[WB_T + 2]
+        dj = Jp[e] - Jd[e]
+        p2 = px * px + py * py + pz * pz
+        Ia[0] += Jd[e] + dj * tx * tx + m * (p2 - px * px)
+        Ia[1] += dj * tx * ty - m * px * py
+        Ia[2] += dj * tx * tz - m * px * pz
+        Ia[7] += Jd[e] + dj * ty * ty + m * (p2 - py * py)
+        Ia[8] += dj * ty * tz - m * py * pz
+        Ia[14] += Jd[e] + dj * tz * tz + m * (p2 - pz * pz)
+        Ia[4] += -m * pz
+        Ia[5] += m * py
+        Ia[9] += m * pz
+        Ia[11] += -m * px
+        Ia[15] += -m * py
+        Ia[16] += m * px
+        Ia[21] += m
+        Ia[28] += m
+        Ia[35] += m
+        for i in range(6):
+            for j in range(i):
+                Ia[6 * i + j] = Ia[6 * j + i]
+        Sv = q[WB_S:WB_S + 18]
+        for i in range(6):
+            for k in range(3):
+                acc = 0.0
+                for j in range(6):
+                    acc += Ia[6 * i + j] * Sv[3 * j + k]
+                U[3 * i + k] = acc
+        D00 = kd0
+        D01 = 0.0
+        D02 = 0.0
+        D11 = kd0
+        D12 = 0.0
+        D22 = kd2
+        for j in range(6):
+            D00 += Sv[3 * j] * U[3 * j]
+            D01 += Sv[3 * j] * U[3 * j + 1]
+            D02 += Sv[3 * j] * U[3 * j + 2]
+            D11 += Sv[3 * j + 1] * U[3 * j + 1]
+            D12 += Sv[3 * j + 1] * U[3 * j + 2]
+            D22 += Sv[3 * j + 2] * U[3 * j + 2]
+        c00 = D11 * D22 - D12 * D12
+        c01 = D02 * D12 - D01 * D22
+        c02 = D01 * D12 - D02 * D11
+        idet = 1.0 / (D00 * c00 + D01 * c01 + D02 * c02)
+        Di = q[WB_DI:WB_DI + 9]
+        Di[0] = c00 * idet
+        Di[1] = c01 * idet
+        Di[2] = c02 * idet
+        Di[3] = Di[1]
+        Di[4] = (D00 * D22 - D02 * D02) * idet
+        Di[5] = (D01 * D02 - D00 * D12) * idet
+        Di[6] = Di[2]
+        Di[7] = Di[5]
+        Di[8] = (D00 * D11 - D01 * D01) * idet
+        UD = q[WB_UD:WB_UD + 18]
+        for i in range(6):
+            u0 = U[3 * i]
+            u1 = U[3 * i + 1]
+            u2 = U[3 * i + 2]
+            UD[3 * i] = u0 * Di[0] + u1 * Di[3] + u2 * Di[6]
+            UD[3 * i + 1] = u0 * Di[1] + u1 * Di[4] + u2 * Di[7]
+            UD[3 * i + 2] = u0 * Di[2] + u1 * Di[5] + u2 * Di[8]
+        if e == 0:
+            break
+        # the articulated inertia passed to the parent: Ia - U D'^-1 U^T (ground coordinates: no transform)
+        for i in range(6):
+            for j in range(i, 6):
+                v_ = Ia[6 * i + j] - (UD[3 * i] * U[3 * j] + UD[3 * i + 1] * U[3 * j + 1]
+                                      + UD[3 * i + 2] * U[3 * j + 2])  # fmt: skip
+                Ia[6 * i + j] = v_
+                Ia[6 * j + i] = v_
+    # M'^-1 of each tendon's gradient, and Q over the active cables
+    for i in range(nt):
+        for j in range(nq):
+            wft[1, i, j] = wft[0, i, j]
+        _asolve(wfb, wft[1, i])
+    na = int(wfs[WS_NA])
+    for r in range(na):
+        cr = int(wfs[WS_IDX + r])
+        for c in range(r + 1):
+            cc = int(wfs[WS_IDX + c])
+            v = 0.0  # G_r^T A^-1 G_c
+            if cr < nt and cc < nt:
+                if cr == cc:
+                    v = tp[cr, T_R] * tp[cr, T_R] / tp[cr, T_JR] + 1.0 / tp[cr, T_MC]
+            elif cr >= nt and cc >= nt:
+                ir = cr - nt
+                ic = cc - nt
+                for j in range(nq):
+                    v += wft[0, ir, j] * wft[1, ic, j]
+                if ir == ic:
+                    v += 1.0 / tp[ir, T_MC]
+            else:  # one spool side, one arm side: the carriage they share
+                isp = cr if cr < nt else cc
+                iar = (cc if cr < nt else cr) - nt
+                if isp == iar:
+                    v = -1.0 / tp[isp, T_MC]
+            if r == c:  # K_a^-1 / beta: 1/k1, or C_AA
+                if cr < nt:
+                    v += 1.0 / (tp[cr, T_K1] * beta)
+                else:
+                    v += wfs[WS_CAA + 5 * (cr - nt)] / beta
+            elif cr >= nt and cc >= nt:
+                v += wfs[WS_CAA + 4 * (cr - nt) + (cc - nt)] / beta
+            wfs[WS_Q + 8 * r + c] = v
+    # Cholesky in place (lower triangle)
+    for r in range(na):
+        for c in range(r + 1):
+            acc = wfs[WS_Q + 8 * r + c]
+            for k in range(c):
+                acc -= wfs[WS_Q + 8 * r + k] * wfs[WS_Q + 8 * c + k]
+            if r == c:
+                wfs[WS_Q + 8 * r + r] = math.sqrt(acc)
+            else:
+                wfs[WS_Q + 8 * r + c] = acc / wfs[WS_Q + 8 * c + c]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _wsolve(geo, tp, gh, wfb, wft, wfs, u, tmp):
+    """``u <- (I - gh T)^-1 u``: ``u_q = c - beta X``, ``u_v = u_v - gh X``, ``X = (M + beta K)^-1 K c``.
+
+    ``X = y - M'^-1 G_a Q^-1 G_a^T y`` with ``y = M'^-1 K c`` (Woodbury; :func:`wfactor`); ``tmp``: a
+    position-space vector of work.
+    """
+    n = wfb.shape[0]
+    nt = tp.shape[0]
+    nq = 3 * n
+    beta = wfs[WS_BETA]
+    kb = geo[G_KB]
+    kt = geo[G_KT]
+    # c (positions) into tmp; the springs' joint forces K_b c into tmp's arm part after the cable terms
+    for j in range(nq):
+        tmp[j] = u[j] + gh * u[nq + j]
+    for i in range(nt):
+        tmp[nq + i] = u[2 * nq + i] + gh * u[2 * nq + nt + i]
+        tmp[nq + nt + i] = u[2 * nq + 2 * nt + i] + gh * u[2 * nq + 3 * nt + i]
+    na = int(wfs[WS_NA])
+    # w = G_a^T c, then K_a w (spool sides k1; arm sides C_AA^-1 w: solved below with the arm block)
+    kw = wfs[WS_V1:WS_V1 + 8]
+    for r in range(na):
+        kw[r] = _gcol(int(wfs[WS_IDX + r]), nt, tp, wft, tmp, nq)
+    # the arm sides' block: C_AA kw_A = w_A (C_AA = diag(1/k2) + hP 11^T: Sherman-Morrison)
+    sk = 0.0
+    sw = 0.0
+    hP = wfs[WS_HP]
+    for r in range(na):
+        c = int(wfs[WS_IDX + r])
+        if c >= nt:
+            k2 = tp[c - nt, T_K2]
+            sk += k2
+            sw += k2 * kw[r]
+    corr = hP * sw / (1.0 + hP * sk)
+    for r in range(na):
+        c = int(wfs[WS_IDX + r])
+        if c < nt:
+            kw[r] = tp[c, T_K1] * kw[r]
+        else:
+            k2 = tp[c - nt, T_K2]
+            kw[r] = k2 * (kw[r] - corr)
+    # y = M'^-1 K c: the springs' part by the recursion, the cables' part from the stored M'^-1 g
+    cx = tmp  # reuse: keep c's actuator entries, overwrite the arm part with K_b c
+    for e in range(n):
+        cx[3 * e] = kb * tmp[3 * e]
+        cx[3 * e + 1] = kb * tmp[3 * e + 1]
+        cx[3 * e + 2] = kt * tmp[3 * e + 2]
+    _asolve(wfb, cx)
+    yv = wfs[WS_V2:WS_V2 + 8]  # actuator entries of y: per tendon psi, x (built from kw)
+    for i in range(nt):
+        yv[i] = 0.0
+        yv[4 + i] = 0.0
+    for r in range(na):
+        c = int(wfs[WS_IDX + r])
+        if c < nt:
+            yv[c] += tp[c, T_R] * kw[r]
+            yv[4 + c] -= kw[r]
+        else:
+            i = c - nt
+            yv[4 + i] += kw[r]
+            g = wft[1, i]
+            for j in range(nq):
+                cx[j] += kw[r] * g[j]
+    for i in range(nt):
+        yv[i] /= tp[i, T_JR]
+        yv[4 + i] /= tp[i, T_MC]
+    # z = Q^-1 G_a^T y
+    z = wfs[WS_V3:WS_V3 + 8]
+    for r in range(na):
+        c = int(wfs[WS_IDX + r])
+        if c < nt:
+            acc = tp[c, T_R] * yv[c] - yv[4 + c]
+        else:
+            i = c - nt
+            acc = yv[4 + i]
+            g = wft[0, i]
+            for j in range(nq):
+                acc += g[j] * cx[j]
+        for k in range(r):
+            acc -= wfs[WS_Q + 8 * r + k] * z[k]
+        z[r] = acc / wfs[WS_Q + 8 * r + r]
+    for r in range(na - 1, -1, -1):
+        acc = z[r]
+        for k in range(r + 1, na):
+            acc -= wfs[WS_Q + 8 * k + r] * z[k]
+        z[r] = acc / wfs[WS_Q + 8 * r + r]
+    # X = y - M'^-1 G_a z
+    for r in range(na):
+        c = int(wfs[WS_IDX + r])
+        if c < nt:
+            yv[c] -= tp[c, T_R] * z[r] / tp[c, T_JR]
+            yv[4 + c] += z[r] / tp[c, T_MC]
+        else:
+            i = c - nt
+            yv[4 + i] -= z[r] / tp[i, T_MC]
+            g = wft[1, i]
+            for j in range(nq):
+                cx[j] -= z[r] * g[j]
+    for j in range(nq):
+        cj = u[j] + gh * u[nq + j]
+        u[nq + j] = u[nq + j] - gh * cx[j]
+        u[j] = cj - beta * cx[j]
+    for i in range(nt):
+        ip = 2 * nq + i
+        cp = u[ip] + gh * u[ip + nt]
+        u[ip + nt] = u[ip + nt] - gh * yv[i]
+        u[ip] = cp - beta * yv[i]
+        ix = 2 * nq + 2 * nt + i
+        cxx = u[ix] + gh * u[ix + nt]
+        u[ix + nt] = u[ix + nt] - gh * yv[4 + i]
+        u[ix] = cxx - beta * yv[4 + i]
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -795,6 +1201,26 @@ def _first_flip(sa, sb, nt):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
+def _earliest_flip(sa, sb, nt):
+    """As :func:`_first_flip`, but the function whose sign change comes first on the chord ``sa`` to ``sb``.
+
+    The implicit step's choice: each taut/slack change is located in time order.
+    """
+    best = -1
+    frac = 2.0
+    for r in range(2):
+        for i in range(nt):
+            a = sa[r, i]
+            b = sb[r, i]
+            if (a > 0.0) != (b > 0.0):
+                f = a / (a - b) if a != b else 0.0
+                if f < frac:
+                    frac = f
+                    best = 2 * i + r
+    return best
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
 def _filter(filt, tau, h, x0, x1):
     """First-order low-pass ``tau y' = x - y`` over ``h`` for an input linear from ``x0`` to ``x1``."""
     if tau <= 0.0:
@@ -805,9 +1231,76 @@ def _filter(filt, tau, h, x0, x1):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def integrate(y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, bufs, sbuf, filt, tau,  # noqa: C901
-              stats, health):  # fmt: skip
-    """Integrate ``y`` over ``dt`` at constant ``drive``: equal RK4 steps ``<= h_max``, split at transitions.
+def _step(scheme, y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st, wfb, wft, wfs, bufs, out):  # noqa: C901
+    """One step of ``scheme`` from ``y`` (``k1 = f(y)``) over ``h`` into ``out``.
+
+    Classical RK4, or the Rosenbrock-W step (after :func:`wgeom` at ``y``); the three right-hand sides of
+    either at one call site (one copy of :func:`rhs` in the compiled code).
+    """
+    m = y.shape[0]
+    implicit = scheme == SCHEME_ROSW
+    tmp = bufs[7]
+    fb = bufs[8]
+    wk = bufs[9]
+    hh = 0.5 * h
+    gh = _RW_GAM * h
+    if implicit:
+        wfactor(geo, mb, Jd, Jp, tp, h, wfb, wft, wfs)
+        u1 = bufs[0]
+        for i in range(m):
+            u1[i] = gh * k1[i]
+        _wsolve(geo, tp, gh, wfb, wft, wfs, u1, wk)
+    for s in range(1, 4):
+        if implicit:
+            for i in range(m):
+                acc = y[i]
+                for j in range(s):
+                    acc += _RW_TA[s, j] * bufs[j, i]
+                tmp[i] = acc
+        else:
+            kp = k1 if s == 1 else bufs[s - 1]
+            c = h if s == 3 else hh
+            for i in range(m):
+                tmp[i] = y[i] + c * kp[i]
+        kout = fb if implicit else bufs[s]
+        rhs(tmp, kout, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
+        if implicit:
+            u = bufs[s]
+            for i in range(m):
+                acc = gh * fb[i]
+                for j in range(s):
+                    acc += _RW_TE[s, j] * bufs[j, i]
+                u[i] = acc
+            _wsolve(geo, tp, gh, wfb, wft, wfs, u, wk)
+    if implicit:
+        for i in range(m):
+            acc = y[i]
+            for j in range(4):
+                acc += _RW_TM[j] * bufs[j, i]
+            out[i] = acc
+    else:
+        h6 = h / 6.0
+        for i in range(m):
+            out[i] = y[i] + h6 * (k1[i] + 2.0 * bufs[1, i] + 2.0 * bufs[2, i] + bufs[3, i])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _branch(sa, taut1, taut2, nt):
+    """The taut flags of the tendons' state ``sa`` (spool-side stretch, net arm-side stretch)."""
+    for i in range(nt):
+        taut1[i] = sa[0, i] > 0.0
+        taut2[i] = sa[1, i] > 0.0
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def integrate(scheme, y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, wfb, wft, wfs,  # noqa: C901
+              bufs, sbuf, filt, tau, stats, health):  # fmt: skip
+    """Integrate ``y`` over ``dt`` at constant ``drive``: equal steps ``<= h_max`` of ``scheme``.
+
+    Steps are split at taut/slack transitions. With the implicit step (``SCHEME_ROSW``) each piece's
+    stiffness ``T`` is that of the branch the piece lies on: the cables taut at its start (the one just
+    crossed into counted so), and every transition in the step is located, in time order (up to
+    :data:`MAX_SPLITS`); RK4 splits at the first only.
 
     ``k1`` holds ``f(y)`` on entry and exit, ``st`` the tendons' state of ``y``. A step across which any
     tendon's spool-side or net arm-side stretch changes sign is split at the transition (Illinois method on
@@ -821,43 +1314,88 @@ def integrate(y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, s
     m = y.shape[0]
     n = mb.shape[0]
     nt = tp.shape[0]
-    k2 = bufs[0]
-    k3 = bufs[1]
-    k4 = bufs[2]
-    tmp = bufs[3]
     y1 = bufs[4]
-    yt = bufs[5]
     k1n = bufs[6]
     s1 = sbuf[0]
-    sc = sbuf[1]
     sk = sbuf[2]
     fv = np.empty(1)
+    taut1 = np.empty(nt, dtype=np.bool_)
+    taut2 = np.empty(nt, dtype=np.bool_)
+    sr = np.empty((2, nt))
+    implicit = scheme == SCHEME_ROSW
+    cap = MAX_SPLITS if implicit else 1
     for _ in range(nst):
-        _rk4(y, k1, h, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk, k2, k3, k4, tmp, y1)
-        stats[0] += 1
-        rhs(y1, k1n, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, s1)
-        which = _first_flip(st, s1, nt)
-        if which >= 0:
-            stats[1] += 1
-            row = which % 2
-            ti = which // 2
-            f_lo = st[row, ti]
-            f_hi = s1[row, ti]
-            lo = 0.0
-            hi = h
-            side = 0
-            hc = h
-            for _it in range(40):
-                den = f_hi - f_lo
-                hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
-                if not (hc > lo and hc < hi):
-                    hc = 0.5 * (lo + hi)
-                _rk4(y, k1, hc, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk, k2, k3, k4, tmp, yt)
-                stats[0] += 1
-                rhs(yt, k2, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sc)
-                fc = sc[row, ti]
-                if abs(fc) < 1e-13 or hi - lo < 1e-11:
+        rem = h
+        splits = 0
+        for r in range(2):
+            for i in range(nt):
+                sr[r, i] = st[r, i]
+        if implicit:
+            _branch(st, taut1, taut2, nt)
+            wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs)
+        search = False  # False: a trial of the rest of the step; True: the search for a transition
+        row = 0
+        ti = 0
+        f_lo = 0.0
+        f_hi = 0.0
+        lo = 0.0
+        hi = 0.0
+        side = 0
+        hc = rem
+        it = 0
+        while True:  # one step and one right-hand side per pass (one call site of each)
+            _step(scheme, y, k1, hc if search else rem, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk,
+                  wfb, wft, wfs, bufs, y1)  # fmt: skip
+            stats[0] += 1
+            rhs(y1, k1n, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, s1)
+            if not search:
+                which = -1
+                if splits < cap:
+                    which = _earliest_flip(sr, s1, nt) if implicit else _first_flip(sr, s1, nt)
+                if which < 0:
+                    for i in range(nt):
+                        fv[0] = filt[i]
+                        _filter(fv, tau, rem, st[3, i], s1[3, i])
+                        filt[i] = fv[0]
                     break
+                stats[1] += 1
+                row = which % 2
+                ti = which // 2
+                f_lo = sr[row, ti]
+                f_hi = s1[row, ti]
+                lo = 0.0
+                hi = rem
+                side = 0
+                it = 0
+                search = True
+            else:
+                fc = s1[row, ti]
+                it += 1
+                if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
+                    # to the transition (the search's last point); the rest of the step from there, on the
+                    # branch just crossed into
+                    for i in range(m):
+                        y[i] = y1[i]
+                        k1[i] = k1n[i]
+                    for i in range(nt):
+                        fv[0] = filt[i]
+                        _filter(fv, tau, hc, st[3, i], s1[3, i])
+                        filt[i] = fv[0]
+                    for r in range(4):
+                        for i in range(nt):
+                            st[r, i] = s1[r, i]
+                    for r in range(2):
+                        for i in range(nt):
+                            sr[r, i] = s1[r, i]
+                    if (sr[row, ti] > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
+                        sr[row, ti] = 1e-300 if f_hi > 0.0 else -1e-300
+                    rem = rem - hc
+                    splits += 1
+                    if implicit:  # the branch from here: the one just crossed into, the others as they are
+                        _branch(sr, taut1, taut2, nt)
+                        wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs)
+                    search = False
+                    continue
                 if (fc > 0.0) == (f_lo > 0.0):
                     lo = hc
                     f_lo = fc
@@ -870,25 +1408,10 @@ def integrate(y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, s
                     if side == 1:
                         f_lo *= 0.5
                     side = 1
-            for i in range(m):
-                y[i] = yt[i]
-            rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sc)
-            for i in range(nt):
-                fv[0] = filt[i]
-                _filter(fv, tau, hc, st[3, i], sc[3, i])
-                filt[i] = fv[0]
-            _rk4(y, k1, h - hc, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk, k2, k3, k4, tmp, y1)
-            stats[0] += 1
-            rhs(y1, k1n, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, s1)
-            for i in range(nt):
-                fv[0] = filt[i]
-                _filter(fv, tau, h - hc, sc[3, i], s1[3, i])
-                filt[i] = fv[0]
-        else:
-            for i in range(nt):
-                fv[0] = filt[i]
-                _filter(fv, tau, h, st[3, i], s1[3, i])
-                filt[i] = fv[0]
+            den = f_hi - f_lo
+            hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
+            if not (hc > lo and hc < hi):
+                hc = 0.5 * (lo + hi)
         for i in range(m):
             y[i] = y1[i]
             k1[i] = k1n[i]
@@ -903,9 +1426,9 @@ def integrate(y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, s
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def advance(y, t0, drive, d_drive, sample_times, step_times, step_tendon, step_signs, h_max, geo, mb, Jd, Jp,
-            tp, W, cw, filt, tau, out_raw, out_filt, out_q, out_tip, stats, health):  # fmt: skip
-    """Advance ``y`` from ``t0`` through every sample time; return the time reached.
+def advance(scheme, y, t0, drive, d_drive, sample_times, step_times, step_tendon, step_signs, h_max, geo, mb,
+            Jd, Jp, tp, W, cw, filt, tau, out_raw, out_filt, out_q, out_tip, stats, health):  # fmt: skip
+    """Advance ``y`` from ``t0`` through every sample time with ``scheme``; return the time reached.
 
     Tendon ``step_tendon[j]``'s commanded rotor angle ``drive`` jumps by ``d_drive[tendon] * step_signs[j]``
     at ``step_times[j]`` (sorted); a step at exactly a sample time is applied before that sample. At each
@@ -918,7 +1441,10 @@ def advance(y, t0, drive, d_drive, sample_times, step_times, step_tendon, step_s
     wb = np.zeros((n, N_WB))
     wt = np.zeros((nt, n + 1, N_WT))
     sp = np.zeros(N_SP + 3 * n)
-    bufs = np.empty((7, m))
+    bufs = np.empty((10, m))
+    wfb = np.zeros((n, N_WFB))
+    wft = np.zeros((2, nt, 3 * n))
+    wfs = np.zeros(N_WFS)
     sbuf = np.zeros((3, 4, nt))
     k1 = np.empty(m)
     st = np.zeros((4, nt))
@@ -926,13 +1452,17 @@ def advance(y, t0, drive, d_drive, sample_times, step_times, step_tendon, step_s
     js = 0
     nsteps = step_times.shape[0]
     rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for qi in range(sample_times.shape[0]):
+    qi = 0
+    nq = sample_times.shape[0]
+    while qi < nq:  # to the next step or sample: one call site of the integrator
         ts = sample_times[qi]
-        while js < nsteps and step_times[js] <= ts:
-            integrate(y, k1, st, step_times[js] - t, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp,
-                      bufs, sbuf, filt, tau, stats, health)  # fmt: skip
-            if step_times[js] > t:
-                t = step_times[js]
+        to_step = js < nsteps and step_times[js] <= ts
+        target = step_times[js] if to_step else ts
+        integrate(scheme, y, k1, st, target - t, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, wfb,
+                  wft, wfs, bufs, sbuf, filt, tau, stats, health)  # fmt: skip
+        if target > t:
+            t = target
+        if to_step:
             ti = step_tendon[js]
             drive[ti] += d_drive[ti] * step_signs[js]
             js += 1
@@ -940,10 +1470,7 @@ def advance(y, t0, drive, d_drive, sample_times, step_times, step_tendon, step_s
             if tau <= 0.0:
                 for i in range(nt):
                     filt[i] = st[3, i]
-        integrate(y, k1, st, ts - t, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, bufs, sbuf, filt,
-                  tau, stats, health)  # fmt: skip
-        if ts > t:
-            t = ts
+            continue
         for i in range(nt):
             out_raw[qi, i] = st[3, i]
             out_filt[qi, i] = filt[i]
@@ -952,4 +1479,5 @@ def advance(y, t0, drive, d_drive, sample_times, step_times, step_tendon, step_s
         out_tip[qi, 0] = wb[n - 1, W_P + 0]
         out_tip[qi, 1] = wb[n - 1, W_P + 1]
         out_tip[qi, 2] = wb[n - 1, W_P + 2]
+        qi += 1
     return t

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from helpers.virtual._kernel import SCHEME_RK4, SCHEMES
 from helpers.virtual.spatial import _kernel as kern
 from helpers.virtual.spatial.rig import SpatialRig
 from helpers.virtual.spatial.statics import spatial_model, stable_max_step
@@ -125,18 +126,23 @@ class SpatialPlant:
     rig : SpatialRig
         The rig (e.g. :func:`~helpers.virtual.spatial.rig.four_tendon_rig`).
     max_step : float, optional
-        Largest RK4 step, s. Default: ``rig.arm.max_step`` or, where that is beyond RK4's stability limit at
-        rest (a rig whose tendons stiffen the discs' rocking: four tendons need 1/6 ms, not 0.25 ms),
+        Largest integrator step, s (the integrator is ``rig.arm.integrator``). Default:
+        ``rig.arm.max_step`` or, with RK4 where that is beyond its stability limit at rest (a rig whose
+        tendons stiffen the discs' rocking: four tendons need 1/6 ms, not 0.25 ms),
         :func:`helpers.virtual.spatial.statics.stable_max_step`; integrated beyond it, the twin at rest rings
-        up until tendons go slack.
+        up until tendons go slack. The implicit step (``"rosw"``) holds the tendons' and the rod's stiffness
+        implicitly and needs no such limit.
     """
 
     def __init__(self, rig: SpatialRig, max_step: float | None = None) -> None:
         if not isinstance(rig, SpatialRig):
             raise TypeError(f"rig must be a SpatialRig, got {type(rig).__name__}")
         self.rig = rig
+        self._scheme = SCHEMES.index(rig.arm.integrator)
         if max_step is None:
-            max_step = min(rig.arm.max_step, stable_max_step(rig)) if rig.n_tendons > 1 else rig.arm.max_step
+            max_step = rig.arm.max_step
+            if rig.n_tendons > 1 and self._scheme == SCHEME_RK4:
+                max_step = min(max_step, stable_max_step(rig))
         self.max_step = float(max_step)
         if not (math.isfinite(self.max_step) and self.max_step > 0):
             raise ValueError(f"max_step must be positive, got {max_step!r}")
@@ -189,7 +195,7 @@ class SpatialPlant:
 
     @property
     def integrator_steps(self) -> int:
-        """RK4 steps taken since the last reset."""
+        """Integrator steps taken since the last reset (transition searches included)."""
         return int(self._stats[0])
 
     @property
@@ -270,8 +276,9 @@ class SpatialPlant:
         out_q = np.empty((ts.size, 3 * n))
         out_tip = np.empty((ts.size, 3))
         t = kern.advance(
-            self._y, self._t, self._drive, a.d_drive, ts, st, sk, sg, self.max_step, a.geo, a.mb, a.Jd, a.Jp,
-            a.tp, a.W, a.cw, self._filt, a.tau, out_raw, out_filt, out_q, out_tip, self._stats, self._health,
+            self._scheme, self._y, self._t, self._drive, a.d_drive, ts, st, sk, sg, self.max_step, a.geo,
+            a.mb, a.Jd, a.Jp, a.tp, a.W, a.cw, self._filt, a.tau, out_raw, out_filt, out_q, out_tip,
+            self._stats, self._health,
         )  # fmt: skip
         if not (np.all(np.isfinite(self._y)) and np.all(np.isfinite(self._filt))):
             raise FloatingPointError(
