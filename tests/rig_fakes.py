@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 
 from helpers import rigfile
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import Rig
+from helpers.virtual.emulator.boards import build_limits
 from helpers.virtual.emulator.world import VirtualWorld, forget_world, register_world
 
+MM_PER_STEP = math.pi * 65.0 / 800  # the paper's rig, by hand: the test double's cable per step
 K_N_PER_MM = 0.5
 PRETENSION_N = 1.0
 GAIN = 40.0
@@ -59,11 +61,12 @@ CALIBRATION = {
 }
 
 
-def make_world(**kwargs) -> VirtualWorld:
-    """Register a fresh world with the test doubles and return it."""
+def make_world(rig: rigfile.RigFile | None = None, **kwargs) -> VirtualWorld:
+    """Register a fresh world with the test doubles, its boards built for ``rig`` (default the paper's)."""
     name = f"test{next(_names)}"
     forget_world(name)
-    return register_world(VirtualWorld(SpringPlant(), LinearSensor(), name=name, **kwargs))
+    limits = build_limits(rigfile.default_rig() if rig is None else rig)
+    return register_world(VirtualWorld(SpringPlant(), LinearSensor(), name=name, limits=limits, **kwargs))
 
 
 def make_rig(
@@ -72,13 +75,14 @@ def make_rig(
 ) -> tuple[Rig, VirtualWorld]:
     """A connected rig on a fresh test-double world; options are URL query strings like '&hang_at=1'.
 
-    ``rig``: the rig file (default the one this process's emulated boards are built for).
+    ``rig``: the rig file (default the paper's), the boards built for it.
     """
-    world = make_world(**world_kwargs)
+    rig = rigfile.default_rig() if rig is None else rig
+    world = make_world(rig, **world_kwargs)
     rig = Rig(
         "virtual",
-        rigfile.selected() if rig is None else rig,
-        calibration=CALIBRATION,
+        rig,
+        calibration=dict(CALIBRATION, mm_per_step=rigfile.derived(rig).mm_per_step[0]),
         world=world.name,
         timeout=0.5,
         hello_timeout=1.0,

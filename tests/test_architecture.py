@@ -271,15 +271,14 @@ def test_virtual_scheme_is_registered_by_opening_a_port_not_by_importing():
     assert proc.returncode == 0, proc.stderr[-1500:]
 
 
+RIG_NUMBERS = ("MM_PER_STEP", "LIMITS", "MAX_TRAVEL_MM", "MAX_SPEED_MM_S", "ADC_MAX", "DAQ_RATE_MIN_HZ",
+               "DAQ_RATE_MAX_HZ", "MAX_PROGRAMME_S", "DAQ_BAUD", "STEPPER_BAUD", "RIG")  # fmt: skip
+"""The rig's numbers that were module constants of ``helpers.paper.hardware`` (read from the selected rig at
+import): the rig is a value now (``helpers.rigfile.derived(rig)``, ``Limits.of(rig)``), bound nowhere."""
+
 ONE_HOME = {
-    "MM_PER_STEP": "helpers.paper.hardware",
-    "LIMITS": "helpers.paper.hardware",
-    "MAX_TRAVEL_MM": "helpers.paper.hardware",
-    "MAX_SPEED_MM_S": "helpers.paper.hardware",
-    "ADC_MAX": "helpers.paper.hardware",
-    "DAQ_RATE_MIN_HZ": "helpers.paper.hardware",
+    **dict.fromkeys(RIG_NUMBERS),
     "FW_VERSION": "helpers.board.protocol",
-    "SCHEMA_VERSION": "helpers.recordings.format",
     "IDENTIFICATION_RESULT": "helpers.base.paths",
     "LOADCELL_CALIBRATION": "helpers.base.paths",
     "VIRTUAL_RIG_REGISTRY": "helpers.base.paths",
@@ -299,16 +298,20 @@ def test_each_fact_has_one_home():
             elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
                 targets = [node.target.id]
             for t in targets:
-                if t in ONE_HOME and ONE_HOME[t] != name:
+                if t in ONE_HOME and ONE_HOME[t] is None:
+                    problems.append(f"{t} is bound in {name}: the rig's numbers come from the rig, a value")
+                elif t in ONE_HOME and ONE_HOME[t] != name:
                     problems.append(f"{t} is defined in {name}, its home is {ONE_HOME[t]}")
     assert not problems, "\n".join(problems)
 
 
 def test_the_spool_and_steps_give_the_cable_per_step():
-    from helpers.paper import hardware
+    from helpers import rigfile
+    from helpers.board.programmes import Limits
     from helpers.paper import numbers as paper
 
     # 65 mm spool and 800 steps per revolution (the paper): pi * 65 / 800 mm per step
     assert (paper.SPOOL_DIAMETER_M, paper.STEPS_PER_REV) == (0.065, 800)
-    assert hardware.MM_PER_STEP == pytest.approx(0.2552544, abs=1e-7)
-    assert hardware.LIMITS.max_position_steps * hardware.MM_PER_STEP <= hardware.MAX_TRAVEL_MM
+    limits = Limits.of(rigfile.default_rig())
+    assert limits.mm_per_step[0] == pytest.approx(0.2552544, abs=1e-7)
+    assert limits.travel_steps[0] * limits.mm_per_step[0] <= 40.0 < (limits.travel_steps[0] + 1) * 0.2552544

@@ -52,8 +52,8 @@ def test_the_longest_pulse_the_help_promises_is_accepted_for_every_shaper(data, 
     args = ["record", "pulse", "--v-in", "200", "--x-f", "39.82", "--system", system, "--data-dir", str(data)]
     assert main([*args, "--dry-run"]) == 0
     assert "156 steps per move" in capsys.readouterr().out
-    assert _status([*args[:5], "40", *args[6:], "--dry-run"]) == 2
-    assert "--x-f: 40 is outside (0, 39.82]" in _one_line(capsys)
+    assert _status([*args[:5], "40", *args[6:], "--dry-run"]) == 3  # the rig's travel: a safety limit
+    assert "displacement 40.0 mm is 157 steps, beyond the travel of 156 steps (39.8 mm)" in _one_line(capsys)
     with pytest.raises(SafetyError, match="157 steps, beyond the travel of 156 steps"):
         check_request(200, 40, rigfile.default_rig())
 

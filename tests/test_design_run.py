@@ -9,14 +9,13 @@ import shutil
 
 import numpy as np
 import pytest
-from rig_fakes import make_world
+from rig_fakes import MM_PER_STEP, make_world
 
 from helpers import recordings, rigfile
 from helpers.base.jsonfile import DataFileError
 from helpers.base.paths import DATA_DIR
 from helpers.board.programmes import experiment_programme
 from helpers.commands import record
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.paper.shapers import Shaper
 from helpers.research.design import SYSTEMS, Design, ShaperPair, map_following, save_design
 from helpers.research.modemap import ModeMap

@@ -312,7 +312,7 @@ def test_two_recorders_into_one_group_the_second_is_refused(data_dir):
 
 
 REFUSALS = [
-    (["record", "pulse", "--v-in", "500", "--x-f", "10"], 2, "outside (0, 400]"),
+    (["record", "pulse", "--v-in", "500", "--x-f", "10"], 3, "500.0 mm/s exceeds the limit of 400 mm/s"),
     (["record", "pulse", "--v-in", "nan", "--x-f", "10"], 2, "outside"),
     (["record", "pulse", "--v-in", "200", "--x-f", "10", "--group", "../../x"], 2, "invalid group"),
     (

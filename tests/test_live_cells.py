@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 from crc_reference import link_hex, xor_hex
-from rig_fakes import CALIBRATION, make_rig, make_world
+from rig_fakes import CALIBRATION, MM_PER_STEP, make_rig, make_world
 from test_old_firmware import FakeBoard
 
 from helpers import recordings, rigfile
@@ -19,7 +19,6 @@ from helpers.board.programmes import experiment_programme
 from helpers.board.protocol import FW_VERSION
 from helpers.paper import numbers as paper
 from helpers.paper import scenarios
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.paper.shapers import design_tdfs
 from helpers.rig import BoardReset, BoardTimeout, OldFirmware, PortBusy, Rig, SafetyError, WrongRig
 from helpers.rig.link import Link

@@ -12,15 +12,20 @@ from hypothesis import strategies as st
 from helpers import rigfile
 from helpers.board import programmes
 from helpers.board.programmes import Dwell, Limits, Move, Programme, Segment
-from helpers.paper import hardware, modes, profiles, shapers
+from helpers.paper import modes, profiles, shapers
 from helpers.paper import numbers as paper
-from helpers.paper.hardware import LIMITS, MM_PER_STEP
 from helpers.paper.profiles import VelocityProfile
 from helpers.research import families
+from rigs import SHIPPED
 
 ZV, ZVD = shapers.paper_tdfs()
 OMEGA_N = modes.omega_n_from_damped(paper.OMEGA_D, paper.ZETA)
 SYSTEMS = {"unshaped": None, "zv": ZV, "zvd": ZVD}
+
+
+PAPER = SHIPPED["paper"]
+MM_PER_STEP = PAPER.mm_per_step  # the paper's 0.25525 mm, by hand (tests/rigs.py)
+LIMITS = Limits.of(PAPER.load())  # the paper's board limits (checked against the keys below)
 
 
 def test_mm_per_step_from_spool_and_steps():  # paper-only: the paper's published spool and steps
@@ -143,15 +148,13 @@ def test_bad_items_refused(bad):
 
 def test_host_limits_follow_the_rig_file(shipped_rig):  # rig-parametrised (tests/conftest.py)
     r = shipped_rig
-    assert hardware.RIG.hash == r.hash
-    assert MM_PER_STEP == pytest.approx(r.mm_per_step, rel=1e-12)
-    assert (LIMITS.min_interval_us, LIMITS.max_interval_us) == (r.min_interval_us, r.hw("max_interval_us"))
-    assert (LIMITS.max_position_steps, LIMITS.max_items) == (r.travel_steps, r.hw("programme_max_items"))
-    assert (LIMITS.max_dwell_ms, LIMITS.max_speed_mm_s) == (r.hw("max_dwell_ms"), r.hw("speed_limit_mm_s"))
-    assert hardware.MAX_PULSE_MM == pytest.approx(r.travel_steps * r.mm_per_step, rel=1e-12)
-    assert (hardware.CLIP_LOW_COUNTS, hardware.CLIP_HIGH_COUNTS) == r.clip_counts
-    rates = (hardware.DAQ_RATE_MIN_HZ, hardware.DAQ_RATE_MAX_HZ)
-    assert rates == (r.hw("daq_rate_min_hz"), r.hw("daq_rate_max_hz"))
+    rig = r.load()
+    limits, d = Limits.of(rig), rigfile.derived(rig)
+    assert limits.mm_per_step == pytest.approx((r.mm_per_step,), rel=1e-12)
+    assert (limits.min_interval_us, limits.max_interval_us) == (r.min_interval_us, r.hw("max_interval_us"))
+    assert (limits.travel_steps, limits.max_items) == ((r.travel_steps,), r.hw("programme_max_items"))
+    assert (limits.max_dwell_ms, limits.max_speed_mm_s) == (r.hw("max_dwell_ms"), r.hw("speed_limit_mm_s"))
+    assert (d.clip_low_counts, d.clip_high_counts) == r.clip_counts
     # the fastest step never exceeds the speed limit or the step-rate cap, and one microsecond less would
     assert r.mm_per_step / r.min_interval_us * 1e6 <= r.hw("speed_limit_mm_s") + 1e-9
     assert 1e6 / r.min_interval_us <= r.hw("step_rate_cap_hz")
@@ -376,5 +379,5 @@ def test_programme_lands_on_whole_steps(v, x, family, omega, zeta):
     pos = np.cumsum(signs.astype(int))
     assert pos[np.searchsorted(t, 8.0, side="left") - 1] == n
     assert prog.net_steps == 0
-    assert pos.min() >= 0 and pos.max() <= LIMITS.max_position_steps
+    assert pos.min() >= 0 and pos.max() <= LIMITS.travel_steps[0]
     prog.check_limits()

@@ -11,6 +11,7 @@ import pytest
 
 from helpers import recordings, rigfile
 from helpers.paper import metrics
+from rigs import SHIPPED
 
 PAPER_TEXT = (rigfile.RIGS_DIR / "paper.toml").read_text()
 
@@ -33,12 +34,12 @@ def test_clip_limits_follow_the_rigs_adc_chain():
     assert metrics.clipped_samples(adc).tolist() == [True, True, False, False]  # the host's (paper's) chain
 
 
-def test_the_sensor_range_is_the_rigs(rig_file, shipped_rig):  # rig-parametrised (both fixtures)
-    # a recording's rig (an argument, in this process) and the host's rig (the rig the process runs)
+def test_the_sensor_range_is_the_rigs(rig_file):  # rig-parametrised (tests/conftest.py)
+    # a recording's rig (an argument); without one, the paper's rig (its 116 and 628 counts, by hand)
     low, high = rig_file.clip_counts
     rig = rigfile.load(rig_file.path)
     assert metrics.clip_limits(None, rig) == (float(low), float(high))
-    assert metrics.clip_limits() == tuple(float(c) for c in shipped_rig.clip_counts)
+    assert metrics.clip_limits() == tuple(float(c) for c in SHIPPED["paper"].clip_counts) == (116.0, 628.0)
     adc = np.array([low, low + 1, high - 1, high])
     assert metrics.clipped_samples(adc, None, rig).tolist() == [True, False, False, True]
     # a recording's calibration with another zero reading: only the ADC's rails bound the range

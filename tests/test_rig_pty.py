@@ -48,7 +48,7 @@ def _serve(speed: float):
 
 def test_record_over_pseudo_terminals(tmp_path):
     ports, world, finish = _serve(speed=4.0)
-    rig = Rig(ports, rigfile.selected(), CALIBRATION, hello_timeout=READY_S)
+    rig = Rig(ports, rigfile.default_rig(), CALIBRATION, hello_timeout=READY_S)
     prog = Programme((Dwell(100), Segment(1, 20, 1000), Dwell(100), Segment(-1, 20, 1000), Dwell(50)))
     rec = rig.run(prog, path=tmp_path / "pty", progress=False)
     rig.close()
@@ -67,7 +67,7 @@ def test_stream_over_pseudo_terminals_in_real_time(tmp_path):
     """The same stream as in-process, paced by the server's device clock through the ports (at half real time:
     the host may stall 140 ms, a busy shared machine, before the board runs short)."""
     ports, world, finish = _serve(speed=0.5)
-    rig = Rig(ports, rigfile.selected(), CALIBRATION, hello_timeout=READY_S)
+    rig = Rig(ports, rigfile.default_rig(), CALIBRATION, hello_timeout=READY_S)
     shaper = hs.StreamShaper((1024, 2048, 1024), (0, 40_000, 80_000))
     setpoints = [150.0] * 8 + [0.0] * 10 + [-150.0] * 8 + [0.0] * 4
     # a lead of 7 periods (70 ms of device time) before the board would run short
@@ -119,7 +119,7 @@ def test_slow_bursty_and_stalling_sources_never_move_the_cable_further_than_comm
     tmp_path, busy_machine, source
 ):
     ports, world, finish = _serve(speed=1.0)
-    rig = Rig(ports, rigfile.selected(), CALIBRATION, hello_timeout=30.0)
+    rig = Rig(ports, rigfile.default_rig(), CALIBRATION, hello_timeout=30.0)
     command = [100.0] * 10 + [0.0] * 4 + [-50.0] * 6 + [0.0] * 4  # 10 mm up, 3 mm back
     unit = (1 / 2**16) / 16e-6 * 0.25525  # mm/s of one set-point unit (PROTOCOL.md)
     try:

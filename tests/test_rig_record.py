@@ -99,8 +99,8 @@ def test_dry_run_checks_everything_and_opens_no_port(tmp_path, capsys):
 def test_dry_run_refuses_what_the_real_run_would_refuse(tmp_path):
     _with_calibration(tmp_path)
     common = ["--data-dir", str(tmp_path), "--dry-run", "--group", "mine"]
-    with pytest.raises(SystemExit):  # 40 mm rounds to 157 steps: the parser refuses it, naming (0, 39.82]
-        record.run(_args("pulse", "--v-in", "400", "--x-f", "40", *common))
+    with pytest.raises(record.SafetyError, match="157 steps, beyond the travel of 156 steps"):  # the rig's
+        record.run(_args("pulse", "--v-in", "400", "--x-f", "40", *common))  # travel, checked before a port
     assert record.run(_args("pulse", "--v-in", "400", "--x-f", "39.82", *common)) == 0  # 156 steps: the top
     with pytest.raises(record.SafetyError, match="beyond the travel of 156 steps"):  # and the API says why
         record.check_request(400, 40, rigfile.default_rig())

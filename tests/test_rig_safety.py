@@ -15,8 +15,10 @@ from helpers.rig import SafetyError, check_request
 
 
 @pytest.fixture()
-def spied():
-    rig, world = make_rig()
+def spied(request):
+    """A rig on the test doubles whose ports record every byte written; the test's ``shipped_rig`` if any."""
+    shipped = request.getfixturevalue("shipped_rig") if "shipped_rig" in request.fixturenames else None
+    rig, world = make_rig(rig=None if shipped is None else shipped.load())
     rig.daq.port = SpyPort(rig.daq.port)
     rig.stepper.port = SpyPort(rig.stepper.port)
     n_daq, n_stepper = len(world.daq.received), len(world.stepper.received)
@@ -132,11 +134,11 @@ def test_hardware_with_a_virtual_rig_calibration_warns(monkeypatch):
     connect = dict(world=world.name, timeout=0.5, hello_timeout=1.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the virtual rig with a virtual calibration: as it should be
-        Rig("virtual", rigfile.selected(), virtual_cal, **connect).close()
+        Rig("virtual", rigfile.default_rig(), virtual_cal, **connect).close()
     monkeypatch.setattr(driver, "virtual_source_for", lambda urls: None)  # these ports: as hardware
     monkeypatch.setattr(Rig, "world", property(lambda self: None))
     with pytest.warns(UserWarning, match="recorded on the virtual rig"):
-        Rig("virtual", rigfile.selected(), virtual_cal, **connect).close()
+        Rig("virtual", rigfile.default_rig(), virtual_cal, **connect).close()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        Rig("virtual", rigfile.selected(), dict(virtual_cal, source="hardware"), **connect).close()
+        Rig("virtual", rigfile.default_rig(), dict(virtual_cal, source="hardware"), **connect).close()

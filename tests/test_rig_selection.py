@@ -1,4 +1,4 @@
-"""Selecting the rig (``--rig FILE``, ``HELPERS_RIG``); recordings carry their rig (docs/rig_file.md)."""
+"""The rig is a value: ``--rig`` an ordinary option, nothing read at import; recordings carry their rig."""
 
 from __future__ import annotations
 
@@ -25,8 +25,6 @@ def _python(code: str, env: dict[str, str] | None = None, *args: str) -> subproc
                           text=True, env=dict(os.environ, **(env or {})), timeout=300)  # fmt: skip
 
 
-@pytest.mark.xfail(strict=True, reason="issue 36 under way: helpers.paper.hardware still reads "
-                   "the rig at import until the drivers take it as a value (this mark goes with it)")
 def test_importing_any_module_reads_no_rig_and_no_environment():
     # the rig is a value passed down (issue 36): a bad rig named in the environment changes nothing
     proc = _python(PACKAGE_IMPORT, {"HELPERS_RIG": "/nonexistent"})
@@ -56,8 +54,8 @@ def test_the_old_rig_name_option_is_the_virtual_instance():
 
 
 # --- recordings carry their rig -------------------------------------------------------------------------
-def _run(tmp_path):
-    rig, _ = make_rig()
+def _run(tmp_path, rig=None):
+    rig, _ = make_rig(rig=rig)
     try:
         return rig.run(
             Programme((Dwell(20), Segment(1, 5, 1000), Dwell(20))), path=tmp_path / "a", progress=False
@@ -82,7 +80,7 @@ def test_a_recordings_rig_section_round_trips(rig_file):  # rig-parametrised (te
 
 
 def test_a_recording_from_the_virtual_rig_keeps_its_rig(tmp_path, shipped_rig):  # rig-parametrised
-    rec = _run(tmp_path)
+    rec = _run(tmp_path, shipped_rig.load())
     assert rec.meta["schema_version"] == 4
     assert (rec.meta["rig"]["name"], rec.meta["rig"]["hash"]) == (shipped_rig.data["name"], shipped_rig.hash)
     loaded = recordings.load(rec.path)

@@ -14,11 +14,14 @@ import math
 
 import numpy as np
 import pytest
-from rig_fakes import SpyPort, make_rig
+from rig_fakes import (
+    MM_PER_STEP,  # the paper's cable per step, by hand
+    SpyPort,
+    make_rig,
+)
 
 from helpers import recordings
 from helpers.board import stream_reference as hs
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import BoardReset, BoardTimeout, SafetyError
 from helpers.rig.stream import StreamLimit, StreamStarved, stream
 

@@ -4,12 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from rig_fakes import CALIBRATION, GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_rig, make_world
+from rig_fakes import (
+    CALIBRATION,
+    GAIN,
+    K_N_PER_MM,
+    MM_PER_STEP,  # the paper's cable per step, by hand
+    OFFSET,
+    PRETENSION_N,
+    make_rig,
+    make_world,
+)
 
 from helpers import recordings, rigfile
 from helpers.board.programmes import Dwell, Programme, Segment, experiment_programme
 from helpers.board.protocol import frame
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import Rig
 from helpers.rig.ports import KNOWN_BOARDS, find_rig_ports
 from helpers.rig.static import record_static
@@ -80,7 +88,7 @@ def test_sync_by_ping_when_the_board_does_not_reset_on_open():
     world.stepper.take_output()
     rig = Rig(
         "virtual",
-        rigfile.selected(),
+        rigfile.default_rig(),
         world=world.name,
         calibration=CALIBRATION,
         daq_options="&reset_on_open=0",
@@ -134,9 +142,10 @@ def test_boards_built_for_another_rig_are_refused_with_the_rebuild_command(monke
     from helpers.rig import WrongRig
 
     monkeypatch.setattr(emulated, "board_version", lambda rig_hash: version)
-    world = make_world()
+    rig = shipped_rig.load()
+    world = make_world(rig)
     with pytest.raises(WrongRig) as info:
-        Rig("virtual", rigfile.selected(), CALIBRATION, world=world.name, timeout=0.5, hello_timeout=1.0)
+        Rig("virtual", rig, CALIBRATION, world=world.name, timeout=0.5, hello_timeout=1.0)
     message = str(info.value)
     assert version.split("+")[1] in message and shipped_rig.hash in message
     assert "make -C firmware RIG=" in message and shipped_rig.path.name in message
@@ -148,7 +157,7 @@ def test_a_board_without_a_rig_hash_is_the_paper_rigs(monkeypatch):
 
     monkeypatch.setattr(emulated, "board_version", lambda rig_hash: "2.1.0")
     world = make_world()
-    rig = Rig("virtual", rigfile.selected(), CALIBRATION, world=world.name, timeout=0.5, hello_timeout=1.0)
+    rig = Rig("virtual", rigfile.default_rig(), CALIBRATION, world=world.name, timeout=0.5, hello_timeout=1.0)
     try:
         assert rig.daq.version == rig.stepper.version == "2.1.0"
     finally:

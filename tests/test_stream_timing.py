@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from rig_fakes import make_rig
+from rig_fakes import (
+    MM_PER_STEP,  # the paper's cable per step, by hand
+    make_rig,
+)
 
 from helpers import recordings
 from helpers.board import stream_reference as hs
-from helpers.paper.hardware import MM_PER_STEP
 from helpers.rig import BoardError
 from helpers.rig.stream import StreamLimit, stream
 

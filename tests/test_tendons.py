@@ -360,7 +360,8 @@ def test_one_tendon_recordings_are_written_and_read_as_before(tmp_path) -> None:
         "rig": recordings.rig_section(rigfile.default_rig()),
     }  # fmt: skip
     rows = [(s, 1000 * s, 100 + s, s // 4) for s in range(20)]
-    rec = recordings.Recording(recordings.frame_from_rows(rows), meta)
+    frame = pd.DataFrame(rows, columns=["seq", "t_us", "adc", "steps"])  # version 2's columns, by hand
+    rec = recordings.Recording(frame, meta)
     path = recordings.save(rec, tmp_path / "g" / "one")
     assert path.read_text().splitlines()[:2] == ["seq,t_us,adc,steps", "0,0,100,0"]
     rec = recordings.load(path)

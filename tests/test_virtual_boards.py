@@ -6,18 +6,24 @@ import numpy as np
 import pytest
 import serial
 from crc_reference import link_hex
-from rig_fakes import GAIN, K_N_PER_MM, OFFSET, PRETENSION_N, make_world
+from rig_fakes import (
+    GAIN,
+    K_N_PER_MM,
+    MM_PER_STEP,  # the paper's cable per step, by hand
+    OFFSET,
+    PRETENSION_N,
+    make_world,
+)
 
 from helpers import rigfile
 from helpers.board import stream_reference as hs
 from helpers.board.protocol import StreamParser, checksum, frame
-from helpers.paper.hardware import MM_PER_STEP
-from helpers.virtual.emulator.boards import Faults, build_limits
+from helpers.virtual.emulator.boards import Faults
 
 
 def built_for(rig_file) -> dict:
     """``make_world``'s keyword for boards built for a shipped rig file (the rig as a value)."""
-    return {"limits": build_limits(rigfile.load(rig_file.path))}
+    return {"rig": rigfile.load(rig_file.path)}
 
 
 def talk(board, *commands, checksum=True):

@@ -136,7 +136,7 @@ def test_the_command_line_serves_the_rig_file_it_is_given() -> None:
     """``python -m helpers serve-virtual-rig --rig four-tendon --speed 0.5`` as a user types it."""
     argv = [sys.executable, "-m", "helpers", "serve-virtual-rig", "--rig", "four-tendon", "--speed", "0.5",
             "--virtual-instance", "cli", "--duration", str(READY_S)]  # fmt: skip
-    env = {k: v for k, v in os.environ.items() if k != rigfile.ENV_VAR}
+    env = dict(os.environ)
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         paths = dict(proc.stdout.readline().split() for _ in range(2))

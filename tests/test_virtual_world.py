@@ -208,7 +208,7 @@ def test_every_world_sends_the_bytes_it_sent_before_the_boards_were_merged(rig, 
 # --- the rig as a value, through the in-process port ----------------------------------------------------
 @pytest.fixture
 def virtual_urls(monkeypatch):
-    """pyserial finds ``virtual://`` (as ``helpers.live.ports.open_port`` arranges; undone after the test)."""
+    """pyserial finds ``virtual://`` (as ``helpers.rig.link.open_port`` arranges; undone after the test)."""
     monkeypatch.setattr(serial, "protocol_handler_packages", [*serial.protocol_handler_packages,
                                                               "helpers.virtual.emulator"])  # fmt: skip
 

@@ -24,7 +24,6 @@ import math
 from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number, arg_rig_name
 from helpers.board.programmes import Move, Programme, Segment
-from helpers.paper.hardware import MAX_SPEED_MM_S
 from helpers.rig.link import BoardError, Link, ints
 from helpers.rig.ports import rig_urls
 from helpers.rig.safety import SafetyError, check_programme
@@ -156,9 +155,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--speed",
-        type=arg_number(0, MAX_SPEED_MM_S, lo_open=True),
+        type=arg_number(0, 1e6, lo_open=True),
         default=HOME_SPEED_MM_S,
-        help="cable speed on the way home, mm/s",
+        help="cable speed on the way home, mm/s, in (0, the rig's speed_limit_mm_s]",
     )
 
 
@@ -173,6 +172,9 @@ def run(args: argparse.Namespace) -> int:
         )
         return 0
     rig = args.rig
+    if args.speed > rig.hardware.speed_limit_mm_s:
+        raise ValueError(f"--speed {args.speed:g} mm/s: rig {rig.name!r} moves at most "
+                         f"{rig.hardware.speed_limit_mm_s:g} mm/s (speed_limit_mm_s)")  # fmt: skip
     url = args.ports if "," not in args.ports and args.ports != "auto" else rig_urls(args.ports, rig, "")[1]
     stepper = Link.open(url, "stepper", rig, rig.hardware.stepper_baud)
     try:

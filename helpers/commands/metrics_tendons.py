@@ -26,8 +26,7 @@ import pandas as pd
 from helpers.base.paths import shown
 from helpers.base.tables import to_markdown
 from helpers.paper import metrics
-from helpers.recordings import Recording, recording_rig
-from helpers.recordings.tendons import TIP_MM_COLUMNS
+from helpers.recordings import TIP_MM_COLUMNS, Recording, recording_rig
 
 __all__ = ["TENDON_COLUMNS", "TIP_COLUMNS", "tendon_table", "tendon_text", "tendon_markdown", "tip_frame",
            "tip_table", "tip_text", "tip_markdown"]  # fmt: skip

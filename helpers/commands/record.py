@@ -51,14 +51,6 @@ from helpers.paper.calibration import (
     save_calibration,
     uncalibrated,
 )
-from helpers.paper.hardware import (
-    DAQ_RATE_DEFAULT_HZ,
-    DAQ_RATE_MAX_HZ,
-    DAQ_RATE_MIN_HZ,
-    MAX_PROGRAMME_S,
-    MAX_PULSE_MM,
-    MAX_SPEED_MM_S,
-)
 from helpers.paper.identify import identify_recording, load_identification, save_identification
 from helpers.paper.modes import omega_n_from_damped
 from helpers.paper.shapers import Shaper, design_tdfs
@@ -136,12 +128,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="in-process virtual rig: noise seed of the first run; run k gets seed + k (recorded)",
     )
     parser.add_argument(
-        "--v-in", type=arg_number(0, MAX_SPEED_MM_S, lo_open=True),
-        help="pulse speed, mm/s, in (0, 400]; required for pulse",  # fmt: skip
-    )
+        "--v-in", type=arg_number(0, 1e6, lo_open=True),
+        help="pulse speed, mm/s, in (0, the rig's speed_limit_mm_s] (paper: 400); required for pulse",
+    )  # fmt: skip
     parser.add_argument(
-        "--x-f", type=arg_number(0, round(MAX_PULSE_MM, 2), lo_open=True),
-        help=f"pulse displacement, mm, in (0, {MAX_PULSE_MM:.2f}] (the travel, 156 steps); needed for pulse",
+        "--x-f", type=arg_number(0, 1e6, lo_open=True),
+        help="pulse displacement, mm, in (0, the rig's travel in whole steps] (paper: 39.82 mm, 156 steps); "
+        "required for pulse",
     )  # fmt: skip
     parser.add_argument("--system", choices=list(SYSTEMS), default=None, help=SYSTEM_HELP)
     parser.add_argument(
@@ -211,15 +204,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--t-end",
-        type=arg_number(0, MAX_PROGRAMME_S, lo_open=True),
+        type=arg_number(0, 1e6, lo_open=True),
         default=12.0,
-        help=f"programme (and recording) length, s, in (0, {MAX_PROGRAMME_S:.0f}]",
+        help="programme (and recording) length, s, in (0, the rig's max_programme_s] (paper: 600)",
     )
     parser.add_argument(
         "--rate",
-        type=arg_number(DAQ_RATE_MIN_HZ, DAQ_RATE_MAX_HZ, int),
-        default=DAQ_RATE_DEFAULT_HZ,
-        help=f"DAQ sample rate, Hz, {DAQ_RATE_MIN_HZ}-{DAQ_RATE_MAX_HZ}",
+        type=arg_number(1, 1_000_000, int),
+        default=None,
+        help="DAQ sample rate, Hz, within the rig's daq_rate_min_hz-daq_rate_max_hz (paper: 100-2000; "
+        "default: the rig's daq_rate_default_hz, 1000)",
     )
     parser.add_argument(
         "--group",
@@ -238,9 +232,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--duration",
-        type=arg_number(0, MAX_PROGRAMME_S, lo_open=True),
+        type=arg_number(0, 1e6, lo_open=True),
         default=1.0,
-        help="calibration: seconds per load",
+        help="calibration: seconds per load, in (0, the rig's max_programme_s]",
     )
     parser.add_argument("--data-dir", type=Path, default=DATA_DIR, help="the data folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -601,7 +595,7 @@ def _plan_move(args: argparse.Namespace, rig: Any) -> Any:
     if rig.n_tendons < 2:
         raise ValueError(
             f"record move needs a rig file with several tendons; the selected rig '{rig.name}' has one "
-            "(--rig four-tendon, or HELPERS_RIG)"
+            "(--rig four-tendon)"
         )
     grid = None
     if args.mode_grid is not None:
@@ -677,8 +671,23 @@ def _print_move_programme(args: argparse.Namespace, rig: Any, programme: Any, ta
     )
 
 
+def _within_the_rig(args: argparse.Namespace) -> None:
+    """The options whose range is the rig's (``args.rig``): the DAQ rate (default its own) and the lengths."""
+    hw = args.rig.hardware
+    if args.rate is None:
+        args.rate = hw.daq_rate_default_hz
+    if not hw.daq_rate_min_hz <= args.rate <= hw.daq_rate_max_hz:
+        raise ValueError(f"--rate {args.rate} Hz: rig {args.rig.name!r} samples at "
+                         f"{hw.daq_rate_min_hz}-{hw.daq_rate_max_hz} Hz")  # fmt: skip
+    for option, value in (("--t-end", args.t_end), ("--duration", args.duration)):
+        if value > hw.max_programme_s:
+            raise ValueError(f"{option} {value:g} s: rig {args.rig.name!r} runs programmes of at most "
+                             f"{hw.max_programme_s:g} s (max_programme_s)")  # fmt: skip
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers record`` (errors are turned into one line by ``python -m helpers``)."""
+    _within_the_rig(args)
     args.group = args.group or DEFAULT_GROUPS[args.what]
     if args.what == "move":
         return _record_move(args)

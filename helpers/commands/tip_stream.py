@@ -55,7 +55,7 @@ def _plan(args: argparse.Namespace, rig: Any) -> tuple[Any, Any, Any]:
     if rig.n_tendons < 2:
         raise ValueError(
             f"record tip-stream needs a rig file with several tendons; the selected rig '{rig.name}' has one "
-            "(--rig four-tendon, or HELPERS_RIG)"
+            "(--rig four-tendon)"
         )
     speed = args.v_in if args.v_in is not None else TIP_SPEED_MM_S
     path = figure_path(args.path, args.bend_mm, speed_mm_s=speed, seed=args.path_seed)

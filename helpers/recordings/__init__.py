@@ -12,15 +12,12 @@
 """
 
 from helpers.recordings.format import (
-    SCHEMA_VERSION,
     TIP_COLUMNS,
     TIP_MM_COLUMNS,
     VERSION,
     Recording,
     RecordingError,
     counts_to_newtons,
-    empty_frame,
-    frame_from_rows,
 )
 from helpers.recordings.store import (
     RESERVED_NAMES,
@@ -37,8 +34,8 @@ from helpers.recordings.writer import from_samples, nominal_calibration
 from helpers.rigfile.recorded import calibration_of, recording_rig, rig_section
 
 __all__ = [
-    "RESERVED_NAMES", "SCHEMA_VERSION", "TIP_COLUMNS", "TIP_MM_COLUMNS", "VERSION", "Recording",
+    "RESERVED_NAMES", "TIP_COLUMNS", "TIP_MM_COLUMNS", "VERSION", "Recording",
     "RecordingError", "RecordingExists", "aborted_path", "calibration_of", "catalogue", "check_name",
-    "counts_to_newtons", "empty_frame", "frame_from_rows", "from_samples", "load", "nominal_calibration",
+    "counts_to_newtons", "from_samples", "load", "nominal_calibration",
     "refuse_existing", "recording_rig", "reserve", "rig_section", "save",
 ]  # fmt: skip

@@ -29,11 +29,6 @@ from helpers.rigfile.recorded import calibration_of
 VERSION = 4
 """The version :func:`helpers.recordings.from_samples` writes: one layout for 1 to 4 tendons."""
 
-SCHEMA_VERSION = 2
-"""Deprecated: the one-tendon layout of version 2, for the writers that still build their metadata by hand
-(``helpers.live``, with :func:`frame_from_rows`); it goes once they call
-:func:`helpers.recordings.from_samples`, which writes :data:`VERSION`."""
-
 READ_VERSIONS = (1, 2, 3, 4)
 """Versions :func:`helpers.recordings.load` reads (1: before rig files, the paper's rig; 2: with the rig
 file; 3: several tendons; 4: 1 to 4 tendons); others are refused."""
@@ -144,14 +139,3 @@ def derive_columns(frame: pd.DataFrame, meta: dict[str, Any]) -> pd.DataFrame:
     if n == 1:
         cols.update({name: cols[f"{name}_0"] for name in ONE_TENDON})
     return pd.DataFrame(cols, index=raw.index)
-
-
-def empty_frame() -> pd.DataFrame:
-    """Deprecated (with :func:`frame_from_rows`): a frame of version 2's raw columns and no rows."""
-    return pd.DataFrame({c: np.zeros(0, dtype=np.int64) for c in RAW_COLUMNS})
-
-
-def frame_from_rows(rows: list[tuple[int, int, int, int]] | np.ndarray) -> pd.DataFrame:
-    """Deprecated (``helpers.live``): the version-2 frame of ``(seq, t_us, adc, steps)`` rows."""
-    arr = np.asarray(rows, dtype=np.int64).reshape(-1, 4)
-    return pd.DataFrame({c: arr[:, i] for i, c in enumerate(RAW_COLUMNS)})

@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from helpers.paper import metrics
-from helpers.recordings.tendons import TIP_MM_COLUMNS
+from helpers.recordings import TIP_MM_COLUMNS
 
 __all__ = ["MIN_STEP", "HOLD_WINDOW_S", "lead_tendon", "tip_displacement", "move_residuals_tendons"]
 

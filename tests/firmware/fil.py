@@ -49,7 +49,8 @@ if str(fwsim.REPO) not in sys.path:  # run as a script from anywhere: this repos
 from helpers.board import stream_reference as hs  # noqa: E402
 from helpers.board.programmes import Programme, experiment_programme  # noqa: E402
 from helpers.paper import metrics  # noqa: E402
-from helpers.paper.hardware import MM_PER_STEP  # noqa: E402
+
+MM_PER_STEP = __import__("math").pi * 65.0 / 800  # the paper's cable per step, by hand
 from helpers.paper.shapers import paper_tdfs  # noqa: E402
 from helpers.rig import Rig  # noqa: E402
 from helpers.rig.stream import PERIOD_US, stream  # noqa: E402

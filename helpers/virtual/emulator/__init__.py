@@ -7,10 +7,10 @@
 - :mod:`helpers.virtual.emulator.protocol_virtual`: the pyserial URL handler ``virtual://daq?world=NAME``
   (the rig given as ``port.rig``);
   pyserial finds it when ``helpers.virtual.emulator`` is in ``serial.protocol_handler_packages``, which
-  :func:`helpers.live.ports.open_port` arranges when it is asked to open a ``virtual://`` URL;
+  :func:`helpers.rig.link.open_port` arranges when it is asked to open a ``virtual://`` URL;
 - :mod:`helpers.virtual.emulator.server`: ``python -m helpers serve-virtual-rig``, both boards on
   pseudo-terminals.
 
 The physics comes from :mod:`helpers.virtual`, the protocol from :mod:`helpers.board.protocol`; nothing here
-imports the host drivers (:mod:`helpers.live`, :mod:`helpers.rig`).
+imports the host driver (:mod:`helpers.rig`).
 """

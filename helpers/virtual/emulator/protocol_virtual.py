@@ -5,9 +5,8 @@ A driver gives the world its rig as a value: it opens ``virtual://daq?world=<nam
 rig`` (a :class:`helpers.rigfile.RigFile`), then calls ``port.open()``. The port finds, or builds
 (:func:`helpers.virtual.emulator.world.build_world`), the world keyed by ``(name, rig.hash)``: one plant and
 one device clock for both boards; the default name is the rig's name. So two rigs in one process are two
-worlds. ``rig=<name>`` is the old spelling of ``world=<name>``; a port opened without ``port.rig`` (today's
-drivers) finds the one world of that name, or builds one of the transitional
-:func:`~helpers.virtual.emulator.world.legacy_rig`. Query options:
+worlds. ``rig=<name>`` is the old spelling of ``world=<name>``; a port opened without ``port.rig`` finds the
+one world of that name, or builds one of the paper's rig. Query options:
 
 - ``seed`` (sensor noise and fault generators), ``t0_us`` (clock offset), ``load_n`` (VIRTUAL calibration
   fixture: a known load in N hung on the load cells) -- used when the world is created;
@@ -18,7 +17,7 @@ drivers) finds the one world of that name, or builds one of the transitional
   ``hang_at``, ``disconnect_at`` (device seconds after the port is opened), ``overrun_every`` (samples).
 
 pyserial finds this handler when ``"helpers.virtual.emulator"`` is in ``serial.protocol_handler_packages``;
-:func:`helpers.live.ports.open_port` adds it when it opens a ``virtual://`` URL (not as an import side
+:func:`helpers.rig.link.open_port` adds it when it opens a ``virtual://`` URL (not as an import side
 effect). Device time runs as fast as the reader consumes it: a read waits, in device time, at most
 the port's timeout, so a read that finds nothing advances the clock by the timeout (or to the next event such
 as ``DONE``); a read of a streaming DAQ generates samples chunk by chunk until it has the bytes it asked for.

@@ -50,22 +50,11 @@ from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.plant import SpatialPlant
 
 __all__ = ["VirtualWorld", "build_world", "register_world", "forget_world", "find_world", "get_world",
-           "parameters_dict", "legacy_rig", "ADC_CONVERSION_S"]  # fmt: skip
+           "parameters_dict", "ADC_CONVERSION_S"]  # fmt: skip
 
 ADC_CONVERSION_S = 104e-6
 """One conversion of the Mega's ADC at clk/128 (13 ADC clocks of 8 us): channel c of a sample is read c of
 them after channel 0 (``firmware/PROTOCOL.md``, *several tendons*)."""
-
-
-def legacy_rig() -> RigFile:
-    """The rig of a world built without one, and of a ``virtual://`` port opened without ``port.rig``.
-
-    Transitional (issue 36): the host drivers of today open ``virtual://daq?rig=NAME`` without giving the
-    rig, and run the rig the command line selected (``rigfile.selected()``); this is that rig. It goes, and a
-    world without a rig becomes the paper's (``rigfile.default_rig()``), once every caller passes the rig
-    (``port.rig``, :func:`build_world`, ``serve-virtual-rig --rig``).
-    """
-    return rigfile.selected()
 
 
 @dataclass
@@ -91,7 +80,7 @@ class VirtualWorld:
     info : dict
         Provenance written into recordings: the virtual rig's version and parameters.
     limits : BuildLimits, optional
-        The boards' build (default: the build of :func:`legacy_rig`).
+        The boards' build (default: the paper's rig's, ``rigfile.default_rig()``).
     """
 
     plant: Any
@@ -108,7 +97,7 @@ class VirtualWorld:
 
     def __post_init__(self) -> None:
         if self.limits is None:
-            self.limits = build_limits(legacy_rig())
+            self.limits = build_limits(rigfile.default_rig())
         self._one_channel = not isinstance(self.sensor, list | tuple)
         self.sensors: list[Any] = [self.sensor] if self._one_channel else list(self.sensor)
         """One sensor per channel (what the DAQ reads)."""
@@ -362,8 +351,8 @@ def get_world(name: str | None = None, rig: RigFile | None = None,
     name : str, optional
         The world's name (default the rig's name).
     rig : RigFile, optional
-        The rig file. Without it: the one world named ``name`` if there is one, else a new world of
-        :func:`legacy_rig` (transitional, for today's drivers).
+        The rig file. Without it: the one world named ``name`` if there is one, else a new world of the
+        paper's rig (``rigfile.default_rig()``).
     options : dict, optional
         :func:`build_world`'s options, used only when the world is built: ``seed``, ``t0_us``, ``load_n``.
     """
@@ -372,7 +361,7 @@ def get_world(name: str | None = None, rig: RigFile | None = None,
         found = find_world(name)
         if found is not None:
             return found
-        rig = legacy_rig()
+        rig = rigfile.default_rig()
     name = name or rig.name
     world = _WORLDS.get((name, rig.hash))
     return world if world is not None else register_world(build_world(rig, name, options))
