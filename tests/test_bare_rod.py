@@ -19,14 +19,14 @@ from helpers.__main__ import main
 from helpers.base.paths import DATA_DIR
 from helpers.paper.identify import identify
 from helpers.recordings import RecordingError
-from helpers.recordings.sorosim import read_sorosim
 from helpers.rigfile import RigFileError, load
-from helpers.rigfile.rod import load_rod, loads_rod
 from helpers.virtual.sorosim import rod_file_text, to_clamp, to_file
+from helpers.virtual.sorosim_file import read_sorosim
 from helpers.virtual.spatial import _kernel as kern
 from helpers.virtual.spatial import bare_rod
 from helpers.virtual.spatial.plant import kernel_arrays
 from helpers.virtual.spatial.reference import dense_rhs
+from helpers.virtual.spatial.rod_file import load_rod, loads_rod
 from helpers.virtual.spatial.statics import spatial_model
 
 SOROSIM = DATA_DIR / "external" / "sorosim"

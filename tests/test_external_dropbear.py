@@ -1,4 +1,4 @@
-"""DROPBEAR Dataset-8 as recordings (helpers.recordings.external) and its ring-downs (``ringdowns``).
+"""DROPBEAR Dataset-8 as recordings (helpers.research.dropbear) and its ring-downs (``ringdowns``).
 
 The reference figures were measured independently of this code over all 11 repeats of the 10-step series
 (a damped-sine fit to the low-g channel, band-passed 10-80 Hz, the 0.6 s after each stop): 26.20 Hz at PinLoc
@@ -17,7 +17,7 @@ import pytest
 from helpers.__main__ import main
 from helpers.base.paths import DATA_DIR
 from helpers.recordings import RecordingError
-from helpers.recordings.external import read_dropbear
+from helpers.research.dropbear import read_dropbear
 from helpers.research.rest_ringdowns import COLUMNS, find_rests, identify_ringdowns
 
 DROPBEAR = DATA_DIR / "external" / "dropbear"

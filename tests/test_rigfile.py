@@ -227,12 +227,13 @@ def test_dataclasses_are_frozen():
 
 def test_docs_name_every_key_and_macro():
     from helpers.base.paths import REPO_ROOT
-    from helpers.rigfile import firmware_header, rod, schema
+    from helpers.rigfile import firmware_header, schema
+    from helpers.virtual.spatial import rod_file
 
     doc = (REPO_ROOT / "docs" / "rig_file.md").read_text()
     keys = [
         k.name
-        for table in (schema.TOP, schema.HARDWARE, schema.ARM, schema.BOARDS, schema.TENDON, rod.ROD)
+        for table in (schema.TOP, schema.HARDWARE, schema.ARM, schema.BOARDS, schema.TENDON, rod_file.ROD)
         for k in table
     ]
     missing = [k for k in keys if f"`{k}`" not in doc]

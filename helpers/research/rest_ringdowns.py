@@ -44,8 +44,8 @@ from scipy import signal
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import atomic_write
 from helpers.paper.identify import IdentificationResult, identify
-from helpers.recordings.external import configuration_column, read_dropbear
 from helpers.recordings.format import Recording, RecordingError
+from helpers.research.dropbear import configuration_column, read_dropbear
 
 __all__ = [
     "MIN_REST_S", "WINDOW_S", "BAND_HZ", "SMOOTH_HZ", "SPEED_THRESHOLD", "FORMATS", "COLUMNS", "Rest",
@@ -264,7 +264,7 @@ def identify_ringdowns(
     Parameters
     ----------
     recording : Recording
-        With a configuration signal (:func:`helpers.recordings.external.configuration_column`) and the
+        With a configuration signal (:func:`helpers.research.dropbear.configuration_column`) and the
         vibration ``channels``.
     channels : tuple of str
         Vibration channels; the first is the one reported, every one enters the interval of zeta.

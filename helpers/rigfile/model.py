@@ -3,7 +3,7 @@
 Every problem is one :class:`RigFileError` line naming the file, the key and the problem (an unknown key with
 the nearest known one, a wrong type, a wrong sign or an implausible size that is probably a wrong unit, a
 missing key, more than four tendons, an unsafe or impossible rig: ``helpers.rigfile.derived``). A bare rod's
-file (``[rod]``, ``helpers.rigfile.rod``) is no rig: refused in one line.
+file (``[rod]``, ``helpers.virtual.spatial.rod_file``) is no rig: refused in one line.
 """
 
 from __future__ import annotations
@@ -121,8 +121,9 @@ class RigFile:
         Where it came from (a path, or ``<string>``).
     hash : str
         :func:`rig_hash` of the file's bytes (UTF-8).
-    rod : helpers.rigfile.rod.Rod or None
-        A bare rod's ``[rod]`` table (``helpers.rigfile.rod``: then no hardware, arm, boards or tendons).
+    rod : helpers.virtual.spatial.rod_file.Rod or None
+        A bare rod's ``[rod]`` table, read by the twin (``helpers.virtual.spatial.rod_file``: then no
+        hardware, arm, boards or tendons).
     """
 
     name: str
@@ -225,7 +226,7 @@ def loads(text: str, source: str = "<string>") -> RigFile:
         where, depth, line = _deepest(text)
         why = f"arrays or inline tables nested {depth} deep (line {line}): a rig file nests at most one"
         raise _problem(source, where or "(top level)", f"{why} (gravity_direction)") from None
-    if "rod" in data:  # helpers.rigfile.rod reads it
+    if "rod" in data:  # helpers.virtual.spatial.rod_file reads it
         raise _problem(source, "[rod]", "this file describes a bare rod (docs/rig_file.md), not a rig")
     allowed = {k.name for k in TOP} | {"hardware", "arm", "boards", "tendon"}
     for name in data:

@@ -1,10 +1,11 @@
 """The spatial twin against SoroSim: a bare rod held deflected and released, as in a SoroSim tip-release test.
 
 SoroSim (an independent Cosserat-rod solver) holds a spring-steel rod deflected under gravity with forces on
-its middle and its tip and releases it (``helpers.recordings.sorosim``). Here the same rod is built as a bare
-rod's file (``docs/rig_file.md``, ``[rod]``: :func:`rod_file_text`, the test's length, radius, material,
-gravity and held forces), the spatial twin made from that file (:mod:`helpers.virtual.spatial.bare_rod`),
-held by the same forces, released and sampled at the test's instants (:func:`compare`).
+its middle and its tip and releases it (read by ``helpers.virtual.sorosim_file``). Here the same rod is built
+as a bare rod's file (``docs/rig_file.md``, ``[rod]``: :func:`rod_file_text`, the test's length, radius,
+material, gravity and held forces), the spatial twin made from that file
+(:mod:`helpers.virtual.spatial.bare_rod`), held by the same forces, released and sampled at the test's instants
+(:func:`compare`).
 
 **Frames.** The file's ``x`` runs along the unloaded rod; the twin's clamp frame has ``z`` there. Vectors go
 over as ``(x, y, z)_clamp = (y, z, x)_file`` (a rotation), and back for the comparison.
@@ -40,10 +41,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from helpers.paper.identify import IdentificationResult, identify
-from helpers.recordings.sorosim import SoroSimTest, read_sorosim
 from helpers.rigfile.model import RigFile
-from helpers.rigfile.rod import loads_rod
+from helpers.virtual.sorosim_file import SoroSimTest, read_sorosim
 from helpers.virtual.spatial import bare_rod
+from helpers.virtual.spatial.rod_file import loads_rod
 
 __all__ = [
     "FIT_WINDOW_S", "RMS_WINDOWS_S", "PHASE_AT_S", "CONVERGENCE_LINEAR", "CONVERGENCE_TIME", "MAX_SEGMENTS",
@@ -110,7 +111,7 @@ def rod_file_text(test: SoroSimTest, segments: int = 20, alpha_per_s: float = 0.
     Returns
     -------
     str
-        TOML text; :func:`helpers.rigfile.rod.loads_rod` reads it.
+        TOML text; :func:`helpers.virtual.spatial.rod_file.loads_rod` reads it.
     """
     if np.any(test.mid_moment != 0.0) or np.any(test.tip_moment != 0.0):
         raise ValueError(f"{test.path}: holding moments are not supported (the twin holds the rod by forces)")
@@ -261,7 +262,7 @@ def compare(
     Parameters
     ----------
     test : SoroSimTest
-        The tip-release test (:func:`helpers.recordings.sorosim.read_sorosim`).
+        The tip-release test (:func:`helpers.virtual.sorosim_file.read_sorosim`).
     segments : int
         The twin's elements for the comparison (even).
     convergence_linear, convergence_time : iterable of int

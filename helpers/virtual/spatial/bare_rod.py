@@ -5,7 +5,7 @@ The spatial twin's arc chain (:mod:`helpers.virtual.spatial.chain`, the compiled
 constant-strain elements of the rod file's length, radius and material (``docs/rig_file.md``, ``[rod]``),
 gravity along its direction, and the damping the file states (none unless it says). Nothing is tuned here.
 
-- :func:`rod_rig`: the twin of a bare rod's file (:func:`helpers.rigfile.rod.load_rod`);
+- :func:`rod_rig`: the twin of a bare rod's file (:func:`helpers.virtual.spatial.rod_file.load_rod`);
 - :func:`held_state`: the equilibrium under gravity and the file's held forces on the middle node and the tip
   (Newton on the twin's potential with the exact Hessian, gravity and forces raised together in
   :data:`HOLD_STAGES` steps);
@@ -70,7 +70,7 @@ def rod_file_text(
     """A bare rod's file (``docs/rig_file.md``, ``[rod]``) in SI arguments (``gravity``: m/s^2, clamp frame).
 
     ``comments`` head the file; ``notes`` are end-of-line comments by key. Read it back with
-    :func:`helpers.rigfile.rod.loads_rod`.
+    :func:`helpers.virtual.spatial.rod_file.loads_rod`.
     """
     g = np.asarray(gravity, dtype=float)
     size = float(np.linalg.norm(g))
@@ -102,7 +102,7 @@ def rod_rig(rig: RigFile, segments: int | None = None, **damping: float) -> Spat
     Parameters
     ----------
     rig : RigFile
-        A bare rod's file (:func:`helpers.rigfile.rod.load_rod`).
+        A bare rod's file (:func:`helpers.virtual.spatial.rod_file.load_rod`).
     segments : int, optional
         Elements of the rod (default: the file's ``segments``), for a convergence study.
     **damping : float

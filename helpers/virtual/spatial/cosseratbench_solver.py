@@ -41,10 +41,10 @@ except ModuleNotFoundError as exc:  # the optional extra
     ) from None
 
 from helpers import __version__
-from helpers.rigfile.rod import loads_rod
 from helpers.virtual.spatial import bare_rod
 from helpers.virtual.spatial.chain import skew, so3_functions
 from helpers.virtual.spatial.plant import SpatialPlant
+from helpers.virtual.spatial.rod_file import loads_rod
 from helpers.virtual.spatial.statics import spatial_model, stable_max_step
 
 __all__ = ["TwinSolver", "main"]

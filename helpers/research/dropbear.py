@@ -1,4 +1,4 @@
-"""Recordings made elsewhere, read from their own files: a DROPBEAR Dataset-8 trial as a recording.
+"""DROPBEAR Dataset-8 trials, data made elsewhere, read from their own files as recordings (``external``).
 
 The project's recordings are written by its own drivers (``docs/recording_format.md``). Data made by others
 keep their own format and licence in ``data/external/`` and are read here into the same type,
