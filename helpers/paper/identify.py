@@ -511,24 +511,18 @@ def _damped_sine(tau: FloatArray, c: float, a: float, zeta: float, wd: float, ph
     return c + a * np.exp(-sigma * tau) * np.sin(wd * tau + phi)
 
 
-def damped_sine_fit(
-    t: ArrayLike,
-    y: ArrayLike,
-    *,
-    zeta0: float | None = None,
-    omega_d0: float | None = None,
-) -> DampedSineFit:
+def damped_sine_fit(t: ArrayLike, y: ArrayLike, *, zeta0: float, omega_d0: float) -> DampedSineFit:
     """Fit a damped sinusoid plus a constant to ``y(t)`` by nonlinear least squares.
 
-    The start values come from :func:`fft_peak` (``omega_d``) and :func:`log_decrement` (``zeta``) unless
-    given; offset, amplitude and phase then follow from a linear least-squares fit with the decay fixed. The
-    fit is :func:`scipy.optimize.least_squares` (Levenberg-Marquardt).
+    The start values are given (:func:`identify`: ``omega_d`` from :func:`fft_peak`, ``zeta`` from
+    :func:`log_decrement`); offset, amplitude and phase then follow from a linear least-squares fit with the
+    decay fixed. The fit is :func:`scipy.optimize.least_squares` (Levenberg-Marquardt).
 
     Parameters
     ----------
     t, y : array_like
         Uniformly sampled time (s) and signal.
-    zeta0, omega_d0 : float, optional
+    zeta0, omega_d0 : float
         Start values for the damping ratio and the damped frequency (rad/s).
 
     Returns
@@ -544,15 +538,6 @@ def damped_sine_fit(
         If the fit does not converge to a decaying oscillation (``0 < zeta < 1``).
     """
     t, y, _ = _as_window(t, y)
-    if omega_d0 is None:
-        omega_d0 = fft_peak(t, y).omega_d
-    if zeta0 is None:
-        try:
-            zeta0 = log_decrement(t, y, omega_hint=omega_d0).zeta
-        except ValueError:
-            zeta0 = 0.05
-        if not (0.0 < zeta0 < 0.9):
-            zeta0 = 0.05
     tau = t - t[0]
     sigma0 = zeta0 * omega_d0 / math.sqrt(1.0 - zeta0**2)
     env = np.exp(-sigma0 * tau)
