@@ -239,21 +239,11 @@ def segment_motions(t: ArrayLike, steps: ArrayLike) -> Motions:
     return Motions(up_start=float(t[i_up]), down_start=float(t[i_down]), end=float(t[-1]))
 
 
-def _nan_metrics(
-    motion: str, start: float, end: float, band: float, reason: str, **known: Any
-) -> MotionMetrics:
-    values = {"y0": math.nan, "yf": math.nan, "peak": math.nan} | known
-    return MotionMetrics(
-        motion=motion,
-        start_s=start,
-        end_s=end,
-        overshoot_pct=math.nan,
-        settling_ms=math.nan,
-        settled_s=math.nan,
-        band=band,
-        reason=reason,
-        **values,
-    )
+def _metrics(motion: str, start: float, end: float, band: float, reason: str, **known: Any) -> MotionMetrics:
+    """One motion's metrics: the ``known`` ones, NaN for the others."""
+    undefined = ("y0", "yf", "peak", "overshoot_pct", "settling_ms", "settled_s")
+    values = dict.fromkeys(undefined, math.nan) | known
+    return MotionMetrics(motion=motion, start_s=start, end_s=end, band=band, reason=reason, **values)
 
 
 def motion_metrics(
@@ -314,7 +304,7 @@ def motion_metrics(
     pre = (tv >= start - PRE_S) & (tv < start)
     problem = _coverage_problem(t, tv, t_w, start, end, dt)
     if problem:
-        return _nan_metrics(motion, start, end, band, problem)
+        return _metrics(motion, start, end, band, problem)
 
     final = t_w >= t_w[-1] - FINAL_S
     y0 = float(np.median(yv[pre]))
@@ -333,30 +323,19 @@ def motion_metrics(
     if np.any(cv[pre]) or np.any(c_w[final]):
         why = "y0 or yf read from clipped samples: overshoot and settling undefined"
         reason = "; ".join(bound_reasons + [why])
-        return _nan_metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak, **flags)
+        return _metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak, **flags)
     step = yf - y0
     # the smallest step: 10 times the pre-motion samples' white noise (robust), at least 1e-9 of the levels
     min_step = max(10.0 * white_noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
     if abs(step) <= min_step or abs(step) == 0.0:
         reason = f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
-        return _nan_metrics(motion, start, end, band, "; ".join(bound_reasons + [reason]), y0=y0, yf=yf,
+        return _metrics(motion, start, end, band, "; ".join(bound_reasons + [reason]), y0=y0, yf=yf,
                             peak=peak, **flags)  # fmt: skip
     overshoot, reasons = _overshoot(motion, peak, y0, yf)
     settling_ms, settled_s, more = _settling(t_w, y_w, yf, step, band, start)
-    return MotionMetrics(
-        motion=motion,
-        start_s=start,
-        end_s=end,
-        y0=y0,
-        yf=yf,
-        peak=peak,
-        overshoot_pct=overshoot,
-        settling_ms=settling_ms,
-        settled_s=settled_s,
-        band=band,
-        reason="; ".join(bound_reasons + reasons + more),
-        **flags,
-    )
+    reason = "; ".join(bound_reasons + reasons + more)
+    return _metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak, overshoot_pct=overshoot,
+                    settling_ms=settling_ms, settled_s=settled_s, **flags)  # fmt: skip
 
 
 def _check_motion_args(motion: str, band: float, start: float, end: float) -> None:
@@ -485,7 +464,7 @@ def recording_metrics(
         m = segment_motions(t, frame["steps"].to_numpy(dtype=float))
     except ValueError as err:
         rows = [
-            _nan_metrics(name, math.nan, math.nan, band, f"segmentation failed: {err}") for name in MOTIONS
+            _metrics(name, math.nan, math.nan, band, f"segmentation failed: {err}") for name in MOTIONS
         ]
     else:
         rows = [
