@@ -53,37 +53,6 @@ from scipy import linalg, optimize
 
 from helpers.paper.backbone import Backbone
 
-__all__ = [
-    "ArmParameters",
-    "FITTED",
-    "DominantMode",
-    "FIXED_DISC_MASS",
-    "cantilever_roots",
-    "mode_function",
-    "mode_shape",
-    "coupling_coefficients",
-    "modal_frequencies",
-    "modal_masses",
-    "modal_stiffnesses",
-    "coupling",
-    "rayleigh_coefficients",
-    "modal_damping",
-    "modal_damping_ratios",
-    "state_space",
-    "transfer_functions",
-    "poles",
-    "tension_residues",
-    "DOMINANCE_THRESHOLD",
-    "dominant_mode",
-    "static_tip_gain",
-    "static_tension_gain",
-    "relative_degree",
-    "model_order",
-    "linear_response",
-    "PARAMETER_SOURCES",
-    "parameter_table",
-]
-
 FIXED_DISC_MASS: float = 1.0e-3
 """Mass of each cable-support disc (kg), *fixed* (not fitted); :mod:`helpers.research.model_fit` says why."""
 
@@ -195,25 +164,9 @@ def mode_shape(
 ) -> np.ndarray:
     """Tip-normalised cantilever mode shape ``phi_n(x)`` (``phi_n(L) = +1``) or one of its derivatives.
 
-    ``phi_n(x) = Phi_n(x) / Phi_n(L)`` with ``Phi_n`` the paper's eq. 3 (:func:`mode_function`).
-
-    Parameters
-    ----------
-    x : array_like
-        Arc length (m), ``0 <= x <= length``.
-    n : int
-        Mode number (1-based).
-    length : float
-        Beam length L (m).
-    derivative : int
-        0 for the shape, 1..4 for ``d^k phi_n / dx^k`` (units 1/m^k).
-    beta : float, optional
-        Use this root instead of the computed ``beta_n`` (e.g. the paper's rounded value).
-
-    Returns
-    -------
-    numpy.ndarray
-        Values at ``x`` (dimensionless shape: tip displacement 1).
+    ``phi_n(x) = Phi_n(x) / Phi_n(L)`` with ``Phi_n`` the paper's eq. 3 (:func:`mode_function`, whose
+    parameters it takes); its values are dimensionless (tip displacement 1), its ``derivative``-th
+    derivatives in 1/m^k.
     """
     values = mode_function(x, n, length, derivative, beta)
     return values / mode_function(length, n, length, 0, beta)
