@@ -28,11 +28,6 @@ def is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def is_finite_number(value: Any) -> bool:
-    """True for a finite integer or float that is not a bool (a JSON or TOML number)."""
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
 def _real(value: Any, name: str, what: str, within: Callable[[float], bool], need: str) -> float:
     """``value`` as a finite ``float`` that is ``within`` range, else ``ValueError`` naming ``name``.
 
