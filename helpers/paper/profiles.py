@@ -16,7 +16,7 @@ import pandas as pd
 
 from helpers.base.validate import check_positive, check_time
 from helpers.paper import numbers as paper
-from helpers.paper.shapers import Shaper
+from helpers.paper.shapers import Shaper, freeze_arrays
 
 TIME_TOLERANCE_S = 1e-12
 """Breakpoints closer than this (s) are merged."""
@@ -85,10 +85,7 @@ class VelocityProfile:
             raise ValueError("breakpoints and velocities must be finite")
         if np.any(np.diff(b) <= 0):
             raise ValueError("breakpoints must be strictly increasing")
-        b.flags.writeable = False
-        v.flags.writeable = False
-        object.__setattr__(self, "breakpoints", b)
-        object.__setattr__(self, "velocities", v)
+        freeze_arrays(self, breakpoints=b, velocities=v)
 
     @property
     def start(self) -> float:

@@ -48,6 +48,13 @@ def _as_1d_float(x: Any, what: str) -> np.ndarray:
     return arr
 
 
+def freeze_arrays(obj: Any, **arrays: np.ndarray) -> None:
+    """Make ``arrays`` read-only and set them as the fields of the frozen dataclass ``obj``."""
+    for name, array in arrays.items():
+        array.flags.writeable = False
+        object.__setattr__(obj, name, array)
+
+
 @dataclass(frozen=True, eq=False)
 class Shaper:
     """A sequence of impulses ``amplitudes[i]`` at ``times[i]`` (s).
@@ -88,10 +95,7 @@ class Shaper:
             raise ValueError(f"shaper {self.name!r}: times must be non-decreasing, got {t.tolist()}")
         if abs(a.sum() - 1.0) > SUM_TOLERANCE:
             raise ValueError(f"shaper {self.name!r}: amplitudes must sum to 1, they sum to {a.sum():.12g}")
-        a.flags.writeable = False
-        t.flags.writeable = False
-        object.__setattr__(self, "amplitudes", a)
-        object.__setattr__(self, "times", t)
+        freeze_arrays(self, amplitudes=a, times=t)
 
     # -- construction -------------------------------------------------------------------------------------
     @classmethod
