@@ -126,28 +126,23 @@ def fit_calibration(recs: Sequence[Recording]) -> CalibrationFit:
     x, y = table["load_n"].to_numpy(), table["mean_counts"].to_numpy()
     sem = table["std_counts"].to_numpy() / np.sqrt(table["n_samples"].to_numpy())
     table["sem_counts"] = sem
-    if np.all(sem > 0):  # weighted by each mean's own standard error (the sample scatter is measured)
+    weighted = bool(np.all(sem > 0))  # by each mean's own standard error (the sample scatter is measured)
+    if weighted:
         coef, cov = np.polyfit(x, y, 1, w=1.0 / sem, cov="unscaled")
-        slope, intercept = float(coef[0]), float(coef[1])
-        slope_se, intercept_se = (float(v) for v in np.sqrt(np.diag(cov)))
     else:  # noiseless readings: fall back to the residual scatter
         coef, cov = np.polyfit(x, y, 1, cov=True)
-        slope, intercept = float(coef[0]), float(coef[1])
-        slope_se, intercept_se = (float(v) for v in np.sqrt(np.clip(np.diag(cov), 0.0, None)))
+    slope, intercept = float(coef[0]), float(coef[1])
+    slope_se, intercept_se = (float(v) for v in np.sqrt(np.clip(np.diag(cov), 0.0, None)))
     table["fitted_counts"] = intercept + slope * x
     table["residual_counts"] = y - table["fitted_counts"]
     r2 = 1.0 - float(np.sum(table["residual_counts"] ** 2)) / float(np.sum((y - y.mean()) ** 2))
-    chi2 = (
-        float(np.sum((table["residual_counts"] / sem) ** 2)) / (len(x) - 2)
-        if np.all(sem > 0)
-        else float("nan")
-    )
+    chi2 = float(np.sum((table["residual_counts"] / sem) ** 2)) / (len(x) - 2) if weighted else float("nan")
     return CalibrationFit(
         table=table,
-        gain_counts_per_n=float(slope),
-        gain_stderr=float(slope_se),
-        offset_counts=float(intercept),
-        offset_stderr=float(intercept_se),
+        gain_counts_per_n=slope,
+        gain_stderr=slope_se,
+        offset_counts=intercept,
+        offset_stderr=intercept_se,
         r_squared=r2,
         reduced_chi2=chi2,
     )
