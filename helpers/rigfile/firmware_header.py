@@ -1,18 +1,17 @@
 """The firmware's rig header: ``python -m helpers.rigfile.firmware_header RIGFILE -o OUT.h``.
 
 Writes a C header with the compiled-in limits and constants of a rig (``docs/rig_file.md``, "The firmware
-header"): exactly the macros of :data:`MACROS`. Standard library only; exit status 0, or 2 with one line for
-a bad rig file or argument (nothing is written then).
+header"): exactly the macros of :data:`MACROS`, written atomically (``helpers.base.jsonfile.atomic_write``);
+exit status 0, or 2 with one line for a bad rig file or argument (nothing is written then).
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 from pathlib import Path
 
+from helpers.base.jsonfile import atomic_write
 from helpers.rigfile import RigFileError, derived, load, resolve
 from helpers.rigfile.capacity import require_fit, stepper_ram
 
@@ -113,11 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if out.exists() and out.read_text() == text:
             return 0  # unchanged: keep its time stamp, so make does not rebuild
-        out.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, out)
+        atomic_write(out, text.encode())  # never half a header, whatever stops it
     except OSError as exc:
         print(f"error: {out}: could not write ({exc.strerror})", file=sys.stderr)
         return 2
