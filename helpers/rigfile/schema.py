@@ -54,9 +54,12 @@ class Key:
     plausible: tuple[float, float] | None = None
 
 
-def _pos(name: str, unit: str, default: Any, doc: str, plausible: tuple[float, float] | None = None,
-         kind: str = "float") -> Key:  # fmt: skip
-    return Key(name, kind, unit, default, doc, lo=0.0, lo_open=True, plausible=plausible)
+def _pos(name: str, unit: str, default: Any, doc: str, plausible: tuple[float, float]) -> Key:
+    return Key(name, "float", unit, default, doc, lo=0.0, lo_open=True, plausible=plausible)
+
+
+def _nonneg(name: str, unit: str, default: Any, doc: str, plausible_max: float) -> Key:
+    return Key(name, "float", unit, default, doc, lo=0.0, plausible=(0.0, plausible_max))
 
 
 def _int(name: str, default: Any, doc: str, lo: int = 1, hi: int | None = None, unit: str = "-") -> Key:
@@ -81,16 +84,14 @@ HARDWARE: tuple[Key, ...] = (
         "cable travel from position 0 (the host's and the firmware's limit)",
         (0.1, 2000.0),
     ),  # fmt: skip
-    Key(
+    _nonneg(
         "release_mm",
-        "float",
         "mm",
         0.0,
         "how far a tendon may pay out below position 0 (the rest: every tendon at its pretension); its "
         "travel is -release_mm..travel_mm (0: none, position 0 is the end of the travel)",
-        lo=0.0,
-        plausible=(0.0, 2000.0),
-    ),  # fmt: skip
+        2000.0,
+    ),
     _pos("speed_limit_mm_s", "mm/s", REQUIRED, "cable speed limit", (0.1, 10_000.0)),
     _pos("step_rate_cap_hz", "steps/s", REQUIRED, "step-rate cap of the driver chain", (1.0, 200_000.0)),
     _int("max_interval_us", 1_000_000, "slowest step interval; slower is a dwell", unit="us", lo=1000),
@@ -126,25 +127,9 @@ HARDWARE: tuple[Key, ...] = (
         "resistor turning the amplifier's loop current into the ADC's voltage",
         (1.0, 100_000.0),
     ),  # fmt: skip
-    Key(
-        "loop_zero_ma",
-        "float",
-        "mA",
-        4.0,
-        "the amplifier's loop current at zero load",
-        lo=0.0,
-        plausible=(0.0, 100.0),
-    ),  # fmt: skip
+    _nonneg("loop_zero_ma", "mA", 4.0, "the amplifier's loop current at zero load", 100.0),
     _pos("loop_full_ma", "mA", 20.0, "the loop current at full-scale load (load_cell_range_n)", (0.1, 100.0)),
-    Key(
-        "loop_min_ma",
-        "float",
-        "mA",
-        3.8,
-        "the loop's lower saturation (NAMUR NE 43: 3.8 mA)",
-        lo=0.0,
-        plausible=(0.0, 100.0),
-    ),  # fmt: skip
+    _nonneg("loop_min_ma", "mA", 3.8, "the loop's lower saturation (NAMUR NE 43: 3.8 mA)", 100.0),
     _pos("loop_max_ma", "mA", 20.5, "the loop's upper saturation (NAMUR NE 43: 20.5 mA)", (0.1, 100.0)),
     _pos(
         "load_cell_range_n",
@@ -180,25 +165,15 @@ ARM: tuple[Key, ...] = (
     _pos("disc_radius_mm", "mm", 12.0, "disc radius (its rotary inertia)", (0.1, 500.0)),
     _pos("disc_thickness_mm", "mm", 4.0, "disc thickness (its rotary inertia)", (0.01, 100.0)),
     _pos("cable_offset_mm", "mm", REQUIRED, "distance of the eyelets from the backbone's axis", (0.1, 500.0)),
-    Key(
-        "pretension_n",
-        "float",
-        "N",
-        REQUIRED,
-        "cable tension at rest, stepper at position 0",
-        lo=0.0,
-        plausible=(0.0, 10_000.0),
-    ),  # fmt: skip
-    Key(
+    _nonneg("pretension_n", "N", REQUIRED, "cable tension at rest, stepper at position 0", 10_000.0),
+    _nonneg(
         "tension_floor_n",
-        "float",
         "N",
         1.0,
         "the least static tension every tendon keeps in a move planned "
         "in task space (record move; below it a tendon is close to slack and stops controlling the arm)",
-        lo=0.0,
-        plausible=(0.0, 10_000.0),
-    ),  # fmt: skip
+        10_000.0,
+    ),
     _pos(
         "cable_stiffness_n_m",
         "N/m",
@@ -207,26 +182,22 @@ ARM: tuple[Key, ...] = (
         "stepper); absent: the paper rig's tuned value, an assumption",
         (1.0, 1e9),
     ),  # fmt: skip
-    Key(
+    _nonneg(
         "damping_alpha_per_s",
-        "float",
         "1/s",
         1.887944,
         "mass-proportional damping of the twin (air drag); absent: the paper rig's tuned value, "
         "an assumption",
-        lo=0.0,
-        plausible=(0.0, 1000.0),
-    ),  # fmt: skip
-    Key(
+        1000.0,
+    ),
+    _nonneg(
         "damping_beta_chord_s",
-        "float",
         "s",
         5.753788e-04,
         "wire material damping of the twin (dashpots beta EI / l between disc chords); absent: the paper "
         "rig's tuned value, an assumption",
-        lo=0.0,
-        plausible=(0.0, 1.0),
-    ),  # fmt: skip
+        1.0,
+    ),
     Key(
         "gravity_direction",
         "vector3",
@@ -235,15 +206,7 @@ ARM: tuple[Key, ...] = (
         "direction of gravity in the clamp frame (z along the backbone, x towards tendon 1): [-1, 0, 0] "
         "horizontal with tendon 1 on top, [0, 0, 1] hanging; components at most 1e6 in magnitude",
     ),  # fmt: skip
-    Key(
-        "gravity_m_s2",
-        "float",
-        "m/s^2",
-        9.81,
-        "gravity's magnitude (0 switches it off)",
-        lo=0.0,
-        plausible=(0.0, 30.0),
-    ),  # fmt: skip
+    _nonneg("gravity_m_s2", "m/s^2", 9.81, "gravity's magnitude (0 switches it off)", 30.0),
 )
 
 BOARDS: tuple[Key, ...] = (
