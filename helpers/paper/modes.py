@@ -59,19 +59,9 @@ def omega_n_from_damped(omega_d: float, zeta: float) -> float:
 
 
 def omega_d_from_natural(omega_n: float, zeta: float) -> float:
-    """Damped natural frequency from the undamped one: ``omega_d = omega_n sqrt(1 - zeta^2)``.
+    """Damped natural frequency from the undamped one: ``omega_d = omega_n sqrt(1 - zeta^2)``, rad/s.
 
-    Parameters
-    ----------
-    omega_n : float
-        Undamped natural frequency (rad/s).
-    zeta : float
-        Damping ratio in [0, 1).
-
-    Returns
-    -------
-    float
-        ``omega_d`` in rad/s.
+    The inverse of :func:`omega_n_from_damped`, with the undamped ``omega_n`` (rad/s) and ``zeta`` in [0, 1).
     """
     check_mode(omega_n, zeta)
     return float(omega_n) * math.sqrt(1.0 - float(zeta) ** 2)

@@ -213,20 +213,9 @@ def shaped_pulse(
     t_up: float = paper.PULSE_T_UP_S,
     t_down: float = paper.PULSE_T_DOWN_S,
 ) -> VelocityProfile:
-    """The paper's pulse shaped by ``shaper`` (None: unshaped), exactly.
+    """The paper's pulse (:func:`pulse_profile`, whose parameters it takes) shaped by ``shaper``, exactly.
 
-    Parameters
-    ----------
-    v_in_mm_s, x_f_mm : float
-        Speed (mm/s) and displacement (mm).
-    shaper : Shaper, optional
-        E.g. one of :func:`helpers.paper.shapers.paper_tdfs`.
-    t_up, t_down : float
-        Start of the up and down moves (s).
-
-    Returns
-    -------
-    VelocityProfile
+    ``shaper`` is e.g. one of :func:`helpers.paper.shapers.paper_tdfs` (None: unshaped).
     """
     return pulse_profile(v_in_mm_s, x_f_mm, t_up, t_down).shaped(shaper)
 

@@ -354,18 +354,7 @@ def zvd(omega_n: float, zeta: float) -> Shaper:
     """Zero-vibration-and-derivative (ZVD) shaper: the paper's **robust TDF** ``(A0 + A1 exp(-sT))^2``.
 
     Amplitudes ``[1, 2K, K^2]/(1+K)^2`` at ``0, T, 2T`` with ``T = pi/omega_d`` (one damped period long):
-    exactly ``zv * zv``, a double zero on the mode's poles.
-
-    Parameters
-    ----------
-    omega_n : float
-        Undamped natural frequency (rad/s).
-    zeta : float
-        Damping ratio in [0, 1).
-
-    Returns
-    -------
-    Shaper
+    exactly ``zv * zv``, a double zero on the mode's poles. Parameters as :func:`zv`'s.
     """
     omega_d, k = damped_decay(omega_n, zeta)
     half = math.pi / omega_d
