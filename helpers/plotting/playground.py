@@ -103,8 +103,6 @@ class LinearStudy:
         Tension (N) per system (``unshaped`` and :data:`SHAPERS`).
     residual_linear : dict of str to float
         Residual vibration, % of the step, per system.
-    move_end_s : dict of str to float
-        End of each (shaped) move, s.
     """
 
     design_ratio: float
@@ -114,7 +112,6 @@ class LinearStudy:
     t: np.ndarray
     linear: dict[str, np.ndarray]
     residual_linear: dict[str, float]
-    move_end_s: dict[str, float]
 
 
 class LinearPlayground:
@@ -165,7 +162,6 @@ class LinearPlayground:
             t=t,
             linear={k: r[0] for k, r in runs.items()},
             residual_linear={k: residual_after(t, r[0], r[1]) for k, r in runs.items()},
-            move_end_s={k: r[1] for k, r in runs.items()},
         )
 
     def figure(self, study: LinearStudy) -> plt.Figure:

@@ -113,7 +113,6 @@ class ShaperPlayground(LinearPlayground):
             rig={k: r[1] for k, r in runs.items()},
             residual_linear={k: residual_after(self.t, r[0], r[2]) for k, r in runs.items()},
             residual_rig={k: residual_after(self.t, r[1], r[2]) for k, r in runs.items()},
-            move_end_s={k: r[2] for k, r in runs.items()},
         )
 
     def figure(self, study: Study) -> plt.Figure:
