@@ -4,8 +4,8 @@ SoroSim (an independent Cosserat-rod solver) holds a spring-steel rod deflected 
 its middle and its tip and releases it (read by ``helpers.virtual.sorosim_file``). Here the same rod is built
 as a bare rod's file (``docs/rig_file.md``, ``[rod]``: :func:`rod_file_text`, the test's length, radius,
 material, gravity and held forces), the spatial twin made from that file
-(:mod:`helpers.virtual.spatial.bare_rod`), held by the same forces, released and sampled at the test's instants
-(:func:`compare`).
+(:mod:`helpers.virtual.spatial.bare_rod`), held by the same forces, released and sampled at the test's
+instants (:func:`compare`).
 
 **Frames.** The file's ``x`` runs along the unloaded rod; the twin's clamp frame has ``z`` there. Vectors go
 over as ``(x, y, z)_clamp = (y, z, x)_file`` (a rotation), and back for the comparison.
