@@ -289,12 +289,9 @@ def motion_metrics(
     if y.shape != t.shape:
         raise ValueError(f"t and y must have the same length, got {t.size} and {y.size}")
 
-    if clipped is None:
-        clip = np.zeros(t.shape, dtype=bool)
-    else:
-        clip = np.asarray(clipped, dtype=bool)
-        if clip.shape != t.shape:
-            raise ValueError(f"clipped must have one flag per sample, got {clip.size} for {t.size}")
+    clip = np.zeros(t.shape, dtype=bool) if clipped is None else np.asarray(clipped, dtype=bool)
+    if clip.shape != t.shape:
+        raise ValueError(f"clipped must have one flag per sample, got {clip.size} for {t.size}")
 
     dt = float(np.median(np.diff(t)))
     valid = np.isfinite(y)
