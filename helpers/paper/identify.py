@@ -304,10 +304,6 @@ def _weighted_line(x: FloatArray, y: FloatArray, w: FloatArray) -> tuple[float, 
     return a, b, math.sqrt(s2 / sxx)
 
 
-def _zeta_from_delta(delta: float) -> float:
-    return delta / math.sqrt(4.0 * math.pi**2 + delta**2)
-
-
 def log_decrement(
     t: ArrayLike,
     y: ArrayLike,
@@ -373,7 +369,7 @@ def log_decrement(
     ln_a, neg_sigma, sigma_std = _weighted_line(ext_t - t_ref, np.log(amp), amp**2)
     sigma = -neg_sigma
     delta = sigma * 2.0 * math.pi / omega_d
-    zeta = _zeta_from_delta(delta)
+    zeta = delta / math.sqrt(4.0 * math.pi**2 + delta**2)
     dzeta_ddelta = 4.0 * math.pi**2 / (4.0 * math.pi**2 + delta**2) ** 1.5
     zeta_std = abs(dzeta_ddelta) * 2.0 * math.pi / omega_d * sigma_std
     return LogDecrementResult(
