@@ -43,7 +43,7 @@ def from_samples(
     rows: Any, rig: rigfile.RigFile, calibration: Sequence[Any] | None = None, *, source: Mapping[str, Any],
     scenario: Mapping[str, Any], rate_hz: int, started_utc: str, firmware: Mapping[str, str],
     status: str = "complete", reason: str | None = None, counts: Mapping[str, int] | None = None,
-    t_go_us: int | None = None, tip_origin: str = TWIN_TIP, **more: Any,
+    t_go_us: int | None = None, **more: Any,
 ) -> Recording:  # fmt: skip
     """A run as a recording of :data:`~helpers.recordings.format.VERSION` 4, its frame derived.
 
@@ -62,8 +62,6 @@ def from_samples(
     source, scenario, rate_hz, started_utc, firmware, status, reason, counts, t_go_us
         The metadata of the same names (``reason`` is ``abort_reason``; ``counts`` the link's ``dropped``,
         ``corrupted``, ``overruns``, ``implausible``: ``samples`` is counted here).
-    tip_origin : str
-        ``tip.origin`` when the rows carry the tip.
     **more
         Further top-level keys (e.g. ``done_positions``, ``deviation``).
 
@@ -94,7 +92,7 @@ def from_samples(
         "t_go_s": None if t_go_us is None or not len(a) else (t_go_us - int(a[0, 1])) / 1e6, **more,
     }  # fmt: skip
     if a.shape[1] > width:
-        meta["tip"] = {"origin": tip_origin, "unit": "um"}
+        meta["tip"] = {"origin": TWIN_TIP, "unit": "um"}
     meta = json.loads(dumps(meta))  # as saved and loaded: plain JSON values
     validate_meta({**meta, "csv_sha256": "0" * 64}, Path("<unsaved recording>"))  # saved later, with its sha
     return Recording(pd.DataFrame(a, columns=list(raw_columns(meta))), meta).derive()
