@@ -78,8 +78,8 @@ def refuse_notice(line: str, allow_clamps: bool) -> None:
 
 
 def v_max(rig: RigFile) -> int:
-    """The build's set-point limit: ``floor(2^20 / min_interval_us)`` (1640 for 639 us), at most 1640."""
-    return min(hs.V_MAX, (1 << 20) // derived(rig).min_interval_us)
+    """The build's set-point limit: ``floor(2^20 / min_interval_us)`` (1640 for 639 us, 2001 for 524 us)."""
+    return hs.v_max(derived(rig).min_interval_us)
 
 
 def unit_mm_s(rig: RigFile) -> list[float]:
@@ -193,7 +193,7 @@ class ShapedCheck:
         d = derived(rig)
         self.rig, self.refuse, self.start = rig, refuse, start
         self.travel, self.release = d.travel_steps, d.release_steps
-        self.run = hs.AxesRun(shaper, start, d.travel_steps, d.release_steps)
+        self.run = hs.AxesRun(shaper, start, d.travel_steps, d.release_steps, v_max(rig))
         self.rules = hs.SetpointRules()
         self.period = 0
         self.commanded = np.array(start, dtype=float)
