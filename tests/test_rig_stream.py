@@ -239,11 +239,11 @@ LONG_ARM_UNIT_MM_S = math.pi * 40.0 / 1600 * STEPS_PER_S_PER_UNIT  # rigs/long-a
 
 
 def test_the_set_point_limit_is_the_builds_not_the_papers(tmp_path):
-    """The long-arm rig's fastest step is ceil(1e6 x 0.0785 / 150) = 524 us, so its boards take set-points up to
-    floor(2^20 / 524) = 2001 units (149.9 mm/s), not the paper's 1640 of 639 us (the firmware built for it says
-    the same: ``tests/firmware/test_second_rig_fw.py``). Its emulated stepper takes V 2001 and refuses V 2002
-    naming 2001; the host streams 2001 units through the unit shaper with no clamp predicted or met (5 periods:
-    5 x 2001 x 625 / 2^16 = 95.4 steps), and refuses 2002 units before anything moves."""
+    """The long-arm rig's fastest step is ceil(1e6 x 0.0785 / 150) = 524 us, so its boards take set-points
+    up to floor(2^20 / 524) = 2001 units (149.9 mm/s), not the paper's 1640 of 639 us (the firmware built for
+    it says the same: ``tests/firmware/test_second_rig_fw.py``). Its emulated stepper takes V 2001 and refuses
+    V 2002 naming 2001; the host streams 2001 units through the unit shaper with no clamp predicted or met
+    (5 periods: 5 x 2001 x 625 / 2^16 = 95.4 steps), and refuses 2002 units before anything moves."""
     long_arm = rigfile.load(rigfile.resolve("long-arm"))
     board = make_world(long_arm).stepper
     talk(board)  # its HELLO
