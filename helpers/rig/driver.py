@@ -120,9 +120,9 @@ def rest_of(adc: Any, rate_hz: int) -> tuple[bool, float, float]:
     window = a[-n:]
     stds = window.std(axis=0)
     noises = np.array([white_noise_std(window[:, c]) for c in range(window.shape[1])])
-    worst = int(np.argmax(stds / np.maximum(REST_FACTOR * noises, 0.5)))
-    steady = bool(np.all(stds <= np.maximum(REST_FACTOR * noises, 0.5)))
-    return steady, float(stds[worst]), float(noises[worst])
+    limit = np.maximum(REST_FACTOR * noises, 0.5)
+    worst = int(np.argmax(stds / limit))
+    return bool(stds[worst] <= limit[worst]), float(stds[worst]), float(noises[worst])
 
 
 def step_windows(programme: Programme, axes: int, slack_us: int = 2_000) -> list[tuple[Any, Any]]:
@@ -235,11 +235,6 @@ class Rig:
                 UserWarning, stacklevel=2,
             )  # fmt: skip
 
-    @classmethod
-    def connect(cls, ports: Any, rig: RigFile, **kwargs: Any) -> Rig:
-        """``Rig(ports, rig, **kwargs)``: open both boards and check their builds."""
-        return cls(ports, rig, **kwargs)
-
     def _calibrations(self, calibration: Any) -> tuple[LoadCellCalibration, ...]:
         if calibration is None and self.n == 1:
             calibration = load_calibration()
@@ -299,11 +294,6 @@ class Rig:
     def world(self) -> Any:
         """The in-process virtual rig's world (its calibration fixture, its noise seed), or None."""
         return getattr(self.daq.port, "world", None)
-
-    @property
-    def is_virtual(self) -> bool:
-        """True for the virtual rig (in-process or through the pseudo-terminal server)."""
-        return self.source.get("kind") == "virtual-rig"
 
     def positions(self) -> tuple[int, ...]:
         """``POS``: every tendon's position (steps from zero), as the stepper board says."""
@@ -410,9 +400,9 @@ class Rig:
                 if ints(replies[-1])[-1] != len(programme):
                     raise BoardError(f"the stepper board holds {replies[-1]}, not {len(programme)} items")
                 state.windows = step_windows(programme, self.n)
-                self._start(state, rate_hz, list(zip(cum.min(axis=0), cum.max(axis=0), strict=True)))
+                self._start(rate_hz, list(zip(cum.min(axis=0), cum.max(axis=0), strict=True)))
                 self.stepper.command("EN 1")
-                self._go(state, "GO", rate_hz)
+                self._go(state, "GO")
                 done, total = (programme.duration_us, end), programme.duration_s + tail_s
                 self._until_done(state, lambda now: done, rate_hz, tail_s, total, progress)
                 self._finish(state)
@@ -459,10 +449,7 @@ class Rig:
         """
         self.daq.check_reset()
         self.daq.command("STOP")
-        self.daq.command(f"RATE {rate_hz}")
-        self.daq.rows.clear()
-        self.daq.parser.restart()
-        self.daq.command("START")
+        self._start(rate_hz, None, zero=False)
         c, n = self.daq.parser.channels, max(3, round(REST_WINDOW_S * rate_hz))
         adc: list[tuple[int, ...]] = []
         t0: int | None = None
@@ -489,25 +476,26 @@ class Rig:
             self.daq.command("STOP")
             self.daq.rows.clear()
 
-    def _start(self, state: RunState, rate_hz: int, reach: list[tuple[int, int]] | None) -> None:
-        """``RATE``, ``ZERO``, ``START`` the DAQ; samples outside ``reach`` (steps from ``ZERO``) refused."""
+    def _start(self, rate_hz: int, reach: list[tuple[int, int]] | None, zero: bool = True) -> None:
+        """``RATE``, ``ZERO`` (if ``zero``), ``START`` the DAQ; a sample outside ``reach`` is refused.
+
+        ``reach``: every axis's lowest and highest step count from ``ZERO`` the run can make (None: no check).
+        """
         self.daq.command(f"RATE {rate_hz}")
-        self.daq.command("ZERO")
+        if zero:
+            self.daq.command("ZERO")
         self.daq.rows.clear()
         self.daq.parser.restart()
         self.daq.command("START")
         self.daq.parser.steps_range = reach
-        state.go_sent = False
 
-    def _go(self, state: RunState, command: str, rate_hz: int) -> str:
+    def _go(self, state: RunState, command: str) -> None:
         """Send ``GO`` or ``STREAM``; its device time: the newest sample at hand once it is acknowledged."""
         self.stepper.done, self.stepper.notices = None, []
-        state.go_sent = True
-        reply = self.stepper.command(command)
+        self.stepper.command(command)
         self.daq.read(block=False)
         if self.daq.rows:
             self._went(state, self.daq.rows[-1][1])
-        return reply
 
     def _went(self, state: RunState, t_go_us: int) -> None:
         """Note GO's device time; from then on a count changing between the programme's steps is refused."""
@@ -626,22 +614,14 @@ class Rig:
                     body(state)
             except BaseException as exc:
                 self.last_cleanup = exc.cleanup = self._cleanup(stepper_used)  # type: ignore[attr-defined]
-                if state.finished and isinstance(exc, KeyboardInterrupt):  # every sample is in: save it whole
-                    self._save(state, scenario, target, rate_hz, replace, exc)
-                    raise
-                reason = f"{type(exc).__name__}: {exc}"
-                reason += " | cleanup: " + "; ".join(self.last_cleanup) if self.last_cleanup else ""
-                rec = self.recording(state, scenario, rate_hz, "aborted", reason)
-                exc.recording = exc.saved_path = exc.save_error = None  # type: ignore[attr-defined]
-                try:
-                    recordings.save(rec, recordings.aborted_path(target, state.started_utc))
-                except (RecordingError, OSError) as save_exc:
-                    exc.save_error = str(save_exc)  # type: ignore[attr-defined]
-                else:
-                    exc.recording, exc.saved_path = rec.derive(), rec.path  # type: ignore[attr-defined]
+                reason = None  # an interrupt once every sample is in: the run is saved whole
+                if not (state.finished and isinstance(exc, KeyboardInterrupt)):
+                    reason = f"{type(exc).__name__}: {exc}"
+                    reason += " | cleanup: " + "; ".join(self.last_cleanup) if self.last_cleanup else ""
+                self._save(state, scenario, target, rate_hz, replace, exc, reason)
                 raise
             self.last_cleanup = []
-            rec = self._save(state, scenario, target, rate_hz, replace, None)
+            rec = self._save(state, scenario, target, rate_hz, replace)
             signum = guard.take_pending()
             if signum is not None:  # a signal came after the run had ended: it is saved; now act on it
                 late = Interrupted(signum)
@@ -652,14 +632,16 @@ class Rig:
 
     def _save(
         self, state: RunState, scenario: dict[str, Any], target: Path, rate_hz: int, replace: bool,
-        exc: BaseException | None,
+        exc: BaseException | None = None, reason: str | None = None,
     ) -> Recording:  # fmt: skip
-        """Save a run that recorded everything: ``complete`` under its name, or ``deviated`` beside it.
+        """Save a run: ``aborted`` with ``reason``, or (every sample in) ``complete``, or ``deviated``.
 
-        With ``exc`` (an interrupt after the last sample), a failed save is noted on ``exc``, not raised.
+        A complete run goes under its name, the others beside it (``recordings.aborted_path``). With ``exc``
+        (the run ended by it) the outcome is noted on ``exc`` (``recording``, ``saved_path``, ``save_error``,
+        ``complete``), and a failed save is noted there, not raised.
         """
-        status = "deviated" if state.deviation else "complete"
-        rec = self.recording(state, scenario, rate_hz, status, None)
+        status = "aborted" if reason else "deviated" if state.deviation else "complete"
+        rec = self.recording(state, scenario, rate_hz, status, reason)
         where = target if status == "complete" else recordings.aborted_path(target, state.started_utc, status)
         try:
             recordings.save(rec, where, replace=replace and status == "complete")
@@ -671,7 +653,7 @@ class Rig:
         rec.derive()
         if exc is not None:
             exc.recording, exc.saved_path, exc.save_error = rec, rec.path, None  # type: ignore[attr-defined]
-            exc.complete = True  # type: ignore[attr-defined]
+            exc.complete = status != "aborted"  # type: ignore[attr-defined]
         return rec
 
     def recording(

@@ -75,7 +75,7 @@ def record_static(
     def body(state: RunState) -> None:
         rig.daq.check_reset()
         rig.daq.command("STOP")  # a stream left running by an earlier session stops (OK STOP 0 when idle)
-        rig._start(state, rate_hz, [(0, 0)] * rig.n)  # the motor is idle: no step count may change
+        rig._start(rate_hz, [(0, 0)] * rig.n)  # the motor is idle: no step count may change
         bar, silence = _Bar(duration_s, progress), rig.daq.waiter(rig.silence_s)
         try:
             while True:
@@ -124,7 +124,7 @@ def record_calibration(
     """
     if masses_kg is None:
         masses_kg = calibration_masses_kg(rig.rig.tendons[0].load_cell_range_n)
-    world = rig.world
+    world, virtual = rig.world, rig.source["kind"] == "virtual-rig"  # in-process, or the pty server's
     out = []
     try:
         for m in masses_kg:
@@ -137,7 +137,7 @@ def record_calibration(
                 prompt(f"Hang {m:.3f} kg ({load:.3f} N) from the load cell, then press Enter")
             scenario = {
                 "kind": "calibration", "mass_kg": float(m), "load_n": load, "g_m_s2": G_STANDARD,
-                "fixture": "VIRTUAL known load (simulated)" if rig.is_virtual else "hung mass",
+                "fixture": "VIRTUAL known load (simulated)" if virtual else "hung mass",
             }  # fmt: skip
             path = Path(folder) / f"load_{round(m * 1000):04d}g"
             out.append(record_static(rig, duration_s, scenario, path=path, rate_hz=rate_hz, replace=replace))

@@ -552,7 +552,7 @@ def stream(
             rig.stepper.command("ABORT")  # whatever an earlier session left running stops; driver off
             rig.daq.command("STOP")
             rig.stepper.send_all(board.commands())  # SHAPER first: loading again discards it
-            rig._start(state, rate_hz, reach)
+            rig._start(rate_hz, reach)
             timeout = rig.daq.port.timeout
             rig.daq.port.timeout = min(timeout or FEED_READ_S, FEED_READ_S)  # device time in small steps
             expected_s = None if units is None else len(units) / STREAM_RATE_HZ + board.duration_s + tail_s
@@ -596,7 +596,7 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
     while not rows or rows[-1][1] - rows[0][1] < lead_in_s * 1e6:
         _, silence = rig._read(silence)
     stepper.command("EN 1")
-    rig._go(state, "STREAM", rate_hz)
+    rig._go(state, "STREAM")
     pacer = Pacer(rows[-1][1], record.lead_periods)
     word = "V" if rig.n == 1 else "MV"
     pending: tuple[int, ...] | None = None  # a set-point the board refused with ERR FULL, to send again
