@@ -762,29 +762,27 @@ def simulate_axes(
     set-point is. The ``WATCHDOG`` notice is in axis 0's result.
     """
     run = AxesRun(shaper, positions, travels, releases, v_max)
-    for k, v, state in commands:
-        run.tick(k, v, state)
-        if run.finish_tick is not None or k >= max_periods:  # (the periods left before the finish are zero)
-            break
+    _drive(run, commands, max_periods)
     return run.results()
 
 
 def drive_axes(run: AxesRun, rows: Sequence[Sequence[int]]) -> int:
     """Feed a whole stream's set-points to ``run``, then zeros until the board would stop; the last period.
 
-    ``rows``: one row per period, one value per axis. As the host streams: period k's row goes through
-    :class:`SetpointRules` (what the board accepts and when it ends) and the planner takes the rules' state,
-    not the set-point alone.
+    ``rows``: one row per period, one value per axis, then ``END``. As the host streams: period k's row goes
+    through :class:`SetpointRules` (what the board accepts and when it ends) and the planner takes the rules'
+    state, not the set-point alone.
     """
-    rules = SetpointRules()
+    return _drive(run, PeriodCommands(dict(enumerate(map(tuple, rows), start=1)), len(rows) + 1))
+
+
+def _drive(run: AxesRun, commands: PeriodCommands, max_periods: int = 1_000_000) -> int:
+    """Tick ``run`` through ``commands`` until the board stops (or after ``max_periods``); the last period."""
     k = 0
-    for k, row in enumerate(rows, start=1):
-        v = rules.take(k, tuple(row))
-        run.tick(k, v, rules.state)
-    rules.end_period = k + 1
-    while run.finish_tick is None:
-        k += 1
-        run.tick(k, rules.take(k, None), rules.state)
+    for k, v, state in commands:
+        run.tick(k, v, state)
+        if run.finish_tick is not None or k >= max_periods:  # (the periods left before the finish are zero)
+            break
     return k
 
 

@@ -420,14 +420,6 @@ class StreamRecord:
         return "; ".join(why) or None
 
 
-def setpoints_digest(setpoints: Iterable[int]) -> str:
-    """The sha256 of set-points in board units as the recording states it (int16, little-endian, in order)."""
-    h = hashlib.sha256()
-    for u in setpoints:
-        h.update(int(u).to_bytes(2, "little", signed=True))
-    return h.hexdigest()
-
-
 def shaper_meta(shaper: Any) -> dict[str, Any] | None:
     """A shaper as the recording's ``scenario.shaper`` states it: ``name``, ``amplitudes``, ``times`` (s)."""
     if shaper is None:
