@@ -2,8 +2,9 @@
 
 The board convolves a stream of velocity set-points with one loaded shaper and turns the shaped velocity into
 step times. This module does exactly what the firmware (``firmware/stepper_uno``) does, with the same integer
-arithmetic, so that its step times can be compared with the firmware's tick for tick, and it also gives the
-exact (floating-point) shaped trajectory that the steps follow. It imports numpy only.
+arithmetic, so that its step times can be compared with the firmware's tick for tick (the exact shaped
+trajectory that the steps follow, in floating point, is the tests' independent check of it:
+``tests/stream_exact.py``). It imports numpy only.
 
 Fixed point (all integers):
 
@@ -784,58 +785,3 @@ def _drive(run: AxesRun, commands: PeriodCommands, max_periods: int = 1_000_000)
         if run.finish_tick is not None or k >= max_periods:  # (the periods left before the finish are zero)
             break
     return k
-
-
-# --- the exact trajectory -------------------------------------------------------------------------------
-def exact_position(
-    shaper: StreamShaper,
-    v_by_period: Sequence[int],
-    t_ticks: np.ndarray,
-    position: int = 0,
-    limits: bool = True,
-    travel: int = TRAVEL_MAX,
-    release: int = 0,
-    v_max: int = V_MAX,
-) -> np.ndarray:
-    """The exact shaped position (steps, float) at times ``t_ticks`` (ticks from ``STREAM``).
-
-    The velocity is the shaped set-point stream (set-point k on ``[(k + 1) T, (k + 2) T)``), clamped to the
-    speed limit (the build's ``v_max * 4096``), integrated exactly piece by piece in floating point; with
-    ``limits`` the position is saturated at ``-release`` and ``travel`` steps (the board's travel clamp: 0 and
-    156 by default). This is independent of :class:`Planner`'s integer arithmetic and of its step-time rule.
-    """
-    d = np.asarray(shaper.delays_us, dtype=float) / (DELAY_UNIT_US) * DELTA  # ticks
-    amp = np.asarray(shaper.amplitudes, dtype=float) / AMP_ONE
-    v = np.asarray(v_by_period, dtype=float) * (2.0**-16) / DELTA  # steps per tick
-    n = len(v)
-    # breakpoints of the shaped velocity
-    edges = sorted({float((k + 1) * PERIOD_TICKS + di) for k in range(n + 1) for di in d})
-    t_query = np.asarray(t_ticks, dtype=float)
-    t_end = max(float(t_query.max()) if t_query.size else 0.0, edges[-1])
-    edges = [0.0] + [e for e in edges if e < t_end] + [t_end]
-
-    def vcmd(t: float) -> float:
-        k = int(np.floor(t / PERIOD_TICKS)) - 1
-        return float(v[k]) if 0 <= k < n else 0.0
-
-    s_max = v_max * AMP_ONE / ONE / DELTA  # steps per tick
-    x = float(position)
-    xs = np.empty(len(edges))
-    xs[0] = x
-    rates = np.empty(len(edges) - 1)
-    for i in range(len(edges) - 1):
-        mid = 0.5 * (edges[i] + edges[i + 1])
-        s = float(np.sum(amp * np.array([vcmd(mid - di) for di in d])))
-        s = min(max(s, -s_max), s_max)
-        rates[i] = s
-        x = x + s * (edges[i + 1] - edges[i])
-        if limits:
-            x = min(max(x, -float(release)), float(travel))
-        xs[i + 1] = x
-    # positions at the query times: from the piece each falls in
-    idx = np.clip(np.searchsorted(edges, t_query, side="right") - 1, 0, len(rates) - 1)
-    e0 = np.asarray(edges)[idx]
-    out = xs[idx] + rates[idx] * (t_query - e0)
-    if limits:
-        out = np.clip(out, -float(release), float(travel))
-    return out
