@@ -389,7 +389,7 @@ class Rig:
                     f"position): run {home} first"
                 )
             self._note_start(scenario, start, noise_seed)
-            cum = np.cumsum([[0] * self.n] + [item.counts(self.n) for item in programme.items], axis=0)
+            cum = programme.positions(0, self.n)  # steps from where the run starts (the DAQ's ZERO)
             end = programme.end_positions(start)
 
             def body(state: RunState) -> None:
