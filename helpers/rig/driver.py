@@ -344,7 +344,7 @@ class Rig:
     def run(
         self, programme: Programme, *, path: str | os.PathLike, scenario: dict[str, Any] | None = None,
         rate_hz: int = 1000, tail_s: float = 0.1, progress: bool = True, replace: bool = False,
-        noise_seed: int | None = None, from_zero: bool = False, rest_ok: bool = False,
+        noise_seed: int | None = None, from_zero: bool = False,
     ) -> Recording:  # fmt: skip
         """Run one programme as one board-timed experiment of every tendon; return (and save) its recording.
 
@@ -368,17 +368,15 @@ class Rig:
             In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
         from_zero : bool
             Refuse (:class:`NotAtZero`) unless every tendon is at position 0 (the paper's experiments).
-        rest_ok : bool
-            Allow a programme that returns to the rest state with every tendon slack (homing).
         """
         self._check_run(rate_hz, noise_seed, tail_s)
-        check_programme(programme, self.rig, (0,) * self.n, rest_ok)  # before a byte: as far as it can be
+        check_programme(programme, self.rig, (0,) * self.n)  # before a byte: as far as it can be
         target = self._target(path)
         scenario = {"kind": "programme", **(scenario or {})}
         scenario.setdefault("programme", programme.to_dict())
         with recordings.reserve(target, replace):  # a second run to this name is refused now, not after this
             start = self.positions()
-            check_programme(programme, self.rig, start, rest_ok)
+            check_programme(programme, self.rig, start)
             if from_zero and any(start):
                 ports = self.source["ports"]
                 home = ("helpers.commands.home.home(rig.stepper, rig.rig) (the in-process rig lives here)"
@@ -436,8 +434,10 @@ class Rig:
             self.world.reseed(noise_seed)
             scenario["noise_seed"] = noise_seed
 
-    def wait_for_rest(self, rate_hz: int = 1000, timeout_s: float = REST_TIMEOUT_S) -> dict[str, Any]:
-        """Stream until every channel's tension is steady (:func:`rest_of`); :class:`NotAtRest` after timeout.
+    def wait_for_rest(self, rate_hz: int = 1000) -> dict[str, Any]:
+        """Stream until every channel's tension is steady (:func:`rest_of`); :class:`NotAtRest` if it is not.
+
+        :class:`NotAtRest` comes after :data:`REST_TIMEOUT_S` of device time.
 
         The noise is the white-noise level of the same window (:func:`helpers.base.noise.white_noise_std`), so
         a ringing arm or a drifting amplifier keeps the wait going while sensor noise alone does not.
@@ -467,10 +467,11 @@ class Rig:
                 steady, std, noise = rest_of(adc, rate_hz)
                 if steady:
                     return {"waited_s": round(waited, 3), "std_counts": std, "noise_counts": noise}
-                if waited > timeout_s:
+                if waited > REST_TIMEOUT_S:
                     raise NotAtRest(
-                        f"the tension did not come to rest within {timeout_s:.0f} s (std {std:.2f} counts "
-                        f"over {REST_WINDOW_S} s against a noise of {noise:.2f} counts): is the arm moving?"
+                        f"the tension did not come to rest within {REST_TIMEOUT_S:.0f} s (std {std:.2f} "
+                        f"counts over {REST_WINDOW_S} s against a noise of {noise:.2f} counts): is the arm "
+                        "moving?"
                     )
         finally:
             self.daq.command("STOP")
