@@ -530,7 +530,7 @@ class Rig:
 
     def _until_done(
         self, state: RunState, step: Callable[[int], Any], rate_hz: int, tail_s: float, total_s: float | None,
-        progress: bool,
+        progress: bool, stepper: bool = True,
     ) -> None:  # fmt: skip
         """Read until ``DONE`` and ``tail_s`` past the end (``step(now)``: ``(end us, positions)`` or None).
 
@@ -540,12 +540,12 @@ class Rig:
         :data:`DONE_GRACE_S` after the end, and after each further grace, ``POS`` is asked: at the end, the
         ``DONE`` was lost on the link; still moving, the stepper is late and is waited for; not moving, it
         stopped short. A board that sends no sample, or does not answer ``POS``, within the silence interval
-        is gone.
+        is gone. Not ``stepper``: the stepper is not used (nor read), and the end is the end.
         """
         silence, asked, last, bar = self.daq.waiter(self.silence_s), 0, None, _Bar(total_s, progress)
         try:
             while True:
-                new, silence = self._read(silence)
+                new, silence = self._read(silence, stepper)
                 rows = self.daq.rows
                 if new and state.t_go_us is None:
                     self._went(state, rows[-new][1] - round(1e6 / rate_hz))
@@ -559,9 +559,10 @@ class Rig:
                         raise BoardError(f"the stepper board ended before it was asked to (DONE at {now} us)")
                     continue
                 end_us, end = due
-                if self.stepper.done is not None and now >= end_us + tail_s * 1e6:
+                done = self.stepper.done if stepper else end
+                if done is not None and now >= end_us + tail_s * 1e6:
                     break
-                if self.stepper.done is None and now >= end_us + DONE_GRACE_S * 1e6 * (asked + 1):
+                if done is None and now >= end_us + DONE_GRACE_S * 1e6 * (asked + 1):
                     asked, where = asked + 1, self.positions()
                     if where == end:
                         self.stepper.done = where  # its DONE was lost on the link (a corrupted line)
@@ -573,7 +574,7 @@ class Rig:
                     last = where
         finally:
             bar.close()
-        if self.stepper.done[: self.n] != end:
+        if stepper and self.stepper.done[: self.n] != end:
             raise BoardError(f"the stepper board ended at {self.stepper.done}, not at the end {end}")
 
     def _finish(self, state: RunState) -> None:

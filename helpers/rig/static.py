@@ -21,7 +21,7 @@ import numpy as np
 from helpers import recordings
 from helpers.base.paths import LOADCELL_CALIBRATION
 from helpers.recordings import Recording
-from helpers.rig.driver import Rig, RunState, _Bar
+from helpers.rig.driver import Rig, RunState
 from helpers.rig.safety import SafetyError
 
 G_STANDARD = 9.80665
@@ -76,19 +76,8 @@ def record_static(
         rig.daq.check_reset()
         rig.daq.command("STOP")  # a stream left running by an earlier session stops (OK STOP 0 when idle)
         rig._start(rate_hz, [(0, 0)] * rig.n)  # the motor is idle: no step count may change
-        bar, silence = _Bar(duration_s, progress), rig.daq.waiter(rig.silence_s)
-        try:
-            while True:
-                new, silence = rig._read(silence, stepper=False)
-                rows = rig.daq.rows
-                if new and state.t_go_us is None:
-                    state.t_go_us = rows[0][1] - round(1e6 / rate_hz)
-                if new:
-                    bar.show((rows[-1][1] - state.t_go_us) / 1e6)
-                    if rows[-1][1] - state.t_go_us >= duration_s * 1e6:
-                        break
-        finally:
-            bar.close()
+        # samples from the first one on (its device time less a period: the run's start) for duration_s
+        rig._until_done(state, lambda now: (0, ()), rate_hz, duration_s, duration_s, progress, stepper=False)
         state.finished = True
         rig.daq.command("STOP")
 
