@@ -66,17 +66,6 @@ class StreamStarved(BoardError):
     """The stream's watchdog fired (``N,WATCHDOG``): the board went 100 ms without a set-point."""
 
 
-def refuse_notice(line: str, allow_clamps: bool) -> None:
-    """Stop a stream on the board's notice ``line``: always on the watchdog, on a clamp unless allowed."""
-    if line.startswith("N,WATCHDOG"):
-        raise StreamStarved(
-            f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a set-point (the "
-            "host fell behind)"
-        )
-    if not allow_clamps:
-        raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
-
-
 def v_max(rig: RigFile) -> int:
     """The build's set-point limit: ``floor(2^20 / min_interval_us)`` (1640 for 639 us, 2001 for 524 us)."""
     return hs.v_max(derived(rig).min_interval_us)
@@ -391,13 +380,20 @@ class StreamRecord:
         self.data["periods"].append(int(period))
         self.data["n_setpoints"] += 1
 
-    def notice(self, line: str) -> None:
-        """An ``N,...`` line from the board."""
+    def notice(self, line: str, allow_clamps: bool) -> None:
+        """An ``N,...`` line, noted; it stops the stream (the watchdog always, a clamp unless allowed)."""
         self.data["notices"].append(line)
         kind = {"N,LIMIT,SPEED": "speed", "N,LIMIT,TRAVEL": "travel"}.get(",".join(line.split(",")[:3]))
         if kind:
             self.data["clamps"][kind] += 1
-        self.data["watchdog"] |= line.startswith("N,WATCHDOG")
+        if line.startswith("N,WATCHDOG"):
+            self.data["watchdog"] = True
+            raise StreamStarved(
+                f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a set-point "
+                "(the host fell behind)"
+            )
+        if not allow_clamps:
+            raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
 
     def counts(self, pacer: Pacer) -> None:
         """Copy the pacer's counts."""
@@ -599,8 +595,7 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
         nonlocal noticed
         for line in stepper.notices[noticed:]:
             noticed += 1
-            record.notice(line)
-            refuse_notice(line, allow_clamps)
+            record.notice(line, allow_clamps)
 
     def step(now: int) -> Any:
         nonlocal pending
