@@ -542,7 +542,7 @@ class AxesRun:
         releases = [0] * n if releases is None else list(releases)
         rows = zip(positions, travels, releases, strict=True)
         self.planners = [Planner(shaper, p, t, a, r, v_max) for a, (p, t, r) in enumerate(rows)]
-        self.q_max = self.planners[0].q_max
+        self.q_max, self.v_max = self.planners[0].q_max, v_max
         self.finish_tick: int | None = None
         self.last_nonzero = 0
         self.watchdog_seen = False
@@ -625,21 +625,13 @@ class StreamSession:
 
     Parameters
     ----------
-    shaper : StreamShaper
-    positions : sequence of int
-        Each axis's step count at ``STREAM``.
-    travels, releases : sequence of int or None
-        Each axis's travel and paid-out range below zero (default ``TRAVEL_MAX`` and 0 each).
-    v_max : int
-        The build's set-point limit (:func:`v_max`; default the paper's build's :data:`V_MAX`).
+    run : AxesRun
+        The stream's run from ``STREAM`` on: the loaded shaper, every axis's position, travel and release, the
+        build's set-point limit.
     """
 
-    def __init__(
-        self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None,
-        releases: Sequence[int] | None = None, v_max: int = V_MAX,
-    ) -> None:  # fmt: skip
-        self.run = AxesRun(shaper, positions, travels, releases, v_max)
-        self.axes, self.v_max = len(positions), v_max
+    def __init__(self, run: AxesRun) -> None:
+        self.run, self.axes, self.v_max = run, len(run.planners), run.v_max
         self.rules = SetpointRules()
         self.fifo: deque[tuple[int, ...]] = deque()
         self.next_period = 1

@@ -109,7 +109,7 @@ class StreamMode:
         self, shaper: hs.StreamShaper, positions: Sequence[int], travels: Sequence[int], t0: float,
         send: Callable[[str], None], releases: Sequence[int] | None = None, v_max: int = hs.V_MAX,
     ) -> None:  # fmt: skip
-        self.session = hs.StreamSession(shaper, positions, travels, releases, v_max)
+        self.session = hs.StreamSession(hs.AxesRun(shaper, positions, travels, releases, v_max))
         self.edge_s = STEP_EDGE_S if len(positions) == 1 else STEP_EDGE_AXES_S
         self.t0 = t0
         self._send = send
