@@ -667,9 +667,8 @@ class Rig:
         where the run started; the twin's tip where the in-process virtual rig gives it) go to the one writer,
         :func:`helpers.recordings.from_samples`.
         """
-        c = self.daq.parser.channels
-        rows = np.asarray(self.daq.rows, dtype=np.int64).reshape(-1, 2 + c + self.daq.parser.axes)
-        rows = np.column_stack([rows[:, : 2 + self.n], rows[:, 2 + c : 2 + c + self.n] + state.start])
+        rows = np.asarray(self.daq.rows, dtype=np.int64).reshape(-1, 2 + 2 * self.n)  # the build checked
+        rows[:, 2 + self.n :] += np.asarray(state.start, dtype=np.int64)  # steps from where the run started
         tips = getattr(self.daq.port, "twin_tip_um", lambda t: None)(rows[:, 1]) if len(rows) else None
         if tips is not None:
             rows = np.column_stack([rows, np.asarray(tips, dtype=np.int64)])
