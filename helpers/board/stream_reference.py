@@ -219,7 +219,7 @@ UNIT_SHAPER = StreamShaper((AMP_ONE,), (0,))
 """The identity: the stream is passed through unshaped (load it when the host shapes the stream itself)."""
 
 
-def board_shaper(shaper: object | None, tolerance: float = 1e-6) -> StreamShaper:
+def board_shaper(shaper: object | None) -> StreamShaper:
     """The shaper to load on the board for ``shaper``.
 
     Parameters
@@ -228,8 +228,6 @@ def board_shaper(shaper: object | None, tolerance: float = 1e-6) -> StreamShaper
         A board shaper as it is; a real one (e.g. :class:`helpers.paper.shapers.Shaper`) rounded by
         :meth:`StreamShaper.quantise` (negative amplitudes allowed when it has any); None: the unit shaper
         (no shaping).
-    tolerance : float
-        How far a real shaper's amplitudes may sum from 1.
 
     Raises
     ------
@@ -246,7 +244,7 @@ def board_shaper(shaper: object | None, tolerance: float = 1e-6) -> StreamShaper
     except (AttributeError, TypeError, ValueError):
         raise ValueError(f"a shaper needs amplitudes and times, got {type(shaper).__name__}") from None
     name = getattr(shaper, "name", "shaper")
-    if amplitudes.size and np.all(np.isfinite(amplitudes)) and abs(amplitudes.sum() - 1.0) > tolerance:
+    if amplitudes.size and np.all(np.isfinite(amplitudes)) and abs(amplitudes.sum() - 1.0) > 1e-6:
         raise ValueError(f"shaper {name!r}: the amplitudes sum to {amplitudes.sum():.6g}, not 1")
     try:
         return StreamShaper.quantise(amplitudes, times, allow_negative=bool(np.any(amplitudes < 0)))
@@ -704,9 +702,8 @@ class StreamSession:
 
 
 def simulate(
-    shaper: StreamShaper, commands: PeriodCommands, position: int = 0, max_periods: int = 1_000_000,
-    v_max: int = V_MAX,
-) -> StreamResult:  # fmt: skip
+    shaper: StreamShaper, commands: PeriodCommands, position: int = 0, v_max: int = V_MAX
+) -> StreamResult:
     """Run the board's streaming mode on a one-axis stream until it stops (``END`` or the watchdog).
 
     :func:`simulate_axes` of one axis of travel ``TRAVEL_MAX``.
@@ -718,7 +715,7 @@ def simulate(
         set-point of every period planned, and the control tick at which the board stops (see
         :class:`AxesRun`).
     """
-    return simulate_axes(shaper, commands, [position], max_periods=max_periods, v_max=v_max)[0]
+    return simulate_axes(shaper, commands, [position], v_max=v_max)[0]
 
 
 def simulate_axes(
@@ -726,7 +723,6 @@ def simulate_axes(
     commands: PeriodCommands,
     positions: Sequence[int],
     travels: Sequence[int] | None = None,
-    max_periods: int = 1_000_000,
     releases: Sequence[int] | None = None,
     v_max: int = V_MAX,
 ) -> list[StreamResult]:
@@ -743,8 +739,6 @@ def simulate_axes(
         Each axis's step count at ``STREAM``.
     travels : sequence of int or None
         Each axis's travel (default ``TRAVEL_MAX`` each).
-    max_periods : int
-        Stop planning after this period whatever the commands.
     releases : sequence of int or None
         Each axis's paid-out range below zero (default 0 each).
     v_max : int
@@ -755,7 +749,7 @@ def simulate_axes(
     set-point is. The ``WATCHDOG`` notice is in axis 0's result.
     """
     run = AxesRun(shaper, positions, travels, releases, v_max)
-    _drive(run, commands, max_periods)
+    _drive(run, commands)
     return run.results()
 
 
@@ -769,11 +763,14 @@ def drive_axes(run: AxesRun, rows: Sequence[Sequence[int]]) -> int:
     return _drive(run, PeriodCommands(dict(enumerate(map(tuple, rows), start=1)), len(rows) + 1))
 
 
-def _drive(run: AxesRun, commands: PeriodCommands, max_periods: int = 1_000_000) -> int:
-    """Tick ``run`` through ``commands`` until the board stops (or after ``max_periods``); the last period."""
+def _drive(run: AxesRun, commands: PeriodCommands) -> int:
+    """Tick ``run`` through ``commands`` until the board stops; the last period ticked.
+
+    It stops: after ``END`` or, the set-points being finite, after the watchdog, once the shaper is through.
+    """
     k = 0
     for k, v, state in commands:
         run.tick(k, v, state)
-        if run.finish_tick is not None or k >= max_periods:  # (the periods left before the finish are zero)
+        if run.finish_tick is not None:  # (the periods left before the finish are zero)
             break
     return k

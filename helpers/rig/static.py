@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -50,7 +50,7 @@ def calibration_masses_kg(load_cell_range_n: float) -> tuple[float, ...]:
 
 def record_static(
     rig: Rig, duration_s: float, scenario: dict[str, Any], *, path: str | os.PathLike, rate_hz: int = 1000,
-    progress: bool = False, replace: bool = False,
+    replace: bool = False,
 ) -> Recording:  # fmt: skip
     """Record ``duration_s`` of device time with the motor idle (load-cell calibration, noise floor).
 
@@ -64,7 +64,7 @@ def record_static(
         Scenario metadata (e.g. ``{"kind": "calibration", "load_n": 4.9}``).
     path : path-like
         Where to save.
-    rate_hz, progress, replace
+    rate_hz, replace
         As :meth:`Rig.run`'s.
     """
     longest = rig.rig.hardware.max_programme_s
@@ -77,7 +77,7 @@ def record_static(
         rig.daq.command("STOP")  # a stream left running by an earlier session stops (OK STOP 0 when idle)
         rig._start(rate_hz, [(0, 0)] * rig.n)  # the motor is idle: no step count may change
         # samples from the first one on (its device time less a period: the run's start) for duration_s
-        rig._until_done(state, lambda now: (0, ()), rate_hz, duration_s, duration_s, progress, stepper=False)
+        rig._until_done(state, lambda now: (0, ()), rate_hz, duration_s, duration_s, False, stepper=False)
         state.finished = True
         rig.daq.command("STOP")
 
@@ -88,8 +88,7 @@ def record_static(
 
 def record_calibration(
     rig: Rig, masses_kg: Sequence[float] | None = None, duration_s: float = 1.0,
-    folder: str | os.PathLike = CALIBRATION_DIR, prompt: Callable[[str], object] | None = input,
-    rate_hz: int = 1000, replace: bool = False,
+    folder: str | os.PathLike = CALIBRATION_DIR, rate_hz: int = 1000, replace: bool = False,
 ) -> list[Recording]:  # fmt: skip
     """Record ``duration_s`` of counts under each known mass (tendon 1's load cell).
 
@@ -103,9 +102,6 @@ def record_calibration(
         Device seconds per mass.
     folder : path-like
         Where the recordings go (``load_<grams>g.csv/json``).
-    prompt : callable
-        On hardware, called with an instruction before each mass (``input`` waits for Enter). Ignored on the
-        in-process virtual rig, whose fixture hangs the load itself.
     rate_hz : int
         DAQ sample rate.
     replace : bool
@@ -122,8 +118,8 @@ def record_calibration(
             load = float(m) * G_STANDARD
             if world is not None:
                 world.hang_load(load)
-            elif prompt is not None:
-                prompt(f"Hang {m:.3f} kg ({load:.3f} N) from the load cell, then press Enter")
+            else:  # hardware: the user hangs it, and says so with Enter
+                input(f"Hang {m:.3f} kg ({load:.3f} N) from the load cell, then press Enter")
             scenario = {
                 "kind": "calibration", "mass_kg": float(m), "load_n": load, "g_m_s2": G_STANDARD,
                 "fixture": "VIRTUAL known load (simulated)" if virtual else "hung mass",

@@ -87,8 +87,6 @@ class SetpointSource:
         gamepad, which must return its present value at once) one period at a time, as it is taken.
     rig : RigFile
         The rig: its tendons, speed limit and ``max_programme_s``.
-    name : str, optional
-        Where the set-points come from, for the recording (default ``"array"`` or the iterable's type).
 
     Raises
     ------
@@ -97,13 +95,13 @@ class SetpointSource:
         the limit, the wrong number of tendons, or too many periods; one line naming the tendon and period.
     """
 
-    def __init__(self, setpoints: Any, rig: RigFile, name: str | None = None) -> None:
+    def __init__(self, setpoints: Any, rig: RigFile) -> None:
         if isinstance(setpoints, str | bytes) or not isinstance(setpoints, Iterable):
             got = repr(setpoints)
             raise SafetyError(f"set-points must be an array or an iterable of speeds in mm/s, got {got}")
         self.rig, self.n = rig, rig.n_tendons
         self.sized = isinstance(setpoints, np.ndarray) or hasattr(setpoints, "__len__")
-        self.name = name or ("array" if self.sized else type(setpoints).__name__)
+        self.name = "array" if self.sized else type(setpoints).__name__  # where they come from, recorded
         self.values = list(setpoints) if self.sized else None
         if self.values is not None and not self.values:
             raise SafetyError("no set-points: the stream is empty")
@@ -470,7 +468,7 @@ def check_stream(
 
 def stream(
     rig: Rig, setpoints: Any, shaper: Any = None, *, path: str | os.PathLike,
-    scenario: dict[str, Any] | None = None, source_name: str | None = None, lead_periods: int = 4,
+    scenario: dict[str, Any] | None = None, lead_periods: int = 4,
     lead_in_s: float = 1.0, tail_s: float = 1.0, allow_clamps: bool = False, rate_hz: int = 1000,
     progress: bool = True, replace: bool = False, noise_seed: int | None = None,
 ) -> Recording:  # fmt: skip
@@ -494,8 +492,6 @@ def stream(
         ``data/<group>/<name>``; an existing recording is refused before anything moves.
     scenario : dict, optional
         More scenario metadata; ``kind`` is ``"stream"``.
-    source_name : str, optional
-        Where the set-points come from, for the recording.
     lead_periods : int
         Periods a set-point waits in the board's FIFO (1-7): latency against tolerance of host jitter.
     lead_in_s, tail_s : float
@@ -518,7 +514,7 @@ def stream(
         raise ValueError(f"lead_in_s must be a number of seconds in 0-60, got {lead_in_s!r}")
     board = board_shaper(shaper, rig.n)
     Pacer(0, lead_periods)  # refuses a bad lead before anything is sent
-    source = SetpointSource(setpoints, rig.rig, source_name)
+    source = SetpointSource(setpoints, rig.rig)
     units = source.check_all() if source.sized else None
     _check_firmware(rig.stepper.version)
     target = rig._target(path)
