@@ -178,7 +178,7 @@ class ShapedCheck:
     def __init__(self, shaper: hs.StreamShaper, start: tuple[int, ...], rig: RigFile, refuse: bool = True
                  ) -> None:  # fmt: skip
         d = derived(rig)
-        self.rig, self.refuse, self.start = rig, refuse, start
+        self.rig, self.refuse = rig, refuse
         self.travel, self.release = d.travel_steps, d.release_steps
         self.run = hs.AxesRun(shaper, start, d.travel_steps, d.release_steps, v_max(rig))
         self.rules = hs.SetpointRules()
@@ -332,7 +332,7 @@ class Pacer:
 
     def finish_us(self, end_period: int, q_max: int) -> float:
         """Device time (us) at which the board ends the stream (``DONE``) after ``OK END <end_period>``."""
-        return self.t_anchor + (end_period + q_max + 4 - self.p_anchor) * PERIOD_US  # StreamRun's, at latest
+        return self.t_anchor + (end_period + q_max + 4 - self.p_anchor) * PERIOD_US  # AxesRun's, at latest
 
 
 @dataclass
