@@ -730,19 +730,11 @@ def simulate_axes(
 
     Parameters
     ----------
-    shaper : StreamShaper
-        The loaded shaper (every axis's).
+    shaper, positions, travels, releases, v_max
+        The loaded shaper (every axis's) and the axes, as :class:`AxesRun` takes them.
     commands : PeriodCommands
         ``assigned`` maps each period to its set-points, a tuple with one per axis (``OK MV <period>``), or
         to an int (``OK V <period>``: axis 0's, the others zero).
-    positions : sequence of int
-        Each axis's step count at ``STREAM``.
-    travels : sequence of int or None
-        Each axis's travel (default ``TRAVEL_MAX`` each).
-    releases : sequence of int or None
-        Each axis's paid-out range below zero (default 0 each).
-    v_max : int
-        The build's set-point limit (:func:`v_max`; default the paper's build's :data:`V_MAX`).
 
     Every axis is planned by its own :class:`Planner` from the one shaper; the stream stops (``finish_tick``,
     the same for every axis) as :class:`AxesRun` says, with a period counting as non-zero when any axis's
