@@ -604,12 +604,7 @@ class AxesRun:
 
 
 class StreamRefused(Exception):
-    """The board refuses a streaming command: ``code`` (``STATE``, ``RANGE``, ``FULL``) and its text."""
-
-    def __init__(self, code: str, text: str) -> None:
-        super().__init__(f"ERR {code} {text}")
-        self.code = code
-        self.text = text
+    """The board refuses a streaming command; the message is its reply: ``ERR <STATE|RANGE|FULL> <text>``."""
 
 
 class StreamSession:
@@ -656,9 +651,9 @@ class StreamSession:
             board's order.
         """
         if not self.accepting:
-            raise StreamRefused("STATE", "not streaming")
+            raise StreamRefused("ERR STATE not streaming")
         if not -self.v_max <= v <= self.v_max:
-            raise StreamRefused("RANGE", f"set-point -{self.v_max}..{self.v_max}")
+            raise StreamRefused(f"ERR RANGE set-point -{self.v_max}..{self.v_max}")
         return self._queue((v,))
 
     def setpoints(self, vs: Sequence[int]) -> int:
@@ -671,22 +666,22 @@ class StreamSession:
             the board's order (the caller has checked that there is one set-point per axis).
         """
         if not self.accepting:
-            raise StreamRefused("STATE", "not streaming")
+            raise StreamRefused("ERR STATE not streaming")
         for a, v in enumerate(vs):
             if not -self.v_max <= v <= self.v_max:
-                raise StreamRefused("RANGE", f"axis {a} set-point -{self.v_max}..{self.v_max}")
+                raise StreamRefused(f"ERR RANGE axis {a} set-point -{self.v_max}..{self.v_max}")
         return self._queue(tuple(vs))
 
     def _queue(self, vs: tuple[int, ...]) -> int:
         if len(self.fifo) >= FIFO_DEPTH:
-            raise StreamRefused("FULL", f"{FIFO_DEPTH} set-points queued")
+            raise StreamRefused(f"ERR FULL {FIFO_DEPTH} set-points queued")
         self.fifo.append(vs + (0,) * (self.axes - len(vs)))
         return self.next_period + len(self.fifo) - 1
 
     def end(self) -> int:
         """``END``: the stream ends after the queued set-points; returns the first period fed with zero."""
         if not self.accepting:
-            raise StreamRefused("STATE", "not streaming")
+            raise StreamRefused("ERR STATE not streaming")
         self.ended = True
         self.rules.end_period = self.next_period + len(self.fifo)
         return self.rules.end_period
