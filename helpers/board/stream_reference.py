@@ -272,7 +272,6 @@ class SetpointRules:
         self.end_period = end_period
         self.state = "active"
         self.underruns = 0
-        self.watchdog_period: int | None = None
 
     def take(self, k: int, arrived: int | None) -> int:
         """The set-point of period ``k`` (periods are taken in order: 1, 2, ...)."""
@@ -284,7 +283,7 @@ class SetpointRules:
         if self.state == "active":
             self.underruns += 1
             if self.underruns > WATCHDOG_PERIODS:
-                self.state, self.watchdog_period = "watchdog", k
+                self.state = "watchdog"
         return 0
 
 

@@ -209,7 +209,7 @@ class Rig:
     ) -> None:  # fmt: skip
         if not isinstance(rig, RigFile):
             raise ValueError(f"rig must be a rig file loaded by helpers.rigfile.load, got {rig!r}")
-        self.rig, self.n, self.silence_s, self.last_cleanup = rig, rig.n_tendons, silence_s, []
+        self.rig, self.n, self.silence_s = rig, rig.n_tendons, silence_s
         self.calibration = self._calibrations(calibration)
         urls = rig_urls(ports, rig, world or rig.name, (daq_options, stepper_options))
         self.daq = Link.open(urls[0], "daq", rig, rig.hardware.daq_baud, timeout, hello_timeout)
@@ -615,14 +615,13 @@ class Rig:
                 with guard.interruptible():
                     body(state)
             except BaseException as exc:
-                self.last_cleanup = exc.cleanup = self._cleanup(stepper_used)  # type: ignore[attr-defined]
+                cleanup = exc.cleanup = self._cleanup(stepper_used)  # type: ignore[attr-defined]
                 reason = None  # an interrupt once every sample is in: the run is saved whole
                 if not (state.finished and isinstance(exc, KeyboardInterrupt)):
                     reason = f"{type(exc).__name__}: {exc}"
-                    reason += " | cleanup: " + "; ".join(self.last_cleanup) if self.last_cleanup else ""
+                    reason += " | cleanup: " + "; ".join(cleanup) if cleanup else ""
                 self._save(state, scenario, target, rate_hz, replace, exc, reason)
                 raise
-            self.last_cleanup = []
             rec = self._save(state, scenario, target, rate_hz, replace)
             signum = guard.take_pending()
             if signum is not None:  # a signal came after the run had ended: it is saved; now act on it

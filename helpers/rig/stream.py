@@ -207,13 +207,13 @@ class ShapedCheck:
         """The prediction's state, to go back to when the board assigns the set-point another period."""
         r = self.rules
         return (self.run.checkpoint(), self.period, self.commanded.copy(),
-                (r.state, r.underruns, r.watchdog_period, r.end_period))  # fmt: skip
+                (r.state, r.underruns, r.end_period))  # fmt: skip
 
     def rollback(self, state: tuple) -> None:
         """Forget what was planned since :meth:`checkpoint` (e.g. a set-point the board refused as FULL)."""
         run, self.period, self.commanded, rules = state
         self.run.rollback(run)
-        self.rules.state, self.rules.underruns, self.rules.watchdog_period, self.rules.end_period = rules
+        self.rules.state, self.rules.underruns, self.rules.end_period = rules
 
     def setpoint(self, row: tuple[int, ...]) -> None:
         """Plan the next period with ``row``; ``SafetyError`` if the command or the board's motion fails.
