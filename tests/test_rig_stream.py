@@ -18,9 +18,11 @@ from rig_fakes import (
     MM_PER_STEP,  # the paper's cable per step, by hand
     SpyPort,
     make_rig,
+    make_world,
 )
+from tendon_fakes import talk
 
-from helpers import recordings
+from helpers import recordings, rigfile
 from helpers.board import stream_reference as hs
 from helpers.rig import BoardReset, BoardTimeout, SafetyError
 from helpers.rig.stream import StreamLimit, StreamStarved, stream
@@ -231,6 +233,29 @@ def test_clamps_may_be_allowed_and_are_counted(tmp_path):
     ref = hs.simulate(OVERSHOOT, hs.PeriodCommands(sent, st["end_period"]))
     assert rec.frame["steps"].max() == 156 and rec.meta["done_position"] == ref.position != 0
     assert recordings.load(rec.path).status == "deviated"
+
+
+LONG_ARM_UNIT_MM_S = math.pi * 40.0 / 1600 * STEPS_PER_S_PER_UNIT  # rigs/long-arm.toml: 0.0785 mm per step
+
+
+def test_the_set_point_limit_is_the_builds_not_the_papers(tmp_path):
+    """The long-arm rig's fastest step is ceil(1e6 x 0.0785 / 150) = 524 us, so its boards take set-points
+    up to floor(2^20 / 524) = 2001 units (149.9 mm/s), not the paper's 1640 of 639 us (the firmware built for
+    it says the same: ``tests/firmware/test_second_rig_fw.py``). Its emulated stepper takes V 2001 and refuses
+    V 2002 naming 2001; the host streams 2001 units through the unit shaper with no clamp predicted or met
+    (5 periods: 5 x 2001 x 625 / 2^16 = 95.4 steps), and refuses 2002 units before anything moves."""
+    long_arm = rigfile.load(rigfile.resolve("long-arm"))
+    board = make_world(long_arm).stepper
+    talk(board)  # its HELLO
+    replies = talk(board, *hs.UNIT_SHAPER.commands(), "EN 1", "STREAM", "V 2001", "V 2002")
+    assert replies[-2:] == ["OK V 1", "ERR RANGE set-point -2001..2001"]
+    rig, _ = make_rig(rig=long_arm)
+    rec = stream(rig, [2001 * LONG_ARM_UNIT_MM_S] * 5, None, path=tmp_path / "top", progress=False)
+    st = rec.meta["scenario"]["stream"]
+    assert rec.status == "complete" and st["setpoints"] == [2001] * 5 and st["notices"] == []
+    assert rec.meta["done_position"] == 95 == rec.frame["steps"].max()
+    with pytest.raises(SafetyError, match=r"set-point 0: .* \(2001 board units\)"):
+        stream(rig, [2002 * LONG_ARM_UNIT_MM_S], None, path=tmp_path / "over", progress=False)
 
 
 def test_the_pacer_keeps_its_lead_when_the_boards_clocks_differ():

@@ -9,6 +9,7 @@ import random
 
 import numpy as np
 import pytest
+from stream_exact import exact_position
 
 from helpers.board import stream_reference as hs
 
@@ -60,20 +61,20 @@ def test_steps_follow_the_exact_shaped_trajectory_within_one_step(seed):
     )
     t = np.unique(np.concatenate([grid, breaks, result.ticks - 1.0, result.ticks, result.ticks + 1.0]))
     t = t[(t >= 0) & (t <= t_end)]
-    x = hs.exact_position(shaper, result.v_by_period, t, position=start)
+    x = exact_position(shaper, result.v_by_period, t, position=start)
     c = count_at(result, start, t)
     v_tick = hs.S_MAX / hs.ONE / hs.DELTA  # the fastest motion in one tick (steps)
     assert np.max(np.abs(x - c)) < 1.0 + v_tick + 1e-9
     # each step is issued at the first tick at or after the exact crossing of c +- 1
     before = count_at(result, start, result.ticks.astype(float) - 1)
-    xs = hs.exact_position(shaper, result.v_by_period, result.ticks.astype(float), position=start)
-    xs_prev = hs.exact_position(shaper, result.v_by_period, result.ticks - 1.0, position=start)
+    xs = exact_position(shaper, result.v_by_period, result.ticks.astype(float), position=start)
+    xs_prev = exact_position(shaper, result.v_by_period, result.ticks - 1.0, position=start)
     up = result.directions > 0
     eps = 1e-9
     assert np.all(np.where(up, xs >= before + 1 - eps, xs <= before - 1 + eps))
     assert np.all(np.where(up, xs_prev < before + 1 + eps, xs_prev > before - 1 - eps))
     # where the stream ends, the count is within one step of where the exact trajectory rests
-    x_end = hs.exact_position(shaper, result.v_by_period, np.array([float(t_end)]), position=start)[0]
+    x_end = exact_position(shaper, result.v_by_period, np.array([float(t_end)]), position=start)[0]
     assert abs(x_end - result.position) < 1.0
     assert 0 <= result.position <= hs.TRAVEL_MAX
 
@@ -194,8 +195,8 @@ def test_an_axis_with_a_release_pays_out_down_to_it() -> None:
     ]
     assert len(res[2].ticks) == 178 and set(res[2].directions.tolist()) == {-1}
     t = np.array([40.0 * hs.PERIOD_TICKS])
-    assert hs.exact_position(unit, res[2].v_by_period, t, position=100, release=78)[0] == -78.0
-    assert hs.exact_position(unit, res[2].v_by_period, t, position=100)[0] == 0.0  # no release: at 0
+    assert exact_position(unit, res[2].v_by_period, t, position=100, release=78)[0] == -78.0
+    assert exact_position(unit, res[2].v_by_period, t, position=100)[0] == 0.0  # no release: at 0
 
 
 def test_impulse_delays_of_a_build_with_several_axes() -> None:

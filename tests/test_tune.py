@@ -85,7 +85,7 @@ def test_reuse_map_refuses_a_map_of_another_rig_before_any_port_opens(tmp_path, 
     for group, name in (("calibration", "calibration.json"), ("identification", "result.json")):
         (tmp_path / group).mkdir()
         shutil.copy(DATA_DIR / group / name, tmp_path / group / name)
-    monkeypatch.setattr(tune.Rig, "connect", lambda *a, **k: pytest.fail("a port was opened"))
+    monkeypatch.setattr(tune, "Rig", lambda *a, **k: pytest.fail("a port was opened"))  # the one driver
     this_name, this_hash = _rig_of(rigfile.DEFAULT_RIG)  # the rig `tune` runs without --rig: the paper's
     other = next(p for p in sorted(RIGS_DIR.glob("*.toml")) if _rig_of(p)[1] != this_hash)
     other_name, other_hash = _rig_of(other)

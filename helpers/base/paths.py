@@ -43,7 +43,7 @@ calibration``), read by ``helpers.paper.tension.load_calibration`` (every record
 VIRTUAL_RIG_REGISTRY: Path = Path(tempfile.gettempdir()) / "helpers-virtual-rigs"
 """Where ``python -m helpers serve-virtual-rig`` announces its pseudo-terminals, so that recordings made
 through them are labelled ``virtual-rig``, never ``hardware`` (read by
-``helpers.rig.ports.announced_virtual_rigs``)."""
+``helpers.rig.ports.virtual_source_for``)."""
 
 
 def figure_path(name: str) -> Path:

@@ -243,10 +243,17 @@ class Programme:
         """Total number of steps, every axis, either direction."""
         return sum(abs(n) for item in self.items for n in item.counts(self.axes))
 
+    def positions(self, start: int | Sequence[int], axes: int) -> np.ndarray:
+        """Every axis's position at ``GO`` and after each item, from ``start``: shape (items + 1, axes).
+
+        ``start``: every axis's position at ``GO`` (an int: axis 0's, the others at 0).
+        """
+        first = [start] + [0] * (axes - 1) if isinstance(start, int) else list(start)
+        return np.cumsum([first] + [item.counts(axes) for item in self.items], axis=0)
+
     def end_positions(self, start: Sequence[int]) -> tuple[int, ...]:
         """Every axis's position after the programme, from ``start`` (one per axis)."""
-        moved = [item.counts(len(start)) for item in self.items]
-        return tuple(int(p) + sum(c[a] for c in moved) for a, p in enumerate(start))
+        return tuple(int(p) for p in self.positions(start, len(start))[-1])
 
     def item_starts_us(self) -> np.ndarray:
         """Start time (us from ``GO``) of every item."""

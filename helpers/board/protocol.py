@@ -173,19 +173,16 @@ def parse_body(
         parts = body.split(",")[1:]
         if len(parts) != 2 + channels + axes:
             raise FramingError(f"data line with {len(parts) + 1} fields, expected {3 + channels + axes}")
-        if not all(f.isdigit() for f in parts[: 2 + channels]) or not all(
-            f.removeprefix("-").isdigit() for f in parts[2 + channels :]
-        ):
+        if not re.fullmatch(rf"D(,\d+){{{2 + channels}}}(,-?\d+){{{axes}}}", body):  # counts >= 0, steps any
             raise FramingError("data line with a non-integer field")
         values = tuple(int(f) for f in parts)
         if values[1] >= WRAP_US or max(values[2 : 2 + channels]) > adc_max:
             raise FramingError("data line field out of range")
         return values
     if body.startswith("W,"):
-        parts = body.split(",")
-        if len(parts) != 3 or parts[1] != "OVERRUN" or not parts[2].isdigit():
+        if not (warning := re.fullmatch(r"W,OVERRUN,(\d+)", body)):
             raise FramingError(f"malformed warning {body!r}")
-        return Overrun(int(parts[2]))
+        return Overrun(int(warning[1]))
     return body
 
 
@@ -267,7 +264,7 @@ class StreamParser:
             self.stats.implausible += 1
             self._example(line, f"implausible step count {steps}")
             return
-        self.unwrap(sample[1])
+        self._t_offset, self._last_raw_t = t_us - sample[1], sample[1]  # the clock moves on with a placed one
         self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
         self.last_seq = seq
         self.stats.samples += 1
@@ -301,16 +298,9 @@ class StreamParser:
             self.stats.corrupted_examples.append(f"{line[:40]!r}: {why}")
 
     def _unwrapped(self, t_raw: int) -> int:
-        """``t_raw`` unwrapped as :meth:`unwrap` would, without moving the clock state."""
+        """``t_raw`` with the 32-bit wraps before it added back (a time earlier than the last one wrapped)."""
         wrapped = self._last_raw_t is not None and t_raw < self._last_raw_t
         return t_raw + self._t_offset + (WRAP_US if wrapped else 0)
-
-    def unwrap(self, t_raw: int) -> int:
-        """Return ``t_raw`` with the 32-bit wraps before it added back."""
-        if self._last_raw_t is not None and t_raw < self._last_raw_t:
-            self._t_offset += WRAP_US
-        self._last_raw_t = t_raw
-        return t_raw + self._t_offset
 
     def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
         """Parse ``data`` (any chunking) and return the samples and messages it completes."""

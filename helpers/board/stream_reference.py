@@ -2,18 +2,20 @@
 
 The board convolves a stream of velocity set-points with one loaded shaper and turns the shaped velocity into
 step times. This module does exactly what the firmware (``firmware/stepper_uno``) does, with the same integer
-arithmetic, so that its step times can be compared with the firmware's tick for tick, and it also gives the
-exact (floating-point) shaped trajectory that the steps follow. It imports numpy only.
+arithmetic, so that its step times can be compared with the firmware's tick for tick (the exact shaped
+trajectory that the steps follow, in floating point, is the tests' independent check of it:
+``tests/stream_exact.py``). It imports numpy only.
 
 Fixed point (all integers):
 
 - time: the timer tick is 0.5 us; the shaper's delays and the velocity's time base are ``DELTA`` = 32 ticks
   (16 us); a control period is ``PERIOD`` = 625 DELTA = 10 ms;
-- velocity set-point ``v``: units of 2^-16 step per DELTA (0.95367431640625 steps/s), ``|v| <= V_MAX`` = 1640
-  (1564.0 steps/s = 399.2 mm/s: a step every 639.375 us at most);
+- velocity set-point ``v``: units of 2^-16 step per DELTA (0.95367431640625 steps/s), ``|v| <= v_max``, the
+  build's :func:`v_max` ``= floor(2^20 / min_interval_us)``: the paper's ``V_MAX`` = 1640 (1564.0 steps/s =
+  399.2 mm/s: a step every 639.375 us at most), 2001 on a build whose fastest step is 524 us;
 - amplitude ``a``: units of 2^-12 (4096 = 1), ``|a| <= 16384``; the amplitudes sum to exactly 4096;
 - shaped velocity ``S = sum a_i v(t - d_i)``: units of 2^-28 step per DELTA, clamped to
-  ``+-S_MAX`` = 1640 * 4096;
+  ``+-v_max * 4096`` (the paper's ``S_MAX`` = 1640 * 4096);
 - position: the step count ``c`` and a residual ``r`` (units of 2^-28 step, ``|r| < 2^28``) with the exact
   position ``x = c + r / 2^28``. ``r`` is exact at every DELTA boundary: nothing is rounded, ever.
 
@@ -27,8 +29,9 @@ limits clamp the exact position: at ``c = 156`` with ``r = 0`` an upward ``S`` i
 tick k (``k * 10 ms`` after ``STREAM``) and drives the velocity over ``[(k + 1) * 10 ms, (k + 2) * 10 ms)``.
 
 Several axes (a build with ``RIG_AXES`` > 1, ``MV``): every axis is this planner with its own set-points and
-travel, shaped by the one shaper (:class:`AxesRun` tick by tick, :class:`AxesSession` with ``MV``'s FIFO,
-:func:`simulate_axes` from the periods the board named); the longest delay there is ``MAX_DELAY_US_AXES``.
+travel, shaped by the one shaper (:class:`AxesRun` tick by tick, :class:`StreamSession` with ``MV``'s FIFO,
+:func:`simulate_axes` from the periods the board named); the longest delay there is ``MAX_DELAY_US_AXES``. One
+axis is the case A = 1 of the same classes.
 """
 
 from __future__ import annotations
@@ -36,7 +39,6 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -55,9 +57,10 @@ AMP_ONE = 4096
 AMP_MAX = 16384
 """Largest amplitude magnitude (4.0)."""
 V_MAX = 1640
-"""Largest set-point magnitude: 1640 * 2^-16 step per 16 us = 1564.0 steps/s (a step every 639.375 us)."""
+"""The paper's build's largest set-point magnitude (:func:`v_max` of its 639 us): 1640 * 2^-16 step per 16 us
+= 1564.0 steps/s (a step every 639.375 us). Another build's is :func:`v_max` of its fastest step."""
 S_MAX = V_MAX * AMP_ONE
-"""Largest shaped velocity magnitude (the speed limit on the shaped output)."""
+"""The paper's build's largest shaped velocity magnitude (the speed limit on the shaped output)."""
 TRAVEL_MAX = 156
 MAX_IMPULSES = 8
 DELAY_UNIT_US = 16
@@ -73,6 +76,15 @@ HISTORY_AXES = 64
 """Set-points each axis remembers on a build with several axes."""
 STEPS_PER_S_PER_UNIT = (1.0 / (1 << 16)) / (DELTA * TICK_S)
 """Steps per second of one set-point unit (0.95367431640625)."""
+
+
+def v_max(min_interval_us: int) -> int:
+    """A build's largest set-point magnitude: ``floor(2^20 / min_interval_us)`` (the firmware's ``SP_V_MAX``).
+
+    A set-point ``v`` steps every ``2^20 / v`` us, so the board's fastest step interval bounds it: 1640 for
+    the paper's 639 us, 2001 for 524 us. The shaped velocity is clamped at ``v_max * 4096``.
+    """
+    return (1 << 20) // min_interval_us
 
 
 # --- shapers -----------------------------------------------------------------------------------------------
@@ -207,7 +219,7 @@ UNIT_SHAPER = StreamShaper((AMP_ONE,), (0,))
 """The identity: the stream is passed through unshaped (load it when the host shapes the stream itself)."""
 
 
-def board_shaper(shaper: object | None, tolerance: float = 1e-6) -> StreamShaper:
+def board_shaper(shaper: object | None) -> StreamShaper:
     """The shaper to load on the board for ``shaper``.
 
     Parameters
@@ -216,8 +228,6 @@ def board_shaper(shaper: object | None, tolerance: float = 1e-6) -> StreamShaper
         A board shaper as it is; a real one (e.g. :class:`helpers.paper.shapers.Shaper`) rounded by
         :meth:`StreamShaper.quantise` (negative amplitudes allowed when it has any); None: the unit shaper
         (no shaping).
-    tolerance : float
-        How far a real shaper's amplitudes may sum from 1.
 
     Raises
     ------
@@ -234,7 +244,7 @@ def board_shaper(shaper: object | None, tolerance: float = 1e-6) -> StreamShaper
     except (AttributeError, TypeError, ValueError):
         raise ValueError(f"a shaper needs amplitudes and times, got {type(shaper).__name__}") from None
     name = getattr(shaper, "name", "shaper")
-    if amplitudes.size and np.all(np.isfinite(amplitudes)) and abs(amplitudes.sum() - 1.0) > tolerance:
+    if amplitudes.size and np.all(np.isfinite(amplitudes)) and abs(amplitudes.sum() - 1.0) > 1e-6:
         raise ValueError(f"shaper {name!r}: the amplitudes sum to {amplitudes.sum():.6g}, not 1")
     try:
         return StreamShaper.quantise(amplitudes, times, allow_negative=bool(np.any(amplitudes < 0)))
@@ -262,7 +272,6 @@ class SetpointRules:
         self.end_period = end_period
         self.state = "active"
         self.underruns = 0
-        self.watchdog_period: int | None = None
 
     def take(self, k: int, arrived: int | None) -> int:
         """The set-point of period ``k`` (periods are taken in order: 1, 2, ...)."""
@@ -274,7 +283,7 @@ class SetpointRules:
         if self.state == "active":
             self.underruns += 1
             if self.underruns > WATCHDOG_PERIODS:
-                self.state, self.watchdog_period = "watchdog", k
+                self.state = "watchdog"
         return 0
 
 
@@ -366,6 +375,8 @@ class Planner:
         The axis this planner drives (named by its notices).
     release : int
         How far the axis may pay out below zero (``RIG_AXIS_RELEASE_STEPS``; 0: none).
+    v_max : int
+        The build's set-point limit (:func:`v_max`): the shaped velocity is clamped at ``v_max * 4096``.
 
     On a build with several axes each axis is planned by its own planner from the one shaper, with its own
     set-points and travel: the firmware's per-axis state is exactly this class's, so one planner per axis is
@@ -380,6 +391,7 @@ class Planner:
         travel: int = TRAVEL_MAX,
         axis: int = 0,
         release: int = 0,
+        v_max: int = V_MAX,
     ) -> None:
         d = shaper.delays_delta
         self.a = shaper.amplitudes
@@ -400,6 +412,7 @@ class Planner:
         self.travel = travel
         self.release = release
         self.axis = axis
+        self.s_max = v_max * AMP_ONE
 
     def _v(self, j: int) -> int:
         return self.hist.get(j, 0)
@@ -448,10 +461,10 @@ class Planner:
         self._travel_clamped = True
 
     def _piece(self, tb: int, te: int, s: int) -> None:
-        if s > S_MAX:
-            s, self._speed_this = S_MAX, True
-        elif s < -S_MAX:
-            s, self._speed_this = -S_MAX, True
+        if s > self.s_max:
+            s, self._speed_this = self.s_max, True
+        elif s < -self.s_max:
+            s, self._speed_this = -self.s_max, True
         # a step due exactly at the boundary (the exact position reached c +- 1 there)
         if self.r >= ONE:
             self._emit(tb * DELTA, 1)
@@ -491,174 +504,18 @@ class Planner:
         self.r = rr if up else -rr
 
 
-class StreamRun:
-    """A stream planned control tick by control tick, and when it stops (the second half of the board's tick).
-
-    Parameters
-    ----------
-    shaper : StreamShaper
-    position : int
-        The step count when ``STREAM`` starts.
-
-    :meth:`tick` takes period ``k``'s set-point and the stream's state (from :class:`SetpointRules`),
-    records a ``WATCHDOG`` notice when the watchdog has just fired, and plans the period, unless the stream
-    has already stopped: ``finish_tick`` is ``k + 3`` for the first control tick ``k`` of a winding-down
-    stream (after ``END`` or the watchdog) at which the set-points of periods ``k - q_max - 1 .. k`` are all
-    zero (no step can follow period ``k``'s); at that tick the board stops (``DONE``).
-    """
-
-    def __init__(self, shaper: StreamShaper, position: int = 0) -> None:
-        self.shaper = shaper
-        self.planner = Planner(shaper, position)
-        self.finish_tick: int | None = None
-        self.last_nonzero = 0
-        self.v_by_period = [0]
-        self.watchdog_seen = False
-
-    @property
-    def notices(self) -> list[Notice]:
-        """Every notice so far, in the order the board sends them."""
-        return self.planner.notices
-
-    def tick(self, k: int, v: int, state: str) -> bool:
-        """Control tick ``k`` with set-point ``v``; False (nothing planned) once the board has stopped."""
-        if state == "watchdog" and not self.watchdog_seen:
-            self.watchdog_seen = True
-            self.planner.notices.append(Notice("WATCHDOG", k, k))
-        if self.finish_tick is not None and k >= self.finish_tick:
-            return False
-        self.planner.plan_period(k, v)
-        self.v_by_period.append(v)
-        if v != 0:
-            self.last_nonzero = k
-        if self.finish_tick is None and state != "active" and k - self.last_nonzero >= self.planner.q_max + 2:
-            self.finish_tick = k + 3
-        return True
-
-    def result(self) -> StreamResult:
-        """What the board has done so far (all of it once the stream has stopped)."""
-        p = self.planner
-        return StreamResult(
-            np.array(p.ticks, dtype=np.int64),
-            np.array(p.dirs, dtype=np.int64),
-            p.notices,
-            self.finish_tick,
-            p.c,
-            p.r,
-            self.v_by_period,
-        )
-
-
-class StreamRefused(Exception):
-    """The board refuses a streaming command: ``code`` (``STATE``, ``RANGE``, ``FULL``) and its text."""
-
-    def __init__(self, code: str, text: str) -> None:
-        super().__init__(f"ERR {code} {text}")
-        self.code = code
-        self.text = text
-
-
-class StreamSession:
-    """The board's streaming mode as it runs: the set-point FIFO, ``V``, ``END`` and the control tick.
-
-    The firmware's ``V`` and ``END`` handlers and its control tick, composed of :class:`SetpointRules` (which
-    set-point each period takes) and :class:`StreamRun` (planning, stopping). The emulated stepper board
-    (``helpers.virtual.emulator``) runs a stream with it; :func:`simulate` runs the same rules and planner
-    from the
-    periods the board reported.
-
-    Parameters
-    ----------
-    shaper : StreamShaper
-    position : int
-        The step count at ``STREAM``.
-    """
-
-    def __init__(self, shaper: StreamShaper, position: int = 0) -> None:
-        self.run = StreamRun(shaper, position)
-        self.rules = SetpointRules()
-        self.fifo: deque[Any] = deque()
-        self.next_period = 1
-        self.ended = False
-        self.stopped = False
-
-    @property
-    def accepting(self) -> bool:
-        """True while ``V`` and ``END`` are accepted (an active stream: no ``END`` yet, no watchdog)."""
-        return not (self.ended or self.stopped) and self.rules.state == "active"
-
-    @property
-    def watchdog(self) -> bool:
-        """True once the watchdog has fired (the board then disables the driver when it stops)."""
-        return self.rules.state == "watchdog"
-
-    def setpoint(self, v: int) -> int:
-        """``V <v>``: queue a set-point and return the period it drives.
-
-        Raises
-        ------
-        StreamRefused
-            ``STATE`` (not streaming, or ending), ``RANGE`` (|v| > ``V_MAX``), ``FULL`` (8 queued), in the
-            board's order.
-        """
-        if not self.accepting:
-            raise StreamRefused("STATE", "not streaming")
-        if not -V_MAX <= v <= V_MAX:
-            raise StreamRefused("RANGE", f"set-point -{V_MAX}..{V_MAX}")
-        return self._queue(self._entry((v,)))
-
-    def setpoints(self, vs: Sequence[int]) -> int:
-        """``MV <v_0> ...``: queue one period's set-points (one per axis) and return the period they drive.
-
-        Raises
-        ------
-        StreamRefused
-            ``STATE`` (not streaming, or ending), ``RANGE`` naming the first axis out of range, ``FULL``, in
-            the board's order (the caller has checked that there is one set-point per axis).
-        """
-        if not self.accepting:
-            raise StreamRefused("STATE", "not streaming")
-        for a, v in enumerate(vs):
-            if not -V_MAX <= v <= V_MAX:
-                raise StreamRefused("RANGE", f"axis {a} set-point -{V_MAX}..{V_MAX}")
-        return self._queue(self._entry(tuple(vs)))
-
-    def _entry(self, vs: tuple[int, ...]) -> Any:
-        """What the FIFO holds for one period: axis 0's set-point (one axis)."""
-        return vs[0]
-
-    def _queue(self, entry: Any) -> int:
-        if len(self.fifo) >= FIFO_DEPTH:
-            raise StreamRefused("FULL", f"{FIFO_DEPTH} set-points queued")
-        self.fifo.append(entry)
-        return self.next_period + len(self.fifo) - 1
-
-    def end(self) -> int:
-        """``END``: the stream ends after the queued set-points; returns the first period fed with zero."""
-        if not self.accepting:
-            raise StreamRefused("STATE", "not streaming")
-        self.ended = True
-        self.rules.end_period = self.next_period + len(self.fifo)
-        return self.rules.end_period
-
-    def tick(self) -> bool:
-        """The next control tick (period ``next_period``); False once the board has stopped (``DONE``)."""
-        k = self.next_period
-        v = self.rules.take(k, self.fifo.popleft() if self.fifo else None)
-        self.next_period = k + 1
-        if not self.run.tick(k, v, self.rules.state):
-            self.stopped = True
-        return not self.stopped
-
-
 class AxesRun:
-    """A stream of a board with several axes, planned control tick by control tick (as :class:`StreamRun`).
+    """A stream of a board of one or several axes, planned control tick by control tick, and when it stops.
 
-    Every axis is planned by its own :class:`Planner` from the one shaper, with its own travel; the stream
-    stops for every axis at once (``finish_tick``), a period counting as non-zero when any axis's set-point
-    is. :attr:`notices` lists every notice in the order the board sends them: a ``WATCHDOG`` notice first
-    in its tick, then each axis's limit notices of the period, axis by axis (the firmware plans the axes one
-    after another).
+    The second half of the board's control tick. Every axis is planned by its own :class:`Planner` from the
+    one shaper, with its own travel (one axis: the paper's build). :meth:`tick` takes period ``k``'s
+    set-points and the stream's state (from :class:`SetpointRules`), records a ``WATCHDOG`` notice when the
+    watchdog has just fired, and plans the period, unless the stream has already stopped: ``finish_tick`` is
+    ``k + 3`` for the first control tick ``k`` of a winding-down stream (after ``END`` or the watchdog) at
+    which the set-points of every axis of periods ``k - q_max - 1 .. k`` are all zero (no step can follow
+    period ``k``'s); at that tick the board stops (``DONE``). :attr:`notices` lists every notice in the order
+    the board sends them: a ``WATCHDOG`` notice first in its tick, then each axis's limit notices of the
+    period, axis by axis (the firmware plans the axes one after another).
 
     Parameters
     ----------
@@ -669,18 +526,20 @@ class AxesRun:
         Each axis's travel (default ``TRAVEL_MAX`` each).
     releases : sequence of int or None
         Each axis's paid-out range below zero (default 0 each).
+    v_max : int
+        The build's set-point limit (:func:`v_max`; default the paper's build's :data:`V_MAX`).
     """
 
     def __init__(
         self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None,
-        releases: Sequence[int] | None = None,
+        releases: Sequence[int] | None = None, v_max: int = V_MAX,
     ) -> None:  # fmt: skip
         n = len(positions)
         travels = [TRAVEL_MAX] * n if travels is None else list(travels)
         releases = [0] * n if releases is None else list(releases)
         rows = zip(positions, travels, releases, strict=True)
-        self.planners = [Planner(shaper, p, t, a, r) for a, (p, t, r) in enumerate(rows)]
-        self.q_max = self.planners[0].q_max
+        self.planners = [Planner(shaper, p, t, a, r, v_max) for a, (p, t, r) in enumerate(rows)]
+        self.q_max, self.v_max = self.planners[0].q_max, v_max
         self.finish_tick: int | None = None
         self.last_nonzero = 0
         self.watchdog_seen = False
@@ -743,56 +602,114 @@ class AxesRun:
         ]
 
 
-class AxesSession(StreamSession):
-    """:class:`StreamSession` of a board with several axes.
+class StreamRefused(Exception):
+    """The board refuses a streaming command; the message is its reply: ``ERR <STATE|RANGE|FULL> <text>``."""
 
-    ``MV`` queues every axis's set-point for a period, ``V`` axis 0's (the others zero); the control tick
-    plans every axis (:class:`AxesRun`).
+
+class StreamSession:
+    """The board's streaming mode as it runs, one axis or several: the FIFO, ``V``, ``MV``, ``END``, the tick.
+
+    The firmware's ``V``, ``MV`` and ``END`` handlers and its control tick, composed of :class:`SetpointRules`
+    (which set-point each period takes) and :class:`AxesRun` (planning every axis, stopping). ``MV`` queues
+    every axis's set-point for a period, ``V`` axis 0's (the others zero). The emulated stepper board
+    (``helpers.virtual.emulator``) runs a stream with it; :func:`simulate_axes` runs the same rules and
+    planner from the periods the board reported.
 
     Parameters
     ----------
-    shaper : StreamShaper
-    positions : sequence of int
-        Each axis's step count at ``STREAM``.
-    travels : sequence of int or None
-        Each axis's travel (default ``TRAVEL_MAX`` each).
-    releases : sequence of int or None
-        Each axis's paid-out range below zero (default 0 each).
+    run : AxesRun
+        The stream's run from ``STREAM`` on: the loaded shaper, every axis's position, travel and release, the
+        build's set-point limit.
     """
 
-    def __init__(
-        self, shaper: StreamShaper, positions: Sequence[int], travels: Sequence[int] | None = None,
-        releases: Sequence[int] | None = None,
-    ) -> None:  # fmt: skip
-        super().__init__(shaper, positions[0])
-        self.run = AxesRun(shaper, positions, travels, releases)  # type: ignore[assignment]
-        self.axes = len(positions)
+    def __init__(self, run: AxesRun) -> None:
+        self.run, self.axes, self.v_max = run, len(run.planners), run.v_max
+        self.rules = SetpointRules()
+        self.fifo: deque[tuple[int, ...]] = deque()
+        self.next_period = 1
+        self.ended = False
+        self.stopped = False
 
-    def _entry(self, vs: tuple[int, ...]) -> Any:
-        return tuple(vs) + (0,) * (self.axes - len(vs))
+    @property
+    def accepting(self) -> bool:
+        """True while ``V`` and ``END`` are accepted (an active stream: no ``END`` yet, no watchdog)."""
+        return not (self.ended or self.stopped) and self.rules.state == "active"
+
+    @property
+    def watchdog(self) -> bool:
+        """True once the watchdog has fired (the board then disables the driver when it stops)."""
+        return self.rules.state == "watchdog"
+
+    def setpoint(self, v: int) -> int:
+        """``V <v>``: queue axis 0's set-point (the others zero) and return the period it drives.
+
+        Raises
+        ------
+        StreamRefused
+            ``STATE`` (not streaming, or ending), ``RANGE`` (|v| > ``v_max``), ``FULL`` (8 queued), in the
+            board's order.
+        """
+        if not self.accepting:
+            raise StreamRefused("ERR STATE not streaming")
+        if not -self.v_max <= v <= self.v_max:
+            raise StreamRefused(f"ERR RANGE set-point -{self.v_max}..{self.v_max}")
+        return self._queue((v,))
+
+    def setpoints(self, vs: Sequence[int]) -> int:
+        """``MV <v_0> ...``: queue one period's set-points (one per axis) and return the period they drive.
+
+        Raises
+        ------
+        StreamRefused
+            ``STATE`` (not streaming, or ending), ``RANGE`` naming the first axis out of range, ``FULL``, in
+            the board's order (the caller has checked that there is one set-point per axis).
+        """
+        if not self.accepting:
+            raise StreamRefused("ERR STATE not streaming")
+        for a, v in enumerate(vs):
+            if not -self.v_max <= v <= self.v_max:
+                raise StreamRefused(f"ERR RANGE axis {a} set-point -{self.v_max}..{self.v_max}")
+        return self._queue(tuple(vs))
+
+    def _queue(self, vs: tuple[int, ...]) -> int:
+        if len(self.fifo) >= FIFO_DEPTH:
+            raise StreamRefused(f"ERR FULL {FIFO_DEPTH} set-points queued")
+        self.fifo.append(vs + (0,) * (self.axes - len(vs)))
+        return self.next_period + len(self.fifo) - 1
+
+    def end(self) -> int:
+        """``END``: the stream ends after the queued set-points; returns the first period fed with zero."""
+        if not self.accepting:
+            raise StreamRefused("ERR STATE not streaming")
+        self.ended = True
+        self.rules.end_period = self.next_period + len(self.fifo)
+        return self.rules.end_period
+
+    def tick(self) -> bool:
+        """The next control tick (period ``next_period``); False once the board has stopped (``DONE``)."""
+        k = self.next_period
+        v = self.rules.take(k, self.fifo.popleft() if self.fifo else None)
+        self.next_period = k + 1
+        if not self.run.tick(k, v, self.rules.state):
+            self.stopped = True
+        return not self.stopped
 
 
 def simulate(
-    shaper: StreamShaper,
-    commands: PeriodCommands,
-    position: int = 0,
-    max_periods: int = 1_000_000,
+    shaper: StreamShaper, commands: PeriodCommands, position: int = 0, v_max: int = V_MAX
 ) -> StreamResult:
-    """Run the board's streaming mode on a stream until it stops (``END`` or the watchdog).
+    """Run the board's streaming mode on a one-axis stream until it stops (``END`` or the watchdog).
+
+    :func:`simulate_axes` of one axis of travel ``TRAVEL_MAX``.
 
     Returns
     -------
     StreamResult
         Step ticks counted from ``STREAM`` (the instant Timer1 restarts), directions, notices, the
         set-point of every period planned, and the control tick at which the board stops (see
-        :class:`StreamRun`).
+        :class:`AxesRun`).
     """
-    run = StreamRun(shaper, position)
-    for k, v, state in commands:
-        run.tick(k, v, state)
-        if run.finish_tick is not None or k >= max_periods:
-            break
-    return run.result()
+    return simulate_axes(shaper, commands, [position], v_max=v_max)[0]
 
 
 def simulate_axes(
@@ -800,107 +717,46 @@ def simulate_axes(
     commands: PeriodCommands,
     positions: Sequence[int],
     travels: Sequence[int] | None = None,
-    max_periods: int = 1_000_000,
     releases: Sequence[int] | None = None,
+    v_max: int = V_MAX,
 ) -> list[StreamResult]:
-    """Run a stream of a board with several axes (``MV``) until it stops: one result per axis.
+    """Run a stream of a board of one or several axes (``V``, ``MV``) until it stops: one result per axis.
 
     Parameters
     ----------
-    shaper : StreamShaper
-        The loaded shaper (every axis's).
+    shaper, positions, travels, releases, v_max
+        The loaded shaper (every axis's) and the axes, as :class:`AxesRun` takes them.
     commands : PeriodCommands
         ``assigned`` maps each period to its set-points, a tuple with one per axis (``OK MV <period>``), or
         to an int (``OK V <period>``: axis 0's, the others zero).
-    positions : sequence of int
-        Each axis's step count at ``STREAM``.
-    travels : sequence of int or None
-        Each axis's travel (default ``TRAVEL_MAX`` each).
-    max_periods : int
-        Stop planning after this period whatever the commands.
-    releases : sequence of int or None
-        Each axis's paid-out range below zero (default 0 each).
 
     Every axis is planned by its own :class:`Planner` from the one shaper; the stream stops (``finish_tick``,
-    the same for every axis) as :class:`StreamRun` says, with a period counting as non-zero when any axis's
+    the same for every axis) as :class:`AxesRun` says, with a period counting as non-zero when any axis's
     set-point is. The ``WATCHDOG`` notice is in axis 0's result.
     """
-    run = AxesRun(shaper, positions, travels, releases)
-    for k, v, state in commands:
-        run.tick(k, v, state)
-        if run.finish_tick is not None or k >= max_periods:  # (the periods left before the finish are zero)
-            break
+    run = AxesRun(shaper, positions, travels, releases, v_max)
+    _drive(run, commands)
     return run.results()
 
 
 def drive_axes(run: AxesRun, rows: Sequence[Sequence[int]]) -> int:
     """Feed a whole stream's set-points to ``run``, then zeros until the board would stop; the last period.
 
-    ``rows``: one row per period, one value per axis. As the host streams: period k's row goes through
-    :class:`SetpointRules` (what the board accepts and when it ends) and the planner takes the rules' state,
-    not the set-point alone.
+    ``rows``: one row per period, one value per axis, then ``END``. As the host streams: period k's row goes
+    through :class:`SetpointRules` (what the board accepts and when it ends) and the planner takes the rules'
+    state, not the set-point alone.
     """
-    rules = SetpointRules()
+    return _drive(run, PeriodCommands(dict(enumerate(map(tuple, rows), start=1)), len(rows) + 1))
+
+
+def _drive(run: AxesRun, commands: PeriodCommands) -> int:
+    """Tick ``run`` through ``commands`` until the board stops; the last period ticked.
+
+    It stops: after ``END`` or, the set-points being finite, after the watchdog, once the shaper is through.
+    """
     k = 0
-    for k, row in enumerate(rows, start=1):
-        v = rules.take(k, tuple(row))
-        run.tick(k, v, rules.state)
-    rules.end_period = k + 1
-    while run.finish_tick is None:
-        k += 1
-        run.tick(k, rules.take(k, None), rules.state)
+    for k, v, state in commands:
+        run.tick(k, v, state)
+        if run.finish_tick is not None:  # (the periods left before the finish are zero)
+            break
     return k
-
-
-# --- the exact trajectory -------------------------------------------------------------------------------
-def exact_position(
-    shaper: StreamShaper,
-    v_by_period: Sequence[int],
-    t_ticks: np.ndarray,
-    position: int = 0,
-    limits: bool = True,
-    travel: int = TRAVEL_MAX,
-    release: int = 0,
-) -> np.ndarray:
-    """The exact shaped position (steps, float) at times ``t_ticks`` (ticks from ``STREAM``).
-
-    The velocity is the shaped set-point stream (set-point k on ``[(k + 1) T, (k + 2) T)``), clamped to the
-    speed limit, integrated exactly piece by piece in floating point; with ``limits`` the position is
-    saturated at ``-release`` and ``travel`` steps (the board's travel clamp: 0 and 156 by default). This is
-    independent of :class:`Planner`'s integer arithmetic and of its step-time rule.
-    """
-    d = np.asarray(shaper.delays_us, dtype=float) / (DELAY_UNIT_US) * DELTA  # ticks
-    amp = np.asarray(shaper.amplitudes, dtype=float) / AMP_ONE
-    v = np.asarray(v_by_period, dtype=float) * (2.0**-16) / DELTA  # steps per tick
-    n = len(v)
-    # breakpoints of the shaped velocity
-    edges = sorted({float((k + 1) * PERIOD_TICKS + di) for k in range(n + 1) for di in d})
-    t_query = np.asarray(t_ticks, dtype=float)
-    t_end = max(float(t_query.max()) if t_query.size else 0.0, edges[-1])
-    edges = [0.0] + [e for e in edges if e < t_end] + [t_end]
-
-    def vcmd(t: float) -> float:
-        k = int(np.floor(t / PERIOD_TICKS)) - 1
-        return float(v[k]) if 0 <= k < n else 0.0
-
-    s_max = S_MAX / ONE / DELTA  # steps per tick
-    x = float(position)
-    xs = np.empty(len(edges))
-    xs[0] = x
-    rates = np.empty(len(edges) - 1)
-    for i in range(len(edges) - 1):
-        mid = 0.5 * (edges[i] + edges[i + 1])
-        s = float(np.sum(amp * np.array([vcmd(mid - di) for di in d])))
-        s = min(max(s, -s_max), s_max)
-        rates[i] = s
-        x = x + s * (edges[i + 1] - edges[i])
-        if limits:
-            x = min(max(x, -float(release)), float(travel))
-        xs[i + 1] = x
-    # positions at the query times: from the piece each falls in
-    idx = np.clip(np.searchsorted(edges, t_query, side="right") - 1, 0, len(rates) - 1)
-    e0 = np.asarray(edges)[idx]
-    out = xs[idx] + rates[idx] * (t_query - e0)
-    if limits:
-        out = np.clip(out, -float(release), float(travel))
-    return out

@@ -660,7 +660,8 @@ def board_path(plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper 
     """
     board = hs.board_shaper(shaper)
     d = derived(rig)
-    run = hs.AxesRun(board, (0,) * rig.n_tendons, d.travel_steps, d.release_steps)
+    v_max = hs.v_max(d.min_interval_us)  # the build's set-point limit
+    run = hs.AxesRun(board, (0,) * rig.n_tendons, d.travel_steps, d.release_steps, v_max)
     hs.drive_axes(run, plan.units.tolist())
     edges = np.append((np.arange(plan.path.periods + 1) + 2) * hs.PERIOD_TICKS, np.iinfo(np.int64).max)
     out = np.zeros((len(edges), rig.n_tendons), dtype=np.int64)

@@ -120,9 +120,9 @@ def rest_of(adc: Any, rate_hz: int) -> tuple[bool, float, float]:
     window = a[-n:]
     stds = window.std(axis=0)
     noises = np.array([white_noise_std(window[:, c]) for c in range(window.shape[1])])
-    worst = int(np.argmax(stds / np.maximum(REST_FACTOR * noises, 0.5)))
-    steady = bool(np.all(stds <= np.maximum(REST_FACTOR * noises, 0.5)))
-    return steady, float(stds[worst]), float(noises[worst])
+    limit = np.maximum(REST_FACTOR * noises, 0.5)
+    worst = int(np.argmax(stds / limit))
+    return bool(stds[worst] <= limit[worst]), float(stds[worst]), float(noises[worst])
 
 
 def step_windows(programme: Programme, axes: int, slack_us: int = 2_000) -> list[tuple[Any, Any]]:
@@ -209,7 +209,7 @@ class Rig:
     ) -> None:  # fmt: skip
         if not isinstance(rig, RigFile):
             raise ValueError(f"rig must be a rig file loaded by helpers.rigfile.load, got {rig!r}")
-        self.rig, self.n, self.silence_s, self.last_cleanup = rig, rig.n_tendons, silence_s, []
+        self.rig, self.n, self.silence_s = rig, rig.n_tendons, silence_s
         self.calibration = self._calibrations(calibration)
         urls = rig_urls(ports, rig, world or rig.name, (daq_options, stepper_options))
         self.daq = Link.open(urls[0], "daq", rig, rig.hardware.daq_baud, timeout, hello_timeout)
@@ -234,11 +234,6 @@ class Rig:
                 "will be wrong; calibrate this load cell first (python -m helpers record calibration)",
                 UserWarning, stacklevel=2,
             )  # fmt: skip
-
-    @classmethod
-    def connect(cls, ports: Any, rig: RigFile, **kwargs: Any) -> Rig:
-        """``Rig(ports, rig, **kwargs)``: open both boards and check their builds."""
-        return cls(ports, rig, **kwargs)
 
     def _calibrations(self, calibration: Any) -> tuple[LoadCellCalibration, ...]:
         if calibration is None and self.n == 1:
@@ -300,11 +295,6 @@ class Rig:
         """The in-process virtual rig's world (its calibration fixture, its noise seed), or None."""
         return getattr(self.daq.port, "world", None)
 
-    @property
-    def is_virtual(self) -> bool:
-        """True for the virtual rig (in-process or through the pseudo-terminal server)."""
-        return self.source.get("kind") == "virtual-rig"
-
     def positions(self) -> tuple[int, ...]:
         """``POS``: every tendon's position (steps from zero), as the stepper board says."""
         self.stepper.check_reset()
@@ -354,7 +344,7 @@ class Rig:
     def run(
         self, programme: Programme, *, path: str | os.PathLike, scenario: dict[str, Any] | None = None,
         rate_hz: int = 1000, tail_s: float = 0.1, progress: bool = True, replace: bool = False,
-        noise_seed: int | None = None, from_zero: bool = False, rest_ok: bool = False,
+        noise_seed: int | None = None, from_zero: bool = False,
     ) -> Recording:  # fmt: skip
         """Run one programme as one board-timed experiment of every tendon; return (and save) its recording.
 
@@ -378,17 +368,15 @@ class Rig:
             In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
         from_zero : bool
             Refuse (:class:`NotAtZero`) unless every tendon is at position 0 (the paper's experiments).
-        rest_ok : bool
-            Allow a programme that returns to the rest state with every tendon slack (homing).
         """
         self._check_run(rate_hz, noise_seed, tail_s)
-        check_programme(programme, self.rig, (0,) * self.n, rest_ok)  # before a byte: as far as it can be
+        check_programme(programme, self.rig, (0,) * self.n)  # before a byte: as far as it can be
         target = self._target(path)
         scenario = {"kind": "programme", **(scenario or {})}
         scenario.setdefault("programme", programme.to_dict())
         with recordings.reserve(target, replace):  # a second run to this name is refused now, not after this
             start = self.positions()
-            check_programme(programme, self.rig, start, rest_ok)
+            check_programme(programme, self.rig, start)
             if from_zero and any(start):
                 ports = self.source["ports"]
                 home = ("helpers.commands.home.home(rig.stepper, rig.rig) (the in-process rig lives here)"
@@ -399,7 +387,7 @@ class Rig:
                     f"position): run {home} first"
                 )
             self._note_start(scenario, start, noise_seed)
-            cum = np.cumsum([[0] * self.n] + [item.counts(self.n) for item in programme.items], axis=0)
+            cum = programme.positions(0, self.n)  # steps from where the run starts (the DAQ's ZERO)
             end = programme.end_positions(start)
 
             def body(state: RunState) -> None:
@@ -410,9 +398,9 @@ class Rig:
                 if ints(replies[-1])[-1] != len(programme):
                     raise BoardError(f"the stepper board holds {replies[-1]}, not {len(programme)} items")
                 state.windows = step_windows(programme, self.n)
-                self._start(state, rate_hz, list(zip(cum.min(axis=0), cum.max(axis=0), strict=True)))
+                self._start(rate_hz, list(zip(cum.min(axis=0), cum.max(axis=0), strict=True)))
                 self.stepper.command("EN 1")
-                self._go(state, "GO", rate_hz)
+                self._go(state, "GO")
                 done, total = (programme.duration_us, end), programme.duration_s + tail_s
                 self._until_done(state, lambda now: done, rate_hz, tail_s, total, progress)
                 self._finish(state)
@@ -446,8 +434,10 @@ class Rig:
             self.world.reseed(noise_seed)
             scenario["noise_seed"] = noise_seed
 
-    def wait_for_rest(self, rate_hz: int = 1000, timeout_s: float = REST_TIMEOUT_S) -> dict[str, Any]:
-        """Stream until every channel's tension is steady (:func:`rest_of`); :class:`NotAtRest` after timeout.
+    def wait_for_rest(self, rate_hz: int = 1000) -> dict[str, Any]:
+        """Stream until every channel's tension is steady (:func:`rest_of`); :class:`NotAtRest` if it is not.
+
+        :class:`NotAtRest` comes after :data:`REST_TIMEOUT_S` of device time.
 
         The noise is the white-noise level of the same window (:func:`helpers.base.noise.white_noise_std`), so
         a ringing arm or a drifting amplifier keeps the wait going while sensor noise alone does not.
@@ -459,10 +449,7 @@ class Rig:
         """
         self.daq.check_reset()
         self.daq.command("STOP")
-        self.daq.command(f"RATE {rate_hz}")
-        self.daq.rows.clear()
-        self.daq.parser.restart()
-        self.daq.command("START")
+        self._start(rate_hz, None, zero=False)
         c, n = self.daq.parser.channels, max(3, round(REST_WINDOW_S * rate_hz))
         adc: list[tuple[int, ...]] = []
         t0: int | None = None
@@ -480,34 +467,36 @@ class Rig:
                 steady, std, noise = rest_of(adc, rate_hz)
                 if steady:
                     return {"waited_s": round(waited, 3), "std_counts": std, "noise_counts": noise}
-                if waited > timeout_s:
+                if waited > REST_TIMEOUT_S:
                     raise NotAtRest(
-                        f"the tension did not come to rest within {timeout_s:.0f} s (std {std:.2f} counts "
-                        f"over {REST_WINDOW_S} s against a noise of {noise:.2f} counts): is the arm moving?"
+                        f"the tension did not come to rest within {REST_TIMEOUT_S:.0f} s (std {std:.2f} "
+                        f"counts over {REST_WINDOW_S} s against a noise of {noise:.2f} counts): is the arm "
+                        "moving?"
                     )
         finally:
             self.daq.command("STOP")
             self.daq.rows.clear()
 
-    def _start(self, state: RunState, rate_hz: int, reach: list[tuple[int, int]] | None) -> None:
-        """``RATE``, ``ZERO``, ``START`` the DAQ; samples outside ``reach`` (steps from ``ZERO``) refused."""
+    def _start(self, rate_hz: int, reach: list[tuple[int, int]] | None, zero: bool = True) -> None:
+        """``RATE``, ``ZERO`` (if ``zero``), ``START`` the DAQ; a sample outside ``reach`` is refused.
+
+        ``reach``: every axis's lowest and highest step count from ``ZERO`` the run can make (None: no check).
+        """
         self.daq.command(f"RATE {rate_hz}")
-        self.daq.command("ZERO")
+        if zero:
+            self.daq.command("ZERO")
         self.daq.rows.clear()
         self.daq.parser.restart()
         self.daq.command("START")
         self.daq.parser.steps_range = reach
-        state.go_sent = False
 
-    def _go(self, state: RunState, command: str, rate_hz: int) -> str:
+    def _go(self, state: RunState, command: str) -> None:
         """Send ``GO`` or ``STREAM``; its device time: the newest sample at hand once it is acknowledged."""
         self.stepper.done, self.stepper.notices = None, []
-        state.go_sent = True
-        reply = self.stepper.command(command)
+        self.stepper.command(command)
         self.daq.read(block=False)
         if self.daq.rows:
             self._went(state, self.daq.rows[-1][1])
-        return reply
 
     def _went(self, state: RunState, t_go_us: int) -> None:
         """Note GO's device time; from then on a count changing between the programme's steps is refused."""
@@ -541,7 +530,7 @@ class Rig:
 
     def _until_done(
         self, state: RunState, step: Callable[[int], Any], rate_hz: int, tail_s: float, total_s: float | None,
-        progress: bool,
+        progress: bool, stepper: bool = True,
     ) -> None:  # fmt: skip
         """Read until ``DONE`` and ``tail_s`` past the end (``step(now)``: ``(end us, positions)`` or None).
 
@@ -551,12 +540,12 @@ class Rig:
         :data:`DONE_GRACE_S` after the end, and after each further grace, ``POS`` is asked: at the end, the
         ``DONE`` was lost on the link; still moving, the stepper is late and is waited for; not moving, it
         stopped short. A board that sends no sample, or does not answer ``POS``, within the silence interval
-        is gone.
+        is gone. Not ``stepper``: the stepper is not used (nor read), and the end is the end.
         """
         silence, asked, last, bar = self.daq.waiter(self.silence_s), 0, None, _Bar(total_s, progress)
         try:
             while True:
-                new, silence = self._read(silence)
+                new, silence = self._read(silence, stepper)
                 rows = self.daq.rows
                 if new and state.t_go_us is None:
                     self._went(state, rows[-new][1] - round(1e6 / rate_hz))
@@ -570,9 +559,10 @@ class Rig:
                         raise BoardError(f"the stepper board ended before it was asked to (DONE at {now} us)")
                     continue
                 end_us, end = due
-                if self.stepper.done is not None and now >= end_us + tail_s * 1e6:
+                done = self.stepper.done if stepper else end
+                if done is not None and now >= end_us + tail_s * 1e6:
                     break
-                if self.stepper.done is None and now >= end_us + DONE_GRACE_S * 1e6 * (asked + 1):
+                if done is None and now >= end_us + DONE_GRACE_S * 1e6 * (asked + 1):
                     asked, where = asked + 1, self.positions()
                     if where == end:
                         self.stepper.done = where  # its DONE was lost on the link (a corrupted line)
@@ -584,7 +574,7 @@ class Rig:
                     last = where
         finally:
             bar.close()
-        if self.stepper.done[: self.n] != end:
+        if stepper and self.stepper.done[: self.n] != end:
             raise BoardError(f"the stepper board ended at {self.stepper.done}, not at the end {end}")
 
     def _finish(self, state: RunState) -> None:
@@ -625,23 +615,14 @@ class Rig:
                 with guard.interruptible():
                     body(state)
             except BaseException as exc:
-                self.last_cleanup = exc.cleanup = self._cleanup(stepper_used)  # type: ignore[attr-defined]
-                if state.finished and isinstance(exc, KeyboardInterrupt):  # every sample is in: save it whole
-                    self._save(state, scenario, target, rate_hz, replace, exc)
-                    raise
-                reason = f"{type(exc).__name__}: {exc}"
-                reason += " | cleanup: " + "; ".join(self.last_cleanup) if self.last_cleanup else ""
-                rec = self.recording(state, scenario, rate_hz, "aborted", reason)
-                exc.recording = exc.saved_path = exc.save_error = None  # type: ignore[attr-defined]
-                try:
-                    recordings.save(rec, recordings.aborted_path(target, state.started_utc))
-                except (RecordingError, OSError) as save_exc:
-                    exc.save_error = str(save_exc)  # type: ignore[attr-defined]
-                else:
-                    exc.recording, exc.saved_path = rec.derive(), rec.path  # type: ignore[attr-defined]
+                cleanup = exc.cleanup = self._cleanup(stepper_used)  # type: ignore[attr-defined]
+                reason = None  # an interrupt once every sample is in: the run is saved whole
+                if not (state.finished and isinstance(exc, KeyboardInterrupt)):
+                    reason = f"{type(exc).__name__}: {exc}"
+                    reason += " | cleanup: " + "; ".join(cleanup) if cleanup else ""
+                self._save(state, scenario, target, rate_hz, replace, exc, reason)
                 raise
-            self.last_cleanup = []
-            rec = self._save(state, scenario, target, rate_hz, replace, None)
+            rec = self._save(state, scenario, target, rate_hz, replace)
             signum = guard.take_pending()
             if signum is not None:  # a signal came after the run had ended: it is saved; now act on it
                 late = Interrupted(signum)
@@ -652,14 +633,16 @@ class Rig:
 
     def _save(
         self, state: RunState, scenario: dict[str, Any], target: Path, rate_hz: int, replace: bool,
-        exc: BaseException | None,
+        exc: BaseException | None = None, reason: str | None = None,
     ) -> Recording:  # fmt: skip
-        """Save a run that recorded everything: ``complete`` under its name, or ``deviated`` beside it.
+        """Save a run: ``aborted`` with ``reason``, or (every sample in) ``complete``, or ``deviated``.
 
-        With ``exc`` (an interrupt after the last sample), a failed save is noted on ``exc``, not raised.
+        A complete run goes under its name, the others beside it (``recordings.aborted_path``). With ``exc``
+        (the run ended by it) the outcome is noted on ``exc`` (``recording``, ``saved_path``, ``save_error``,
+        ``complete``), and a failed save is noted there, not raised.
         """
-        status = "deviated" if state.deviation else "complete"
-        rec = self.recording(state, scenario, rate_hz, status, None)
+        status = "aborted" if reason else "deviated" if state.deviation else "complete"
+        rec = self.recording(state, scenario, rate_hz, status, reason)
         where = target if status == "complete" else recordings.aborted_path(target, state.started_utc, status)
         try:
             recordings.save(rec, where, replace=replace and status == "complete")
@@ -671,7 +654,7 @@ class Rig:
         rec.derive()
         if exc is not None:
             exc.recording, exc.saved_path, exc.save_error = rec, rec.path, None  # type: ignore[attr-defined]
-            exc.complete = True  # type: ignore[attr-defined]
+            exc.complete = status != "aborted"  # type: ignore[attr-defined]
         return rec
 
     def recording(
@@ -683,9 +666,8 @@ class Rig:
         where the run started; the twin's tip where the in-process virtual rig gives it) go to the one writer,
         :func:`helpers.recordings.from_samples`.
         """
-        c = self.daq.parser.channels
-        rows = np.asarray(self.daq.rows, dtype=np.int64).reshape(-1, 2 + c + self.daq.parser.axes)
-        rows = np.column_stack([rows[:, : 2 + self.n], rows[:, 2 + c : 2 + c + self.n] + state.start])
+        rows = np.asarray(self.daq.rows, dtype=np.int64).reshape(-1, 2 + 2 * self.n)  # the build checked
+        rows[:, 2 + self.n :] += np.asarray(state.start, dtype=np.int64)  # steps from where the run started
         tips = getattr(self.daq.port, "twin_tip_um", lambda t: None)(rows[:, 1]) if len(rows) else None
         if tips is not None:
             rows = np.column_stack([rows, np.asarray(tips, dtype=np.int64)])

@@ -123,12 +123,6 @@ def rebuild_hint(rig: Any, kind: str) -> str:
     return f"rebuild and flash it with make -C firmware RIG={rig.source or 'FILE'} upload-{kind} PORT=..."
 
 
-def expected_reply(command: str) -> str:
-    """The start of the reply a command gets besides ``ERR``: ``PONG``, ``ABORTED`` or ``OK <WORD>``."""
-    word = command.split(" ", 1)[0]
-    return {"PING": "PONG", "ABORT": "ABORTED"}.get(word, f"OK {word}")
-
-
 def ints(reply: str, skip: int = 2) -> tuple[int, ...]:
     """The integers of a reply after its first ``skip`` words (``OK POS 3 -2``: ``(3, -2)``)."""
     words = reply.split()[skip:]
@@ -315,7 +309,8 @@ class Link:
     def _command_once(self, body: str, timeout: float | None) -> str:
         self.replies.clear()
         self.write_line(body)
-        expected = expected_reply(body)
+        word = body.split(" ", 1)[0]  # the reply besides ERR: PONG, ABORTED or OK <WORD>
+        expected = {"PING": "PONG", "ABORT": "ABORTED"}.get(word, f"OK {word}")
         wait = self.waiter(self.timeout if timeout is None else timeout)
         while True:
             while self.replies:

@@ -90,23 +90,20 @@ def find_rig_ports(rig: Any) -> tuple[str, str]:
     return roles["daq"][0], roles["stepper"][0]
 
 
-def announced_virtual_rigs() -> list[dict[str, Any]]:
-    """Return the announcements of running ``serve-virtual-rig`` processes (dead ones are ignored)."""
-    out = []
+def virtual_source_for(paths: tuple[str, str]) -> dict[str, Any] | None:
+    """Provenance of a running ``serve-virtual-rig`` serving either of ``paths``, or None (it is hardware).
+
+    The servers announce themselves in :data:`helpers.base.paths.VIRTUAL_RIG_REGISTRY`; a dead one's
+    announcement is ignored.
+    """
+    real = {os.path.realpath(p) for p in paths}
     for f in VIRTUAL_RIG_REGISTRY.glob("*.json"):
         try:
             info = json.loads(f.read_text())
             os.kill(int(info["pid"]), 0)
+            served = {os.path.realpath(info["daq"]), os.path.realpath(info["stepper"])}
         except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
             continue
-        out.append(info)
-    return out
-
-
-def virtual_source_for(paths: tuple[str, str]) -> dict[str, Any] | None:
-    """Provenance of a ``serve-virtual-rig`` serving either of ``paths``, or None (then it is hardware)."""
-    real = {os.path.realpath(p) for p in paths}
-    for info in announced_virtual_rigs():
-        if {os.path.realpath(info["daq"]), os.path.realpath(info["stepper"])} & real:
+        if served & real:
             return {"kind": "virtual-rig", "via": "pseudo-terminal server", **info.get("source", {})}
     return None

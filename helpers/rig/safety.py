@@ -107,10 +107,7 @@ def check_programme(
         programme.check_limits(Limits.of(rig), start)
     except ValueError as exc:
         raise SafetyError(f"programme refused: {exc}") from None
-    n = rig.n_tendons
-    rows = [[start] + [0] * (n - 1) if isinstance(start, int) else list(start)]
-    for item in programme.items:
-        rows.append([p + c for p, c in zip(rows[-1], item.counts(n), strict=True)])
+    rows = programme.positions(start, rig.n_tendons)  # (its limits checked: a Move fits the rig's tendons)
     states = [(i, r) for i, r in enumerate(rows[1:], start=1) if not (rest_ok and not any(r))]
     if states:
         check_slack(rig, np.array([r for _, r in states], dtype=float), [f"item {i}" for i, _ in states])

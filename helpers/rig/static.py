@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +21,7 @@ import numpy as np
 from helpers import recordings
 from helpers.base.paths import LOADCELL_CALIBRATION
 from helpers.recordings import Recording
-from helpers.rig.driver import Rig, RunState, _Bar
+from helpers.rig.driver import Rig, RunState
 from helpers.rig.safety import SafetyError
 
 G_STANDARD = 9.80665
@@ -50,7 +50,7 @@ def calibration_masses_kg(load_cell_range_n: float) -> tuple[float, ...]:
 
 def record_static(
     rig: Rig, duration_s: float, scenario: dict[str, Any], *, path: str | os.PathLike, rate_hz: int = 1000,
-    progress: bool = False, replace: bool = False,
+    replace: bool = False,
 ) -> Recording:  # fmt: skip
     """Record ``duration_s`` of device time with the motor idle (load-cell calibration, noise floor).
 
@@ -64,7 +64,7 @@ def record_static(
         Scenario metadata (e.g. ``{"kind": "calibration", "load_n": 4.9}``).
     path : path-like
         Where to save.
-    rate_hz, progress, replace
+    rate_hz, replace
         As :meth:`Rig.run`'s.
     """
     longest = rig.rig.hardware.max_programme_s
@@ -75,20 +75,9 @@ def record_static(
     def body(state: RunState) -> None:
         rig.daq.check_reset()
         rig.daq.command("STOP")  # a stream left running by an earlier session stops (OK STOP 0 when idle)
-        rig._start(state, rate_hz, [(0, 0)] * rig.n)  # the motor is idle: no step count may change
-        bar, silence = _Bar(duration_s, progress), rig.daq.waiter(rig.silence_s)
-        try:
-            while True:
-                new, silence = rig._read(silence, stepper=False)
-                rows = rig.daq.rows
-                if new and state.t_go_us is None:
-                    state.t_go_us = rows[0][1] - round(1e6 / rate_hz)
-                if new:
-                    bar.show((rows[-1][1] - state.t_go_us) / 1e6)
-                    if rows[-1][1] - state.t_go_us >= duration_s * 1e6:
-                        break
-        finally:
-            bar.close()
+        rig._start(rate_hz, [(0, 0)] * rig.n)  # the motor is idle: no step count may change
+        # samples from the first one on (its device time less a period: the run's start) for duration_s
+        rig._until_done(state, lambda now: (0, ()), rate_hz, duration_s, duration_s, False, stepper=False)
         state.finished = True
         rig.daq.command("STOP")
 
@@ -99,8 +88,7 @@ def record_static(
 
 def record_calibration(
     rig: Rig, masses_kg: Sequence[float] | None = None, duration_s: float = 1.0,
-    folder: str | os.PathLike = CALIBRATION_DIR, prompt: Callable[[str], object] | None = input,
-    rate_hz: int = 1000, replace: bool = False,
+    folder: str | os.PathLike = CALIBRATION_DIR, rate_hz: int = 1000, replace: bool = False,
 ) -> list[Recording]:  # fmt: skip
     """Record ``duration_s`` of counts under each known mass (tendon 1's load cell).
 
@@ -114,9 +102,6 @@ def record_calibration(
         Device seconds per mass.
     folder : path-like
         Where the recordings go (``load_<grams>g.csv/json``).
-    prompt : callable
-        On hardware, called with an instruction before each mass (``input`` waits for Enter). Ignored on the
-        in-process virtual rig, whose fixture hangs the load itself.
     rate_hz : int
         DAQ sample rate.
     replace : bool
@@ -124,7 +109,7 @@ def record_calibration(
     """
     if masses_kg is None:
         masses_kg = calibration_masses_kg(rig.rig.tendons[0].load_cell_range_n)
-    world = rig.world
+    world, virtual = rig.world, rig.source["kind"] == "virtual-rig"  # in-process, or the pty server's
     out = []
     try:
         for m in masses_kg:
@@ -133,11 +118,11 @@ def record_calibration(
             load = float(m) * G_STANDARD
             if world is not None:
                 world.hang_load(load)
-            elif prompt is not None:
-                prompt(f"Hang {m:.3f} kg ({load:.3f} N) from the load cell, then press Enter")
+            else:  # hardware: the user hangs it, and says so with Enter
+                input(f"Hang {m:.3f} kg ({load:.3f} N) from the load cell, then press Enter")
             scenario = {
                 "kind": "calibration", "mass_kg": float(m), "load_n": load, "g_m_s2": G_STANDARD,
-                "fixture": "VIRTUAL known load (simulated)" if rig.is_virtual else "hung mass",
+                "fixture": "VIRTUAL known load (simulated)" if virtual else "hung mass",
             }  # fmt: skip
             path = Path(folder) / f"load_{round(m * 1000):04d}g"
             out.append(record_static(rig, duration_s, scenario, path=path, rate_hz=rate_hz, replace=replace))

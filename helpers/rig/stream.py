@@ -66,20 +66,9 @@ class StreamStarved(BoardError):
     """The stream's watchdog fired (``N,WATCHDOG``): the board went 100 ms without a set-point."""
 
 
-def refuse_notice(line: str, allow_clamps: bool) -> None:
-    """Stop a stream on the board's notice ``line``: always on the watchdog, on a clamp unless allowed."""
-    if line.startswith("N,WATCHDOG"):
-        raise StreamStarved(
-            f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a set-point (the "
-            "host fell behind)"
-        )
-    if not allow_clamps:
-        raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
-
-
 def v_max(rig: RigFile) -> int:
-    """The build's set-point limit: ``floor(2^20 / min_interval_us)`` (1640 for 639 us), at most 1640."""
-    return min(hs.V_MAX, (1 << 20) // derived(rig).min_interval_us)
+    """The build's set-point limit: ``floor(2^20 / min_interval_us)`` (1640 for 639 us, 2001 for 524 us)."""
+    return hs.v_max(derived(rig).min_interval_us)
 
 
 def unit_mm_s(rig: RigFile) -> list[float]:
@@ -98,8 +87,6 @@ class SetpointSource:
         gamepad, which must return its present value at once) one period at a time, as it is taken.
     rig : RigFile
         The rig: its tendons, speed limit and ``max_programme_s``.
-    name : str, optional
-        Where the set-points come from, for the recording (default ``"array"`` or the iterable's type).
 
     Raises
     ------
@@ -108,13 +95,13 @@ class SetpointSource:
         the limit, the wrong number of tendons, or too many periods; one line naming the tendon and period.
     """
 
-    def __init__(self, setpoints: Any, rig: RigFile, name: str | None = None) -> None:
+    def __init__(self, setpoints: Any, rig: RigFile) -> None:
         if isinstance(setpoints, str | bytes) or not isinstance(setpoints, Iterable):
             got = repr(setpoints)
             raise SafetyError(f"set-points must be an array or an iterable of speeds in mm/s, got {got}")
         self.rig, self.n = rig, rig.n_tendons
         self.sized = isinstance(setpoints, np.ndarray) or hasattr(setpoints, "__len__")
-        self.name = name or ("array" if self.sized else type(setpoints).__name__)
+        self.name = "array" if self.sized else type(setpoints).__name__  # where they come from, recorded
         self.values = list(setpoints) if self.sized else None
         if self.values is not None and not self.values:
             raise SafetyError("no set-points: the stream is empty")
@@ -191,9 +178,9 @@ class ShapedCheck:
     def __init__(self, shaper: hs.StreamShaper, start: tuple[int, ...], rig: RigFile, refuse: bool = True
                  ) -> None:  # fmt: skip
         d = derived(rig)
-        self.rig, self.refuse, self.start = rig, refuse, start
+        self.rig, self.refuse = rig, refuse
         self.travel, self.release = d.travel_steps, d.release_steps
-        self.run = hs.AxesRun(shaper, start, d.travel_steps, d.release_steps)
+        self.run = hs.AxesRun(shaper, start, d.travel_steps, d.release_steps, v_max(rig))
         self.rules = hs.SetpointRules()
         self.period = 0
         self.commanded = np.array(start, dtype=float)
@@ -220,13 +207,13 @@ class ShapedCheck:
         """The prediction's state, to go back to when the board assigns the set-point another period."""
         r = self.rules
         return (self.run.checkpoint(), self.period, self.commanded.copy(),
-                (r.state, r.underruns, r.watchdog_period, r.end_period))  # fmt: skip
+                (r.state, r.underruns, r.end_period))  # fmt: skip
 
     def rollback(self, state: tuple) -> None:
         """Forget what was planned since :meth:`checkpoint` (e.g. a set-point the board refused as FULL)."""
         run, self.period, self.commanded, rules = state
         self.run.rollback(run)
-        self.rules.state, self.rules.underruns, self.rules.watchdog_period, self.rules.end_period = rules
+        self.rules.state, self.rules.underruns, self.rules.end_period = rules
 
     def setpoint(self, row: tuple[int, ...]) -> None:
         """Plan the next period with ``row``; ``SafetyError`` if the command or the board's motion fails.
@@ -345,7 +332,7 @@ class Pacer:
 
     def finish_us(self, end_period: int, q_max: int) -> float:
         """Device time (us) at which the board ends the stream (``DONE``) after ``OK END <end_period>``."""
-        return self.t_anchor + (end_period + q_max + 4 - self.p_anchor) * PERIOD_US  # StreamRun's, at latest
+        return self.t_anchor + (end_period + q_max + 4 - self.p_anchor) * PERIOD_US  # AxesRun's, at latest
 
 
 @dataclass
@@ -391,13 +378,20 @@ class StreamRecord:
         self.data["periods"].append(int(period))
         self.data["n_setpoints"] += 1
 
-    def notice(self, line: str) -> None:
-        """An ``N,...`` line from the board."""
+    def notice(self, line: str, allow_clamps: bool) -> None:
+        """An ``N,...`` line, noted; it stops the stream (the watchdog always, a clamp unless allowed)."""
         self.data["notices"].append(line)
         kind = {"N,LIMIT,SPEED": "speed", "N,LIMIT,TRAVEL": "travel"}.get(",".join(line.split(",")[:3]))
         if kind:
             self.data["clamps"][kind] += 1
-        self.data["watchdog"] |= line.startswith("N,WATCHDOG")
+        if line.startswith("N,WATCHDOG"):
+            self.data["watchdog"] = True
+            raise StreamStarved(
+                f"the stepper board's stream watchdog fired ({line}): it went 100 ms without a set-point "
+                "(the host fell behind)"
+            )
+        if not allow_clamps:
+            raise StreamLimit(f"the stepper board clamped the shaped motion ({line}): stream stopped")
 
     def counts(self, pacer: Pacer) -> None:
         """Copy the pacer's counts."""
@@ -418,14 +412,6 @@ class StreamRecord:
                 "episode(s))"
             )
         return "; ".join(why) or None
-
-
-def setpoints_digest(setpoints: Iterable[int]) -> str:
-    """The sha256 of set-points in board units as the recording states it (int16, little-endian, in order)."""
-    h = hashlib.sha256()
-    for u in setpoints:
-        h.update(int(u).to_bytes(2, "little", signed=True))
-    return h.hexdigest()
 
 
 def shaper_meta(shaper: Any) -> dict[str, Any] | None:
@@ -482,7 +468,7 @@ def check_stream(
 
 def stream(
     rig: Rig, setpoints: Any, shaper: Any = None, *, path: str | os.PathLike,
-    scenario: dict[str, Any] | None = None, source_name: str | None = None, lead_periods: int = 4,
+    scenario: dict[str, Any] | None = None, lead_periods: int = 4,
     lead_in_s: float = 1.0, tail_s: float = 1.0, allow_clamps: bool = False, rate_hz: int = 1000,
     progress: bool = True, replace: bool = False, noise_seed: int | None = None,
 ) -> Recording:  # fmt: skip
@@ -506,8 +492,6 @@ def stream(
         ``data/<group>/<name>``; an existing recording is refused before anything moves.
     scenario : dict, optional
         More scenario metadata; ``kind`` is ``"stream"``.
-    source_name : str, optional
-        Where the set-points come from, for the recording.
     lead_periods : int
         Periods a set-point waits in the board's FIFO (1-7): latency against tolerance of host jitter.
     lead_in_s, tail_s : float
@@ -530,7 +514,7 @@ def stream(
         raise ValueError(f"lead_in_s must be a number of seconds in 0-60, got {lead_in_s!r}")
     board = board_shaper(shaper, rig.n)
     Pacer(0, lead_periods)  # refuses a bad lead before anything is sent
-    source = SetpointSource(setpoints, rig.rig, source_name)
+    source = SetpointSource(setpoints, rig.rig)
     units = source.check_all() if source.sized else None
     _check_firmware(rig.stepper.version)
     target = rig._target(path)
@@ -552,7 +536,7 @@ def stream(
             rig.stepper.command("ABORT")  # whatever an earlier session left running stops; driver off
             rig.daq.command("STOP")
             rig.stepper.send_all(board.commands())  # SHAPER first: loading again discards it
-            rig._start(state, rate_hz, reach)
+            rig._start(rate_hz, reach)
             timeout = rig.daq.port.timeout
             rig.daq.port.timeout = min(timeout or FEED_READ_S, FEED_READ_S)  # device time in small steps
             expected_s = None if units is None else len(units) / STREAM_RATE_HZ + board.duration_s + tail_s
@@ -596,7 +580,7 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
     while not rows or rows[-1][1] - rows[0][1] < lead_in_s * 1e6:
         _, silence = rig._read(silence)
     stepper.command("EN 1")
-    rig._go(state, "STREAM", rate_hz)
+    rig._go(state, "STREAM")
     pacer = Pacer(rows[-1][1], record.lead_periods)
     word = "V" if rig.n == 1 else "MV"
     pending: tuple[int, ...] | None = None  # a set-point the board refused with ERR FULL, to send again
@@ -607,8 +591,7 @@ def _feed(rig: Rig, state: RunState, feed: Any, check: ShapedCheck, record: Stre
         nonlocal noticed
         for line in stepper.notices[noticed:]:
             noticed += 1
-            record.notice(line)
-            refuse_notice(line, allow_clamps)
+            record.notice(line, allow_clamps)
 
     def step(now: int) -> Any:
         nonlocal pending

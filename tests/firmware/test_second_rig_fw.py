@@ -24,7 +24,8 @@ TRAVEL_STEPS = math.floor(20.0 / MM_PER_STEP)
 
 
 @pytest.fixture(scope="module")
-def long_arm_build(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def long_arm_build(tmp_path_factory: pytest.TempPathFactory, firmware_build: None) -> Path:
+    """The long-arm build (after the default one, which makes the simavr harness the tests run it in)."""
     build = tmp_path_factory.mktemp("long_arm")
     proc = subprocess.run(
         ["make", "-C", str(fwsim.FIRMWARE), "-j2", f"RIG={RIG}", f"PYTHON={sys.executable}", f"BUILD={build}",
@@ -62,3 +63,22 @@ def test_the_second_rigs_build_reports_its_hash_and_its_limits(long_arm_build: P
     assert bodies[6] == "OK SEG 2"
     daq = fwsim.run("daq", [(0.05, fwsim.command("PING"))], 0.2, elf=long_arm_build / "daq_mega.elf")
     assert [ln.body for ln in daq.lines][:2] == [f"HELLO daq 2.3.0+{digest}", f"PONG daq 2.3.0+{digest}"]
+
+
+@pytest.mark.streaming
+def test_the_second_rigs_stream_takes_its_own_set_point_limit(long_arm_build: Path) -> None:
+    """A set-point v steps every 2^20 / v us, so this build's fastest step (524 us) allows floor(2^20 / 524) =
+    2001 units, not the paper's 1640 (639 us): V 2001 is taken, V 2002 refused naming 2001. The emulated
+    board built for this rig file answers the same (``tests/test_rig_stream.py``), and so does the host."""
+    assert (1 << 20) // MIN_INTERVAL_US == 2001 and (1 << 20) // 639 == 1640
+    cmds = ["SHAPER 1 0", "IMP 0 4096 0", "EN 1", "STREAM", "V 2001", "V 1641", "V 2002", "V -2002", "ABORT"]
+    times = [0.05 + 0.002 * i for i in range(len(cmds))]
+    run = fwsim.run(
+        "stepper", list(zip(times, map(fwsim.command, cmds), strict=True)), 0.08,
+        elf=long_arm_build / "stepper_uno.elf",
+    )  # fmt: skip
+    bodies = [ln.body for ln in run.lines if not ln.body.startswith(("HELLO", "N,", "DONE"))]
+    assert all(ln.checksum_ok for ln in run.lines)
+    assert bodies[:4] == ["OK SHAPER 1", "OK IMP 0", "OK EN 1", "OK STREAM 0"]
+    assert bodies[4].startswith("OK V ") and bodies[5].startswith("OK V ")  # 2001 and 1641: both taken
+    assert bodies[6:8] == ["ERR RANGE set-point -2001..2001"] * 2

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from helpers.board.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, frame
-from helpers.board.stream_reference import MAX_DELAY_US, MAX_DELAY_US_AXES
+from helpers.board.stream_reference import MAX_DELAY_US, MAX_DELAY_US_AXES, v_max
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 from helpers.virtual.emulator.framing import frame_many
@@ -785,7 +785,7 @@ class StepperEmulator(EmulatedBoard):
         if lim.axes > 1:
             self.items = []  # the stream's state takes the programme table's RAM
         self.stream = StreamMode(self.shaper.ready, list(self.positions), lim.travel_steps, self.world.t,
-                                 self.send, lim.releases)  # fmt: skip
+                                 self.send, lim.releases, v_max(lim.min_interval_us))  # fmt: skip
         return f"OK STREAM {self.positions[0]}"
 
     def cmd_V(self, cmd: _Command) -> str:  # noqa: N802, D102

@@ -9,7 +9,7 @@ prints their device paths::
 
 and serves the emulated boards (:mod:`helpers.virtual.emulator.boards`) on them until interrupted, so that any
 program, including a notebook's live cells, can connect by device path exactly as to the hardware
-(``Rig.connect(("/dev/pts/5", "/dev/pts/6"))``).
+(``Rig(("/dev/pts/5", "/dev/pts/6"), rig)``).
 
 A reader on a pseudo-terminal cannot pull device time forward, so the server paces it to the wall clock:
 device time = ``speed`` x wall time (``--speed 1`` is real time, the default; ``--speed 4`` runs four times

@@ -2,14 +2,14 @@
 
 Every rule and every number comes from :mod:`helpers.board.stream_reference`, the reference of the firmware's
 streaming shaper: the impulse checks (:func:`~helpers.board.stream_reference.impulse_problem`), the set-point
-FIFO, ``V``, ``END``, the watchdog and the control tick (:class:`~helpers.board.stream_reference.
-StreamSession`), the step times (:class:`~helpers.board.stream_reference.Planner`). This module only loads the
-shaper as the firmware's ``IMP`` handler does, runs the control ticks on the world's device clock (tick k at
-``STREAM`` + k x 10 ms) and words the replies and notices as the firmware does.
+FIFO, ``V``, ``MV``, ``END``, the watchdog and the control tick (:class:`~helpers.board.stream_reference.
+StreamSession`, of one axis or several), the step times (:class:`~helpers.board.stream_reference.Planner`, one
+per axis, with the build's travel and set-point limit). This module only loads the shaper as the firmware's
+``IMP`` handler does, runs the control ticks on the world's device clock (tick k at ``STREAM`` + k x 10 ms)
+and words the replies and notices as the firmware does.
 
-A build with several axes runs :class:`~helpers.board.stream_reference.AxesSession` instead of the one axis's
-``StreamSession``: every axis planned from the one shaper with its own travel, ``MV`` for every axis's
-set-point, notices naming axes 1.., the STEP edges 24 us after their ticks (the firmware's
+A build with several axes: every axis planned from the one shaper with its own travel, ``MV`` for every
+axis's set-point, notices naming axes 1.., the STEP edges 24 us after their ticks (the firmware's
 ``STREAM_LEAD_AXES``; 16 us on a one-axis build), the longest delay 0.62 s.
 """
 
@@ -101,19 +101,16 @@ class StreamMode:
         Queues one line from the board (notices, with ``,<axis>`` for axes 1..).
     releases : sequence of int or None
         Each axis's paid-out range below zero (the build's; default none).
+    v_max : int
+        The build's set-point limit (:func:`helpers.board.stream_reference.v_max` of its fastest step).
     """
 
     def __init__(
         self, shaper: hs.StreamShaper, positions: Sequence[int], travels: Sequence[int], t0: float,
-        send: Callable[[str], None], releases: Sequence[int] | None = None,
+        send: Callable[[str], None], releases: Sequence[int] | None = None, v_max: int = hs.V_MAX,
     ) -> None:  # fmt: skip
-        if len(positions) == 1:  # the one-axis build (the paper's): its session, its travel
-            self.session = hs.StreamSession(shaper, positions[0])
-            self.session.run.planner.travel = travels[0]  # the reference's default is the paper's 156
-            self.edge_s = STEP_EDGE_S
-        else:
-            self.session = hs.AxesSession(shaper, positions, travels, releases)
-            self.edge_s = STEP_EDGE_AXES_S
+        self.session = hs.StreamSession(hs.AxesRun(shaper, positions, travels, releases, v_max))
+        self.edge_s = STEP_EDGE_S if len(positions) == 1 else STEP_EDGE_AXES_S
         self.t0 = t0
         self._send = send
         self._planned = [0] * len(positions)  # each axis's planned steps already moved to the pending arrays
@@ -163,7 +160,7 @@ class StreamMode:
             self._send(n.line)
         self._noticed = len(run.notices)
         times, axes, signs = [self._times], [self._axes], [self._signs]
-        for a, planner in enumerate(getattr(run, "planners", None) or [run.planner]):
+        for a, planner in enumerate(run.planners):
             done = self._planned[a]
             if len(planner.ticks) > done:
                 ticks = np.asarray(planner.ticks[done:], dtype=np.int64)
