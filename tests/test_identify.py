@@ -223,7 +223,7 @@ def test_identify_recording_reads_the_frame():
         name="pulse_100mms_10mm",
     )
     r = ident.identify_recording(rec)
-    assert r.window == WINDOW and r.zeta == ident.identify(T, y, WINDOW).zeta
+    assert r.window_s == WINDOW and r.zeta == ident.identify(T, y, WINDOW).zeta
     d = r.to_dict()
     assert d["recording"] == "pulse_100mms_10mm" and d["source"] == "virtual-rig"
     assert ident.identify_recording(rec, column="tension_n").omega_d == pytest.approx(r.omega_d, rel=1e-6)

@@ -579,71 +579,133 @@ def damped_sine_fit(t: ArrayLike, y: ArrayLike, *, zeta0: float, omega_d0: float
 # entry point
 
 
-@dataclass(frozen=True, eq=False)
-class IdentificationResult:
-    """The dominant mode identified from one window, with every method's sub-result.
+MISSING_HINT = (
+    "record and analyse the identification run first: `python -m helpers record all`, or the live cell of "
+    "notebook 02"
+)
+
+
+@dataclass(frozen=True)
+class IdentifiedMode:
+    """The content of ``data/identification/result.json``: the identified mode and where it came from.
 
     Attributes
     ----------
-    zeta, zeta_std : float
-        Damping ratio and standard error, from the method named by ``method`` (for ``"fft"``, which gives no
-        damping, from the log decrement).
-    omega_d, omega_d_std : float
-        Damped angular frequency (rad/s) and standard error (for ``"fft"`` the standard error is NaN: an
-        interpolated spectral peak has no statistical error of its own; its accuracy on synthetic decays is
-        stated in the tests).
-    omega_n : float
-        Undamped natural frequency ``omega_d / sqrt(1 - zeta^2)``, rad/s.
+    omega_d, zeta : float
+        Damped frequency (rad/s) and damping ratio of the dominant mode.
+    omega_d_std, zeta_std : float
+        Their standard errors (NaN where the method gives none).
     method : str
         ``"fit"``, ``"logdec"`` or ``"fft"``.
-    window : tuple of float or None
-        The analysed window (s) as requested, or None for the whole input.
+    window_s : tuple of float or None
+        The analysed window.
+    recording, source : str or None
+        The analysed recording's name and its source (``"hardware"`` or ``"virtual-rig"``).
+    """
+
+    omega_d: float
+    zeta: float
+    omega_d_std: float = math.nan
+    zeta_std: float = math.nan
+    method: str = "fit"
+    window_s: tuple[float, float] | None = None
+    recording: str | None = None
+    source: str | None = None
+
+    @property
+    def omega_n(self) -> float:
+        """Undamped natural frequency, rad/s."""
+        return omega_n_from_damped(self.omega_d, self.zeta)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> IdentifiedMode:
+        """Read the file's content; ``ValueError`` names a missing key or a value out of range."""
+        missing = [k for k in ("zeta", "omega_d", "method") if k not in data]
+        if missing:
+            raise ValueError(f"missing key(s) {', '.join(missing)}")
+        omega_d, zeta = data["omega_d"], data["zeta"]
+        check_mode(omega_d, zeta, "omega_d")
+        method = data["method"]
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        window = data.get("window_s")
+        if window is not None:
+            if not (isinstance(window, list | tuple) and len(window) == 2):
+                raise ValueError(f"window_s must be [start, end], got {window!r}")
+            window = (float(window[0]), float(window[1]))
+
+        def std(key: str) -> float:
+            v = data.get(key)
+            return math.nan if v is None else float(v)
+
+        return cls(
+            omega_d=float(omega_d),
+            zeta=float(zeta),
+            omega_d_std=std("omega_d_std"),
+            zeta_std=std("zeta_std"),
+            method=str(method),
+            window_s=window,
+            recording=data.get("recording"),
+            source=data.get("source"),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The keys :meth:`from_dict` reads (NaN as None), and ``omega_n``."""
+        return {
+            "zeta": float(self.zeta),
+            "omega_d": float(self.omega_d),
+            "zeta_std": _json_float(self.zeta_std),
+            "omega_d_std": _json_float(self.omega_d_std),
+            "omega_n": float(self.omega_n),
+            "method": self.method,
+            "window_s": None if self.window_s is None else [float(w) for w in self.window_s],
+            "recording": self.recording,
+            "source": self.source,
+        }
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class IdentificationResult(IdentifiedMode):
+    """The dominant mode identified from one window (an :class:`IdentifiedMode`) and every method's result.
+
+    Attributes
+    ----------
+    zeta, zeta_std, omega_d, omega_d_std, method, window_s, recording, source
+        As :class:`IdentifiedMode`'s: the estimate of the method named by ``method`` (for ``"fft"``, which
+        gives no damping, the log decrement's damping, and no standard error of ``omega_d``: an interpolated
+        spectral peak has no statistical error of its own; its accuracy on synthetic decays is stated in the
+        tests); ``window_s`` as requested (None: the whole input); the provenance set by
+        :func:`identify_recording`.
     n_cycles : float
         Damped periods in the analysed window.
     fit, logdec, fft : sub-results
         :class:`DampedSineFit` (None if it failed and was not the chosen method), :class:`LogDecrementResult`,
         :class:`FftResult`.
-    recording, source : str or None
-        Provenance for :meth:`to_dict`: the analysed recording's name and its source (``"hardware"`` or
-        ``"virtual-rig"``), set by :func:`identify_recording`.
     """
 
-    zeta: float
-    omega_d: float
-    omega_n: float
-    zeta_std: float
-    omega_d_std: float
-    method: str
-    window: tuple[float, float] | None
     n_cycles: float
     fit: DampedSineFit | None
     logdec: LogDecrementResult
     fft: FftResult
-    recording: str | None = None
-    source: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (the content of ``data/identification/result.json``).
 
-        Keys ``zeta``, ``omega_d``, ``zeta_std``, ``omega_d_std`` (None where not finite), ``method``,
-        ``window_s`` (list or None), ``recording`` and ``source`` (provenance, None if unknown), plus
-        ``omega_n``, ``n_cycles`` and ``estimates`` (each method's ``zeta``/``omega_d`` for comparison).
-        Use :func:`dataclasses.replace` to set the provenance of a result from :func:`identify`.
+        :meth:`IdentifiedMode.to_dict`'s keys (what :func:`load_identification` reads back), then
+        ``n_cycles`` and ``estimates`` (each method's ``zeta``/``omega_d`` for comparison). Use
+        :func:`dataclasses.replace` to set the provenance of a result from :func:`identify`.
         """
         fft = {"zeta": None, "zeta_std": None, "omega_d": float(self.fft.omega_d), "omega_d_std": None}
         estimates = {"logdec": _estimate(self.logdec), "fft": fft}
         if self.fit is not None:
             estimates["fit"] = _estimate(self.fit)
-        shared = ("omega_d", "zeta", "omega_d_std", "zeta_std", "method", "recording", "source")
-        mode = IdentifiedMode(window_s=self.window, **{name: getattr(self, name) for name in shared})
-        return {**mode.to_dict(), "n_cycles": float(self.n_cycles), "estimates": estimates}
+        return {**super().to_dict(), "n_cycles": float(self.n_cycles), "estimates": estimates}
 
     def summary(self) -> str:
         """A fixed-precision, multi-line summary for notebooks."""
         names = {"fit": "damped-sine fit", "logdec": "log decrement", "fft": "FFT peak (zeta: log decrement)"}
-        where = (
-            "whole input" if self.window is None else f"window {self.window[0]:.3f}-{self.window[1]:.3f} s"
-        )
+        window = self.window_s
+        where = "whole input" if window is None else f"window {window[0]:.3f}-{window[1]:.3f} s"
         lines = [
             f"method  : {names[self.method]} on the {where} ({self.n_cycles:.1f} cycles)",
             f"zeta    : {self.zeta:.4f} +- {_pm(self.zeta_std, 4)}",
@@ -739,11 +801,10 @@ def identify(
     return IdentificationResult(
         zeta=zeta,
         omega_d=omega_d,
-        omega_n=omega_n_from_damped(omega_d, zeta),
         zeta_std=zeta_std,
         omega_d_std=omega_d_std,
         method=method,
-        window=win,
+        window_s=win,
         n_cycles=duration * omega_d / (2.0 * math.pi),
         fit=fit,
         logdec=logdec,
@@ -820,91 +881,6 @@ def save_identification(
         The file written.
     """
     return write_json(path, result.to_dict(), sort_keys=False)
-
-
-MISSING_HINT = (
-    "record and analyse the identification run first: `python -m helpers record all`, or the live cell of "
-    "notebook 02"
-)
-
-
-@dataclass(frozen=True)
-class IdentifiedMode:
-    """The content of ``data/identification/result.json``: the identified mode and where it came from.
-
-    Attributes
-    ----------
-    omega_d, zeta : float
-        Damped frequency (rad/s) and damping ratio of the dominant mode.
-    omega_d_std, zeta_std : float
-        Their standard errors (NaN where the method gives none).
-    method : str
-        ``"fit"``, ``"logdec"`` or ``"fft"``.
-    window_s : tuple of float or None
-        The analysed window.
-    recording, source : str or None
-        The analysed recording's name and its source (``"hardware"`` or ``"virtual-rig"``).
-    """
-
-    omega_d: float
-    zeta: float
-    omega_d_std: float = math.nan
-    zeta_std: float = math.nan
-    method: str = "fit"
-    window_s: tuple[float, float] | None = None
-    recording: str | None = None
-    source: str | None = None
-
-    @property
-    def omega_n(self) -> float:
-        """Undamped natural frequency, rad/s."""
-        return omega_n_from_damped(self.omega_d, self.zeta)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> IdentifiedMode:
-        """Read the file's content; ``ValueError`` names a missing key or a value out of range."""
-        missing = [k for k in ("zeta", "omega_d", "method") if k not in data]
-        if missing:
-            raise ValueError(f"missing key(s) {', '.join(missing)}")
-        omega_d, zeta = data["omega_d"], data["zeta"]
-        check_mode(omega_d, zeta, "omega_d")
-        method = data["method"]
-        if method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-        window = data.get("window_s")
-        if window is not None:
-            if not (isinstance(window, list | tuple) and len(window) == 2):
-                raise ValueError(f"window_s must be [start, end], got {window!r}")
-            window = (float(window[0]), float(window[1]))
-
-        def std(key: str) -> float:
-            v = data.get(key)
-            return math.nan if v is None else float(v)
-
-        return cls(
-            omega_d=float(omega_d),
-            zeta=float(zeta),
-            omega_d_std=std("omega_d_std"),
-            zeta_std=std("zeta_std"),
-            method=str(method),
-            window_s=window,
-            recording=data.get("recording"),
-            source=data.get("source"),
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """The keys :meth:`from_dict` reads (NaN as None), as :meth:`IdentificationResult.to_dict` begins."""
-        return {
-            "zeta": float(self.zeta),
-            "omega_d": float(self.omega_d),
-            "zeta_std": _json_float(self.zeta_std),
-            "omega_d_std": _json_float(self.omega_d_std),
-            "omega_n": float(self.omega_n),
-            "method": self.method,
-            "window_s": None if self.window_s is None else [float(w) for w in self.window_s],
-            "recording": self.recording,
-            "source": self.source,
-        }
 
 
 def load_identification(path: str | os.PathLike = IDENTIFICATION_RESULT) -> IdentifiedMode:

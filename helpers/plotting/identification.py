@@ -130,7 +130,7 @@ def fig6_logdec_fft(
     result : IdentificationResult
         From :func:`helpers.paper.identify.identify` on (a window of) ``t, y``.
     t, y : array_like
-        The signal (ADC counts); only ``result.window`` is drawn when it is set.
+        The signal (ADC counts); only ``result.window_s`` is drawn when it is set.
     source : str, optional
         ``"virtual-rig"`` is named in the title.
     save : bool
@@ -143,8 +143,8 @@ def fig6_logdec_fft(
     """
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
-    if result.window is not None:
-        keep = (t >= result.window[0]) & (t <= result.window[1])
+    if result.window_s is not None:
+        keep = (t >= result.window_s[0]) & (t <= result.window_s[1])
         t, y = t[keep], y[keep]
     ld, fft = result.logdec, result.fft
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.0, 5.4))

@@ -62,7 +62,7 @@ def trial_overview(
 def ringdown_fit(t: np.ndarray, y: np.ndarray, result: IdentificationResult, title: str) -> plt.Figure:
     """One ring-down (band-passed) with the damped-sine fit and the log decrement's extrema over it."""
     fig, ax = plt.subplots(figsize=(7.0, 3.0))
-    lo, hi = result.window
+    lo, hi = result.window_s
     keep = (t >= lo) & (t <= hi)
     ax.plot(t[keep], y[keep], color="0.3", lw=0.8, label=REAL)
     ax.plot(t[keep], result.fit(t[keep]), color="C1", lw=0.9, ls="--", label="damped-sine fit")
