@@ -38,7 +38,7 @@ def test_mm_per_step_from_spool_and_steps():  # paper-only: the paper's publishe
 def test_pulse_integral_equals_x_f(v, x):
     dt = 1e-5
     t = np.arange(0.0, 10.0, dt)
-    vel = profiles.velocity_pulse(t, v, x)
+    vel = profiles.pulse_profile(v, x).sample(t)
     up = np.sum(vel[t < 5.0]) * dt
     down = np.sum(vel[t >= 5.0]) * dt
     assert up == pytest.approx(x, abs=v * dt)
@@ -49,15 +49,15 @@ def test_pulse_shape_matches_eq_14():
     t_p = 20.0 / 200.0
     t = np.array([0.99, 1.0, 1.0 + t_p / 2, 1.0 + t_p + 1e-9, 7.99, 8.0, 8.0 + t_p / 2, 8.0 + t_p + 1e-9])
     np.testing.assert_array_equal(
-        profiles.velocity_pulse(t, 200.0, 20.0), [0, 200, 200, 0, 0, -200, -200, 0]
+        profiles.pulse_profile(200.0, 20.0).sample(t), [0, 200, 200, 0, 0, -200, -200, 0]
     )
 
 
 def test_pulse_refuses_bad_arguments():
     with pytest.raises(ValueError, match="v_in"):
-        profiles.velocity_pulse(0.0, -1.0, 10.0)
+        profiles.pulse_profile(-1.0, 10.0)
     with pytest.raises(ValueError, match="x_f"):
-        profiles.velocity_pulse(0.0, 100.0, float("nan"))
+        profiles.pulse_profile(100.0, float("nan"))
     with pytest.raises(ValueError, match="down move"):
         profiles.pulse_profile(1.0, 10.0, t_up=1.0, t_down=8.0)
 
@@ -99,7 +99,7 @@ def test_shaped_profile_agrees_with_shaper_apply_on_grid():
 
 
 def test_displacement_is_integral_of_velocity():
-    prof = profiles.shaped_pulse(200.0, 30.0, ZV)
+    prof = profiles.pulse_profile(200.0, 30.0).shaped(ZV)
     dt = 1e-5
     t = np.arange(0.0, 10.0, dt)
     numeric = np.cumsum(prof.sample(t)) * dt
@@ -304,7 +304,7 @@ def test_experiment_programme_table_i(system, v, x):
     assert 8.0 < t[n] and t[-1] <= 8.0 + dur + 1e-3
     assert prog.duration_s == pytest.approx(12.0, abs=1e-3)
     # the stepper follows the exact shaped displacement (scaled to whole steps) to within about one step
-    exact = profiles.shaped_pulse(v, x, shaper)
+    exact = profiles.pulse_profile(v, x).shaped(shaper)
     grid = np.linspace(0.0, 12.0, 24001)
     err = prog.position_steps(grid) * MM_PER_STEP - exact.displacement(grid) * report.realised_mm / x
     # (cumulative rounding +-0.5 step, the staircase trails by up to 1 step, plus the rescaling)

@@ -28,37 +28,6 @@ def pulse_time(v_in_mm_s: float, x_f_mm: float) -> float:
     return check_positive(x_f_mm, "x_f_mm") / check_positive(v_in_mm_s, "v_in_mm_s")
 
 
-def velocity_pulse(
-    t: np.ndarray | float,
-    v_in_mm_s: float,
-    x_f_mm: float,
-    t_up: float = paper.PULSE_T_UP_S,
-    t_down: float = paper.PULSE_T_DOWN_S,
-) -> np.ndarray:
-    """The paper's velocity pulse (eq. 14), in mm/s, at times ``t`` (s).
-
-    ``v_in`` for ``t_up <= t < t_up + t_p``, ``-v_in`` for ``t_down <= t < t_down + t_p``, else 0, with
-    ``t_p = x_f / v_in``.
-
-    Parameters
-    ----------
-    t : array_like
-        Times (s).
-    v_in_mm_s : float
-        Cable speed (mm/s), > 0.
-    x_f_mm : float
-        Cable displacement of each move (mm), > 0.
-    t_up, t_down : float
-        Start of the up and the down move (s); the paper uses 1 s and 8 s.
-
-    Returns
-    -------
-    numpy.ndarray
-        Velocity in mm/s.
-    """
-    return pulse_profile(v_in_mm_s, x_f_mm, t_up, t_down).sample(t)
-
-
 @dataclass(frozen=True, eq=False)
 class VelocityProfile:
     """A piecewise-constant velocity: ``velocities[k]`` on ``[breakpoints[k], breakpoints[k+1])``, 0 outside.
@@ -182,14 +151,18 @@ def pulse_profile(
     t_up: float = paper.PULSE_T_UP_S,
     t_down: float = paper.PULSE_T_DOWN_S,
 ) -> VelocityProfile:
-    """The paper's Up-hold-Down velocity pulse as an exact :class:`VelocityProfile`.
+    """The paper's Up-hold-Down velocity pulse (its eq. 14) as an exact :class:`VelocityProfile`.
+
+    ``v_in`` for ``t_up <= t < t_up + t_p``, ``-v_in`` for ``t_down <= t < t_down + t_p``, else 0, with
+    ``t_p = x_f / v_in``: its :meth:`~VelocityProfile.sample` gives the velocity at any times, its
+    :meth:`~VelocityProfile.shaped` the pulse shaped by a shaper, exactly.
 
     Parameters
     ----------
     v_in_mm_s, x_f_mm : float
-        Speed (mm/s) and displacement (mm).
+        Cable speed (mm/s) and the displacement of each move (mm), both > 0.
     t_up, t_down : float
-        Start of the up and down moves (s); the up move must end by ``t_down``.
+        Start of the up and down moves (s; the paper uses 1 s and 8 s); the up move must end by ``t_down``.
 
     Returns
     -------
@@ -204,20 +177,6 @@ def pulse_profile(
     if t_up + t_p == t_down:
         return VelocityProfile(np.array([t_up, t_down, t_down + t_p]), np.array([v, -v]))
     return VelocityProfile(np.array([t_up, t_up + t_p, t_down, t_down + t_p]), np.array([v, 0.0, -v]))
-
-
-def shaped_pulse(
-    v_in_mm_s: float,
-    x_f_mm: float,
-    shaper: Shaper | None = None,
-    t_up: float = paper.PULSE_T_UP_S,
-    t_down: float = paper.PULSE_T_DOWN_S,
-) -> VelocityProfile:
-    """The paper's pulse (:func:`pulse_profile`, whose parameters it takes) shaped by ``shaper``, exactly.
-
-    ``shaper`` is e.g. one of :func:`helpers.paper.shapers.paper_tdfs` (None: unshaped).
-    """
-    return pulse_profile(v_in_mm_s, x_f_mm, t_up, t_down).shaped(shaper)
 
 
 def table_i() -> pd.DataFrame:

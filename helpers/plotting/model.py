@@ -12,7 +12,7 @@ import numpy as np
 
 from helpers.paper import model
 from helpers.paper import numbers as paper
-from helpers.paper.profiles import velocity_pulse
+from helpers.paper.profiles import pulse_profile
 from helpers.paper.shapers import paper_tdfs
 from helpers.plotting import SYSTEM_COLOURS, finish, save
 
@@ -123,7 +123,7 @@ def shaping_response(
 ) -> ShapingResponse:
     """Simulate the model's response to the paper's velocity pulse, unshaped and with both TDFs.
 
-    The pulse is :func:`helpers.paper.profiles.velocity_pulse` (up at 1 s, down at 8 s); the shaped commands
+    The pulse is :func:`helpers.paper.profiles.pulse_profile` (up at 1 s, down at 8 s); the shaped commands
     are
     the pulse convolved with the impulses of :func:`helpers.paper.shapers.paper_tdfs` (designed from the
     paper's
@@ -153,7 +153,7 @@ def shaping_response(
             f"need an integer rate_hz > 0 and t_end after the down move, got {rate_hz!r}, t_end={t_end}"
         )
     t = np.arange(round(t_end * rate_hz) + 1) / rate_hz
-    pulse = np.asarray(velocity_pulse(t, v_in_mm_s, x_f_mm), dtype=float)
+    pulse = pulse_profile(v_in_mm_s, x_f_mm).sample(t)
     zv, zvd = paper_tdfs()
     commands = {"unshaped": pulse, "zv": zv.apply(t, pulse), "zvd": zvd.apply(t, pulse)}
     tension = {name: model.linear_response(params, t, v * 1e-3)[0] for name, v in commands.items()}
