@@ -90,19 +90,23 @@ def aborted_path(path: str | os.PathLike, started_utc: str, status: str = "abort
 
 @contextlib.contextmanager
 def reserve(target: str | os.PathLike, replace: bool = False) -> Iterator[Path]:
-    """Refuse an existing recording (unless replacing) and hold its name for the ``with`` block.
+    """Check the name, refuse an existing recording (unless replacing), hold the name for the ``with`` block.
 
     A second run asking for the same name meanwhile, in another process or this one, is refused at once,
     before it starts, instead of learning of the conflict only when its finished run is saved. The hold is a
     ``flock`` on ``.<name>.reserved.lock`` beside the recording (released by the kernel if the process dies),
-    removed when the block ends; the block gets its path.
+    removed when the block ends. The block gets the recording's CSV path (``target``, ``.csv`` added where it
+    has no suffix or ``.json``).
 
     Raises
     ------
+    RecordingError
+        An invalid name (:func:`check_name`).
     RecordingExists
         The recording exists (and ``replace`` is False), or another run holds the name.
     """
     csv = _csv_path(target)
+    check_name(csv.stem)
     refuse_existing(csv, replace)
     csv.parent.mkdir(parents=True, exist_ok=True)
     lock = csv.with_name(f".{csv.stem}.reserved.lock")
@@ -114,7 +118,7 @@ def reserve(target: str | os.PathLike, replace: bool = False) -> Iterator[Path]:
     try:
         with signals_held():  # an interrupt cannot leave the name held by a lost file descriptor
             fd = take_lock(lock, busy)
-        yield lock
+        yield csv
     finally:
         if fd is not None:
             with signals_held():

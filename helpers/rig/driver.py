@@ -371,10 +371,9 @@ class Rig:
         """
         self._check_run(rate_hz, noise_seed, tail_s)
         check_programme(programme, self.rig, (0,) * self.n)  # before a byte: as far as it can be
-        target = self._target(path)
         scenario = {"kind": "programme", **(scenario or {})}
         scenario.setdefault("programme", programme.to_dict())
-        with recordings.reserve(target, replace):  # a second run to this name is refused now, not after this
+        with recordings.reserve(path, replace) as target:  # a second run to this name is refused now
             start = self.positions()
             check_programme(programme, self.rig, start)
             if from_zero and any(start):
@@ -418,12 +417,6 @@ class Rig:
             raise SafetyError(f"noise seed must be an integer in 0..2**32-1, got {noise_seed!r}")
         if type(tail_s) not in (int, float) or not 0 <= tail_s <= 60:
             raise ValueError(f"tail_s must be a number of seconds in 0-60, got {tail_s!r}")
-
-    def _target(self, path: str | os.PathLike) -> Path:
-        target = Path(path)
-        target = target.with_suffix(".csv") if target.suffix in ("", ".json") else target
-        recordings.check_name(target.stem)
-        return target
 
     def _note_start(self, scenario: dict[str, Any], start: tuple[int, ...], noise_seed: int | None) -> None:
         """The start positions, and (in-process virtual rig) the noise re-seeded for this run, noted."""

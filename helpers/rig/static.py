@@ -81,8 +81,7 @@ def record_static(
         state.finished = True
         rig.daq.command("STOP")
 
-    target = rig._target(path)
-    with recordings.reserve(target, replace):  # a second run to this name is refused now, not after this one
+    with recordings.reserve(path, replace) as target:  # a second run to this name is refused now
         return rig._guarded(body, dict(scenario), target, rate_hz, replace, (0,) * rig.n, stepper_used=False)
 
 

@@ -517,8 +517,7 @@ def stream(
     source = SetpointSource(setpoints, rig.rig)
     units = source.check_all() if source.sized else None
     _check_firmware(rig.stepper.version)
-    target = rig._target(path)
-    with reserve(target, replace):  # a second run to this name is refused now
+    with reserve(path, replace) as target:  # a second run to this name is refused now
         start = rig.positions()
         reach = _anywhere(rig.rig, start)
         if units is not None:  # the whole stream, before a byte is sent
