@@ -22,24 +22,27 @@ DESIGN_FORMAT = "continuum-arm-shaper-design"
 DESIGN_VERSION = 1
 """Version of the design file layout; a loader refuses any other."""
 
-SYSTEMS: dict[str, str] = {
-    "unshaped": "the paper's pulse, no shaping",
-    "zv": "the paper's non-robust TDF: a ZV shaper designed from one mode identified at rest",
-    "zvd": "the paper's robust TDF: a ZVD shaper designed from one mode identified at rest",
-    "ei": "an extra-insensitive shaper (EI, 2-hump or 3-hump EI; scenario.shaper.name says which): at the "
-    "identified mode, or centred on the frequency band a move sweeps when designed from a mode map",
-    "multi-mode": "the dominant mode's shaper convolved with a shaper on the second mode (from a mode map)",
-    "scheduled": "an Up/Down pair from a mode map: each move's shaper designed for the configuration where "
-    "its residual vibration happens (Up: its destination; Down: the rest position)",
-    "map-following": "a schedule from a mode map: each move made of sub-moves whose starts and stops are "
-    "spaced by the phase the mode accumulates at the configurations the arm passes through",
-    "minimax": "impulses chosen to minimise the worst predicted residual over a mode map's points in the "
-    "band a move sweeps and over their uncertainty",
-    "auto": "the shortest candidate whose predicted residual stays within a tolerance over the band a move "
-    "sweeps and the map's uncertainty",
-    "custom": "any other saved shaper or pair (e.g. ZVDD, MZV, UM-ZV), named by scenario.shaper.name",
-}
-"""The vocabulary of ``scenario.system``: name -> meaning (also in ``docs/shaper_design.md``)."""
+SYSTEMS = (
+    "unshaped", "zv", "zvd", "ei", "multi-mode", "scheduled", "map-following", "minimax", "auto", "custom",
+)  # fmt: skip
+"""The vocabulary of ``scenario.system`` (``docs/shaper_design.md``'s table says the same):
+
+- ``unshaped``: the paper's pulse, no shaping;
+- ``zv``: the paper's non-robust TDF: a ZV shaper designed from one mode identified at rest;
+- ``zvd``: the paper's robust TDF: a ZVD shaper designed from one mode identified at rest;
+- ``ei``: an extra-insensitive shaper (EI, 2-hump or 3-hump EI; ``scenario.shaper.name`` says which): at the
+  identified mode, or centred on the frequency band a move sweeps when designed from a mode map;
+- ``multi-mode``: the dominant mode's shaper convolved with a shaper on the second mode (from a mode map);
+- ``scheduled``: an Up/Down pair from a mode map: each move's shaper designed for the configuration where its
+  residual vibration happens (Up: its destination; Down: the rest position);
+- ``map-following``: a schedule from a mode map: each move made of sub-moves whose starts and stops are
+  spaced by the phase the mode accumulates at the configurations the arm passes through;
+- ``minimax``: impulses chosen to minimise the worst predicted residual over a mode map's points in the band
+  a move sweeps and over their uncertainty;
+- ``auto``: the shortest candidate whose predicted residual stays within a tolerance over the band a move
+  sweeps and the map's uncertainty;
+- ``custom``: any other saved shaper or pair (e.g. ZVDD, MZV, UM-ZV), named by ``scenario.shaper.name``.
+"""
 
 
 @runtime_checkable
