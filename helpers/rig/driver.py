@@ -443,32 +443,29 @@ class Rig:
         self.daq.check_reset()
         self.daq.command("STOP")
         self._start(rate_hz, None, zero=False)
-        c, n = self.daq.parser.channels, max(3, round(REST_WINDOW_S * rate_hz))
-        adc: list[tuple[int, ...]] = []
-        t0: int | None = None
-        silence = self.daq.waiter(self.silence_s)
-        try:
-            while True:
-                new, silence = self._read(silence, stepper=False)
-                if not new:
-                    continue
-                rows = list(self.daq.rows)
-                self.daq.rows.clear()
-                adc = adc[-n:] + [r[2 : 2 + c] for r in rows]
-                t0 = rows[0][1] if t0 is None else t0
-                waited = (rows[-1][1] - t0) / 1e6
-                steady, std, noise = rest_of(adc, rate_hz)
-                if steady:
-                    return {"waited_s": round(waited, 3), "std_counts": std, "noise_counts": noise}
-                if waited > REST_TIMEOUT_S:
-                    raise NotAtRest(
-                        f"the tension did not come to rest within {REST_TIMEOUT_S:.0f} s (std {std:.2f} "
-                        f"counts over {REST_WINDOW_S} s against a noise of {noise:.2f} counts): is the arm "
-                        "moving?"
-                    )
+        c, n, period = self.daq.parser.channels, max(3, round(REST_WINDOW_S * rate_hz)), round(1e6 / rate_hz)
+        rest: dict[str, Any] = {}
+
+        def steady(now: int) -> tuple[int, tuple[int, ...]] | None:  # read on: None; at rest: the end, now
+            ok, std, noise = rest_of([r[2 : 2 + c] for r in self.daq.rows[-n:]], rate_hz)
+            waited = (now - period) / 1e6  # from the first sample (the reader starts a period before it)
+            if ok:
+                rest.update(waited_s=round(waited, 3), std_counts=std, noise_counts=noise)
+                return now, ()
+            if waited > REST_TIMEOUT_S:
+                raise NotAtRest(
+                    f"the tension did not come to rest within {REST_TIMEOUT_S:.0f} s (std {std:.2f} "
+                    f"counts over {REST_WINDOW_S} s against a noise of {noise:.2f} counts): is the arm "
+                    "moving?"
+                )
+            return None
+
+        try:  # the one reader of a run's samples, the stepper neither read nor awaited
+            self._until_done(RunState(), steady, rate_hz, 0.0, None, False, stepper=False)
         finally:
             self.daq.command("STOP")
             self.daq.rows.clear()
+        return rest
 
     def _start(self, rate_hz: int, reach: list[tuple[int, int]] | None, zero: bool = True) -> None:
         """``RATE``, ``ZERO`` (if ``zero``), ``START`` the DAQ; a sample outside ``reach`` is refused.
@@ -533,7 +530,8 @@ class Rig:
         :data:`DONE_GRACE_S` after the end, and after each further grace, ``POS`` is asked: at the end, the
         ``DONE`` was lost on the link; still moving, the stepper is late and is waited for; not moving, it
         stopped short. A board that sends no sample, or does not answer ``POS``, within the silence interval
-        is gone. Not ``stepper``: the stepper is not used (nor read), and the end is the end.
+        is gone. Not ``stepper``: the stepper is not used (nor read), and the end is the end (the wait for
+        rest, a static recording).
         """
         silence, asked, last, bar = self.daq.waiter(self.silence_s), 0, None, _Bar(total_s, progress)
         try:
@@ -548,7 +546,7 @@ class Rig:
                 bar.show(now / 1e6)
                 due = step(now)
                 if due is None:
-                    if self.stepper.done is not None:
+                    if stepper and self.stepper.done is not None:
                         raise BoardError(f"the stepper board ended before it was asked to (DONE at {now} us)")
                     continue
                 end_us, end = due
