@@ -28,7 +28,7 @@ and unwraps the board's 32-bit microsecond clock.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import reduce
 from operator import xor
 
@@ -195,7 +195,6 @@ class StreamStats:
     corrupted: int = 0
     implausible: int = 0
     samples: int = 0
-    corrupted_examples: list[str] = field(default_factory=list)
 
 
 class StreamParser:
@@ -257,12 +256,11 @@ class StreamParser:
                     return False
         return True
 
-    def _accept(self, sample: tuple[int, ...], line: bytes, out: list) -> None:
+    def _accept(self, sample: tuple[int, ...], out: list) -> None:
         """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
         seq, t_us, steps = sample[0], self._unwrapped(sample[1]), sample[2 + self.channels :]
         if not self._plausible(t_us, steps):
             self.stats.implausible += 1
-            self._example(line, f"implausible step count {steps}")
             return
         self._t_offset, self._last_raw_t = t_us - sample[1], sample[1]  # the clock moves on with a placed one
         self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
@@ -293,10 +291,6 @@ class StreamParser:
         """Bytes of an unfinished line held back."""
         return len(self._buf)
 
-    def _example(self, line: bytes, why: str) -> None:
-        if len(self.stats.corrupted_examples) < 5:
-            self.stats.corrupted_examples.append(f"{line[:40]!r}: {why}")
-
     def _unwrapped(self, t_raw: int) -> int:
         """``t_raw`` with the 32-bit wraps before it added back (a time earlier than the last one wrapped)."""
         wrapped = self._last_raw_t is not None and t_raw < self._last_raw_t
@@ -313,7 +307,6 @@ class StreamParser:
                 item = parse_body(unframe(line), self.channels, self.axes, self.adc_max)
             except FramingError as exc:
                 self.stats.corrupted += 1
-                self._example(line, str(exc))
                 if isinstance(exc, LegacyChecksum) and self.legacy is None:
                     body = line.rstrip(b"\r").rpartition(b"*")[0].decode("ascii")
                     if _LEGACY_BODY.fullmatch(body):
@@ -322,9 +315,8 @@ class StreamParser:
             if isinstance(item, tuple):
                 if self.last_seq is not None and item[0] <= self.last_seq:
                     self.stats.corrupted += 1
-                    self._example(line, f"seq {item[0]} after {self.last_seq}")
                     continue
-                self._accept(item, line, samples)
+                self._accept(item, samples)
             elif isinstance(item, Overrun):
                 self.stats.overruns += item.n
             else:
