@@ -51,8 +51,8 @@ def test_a_schedule_runs_its_sub_moves_and_only_for_its_move():
     subs = d.shaping.up.sub_moves
     ends = {1.0 + s.start_s for s in subs} | {1.0 + s.end_s for s in subs}
     assert set(np.round(up.breakpoints, 12)) <= set(np.round(sorted(ends), 12))
-    assert up.total_displacement == pytest.approx(20.0, rel=1e-12)
-    assert down.total_displacement == pytest.approx(-20.0, rel=1e-12)
+    assert up.piece_displacements.sum() == pytest.approx(20.0, rel=1e-12)
+    assert down.piece_displacements.sum() == pytest.approx(-20.0, rel=1e-12)
     programme, report = experiment_programme(200.0, 20.0, d)
     assert programme.net_steps == 0
     with pytest.raises(ValueError, match="computed for 20 mm at 200 mm/s"):

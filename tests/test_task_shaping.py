@@ -197,7 +197,7 @@ def test_a_prepull_pulls_every_tendon_in_first_and_lets_each_out_alone_after(fou
     assert release == pytest.approx(start + prog.duration_s)
     outs = [it.steps for it in pre.items[len(prog.items) + 2 :] if isinstance(it, Move)]
     assert outs == [(-2, 0, 0, 0), (0, 0, -2, 0), (0, -2, 0, 0), (0, 0, 0, -2)]
-    assert pre.end_positions((0, 0, 0, 0)) == (0, 0, 0, 0)
+    assert tuple(pre.positions((0, 0, 0, 0), 4)[-1]) == (0, 0, 0, 0)
     assert ts.prepull_programme(prog, 0, 4) == (prog, 0.0, prog.duration_s)
 
 

@@ -140,7 +140,7 @@ def test_a_shaped_programme_convolves_every_tendon_with_the_same_impulses(four) 
     # between them in whole ms (64.264 ms: 64 ms, the 264 us carried into the next window)
     assert cmds[:4] == ["WAIT 1000", f"MSEG {w} 14 14 -14 -14", "WAIT 64", f"MSEG {w + 264} 14 14 -13 -13"]
     assert cmds[5:8] == [f"MSEG {w} -14 -14 14 14", "WAIT 64", f"MSEG {w + 264} -14 -14 13 13"]
-    assert prog.end_positions((30, 30, 30, 30)) == (30, 30, 30, 30)
+    assert tuple(prog.positions((30, 30, 30, 30), 4)[-1]) == (30, 30, 30, 30)
     assert prog.duration_s == pytest.approx(5.0, abs=2e-3)
     check_programme(prog, four, start=(30, 0, 30, 30))
 

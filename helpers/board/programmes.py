@@ -251,10 +251,6 @@ class Programme:
         first = [start] + [0] * (axes - 1) if isinstance(start, int) else list(start)
         return np.cumsum([first] + [item.counts(axes) for item in self.items], axis=0)
 
-    def end_positions(self, start: Sequence[int]) -> tuple[int, ...]:
-        """Every axis's position after the programme, from ``start`` (one per axis)."""
-        return tuple(int(p) for p in self.positions(start, len(start))[-1])
-
     def item_starts_us(self) -> np.ndarray:
         """Start time (us from ``GO``) of every item."""
         durations = np.array([item.duration_us for item in self.items], dtype=np.int64)
@@ -293,13 +289,13 @@ class Programme:
         """The lines that load the programme on a board of ``axes`` axes: ``CLEAR``, its items (no ``GO``)."""
         return ["CLEAR", *(item.command(axes) for item in self.items)]
 
-    def check_limits(self, limits: Limits | None = None, start_position: int | Sequence[int] = 0) -> None:
+    def check_limits(self, limits: Limits, start_position: int | Sequence[int] = 0) -> None:
         """Raise ``ValueError`` naming the first limit the programme violates (the one check of a programme).
 
         Parameters
         ----------
-        limits : Limits, optional
-            The rig's (:meth:`Limits.of`); default the paper's rig.
+        limits : Limits
+            The rig's (:meth:`Limits.of`).
         start_position : int or sequence of int
             Every axis's position (steps from zero) when ``GO`` is sent (an int: axis 0's, the others at 0).
 
@@ -309,8 +305,7 @@ class Programme:
             Empty programme, programme length (items or seconds), interval (speed), dwell length, travel, or
             a move for more tendons than the rig has; a refusal about one tendon of several names it.
         """
-        lim = Limits.of(rigfile.default_rig()) if limits is None else limits
-        n = lim.axes
+        lim, n = limits, limits.axes
         start = [start_position] + [0] * (n - 1) if isinstance(start_position, int) else list(start_position)
         pos = [check_int(p, "start_position") for p in start]
         if len(pos) != n:

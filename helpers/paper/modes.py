@@ -32,9 +32,8 @@ def check_mode(omega: Any, zeta: Any, name: str = "omega_n") -> None:
 
 def _finite(value: Any, message: str) -> float:
     """``float(value)``; ``ValueError`` with ``message`` unless it is a finite number (a bool is not)."""
-    if isinstance(value, bool) or not (isinstance(value, int | float) or hasattr(value, "__float__")):
-        raise ValueError(f"{message}, got {value!r}")
-    if not math.isfinite(float(value)):
+    number = not isinstance(value, bool) and (isinstance(value, int | float) or hasattr(value, "__float__"))
+    if not (number and math.isfinite(float(value))):
         raise ValueError(f"{message}, got {value!r}")
     return float(value)
 

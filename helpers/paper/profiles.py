@@ -71,11 +71,6 @@ class VelocityProfile:
         """Displacement of each piece (mm): its velocity times its length."""
         return self.velocities * np.diff(self.breakpoints)
 
-    @property
-    def total_displacement(self) -> float:
-        """Net displacement (mm)."""
-        return float(np.sum(self.piece_displacements))
-
     def sample(self, t: np.ndarray | float) -> np.ndarray:
         """Velocity (mm/s) at times ``t`` (right-continuous: a piece includes its start, not its end)."""
         t = np.asarray(t, dtype=float)

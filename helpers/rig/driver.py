@@ -387,7 +387,7 @@ class Rig:
                 )
             self._note_start(scenario, start, noise_seed)
             cum = programme.positions(0, self.n)  # steps from where the run starts (the DAQ's ZERO)
-            end = programme.end_positions(start)
+            end = tuple(int(p) for p in programme.positions(start, self.n)[-1])  # every tendon's, after it
 
             def body(state: RunState) -> None:
                 scenario["rest"] = self.wait_for_rest(rate_hz)
