@@ -197,19 +197,14 @@ def _first(bad: np.ndarray) -> int | None:
 def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
     """Check the samples against the metadata and the rig; raise :class:`RecordingError` naming the problem.
 
-    Checks: the raw columns are present and integer; ``counts.samples`` rows; ``seq`` strictly increases and
-    its gaps add up to no more than the metadata's ``counts.dropped``; ``t_us`` strictly increases; and,
-    whatever the checksum, nothing the rig cannot produce: samples closer than the stated rate, an ADC reading
-    outside the ADC's range, a step count beyond its axis's travel (its release below position 0 and its
-    travel above it together: the most a count can change from the recording's start) or changing faster than
-    the rig's step-rate cap.
+    The frame is the reader's (:func:`helpers.recordings.load`): its columns are the header's, checked there
+    to be exactly the raw columns, and int64 (anything else is an unreadable CSV). Checks: ``counts.samples``
+    rows; ``seq`` strictly increases and its gaps add up to no more than the metadata's ``counts.dropped``;
+    ``t_us`` strictly increases; and, whatever the checksum, nothing the rig cannot produce: samples closer
+    than the stated rate, an ADC reading outside the ADC's range, a step count beyond its axis's travel (its
+    release below position 0 and its travel above it together: the most a count can change from the
+    recording's start) or changing faster than the rig's step-rate cap.
     """
-    columns = raw_columns(meta)
-    for col in columns:
-        if col not in frame.columns:
-            raise _fail(path, f"missing column {col!r}")
-        if len(frame) and not pd.api.types.is_integer_dtype(frame[col]):
-            raise _fail(path, f"column {col!r} is not integer")
     if meta["counts"]["samples"] != len(frame):
         raise _fail(path, f"counts.samples says {meta['counts']['samples']} rows, the CSV has {len(frame)}")
     seq, t_us = frame["seq"].to_numpy(np.int64), frame["t_us"].to_numpy(np.int64)
@@ -230,7 +225,7 @@ def validate(frame: pd.DataFrame, meta: dict[str, Any], path: Path) -> None:
         )
     rig = recording_rig(meta)
     d, max_rate = rigfile.derived(rig), float(rig.hardware.step_rate_cap_hz)
-    for col in columns:
+    for col in raw_columns(meta):
         values = frame[col].to_numpy(np.int64)
         if col.startswith("adc") and len(values) and (values.min() < 0 or values.max() > d.adc_max):
             raise _fail(path, f"{col} outside 0-{d.adc_max}")
