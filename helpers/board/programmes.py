@@ -28,11 +28,6 @@ from helpers.paper import numbers as paper
 from helpers.paper.profiles import VelocityProfile, pulse_time, single_pulse
 from helpers.paper.shapers import Shaper
 
-__all__ = [
-    "Segment", "Move", "Dwell", "Item", "Limits", "Programme", "QuantisationReport", "ShapesMoves",
-    "MIN_PIECE_S", "experiment_programme", "table_i_programmes", "programmes_table",
-]  # fmt: skip
-
 
 @runtime_checkable
 class ShapesMoves(Protocol):

@@ -17,8 +17,6 @@ from typing import Any
 
 from helpers.rigfile.errors import RigFileError
 
-__all__ = ["Derived", "derived", "check", "hold_tension_n", "loop_counts", "MIN_SPAN_COUNTS"]
-
 MIN_SPAN_COUNTS = 100
 """A load-cell chain must spread its range (zero to full load) over at least this many ADC counts."""
 

@@ -34,8 +34,6 @@ from helpers.rigfile.schema import (
     Key,
 )
 
-__all__ = ["RigFileError", "Hardware", "Arm", "Boards", "Tendon", "RigFile", "loads", "load", "rig_hash"]
-
 NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}\Z")
 
 _NOT_CODE = re.compile(r'"""(?:\\?[\s\S])*?"""' r"|'''[\s\S]*?'''" r'|"(?:\\.|[^"\\\n])*"' r"|'[^'\n]*'|#.*")

@@ -14,8 +14,6 @@ from typing import Any
 from helpers import rigfile
 from helpers.rigfile import RigFile, RigFileError
 
-__all__ = ["calibration_of", "rig_section", "recording_rig"]
-
 
 def rig_section(rig: RigFile) -> dict[str, Any]:
     """The ``rig`` object of a new recording's metadata."""
