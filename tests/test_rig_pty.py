@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 from rig_fakes import CALIBRATION, make_world
+from stream_run import PeriodCommands, simulate
 
 from helpers import recordings, rigfile
 from helpers.board import stream_reference as hs
@@ -82,8 +83,8 @@ def test_stream_over_pseudo_terminals_in_real_time(tmp_path):
     # then the run is `deviated`, never `complete`; what the board did is the reference's for its periods
     gaps = sum(b - a - 1 for a, b in zip(st["periods"], st["periods"][1:], strict=False))
     assert st["underruns"] == gaps and rec.status == ("complete" if gaps == 0 else "deviated")
-    commands = hs.PeriodCommands(dict(zip(st["periods"], st["setpoints"], strict=True)), st["end_period"])
-    ref = hs.simulate(shaper, commands)
+    commands = PeriodCommands(dict(zip(st["periods"], st["setpoints"], strict=True)), st["end_period"])
+    ref = simulate(shaper, commands)
     assert back.frame["steps"].max() == ref.directions.cumsum().max() > 0
     assert back.meta["done_position"] == ref.position == back.frame["steps"].iloc[-1] == 0
 

@@ -20,6 +20,7 @@ from rig_fakes import (
     make_rig,
     make_world,
 )
+from stream_run import PeriodCommands, simulate
 from tendon_fakes import talk
 
 from helpers import recordings, rigfile
@@ -89,7 +90,7 @@ def test_a_stream_records_what_the_reference_says_the_board_does(tmp_path, monke
     active = [depth for period, depth in fifo.before_tick if period <= n]
     assert len(active) == n and min(active) >= 1 and max(active) <= 4  # fed, never starved, never near 8
     # the recorded step count is the reference's steps at the board's STEP edges (16 us after each tick)
-    ref = hs.simulate(SHAPER, hs.PeriodCommands(dict(enumerate(units, start=1)), n + 1))
+    ref = simulate(SHAPER, PeriodCommands(dict(enumerate(units, start=1)), n + 1))
     edges = t_stream[0] + ref.ticks * 0.5e-6 + 16e-6
     t = (back.frame["t_us"].to_numpy() - world.t0_us) / 1e6
     expected = np.array([ref.directions[edges <= ti + 1e-9].sum() for ti in t])
@@ -230,7 +231,7 @@ def test_clamps_may_be_allowed_and_are_counted(tmp_path):
     assert st["clamps"] == {"speed": 0, "travel": 2}
     assert st["notices"] == ["N,LIMIT,TRAVEL,156", "N,LIMIT,TRAVEL,0"]
     sent = dict(zip(st["periods"], st["setpoints"], strict=True))
-    ref = hs.simulate(OVERSHOOT, hs.PeriodCommands(sent, st["end_period"]))
+    ref = simulate(OVERSHOOT, PeriodCommands(sent, st["end_period"]))
     assert rec.frame["steps"].max() == 156 and rec.meta["done_position"] == ref.position != 0
     assert recordings.load(rec.path).status == "deviated"
 

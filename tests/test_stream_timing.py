@@ -17,6 +17,7 @@ from rig_fakes import (
     MM_PER_STEP,  # the paper's cable per step, by hand
     make_rig,
 )
+from stream_run import PeriodCommands, simulate
 
 from helpers import recordings
 from helpers.board import stream_reference as hs
@@ -71,8 +72,8 @@ def test_a_late_host_never_moves_the_cable_further_than_commanded(tmp_path, late
         assert gaps > 0 and rec.status == "deviated" and "fell behind" in rec.meta["deviation"]
         assert rec.path.name.startswith("s_deviated_") and not (tmp_path / "s.csv").exists()
     # what the board did is the reference's for the periods it reported
-    commands = hs.PeriodCommands(dict(zip(st["periods"], st["setpoints"], strict=True)), st["end_period"])
-    ref = hs.simulate(rig_shaper(rec), commands, position=0)
+    commands = PeriodCommands(dict(zip(st["periods"], st["setpoints"], strict=True)), st["end_period"])
+    ref = simulate(rig_shaper(rec), commands, position=0)
     assert ref.position == rec.meta["done_position"] == steps[-1]
     assert recordings.load(rec.path).status == rec.status
 
@@ -90,7 +91,7 @@ def test_a_stall_that_would_make_the_shaped_motion_clamp_stops_the_stream_before
     zvd = hs.StreamShaper.quantise([0.25, 0.5, 0.25], [0.0, 0.125, 0.25])
     v = hs.V_MAX * UNIT_MM_S
     command = [v] * 15 + [-v] * 15 + [0.0] * 5
-    whole = hs.simulate(zvd, hs.PeriodCommands({k + 1: _units(x) for k, x in enumerate(command)}, 40))
+    whole = simulate(zvd, PeriodCommands({k + 1: _units(x) for k, x in enumerate(command)}, 40))
     assert not whole.notices and max(np.cumsum(whole.directions)) < hs.TRAVEL_MAX  # on time: no clamp
     late = {15: 0.09}
     with pytest.raises(StreamLimit, match="fell behind") as info:

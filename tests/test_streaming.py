@@ -10,13 +10,14 @@ import random
 import numpy as np
 import pytest
 from stream_exact import exact_position
+from stream_run import PeriodCommands, StreamResult, simulate, simulate_axes, velocity_units
 
 from helpers.board import stream_reference as hs
 
 pytestmark = pytest.mark.streaming
 
 
-def random_stream(r: random.Random) -> tuple[hs.StreamShaper, hs.PeriodCommands, int]:
+def random_stream(r: random.Random) -> tuple[hs.StreamShaper, PeriodCommands, int]:
     n = r.randint(1, 8)
     negative = r.random() < 0.3
     d_max = r.choice([0.0, 0.005, 0.05, 0.3, 1.0]) if n > 1 else 0.0
@@ -33,10 +34,10 @@ def random_stream(r: random.Random) -> tuple[hs.StreamShaper, hs.PeriodCommands,
         assigned[k] = v
         k += 1 if r.random() < 0.9 else r.randint(2, 14)  # gaps: underruns, now and then the watchdog
     end = None if r.random() < 0.2 else k + r.randint(0, 3)
-    return shaper, hs.PeriodCommands(assigned, end), r.randint(0, hs.TRAVEL_MAX)
+    return shaper, PeriodCommands(assigned, end), r.randint(0, hs.TRAVEL_MAX)
 
 
-def count_at(result: hs.StreamResult, start: int, t: np.ndarray) -> np.ndarray:
+def count_at(result: StreamResult, start: int, t: np.ndarray) -> np.ndarray:
     """The step count at times ``t`` (ticks): steps issued at or before ``t``."""
     csum = np.concatenate([[start], start + np.cumsum(result.directions)])
     return csum[np.searchsorted(result.ticks, t, side="right")]
@@ -46,7 +47,7 @@ def count_at(result: hs.StreamResult, start: int, t: np.ndarray) -> np.ndarray:
 def test_steps_follow_the_exact_shaped_trajectory_within_one_step(seed):
     r = random.Random(seed)
     shaper, commands, start = random_stream(r)
-    result = hs.simulate(shaper, commands, position=start)
+    result = simulate(shaper, commands, position=start)
     assert result.finish_tick is not None
     t_end = result.finish_tick * hs.PERIOD_TICKS
     # every instant: a dense grid, every breakpoint of the shaped velocity, and both sides of every step
@@ -83,7 +84,7 @@ def test_the_residual_is_exact():
     """Integer arithmetic loses nothing: after a stream with no clamp, c + r / 2^28 is the exact position."""
     shaper = hs.StreamShaper.quantise([0.3, 0.4, 0.3], [0.0, 0.013, 0.137])
     v = {k: (37 * k) % 201 - 100 for k in range(1, 200)}
-    result = hs.simulate(shaper, hs.PeriodCommands(v, 200), position=78)
+    result = simulate(shaper, PeriodCommands(v, 200), position=78)
     assert not result.notices
     total = sum(v.values()) * hs.PERIOD  # set-point units times DELTA: 2^-16 step each
     assert result.position * hs.ONE + result.residual == 78 * hs.ONE + total * (hs.ONE >> 16)
@@ -91,28 +92,28 @@ def test_the_residual_is_exact():
 
 def test_speed_and_travel_clamps():
     fast = hs.StreamShaper((6144, -2048), (0, 50_000), allow_negative=True)
-    result = hs.simulate(fast, hs.PeriodCommands({k: 1500 for k in range(1, 11)}, 11), position=0)
+    result = simulate(fast, PeriodCommands({k: 1500 for k in range(1, 11)}, 11), position=0)
     assert np.diff(result.ticks).min() >= 1278  # 639 us: the shaped 1.5 x 1500 is clamped to 1640
     assert [n.kind for n in result.notices] == ["LIMIT,SPEED"]
-    push = hs.simulate(
-        hs.UNIT_SHAPER, hs.PeriodCommands({k: hs.V_MAX for k in range(1, 40)}, 40), position=150
+    push = simulate(
+        hs.UNIT_SHAPER, PeriodCommands({k: hs.V_MAX for k in range(1, 40)}, 40), position=150
     )
     assert push.position == hs.TRAVEL_MAX and len(push.ticks) == 6
     assert [(n.kind, n.value) for n in push.notices] == [("LIMIT,TRAVEL", 156)]
 
 
 def test_setpoint_rules():
-    c = hs.PeriodCommands({1: 5, 2: 6, 5: 7}, end_period=9)
+    c = PeriodCommands({1: 5, 2: 6, 5: 7}, end_period=9)
     got = [(k, v, s) for k, v, s in _take(c, 11)]
     assert [v for _, v, _ in got] == [5, 6, 0, 0, 7, 0, 0, 0, 0, 0, 0]  # underruns and END: zero
     assert [s for _, _, s in got][-3:] == ["end"] * 3
-    w = hs.PeriodCommands({1: 9})
+    w = PeriodCommands({1: 9})
     got = list(_take(w, 14))
     assert [v for _, v, _ in got[:11]] == [9] + [0] * 10  # 10 underruns move nothing ...
     assert got[11] == (12, 0, "watchdog")  # ... the 11th fires the watchdog
 
 
-def _take(commands: hs.PeriodCommands, n: int):
+def _take(commands: PeriodCommands, n: int):
     for item, _ in zip(commands, range(n), strict=False):
         yield item
 
@@ -123,7 +124,7 @@ def test_quantised_shaper():
     s = hs.StreamShaper.quantise([1 / 3, 1 / 3, 1 / 3], [0.0, 0.123456, 0.123460])  # the last two merge
     assert sum(s.amplitudes) == hs.AMP_ONE and len(s.amplitudes) == 2 and s.delays_us == (0, 123456)
     assert s.commands() == ["SHAPER 2 0", f"IMP 0 {s.amplitudes[0]} 0", f"IMP 1 {s.amplitudes[1]} 123456"]
-    assert hs.velocity_units(400.0, 0.25525) == 1643  # 400 mm/s needs more than the board's 1640
+    assert velocity_units(400.0, 0.25525) == 1643  # 400 mm/s needs more than the board's 1640
     assert hs.STEPS_PER_S_PER_UNIT == 0.95367431640625
 
 
@@ -158,8 +159,8 @@ def test_axes_with_v_setpoints_move_axis_zero_as_one_axis_does() -> None:
         shaper, commands, start = random_stream(random.Random(seed))
         if max(shaper.delays_us) > hs.MAX_DELAY_US_AXES:
             continue
-        one = hs.simulate(shaper, commands, position=start)
-        axes = hs.simulate_axes(shaper, commands, [start, 5, 0, 156])
+        one = simulate(shaper, commands, position=start)
+        axes = simulate_axes(shaper, commands, [start, 5, 0, 156])
         assert np.array_equal(axes[0].ticks, one.ticks) and np.array_equal(axes[0].directions, one.directions)
         assert axes[0].finish_tick == one.finish_tick and axes[0].notices == one.notices
         assert [len(r.ticks) for r in axes[1:]] == [0, 0, 0] and [r.position for r in axes[1:]] == [5, 0, 156]
@@ -169,8 +170,8 @@ def test_each_axis_is_clamped_at_its_own_travel() -> None:
     """Top speed for 30 periods (1640 * 625 * 30 / 2^16 = 469.2 steps): up on axes 0 and 2 (travels 100
     and 40), down on axis 3 (from 40 to 0); axis 1 holds."""
     unit = hs.StreamShaper((4096,), (0,))
-    commands = hs.PeriodCommands({k: (hs.V_MAX, 0, hs.V_MAX, -hs.V_MAX) for k in range(1, 31)}, 31)
-    res = hs.simulate_axes(unit, commands, [0, 7, 0, 40], [100, 156, 40, 156])
+    commands = PeriodCommands({k: (hs.V_MAX, 0, hs.V_MAX, -hs.V_MAX) for k in range(1, 31)}, 31)
+    res = simulate_axes(unit, commands, [0, 7, 0, 40], [100, 156, 40, 156])
     assert [r.position for r in res] == [100, 7, 40, 0]
     assert [n.line for r in res for n in r.notices] == [
         "N,LIMIT,TRAVEL,100",
@@ -185,8 +186,8 @@ def test_an_axis_with_a_release_pays_out_down_to_it() -> None:
     (``RIG_AXIS_RELEASE_STEPS``): axis 0 (release 78) from 0 to -78, axis 1 (none) held at 0, axis 2 (release
     78) from 100 to -78; the exact trajectory with the same limits ends there too."""
     unit = hs.StreamShaper((4096,), (0,))
-    commands = hs.PeriodCommands({k: (-hs.V_MAX, -hs.V_MAX, -hs.V_MAX) for k in range(1, 31)}, 31)
-    res = hs.simulate_axes(unit, commands, [0, 0, 100], [156, 156, 156], releases=[78, 0, 78])
+    commands = PeriodCommands({k: (-hs.V_MAX, -hs.V_MAX, -hs.V_MAX) for k in range(1, 31)}, 31)
+    res = simulate_axes(unit, commands, [0, 0, 100], [156, 156, 156], releases=[78, 0, 78])
     assert [r.position for r in res] == [-78, 0, -78]
     assert [n.line for r in res for n in r.notices] == [
         "N,LIMIT,TRAVEL,-78",

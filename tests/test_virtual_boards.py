@@ -14,6 +14,7 @@ from rig_fakes import (
     PRETENSION_N,
     make_world,
 )
+from stream_run import PeriodCommands, simulate
 
 from helpers import rigfile
 from helpers.board import stream_reference as hs
@@ -247,7 +248,7 @@ def test_a_stream_steps_where_the_reference_says():
     assert periods == [1, 2, 3, 4, 5, 6]
     assert talk(w.stepper, "END") == ["OK END 7"]
     w.advance_to(t0 + 0.3)
-    ref = hs.simulate(shaper, hs.PeriodCommands(dict(zip(periods, setpoints, strict=True)), 7))
+    ref = simulate(shaper, PeriodCommands(dict(zip(periods, setpoints, strict=True)), 7))
     assert talk(w.stepper) == [f"DONE {ref.position}"] and w.stepper.enabled  # END keeps the driver on
     rows, _ = StreamParser().feed(w.daq.take_output())
     t = np.array([r[1] for r in rows]) / 1e6
@@ -277,7 +278,7 @@ def test_the_stream_watchdog_and_clamps_as_notices():
         heard += [m for m in talk(w.stepper, f"V {hs.V_MAX}") if not m.startswith("OK V")]
     w.advance_to(t0 + 0.5)
     heard += talk(w.stepper)
-    ref = hs.simulate(hs.UNIT_SHAPER, hs.PeriodCommands(dict.fromkeys(range(1, 12), hs.V_MAX)), position=78)
+    ref = simulate(hs.UNIT_SHAPER, PeriodCommands(dict.fromkeys(range(1, 12), hs.V_MAX)), position=78)
     expected = [f"N,{n.kind},{n.value}" for n in ref.notices] + [f"DONE {ref.position}"]
     assert heard == expected == ["N,LIMIT,TRAVEL,156", "N,WATCHDOG,22", "DONE 156"]
 

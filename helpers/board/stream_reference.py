@@ -30,15 +30,15 @@ tick k (``k * 10 ms`` after ``STREAM``) and drives the velocity over ``[(k + 1) 
 
 Several axes (a build with ``RIG_AXES`` > 1, ``MV``): every axis is this planner with its own set-points and
 travel, shaped by the one shaper (:class:`AxesRun` tick by tick, :class:`StreamSession` with ``MV``'s FIFO,
-:func:`simulate_axes` from the periods the board named); the longest delay there is ``MAX_DELAY_US_AXES``. One
-axis is the case A = 1 of the same classes.
+:func:`drive_axes` through a whole stream); the longest delay there is ``MAX_DELAY_US_AXES``. One axis is the
+case A = 1 of the same classes. (The tests run it through the streams a board took, ``tests/stream_run.py``.)
 """
 
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -252,11 +252,6 @@ def board_shaper(shaper: object | None) -> StreamShaper:
         raise ValueError(f"shaper {name!r} cannot be loaded on the board: {exc}") from None
 
 
-def velocity_units(mm_per_s: float, mm_per_step: float) -> int:
-    """The set-point (units of 2^-16 step per 16 us) nearest to a cable speed."""
-    return int(round(mm_per_s / mm_per_step / STEPS_PER_S_PER_UNIT))
-
-
 # --- the set-point of every period ------------------------------------------------------------------------
 class SetpointRules:
     """The board's rule for the set-point of each control period (the first half of its control tick).
@@ -287,34 +282,6 @@ class SetpointRules:
         return 0
 
 
-@dataclass
-class PeriodCommands:
-    """The set-points the board uses, from what it told the host.
-
-    Parameters
-    ----------
-    assigned : dict
-        ``{period: v}`` from the ``OK V <period>`` replies to ``V <v>`` (several axes:
-        ``{period: (v_0, ...)}`` from ``OK MV <period>``, see :func:`simulate_axes`).
-    end_period : int or None
-        From ``OK END <period>``: the first period fed with zero.
-
-    The board's rules are :class:`SetpointRules`'.
-    """
-
-    assigned: dict[int, int] | dict[int, tuple[int, ...]]
-    end_period: int | None = None
-
-    def __iter__(self) -> Iterator[tuple[int, int, str]]:
-        """Yield ``(period, v, state)`` for periods 1, 2, ...; ``state``: active, end or watchdog."""
-        rules = SetpointRules(self.end_period)
-        k = 0
-        while True:
-            k += 1
-            v = rules.take(k, self.assigned.get(k))
-            yield k, v, rules.state
-
-
 # --- the planner -----------------------------------------------------------------------------------------
 @dataclass
 class Notice:
@@ -332,21 +299,6 @@ class Notice:
     def line(self) -> str:
         """The notice as the board sends it."""
         return f"N,{self.kind},{self.value}" + (f",{self.axis}" if self.axis else "")
-
-
-@dataclass
-class StreamResult:
-    """What the board does for a stream: step ticks (from ``STREAM``), directions, notices, the end."""
-
-    ticks: np.ndarray
-    directions: np.ndarray
-    notices: list[Notice] = field(default_factory=list)
-    finish_tick: int | None = None
-    """Control tick at which the board stops (``DONE``)."""
-    position: int = 0
-    residual: int = 0
-    v_by_period: list[int] = field(default_factory=list)
-    """The set-point of periods 0, 1, 2, ... as planned (period 0 is always 0)."""
 
 
 def _ceil_ticks(rem: int, s: int) -> int:
@@ -380,7 +332,7 @@ class Planner:
 
     On a build with several axes each axis is planned by its own planner from the one shaper, with its own
     set-points and travel: the firmware's per-axis state is exactly this class's, so one planner per axis is
-    the board (:func:`simulate_axes`). Only the history differs (64 set-points per axis there, 128 here),
+    the board (:class:`AxesRun`). Only the history differs (64 set-points per axis there, 128 here),
     which no shaper the board accepts reads beyond (its delays are under 63 periods there).
     """
 
@@ -543,7 +495,6 @@ class AxesRun:
         self.finish_tick: int | None = None
         self.last_nonzero = 0
         self.watchdog_seen = False
-        self.v_by_axis: list[list[int]] = [[0] for _ in range(n)]
         self.notices: list[Notice] = []
         """Every notice so far, in the board's order."""
 
@@ -561,11 +512,10 @@ class AxesRun:
             self.notices.append(notice)
         if self.finish_tick is not None and k >= self.finish_tick:
             return False
-        for planner, va, vlist in zip(self.planners, vs, self.v_by_axis, strict=True):
+        for planner, va in zip(self.planners, vs, strict=True):
             before = len(planner.notices)
             planner.plan_period(k, va)
             self.notices.extend(planner.notices[before:])
-            vlist.append(va)
         if any(vs):
             self.last_nonzero = k
         if self.finish_tick is None and state != "active" and k - self.last_nonzero >= self.q_max + 2:
@@ -575,31 +525,14 @@ class AxesRun:
     def checkpoint(self) -> tuple:
         """The run's state now, for :meth:`rollback` (a host planning ahead of the board)."""
         planners = [p.checkpoint() for p in self.planners]
-        return planners, [len(v) for v in self.v_by_axis], len(self.notices), self.finish_tick, \
-            self.last_nonzero, self.watchdog_seen
+        return planners, len(self.notices), self.finish_tick, self.last_nonzero, self.watchdog_seen
 
     def rollback(self, state: tuple) -> None:
         """Return to a :meth:`checkpoint` (the periods planned since are forgotten)."""
-        planners, lengths, n_notices, self.finish_tick, self.last_nonzero, self.watchdog_seen = state
-        for p, st, v, n in zip(self.planners, planners, self.v_by_axis, lengths, strict=True):
+        planners, n_notices, self.finish_tick, self.last_nonzero, self.watchdog_seen = state
+        for p, st in zip(self.planners, planners, strict=True):
             p.rollback(st)
-            del v[n:]
         del self.notices[n_notices:]
-
-    def results(self) -> list[StreamResult]:
-        """What the board has done so far, one result per axis (the ``WATCHDOG`` notice in axis 0's)."""
-        return [
-            StreamResult(
-                np.array(p.ticks, dtype=np.int64),
-                np.array(p.dirs, dtype=np.int64),
-                p.notices,
-                self.finish_tick,
-                p.c,
-                p.r,
-                vlist,
-            )
-            for p, vlist in zip(self.planners, self.v_by_axis, strict=True)
-        ]
 
 
 class StreamRefused(Exception):
@@ -612,8 +545,8 @@ class StreamSession:
     The firmware's ``V``, ``MV`` and ``END`` handlers and its control tick, composed of :class:`SetpointRules`
     (which set-point each period takes) and :class:`AxesRun` (planning every axis, stopping). ``MV`` queues
     every axis's set-point for a period, ``V`` axis 0's (the others zero). The emulated stepper board
-    (``helpers.virtual.emulator``) runs a stream with it; :func:`simulate_axes` runs the same rules and
-    planner from the periods the board reported.
+    (``helpers.virtual.emulator``) runs a stream with it; the tests run the same rules and planner from the
+    periods the board reported (``tests/stream_run.py``).
 
     Parameters
     ----------
@@ -695,50 +628,6 @@ class StreamSession:
         return not self.stopped
 
 
-def simulate(
-    shaper: StreamShaper, commands: PeriodCommands, position: int = 0, v_max: int = V_MAX
-) -> StreamResult:
-    """Run the board's streaming mode on a one-axis stream until it stops (``END`` or the watchdog).
-
-    :func:`simulate_axes` of one axis of travel ``TRAVEL_MAX``.
-
-    Returns
-    -------
-    StreamResult
-        Step ticks counted from ``STREAM`` (the instant Timer1 restarts), directions, notices, the
-        set-point of every period planned, and the control tick at which the board stops (see
-        :class:`AxesRun`).
-    """
-    return simulate_axes(shaper, commands, [position], v_max=v_max)[0]
-
-
-def simulate_axes(
-    shaper: StreamShaper,
-    commands: PeriodCommands,
-    positions: Sequence[int],
-    travels: Sequence[int] | None = None,
-    releases: Sequence[int] | None = None,
-    v_max: int = V_MAX,
-) -> list[StreamResult]:
-    """Run a stream of a board of one or several axes (``V``, ``MV``) until it stops: one result per axis.
-
-    Parameters
-    ----------
-    shaper, positions, travels, releases, v_max
-        The loaded shaper (every axis's) and the axes, as :class:`AxesRun` takes them.
-    commands : PeriodCommands
-        ``assigned`` maps each period to its set-points, a tuple with one per axis (``OK MV <period>``), or
-        to an int (``OK V <period>``: axis 0's, the others zero).
-
-    Every axis is planned by its own :class:`Planner` from the one shaper; the stream stops (``finish_tick``,
-    the same for every axis) as :class:`AxesRun` says, with a period counting as non-zero when any axis's
-    set-point is. The ``WATCHDOG`` notice is in axis 0's result.
-    """
-    run = AxesRun(shaper, positions, travels, releases, v_max)
-    _drive(run, commands)
-    return run.results()
-
-
 def drive_axes(run: AxesRun, rows: Sequence[Sequence[int]]) -> int:
     """Feed a whole stream's set-points to ``run``, then zeros until the board would stop; the last period.
 
@@ -746,17 +635,8 @@ def drive_axes(run: AxesRun, rows: Sequence[Sequence[int]]) -> int:
     through :class:`SetpointRules` (what the board accepts and when it ends) and the planner takes the rules'
     state, not the set-point alone.
     """
-    return _drive(run, PeriodCommands(dict(enumerate(map(tuple, rows), start=1)), len(rows) + 1))
-
-
-def _drive(run: AxesRun, commands: PeriodCommands) -> int:
-    """Tick ``run`` through ``commands`` until the board stops; the last period ticked.
-
-    It stops: after ``END`` or, the set-points being finite, after the watchdog, once the shaper is through.
-    """
-    k = 0
-    for k, v, state in commands:
-        run.tick(k, v, state)
-        if run.finish_tick is not None:  # (the periods left before the finish are zero)
-            break
+    rules, k = SetpointRules(len(rows) + 1), 0
+    while run.finish_tick is None:  # the board stops: after END, once the shaper is through
+        k += 1
+        run.tick(k, rules.take(k, tuple(rows[k - 1]) if k <= len(rows) else None), rules.state)
     return k

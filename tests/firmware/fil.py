@@ -46,6 +46,8 @@ import pandas as pd
 if str(fwsim.REPO) not in sys.path:  # run as a script from anywhere: this repository's helpers
     sys.path.insert(0, str(fwsim.REPO))
 
+from stream_run import velocity_units
+
 from helpers.board import stream_reference as hs  # noqa: E402
 from helpers.board.programmes import Programme, experiment_programme  # noqa: E402
 from helpers.paper import metrics  # noqa: E402
@@ -440,7 +442,7 @@ def stream_case(v_mm_s: float = 200.0, move_periods: int = 10, hold_s: float = 4
     mm_s = [0.0] * 10 + [v_mm_s] * move_periods + [0.0] * hold + [-v_mm_s] * move_periods + [0.0] * 10
     shaper = hs.board_shaper(zv)
     kwargs = {"setpoints": mm_s, "shaper": zv, "lead_in_s": 1.0, "tail_s": 4.0}
-    return shaper, [hs.velocity_units(v, MM_PER_STEP) for v in mm_s], kwargs
+    return shaper, [velocity_units(v, MM_PER_STEP) for v in mm_s], kwargs
 
 
 def run_case(which: str, tmp: Path, pace: float = 1.0) -> dict[str, Any]:

@@ -4,9 +4,9 @@
 A session is a list of :class:`StreamSpec` run back to back in one harness run: each loads its shaper, sends
 ``STREAM``, its set-points at the given times, and ``END`` (or nothing, so that the watchdog ends it). The
 replies tell which period each set-point drives (``OK V <period>``, ``OK END <period>``); from them
-:func:`helpers.board.stream_reference.simulate` gives the steps the board must make, to be set beside the
-STEP/DIR edges
-logged from the pins.
+the reference run through them (``tests/stream_run.py``'s :func:`simulate`, the board's
+:class:`helpers.board.stream_reference.AxesRun`) gives the steps the board must make, to be set beside the
+STEP/DIR edges logged from the pins.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import fwsim
 import numpy as np
+from stream_run import PeriodCommands, StreamResult, simulate
 
 from helpers.board import stream_reference as hs
 
@@ -93,8 +94,8 @@ class StreamOutcome:
     done: list[fwsim.Line]
     step_cycles: np.ndarray
     step_dirs: np.ndarray
-    reference: hs.StreamResult
-    commands: hs.PeriodCommands
+    reference: StreamResult
+    commands: PeriodCommands
     start_position: int
     tick_rises: np.ndarray  # control-tick test point (B0) rising edges
     dir_setup: np.ndarray  # cycles from the last DIR change to each STEP rising edge
@@ -126,8 +127,8 @@ def run(specs: list[StreamSpec], timeout: float = 900.0) -> tuple[fwsim.SimRun, 
                 assigned[int(m[1])] = int(body.split()[1])
             elif body == "END" and (m := re.fullmatch(r"OK END (\d+)", reply)):
                 end_period = int(m[1])
-        commands = hs.PeriodCommands(assigned, end_period)
-        reference = hs.simulate(entry["spec"].shaper, commands, position=position)
+        commands = PeriodCommands(assigned, end_period)
+        reference = simulate(entry["spec"].shaper, commands, position=position)
         stream_lo = entry["t_stream"] * F
         in_window = (rises >= stream_lo) & (rises < hi)
         cycles = rises[in_window]

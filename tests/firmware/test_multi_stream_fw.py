@@ -1,7 +1,8 @@
 """Streams of several axes: the stepper firmware built for the four-tendon rig config in simavr, fed ``MV``
 set-points (different per axis, one axis driven into its travel clamp), every axis's STEP edges against
-``helpers.board.stream_reference.simulate_axes`` step for step (within one timer tick); the multi-axis
-streaming replies and refusals (``MV``, the shorter longest delay, the programme table the stream takes).
+the reference (``helpers.board.stream_reference.AxesRun`` through ``tests/stream_run.py``'s
+``simulate_axes``) step for step (within one timer tick); the multi-axis streaming replies and refusals
+(``MV``, the shorter longest delay, the programme table the stream takes).
 Every stream is also sent to the emulated four-tendon stepper (``helpers.virtual.emulator.boards``):
 the same lines in the same order, and every emulated step on the tick of the firmware's STEP edge.
 """
@@ -16,6 +17,7 @@ import fwsim
 import numpy as np
 import pytest
 import streamsim
+from stream_run import PeriodCommands, StreamResult, simulate_axes
 
 from helpers.board import stream_reference as hs
 
@@ -74,7 +76,7 @@ def stream_commands(
 
 def run_stream(
     build: Path, shaper: hs.StreamShaper, sps: list[tuple[int, ...]]
-) -> tuple[list[hs.StreamResult], list[np.ndarray], int, float, tuple[int, int]]:
+) -> tuple[list[StreamResult], list[np.ndarray], int, float, tuple[int, int]]:
     """Stream ``sps`` (one set-point per axis and period, from position 0) into the four-tendon build.
 
     Returns the reference (from the periods the board named), every axis's edge-minus-tick residuals (CPU
@@ -103,8 +105,8 @@ def run_stream(
         assigned[int(m[1])] = v
     assert sorted(assigned) == list(range(1, n + 1))  # no underrun: one set-point per period 1..n
     assert replies[n + 1] == f"OK END {n + 1}"
-    ref = hs.simulate_axes(
-        shaper, hs.PeriodCommands(assigned, n + 1), [0] * 4, [TRAVEL] * 4, releases=[RELEASE] * 4
+    ref = simulate_axes(
+        shaper, PeriodCommands(assigned, n + 1), [0] * 4, [TRAVEL] * 4, releases=[RELEASE] * 4
     )
     assert after[-1] == "DONE " + " ".join(str(r.position) for r in ref)
     assert sorted(b for b in after if b.startswith("N,")) == sorted(n.line for r in ref for n in r.notices)
