@@ -18,7 +18,7 @@ from helpers.paper.profiles import VelocityProfile
 from helpers.research import families
 from rigs import SHIPPED
 
-ZV, ZVD = shapers.paper_tdfs()
+ZV, ZVD = shapers.design_tdfs()
 OMEGA_N = modes.omega_n_from_damped(paper.OMEGA_D, paper.ZETA)
 SYSTEMS = {"unshaped": None, "zv": ZV, "zvd": ZVD}
 

@@ -116,7 +116,7 @@ def test_figure_writers_produce_identical_bytes_twice(tmp_path, monkeypatch):
     from helpers import recordings
     from helpers.base.paths import DATA_DIR
     from helpers.paper.identify import identify_recording
-    from helpers.paper.shapers import paper_tdfs
+    from helpers.paper.shapers import design_tdfs
     from helpers.plotting import identification
     from helpers.plotting import shapers as shaper_plots
 
@@ -129,7 +129,7 @@ def test_figure_writers_produce_identical_bytes_twice(tmp_path, monkeypatch):
         monkeypatch.setattr(helpers.base.paths, "FIGURES_DIR", folder)
         identification.fig5_force_response(rec.frame["t_s"], rec.frame["adc"], (9.0, 10.0), save=True)
         identification.fig6_logdec_fft(result, rec.frame["t_s"], rec.frame["adc"], save=True)
-        zv, zvd = paper_tdfs()
+        zv, zvd = design_tdfs()
         shaper_plots.sensitivity_curves([zv, zvd], 25.1, 0.044)
         plt.close("all")
         out[run] = {p.name: p.read_bytes() for p in sorted(folder.iterdir())}

@@ -27,7 +27,7 @@ def test_nonrobust_tdf_matches_paper_closed_form():
     zeta, omega_d = 0.044, 25.085
     x = zeta * math.pi / math.sqrt(1 - zeta**2)
     a0 = math.exp(x) / (1 + math.exp(x))
-    nonrobust, _ = shapers.paper_tdfs(omega_d, zeta)
+    nonrobust, _ = shapers.design_tdfs(omega_d, zeta)
     assert nonrobust.amplitudes[0] == pytest.approx(a0, abs=1e-12)
     assert nonrobust.amplitudes[1] == pytest.approx(1 - a0, abs=1e-12)
     assert nonrobust.times[1] == pytest.approx(math.pi / omega_d, abs=1e-12)
@@ -37,8 +37,8 @@ def test_nonrobust_tdf_matches_paper_closed_form():
     assert f"{nonrobust.times[1]:.5f}" == "0.12524"
 
 
-def test_paper_tdfs_defaults_are_the_papers_values():
-    nonrobust, robust = shapers.paper_tdfs()
+def test_design_tdfs_defaults_are_the_papers_values():
+    nonrobust, robust = shapers.design_tdfs()
     a0, a1 = nonrobust.amplitudes
     assert (round(a0, 4), round(a1, 4)) == (paper.ZV_A0, paper.ZV_A1)
     assert round(nonrobust.times[1], 5) == paper.ZV_T
@@ -47,7 +47,7 @@ def test_paper_tdfs_defaults_are_the_papers_values():
 
 
 def test_robust_tdf_is_the_square_of_the_nonrobust():
-    nonrobust, robust = shapers.paper_tdfs()
+    nonrobust, robust = shapers.design_tdfs()
     squared = nonrobust * nonrobust
     assert len(squared) == 3  # the two impulses at T merged
     assert squared.allclose(robust)

@@ -23,7 +23,7 @@ import pytest
 from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
 from helpers.paper.metrics import recording_metrics
-from helpers.paper.shapers import paper_tdfs
+from helpers.paper.shapers import design_tdfs
 from helpers.virtual import RigParameters, simulate
 from helpers.virtual.spatial import _kernel as kern
 from helpers.virtual.spatial.direction_map import bend_equilibrium
@@ -78,7 +78,7 @@ def test_kernel_right_hand_side_equals_the_dense_lagrangian(rig, slack):
 
 @pytest.fixture(scope="module")
 def table_ii_pairs():
-    zv, zvd = paper_tdfs()
+    zv, zvd = design_tdfs()
     shapers = {"unshaped": None, "zv": zv, "zvd": zvd}
     plant = SpatialPlant(paper_rig())
     out = []

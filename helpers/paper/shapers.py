@@ -362,15 +362,18 @@ def zvd(omega_n: float, zeta: float) -> Shaper:
 
 
 # -- the paper's filters ------------------------------------------------------------------------------------
-def design_tdfs(omega_d: float, zeta: float) -> tuple[Shaper, Shaper]:
-    """The paper's two TDFs from an identified mode ``(omega_d, zeta)``.
+def design_tdfs(omega_d: float = paper.OMEGA_D, zeta: float = paper.ZETA) -> tuple[Shaper, Shaper]:
+    """The paper's two TDFs from an identified mode ``(omega_d, zeta)`` (default: the paper's).
+
+    With the paper's identified mode (omega_d = 25.085 rad/s, zeta = 0.044): A0 = 0.5345, A1 = 0.4655,
+    T = 0.12524 s; robust 0.2857, 0.4976, 0.2167 at 0, T, 2T.
 
     Parameters
     ----------
     omega_d : float
-        **Damped** natural frequency (rad/s), as identified from a free decay.
+        **Damped** natural frequency (rad/s), as identified from a free decay (default the paper's 25.085).
     zeta : float
-        Damping ratio.
+        Damping ratio (default the paper's 0.044).
 
     Returns
     -------
@@ -380,24 +383,3 @@ def design_tdfs(omega_d: float, zeta: float) -> tuple[Shaper, Shaper]:
     """
     omega_n = omega_n_from_damped(omega_d, zeta)
     return replace(zv(omega_n, zeta), name="zv"), replace(zvd(omega_n, zeta), name="zvd")
-
-
-def paper_tdfs(omega_d: float = paper.OMEGA_D, zeta: float = paper.ZETA) -> tuple[Shaper, Shaper]:
-    """The paper's non-robust TDF (ZV) and robust TDF (ZVD = ZV squared), from its identified mode.
-
-    With the defaults (omega_d = 25.085 rad/s, zeta = 0.044): A0 = 0.5345, A1 = 0.4655, T = 0.12524 s;
-    robust 0.2857, 0.4976, 0.2167 at 0, T, 2T.
-
-    Parameters
-    ----------
-    omega_d : float
-        Damped natural frequency in rad/s (default the paper's 25.085).
-    zeta : float
-        Damping ratio (default the paper's 0.044).
-
-    Returns
-    -------
-    (Shaper, Shaper)
-        ``(zv, zvd)``.
-    """
-    return design_tdfs(omega_d, zeta)

@@ -13,7 +13,7 @@ import numpy as np
 from helpers.paper import model
 from helpers.paper import numbers as paper
 from helpers.paper.profiles import pulse_profile
-from helpers.paper.shapers import paper_tdfs
+from helpers.paper.shapers import design_tdfs
 from helpers.plotting import SYSTEM_COLOURS, finish, save
 
 FIG12_NAME = "fig12_model_shaping.png"
@@ -125,7 +125,7 @@ def shaping_response(
 
     The pulse is :func:`helpers.paper.profiles.pulse_profile` (up at 1 s, down at 8 s); the shaped commands
     are
-    the pulse convolved with the impulses of :func:`helpers.paper.shapers.paper_tdfs` (designed from the
+    the pulse convolved with the impulses of :func:`helpers.paper.shapers.design_tdfs` (designed from the
     paper's
     identified zeta = 0.044, omega_d = 25.085 rad/s), via ``Shaper.apply``.
 
@@ -154,7 +154,7 @@ def shaping_response(
         )
     t = np.arange(round(t_end * rate_hz) + 1) / rate_hz
     pulse = pulse_profile(v_in_mm_s, x_f_mm).sample(t)
-    zv, zvd = paper_tdfs()
+    zv, zvd = design_tdfs()
     commands = {"unshaped": pulse, "zv": zv.apply(t, pulse), "zvd": zvd.apply(t, pulse)}
     tension = {name: model.linear_response(params, t, v * 1e-3)[0] for name, v in commands.items()}
     return ShapingResponse(

@@ -28,7 +28,7 @@ from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
 from helpers.paper.identify import identify
 from helpers.paper.metrics import recording_metrics
-from helpers.paper.shapers import paper_tdfs
+from helpers.paper.shapers import design_tdfs
 from helpers.virtual import _kernel as kern
 from helpers.virtual.parameters import RigParameters
 from helpers.virtual.plant import ArmPlant
@@ -263,7 +263,7 @@ def segment_costs(
 
 def _table_ii(params: RigParameters) -> tuple[pd.DataFrame, tuple[float, float], float]:
     """The twelve Table I scenarios' rows (noise-free output), the identification, the CPU seconds taken."""
-    zv, zvd = paper_tdfs()
+    zv, zvd = design_tdfs()
     shapers = {"unshaped": None, "zv": zv, "zvd": zvd}
     rows, cpu, plant = [], 0.0, ArmPlant(params)
     for v, x in paper.TABLE_I_CONDITIONS:

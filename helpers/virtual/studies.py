@@ -38,7 +38,7 @@ from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
 from helpers.paper.identify import identify
 from helpers.paper.metrics import recording_metrics
-from helpers.paper.shapers import paper_tdfs
+from helpers.paper.shapers import design_tdfs
 from helpers.virtual import (
     ArmPlant,
     RigParameters,
@@ -146,7 +146,7 @@ def damping_layouts(params: RigParameters | None = None) -> pd.DataFrame:
         not used to choose).
     """
     params = RigParameters() if params is None else params
-    zv, _ = paper_tdfs()
+    zv, _ = design_tdfs()
     prog_zv, _ = experiment_programme(200.0, 20.0, shaper=zv)
     cases = [(layout, layout, description, params) for layout, description in LAYOUTS.items()]
     cases += [
@@ -381,7 +381,7 @@ def actuator_sensitivity(
     """
     params = RigParameters() if params is None else params
     variants = SENSITIVITY_VARIANTS if variants is None else variants
-    zv, zvd = paper_tdfs()
+    zv, zvd = design_tdfs()
     shapers = {"unshaped": None, "zv": zv, "zvd": zvd}
     tooth = 4 * round((math.pi / 2 / params.rotor_teeth) / params.step_angle)  # microsteps per tooth
     rows = []

@@ -40,7 +40,7 @@ from helpers.board.programmes import experiment_programme
 from helpers.paper import numbers as paper
 from helpers.paper.identify import IdentificationResult, identify
 from helpers.paper.metrics import MOTIONS, recording_metrics
-from helpers.paper.shapers import paper_tdfs
+from helpers.paper.shapers import design_tdfs
 from helpers.virtual import ArcChain, ArmPlant, RigParameters, SimResult, linearise, simulate
 from helpers.virtual.statics import model_arrays, stable_max_step
 
@@ -99,7 +99,7 @@ def pulse_runs(
     dict
         ``(v_in, x_f, system) -> SimResult``.
     """
-    zv, zvd = paper_tdfs()
+    zv, zvd = design_tdfs()
     shapers: dict[str, Any] = {"unshaped": None, "zv": zv, "zvd": zvd}
     plant = ArmPlant(params)
     out = {}

@@ -53,7 +53,7 @@ from helpers.board.programmes import Programme, experiment_programme  # noqa: E4
 from helpers.paper import metrics  # noqa: E402
 
 MM_PER_STEP = __import__("math").pi * 65.0 / 800  # the paper's cable per step, by hand
-from helpers.paper.shapers import paper_tdfs  # noqa: E402
+from helpers.paper.shapers import design_tdfs  # noqa: E402
 from helpers.rig import Rig  # noqa: E402
 from helpers.rig.stream import PERIOD_US, stream  # noqa: E402
 from helpers.rigfile import default_rig  # noqa: E402
@@ -428,7 +428,7 @@ def _act(rig: Rig, action: str, kwargs: dict[str, Any], path: Path) -> Any:
 # --- the two scenarios ------------------------------------------------------------------------------------
 def table_i_case(v_mm_s: float = 200.0, x_mm: float = 20.0, t_end_s: float = 10.0):
     """The robust-TDF (ZVD) pulse of Table I: its programme and ``Rig.run_pulse``'s arguments."""
-    _, robust = paper_tdfs()
+    _, robust = design_tdfs()
     programme, _ = experiment_programme(v_mm_s, x_mm, robust, t_end=t_end_s)
     kwargs = {"v_in_mm_s": v_mm_s, "x_f_mm": x_mm, "shaper": robust, "system": "zvd", "t_end_s": t_end_s}
     return programme, kwargs
@@ -437,7 +437,7 @@ def table_i_case(v_mm_s: float = 200.0, x_mm: float = 20.0, t_end_s: float = 10.
 def stream_case(v_mm_s: float = 200.0, move_periods: int = 10, hold_s: float = 4.0):
     """A streamed up-hold-down move through the board-loaded ZV shaper: set-points and ``stream``'s
     arguments."""
-    zv, _ = paper_tdfs()
+    zv, _ = design_tdfs()
     hold = round(hold_s * 100)
     mm_s = [0.0] * 10 + [v_mm_s] * move_periods + [0.0] * hold + [-v_mm_s] * move_periods + [0.0] * 10
     shaper = hs.board_shaper(zv)

@@ -33,7 +33,7 @@ def zvd_programme(v_mm_s: float, x_mm: float) -> list[tuple]:
     """The robust-TDF version of the same move, as the project's helpers.board.programmes builds it."""
     programmes = pytest.importorskip("helpers.board.programmes")
     shapers = pytest.importorskip("helpers.paper.shapers")
-    _, robust = shapers.paper_tdfs()
+    _, robust = shapers.design_tdfs()
     prog, _ = programmes.experiment_programme(v_mm_s, x_mm, robust, t_end=8.8)
     out: list[tuple] = []
     for item in prog.items:

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from helpers.paper.calibration import uncalibrated
-from helpers.paper.shapers import paper_tdfs
+from helpers.paper.shapers import design_tdfs
 from helpers.rig import Rig
 from helpers.rig.static import record_static
 from helpers.rigfile import default_rig, derived
@@ -86,7 +86,7 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) 
 
 def in_process_scenario() -> dict[str, Any]:
     """Wall time of one 12 s scenario on the in-process virtual rig (first run and a warm second run)."""
-    _, zvd = paper_tdfs()
+    _, zvd = design_tdfs()
     rig = Rig("virtual", default_rig(), world="bench-inprocess")
     walls = []
     with tempfile.TemporaryDirectory() as tmp:
