@@ -10,7 +10,8 @@ the move, in % of the step) is shown for each. The step ``yf - y0`` is taken as 
 minus the tension before the move.
 
 The model is linear and time-invariant, so a shaped move's response is the unshaped move's response, delayed
-by each impulse's time and scaled by its amplitude (:class:`LinearResponse`, computed once, finely).
+by each impulse's time and scaled by its amplitude (:meth:`LinearPlayground.shaped`: one response,
+computed once, finely).
 :meth:`LinearPlayground.update` recomputes and redraws one figure; notebook 03 ties it to two sliders in
 JupyterLab and shows a static figure of the same function under nbval and ``reproduce``. The same study on
 the virtual rig, with an EI shaper beside, is :mod:`helpers.research.playground` (notebook 06).
@@ -59,32 +60,6 @@ def check_design(design_ratio: float, zeta_design: float) -> None:
         raise ValueError(f"design_ratio {design_ratio} is outside {RATIO_RANGE}")
     if not (0.0 <= zeta_design < 0.3):
         raise ValueError(f"design damping {zeta_design:.3f} is outside [0, 0.3) (EI's fit)")
-
-
-class LinearResponse:
-    """The linear model's tension for one move shaped by any shaper, from one fine unshaped response.
-
-    Parameters
-    ----------
-    v_in_mm_s, x_f_mm : float
-        The move (it starts at :data:`T_UP_S`).
-    model_params : helpers.paper.model.ArmParameters
-        The linear model.
-    """
-
-    def __init__(self, v_in_mm_s: float, x_f_mm: float, model_params: model.ArmParameters) -> None:
-        self.v_in_mm_s, self.x_f_mm = float(v_in_mm_s), float(x_f_mm)
-        self.t = np.arange(0.0, T_END_S, DT_S)
-        self._fine_t = np.arange(0.0, T_END_S + 0.5, FINE_DT_S)
-        move = single_pulse(self.v_in_mm_s, self.x_f_mm, T_UP_S)
-        self._fine, _ = model.linear_response(model_params, self._fine_t, move.sample(self._fine_t) * 1e-3)
-
-    def shaped(self, shaper: shapers.Shaper | None) -> tuple[np.ndarray, float]:
-        """(tension on :attr:`t`, end of the move in s) of the move shaped by ``shaper`` (None: unshaped)."""
-        profile = single_pulse(self.v_in_mm_s, self.x_f_mm, T_UP_S).shaped(shaper)
-        impulses = [(1.0, 0.0)] if shaper is None else zip(shaper.amplitudes, shaper.times, strict=True)
-        y = sum(a * np.interp(self.t - d, self._fine_t, self._fine, left=0.0) for a, d in impulses)
-        return y, float(profile.end)
 
 
 @dataclass
@@ -139,8 +114,19 @@ class LinearPlayground:
         self.omega_d, self.zeta = float(omega_d), float(zeta)
         self.v_in_mm_s, self.x_f_mm = float(v_in_mm_s), float(x_f_mm)
         params = model.FITTED if model_params is None else model_params
-        self.response = LinearResponse(v_in_mm_s, x_f_mm, params)
+        # the model is linear and time-invariant: one fine unshaped response, shifted and scaled per impulse
+        self.t = np.arange(0.0, T_END_S, DT_S)
+        self._fine_t = np.arange(0.0, T_END_S + 0.5, FINE_DT_S)
+        move = single_pulse(self.v_in_mm_s, self.x_f_mm, T_UP_S)
+        self._fine, _ = model.linear_response(params, self._fine_t, move.sample(self._fine_t) * 1e-3)
         self.fig: plt.Figure | None = None
+
+    def shaped(self, shaper: shapers.Shaper | None) -> tuple[np.ndarray, float]:
+        """(tension on :attr:`t`, end of the move in s) of the move shaped by ``shaper`` (None: unshaped)."""
+        profile = single_pulse(self.v_in_mm_s, self.x_f_mm, T_UP_S).shaped(shaper)
+        impulses = [(1.0, 0.0)] if shaper is None else zip(shaper.amplitudes, shaper.times, strict=True)
+        y = sum(a * np.interp(self.t - d, self._fine_t, self._fine, left=0.0) for a, d in impulses)
+        return y, float(profile.end)
 
     def design(self, design_ratio: float, zeta_error: float) -> dict[str, shapers.Shaper]:
         """ZV and ZVD designed for the displaced mode."""
@@ -151,9 +137,9 @@ class LinearPlayground:
 
     def study(self, design_ratio: float = 1.0, zeta_error: float = 0.0) -> LinearStudy:
         """Run the unshaped move and every shaper designed for the displaced mode on the model."""
-        runs = {"unshaped": self.response.shaped(None)}
-        runs |= {name: self.response.shaped(s) for name, s in self.design(design_ratio, zeta_error).items()}
-        t = self.response.t
+        runs = {"unshaped": self.shaped(None)}
+        runs |= {name: self.shaped(s) for name, s in self.design(design_ratio, zeta_error).items()}
+        t = self.t
         return LinearStudy(
             design_ratio=float(design_ratio),
             zeta_error=float(zeta_error),

@@ -79,7 +79,6 @@ class ShaperPlayground(LinearPlayground):
     ) -> None:
         super().__init__(omega_d, zeta, v_in_mm_s, x_f_mm, model_params)
         self.plant = ArmPlant(RigParameters() if rig_params is None else rig_params)
-        self.t = self.response.t
         self._unshaped = self._run(None)
 
     def design(self, design_ratio: float, zeta_error: float) -> dict[str, shapers.Shaper]:
@@ -91,7 +90,7 @@ class ShaperPlayground(LinearPlayground):
 
     def _run(self, shaper: shapers.Shaper | None) -> tuple[np.ndarray, np.ndarray, float]:
         """(linear tension, rig tension, move end) of one move shaped by ``shaper``."""
-        linear, move_end = self.response.shaped(shaper)
+        linear, move_end = self.shaped(shaper)
         programme, _ = experiment_programme(
             self.v_in_mm_s, self.x_f_mm, shaper, t_up=T_UP_S, t_down=T_END_S + 0.1, t_end=T_END_S + 1.0
         )
