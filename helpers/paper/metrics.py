@@ -308,31 +308,28 @@ def motion_metrics(
     yf = float(np.median(y_w[final]))
     peak = float(np.max(y_w)) if motion == "Up" else float(np.min(y_w))
     n_clipped = int(np.count_nonzero(c_w))
-    bound = n_clipped > 0
-    bound_reasons = []
-    if bound:
+    known = {"y0": y0, "yf": yf, "peak": peak, "peak_is_bound": n_clipped > 0, "n_clipped": n_clipped}
+    reasons = []
+    if n_clipped:
         which = "lower" if motion == "Up" else "upper"
-        bound_reasons.append(
+        reasons.append(
             f"peak is a {which} bound: {n_clipped} sample(s) of the window are clipped at the sensor's range "
             "(the ADC's rails or the amplifier loop's saturation); the overshoot is a lower bound"
         )
-    flags = {"peak_is_bound": bound, "n_clipped": n_clipped}
-    if np.any(cv[pre]) or np.any(c_w[final]):
-        why = "y0 or yf read from clipped samples: overshoot and settling undefined"
-        reason = "; ".join(bound_reasons + [why])
-        return _metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak, **flags)
     step = yf - y0
     # the smallest step: 10 times the pre-motion samples' white noise (robust), at least 1e-9 of the levels
     min_step = max(10.0 * white_noise_std(yv[pre]), 1e-9 * max(abs(y0), abs(yf)))
-    if abs(step) <= min_step or abs(step) == 0.0:
-        reason = f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
-        return _metrics(motion, start, end, band, "; ".join(bound_reasons + [reason]), y0=y0, yf=yf,
-                            peak=peak, **flags)  # fmt: skip
-    overshoot, reasons = _overshoot(motion, peak, y0, yf)
-    settling_ms, settled_s, more = _settling(t_w, y_w, yf, step, band, start)
-    reason = "; ".join(bound_reasons + reasons + more)
-    return _metrics(motion, start, end, band, reason, y0=y0, yf=yf, peak=peak, overshoot_pct=overshoot,
-                    settling_ms=settling_ms, settled_s=settled_s, **flags)  # fmt: skip
+    if np.any(cv[pre]) or np.any(c_w[final]):
+        reasons.append("y0 or yf read from clipped samples: overshoot and settling undefined")
+    elif abs(step) <= min_step or abs(step) == 0.0:
+        reasons.append(
+            f"zero step: |yf - y0| = {abs(step):.4g} <= {min_step:.4g}; overshoot and settling undefined"
+        )
+    else:
+        known["overshoot_pct"], more = _overshoot(motion, peak, y0, yf)
+        known["settling_ms"], known["settled_s"], later = _settling(t_w, y_w, yf, step, band, start)
+        reasons += more + later
+    return _metrics(motion, start, end, band, "; ".join(reasons), **known)
 
 
 def _check_motion_args(motion: str, band: float, start: float, end: float) -> None:
