@@ -25,7 +25,7 @@ import pandas as pd
 
 from helpers.base.jsonfile import write_json
 from helpers.base.paths import LOADCELL_CALIBRATION
-from helpers.paper.tension import LoadCellCalibration, load_calibration, uncalibrated
+from helpers.paper.tension import LoadCellCalibration, load_calibration
 from helpers.rigfile import derived
 from helpers.rigfile.recorded import recording_rig
 
@@ -42,6 +42,11 @@ __all__ = [
 ]
 """The calibration's whole interface: the fit and the writer here, the reader and its type from
 :mod:`helpers.paper.tension` (which every run imports without the fit)."""
+
+
+def uncalibrated(mm_per_step: float) -> LoadCellCalibration:
+    """Explicitly no calibration (recording the calibration itself, benchmarks): tension in counts."""
+    return LoadCellCalibration(1.0, 0.0, mm_per_step, "uncalibrated: tension_n equals adc counts")
 
 
 

@@ -2,7 +2,8 @@
 
 A run (:class:`helpers.rig.Rig`) needs only this: :class:`LoadCellCalibration` and :func:`load_calibration`,
 which reads ``data/calibration/calibration.json`` (:data:`helpers.base.paths.LOADCELL_CALIBRATION`). The fit
-of counts against known loads, and the writer of that file, are :mod:`helpers.paper.calibration`'s.
+of counts against known loads, the writer of that file, and explicitly no calibration (``uncalibrated``, for
+recording the calibration itself) are :mod:`helpers.paper.calibration`'s.
 """
 
 from __future__ import annotations
@@ -78,11 +79,6 @@ class LoadCellCalibration:
             origin=str(data.get("origin", "")),
             source=data.get("source"),
         )
-
-
-def uncalibrated(mm_per_step: float) -> LoadCellCalibration:
-    """Explicitly no calibration (recording the calibration itself, benchmarks): tension in counts."""
-    return LoadCellCalibration(1.0, 0.0, mm_per_step, "uncalibrated: tension_n equals adc counts")
 
 
 def load_calibration(path: str | os.PathLike = LOADCELL_CALIBRATION) -> LoadCellCalibration:
