@@ -149,21 +149,11 @@ def step_windows(programme: Programme, axes: int, slack_us: int = 2_000) -> list
     return out
 
 
-class _Bar:
-    """A tqdm bar of device seconds, updated in 0.1 s increments (none where tqdm is not installed)."""
-
-    def __init__(self, total_s: float | None, show: bool) -> None:
-        fmt = "{l_bar}{bar}| {n:.1f}/{total:.1f} s" if total_s is not None else "{desc}: {n:.1f} s"
-        total = None if total_s is None else round(total_s, 1)
-        self.bar = tqdm(total=total, unit="s", desc="device time", bar_format=fmt) if tqdm and show else None
-
-    def show(self, elapsed_s: float) -> None:
-        if self.bar is not None and elapsed_s - self.bar.n >= 0.1:
-            self.bar.update(round(elapsed_s - self.bar.n, 1))
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+def _bar(total_s: float | None, show: bool) -> Any:
+    """A tqdm bar of device seconds (its ``n``: the seconds shown), or None where tqdm is not installed."""
+    fmt = "{l_bar}{bar}| {n:.1f}/{total:.1f} s" if total_s is not None else "{desc}: {n:.1f} s"
+    total = None if total_s is None else round(total_s, 1)
+    return tqdm(total=total, unit="s", desc="device time", bar_format=fmt) if tqdm and show else None
 
 
 @dataclass
@@ -533,7 +523,7 @@ class Rig:
         is gone. Not ``stepper``: the stepper is not used (nor read), and the end is the end (the wait for
         rest, a static recording).
         """
-        silence, asked, last, bar = self.daq.waiter(self.silence_s), 0, None, _Bar(total_s, progress)
+        silence, asked, last, bar = self.daq.waiter(self.silence_s), 0, None, _bar(total_s, progress)
         try:
             while True:
                 new, silence = self._read(silence, stepper)
@@ -543,7 +533,8 @@ class Rig:
                 if state.t_go_us is None:
                     continue
                 now = rows[-1][1] - state.t_go_us
-                bar.show(now / 1e6)
+                if bar is not None and now / 1e6 - bar.n >= 0.1:  # in 0.1 s increments
+                    bar.update(round(now / 1e6 - bar.n, 1))
                 due = step(now)
                 if due is None:
                     if stepper and self.stepper.done is not None:
@@ -564,7 +555,8 @@ class Rig:
                         )
                     last = where
         finally:
-            bar.close()
+            if bar is not None:
+                bar.close()
         if stepper and self.stepper.done[: self.n] != end:
             raise BoardError(f"the stepper board ended at {self.stepper.done}, not at the end {end}")
 
