@@ -79,7 +79,7 @@ def _no_release(four: rigfile.RigFile) -> rigfile.RigFile:
 
 def _steps_plan(steps: tuple[int, ...]) -> MovePlan:
     return MovePlan(45.0, 10.0, steps, (0.0,) * 4, (0.0,) * 4, (3.0,) * 4, 1.0, (True, True, False, False),
-                    (0, 0, 0, 0))  # fmt: skip
+                    (0, 0, 0, 0), 0)  # fmt: skip
 
 
 def test_paying_out_within_the_release_is_inside_the_travel(four) -> None:
@@ -130,7 +130,7 @@ def test_a_bad_bend_is_one_clear_error(four, bad) -> None:
 
 def test_a_shaped_programme_convolves_every_tendon_with_the_same_impulses(four) -> None:
     plan = MovePlan(45.0, 10.0, (28, 28, -27, -27), (0.0,) * 4, (0.0,) * 4, (3.0,) * 4, 1.0,
-                    (True, True, False, False), (0, 0, 0, 0))  # fmt: skip
+                    (True, True, False, False), (0, 0, 0, 0), 0)  # fmt: skip
     shaper = Shaper((0.5, 0.5), (0.0, 0.1), "test")
     prog = move_programme(plan, four, 200.0, shaper, t_up_s=1.0, t_down_s=3.0, t_end_s=5.0)
     w = round(1e6 * 28 * MM / 200)  # the lead tendon's window: 35 736 us
