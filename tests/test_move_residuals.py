@@ -10,8 +10,9 @@ plus 0.2 mm of the same sine after Up.
 
 **Three tendons at 0/120/240 deg, bent towards 45 deg, with a pre-pull** (:func:`_three`): every count is 0
 until 0.2 s, then every tendon is pulled one step in (the pre-pull); at 2.005-2.100 s tendon 1 takes 20 steps
-(one each 5 ms), tendon 2 ten (one each 10 ms) and tendon 3 pays 24 out (one each 4 ms); back at 6.005-6.100 s; the pre-pull
-is let out one tendon at a time at 9.0 (tendon 1), 9.25 (tendon 3) and 9.5 s (tendon 2); 11 s recorded. Each
+(one each 5 ms), tendon 2 ten (one each 10 ms) and tendon 3 pays 24 out (one each 4 ms); back at 6.005-6.100
+s; the pre-pull is let out one tendon at a time at 9.0 (tendon 1), 9.25 (tendon 3) and 9.5 s (tendon 2); 11 s
+recorded. Each
 tension is 2 N + 5 N per pre-pull step + 0.15 N per step of the move, plus a sine of 0.3 N at 5 Hz for 1.6 s
 after each motion's end: tendon 1's step is +3 N (Up) and -3 N (Down, whose window ends where the release
 starts, at 9.0 s), its residual 0.3 N, 10 %. The largest step range is tendon 3's (24 steps, paying out);

@@ -19,7 +19,7 @@ rows; a tendon that pays out or is held has no row, and a line says so.
 
 A path may name a recording by its ``.csv``, its ``.json`` or its stem. Recordings that cannot be analysed
 are skipped, never silently: a malformed or incomplete pair, an aborted run (``--include-aborted`` analyses
-it anyway), a load-cell calibration run, a file that is not a recording. A stream of several tendons is skipped
+it anyway), a load-cell calibration run, a file that is not a recording, a stream of several tendons
 (``helpers.research.tip_stream_metrics`` measures it). Every table carries the data's
 ``source`` (``virtual-rig`` or ``hardware``), so a simulated number is never mistaken for a measured one.
 """
@@ -131,7 +131,7 @@ def _why_not(rec: Recording, include_aborted: bool) -> str:
     if sc.get("kind") == "calibration":
         return "a load-cell calibration run (no motion to analyse)"
     if rec.tendons > 1 and sc.get("kind") == "stream":
-        return "a stream of several tendons (no up-hold-down move; helpers.research.tip_stream_metrics measures it)"
+        return "a stream of several tendons (no up-hold-down move: helpers.research.tip_stream_metrics)"
     # several tendons: the move's motions come from its lead tendon's count (move_tables)
     keys = () if rec.tendons > 1 else ("v_in_mm_s", "x_f_mm", "system")
     missing = [k for k in keys if sc.get(k) is None]
@@ -471,7 +471,8 @@ def _moves_displayed(t: MoveTables) -> tuple[pd.DataFrame, pd.DataFrame, pd.Data
     tendons = pd.DataFrame({
         "recording": t.tendons["recording"], "source": t.tendons["source"],
         "tendon": t.tendons["tendon"].astype(str), "role": t.tendons["role"], "motion": t.tendons["motion"],
-        "y0 N": cells(t.tendons, "y0_n", 2), "peak N": cells(t.tendons, "peak_n", 2), "overshoot %": cells(t.tendons, "overshoot_pct", 1),
+        "y0 N": cells(t.tendons, "y0_n", 2), "peak N": cells(t.tendons, "peak_n", 2),
+        "overshoot %": cells(t.tendons, "overshoot_pct", 1),
         "settling ms": cells(t.tendons, "settling_ms", 0),
     })  # fmt: skip
     tip = pd.DataFrame({
