@@ -21,7 +21,7 @@ Each rig, through the command line (``helpers.__main__.main``) as a user types i
 - ``metrics`` of what was recorded: one tendon, the Table II rows of every pulse; several, the lead tendon's
   rows (tendon 1, the one that pulls most towards the bend) and a finite tip row of every move;
 - ``home`` over the pseudo-terminals of ``serve-virtual-rig`` after a programme left the tendons off zero;
-- ``rig firmware FILE --dry-run``.
+- ``rig firmware FILE --dry-run``, and the real build into ``tmp_path`` where ``avr-gcc`` is installed.
 
 Every figure is the twin's (simulated).
 """
@@ -32,6 +32,7 @@ import io
 import json
 import math
 import re
+import shutil
 import threading
 import time
 from pathlib import Path
@@ -134,8 +135,8 @@ def _one_tendon(cli: Cli, data: Path) -> list[Path]:
     for system in ("unshaped", "zv", "zvd", "ei"):  # designed from the identification
         cli("record", "pulse", "--v-in", v, "--x-f", x, "--system", system, "--group", "pulses", "--quiet")
     for p in chosen:  # every design the tune wrote for that condition
-        cli("record", "pulse", "--design", str(p), "--group", "pulses", "--name", f"design_{p.stem}",
-            "--quiet")  # fmt: skip
+        cli("record", "pulse", "--design", str(p), "--v-in", v, "--x-f", x, "--group", "pulses", "--name",
+            f"design_{p.stem}", "--quiet")  # fmt: skip
     pulses = sorted((data / "pulses").glob("*.csv"))
     assert len(pulses) == 4 + len(chosen)
     out = cli("metrics", str(data / "pulses"), data=False, rig=False)
@@ -225,3 +226,7 @@ def test_every_rig_works_end_to_end_on_the_virtual_rig(case, generated, tmp_path
     _home_over_the_pty(rig, path, tmp_path / "pty", capsys)
     dry = cli("rig", "firmware", str(path), "--dry-run", rig=False, data=False)
     assert "make" in dry
+    if shutil.which("avr-gcc") and shutil.which("make"):  # the real build, where the AVR toolchain is
+        built = cli("rig", "firmware", str(path), "--out", str(tmp_path / "fw"), rig=False, data=False)
+        assert f"firmware for rig {rig.name} (hash {rig.hash}" in built
+        assert (tmp_path / "fw" / "daq_mega.hex").exists() and (tmp_path / "fw" / "stepper_uno.hex").exists()
