@@ -98,6 +98,30 @@ def test_tune_on_several_tendons_refuses_the_one_tendon_options(monkeypatch, tmp
     assert not any(tmp_path.iterdir())
 
 
+def test_a_reduced_tune_names_its_directions_and_bends_and_refuses_bad_ones_in_one_line(tmp_path, capsys):
+    """``--directions`` and ``--bends`` (several tendons): a list or a range; the default grid leaves out the
+    directions no tendon faces; a direction no tendon faces, a bend <= 0 or these options on one tendon are
+    refused in one line (exit 2) before any port opens."""
+    from helpers.research.tune_tendons import grid
+
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    assert grid(four, "45", "10") == ((45.0,), (10.0,))
+    assert grid(four, "0:360:90", None) == ((0.0, 90.0, 180.0, 270.0), (10.0, 20.0))
+    two = rigfile.load(_two_tendon_rig(tmp_path))  # tendons at 0 and 90 deg: 180-270 face neither
+    assert grid(two, None, None)[0] == (0.0, 45.0, 90.0, 135.0, 315.0)
+    for argv, message in (
+        (["--rig", "four-tendon", "tune", "--directions", "45,x"], "--directions: expected numbers like"),
+        (["--rig", str(_two_tendon_rig(tmp_path)), "tune", "--directions", "200"],
+         "--directions: no tendon faces 200 deg (tendons at 0, 90 deg)"),
+        (["--rig", "four-tendon", "tune", "--bends", "0"], "--bends: every bend must be > 0 mm"),
+        (["tune", "--directions", "45"], "--directions and --bends apply to a rig with several tendons"),
+    ):  # fmt: skip
+        assert main([*argv, "--data-dir", str(tmp_path / "data")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and message in err, err
+    assert not (tmp_path / "data").exists()
+
+
 def _two_tendon_rig(folder: Path) -> Path:
     four = rigfile.load(rigfile.resolve("four-tendon"))
     text = four.text.replace("[[tendon]]\nangle_deg = 180.0\n\n[[tendon]]\nangle_deg = 270.0\n\n", "")
