@@ -62,6 +62,7 @@ SLACK_N = 0.05
 MIN_STEP = {"N": 0.05, "mm": 0.05}
 """Smallest step (per unit) for which a residual is also given in % of it."""
 
+
 def rising_tendon(counts: np.ndarray) -> int:
     """The tendon (0-based) whose step count rises most above its first value (the lowest of equals).
 
@@ -102,7 +103,7 @@ class MovePhases:
     prepull : int
         Steps every tendon was pulled in before the move (0: none).
     prepull_s : float
-        The pre-pull's first sample (NaN without one).
+        The first sample at which every tendon stands pulled in (NaN without a pre-pull).
     up_start_s, down_start_s : float
         The first sample of each motion.
     up_end_s, down_end_s : float
