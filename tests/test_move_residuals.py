@@ -135,6 +135,26 @@ def test_a_pre_pull_is_no_part_of_the_move() -> None:
                                       "tendon 3": {"role": "paid out", "held_steps": -24}}  # fmt: skip
 
 
+def test_a_move_whose_count_turns_back_within_itself_is_one_motion() -> None:
+    """A shaper with a negative impulse (UMZV) takes the count back within the move: out 40 steps, back 37,
+    out 37 again (2.0-2.25 s), held to 6 s; the move back mirrored (its antagonist, paying out, falls below
+    its level within it); the pre-pull let out at 9 s. One Up, one Down, the release where it is."""
+    k = np.arange(0, 11000)
+    t = k / 1000.0
+
+    def piece(at: int, n: int) -> np.ndarray:  # n steps from ``at`` ms, one per ms
+        return np.sign(n) * np.clip(k - at, 0, abs(n))
+
+    out = piece(2000, 40) + piece(2100, -37) + piece(2200, 37)
+    back = piece(6000, -40) + piece(6100, 37) + piece(6200, -37)
+    lead = 1 + out + back - (k >= 9000)
+    anta = 1 - out - back - (k >= 9250)
+    phases = move_phases(t, np.column_stack([lead, anta]), 0, prepull=1, start=(0, 0))
+    assert (phases.up_start_s, phases.up_end_s) == (pytest.approx(2.001), pytest.approx(2.237))
+    assert (phases.down_start_s, phases.down_end_s) == (pytest.approx(6.001), pytest.approx(6.237))
+    assert phases.release_s == pytest.approx(9.0)
+
+
 def test_a_pre_pull_done_before_the_first_sample_is_found_from_the_start_positions() -> None:
     """A pre-pull of a millisecond is complete at the first sample: the counts start at 1, the start at 0."""
     f = _three().iloc[300:].reset_index(drop=True)

@@ -15,9 +15,11 @@ bent at 45 deg is a tendon paying out.
 **The move's phases** (:func:`move_phases`), from the lead's step count: a **pre-pull** (``k`` steps every
 tendon is pulled in before the move and let out after it, ``scenario.prepull_steps``) is no part of the move:
 the Up motion starts at the first sample whose lead count rises above its pre-pulled level, the Down motion
-at the first fall after its maximum, and the Down window ends where the release starts (the first sample,
-after the lead is back at its pre-pulled level, at which the tendons' counts sum below it), else at the
-recording's end. Each motion ends at the lead's last step in it.
+at the first fall after its maximum, or, where the count falls within its Up (a shaper with a negative
+impulse), at the first change after it has held one count for :data:`HOLD_S`; the Down window ends where the
+release starts (once the lead is back at its pre-pulled level for :data:`HOLD_S`, the first fall of a tendon's
+count below its pre-pulled level), else at the recording's end. Each motion ends at the lead's last step in
+it.
 
 **Per signal** (:func:`residual_table`: each tendon's tension in N and, where the twin provides it, the tip's
 displacement ``|p - p_0|`` in mm from where it stood before the move, the median of the 0.5 s before Up):
@@ -52,8 +54,8 @@ from helpers.recordings import TIP_MM_COLUMNS, Recording, recording_rig
 from helpers.rigfile.derived import lead_tendon
 
 __all__ = [
-    "SLACK_N", "MIN_STEP", "rising_tendon", "recording_lead", "MovePhases", "move_phases", "residual_table",
-    "recording_residuals", "move_residuals", "tip_displacement",
+    "SLACK_N", "MIN_STEP", "HOLD_S", "rising_tendon", "recording_lead", "MovePhases", "move_phases",
+    "residual_table", "recording_residuals", "move_residuals", "tip_displacement",
 ]  # fmt: skip
 
 SLACK_N = 0.05
@@ -61,6 +63,10 @@ SLACK_N = 0.05
 
 MIN_STEP = {"N": 0.05, "mm": 0.05}
 """Smallest step (per unit) for which a residual is also given in % of it."""
+
+HOLD_S = 0.5
+"""The least hold between a move out and its move back, s: a shaped move pauses within itself for less (a
+fraction of the mode's period, under 0.3 s on the shipped rigs)."""
 
 
 def rising_tendon(counts: np.ndarray) -> int:
@@ -134,6 +140,39 @@ def _last_step(t: np.ndarray, s: np.ndarray, lo: float, hi: float, closed: bool)
     return float(t[inside[moving[-1] + 1]]) if moving.size else float(lo)
 
 
+def _motions(t: np.ndarray, rel: np.ndarray) -> metrics.Motions:
+    """The Up and Down starts of a count above its level (``rel``).
+
+    The paper's rule (:func:`helpers.paper.metrics.segment_motions`: Down at the first fall after the
+    maximum), but where the count falls within its Up (a shaper with a negative impulse, UMZV, takes it back
+    for a while during the move out), Down at the first change after the first stretch of :data:`HOLD_S` at
+    one count above the level.
+    """
+    m = metrics.segment_motions(t, rel)
+    i_up = int(np.searchsorted(t, m.up_start))
+    edges = np.concatenate([[i_up], np.flatnonzero(np.diff(rel[i_up:]) != 0) + i_up + 1, [rel.size]])
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        if b < rel.size and t[b - 1] - t[a] >= HOLD_S and rel[a] > 0:
+            if m.down_start >= t[b] or rel[b] > rel[a]:
+                return m  # no fall before the hold ends (the paper's rule), or the hold ends in a rise
+            return metrics.Motions(up_start=m.up_start, down_start=float(t[b]), end=m.end)
+    return m
+
+
+def _rest_after(t: np.ndarray, rel: np.ndarray, after: float) -> float | None:
+    """Where the count is back at its level for good (None if never).
+
+    The first stretch at 0 after ``after`` lasting :data:`HOLD_S`: a shaped move back may touch the level
+    within itself.
+    """
+    i = int(np.searchsorted(t, after))
+    edges = np.concatenate([[i], np.flatnonzero(np.diff(rel[i:]) != 0) + i + 1, [rel.size]])
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        if rel[a] == 0 and t[b - 1] - t[a] >= HOLD_S:
+            return float(t[a])
+    return None
+
+
 def move_phases(
     t: np.ndarray, counts: np.ndarray, lead: int, prepull: int = 0, start: Sequence[float] | None = None
 ) -> MovePhases:
@@ -163,7 +202,7 @@ def move_phases(
     level = (c[0] if start is None else np.asarray(start, dtype=float)) + prepull
     s = c[:, lead]
     try:
-        m = metrics.segment_motions(t, np.maximum(s - level[lead], 0.0))
+        m = _motions(t, np.maximum(s - level[lead], 0.0))
     except ValueError as exc:
         where = f" {prepull} step(s) above its start (the pre-pull)" if prepull else " its start"
         raise ValueError(f"tendon {lead + 1} (the lead) makes no up-hold-down move from{where}: {exc}") \
@@ -173,10 +212,10 @@ def move_phases(
     if prepull:
         pulled = np.flatnonzero(np.all(c >= level, axis=1))
         pre = float(t[pulled[0]]) if pulled.size else math.nan
-        back = np.flatnonzero((t > m.down_start) & (s <= level[lead]))
-        if back.size:  # the release: a tendon's count falling below its pre-pulled level, after the move back
+        back = _rest_after(t, np.maximum(s - level[lead], 0.0), m.down_start)
+        if back is not None:  # the release: a tendon's count falling below its pre-pulled level after that
             falling = np.any((c[1:] < level) & (np.diff(c, axis=0) < 0), axis=1)
-            low = np.flatnonzero(falling & (t[1:] >= t[back[0]]))
+            low = np.flatnonzero(falling & (t[1:] >= back))
             if low.size:
                 release = end = float(t[low[0] + 1])
     return MovePhases(
