@@ -126,8 +126,8 @@ def _one_tendon(cli: Cli, data: Path) -> list[Path]:
     cli("record", "all", "--repetitions", "1", "--quiet")
     cli("tune", "--repetitions", "1", "--quiet")
     designs = sorted((data / "tuning" / "designs").glob("*.json"))
-    first = re.search(r"_v(\d+)_x(\d+)\.json$", designs[0].name)
-    v, x = first.group(1), first.group(2)
+    first = re.search(r"_v([\dp]+)_x([\dp]+)\.json$", designs[0].name)  # 7.5 mm is written x7p5
+    v, x = (first.group(k).replace("p", ".") for k in (1, 2))
     condition = designs[0].name[designs[0].name.index("_v") :]
     chosen = [p for p in designs if p.name.endswith(condition)]
     systems = {json.loads(p.read_text())["system"] for p in chosen}
