@@ -46,6 +46,15 @@ def test_the_schedule_is_the_map_at_its_points_and_linear_between() -> None:
     assert scheduled_mode(pts, 0.0, 30.0) == pytest.approx(scheduled_mode(pts, 0.0, 20.0))
 
 
+def test_a_map_of_one_direction_is_that_direction_everywhere() -> None:
+    """A reduced tune's map (one direction, one bend) schedules its one mode at every direction, whatever the
+    direction's floating-point turn (143.4 deg + 360 deg is not 503.4 deg - 360 deg to the last digit)."""
+    point = MapPoint(143.4, 10.0, 23.5, 0.07, 23.1, 0.048, "map_d143p4_b10")
+    for d in (143.4, 0.0, 100.0, 200.0, 359.9, -216.6):
+        assert scheduled_mode([point], d, 10.0) == (23.5, 0.07)
+    assert scheduled_mode([point], 143.4, 20.0) == (23.5, 0.07)  # the nearest bend
+
+
 def test_fixed_designs_use_the_reference_and_scheduled_ones_the_move() -> None:
     pts = _points()
     w_ref = 20 + REFERENCE[0] / 10 + REFERENCE[1] / 10

@@ -128,20 +128,21 @@ def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: fl
     bs = np.sort(table["b"].unique())
     grid = table.set_index(["d", "b"])
     d = direction_deg % 360.0
-    i = int(np.searchsorted(ds, d, side="right")) - 1
-    d0 = ds[i] if i >= 0 else ds[-1] - 360.0
-    d1 = ds[(i + 1) % len(ds)] + (360.0 if i + 1 >= len(ds) else 0.0)
+    i = int(np.searchsorted(ds, d, side="right")) - 1  # the grid's directions by index: no float modulo
+    i0, i1 = i % len(ds), (i + 1) % len(ds)
+    d0 = ds[i0] - (360.0 if i < 0 else 0.0)
+    d1 = ds[i1] + (360.0 if i + 1 >= len(ds) else 0.0)
     fd = 0.0 if d1 == d0 else (d - d0) / (d1 - d0)
     b = min(max(bend_mm, bs[0]), bs[-1])
     j = min(int(np.searchsorted(bs, b, side="right")) - 1, len(bs) - 1)
     b0, b1 = bs[j], bs[min(j + 1, len(bs) - 1)]
     fb = 0.0 if b1 == b0 else (b - b0) / (b1 - b0)
 
-    def at(dd: float, bb: float) -> np.ndarray:
-        return grid.loc[(dd % 360.0, bb), ["w", "z"]].to_numpy(float)
+    def at(k: int, bb: float) -> np.ndarray:
+        return grid.loc[(ds[k], bb), ["w", "z"]].to_numpy(float)
 
-    lo = (1 - fd) * at(d0, b0) + fd * at(d1, b0)
-    hi = (1 - fd) * at(d0, b1) + fd * at(d1, b1)
+    lo = (1 - fd) * at(i0, b0) + fd * at(i1, b0)
+    hi = (1 - fd) * at(i0, b1) + fd * at(i1, b1)
     w, z = (1 - fb) * lo + fb * hi
     return float(w), float(z)
 
