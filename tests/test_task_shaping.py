@@ -58,7 +58,7 @@ def _grid(points: dict[tuple[float, float], ts.MoveModes]) -> ts.ModeGrid:
 
 def _plan(beta: float = 0.0, bend: float = 10.0, steps=(40, 0, -39, 0)) -> MovePlan:
     return MovePlan(beta, bend, tuple(steps), tuple(s * MM for s in steps), (0.0,) * 4, (3.0,) * 4, 1.0,
-                    (True, False, False, False), (0, 0, 0, 0))  # fmt: skip
+                    (True, False, False, False), (0, 0, 0, 0), 0)  # fmt: skip
 
 
 def test_the_shaper_names_are_the_families_and_the_designs() -> None:

@@ -70,6 +70,19 @@ def test_the_opposite_tendon_pays_out_and_every_tendon_keeps_the_floor(four) -> 
     assert "tendon 3: -" in "\n".join(p.lines()) and "floor 1.00 N" in p.lines()[0]
 
 
+def test_the_lead_on_three_tendons_is_the_one_that_pulls_not_the_one_that_pays_out_most() -> None:
+    """rigs/three-tendon.toml, 10 mm towards 45 deg: tendon 1 (at 0 deg, cos 45 = 0.71) pulls 28 steps, tendon
+    3 (at 240 deg) pays out 36. The lead is tendon 1, and its cable sets the window: 28 x 0.25525 mm at 200
+    mm/s = 35 736 us (tendon 3's 36 steps would have made it 45 946 us)."""
+    three = rigfile.load(rigfile.resolve("three-tendon"))
+    plan = plan_move(three, 45.0, 10.0)
+    assert plan.steps == (28, 10, -36) and plan.lead == 0
+    prog = move_programme(plan, three, 200.0)
+    first = next(it for it in prog.items if it.command(3).startswith("MSEG"))
+    assert first.command(3) == "MSEG 35736 28 10 -36"
+    assert round(1e6 * 28 * MM / 200) == 35736
+
+
 def _no_release(four: rigfile.RigFile) -> rigfile.RigFile:
     """The four-tendon rig without a release: position 0 (the rest) is the end of every tendon's travel."""
     text = four.text.replace("release_mm = 20.0", "release_mm = 0.0")
@@ -79,7 +92,7 @@ def _no_release(four: rigfile.RigFile) -> rigfile.RigFile:
 
 def _steps_plan(steps: tuple[int, ...]) -> MovePlan:
     return MovePlan(45.0, 10.0, steps, (0.0,) * 4, (0.0,) * 4, (3.0,) * 4, 1.0, (True, True, False, False),
-                    (0, 0, 0, 0))  # fmt: skip
+                    (0, 0, 0, 0), 0)  # fmt: skip
 
 
 def test_paying_out_within_the_release_is_inside_the_travel(four) -> None:
@@ -130,7 +143,7 @@ def test_a_bad_bend_is_one_clear_error(four, bad) -> None:
 
 def test_a_shaped_programme_convolves_every_tendon_with_the_same_impulses(four) -> None:
     plan = MovePlan(45.0, 10.0, (28, 28, -27, -27), (0.0,) * 4, (0.0,) * 4, (3.0,) * 4, 1.0,
-                    (True, True, False, False), (0, 0, 0, 0))  # fmt: skip
+                    (True, True, False, False), (0, 0, 0, 0), 0)  # fmt: skip
     shaper = Shaper((0.5, 0.5), (0.0, 0.1), "test")
     prog = move_programme(plan, four, 200.0, shaper, t_up_s=1.0, t_down_s=3.0, t_end_s=5.0)
     w = round(1e6 * 28 * MM / 200)  # the lead tendon's window: 35 736 us

@@ -25,7 +25,7 @@ from helpers.board.programmes import Dwell, Move, Programme
 from helpers.board.protocol import frame
 from helpers.commands.benchmarks.serial_tendons import pty_stream_tendons
 from helpers.commands.home import PositionUnknown, home
-from helpers.commands.metrics_tendons import tendon_table, tip_table
+from helpers.commands.metrics_report import move_tables
 from helpers.rig import Rig, SafetyError, WrongRig
 from helpers.rig.link import Link
 from helpers.rig.safety import check_programme, static_tensions
@@ -419,7 +419,7 @@ def test_a_recording_without_the_tip_loads_unchanged(tendon_recording_path, tmp_
     assert path.read_text().splitlines()[0] == header
     back = recordings.load(path)
     assert not any(c.startswith("tip") for c in back.frame.columns)
-    assert tip_table([back], 0.05).empty
+    assert move_tables([back], 0.05).tip.empty
 
 
 @pytest.mark.parametrize(
@@ -485,10 +485,11 @@ def pulse_recording_path(four, tmp_path_factory):
     return path
 
 
-def _by_hand(f, i: int) -> dict:
-    """docs/metrics.md, from the frame alone: the motions from steps_i, y0 the median of the 0.5 s before,
-    yf the median of the window's last 1.0 s, the Up peak its maximum and the Down peak its minimum."""
-    t, s, y = f["t_s"].to_numpy(), f[f"steps_{i}"].to_numpy(), f[f"tension_n_{i}"].to_numpy()
+def _by_hand(f, i: int, lead: int = 0) -> dict:
+    """docs/metrics.md, from the frame alone: the motions from the lead's count (steps_0: it rises most), y0
+    the median of the 0.5 s before, yf the median of the window's last 1.0 s, the Up peak its maximum and the
+    Down peak its minimum."""
+    t, s, y = f["t_s"].to_numpy(), f[f"steps_{lead}"].to_numpy(), f[f"tension_n_{i}"].to_numpy()
     up = int(np.argmax(s > s[0]))
     top = int(np.argmax(s == s.max()))
     down = top + int(np.argmax(s[top:] < s.max()))
@@ -505,39 +506,46 @@ def _by_hand(f, i: int) -> dict:
 def test_metrics_reports_each_tendons_table_ii_metrics(pulse_recording_path, capsys) -> None:
     assert main(["metrics", str(pulse_recording_path)]) == 0
     out = capsys.readouterr().out
-    assert "Per tendon (1 recording(s) of several tendons" in out
-    table = tendon_table([recordings.load(pulse_recording_path)], 0.05)
-    assert list(zip(table["tendon"], table["motion"], strict=True)) == [
-        (i, m) for i in range(4) for m in ("Up", "Down")
+    assert "Per tendon (1 recording(s) of several tendons; tendons numbered as in the rig file" in out
+    tables = move_tables([recordings.load(pulse_recording_path)], 0.05)
+    table = tables.tendons
+    # tendons numbered from 1; tendon 1 leads (no direction recorded: its count rises most, 6 against 4)
+    assert list(zip(table["tendon"], table["role"], table["motion"], strict=True)) == [
+        (1, "lead", "Up"), (1, "lead", "Down"), (2, "pulled", "Up"), (2, "pulled", "Down")
     ]
     f = recordings.load(pulse_recording_path).frame
     for i in (0, 1):
         want = _by_hand(f, i)
         for motion in ("Up", "Down"):
-            row = table[(table["tendon"] == i) & (table["motion"] == motion)].iloc[0]
+            row = table[(table["tendon"] == i + 1) & (table["motion"] == motion)].iloc[0]
             peak, over = want[motion]
             assert row["peak_n"] == pytest.approx(peak, abs=1e-9)
             assert row["overshoot_pct"] == pytest.approx(over, rel=1e-6)
             assert row["settling_ms"] > 0
-    # tendons 3 and 4 never move: no motion to segment, NaN with the reason
-    still = table[table["tendon"] >= 2]
-    assert still["peak_n"].isna().all() and still["reason"].str.startswith("segmentation failed").all()
-    assert "tendon 2 Up: segmentation failed" in out
+    # tendons 3 and 4 never move: no row (no NaN row), and the line says why
+    assert table["peak_n"].notna().all() and "segmentation failed" not in out
+    assert ("lead tendon 1 (its count rises most (no bend direction recorded)); tendon 3 is held (its "
+            "count at its level in the hold), tendon 4 is held (its count at its level in the hold): no "
+            "up-hold-down move, so no Table II row") in out
 
 
 def test_metrics_reports_the_tips_displacement_where_the_twin_provides_it(pulse_recording_path, capsys):
-    """docs/metrics.md: the tip's displacement magnitude from its first sample, its motions from the count of
-    the tendon that moves most (tendon 0: 6 steps against 4), by hand from the frame's tip columns."""
+    """docs/metrics.md: the tip's displacement magnitude from where it stood before the move (the median of
+    the 0.5 s before Up), its motions from the lead's count (tendon 1: 6 steps against 4), by hand from the
+    frame's tip columns."""
     assert main(["metrics", str(pulse_recording_path)]) == 0
     out = capsys.readouterr().out
-    assert "Tip displacement |p - p0| (twin-provided, simulated" in out
+    assert "Tip displacement |p - p0| from where it stood before the move (twin-provided, simulated)" in out
     rec = recordings.load(pulse_recording_path)
     f = rec.frame.copy()
+    t, s = f["t_s"].to_numpy(), f["steps_0"].to_numpy()
+    up = t[np.argmax(s > s[0])]
     p = f[["tip_x_um", "tip_y_um", "tip_z_um"]].to_numpy(float) / 1000.0
-    f["tension_n_0"] = np.sqrt(((p - p[0]) ** 2).sum(axis=1))  # the tip's signal in _by_hand's place
+    p0 = np.median(p[(t >= up - 0.5) & (t < up)], axis=0)
+    f["tension_n_0"] = np.sqrt(((p - p0) ** 2).sum(axis=1))  # the tip's signal in _by_hand's place
     want = _by_hand(f, 0)
-    table = tip_table([rec], 0.05)
-    assert list(table["motion"]) == ["Up", "Down"] and list(table["paced_by"]) == [0, 0]
+    table = move_tables([rec], 0.05).tip
+    assert list(table["motion"]) == ["Up", "Down"] and list(table["lead"]) == [1, 1]
     for motion in ("Up", "Down"):
         row = table[table["motion"] == motion].iloc[0]
         peak, over = want[motion]
@@ -551,7 +559,7 @@ def test_metrics_writes_the_tips_table_to_csv_and_markdown(pulse_recording_path,
     assert main(["metrics", str(pulse_recording_path), "--csv", str(stem), "--markdown", str(md)]) == 0
     tip = pd.read_csv(tmp_path / "out_tip.csv")
     assert list(tip["motion"]) == ["Up", "Down"] and tip.loc[0, "peak_mm"] > 1.0
-    assert "## Tip displacement |p - p0| (twin-provided, simulated" in md.read_text()
+    assert "## Tip displacement |p - p0| from where it stood before the move (twin-provided" in md.read_text()
 
 
 def test_virtual_urls_build_the_four_tendon_world_for_a_four_tendon_rig_file(monkeypatch, four) -> None:

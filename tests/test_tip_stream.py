@@ -80,8 +80,34 @@ def test_the_figures_are_deterministic_and_start_and_end_at_rest() -> None:
     assert (
         ts.figure_path("random", 10.0, seed=1).bends.tolist() != ts.figure_path("random", 10.0).bends.tolist()
     )
-    with pytest.raises(ValueError, match="path must be one of square, star, circle, random"):
+    with pytest.raises(ValueError, match="path must be one of square, star, circle, random, line"):
         ts.figure_path("spiral", 10.0)
+
+
+def test_a_figure_turns_about_the_backbone_and_a_line_goes_out_and_back() -> None:
+    """``turn_deg`` turns every bend: the square's first corner and the line's one stop at the turn."""
+    line = ts.figure_path("line", 5.0, turn_deg=143.4)
+    stops = [tuple(round(v, 6) for v in line.polar(a)) for a, _ in line.stops]
+    assert stops == [(0.0, 0.0), (143.4, 5.0), (0.0, 0.0)]
+    square = ts.figure_path("square", 10.0, turn_deg=90.0)
+    assert [round(square.polar(a)[0], 6) for a, _ in square.stops[1:-1]] == [90.0, 180.0, 270.0, 0.0, 90.0]
+    plain = ts.figure_path("square", 10.0)
+    assert np.array_equal(plain.bends, ts.figure_path("square", 10.0, turn_deg=0.0).bends)
+    assert np.allclose(np.hypot(*square.bends.T), np.hypot(*plain.bends.T))  # a turn keeps every magnitude
+
+
+def test_a_rig_that_faces_no_tendon_towards_0_deg_streams_from_rest(four) -> None:
+    """At rest the direction is no matter: a rig whose tendons all face away from 0 deg (at 100-250 deg)
+    plans a line towards its tendon 1 (the rest was once solved towards 0 deg and refused)."""
+    text = four.text
+    for old, new in (("0.0", "160.0"), ("90.0", "100.0"), ("180.0", "200.0"), ("270.0", "250.0")):
+        text = text.replace(f"[[tendon]]\nangle_deg = {old}\n", f"[[tendon]]\nangle_deg = {new}\n")
+    away = rigfile.loads(text.replace('name = "four-tendon"', 'name = "away"'), "away.toml")
+    assert [t.angle_deg for t in away.tendons] == [160.0, 100.0, 200.0, 250.0]
+    plan = ts.plan_stream(away, ts.figure_path("line", 3.0, speed_mm_s=50.0, turn_deg=160.0))
+    assert plan.stop_steps[0] == (0, 0, 0, 0) and plan.stop_steps[1][0] > 0  # tendon 1 pulled at the stop
+    with pytest.raises(SafetyError, match=r"no tendon faces 0 deg"):
+        ts.plan_stream(away, ts.figure_path("line", 3.0, speed_mm_s=50.0))
 
 
 # --- the mapping -------------------------------------------------------------------------------------------

@@ -46,6 +46,15 @@ def test_the_schedule_is_the_map_at_its_points_and_linear_between() -> None:
     assert scheduled_mode(pts, 0.0, 30.0) == pytest.approx(scheduled_mode(pts, 0.0, 20.0))
 
 
+def test_a_map_of_one_direction_is_that_direction_everywhere() -> None:
+    """A reduced tune's map (one direction, one bend) schedules its one mode at every direction, whatever the
+    direction's floating-point turn (143.4 deg + 360 deg is not 503.4 deg - 360 deg to the last digit)."""
+    point = MapPoint(143.4, 10.0, 23.5, 0.07, 23.1, 0.048, "map_d143p4_b10")
+    for d in (143.4, 0.0, 100.0, 200.0, 359.9, -216.6):
+        assert scheduled_mode([point], d, 10.0) == (23.5, 0.07)
+    assert scheduled_mode([point], 143.4, 20.0) == (23.5, 0.07)  # the nearest bend
+
+
 def test_fixed_designs_use_the_reference_and_scheduled_ones_the_move() -> None:
     pts = _points()
     w_ref = 20 + REFERENCE[0] / 10 + REFERENCE[1] / 10
@@ -96,6 +105,30 @@ def test_tune_on_several_tendons_refuses_the_one_tendon_options(monkeypatch, tmp
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--grid apply to a rig with one tendon" in err
     assert not any(tmp_path.iterdir())
+
+
+def test_a_reduced_tune_names_its_directions_and_bends_and_refuses_bad_ones_in_one_line(tmp_path, capsys):
+    """``--directions`` and ``--bends`` (several tendons): a list or a range; the default grid leaves out the
+    directions no tendon faces; a direction no tendon faces, a bend <= 0 or these options on one tendon are
+    refused in one line (exit 2) before any port opens."""
+    from helpers.research.tune_tendons import grid
+
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    assert grid(four, "45", "10") == ((45.0,), (10.0,))
+    assert grid(four, "0:360:90", None) == ((0.0, 90.0, 180.0, 270.0), (10.0, 20.0))
+    two = rigfile.load(_two_tendon_rig(tmp_path))  # tendons at 0 and 90 deg: 180-270 face neither
+    assert grid(two, None, None)[0] == (0.0, 45.0, 90.0, 135.0, 315.0)
+    for argv, message in (
+        (["--rig", "four-tendon", "tune", "--directions", "45,x"], "--directions: expected numbers like"),
+        (["--rig", str(_two_tendon_rig(tmp_path)), "tune", "--directions", "200"],
+         "--directions: no tendon faces 200 deg (tendons at 0, 90 deg)"),
+        (["--rig", "four-tendon", "tune", "--bends", "0"], "--bends: every bend must be > 0 mm"),
+        (["tune", "--directions", "45"], "--directions and --bends apply to a rig with several tendons"),
+    ):  # fmt: skip
+        assert main([*argv, "--data-dir", str(tmp_path / "data")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and message in err, err
+    assert not (tmp_path / "data").exists()
 
 
 def _two_tendon_rig(folder: Path) -> Path:

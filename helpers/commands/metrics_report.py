@@ -10,9 +10,17 @@ tables::
     python -m helpers metrics "data/experiments/zvd_*" --band 0.02
     python -m helpers metrics data/runs/mine --csv results/mine --markdown results/mine.md
 
+A recording of several tendons (a move in task space, or any programme of one's own) gets one row per
+tendon that makes an up-hold-down move and motion, numbered as the rig file numbers them (from 1), and the
+tip's rows where the twin provides it: one analysis of the move
+(:func:`helpers.research.residuals.recording_residuals`), whose motions come from the lead tendon (the one
+that pulls most towards the bend), with a pre-pull reported in its own table, not folded into the move's
+rows; a tendon that pays out or is held has no row, and a line says so.
+
 A path may name a recording by its ``.csv``, its ``.json`` or its stem. Recordings that cannot be analysed
 are skipped, never silently: a malformed or incomplete pair, an aborted run (``--include-aborted`` analyses
-it anyway), a load-cell calibration run, a file that is not a recording. Every table carries the data's
+it anyway), a load-cell calibration run, a file that is not a recording, a stream of several tendons
+(``helpers.research.tip_stream_metrics`` measures it). Every table carries the data's
 ``source`` (``virtual-rig`` or ``hardware``), so a simulated number is never mistaken for a measured one.
 """
 
@@ -27,22 +35,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import shown
 from helpers.base.tables import to_markdown
-from helpers.commands.metrics_tendons import (
-    tendon_markdown,
-    tendon_table,
-    tendon_text,
-    tip_markdown,
-    tip_table,
-    tip_text,
-)
 from helpers.paper import metrics
 from helpers.paper import numbers as paper
 from helpers.recordings import RESERVED_NAMES, Recording, RecordingError, RecordingExists, load, recording_rig
+from helpers.research.residuals import recording_residuals
 
 _GLOB_CHARS = set("*?[")
 
@@ -128,7 +130,9 @@ def _why_not(rec: Recording, include_aborted: bool) -> str:
     sc = rec.meta.get("scenario") or {}
     if sc.get("kind") == "calibration":
         return "a load-cell calibration run (no motion to analyse)"
-    # several tendons: every tendon's motions come from its own step count (metrics_tendons)
+    if rec.tendons > 1 and sc.get("kind") == "stream":
+        return "a stream of several tendons (no up-hold-down move: helpers.research.tip_stream_metrics)"
+    # several tendons: the move's motions come from its lead tendon's count (move_tables)
     keys = () if rec.tendons > 1 else ("v_in_mm_s", "x_f_mm", "system")
     missing = [k for k in keys if sc.get(k) is None]
     if missing:
@@ -350,6 +354,194 @@ def report_markdown(
     return "\n".join(parts)
 
 
+# --- recordings of several tendons: every tendon's rows, the pre-pull apart, the tip ----------------------
+TENDON_COLUMNS = [
+    "recording", "source", "tendon", "role", "motion", "peak_n", "overshoot_pct", "settling_ms", "y0_n",
+    "yf_n", "band", "reason",
+]  # fmt: skip
+"""Columns of the per-tendon table (``tendon`` numbered as the rig file does, from 1; its CSV adds the
+residual analysis' columns, :func:`helpers.research.residuals.residual_table`)."""
+
+TIP_COLUMNS = [
+    "recording", "source", "lead", "motion", "peak_mm", "overshoot_pct", "settling_ms", "y0_mm", "yf_mm",
+    "band", "reason",
+]  # fmt: skip
+"""Columns of the tip's table (``lead``: the tendon, from 1, whose count gives the motions)."""
+
+PREPULL_COLUMNS = ["recording", "tendon", "prepull_steps", "pulled_s", "released_s", "prepulled_n", "rest_n"]
+"""Columns of the pre-pull's table: when every tendon was pulled in and let out, each one's tension before the
+move (the median of the 0.5 s before Up) and at rest after the release (the median of the recording's last
+0.5 s after its last step; NaN when less than 0.1 s of it is recorded)."""
+
+_RENAMED = {"peak": "peak_n", "y0": "y0_n", "yf": "yf_n"}
+
+
+@dataclass
+class MoveTables:
+    """The tables of recordings of several tendons.
+
+    ``lines``: one per recording, its lead and its tendons without a Table II row (and why).
+    """
+
+    tendons: pd.DataFrame
+    tip: pd.DataFrame
+    prepull: pd.DataFrame
+    lines: list[str]
+
+
+def _label(rec: Recording) -> str:
+    return shown(rec.path.with_suffix("")) if rec.path else rec.name
+
+
+def _no_row(tendon: int, role: str, held: int) -> str:
+    if role == "paid out":
+        return f"tendon {tendon} pays out ({held:+d} steps in the hold)"
+    return f"tendon {tendon} is held (its count at its level in the hold)"
+
+
+def _prepull_rows(rec: Recording, label: str, phases: Any) -> list[dict[str, Any]]:
+    f = rec.frame
+    t = f["t_s"].to_numpy(float)
+    counts = f[[f"steps_{i}" for i in range(rec.tendons)]].to_numpy()
+    changed = np.flatnonzero(np.any(np.diff(counts, axis=0) != 0, axis=1))
+    settled = max(float(t[changed[-1] + 1]), float(t[-1]) - metrics.PRE_S) if changed.size else float(t[0])
+    before = (t >= phases.up_start_s - metrics.PRE_S) & (t < phases.up_start_s)
+    after = t >= settled
+    rows = []
+    for i in range(rec.tendons):
+        y = f[f"tension_n_{i}"].to_numpy(float)
+        seen = not math.isnan(phases.release_s) and t[-1] - settled >= 0.1
+        rest = float(np.median(y[after])) if seen else math.nan
+        rows.append({"recording": label, "tendon": i + 1, "prepull_steps": phases.prepull,
+                     "pulled_s": phases.prepull_s, "released_s": phases.release_s,
+                     "prepulled_n": float(np.median(y[before])) if before.any() else math.nan,
+                     "rest_n": rest})  # fmt: skip
+    return rows
+
+
+def move_tables(recs: list[Recording], band: float) -> MoveTables:
+    """Table II rows of every tendon that makes an up-hold-down move, and of the tip, per recording.
+
+    Each recording's move is analysed once (:func:`helpers.research.residuals.recording_residuals`): its
+    motions from the lead tendon's count (the one that pulls most towards the bend; without a recorded
+    direction, the one whose count rises most), the pre-pull apart from them. A tendon that pays out or is
+    held makes no up-hold-down move: it has no row, and the recording's line says so.
+    """
+    tendons, tips, prepull, lines = [], [], [], []
+    for rec in recs:
+        label = _label(rec)
+        source = (rec.meta.get("source") or {}).get("kind", "unknown")
+        try:
+            table, phases, why = recording_residuals(rec, band)
+        except ValueError as exc:
+            lines.append(f"{label}: no Table II rows: {exc}")
+            continue
+        table = table.rename(columns=_RENAMED).assign(recording=label, source=source, band=band)
+        rows = table[table["role"].isin(["lead", "pulled"])]
+        tendons.append(rows.sort_values(["tendon", "motion"], ascending=[True, False], kind="stable"))
+        tip = table[table["signal"] == "tip"].rename(columns={"peak_n": "peak_mm", "y0_n": "y0_mm",
+                                                               "yf_n": "yf_mm"})  # fmt: skip
+        tips.append(tip)
+        first = table[(table["motion"] == "Up") & (table["unit"] == "N")]
+        without = [_no_row(r.tendon, r.role, r.held_steps) for r in first.itertuples() if r.role in
+                   ("paid out", "held")]  # fmt: skip
+        line = f"{label}: lead tendon {phases.lead + 1} ({why})"
+        if phases.prepull:
+            line += f"; pre-pull of {phases.prepull} step(s) on every tendon reported apart (below)"
+        if without:
+            line += f"; {', '.join(without)}: no up-hold-down move, so no Table II row"
+        lines.append(line)
+        if phases.prepull:
+            prepull += _prepull_rows(rec, label, phases)
+
+    def ordered(parts: list[pd.DataFrame], columns: list[str]) -> pd.DataFrame:
+        if not parts:
+            return pd.DataFrame(columns=columns)
+        out = pd.concat(parts, ignore_index=True)
+        return out[columns + [c for c in out.columns if c not in columns]]
+
+    return MoveTables(ordered(tendons, TENDON_COLUMNS), ordered(tips, TIP_COLUMNS),
+                      pd.DataFrame(prepull, columns=PREPULL_COLUMNS), lines)  # fmt: skip
+
+
+def _moves_displayed(t: MoveTables) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    def cells(table: pd.DataFrame, metric: str, digits: int) -> pd.Series:
+        return table[metric].map(lambda v: _number(v, digits))
+
+    tendons = pd.DataFrame({
+        "recording": t.tendons["recording"], "source": t.tendons["source"],
+        "tendon": t.tendons["tendon"].astype(str), "role": t.tendons["role"], "motion": t.tendons["motion"],
+        "y0 N": cells(t.tendons, "y0_n", 2), "peak N": cells(t.tendons, "peak_n", 2),
+        "overshoot %": cells(t.tendons, "overshoot_pct", 1),
+        "settling ms": cells(t.tendons, "settling_ms", 0),
+    })  # fmt: skip
+    tip = pd.DataFrame({
+        "recording": t.tip["recording"], "lead tendon": t.tip["lead"].astype(str), "motion": t.tip["motion"],
+        "peak mm": cells(t.tip, "peak_mm", 2), "overshoot %": cells(t.tip, "overshoot_pct", 1),
+        "settling ms": cells(t.tip, "settling_ms", 0),
+    })  # fmt: skip
+    pre = pd.DataFrame({
+        "recording": t.prepull["recording"], "tendon": t.prepull["tendon"].astype(str),
+        "steps": t.prepull["prepull_steps"].astype(str), "pulled at s": cells(t.prepull, "pulled_s", 3),
+        "released from s": cells(t.prepull, "released_s", 3),
+        "pre-pulled N": cells(t.prepull, "prepulled_n", 2), "at rest after N": cells(t.prepull, "rest_n", 2),
+    })  # fmt: skip
+    return tendons, tip, pre
+
+
+def _move_notes(t: MoveTables) -> list[str]:
+    rows = [f"{r.recording} tendon {r.tendon} {r.motion}: {r.reason}" for r in t.tendons.itertuples()
+            if isinstance(r.reason, str) and r.reason]  # fmt: skip
+    return rows + [f"{r.recording} tip {r.motion}: {r.reason}" for r in t.tip.itertuples()
+                   if isinstance(r.reason, str) and r.reason]  # fmt: skip
+
+
+TIP_TITLE = "Tip displacement |p - p0| from where it stood before the move (twin-provided, simulated)"
+PREPULL_TITLE = "Pre-pull (every tendon pulled in before the move, let out after it; not in the rows above)"
+
+
+def _moves_parts(t: MoveTables, band: float) -> list[tuple[str, pd.DataFrame | list[str]]]:
+    """(title, table or lines) of the report on recordings of several tendons, in order."""
+    tendons, tip, pre = _moves_displayed(t)
+    n = len({line.split(": ")[0] for line in t.lines})
+    parts: list[tuple[str, pd.DataFrame | list[str]]] = [
+        (f"Per tendon ({n} recording(s) of several tendons; tendons numbered as in the rig file; motions "
+         f"from the lead tendon's count; settling band ±{100 * band:g} %)", tendons),
+        ("Lead tendon, and tendons without a Table II row", t.lines),
+    ]  # fmt: skip
+    if not t.prepull.empty:
+        parts.append((PREPULL_TITLE, pre))
+    if not t.tip.empty:
+        parts.append((f"{TIP_TITLE}; settling band ±{100 * band:g} %", tip))
+    if any(s != "hardware" for s in t.tendons["source"].unique()):
+        parts.append(("", ["Source 'virtual-rig': simulated recordings, not hardware measurements."]))
+    notes_ = _move_notes(t)
+    if notes_:
+        parts.append(("Notes (NaN or bounded values)", notes_))
+    return parts
+
+
+def moves_text(t: MoveTables, band: float) -> str:
+    """The report on recordings of several tendons, for the terminal."""
+    lines: list[str] = []
+    for title, body in _moves_parts(t, band):
+        lines += [""] if lines else []
+        lines += [f"{title}:"] if title else []
+        lines += [body.to_string(index=False)] if isinstance(body, pd.DataFrame) else [
+            f"  {x}" if title else x for x in body]  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def moves_markdown(t: MoveTables, band: float) -> str:
+    """The same report as Markdown."""
+    parts = []
+    for title, body in _moves_parts(t, band):
+        head = f"## {title}\n" if title else ""
+        parts.append(head + ("\n" + to_markdown(body) if isinstance(body, pd.DataFrame) else
+                             "\n" + "".join(f"- {x}\n" if title else f"{x}\n" for x in body)))  # fmt: skip
+    return "\n".join(parts)
+
+
 def _write(path: Path, text: str, replace: bool) -> Path:
     """Write ``text`` to ``path`` whole (temporary file, then rename); refuse to overwrite unless asked."""
     if path.exists() and not replace:
@@ -406,7 +598,6 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"recordings of {len(rigs)} rigs in one table ({names}): --mix-rigs mixes them")
     several = [rec for rec in selection.recordings if rec.tendons > 1]
     single = Selection([rec for rec in selection.recordings if rec.tendons == 1], selection.skipped)
-    tendons = tendon_table(several, args.band)
     targets: list[tuple[Path, str]] = []
     stem = None if args.csv is None else (args.csv.with_suffix("") if args.csv.suffix == ".csv" else args.csv)
     if single.recordings or not several:
@@ -421,17 +612,14 @@ def run(args: argparse.Namespace) -> int:
     else:
         markdown = text = ""
     if several:
+        moves = move_tables(several, args.band)
         if stem is not None:
-            targets.append((stem.with_name(f"{stem.name}_tendons.csv"),
-                            tendons.to_csv(index=False, float_format="%.6g")))  # fmt: skip
-        tip = tip_table(several, args.band)
-        if stem is not None and not tip.empty:
-            tip_csv = tip.to_csv(index=False, float_format="%.6g")
-            targets.append((stem.with_name(f"{stem.name}_tip.csv"), tip_csv))
-        markdown += tendon_markdown(tendons, args.band)
-        text += tendon_text(tendons, args.band)
-        markdown += tip_markdown(tip, args.band)
-        text += tip_text(tip, args.band)
+            for suffix, table in (("tendons", moves.tendons), ("prepull", moves.prepull), ("tip", moves.tip)):
+                if suffix == "tendons" or not table.empty:
+                    csv_text = table.to_csv(index=False, float_format="%.6g")
+                    targets.append((stem.with_name(f"{stem.name}_{suffix}.csv"), csv_text))
+        markdown += ("\n" if markdown else "") + moves_markdown(moves, args.band)
+        text += ("\n" if text else "") + moves_text(moves, args.band)
         if not single.recordings:
             markdown += "\n" + _skipped_text(selection.skipped).replace("\n  ", "\n- ") + "\n"
             text += "\n" + _skipped_text(selection.skipped) + "\n"

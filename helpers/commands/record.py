@@ -139,7 +139,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--system", choices=list(SYSTEMS), default=None, help=SYSTEM_HELP)
     parser.add_argument(
         "--direction-deg", type=arg_number(-360, 360),
-        help="move: the bend's direction, deg around the backbone (0 = towards tendon 1, counter-clockwise)",
+        help="move: the bend's direction, deg around the backbone (0 = towards tendon 1, counter-clockwise); "
+        "tip-stream: the figure turned by it (the line's direction, the square's first corner; default 0)",
     )  # fmt: skip
     parser.add_argument(
         "--bend-mm", type=arg_number(0, 1000, lo_open=True),

@@ -29,7 +29,7 @@ from helpers.commands import rig_firmware
 from helpers.rigfile import RigFile, RigFileError, capacity
 from helpers.rigfile.template import template_text
 from helpers.virtual import statics
-from helpers.virtual.from_rig import rig_parameters
+from helpers.virtual.from_rig import planar_holds, rig_parameters
 from helpers.virtual.spatial import statics as spatial_statics
 from helpers.virtual.spatial.direction_map import bend_equilibrium
 from helpers.virtual.spatial.from_rig import spatial_rig
@@ -68,11 +68,11 @@ def predicted_modes(rig: RigFile, points: int = 5) -> dict[str, Any]:
     """The twin's modes of ``rig`` at rest and across its travel (spools held; rotor free for the dominant).
 
     One tendon with gravity in its plane: the planar twin (``helpers.virtual.statics``); otherwise the
-    spatial twin, the travel pulled on tendon 1 alone.
+    spatial twin, the travel pulled on tendon 1 alone (a bend towards it).
     """
     travel = rig.hardware.travel_mm
     u_mm = np.linspace(0.0, travel, max(2, points))
-    planar = rig.n_tendons == 1 and abs(rig.arm.gravity_direction[1]) < 1e-12
+    planar = planar_holds(rig)
     out: dict[str, Any] = {"twin": "planar" if planar else "spatial"}
     if planar:
         p = rig_parameters(rig)
@@ -94,7 +94,7 @@ def predicted_modes(rig: RigFile, points: int = 5) -> dict[str, Any]:
     out["dominant_at_rest"] = {"omega_d_rad_s": wd, "zeta": z}
     rows, eq = [], None
     for u in u_mm:
-        eq = bend_equilibrium(s, 0.0, float(u), start=eq)
+        eq = bend_equilibrium(s, rig.tendons[0].angle_deg, float(u), start=eq)
         m = spatial_statics.linearise(s, eq, rotor="locked").modes()
         wd, z = spatial_statics.linearise(s, eq, rotor="free").dominant(0)
         rows.append({

@@ -45,7 +45,7 @@ TIP_TAIL_S = 1.5
 def _name(args: argparse.Namespace) -> str:
     text = f"tip_{args.path}_{args.shaper}_b{args.bend_mm:g}" + (
         f"_m{args.margin_n:g}" if args.margin_n else ""
-    )
+    ) + (f"_d{args.direction_deg:g}" if args.direction_deg else "")
     return args.name or text.replace(".", "p").replace("-", "m")
 
 
@@ -58,7 +58,8 @@ def _plan(args: argparse.Namespace, rig: Any) -> tuple[Any, Any, Any]:
             "(--rig four-tendon)"
         )
     speed = args.v_in if args.v_in is not None else TIP_SPEED_MM_S
-    path = figure_path(args.path, args.bend_mm, speed_mm_s=speed, seed=args.path_seed)
+    path = figure_path(args.path, args.bend_mm, speed_mm_s=speed, seed=args.path_seed,
+                       turn_deg=args.direction_deg or 0.0)  # fmt: skip
     plan = plan_stream(
         rig, path, margin_n=args.margin_n
     )  # the floor at every period: refused before any port

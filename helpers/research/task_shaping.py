@@ -84,8 +84,8 @@ from helpers.research.families import FAMILIES, multi_mode, zv, zvd
 from helpers.research.task_space import MovePlan, move_programme, plan_move
 from helpers.rig.safety import SafetyError
 from helpers.rigfile import RigFile
-from helpers.rigfile.derived import derived
-from helpers.virtual.spatial.direction_map import bend_command, bend_equilibrium
+from helpers.rigfile.derived import derived, lead_tendon
+from helpers.virtual.spatial.direction_map import bend_equilibrium
 from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.plant import SpatialPlant
 from helpers.virtual.spatial.rig import SpatialRig
@@ -149,7 +149,8 @@ class MoveModes:
     direction_deg, bend_mm : float
         The bend.
     lead : int
-        The lead tendon (0-based): the pulled tendon whose spool moves fastest with the bend.
+        The lead tendon (0-based): the one that pulls most towards the bend
+        (:func:`helpers.rigfile.derived.lead_tendon`).
     omega_d, zeta : tuple of float
         Each mode's damped frequency (rad/s) and damping ratio, the largest weight first.
     weight : tuple of tuple of float
@@ -185,8 +186,7 @@ def move_modes(twin: SpatialRig, direction_deg: float, bend_mm: float, n_modes: 
     eq = bend_equilibrium(twin, float(direction_deg), float(bend_mm))
     nxt = bend_equilibrium(twin, float(direction_deg), float(bend_mm) + DB_MM, start=eq)
     u_cmd = (nxt.u - eq.u) / (DB_MM * 1e-3)
-    _, pulled = bend_command(twin, float(direction_deg), 1.0)
-    lead = int(np.argmax(np.where(pulled, u_cmd, -np.inf)))
+    lead = lead_tendon(twin.tendons, direction_deg)
     free = linearise(twin, eq, rotor="free")
     w = np.abs(np.einsum("ijk,j->ik", free.weights, u_cmd))  # (tendon, pole)
     ks = np.flatnonzero(free.poles.imag > 1e-9)

@@ -40,7 +40,7 @@ from helpers.board.programmes import Dwell, Move, Programme
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.rig.safety import SafetyError
 from helpers.rigfile import RigFile
-from helpers.rigfile.derived import derived
+from helpers.rigfile.derived import derived, lead_tendon
 from helpers.virtual.spatial.direction_map import bend_command, bend_equilibrium, frequency_map
 from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.rig import SpatialRig
@@ -86,6 +86,9 @@ class MovePlan:
         Which tendons face the direction (pulled as the map pulls them; the others held at pretension).
     trimmed : tuple of int
         Steps the pretension policy added to each tendon to keep it at the floor.
+    lead : int
+        The tendon (0-based) that pulls most towards the bend
+        (:func:`helpers.rigfile.derived.lead_tendon`): its cable moves at the programme's speed.
     """
 
     direction_deg: float
@@ -97,11 +100,7 @@ class MovePlan:
     floor_n: float
     pulled: tuple[bool, ...]
     trimmed: tuple[int, ...]
-
-    @property
-    def lead(self) -> int:
-        """The tendon (0-based) that moves most."""
-        return int(np.argmax(np.abs(self.steps)))
+    lead: int
 
     def lines(self) -> list[str]:
         """One line per tendon: its displacement, its planned static tension against the floor."""
@@ -237,6 +236,7 @@ def plan_move(
         displacement_mm=tuple(float(v) for v in steps * mm), command_mm=tuple(float(v) for v in command),
         tension_n=tuple(float(v) for v in tension), floor_n=floor, pulled=tuple(bool(p) for p in pulled),
         trimmed=tuple(int(v) for v in trimmed),
+        lead=lead_tendon(rig.tendons, direction_deg),
     )  # fmt: skip
 
 

@@ -84,7 +84,7 @@ __all__ = [
 PERIOD_S = 0.01
 """The stream's control period, s (100 Hz)."""
 
-FIGURES = ("square", "star", "circle", "random")
+FIGURES = ("square", "star", "circle", "random", "line")
 """The paths :func:`figure_path` makes."""
 
 SHAPERS = ("none", "zv", "zvd")
@@ -231,6 +231,7 @@ def figure_path(
     hold_s: float = 1.5,
     lead_s: float = 0.3,
     seed: int = 0,
+    turn_deg: float = 0.0,
 ) -> TipPath:
     """A scripted or seeded figure of bends, from rest back to rest, with stops (deterministic).
 
@@ -240,7 +241,11 @@ def figure_path(
     - ``circle``: out to ``bend_mm`` towards 0 deg, once round the circle counter-clockwise at the speed,
       back to rest;
     - ``random``: a joystick-like command: six moves to random bends inside the disc of ``bend_mm``
-      (``seed``), each with a smooth (Hann) speed profile peaking at up to ``speed_mm_s``, then back to rest.
+      (``seed``), each with a smooth (Hann) speed profile peaking at up to ``speed_mm_s``, then back to rest;
+    - ``line``: out to ``bend_mm`` towards 0 deg and back to rest (an arm whose tendons do not surround its
+      backbone bends only towards the directions they face: two tendons, for one).
+
+    ``turn_deg`` turns the whole figure about the backbone (the line's direction, the square's first corner).
 
     Every leg is followed by a stop of ``hold_s`` (the circle stops only before and after going round); the
     path starts with ``lead_s`` at rest.
@@ -264,7 +269,9 @@ def figure_path(
             parts.extend([_leg(here, p, speed_mm_s), _hold(p, hold_s)])
             here = p
 
-    if figure == "square":
+    if figure == "line":
+        go([_at(0, bend_mm)])
+    elif figure == "square":
         go([_at(d, bend_mm) for d in (0, 90, 180, 270, 0)])
     elif figure == "star":
         go([p for d in range(0, 360, 45) for p in (_at(d, bend_mm), rest)][:-1])
@@ -288,6 +295,11 @@ def figure_path(
             parts += [here + (p - here) * (w / w[-1])[:, None], _hold(p, hold_s)]
             here = p
     bends = np.vstack(parts)
+    if turn_deg:
+        if not math.isfinite(turn_deg):
+            raise ValueError(f"turn_deg must be finite, got {turn_deg!r}")
+        c, s = math.cos(math.radians(turn_deg)), math.sin(math.radians(turn_deg))
+        bends = bends @ np.array([[c, s], [-s, c]])
     bends[np.abs(bends) < 1e-12] = 0.0
     return TipPath(figure, float(bend_mm), bends, _stops(bends), float(speed_mm_s))
 
@@ -311,7 +323,8 @@ def _knots(path: TipPath, knot_mm: float) -> np.ndarray:
 
 def _bend_eq(twin: SpatialRig, bend: np.ndarray, start: SpatialEquilibrium | None) -> SpatialEquilibrium:
     m = float(np.hypot(*bend))
-    d = math.degrees(math.atan2(bend[1], bend[0])) if m > 1e-9 else 0.0
+    # at rest any direction is the rest: tendon 1's, which it faces (0 deg may face no tendon)
+    d = math.degrees(math.atan2(bend[1], bend[0])) if m > 1e-9 else twin.tendons[0].angle_deg
     return bend_equilibrium(twin, d, m, start=start)
 
 

@@ -430,6 +430,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=1000,
         help="in-process virtual rig: noise seed of the first run (run k: seed + k)",
     )
+    parser.add_argument(
+        "--directions", metavar="LIST", default=None,
+        help="a rig with several tendons: the bend directions, deg (0,45,90 or start:stop:step; default "
+        "0:360:45, those a tendon faces)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--bends", metavar="LIST", default=None,
+        help="a rig with several tendons: the bend magnitudes, mm of cable (default 10,20)",
+    )  # fmt: skip
     parser.add_argument("--data-dir", type=Path, default=DATA_DIR, help="the data folder")
     parser.add_argument("--replace", action="store_true", help="replace earlier tuning recordings and files")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -443,6 +452,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--rate {args.rate} Hz: rig {selected.name!r} samples at {lo}-{hi} Hz")
     if selected.n_tendons > 1:
         return tune_tendons.run_tendons(args, selected)
+    if args.directions is not None or args.bends is not None:
+        raise ValueError("--directions and --bends apply to a rig with several tendons (a bend's direction); "
+                         f"rig {selected.name!r} has one: --grid chooses its conditions")
     grid = rig_grid(args.grid, selected)
     positions = rig_positions(selected)
     scaling_notes.announce(selected, {f"tune {args.grid} grid": GRIDS[args.grid]}, POSITIONS_MM)

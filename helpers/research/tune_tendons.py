@@ -18,7 +18,8 @@ direction and the magnitude of the bend. So, on the rig (the in-process virtual 
    and bend (:func:`scheduled_mode`: the map interpolated, periodic in the direction, linear in the bend);
 3. **verify** each design on every bend of the grid, ``repetitions`` runs each: the residual vibration of
    every tendon's tension and of the tip after the Up and Down motions, and the samples below the tension
-   floor (:func:`helpers.research.tendon_residuals.move_residuals_tendons`);
+   floor (:func:`helpers.research.residuals.recording_residuals`: the lead tendon that pulls most towards the
+   bend, the pre-pull apart from the move);
 4. **report**: per direction and design, the worst residual of the lead tendon and of the tip over the
    bends and repetitions, the slack samples, the move's duration; the wall time of the whole run.
 
@@ -50,6 +51,7 @@ from helpers.base.tables import to_markdown
 from helpers.paper.identify import fft_peak
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.recordings import Recording, RecordingExists
+from helpers.research.residuals import recording_residuals
 from helpers.research.task_shaping import (
     MAX_PREPULL_STEPS,
     design_move,
@@ -59,11 +61,10 @@ from helpers.research.task_shaping import (
     verify_auto,
 )
 from helpers.research.task_space import MoveDesign, MovePlan, check_travel, move_programme, plan_move
-from helpers.research.tendon_residuals import move_residuals_tendons
 from helpers.rig import Rig
 from helpers.rig.safety import SafetyError
 from helpers.rigfile import RigFile
-from helpers.virtual.spatial.direction_map import frequency_map
+from helpers.virtual.spatial.direction_map import frequency_map, parse_values
 from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.plant import SpatialPlant
 
@@ -71,7 +72,7 @@ __all__ = [
     "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "SEARCH_BAND", "ENVELOPE_FLOOR", "MOVE_TIMES_S",
     "MapPoint", "scheduled_mode",
     "design_for", "run_move", "identify_hold", "measure_map", "verify", "SUMMARY_COLUMNS", "summarise",
-    "tune_tendons", "choose_prepull", "tendon_folder", "run_tendons", "write_report",
+    "tune_tendons", "choose_prepull", "tendon_folder", "run_tendons", "write_report", "reference", "grid",
 ]  # fmt: skip
 
 DIRECTIONS_DEG = tuple(45.0 * k for k in range(8))
@@ -81,7 +82,13 @@ BENDS_MM = (10.0, 20.0)
 """The grid's bend magnitudes, mm of cable."""
 
 REFERENCE = (0.0, 10.0)
-"""(direction deg, bend mm) whose measured mode the fixed ZV and ZVD are designed from."""
+"""(direction deg, bend mm) whose measured mode the fixed ZV and ZVD are designed from: 10 mm towards tendon 1
+(at 0 deg on the shipped rigs; :func:`reference` gives a rig's)."""
+
+
+def reference(rig: RigFile) -> tuple[float, float]:
+    """The fixed designs' bend on ``rig``: :data:`REFERENCE`'s bend towards its tendon 1."""
+    return float(rig.tendons[0].angle_deg % 360.0), REFERENCE[1]
 
 SYSTEMS = ("unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd", "auto")
 """The designs verified, by the name each recording's scenario carries (``auto``: the automatic choice of
@@ -121,31 +128,42 @@ def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: fl
     bs = np.sort(table["b"].unique())
     grid = table.set_index(["d", "b"])
     d = direction_deg % 360.0
-    i = int(np.searchsorted(ds, d, side="right")) - 1
-    d0 = ds[i] if i >= 0 else ds[-1] - 360.0
-    d1 = ds[(i + 1) % len(ds)] + (360.0 if i + 1 >= len(ds) else 0.0)
+    i = int(np.searchsorted(ds, d, side="right")) - 1  # the grid's directions by index: no float modulo
+    i0, i1 = i % len(ds), (i + 1) % len(ds)
+    d0 = ds[i0] - (360.0 if i < 0 else 0.0)
+    d1 = ds[i1] + (360.0 if i + 1 >= len(ds) else 0.0)
     fd = 0.0 if d1 == d0 else (d - d0) / (d1 - d0)
     b = min(max(bend_mm, bs[0]), bs[-1])
     j = min(int(np.searchsorted(bs, b, side="right")) - 1, len(bs) - 1)
     b0, b1 = bs[j], bs[min(j + 1, len(bs) - 1)]
     fb = 0.0 if b1 == b0 else (b - b0) / (b1 - b0)
 
-    def at(dd: float, bb: float) -> np.ndarray:
-        return grid.loc[(dd % 360.0, bb), ["w", "z"]].to_numpy(float)
+    def at(k: int, bb: float) -> np.ndarray:
+        return grid.loc[(ds[k], bb), ["w", "z"]].to_numpy(float)
 
-    lo = (1 - fd) * at(d0, b0) + fd * at(d1, b0)
-    hi = (1 - fd) * at(d0, b1) + fd * at(d1, b1)
+    lo = (1 - fd) * at(i0, b0) + fd * at(i1, b0)
+    hi = (1 - fd) * at(i0, b1) + fd * at(i1, b1)
     w, z = (1 - fb) * lo + fb * hi
     return float(w), float(z)
 
 
-def design_for(system: str, points: Sequence[MapPoint], direction_deg: float, bend_mm: float) -> MoveDesign:
-    """The design ``system`` (:data:`SYSTEMS`) of a move to a bend, from the measured map."""
+def design_for(
+    system: str,
+    points: Sequence[MapPoint],
+    direction_deg: float,
+    bend_mm: float,
+    fixed_at: tuple[float, float] = REFERENCE,
+) -> MoveDesign:
+    """The design ``system`` (:data:`SYSTEMS`) of a move to a bend, from the measured map.
+
+    The fixed designs use the map's mode at ``fixed_at`` (direction, bend: :func:`reference`), interpolated
+    or clamped to the grid where the grid does not hold it.
+    """
     if system not in SYSTEMS:
         raise ValueError(f"system must be one of {', '.join(SYSTEMS)}, got {system!r}")
     if system == "unshaped":
         return MoveDesign(None, "none")
-    where = REFERENCE if not system.startswith("scheduled") else (direction_deg, bend_mm)
+    where = fixed_at if not system.startswith("scheduled") else (direction_deg, bend_mm)
     omega_d, zeta = scheduled_mode(points, *where)
     zv, zvd = design_tdfs(omega_d, zeta)
     shaper: Shaper = zvd if system.endswith("zvd") else zv
@@ -360,14 +378,15 @@ def verify(
             plan = plan_move(rig, d, b, twin)
             for system in systems:
                 design = (
-                    _auto_design(rig, plan, prepull) if system == "auto" else design_for(system, points, d, b)
-                )
+                    _auto_design(rig, plan, prepull) if system == "auto"
+                    else design_for(system, points, d, b, reference(rig))
+                )  # fmt: skip
                 duration = float(design.shaper.times[-1]) if design.shaper is not None else 0.0
                 for rep in range(1, repetitions + 1):
                     name = f"{system}_d{d:g}_b{b:g}_r{rep}".replace(".", "p")
                     rec = run_move(trig, plan, design, folder / name, seed=seeds(), reseed=reseed,
                                    replace=replace, prepull=prepull)  # fmt: skip
-                    rows = move_residuals_tendons(rec.frame, rig.n_tendons, plan.floor_n, prepull=prepull)
+                    rows, _, _ = recording_residuals(rec)
                     rows.insert(0, "repetition", rep)
                     rows.insert(0, "system", system)
                     rows.insert(0, "bend_mm", b)
@@ -437,7 +456,7 @@ def tune_tendons(
         "format": "continuum-arm-tendon-verification", "version": 1, "rig": rig.name, "rig_hash": rig.hash,
         "host": {"helpers": HELPERS_VERSION},
         "source": dict(trig.source), "repetitions": repetitions, "directions_deg": list(directions),
-        "bends_mm": list(bends), "reference": list(REFERENCE), "move_times_s": list(MOVE_TIMES_S),
+        "bends_mm": list(bends), "reference": list(reference(rig)), "move_times_s": list(MOVE_TIMES_S),
         "speed_mm_s": SPEED_MM_S, "prepull_steps": prepull, "prepull_check": prepull_lines,
         "map": [p.__dict__ for p in points],
         "rows": rows.replace({math.nan: None}).to_dict(orient="records"),
@@ -489,20 +508,52 @@ def tendon_folder(data_dir: Path, rig: RigFile) -> Path:
     return data_dir / "tuning" / "tendons" / rig.name
 
 
+def _faced(rig: RigFile, direction_deg: float) -> bool:
+    return any(math.cos(math.radians(direction_deg - t.angle_deg)) > 1e-9 for t in rig.tendons)
+
+
+def grid(rig: RigFile, directions: str | None, bends: str | None) -> tuple[tuple[float, ...], ...]:
+    """The tune's directions and bends: the command line's, else the default grid's.
+
+    ``--directions 0,45`` and ``--bends 10`` (or ``start:stop:step``); the default directions leave out those
+    no tendon of ``rig`` faces.
+
+    Raises
+    ------
+    ValueError
+        One line: a list that is not numbers, a bend <= 0, a given direction no tendon faces.
+    """
+    ds = tuple(d for d in DIRECTIONS_DEG if _faced(rig, d))
+    if directions is not None:
+        ds = parse_values(directions, "--directions")
+        for d in ds:
+            if not _faced(rig, d):
+                angles = ", ".join(f"{t.angle_deg:g}" for t in rig.tendons)
+                raise ValueError(f"--directions: no tendon faces {d:g} deg (tendons at {angles} deg)")
+    bs = BENDS_MM if bends is None else parse_values(bends, "--bends")
+    if any(b <= 0 for b in bs):
+        raise ValueError(f"--bends: every bend must be > 0 mm, got {bends!r}")
+    return ds, bs
+
+
 def run_tendons(args: Any, rig: RigFile) -> int:
     """``python -m helpers --rig FILE tune`` on a rig with several tendons (the module's steps 1-4)."""
     if args.reuse_map or args.minimax or args.grid != "table-i":
         raise ValueError(
             "--reuse-map, --minimax and --grid apply to a rig with one tendon; on a rig with several the "
-            f"grid is {len(DIRECTIONS_DEG)} directions x {len(BENDS_MM)} bends (docs/task_space.md)"
+            f"grid is {len(DIRECTIONS_DEG)} directions x {len(BENDS_MM)} bends (--directions, --bends; "
+            "docs/task_space.md)"
         )
+    directions, bends = grid(rig, args.directions, args.bends)
     repetitions = args.repetitions or 3
     folder = tendon_folder(args.data_dir, rig)
     say = (lambda _line: None) if args.quiet else (lambda line: print(line, file=sys.stderr))
-    runs = len(DIRECTIONS_DEG) * len(BENDS_MM) * (1 + len(SYSTEMS) * repetitions)
+    runs = len(directions) * len(bends) * (1 + len(SYSTEMS) * repetitions)
+    left = [d for d in DIRECTIONS_DEG if d not in directions] if args.directions is None else []
     say(
-        f"tune on '{rig.name}': {runs} moves of {MOVE_TIMES_S[-1]:g} s ({len(DIRECTIONS_DEG)} directions "
-        f"x {len(BENDS_MM)} bends; the map, then {len(SYSTEMS)} designs x {repetitions} repetitions)"
+        f"tune on '{rig.name}': {runs} moves of {MOVE_TIMES_S[-1]:g} s ({len(directions)} directions "
+        f"x {len(bends)} bends; the map, then {len(SYSTEMS)} designs x {repetitions} repetitions)"
+        + (f"; left out (no tendon faces them): {', '.join(f'{d:g}' for d in left)} deg" if left else "")
     )
     with contextlib.ExitStack() as stack:
         stack.enter_context(folder_lock(folder, what="tuning", name=".tuning.lock"))
@@ -520,8 +571,8 @@ def run_tendons(args: Any, rig: RigFile) -> int:
                 f"{repo_path(folder / 'verification.json')} exists; pass --replace to tune again"
             )
         reseed = None if world is None else world.reseed
-        doc = tune_tendons(trig, folder, repetitions, seeds=seeds, reseed=reseed, replace=args.replace,
-                           progress=say)  # fmt: skip
+        doc = tune_tendons(trig, folder, repetitions, directions=directions, bends=bends, seeds=seeds,
+                           reseed=reseed, replace=args.replace, progress=say)  # fmt: skip
     summary = pd.DataFrame(doc["summary"])
     print(summary.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(

@@ -221,3 +221,16 @@ def check(rig: Any) -> Derived:
     if d.min_interval_us > hw.max_interval_us:
         raise refuse("[hardware] max_interval_us", f"below the fastest step interval {d.min_interval_us} us")
     return d
+
+
+def lead_tendon(tendons: Any, direction_deg: float) -> int:
+    """The tendon (0-based) that pulls most towards a bend in ``direction_deg`` (deg around the backbone).
+
+    The largest ``(r_i / r_mean) cos(beta - a_i)``, the direction map's pull; of pulls within 1e-9 of the
+    largest, the lowest index. The planner, the shapers' modes, the twin's map and the analysis of a move all
+    take their lead from here. ``tendons``: a rig file's or the spatial twin's (``angle_deg``, ``offset_mm``).
+    """
+    mean = sum(float(t.offset_mm) for t in tendons) / len(tendons)
+    pull = [t.offset_mm / mean * math.cos(math.radians(float(direction_deg) - t.angle_deg)) for t in tendons]
+    top = max(pull)
+    return next(i for i, p in enumerate(pull) if p >= top - 1e-9 * max(abs(top), 1.0))

@@ -17,7 +17,7 @@ from helpers.rigfile import RigFile
 from helpers.rigfile.units import si
 from helpers.virtual.parameters import RigParameters
 
-__all__ = ["rig_parameters", "base_angle_deg", "ROTOR_TEETH"]
+__all__ = ["rig_parameters", "base_angle_deg", "tendon_gravity", "planar_holds", "ROTOR_TEETH"]
 
 ROTOR_TEETH = 50
 """Rotor teeth of a 1.8 degree hybrid stepper (the microstep spring ``T_h N_r``)."""
@@ -38,6 +38,33 @@ def base_angle_deg(gravity_direction: tuple[float, float, float]) -> float:
     return math.degrees(math.atan2(-gz, -gx)) + 0.0
 
 
+def tendon_gravity(rig: RigFile, tendon: int = 0) -> tuple[float, float, float]:
+    """``[arm] gravity_direction`` in tendon ``tendon``'s frame: ``x`` towards the tendon, ``z`` the backbone.
+
+    The planar twin bends in the plane of the backbone and its tendon; the rig file's frame has ``x`` towards
+    angle 0, so a tendon at angle ``a`` sees gravity turned by ``-a`` about the backbone (a tendon at 180 deg
+    on the horizontal paper arm hangs below it: gravity pulls the arm towards it).
+    """
+    gx, gy, gz = rig.arm.gravity_direction
+    a = math.radians(rig.tendons[tendon].angle_deg)
+    c, s = math.cos(a), math.sin(a)
+    if s == 0.0 and c == 1.0:  # the paper's tendon at 0: the file's vector as it is, to the last digit
+        return float(gx), float(gy), float(gz)
+    return gx * c + gy * s, -gx * s + gy * c, float(gz)
+
+
+def planar_holds(rig: RigFile) -> bool:
+    """True for a rig the planar twin describes: one tendon, and gravity in the plane of it and the backbone.
+
+    A one-tendon rig whose gravity has a component across that plane sags out of it: the virtual rig and the
+    predictions use the spatial twin with its one tendon instead (``docs/rig_file.md``).
+    """
+    if rig.n_tendons != 1:
+        return False
+    gx, gy, gz = tendon_gravity(rig)
+    return abs(gy) <= 1e-12 * math.sqrt(gx * gx + gy * gy + gz * gz)
+
+
 def rig_parameters(
     rig: RigFile, tendon: int = 0, planar_gravity: bool = True, **changes: Any
 ) -> RigParameters:
@@ -50,8 +77,9 @@ def rig_parameters(
     tendon : int
         Which tendon's stepper, spool, load cell, offset, pretension and cable the planar twin carries.
     planar_gravity : bool
-        Set ``base_angle_deg`` from ``[arm] gravity_direction`` (which must lie in the x-z plane); False keeps
-        0 (the spatial twin, which reads ``gravity_direction`` itself).
+        Set ``base_angle_deg`` from ``[arm] gravity_direction`` seen from the tendon (:func:`tendon_gravity`,
+        which must lie in the tendon's plane); False keeps 0 (the spatial twin, which reads
+        ``gravity_direction`` itself).
     **changes
         Fields of :class:`RigParameters` to set instead.
     """
@@ -72,7 +100,7 @@ def rig_parameters(
         "r": si(t.offset_mm, -3),
         "k": k,
         "pretension": float(t.pretension_n),
-        "base_angle_deg": base_angle_deg(a.gravity_direction) if planar_gravity else 0.0,
+        "base_angle_deg": base_angle_deg(tendon_gravity(rig, tendon)) if planar_gravity else 0.0,
         "g": float(a.gravity_m_s2),
         "alpha": float(a.damping_alpha_per_s),
         "beta_chord": float(a.damping_beta_chord_s),

@@ -50,9 +50,9 @@ if str(fwsim.REPO) not in sys.path:  # run as a script from anywhere: this repos
 
 from helpers import rigfile  # noqa: E402
 from helpers.board.programmes import Dwell, Move, Programme  # noqa: E402
-from helpers.commands.metrics_tendons import tendon_table  # noqa: E402
-from helpers.paper import metrics  # noqa: E402
+from helpers.commands.metrics_report import move_tables  # noqa: E402
 from helpers.recordings import Recording  # noqa: E402
+from helpers.research.residuals import move_phases, residual_table, rising_tendon  # noqa: E402
 from helpers.rig import Rig  # noqa: E402
 from helpers.rig.link import Waiter  # noqa: E402
 from helpers.virtual.emulator.world import ADC_CONVERSION_S, build_world, forget_world, register_world  # noqa: E402
@@ -288,7 +288,7 @@ def in_process(programme: Programme, tail_s: float, tmp: Path) -> Recording:
 
 def per_tendon(rec: Recording, band: float = 0.05) -> pd.DataFrame:
     """Every tendon's Table II metrics (``python -m helpers metrics``' table), indexed by tendon, motion."""
-    return tendon_table([rec], band).set_index(["tendon", "motion"])[METRICS]
+    return move_tables([rec], band).tendons.set_index(["tendon", "motion"])[METRICS]
 
 
 def one_count_settling_spread(rec: Recording) -> pd.Series:
@@ -299,11 +299,11 @@ def one_count_settling_spread(rec: Recording) -> pd.Series:
     settling time is defined.
     """
     base = per_tendon(rec)
-    table = tendon_table([rec], 0.05).set_index(["tendon", "motion"])
+    table = move_tables([rec], 0.05).tendons.set_index(["tendon", "motion"])
     out = {}
     for (tendon, motion), row in table.iterrows():
         step = abs(row["yf_n"] - row["y0_n"])
-        npc = rec.meta["calibration"]["newtons_per_count"][tendon]
+        npc = rec.meta["calibration"]["newtons_per_count"][tendon - 1]  # tendons numbered from 1
         if not (step > 0) or np.isnan(base.loc[(tendon, motion), "settling_ms"]):
             out[(tendon, motion)] = float("nan")
             continue
@@ -342,16 +342,15 @@ def twin_frame(edges: Edges, phase_s: float, duration_s: float, rig: rigfile.Rig
 
 def phase_spread(edges: Edges, duration_s: float, rig: rigfile.RigFile, n: int = 10) -> pd.DataFrame:
     """How much each tendon's metrics move with the sampling phase alone (max - min over ``n`` phases in one
-    period of the twin sampled as the DAQ does, :func:`twin_frame`)."""
+    period of the twin sampled as the DAQ does, :func:`twin_frame`), by the metrics' own analysis (the motions
+    from the lead's count, tendons numbered from 1)."""
     tables = []
     for k in range(n):
         frame = twin_frame(edges, k * 1e-3 / n, duration_s, rig)
-        rows = []
-        for a in range(rig.n_tendons):
-            view = frame.rename(columns={f"steps_{a}": "steps", f"tension_n_{a}": "tension_n"})
-            m = metrics.recording_metrics(view[["t_s", "steps", "tension_n"]]).set_index("motion")[METRICS]
-            rows.append(m.assign(tendon=a).set_index("tendon", append=True).swaplevel())
-        tables.append(pd.concat(rows))
+        counts = frame[[f"steps_{a}" for a in range(rig.n_tendons)]].to_numpy()
+        phases = move_phases(frame["t_s"].to_numpy(), counts, rising_tendon(counts))
+        m = residual_table(frame, rig.n_tendons, phases).rename(columns={"peak": "peak_n"})
+        tables.append(m[m["unit"] == "N"].set_index(["tendon", "motion"])[METRICS])
     stacked = pd.concat(tables)
     return stacked.groupby(level=[0, 1]).max() - stacked.groupby(level=[0, 1]).min()
 

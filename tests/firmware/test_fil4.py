@@ -52,9 +52,9 @@ def test_four_tendon_firmware_in_the_loop_gives_the_in_process_metrics(tmp_path,
     diff = (got - want).abs()
     spread = result["phase_spread"].reindex(diff.index)
     assert (diff["peak_n"] <= spread["peak_n"] + PEAK_N).all(), (diff["peak_n"], spread["peak_n"])
-    table = fil4.tendon_table([result["reference"]], 0.05).set_index(["tendon", "motion"])
+    table = fil4.move_tables([result["reference"]], 0.05).tendons.set_index(["tendon", "motion"])
     per_count = result["reference"].meta["calibration"]["newtons_per_count"]
-    npc = np.array(per_count)[table.index.get_level_values(0)]
+    npc = np.array(per_count)[table.index.get_level_values(0) - 1]  # tendons numbered from 1
     overshoot_tol = spread["overshoot_pct"].to_numpy() + 100 * (PEAK_N + 2 * npc) / (
         table["yf_n"] - table["y0_n"]
     ).abs().to_numpy()

@@ -17,9 +17,10 @@ taken (the firmware finishes and sends it: a difference within the last 312 us o
 
 :func:`build_world` builds the world of a rig file: the planar twin (:class:`helpers.virtual.ArmPlant`; the
 paper's rig: the tuned ``RigParameters()``, another one-tendon rig: :func:`helpers.virtual.from_rig.
-rig_parameters`) for one tendon, the spatial twin (:class:`helpers.virtual.spatial.plant.SpatialPlant`, one
-load cell per tendon, the tip at every sample) for several. Worlds are kept by ``(name, rig hash)``
-(:func:`get_world`), so two rigs in one process are two worlds, whatever their names.
+rig_parameters`) for one tendon whose plane holds gravity (:func:`helpers.virtual.from_rig.planar_holds`);
+the spatial twin (:class:`helpers.virtual.spatial.plant.SpatialPlant`, one load cell per tendon, the tip at
+every sample) for several, and for one tendon out of gravity's plane. Worlds are kept by ``(name, rig
+hash)`` (:func:`get_world`), so two rigs in one process are two worlds, whatever their names.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ from helpers.virtual.emulator.boards import (
     StepperEmulator,
     build_limits,
 )
-from helpers.virtual.from_rig import rig_parameters
+from helpers.virtual.from_rig import planar_holds, rig_parameters
 from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.plant import SpatialPlant
 
@@ -250,7 +251,7 @@ class VirtualWorld:
 
 # --- building a rig file's world ------------------------------------------------------------------------
 def build_world(rig: RigFile, name: str | None = None, options: dict[str, str] | None = None) -> VirtualWorld:
-    """The virtual rig of ``rig``: the planar twin for one tendon, the spatial twin for several.
+    """The virtual rig of ``rig``: the planar twin for one tendon in gravity's plane, else the spatial twin.
 
     Parameters
     ----------
@@ -266,7 +267,7 @@ def build_world(rig: RigFile, name: str | None = None, options: dict[str, str] |
     seed = int(options.get("seed", 0))
     common = {"name": name or rig.name, "seed": seed, "t0_us": int(options.get("t0_us", 0)),
               "limits": build_limits(rig)}  # fmt: skip
-    if rig.n_tendons == 1:
+    if planar_holds(rig):
         params = RigParameters() if rig.hash == rigfile.default_rig().hash else rig_parameters(rig)
         info = {"version": __version__, "parameters": parameters_dict(params), "seed": seed}
         world = VirtualWorld(ArmPlant(params), LoadCell(params, seed=seed), info=info, **common)

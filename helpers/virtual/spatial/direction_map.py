@@ -22,6 +22,7 @@ import math
 import numpy as np
 import pandas as pd
 
+from helpers.rigfile.derived import lead_tendon
 from helpers.virtual.spatial.rig import SpatialRig
 from helpers.virtual.spatial.statics import DECAY_S, SpatialEquilibrium, equilibrium, linearise
 
@@ -130,8 +131,7 @@ def frequency_map(
             # the command that moves the bend on: every spool's rate, antagonists included
             nxt = bend_equilibrium(rig, float(beta), float(b) + _DB_MM, start=eq)
             u_cmd = (nxt.u - eq.u) / (_DB_MM * 1e-3)
-            _, pulled = bend_command(rig, float(beta), 1.0)
-            lead = int(np.argmax(np.where(pulled, u_cmd, -np.inf)))
+            lead = lead_tendon(rig.tendons, float(beta))
             modes = locked.modes(command=u_cmd)
             row: dict[str, float] = {"direction_deg": float(beta), "bend_mm": float(b)}
             for i in range(rig.n_tendons):
