@@ -63,6 +63,7 @@ from helpers.virtual.lanes import (
     any_lane,
     lane,
     lane_count,
+    lnot,
     select,
     set_lane,
     vatan2,
@@ -1087,15 +1088,18 @@ def _filter(tau, y, h, x0, x1):
     return a * (y - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
 
 
-# the driver's state of each lane: floats (a row each, lanes along it: ``S``), then integers (``L[lane]``)
-(S_T, S_DRIVE, S_DDRIVE, S_HMAX, S_TAU, S_FILT, S_HEALTH, S_TARGET, S_H, S_REM, S_R0, S_R1, S_FLO, S_FHI,
- S_LO, S_HI, S_HC, S_HSTEP, S_GEOM, S_COMMIT, S_PEND) = range(21)  # fmt: skip
-N_STATE = 21
-"""Rows of the driver's float state: time, drive and its step, largest step, the amplifier's time constant
-and output, the largest rotor lag (these persist between calls), then the present piece and step."""
-(L_QI, L_JS, L_LEFT, L_SPLITS, L_SEARCH, L_USE1, L_SIDE, L_IT, L_TOSTEP, L_ACTIVE, L_FULL,
- L_AIMED) = range(12)  # fmt: skip
-N_LANE_INTS = 12
+# the driver's state of each lane, one row of ``S`` per quantity (lanes along it): what persists between
+# calls (time, drive, its increment, the largest step, the amplifier's time constant and output, the largest
+# rotor lag, steps and transitions counted), then the present piece and step; integers in ``L[lane]``
+(S_T, S_DRIVE, S_DDRIVE, S_HMAX, S_TAU, S_FILT, S_HEALTH, S_NSTEP, S_NTRANS, S_TARGET, S_H, S_REM, S_R0, S_R1,
+ S_FLO, S_FHI, S_LO, S_HI, S_HC, S_HSTEP, S_FH, S_FA, S_ACTIVE, S_LEFT, S_SPLITS, S_SEARCH, S_GEOM, S_COMMIT,
+ S_FULL, S_PEND) = range(30)  # fmt: skip
+N_STATE = 30
+"""Rows of the driver's float state (:func:`advance`)."""
+S_PERSIST = S_TARGET
+"""Rows ``0 .. S_PERSIST - 1`` carry over from one call to the next; the rest is work."""
+(L_QI, L_JS, L_USE1, L_SIDE, L_IT, L_TOSTEP, L_AIMED) = range(7)
+N_LANE_INTS = 7
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -1120,16 +1124,17 @@ def _blend(mask, dst, src, count):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _start_step(S, L, k, implicit, mode2, st):
-    """Lane ``k`` begins a step of its piece's size from its present state."""
-    h = _get(S, S_H, k)
-    _put(S, S_REM, k, h)
-    _put(S, S_HSTEP, k, h)
-    _put(S, S_R0, k, lane(st[0], k) if mode2 else 1.0)
-    _put(S, S_R1, k, lane(st[1], k))
-    _put(S, S_GEOM, k, 1.0 if implicit else 0.0)
-    L[k, L_SPLITS] = 0
-    L[k, L_SEARCH] = 0
+def _start_steps(S, mask, implicit, mode2, st):
+    """The lanes of ``mask`` begin a step of their piece's size from their present state."""
+    h = S[S_H]
+    S[S_REM] = select(mask, h, S[S_REM])
+    S[S_HSTEP] = select(mask, h, S[S_HSTEP])
+    S[S_R0] = select(mask, st[0] if mode2 else 1.0, S[S_R0])
+    S[S_R1] = select(mask, st[1], S[S_R1])
+    if implicit:
+        S[S_GEOM] = select(mask, 1.0, S[S_GEOM])
+    S[S_SPLITS] = select(mask, 0.0, S[S_SPLITS])
+    S[S_SEARCH] = select(mask, 0.0, S[S_SEARCH])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -1143,7 +1148,7 @@ def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, ou
     n = out_theta.shape[2]
     nq = sample_times.shape[1]
     while True:
-        if L[k, L_AIMED] != 0 and L[k, L_LEFT] == 0:  # arrived
+        if L[k, L_AIMED] != 0 and _get(S, S_LEFT, k) == 0.0:  # arrived
             L[k, L_AIMED] = 0
             target = _get(S, S_TARGET, k)
             if target > _get(S, S_T, k):
@@ -1162,9 +1167,8 @@ def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, ou
             L[k, L_QI] = qi + 1
         qi = L[k, L_QI]
         if qi == nq:
-            L[k, L_ACTIVE] = 0
+            _put(S, S_ACTIVE, k, 0.0)
             return
-        t = _get(S, S_T, k)
         ts = sample_times[k, qi]
         js = L[k, L_JS]
         to_step = js < n_steps[k] and step_times[k, js] <= ts
@@ -1172,35 +1176,30 @@ def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, ou
         L[k, L_TOSTEP] = 1 if to_step else 0
         L[k, L_AIMED] = 1
         _put(S, S_TARGET, k, target)
-        dt = target - t
+        dt = target - _get(S, S_T, k)
         if dt <= 0.0:
-            L[k, L_LEFT] = 0
+            _put(S, S_LEFT, k, 0.0)
             continue
-        nst = int(math.ceil(dt / _get(S, S_HMAX, k) - 1e-9))
-        L[k, L_LEFT] = nst
+        nst = math.ceil(dt / _get(S, S_HMAX, k) - 1e-9)
+        _put(S, S_LEFT, k, float(nst))
         _put(S, S_H, k, dt / nst)
-        _start_step(S, L, k, implicit, mode2, st)
         return
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap, stats):  # noqa: C901 - the step's one decision
-    """Lane ``k`` after a trial step and the right-hand side at its end: accept, split or search on.
+def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap):  # noqa: C901 - the step's one decision
+    """Lane ``k`` after a trial step that is not simply accepted: the first sign of a transition, or a search.
 
-    Sets ``S_COMMIT`` (the trial's end becomes the state) and ``L_FULL`` (the step is complete); otherwise
-    the next trial's size is ``S_HSTEP``. ``x0``, ``x1``: the measured tension at the piece's start and at
-    the trial's end.
+    A transition starts the search for it (Illinois method on the step size). The search ends at the
+    transition, which becomes the state (``S_COMMIT``, the step not complete: ``S_FULL`` 0), the rest of the
+    step to follow on the branch just crossed into; otherwise the next trial's size is ``S_HSTEP``. ``x0``,
+    ``x1``: the measured tension at the piece's start and at the trial's end.
     """
-    if L[k, L_SEARCH] == 0:
+    if _get(S, S_SEARCH, k) == 0.0:
         r0 = _get(S, S_R0, k)
         r1 = _get(S, S_R1, k)
         a1 = e1n if mode2 else 1.0
-        if L[k, L_SPLITS] >= cap or not _flip(r0, a1, r1, e2n):
-            _put(S, S_FILT, k, _filter(_get(S, S_TAU, k), _get(S, S_FILT, k), _get(S, S_REM, k), x0, x1))
-            _put(S, S_COMMIT, k, 1.0)
-            L[k, L_FULL] = 1
-            return
-        stats[k, 1] += 1
+        _put(S, S_NTRANS, k, _get(S, S_NTRANS, k) + 1.0)
         flip1 = (r0 > 0.0) != (a1 > 0.0)
         flip2 = (r1 > 0.0) != (e2n > 0.0)
         if implicit and flip1 and flip2:  # both: the one that comes first on the chord
@@ -1213,7 +1212,7 @@ def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap, stats):  # noqa: C9
         hi = _get(S, S_REM, k)
         side = 0
         L[k, L_IT] = 0
-        L[k, L_SEARCH] = 1
+        _put(S, S_SEARCH, k, 1.0)
         L[k, L_USE1] = 1 if use1 else 0
     else:
         use1 = L[k, L_USE1] != 0
@@ -1231,7 +1230,6 @@ def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap, stats):  # noqa: C9
             # just crossed into
             _put(S, S_FILT, k, _filter(_get(S, S_TAU, k), _get(S, S_FILT, k), hc, x0, x1))
             _put(S, S_COMMIT, k, 1.0)
-            L[k, L_FULL] = 0
             r0 = e1n if mode2 else 1.0
             r1 = e2n
             if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
@@ -1243,9 +1241,10 @@ def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap, stats):  # noqa: C9
             rem = _get(S, S_REM, k) - hc
             _put(S, S_REM, k, rem)
             _put(S, S_HSTEP, k, rem)
-            L[k, L_SPLITS] += 1
-            _put(S, S_GEOM, k, 1.0 if implicit else 0.0)
-            L[k, L_SEARCH] = 0
+            _put(S, S_SPLITS, k, _get(S, S_SPLITS, k) + 1.0)
+            if implicit:
+                _put(S, S_GEOM, k, 1.0)
+            _put(S, S_SEARCH, k, 0.0)
             return
         if (fc > 0.0) == (f_lo > 0.0):
             lo = hc
@@ -1273,8 +1272,28 @@ def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap, stats):  # noqa: C9
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def advance(scheme, y, S, L, stats, sample_times, step_times, step_signs, n_steps, P, U, mb, Jb, disc, W,  # noqa: C901
-            cw, k1, st, ws, ws2, wf, wf2, bufs, out_raw, out_filt, out_theta):  # fmt: skip
+def _accept(S, accept, x0, x1):
+    """The amplifier's output over the accepted steps (``S_REM`` each): :func:`_filter`, lanes at once.
+
+    ``exp(-h / tau)`` is kept from the last step of the same size (the same bits as computing it again).
+    """
+    h = S[S_REM]
+    tau = S[S_TAU]
+    fresh = accept & (h != S[S_FH]) & (tau > 0.0)
+    if any_lane(fresh):
+        for k in range(lane_count(h)):
+            if lane(fresh, k):
+                hk = lane(h, k)
+                _put(S, S_FA, k, math.exp(-hk / lane(tau, k)))
+                _put(S, S_FH, k, hk)
+    a = S[S_FA]
+    y = a * (S[S_FILT] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
+    S[S_FILT] = select(accept, select(tau <= 0.0, x1, y), S[S_FILT])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def advance(scheme, y, S, L, sample_times, step_times, step_signs, n_steps, P, U, mb, Jb, disc, W, cw,  # noqa: C901
+            k1, st, ws, ws2, wf, wf2, bufs, out_raw, out_filt, out_theta):  # fmt: skip
     """Advance every lane's ``y`` from its time ``S[S_T]`` through its sample times with ``scheme``.
 
     One scenario (scalars) or several (lanes: one per scenario, the arrays of :func:`rhs_ws` and ``y``,
@@ -1284,14 +1303,15 @@ def advance(scheme, y, S, L, stats, sample_times, step_times, step_signs, n_step
     no step straddles the kink of ``max(0, .)``; with the implicit step (``SCHEME_ROSW``) each piece's cable
     stiffness ``T`` (:func:`wfactor`) is that of the branch it lies on. Every lane takes exactly the steps it
     takes alone: each pass of the loop below is one trial step of every lane (of its own size) and one
-    right-hand side at its end, and what follows (accept, split, search, the next event) is decided lane by
-    lane, so a lane's arithmetic does not depend on the others.
+    right-hand side at its end, then each lane's own decision (accept, split, search, its next event), so a
+    lane's arithmetic does not depend on the others.
 
     The drive (cable displacement or commanded rotor angle) jumps by ``S[S_DDRIVE] * sign`` at each step
     time; a step at exactly a sample time is applied before that sample. At each sample the measured
     tension (raw and through the amplifier, ``S[S_TAU]``, ``S[S_FILT]``: the low-pass integrated exactly for
-    a tension linear over each step) and the node angles are written into ``out_*[lane]``. ``stats[lane]``
-    counts steps and transitions, ``S[S_HEALTH]`` is the largest rotor lag ``|psi_cmd - psi|`` seen (rad).
+    a tension linear over each step) and the node angles are written into ``out_*[lane]``. ``S[S_NSTEP]``,
+    ``S[S_NTRANS]`` count steps and transitions, ``S[S_HEALTH]`` is the largest rotor lag ``|psi_cmd - psi|``
+    seen (rad).
 
     Parameters (besides :func:`rhs_ws`'s)
     -------------------------------------
@@ -1321,23 +1341,23 @@ def advance(scheme, y, S, L, stats, sample_times, step_times, step_signs, n_step
     st[1] = e2
     st[2] = l1
     st[3] = l2
-    S[S_PEND] = 0.0
-    S[S_GEOM] = 0.0
+    for j in range(S_PERSIST, N_STATE):
+        S[j] = 0.0
+    S[S_ACTIVE] = 1.0
     for k in range(nl):
         L[k, L_AIMED] = 0
         L[k, L_QI] = 0
         L[k, L_JS] = 0
-        L[k, L_LEFT] = 0
-        L[k, L_ACTIVE] = 1
     pending = True  # lanes to move on to their next event
-    active = True
     while True:
         if pending:
             # the events of lanes that reached their targets; a step there evaluates the right-hand side
             # again with the new drive (in its lanes only)
+            waiting = (S[S_ACTIVE] != 0.0) & (S[S_LEFT] == 0.0)
             while True:
+                ready = (S[S_ACTIVE] != 0.0) & (S[S_LEFT] == 0.0)
                 for k in range(nl):
-                    if L[k, L_ACTIVE] != 0 and L[k, L_LEFT] == 0 and _get(S, S_PEND, k) == 0.0:
+                    if lane(ready, k):
                         _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, out_raw,
                                 out_filt, out_theta, implicit, mode2)  # fmt: skip
                 pend = S[S_PEND] != 0.0
@@ -1353,18 +1373,13 @@ def advance(scheme, y, S, L, stats, sample_times, step_times, step_signs, n_step
                 st[1] = select(pend, e2, st[1])
                 st[2] = select(pend, l1, st[2])
                 st[3] = select(pend, l2, st[3])
-                x = _measured(U, l1, l2)
-                for k in range(nl):
-                    if lane(pend, k):
-                        if _get(S, S_TAU, k) <= 0.0:
-                            _put(S, S_FILT, k, lane(x, k))
+                S[S_FILT] = select(pend & (S[S_TAU] <= 0.0), _measured(U, l1, l2), S[S_FILT])
                 S[S_PEND] = 0.0
-            active = False
-            for k in range(nl):
-                if L[k, L_ACTIVE] != 0:
-                    active = True
+            started = waiting & (S[S_ACTIVE] != 0.0) & (S[S_LEFT] > 0.0)
+            _start_steps(S, started, implicit, mode2, st)
             pending = False
-        if not active:
+        active = S[S_ACTIVE] != 0.0
+        if not any_lane(active):
             break
         # one trial step of every lane (idle lanes repeat a harmless step that nothing keeps)
         if implicit:
@@ -1377,14 +1392,24 @@ def advance(scheme, y, S, L, stats, sample_times, step_times, step_signs, n_step
             S[S_GEOM] = 0.0
         _step(scheme, y, k1, S[S_HSTEP], S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws, wf, bufs, y1)
         e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws)
+        S[S_NSTEP] = select(active, S[S_NSTEP] + 1.0, S[S_NSTEP])
         x0 = _measured(U, st[2], st[3])
         x1 = _measured(U, l1n, l2n)
-        S[S_COMMIT] = 0.0
-        for k in range(nl):
-            if L[k, L_ACTIVE] != 0:
-                stats[k, 0] += 1
-                _decide(S, L, k, lane(e1n, k), lane(e2n, k), lane(x0, k), lane(x1, k), implicit, mode2, cap,
-                        stats)  # fmt: skip
+        # the trial accepted where no cable changed between taut and slack (or no more splits are allowed)
+        flip = (S[S_R1] > 0.0) ^ (e2n > 0.0)
+        if mode2:
+            flip = flip | ((S[S_R0] > 0.0) ^ (e1n > 0.0))
+        search = S[S_SEARCH] != 0.0
+        accept = active & lnot(search) & ((S[S_SPLITS] >= cap) | lnot(flip))
+        _accept(S, accept, x0, x1)
+        S[S_COMMIT] = select(accept, 1.0, 0.0)
+        S[S_FULL] = S[S_COMMIT]
+        other = active & lnot(accept)
+        if any_lane(other):
+            for k in range(nl):
+                if lane(other, k):
+                    e1k, e2k = lane(e1n, k), lane(e2n, k)
+                    _decide(S, L, k, e1k, e2k, lane(x0, k), lane(x1, k), implicit, mode2, cap)
         commit = S[S_COMMIT] != 0.0
         if any_lane(commit):
             _blend(commit, y, y1, m)
@@ -1393,19 +1418,14 @@ def advance(scheme, y, S, L, stats, sample_times, step_times, step_signs, n_step
             st[1] = select(commit, e2n, st[1])
             st[2] = select(commit, l1n, st[2])
             st[3] = select(commit, l2n, st[3])
-            for k in range(nl):
-                if _get(S, S_COMMIT, k) != 0.0 and L[k, L_FULL] != 0:
-                    L[k, L_FULL] = 0
-                    if lagging:
-                        lag = abs(_get(S, S_DRIVE, k) - lane(y[2 * n], k))
-                        if lag > _get(S, S_HEALTH, k):
-                            _put(S, S_HEALTH, k, lag)
-                    left = L[k, L_LEFT] - 1
-                    L[k, L_LEFT] = left
-                    if left > 0:
-                        _start_step(S, L, k, implicit, mode2, st)
-                    else:
-                        pending = True
+        full = S[S_FULL] != 0.0
+        if any_lane(full):
+            if lagging:
+                lag = abs(S[S_DRIVE] - y[2 * n])
+                S[S_HEALTH] = select(full & (lag > S[S_HEALTH]), lag, S[S_HEALTH])
+            S[S_LEFT] = select(full, S[S_LEFT] - 1.0, S[S_LEFT])
+            _start_steps(S, full & (S[S_LEFT] > 0.0), implicit, mode2, st)
+            pending = any_lane(full & (S[S_LEFT] == 0.0))
 
 
 class Work(NamedTuple):

@@ -94,7 +94,7 @@ def planar_system(params: RigParameters) -> System:
         S[kern.S_HMAX] = h
         none = np.zeros((1, 1))
         kern.advance(kern.SCHEMES.index(scheme), y, S, np.zeros((1, kern.N_LANE_INTS), np.int64),
-                     np.zeros((1, 2), np.int64), np.array([[h]]), none, none, np.zeros(1, np.int64), a.P, a.P,
+                     np.array([[h]]), none, none, np.zeros(1, np.int64), a.P, a.P,
                      a.mb, a.Jb, a.disc, a.W, a.cw, *work, np.empty((1, 1)), np.empty((1, 1)),
                      np.empty((1, 1, n)))  # fmt: skip
         return y

@@ -38,8 +38,8 @@ from numba.core.typing.templates import AbstractTemplate, infer_global, signatur
 from numba.extending import intrinsic, models, overload, register_model, unbox
 
 __all__ = [
-    "Lanes", "LaneMask", "LaneArray", "select", "any_lane", "all_lane", "lane", "set_lane", "lane_count",
-    "vsqrt", "vsin", "vcos", "vexp", "vtanh", "vatan2",
+    "Lanes", "LaneMask", "LaneArray", "select", "any_lane", "all_lane", "lnot", "lane", "set_lane",
+    "lane_count", "vsqrt", "vsin", "vcos", "vexp", "vtanh", "vatan2",
 ]  # fmt: skip
 
 
@@ -265,6 +265,11 @@ def all_lane(mask):  # noqa: ANN001, ANN201
     raise NotImplementedError("compiled code only")
 
 
+def lnot(mask):  # noqa: ANN001, ANN201
+    """Not ``mask``, per lane (``~`` would be an integer's complement on a ``bool``)."""
+    raise NotImplementedError("compiled code only")
+
+
 def lane(v, k):  # noqa: ANN001, ANN201
     """Lane ``k`` of ``v`` (a scalar: itself)."""
     raise NotImplementedError("compiled code only")
@@ -363,6 +368,15 @@ def _ov_all_lane(mask):  # noqa: ANN001, ANN202
         return lambda mask: _reduce_and(mask)
     if isinstance(mask, types.Boolean):
         return lambda mask: mask
+    return None
+
+
+@overload(lnot)
+def _ov_lnot(mask):  # noqa: ANN001, ANN202
+    if isinstance(mask, LaneMask):
+        return lambda mask: ~mask
+    if isinstance(mask, types.Boolean):
+        return lambda mask: not mask
     return None
 
 

@@ -96,7 +96,6 @@ class ArmPlant:
         self.params = params
         self._arr = model_arrays(params)
         self._scheme = kern.SCHEMES.index(params.integrator)
-        self._stats = np.zeros((1, 2), dtype=np.int64)
         self._S = np.zeros(kern.N_STATE)
         self._L = np.zeros((1, kern.N_LANE_INTS), dtype=np.int64)
         self._work = kern.make_work(self._arr.n, self._arr.disc.shape[0])
@@ -108,7 +107,6 @@ class ArmPlant:
         self._y = np.array(self._arr.y_rest, dtype=float)
         self._steps = 0
         _reset_state(self._S, self._arr, self.params)
-        self._stats[:] = 0
 
     @property
     def t(self) -> float:
@@ -151,12 +149,12 @@ class ArmPlant:
     @property
     def integrator_steps(self) -> int:
         """Integrator steps taken since the last reset (a cost measure; transition searches included)."""
-        return int(self._stats[0, 0])
+        return int(self._S[kern.S_NSTEP])
 
     @property
     def transitions(self) -> int:
         """Taut/slack transitions of the cables since the last reset."""
-        return int(self._stats[0, 1])
+        return int(self._S[kern.S_NTRANS])
 
     @property
     def max_rotor_lag_steps(self) -> float:
@@ -288,7 +286,7 @@ class ArmPlant:
         a = self._arr
         w = self._work
         kern.advance(
-            self._scheme, self._y, self._S, self._L, self._stats, ts[None], st[None], sg[None],
+            self._scheme, self._y, self._S, self._L, ts[None], st[None], sg[None],
             np.array([st.size]), a.P, a.P, a.mb, a.Jb, a.disc, a.W, a.cw, *w, out_raw, out_filt, angles,
         )  # fmt: skip
         if not (np.all(np.isfinite(self._y)) and math.isfinite(self._S[kern.S_FILT])):
@@ -344,7 +342,6 @@ class ArmLanes:
         self._y = LaneArray(np.zeros((2 * self._n + 4, width)))
         self._S = LaneArray(np.zeros((kern.N_STATE, width)))
         self._L = np.zeros((width, kern.N_LANE_INTS), dtype=np.int64)
-        self._stats = np.zeros((width, 2), dtype=np.int64)
         self._work = kern.make_work(self._n, self._disc.shape[0], width)
         self.reset()
 
@@ -363,7 +360,6 @@ class ArmLanes:
         for k, (a, p) in enumerate(zip(self._arrs, self._rigs, strict=True)):
             self._y.data[:, k] = a.y_rest
             _reset_state(self._S.data[:, k], a, p)
-        self._stats[:] = 0
 
     @property
     def t(self) -> np.ndarray:
@@ -378,12 +374,12 @@ class ArmLanes:
     @property
     def integrator_steps(self) -> np.ndarray:
         """Each lane's integrator steps since the last reset (as :attr:`ArmPlant.integrator_steps`)."""
-        return self._stats[: self.lanes, 0].copy()
+        return self._S.data[kern.S_NSTEP, : self.lanes].astype(np.int64)
 
     @property
     def transitions(self) -> np.ndarray:
         """Each lane's taut/slack transitions since the last reset."""
-        return self._stats[: self.lanes, 1].copy()
+        return self._S.data[kern.S_NTRANS, : self.lanes].astype(np.int64)
 
     @property
     def max_rotor_lag_steps(self) -> np.ndarray:
@@ -440,7 +436,7 @@ class ArmLanes:
         angles = np.empty((width, ts.size, n))
         w = self._work
         kern.advance(
-            self._scheme, self._y, self._S, self._L, self._stats, np.tile(ts, (width, 1)), st, sg, counts,
+            self._scheme, self._y, self._S, self._L, np.tile(ts, (width, 1)), st, sg, counts,
             self._P, self._U, self._mb, self._Jb, self._disc, self._W, self._cw, *w, out_raw, out_filt,
             angles,
         )  # fmt: skip

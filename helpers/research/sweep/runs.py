@@ -2,7 +2,8 @@
 
 :func:`run_chunk` is the task a sweep sends to a Dask worker (or runs in a loop). It rebuilds the definition
 from its canonical JSON (cached per process), runs the chunk's runs through
-:func:`helpers.virtual.batch.run_batch` (one plant per thread and rig, reused) and returns small arrays
+:func:`helpers.virtual.batch.run_batch` (runs that can share a kernel call in its SIMD lanes, :data:`LANES`
+at a time; otherwise one plant per thread and rig, reused) and returns small arrays
 (:data:`VARIABLES`). Per run and move (Up, Down):
 
 - ``residual_pct``: residual vibration of the **true** tension of the measured cable
@@ -43,7 +44,7 @@ from helpers.virtual import LoadCell, RigParameters, linearise
 from helpers.virtual.batch import BatchRun, BatchStats, run_batch
 from helpers.virtual.simulate import SimResult
 
-__all__ = ["run_chunk", "rig_for", "rig_mode", "context_for"]
+__all__ = ["LANES", "run_chunk", "rig_for", "rig_mode", "context_for"]
 
 
 @functools.lru_cache(maxsize=8)
@@ -138,7 +139,11 @@ def _reseeded(sensor: LoadCell, seed: int, output: np.ndarray) -> np.ndarray:
     return sensor.counts(output)
 
 
-def run_chunk(definition_json: str, chunk: int, threads: int = 1) -> dict[str, Any]:
+LANES = 8
+"""Runs of a chunk per kernel call (:func:`helpers.virtual.batch.run_batch`'s ``lanes``): its SIMD lanes."""
+
+
+def run_chunk(definition_json: str, chunk: int, threads: int = 1, lanes: int = LANES) -> dict[str, Any]:
     """Run chunk ``chunk`` of a resolved definition (its canonical JSON) and return its arrays.
 
     Parameters
@@ -149,6 +154,8 @@ def run_chunk(definition_json: str, chunk: int, threads: int = 1) -> dict[str, A
         Which chunk.
     threads : int
         Threads of the batch inside this task (the kernels release the GIL).
+    lanes : int
+        Runs per kernel call (1: one at a time); the numbers are the same bits either way.
 
     Returns
     -------
@@ -195,7 +202,8 @@ def run_chunk(definition_json: str, chunk: int, threads: int = 1) -> dict[str, A
 
     stats = BatchStats()
     try:
-        outputs, stats = run_batch(batch, threads=threads, reduce=reduce)
+        width = min(lanes, max(1, len(batch)))
+        outputs, stats = run_batch(batch, threads=threads, reduce=reduce, lanes=width)
     except FloatingPointError:  # one run at a time, to mark only the failing ones
         outputs = []
         for run in batch:
