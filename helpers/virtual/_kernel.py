@@ -1103,16 +1103,6 @@ N_LANE_INTS = 7
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _get(S, row, k):
-    return lane(S[row], k)
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _put(S, row, k, x):
-    S[row] = set_lane(S[row], k, x)
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
 def _blend(mask, dst, src, count):
     """``dst[:count] <- src[:count]`` in the lanes of ``mask``."""
     if all_lane(mask):
@@ -1148,26 +1138,27 @@ def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, ou
     n = out_theta.shape[2]
     nq = sample_times.shape[1]
     while True:
-        if L[k, L_AIMED] != 0 and _get(S, S_LEFT, k) == 0.0:  # arrived
+        if L[k, L_AIMED] != 0 and lane(S[S_LEFT], k) == 0.0:  # arrived
             L[k, L_AIMED] = 0
-            target = _get(S, S_TARGET, k)
-            if target > _get(S, S_T, k):
-                _put(S, S_T, k, target)
+            target = lane(S[S_TARGET], k)
+            if target > lane(S[S_T], k):
+                S[S_T] = set_lane(S[S_T], k, target)
             if L[k, L_TOSTEP] != 0:
                 js = L[k, L_JS]
-                _put(S, S_DRIVE, k, _get(S, S_DRIVE, k) + _get(S, S_DDRIVE, k) * step_signs[k, js])
+                drive = lane(S[S_DRIVE], k) + lane(S[S_DDRIVE], k) * step_signs[k, js]
+                S[S_DRIVE] = set_lane(S[S_DRIVE], k, drive)
                 L[k, L_JS] = js + 1
-                _put(S, S_PEND, k, 1.0)
+                S[S_PEND] = set_lane(S[S_PEND], k, 1.0)
                 return
             qi = L[k, L_QI]
             out_raw[k, qi] = lane(_measured(U, st[2], st[3]), k)
-            out_filt[k, qi] = _get(S, S_FILT, k)
+            out_filt[k, qi] = lane(S[S_FILT], k)
             for i in range(n):
                 out_theta[k, qi, i] = lane(y[i], k)
             L[k, L_QI] = qi + 1
         qi = L[k, L_QI]
         if qi == nq:
-            _put(S, S_ACTIVE, k, 0.0)
+            S[S_ACTIVE] = set_lane(S[S_ACTIVE], k, 0.0)
             return
         ts = sample_times[k, qi]
         js = L[k, L_JS]
@@ -1175,14 +1166,14 @@ def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, ou
         target = step_times[k, js] if to_step else ts
         L[k, L_TOSTEP] = 1 if to_step else 0
         L[k, L_AIMED] = 1
-        _put(S, S_TARGET, k, target)
-        dt = target - _get(S, S_T, k)
+        S[S_TARGET] = set_lane(S[S_TARGET], k, target)
+        dt = target - lane(S[S_T], k)
         if dt <= 0.0:
-            _put(S, S_LEFT, k, 0.0)
+            S[S_LEFT] = set_lane(S[S_LEFT], k, 0.0)
             continue
-        nst = math.ceil(dt / _get(S, S_HMAX, k) - 1e-9)
-        _put(S, S_LEFT, k, float(nst))
-        _put(S, S_H, k, dt / nst)
+        nst = math.ceil(dt / lane(S[S_HMAX], k) - 1e-9)
+        S[S_LEFT] = set_lane(S[S_LEFT], k, float(nst))
+        S[S_H] = set_lane(S[S_H], k, dt / nst)
         return
 
 
@@ -1195,11 +1186,11 @@ def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap):  # noqa: C901 - th
     step to follow on the branch just crossed into; otherwise the next trial's size is ``S_HSTEP``. ``x0``,
     ``x1``: the measured tension at the piece's start and at the trial's end.
     """
-    if _get(S, S_SEARCH, k) == 0.0:
-        r0 = _get(S, S_R0, k)
-        r1 = _get(S, S_R1, k)
+    if lane(S[S_SEARCH], k) == 0.0:
+        r0 = lane(S[S_R0], k)
+        r1 = lane(S[S_R1], k)
         a1 = e1n if mode2 else 1.0
-        _put(S, S_NTRANS, k, _get(S, S_NTRANS, k) + 1.0)
+        S[S_NTRANS] = set_lane(S[S_NTRANS], k, lane(S[S_NTRANS], k) + 1.0)
         flip1 = (r0 > 0.0) != (a1 > 0.0)
         flip2 = (r1 > 0.0) != (e2n > 0.0)
         if implicit and flip1 and flip2:  # both: the one that comes first on the chord
@@ -1209,42 +1200,42 @@ def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap):  # noqa: C901 - th
         f_lo = r0 if use1 else r1
         f_hi = a1 if use1 else e2n
         lo = 0.0
-        hi = _get(S, S_REM, k)
+        hi = lane(S[S_REM], k)
         side = 0
         L[k, L_IT] = 0
-        _put(S, S_SEARCH, k, 1.0)
+        S[S_SEARCH] = set_lane(S[S_SEARCH], k, 1.0)
         L[k, L_USE1] = 1 if use1 else 0
     else:
         use1 = L[k, L_USE1] != 0
-        f_lo = _get(S, S_FLO, k)
-        f_hi = _get(S, S_FHI, k)
-        lo = _get(S, S_LO, k)
-        hi = _get(S, S_HI, k)
+        f_lo = lane(S[S_FLO], k)
+        f_hi = lane(S[S_FHI], k)
+        lo = lane(S[S_LO], k)
+        hi = lane(S[S_HI], k)
         side = L[k, L_SIDE]
-        hc = _get(S, S_HC, k)
+        hc = lane(S[S_HC], k)
         fc = e1n if use1 else e2n
         it = L[k, L_IT] + 1
         L[k, L_IT] = it
         if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
             # to the transition (the search's last point); the rest of the step from there, on the branch
             # just crossed into
-            _put(S, S_FILT, k, _filter(_get(S, S_TAU, k), _get(S, S_FILT, k), hc, x0, x1))
-            _put(S, S_COMMIT, k, 1.0)
+            S[S_FILT] = set_lane(S[S_FILT], k, _filter(lane(S[S_TAU], k), lane(S[S_FILT], k), hc, x0, x1))
+            S[S_COMMIT] = set_lane(S[S_COMMIT], k, 1.0)
             r0 = e1n if mode2 else 1.0
             r1 = e2n
             if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
                 r0 = 1e-300 if f_hi > 0.0 else -1e-300
             if not use1 and (r1 > 0.0) != (f_hi > 0.0):
                 r1 = 1e-300 if f_hi > 0.0 else -1e-300
-            _put(S, S_R0, k, r0)
-            _put(S, S_R1, k, r1)
-            rem = _get(S, S_REM, k) - hc
-            _put(S, S_REM, k, rem)
-            _put(S, S_HSTEP, k, rem)
-            _put(S, S_SPLITS, k, _get(S, S_SPLITS, k) + 1.0)
+            S[S_R0] = set_lane(S[S_R0], k, r0)
+            S[S_R1] = set_lane(S[S_R1], k, r1)
+            rem = lane(S[S_REM], k) - hc
+            S[S_REM] = set_lane(S[S_REM], k, rem)
+            S[S_HSTEP] = set_lane(S[S_HSTEP], k, rem)
+            S[S_SPLITS] = set_lane(S[S_SPLITS], k, lane(S[S_SPLITS], k) + 1.0)
             if implicit:
-                _put(S, S_GEOM, k, 1.0)
-            _put(S, S_SEARCH, k, 0.0)
+                S[S_GEOM] = set_lane(S[S_GEOM], k, 1.0)
+            S[S_SEARCH] = set_lane(S[S_SEARCH], k, 0.0)
             return
         if (fc > 0.0) == (f_lo > 0.0):
             lo = hc
@@ -1262,12 +1253,12 @@ def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap):  # noqa: C901 - th
     hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
     if not (hc > lo and hc < hi):
         hc = 0.5 * (lo + hi)
-    _put(S, S_FLO, k, f_lo)
-    _put(S, S_FHI, k, f_hi)
-    _put(S, S_LO, k, lo)
-    _put(S, S_HI, k, hi)
-    _put(S, S_HC, k, hc)
-    _put(S, S_HSTEP, k, hc)
+    S[S_FLO] = set_lane(S[S_FLO], k, f_lo)
+    S[S_FHI] = set_lane(S[S_FHI], k, f_hi)
+    S[S_LO] = set_lane(S[S_LO], k, lo)
+    S[S_HI] = set_lane(S[S_HI], k, hi)
+    S[S_HC] = set_lane(S[S_HC], k, hc)
+    S[S_HSTEP] = set_lane(S[S_HSTEP], k, hc)
     L[k, L_SIDE] = side
 
 
@@ -1284,8 +1275,8 @@ def _accept(S, accept, x0, x1):
         for k in range(lane_count(h)):
             if lane(fresh, k):
                 hk = lane(h, k)
-                _put(S, S_FA, k, math.exp(-hk / lane(tau, k)))
-                _put(S, S_FH, k, hk)
+                S[S_FA] = set_lane(S[S_FA], k, math.exp(-hk / lane(tau, k)))
+                S[S_FH] = set_lane(S[S_FH], k, hk)
     a = S[S_FA]
     y = a * (S[S_FILT] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
     S[S_FILT] = select(accept, select(tau <= 0.0, x1, y), S[S_FILT])

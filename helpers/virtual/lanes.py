@@ -15,6 +15,9 @@ Every helper below also accepts scalars (``float``, ``bool``), where it is the o
 one source compiles to both forms. An array of lane vectors is a ``float64`` array whose last axis holds the
 lanes, passed to a kernel as :class:`LaneArray`: indexing it gives a ``Lanes`` value, assigning one stores it.
 
+numba's cache keys a compiled function on its own source file only: after a change here, the kernels' cached
+machine code (``helpers/virtual/__pycache__/*.nbi``, ``*.nbc``) must be cleared to take it up.
+
 Why not numba's own vectorisation: LLVM's loop vectoriser gives up on a loop that writes several arrays it
 cannot prove apart (it would need run-time overlap checks beyond its budget), and numba leaves LLVM's SLP
 vectoriser off (``NUMBA_SLP_VECTORIZE=0``, since a miscompilation, numba issue 8705). Explicit vector types
@@ -35,7 +38,7 @@ from numba.core import cgutils
 from numba.core.boxing import unbox_array
 from numba.core.imputils import lower_builtin, lower_cast
 from numba.core.typing.templates import AbstractTemplate, infer_global, signature
-from numba.extending import intrinsic, models, overload, register_model, unbox
+from numba.extending import models, register_model, unbox
 
 __all__ = [
     "Lanes", "LaneMask", "LaneArray", "select", "any_lane", "all_lane", "lnot", "lane", "set_lane",
@@ -250,7 +253,8 @@ _unary(operator.invert, LaneMask, lambda b, x: b.not_(x))
 
 
 # ---- helpers for code that compiles to either form ---------------------------------------------------------
-def select(mask, a, b):  # noqa: ANN001, ANN201 - compiled only (overloads below)
+# Each is typed and lowered directly (no numba function of its own to compile per use), scalars included.
+def select(mask, a, b):  # noqa: ANN001, ANN201 - compiled code only (typed and lowered below)
     """``a`` where ``mask`` holds, else ``b``, per lane (scalars: ``a if mask else b``)."""
     raise NotImplementedError("compiled code only")
 
@@ -290,165 +294,24 @@ def vsqrt(x):  # noqa: ANN001, ANN201
     raise NotImplementedError("compiled code only")
 
 
-@intrinsic
-def _select(typingctx, mask, a, b):  # noqa: ANN001, ANN202
-    t = Lanes(mask.width)
-
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
-        x = context.cast(builder, args[1], sig.args[1], t)
-        y = context.cast(builder, args[2], sig.args[2], t)
-        return builder.select(args[0], x, y)
-
-    return t(mask, a, b), codegen
+def vsin(x):  # noqa: ANN001, ANN201
+    """``math.sin`` of every lane (one libm call per lane: its bits)."""
+    raise NotImplementedError("compiled code only")
 
 
-def _reduction(name: str) -> Callable:
-    @intrinsic
-    def reduce(typingctx, mask):  # noqa: ANN001, ANN202
-        def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
-            return _vector_intrinsic(builder, f"llvm.vector.reduce.{name}", ir.IntType(1), [args[0]])
-
-        return types.boolean(mask), codegen
-
-    return reduce
+def vcos(x):  # noqa: ANN001, ANN201
+    """``math.cos`` of every lane (one libm call per lane)."""
+    raise NotImplementedError("compiled code only")
 
 
-_reduce_or = _reduction("or")
-_reduce_and = _reduction("and")
+def vexp(x):  # noqa: ANN001, ANN201
+    """``math.exp`` of every lane (one libm call per lane)."""
+    raise NotImplementedError("compiled code only")
 
 
-@intrinsic
-def _extract(typingctx, v, k):  # noqa: ANN001, ANN202
-    out = types.float64 if isinstance(v, Lanes) else types.boolean
-
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
-        return builder.extract_element(args[0], args[1])
-
-    return out(v, k), codegen
-
-
-@intrinsic
-def _insert(typingctx, v, k, x):  # noqa: ANN001, ANN202
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
-        val = context.cast(builder, args[2], sig.args[2], types.float64)
-        return builder.insert_element(args[0], val, args[1])
-
-    return v(v, k, x), codegen
-
-
-@intrinsic
-def _vsqrt(typingctx, v):  # noqa: ANN001, ANN202
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
-        return _vector_intrinsic(builder, "llvm.sqrt", args[0].type, [args[0]])
-
-    return v(v), codegen
-
-
-@overload(select)
-def _ov_select(mask, a, b):  # noqa: ANN001, ANN202
-    if isinstance(mask, LaneMask):
-        return lambda mask, a, b: _select(mask, a, b)
-    if isinstance(mask, types.Boolean):
-        return lambda mask, a, b: a if mask else b
-    return None
-
-
-@overload(any_lane)
-def _ov_any_lane(mask):  # noqa: ANN001, ANN202
-    if isinstance(mask, LaneMask):
-        return lambda mask: _reduce_or(mask)
-    if isinstance(mask, types.Boolean):
-        return lambda mask: mask
-    return None
-
-
-@overload(all_lane)
-def _ov_all_lane(mask):  # noqa: ANN001, ANN202
-    if isinstance(mask, LaneMask):
-        return lambda mask: _reduce_and(mask)
-    if isinstance(mask, types.Boolean):
-        return lambda mask: mask
-    return None
-
-
-@overload(lnot)
-def _ov_lnot(mask):  # noqa: ANN001, ANN202
-    if isinstance(mask, LaneMask):
-        return lambda mask: ~mask
-    if isinstance(mask, types.Boolean):
-        return lambda mask: not mask
-    return None
-
-
-@overload(lane)
-def _ov_lane(v, k):  # noqa: ANN001, ANN202
-    if isinstance(v, Lanes | LaneMask):
-        return lambda v, k: _extract(v, k)
-    if isinstance(v, types.Float | types.Boolean | types.Integer):
-        return lambda v, k: v
-    return None
-
-
-@overload(set_lane)
-def _ov_set_lane(v, k, x):  # noqa: ANN001, ANN202
-    if isinstance(v, Lanes):
-        return lambda v, k, x: _insert(v, k, x)
-    if isinstance(v, types.Float):
-        return lambda v, k, x: x
-    return None
-
-
-@overload(lane_count)
-def _ov_lane_count(v):  # noqa: ANN001, ANN202
-    if isinstance(v, Lanes | LaneMask):
-        w = v.width
-        return lambda v: w
-    if isinstance(v, types.Float | types.Boolean | types.Integer):
-        return lambda v: 1
-    return None
-
-
-@overload(vsqrt)
-def _ov_vsqrt(x):  # noqa: ANN001, ANN202
-    if isinstance(x, Lanes):
-        return lambda x: _vsqrt(x)
-    if isinstance(x, types.Float):
-        return lambda x: math.sqrt(x)
-    return None
-
-
-def _per_lane(fn: Callable, name: str) -> Callable:
-    """A function that calls the scalar ``fn`` (libm) on every lane: the same bits as on a scalar."""
-
-    def stub(x):  # noqa: ANN001, ANN202
-        raise NotImplementedError("compiled code only")
-
-    stub.__name__ = stub.__qualname__ = name
-    stub.__doc__ = f"``math.{fn.__name__}`` of every lane (one libm call per lane)."
-
-    @overload(stub)
-    def _ov(x):  # noqa: ANN001, ANN202
-        if isinstance(x, Lanes):
-            w = x.width
-
-            def impl(x):  # noqa: ANN001, ANN202
-                out = x
-                for k in range(w):
-                    out = _insert(out, k, fn(_extract(x, k)))
-                return out
-
-            return impl
-        if isinstance(x, types.Float):
-            return lambda x: fn(x)
-        return None
-
-    return stub
-
-
-vsin = _per_lane(math.sin, "vsin")
-vcos = _per_lane(math.cos, "vcos")
-vexp = _per_lane(math.exp, "vexp")
-vtanh = _per_lane(math.tanh, "vtanh")
+def vtanh(x):  # noqa: ANN001, ANN201
+    """``math.tanh`` of every lane (one libm call per lane)."""
+    raise NotImplementedError("compiled code only")
 
 
 def vatan2(y, x):  # noqa: ANN001, ANN201
@@ -456,18 +319,161 @@ def vatan2(y, x):  # noqa: ANN001, ANN201
     raise NotImplementedError("compiled code only")
 
 
-@overload(vatan2)
-def _ov_vatan2(y, x):  # noqa: ANN001, ANN202
-    if isinstance(y, Lanes) and x == y:
-        w = y.width
+def _register(fn: Callable, typer: Callable, lower: Callable) -> None:
+    """Type ``fn`` with ``typer(*argtypes) -> signature or None`` and lower it with ``lower``."""
 
-        def impl(y, x):  # noqa: ANN001, ANN202
-            out = y
-            for k in range(w):
-                out = _insert(out, k, math.atan2(_extract(y, k), _extract(x, k)))
-            return out
+    @infer_global(fn)
+    class _Typing(AbstractTemplate):
+        def generic(self, args, kws):  # noqa: ANN001, ANN202 - numba's protocol
+            return None if kws else typer(*args)
 
-        return impl
-    if isinstance(y, types.Float) and isinstance(x, types.Float):
-        return lambda y, x: math.atan2(y, x)
-    return None
+    lower_builtin(fn, types.VarArg(types.Any))(lower)
+
+
+def _value_type(*ts: types.Type) -> types.Type | None:
+    """Lanes if any of ``ts`` is (of one width), else float64 for scalars; None otherwise."""
+    widths = {t.width for t in ts if isinstance(t, Lanes | LaneMask)}
+    if len(widths) > 1 or not all(isinstance(t, Lanes | LaneMask) or _scalar(t) for t in ts):
+        return None
+    return Lanes(widths.pop()) if widths else types.float64
+
+
+def _type_select(mask, a, b):  # noqa: ANN001, ANN202
+    if not isinstance(mask, LaneMask | types.Boolean) or isinstance(a, LaneMask) or isinstance(b, LaneMask):
+        return None
+    out = _value_type(mask, a, b) if isinstance(mask, LaneMask) else _value_type(a, b)
+    return None if out is None else signature(out, mask, a, b)
+
+
+def _lower_select(context, builder, sig, args):  # noqa: ANN001, ANN202
+    out = sig.return_type
+    a = context.cast(builder, args[1], sig.args[1], out)
+    b = context.cast(builder, args[2], sig.args[2], out)
+    return builder.select(args[0], a, b)
+
+
+_register(select, _type_select, _lower_select)
+
+
+def _type_mask(result: types.Type) -> Callable:
+    def typer(mask=None, *rest):  # noqa: ANN001, ANN202
+        if rest or not isinstance(mask, LaneMask | types.Boolean):
+            return None
+        return signature(mask if result is None else result, mask)
+
+    return typer
+
+
+def _lower_reduce(name: str) -> Callable:
+    def lower(context, builder, sig, args):  # noqa: ANN001, ANN202
+        if isinstance(sig.args[0], types.Boolean):
+            return args[0]
+        return _vector_intrinsic(builder, f"llvm.vector.reduce.{name}", ir.IntType(1), [args[0]])
+
+    return lower
+
+
+_register(any_lane, _type_mask(types.boolean), _lower_reduce("or"))
+_register(all_lane, _type_mask(types.boolean), _lower_reduce("and"))
+_register(lnot, _type_mask(None), lambda context, builder, sig, args: builder.not_(args[0]))
+
+
+def _type_lane(v=None, k=None, *rest):  # noqa: ANN001, ANN202
+    if rest or not isinstance(k, types.Integer):
+        return None
+    if isinstance(v, Lanes):
+        return signature(types.float64, v, k)
+    if isinstance(v, LaneMask):
+        return signature(types.boolean, v, k)
+    return signature(v, v, k) if isinstance(v, types.Float | types.Boolean | types.Integer) else None
+
+
+def _lower_lane(context, builder, sig, args):  # noqa: ANN001, ANN202
+    if isinstance(sig.args[0], Lanes | LaneMask):
+        return builder.extract_element(args[0], args[1])
+    return args[0]
+
+
+_register(lane, _type_lane, _lower_lane)
+
+
+def _type_set_lane(v=None, k=None, x=None, *rest):  # noqa: ANN001, ANN202
+    if rest or not isinstance(k, types.Integer) or not _scalar(x):
+        return None
+    if isinstance(v, Lanes):
+        return signature(v, v, k, x)
+    return signature(types.float64, v, k, x) if isinstance(v, types.Float) else None
+
+
+def _lower_set_lane(context, builder, sig, args):  # noqa: ANN001, ANN202
+    x = context.cast(builder, args[2], sig.args[2], types.float64)
+    if isinstance(sig.args[0], Lanes):
+        return builder.insert_element(args[0], x, args[1])
+    return x
+
+
+_register(set_lane, _type_set_lane, _lower_set_lane)
+
+
+def _type_lane_count(v=None, *rest):  # noqa: ANN001, ANN202
+    if rest or v is None:
+        return None
+    return signature(types.intp, v)
+
+
+def _lower_lane_count(context, builder, sig, args):  # noqa: ANN001, ANN202
+    t = sig.args[0]
+    return context.get_constant(types.intp, t.width if isinstance(t, Lanes | LaneMask) else 1)
+
+
+_register(lane_count, _type_lane_count, _lower_lane_count)
+
+
+def _type_unary(x=None, *rest):  # noqa: ANN001, ANN202
+    if rest:
+        return None
+    if isinstance(x, Lanes):
+        return signature(x, x)
+    return signature(types.float64, x) if _scalar(x) else None
+
+
+def _lower_sqrt(context, builder, sig, args):  # noqa: ANN001, ANN202
+    if isinstance(sig.args[0], Lanes):
+        return _vector_intrinsic(builder, "llvm.sqrt", args[0].type, [args[0]])
+    x = context.cast(builder, args[0], sig.args[0], types.float64)
+    return context.get_function(math.sqrt, signature(types.float64, types.float64))(builder, [x])
+
+
+_register(vsqrt, _type_unary, _lower_sqrt)
+
+
+def _lower_per_lane(fn: Callable, arity: int) -> Callable:
+    """Lowering that calls numba's scalar ``fn`` (libm) on every lane, or once on a scalar."""
+    scalar_sig = signature(types.float64, *([types.float64] * arity))
+
+    def lower(context, builder, sig, args):  # noqa: ANN001, ANN202
+        impl = context.get_function(fn, scalar_sig)
+        out_t = sig.return_type
+        if not isinstance(out_t, Lanes):
+            xs = [context.cast(builder, a, t, types.float64) for a, t in zip(args, sig.args, strict=True)]
+            return impl(builder, xs)
+        vs = [context.cast(builder, a, t, out_t) for a, t in zip(args, sig.args, strict=True)]
+        out = ir.Constant(vs[0].type, ir.Undefined)
+        for k in range(out_t.width):
+            i = ir.Constant(ir.IntType(32), k)
+            out = builder.insert_element(out, impl(builder, [builder.extract_element(v, i) for v in vs]), i)
+        return out
+
+    return lower
+
+
+def _type_binary(y=None, x=None, *rest):  # noqa: ANN001, ANN202
+    if rest:
+        return None
+    out = _value_type(y, x)
+    return None if out is None else signature(out, y, x)
+
+
+for _fn, _math in ((vsin, math.sin), (vcos, math.cos), (vexp, math.exp), (vtanh, math.tanh)):
+    _register(_fn, _type_unary, _lower_per_lane(_math, 1))
+_register(vatan2, _type_binary, _lower_per_lane(math.atan2, 2))

@@ -44,7 +44,7 @@ from helpers.virtual import LoadCell, RigParameters, linearise
 from helpers.virtual.batch import BatchRun, BatchStats, run_batch
 from helpers.virtual.simulate import SimResult
 
-__all__ = ["LANES", "run_chunk", "rig_for", "rig_mode", "context_for"]
+__all__ = ["LANES", "run_chunk", "sweep_runs", "rig_for", "rig_mode", "context_for"]
 
 
 @functools.lru_cache(maxsize=8)
@@ -143,6 +143,36 @@ LANES = 8
 """Runs of a chunk per kernel call (:func:`helpers.virtual.batch.run_batch`'s ``lanes``): its SIMD lanes."""
 
 
+def _programme(point: dict[str, Any], ctx: ShapingContext, run_cfg: dict[str, float]) -> Any:
+    """A run's programme: its shaper designed, the pulse quantised (``ValueError`` if either is refused)."""
+    shaping = shaping_for(point["shaper"], point, ctx)
+    prog, _ = experiment_programme(
+        point["speed_mm_s"], point["amplitude_mm"], shaping, run_cfg["t_up_s"], run_cfg["t_down_s"],
+        run_cfg["t_end_s"],
+    )  # fmt: skip
+    return prog
+
+
+def sweep_runs(definition_json: str, runs: range, base: RigParameters | None = None) -> list[BatchRun]:
+    """Runs of a resolved definition as :class:`~helpers.virtual.batch.BatchRun` (for benchmarks).
+
+    The flat indices ``runs``, each on its rig (:func:`rig_for` on ``base``, default the tuned rig) with its
+    programme and first seed; runs whose design is refused are left out.
+    """
+    d = _definition(definition_json)
+    ctx = context_for(definition_json)
+    sample = d.sample_values()
+    out = []
+    for flat in runs:
+        point = d.point(flat, sample)
+        try:
+            prog = _programme(point, ctx, d.run)
+        except ValueError:
+            continue
+        out.append(BatchRun(prog, rig_for(point, base), d.seeds[0], d.run["t_end_s"], d.run["rate_hz"], flat))
+    return out
+
+
 def run_chunk(definition_json: str, chunk: int, threads: int = 1, lanes: int = LANES) -> dict[str, Any]:
     """Run chunk ``chunk`` of a resolved definition (its canonical JSON) and return its arrays.
 
@@ -184,11 +214,7 @@ def run_chunk(definition_json: str, chunk: int, threads: int = 1, lanes: int = L
         params = rig_for(point, base)
         res["rig_omega_d_rad_s"][i], res["rig_zeta"][i] = rig_mode(params)
         try:
-            shaping = shaping_for(point["shaper"], point, ctx)
-            prog, _ = experiment_programme(
-                point["speed_mm_s"], point["amplitude_mm"], shaping, run_cfg["t_up_s"], run_cfg["t_down_s"],
-                run_cfg["t_end_s"],
-            )  # fmt: skip
+            prog = _programme(point, ctx, run_cfg)
         except ValueError as exc:
             res["status"][i] = 1
             messages[flat] = f"{point['shaper']}: {exc}"
