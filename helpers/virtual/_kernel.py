@@ -58,9 +58,13 @@ import numpy as np
 from numba import njit
 
 from helpers.virtual.lanes import (
+    BLOCK,
     LaneArray,
     all_lane,
     any_lane,
+    block_load,
+    block_store,
+    block_width,
     lane,
     lane_count,
     lnot,
@@ -105,9 +109,13 @@ N_WS_PER = 40
 """Work floats per body."""
 
 
+N_BLOCK_ROWS = 13
+"""Rows of the per-joint terms (:func:`rhs_ws`), each padded to whole blocks."""
+
+
 def workspace_size(n: int, n_eye: int) -> int:
     """Floats needed by :func:`rhs_ws` for ``n`` bodies and ``n_eye`` eyelets (guide included)."""
-    return N_WS_PER * n + 12 * n_eye + 16
+    return N_WS_PER * n + 12 * n_eye + 16 + N_BLOCK_ROWS * (n + BLOCK)
 
 
 UNIFORM = (I_TH0, I_MODE, I_TLAW, I_MEAS, I_BILAT, I_BOWRUN, I_MU)
@@ -330,21 +338,59 @@ def rhs_ws(y, dy, drive, P, U, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pas
     o_p = 22 * n  # three bias-force accumulators (22n .. 25n)
     o_u = 25 * n  # U (3), 1/D, u  (25n .. 30n)
     o_qt = 30 * n  # generalised forces on theta (constant and chord damping, bowing)
-    o_bp = 31 * n  # bowing: P, P', Q, Q' of each element, then d H / d(chord direction)
-    o_bdp = 32 * n
-    o_bq = 33 * n
-    o_bdq = 34 * n
-    o_bgt = 35 * n
+    o_bgt = 35 * n  # bowing: d H / d(chord direction)
     o_e = 40 * n  # eyelets: Ex, Ey, ux, uy, L, T, Evx, Evy (12 per eyelet)
     ne = nd + 1
+    # what depends on each joint's D alone, in rows padded to whole blocks (one scenario: BLOCK bodies per
+    # vector; lanes: one body, every lane): D, its sine and cosine, the chord functions, the bowing's factors
+    nb = block_width(ws)
+    npad = (n + nb - 1) // nb * nb
+    o_d = N_WS_PER * n + 12 * ne + 16
+    o_sd = o_d + npad
+    o_cd = o_sd + npad
+    o_f = o_cd + npad  # f1, f2, f1', f2', f1'', f2'' (six rows)
+    o_bp = o_f + 6 * npad  # bowing: P, P', Q, Q' of each element
+    o_bdp = o_bp + npad
+    o_bq = o_bdp + npad
+    o_bdq = o_bq + npad
     bow = P[I_BOW]  # l^3 / EI, or 0: no bowing
     bowing = U[I_BOW] != 0.0
     bowrun = U[I_BOWRUN] != 0.0  # some cable run spans several elements
     # ---- outward pass 1: kinematics ----
     th0 = U[I_TH0]
+    thp = th0
+    for i in range(n):
+        th = y[i]
+        ws[o_d + i] = th - thp
+        thp = th
+    for i in range(n, npad):
+        ws[o_d + i] = 0.0
+    for i in range(0, npad, nb):
+        D = block_load(ws, o_d + i)
+        # sin D, cos D by series (error < 2e-17: two libm calls fewer; |D| >= 0.6 is redone below)
+        x = D * D
+        sD = D * _horner(_SIN, x)
+        cD = _horner(_COS, x)
+        block_store(ws, o_sd + i, sD)
+        block_store(ws, o_cd + i, cD)
+        f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
+        block_store(ws, o_f + i, f1)
+        block_store(ws, o_f + npad + i, f2)
+        block_store(ws, o_f + 2 * npad + i, f1p)
+        block_store(ws, o_f + 3 * npad + i, f2p)
+        block_store(ws, o_f + 4 * npad + i, f1pp)
+        block_store(ws, o_f + 5 * npad + i, f2pp)
+        if bowing:
+            if bowrun:
+                bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
+                block_store(ws, o_bq + i, bQ)
+                block_store(ws, o_bdq + i, bdQ)
+            else:
+                bP, bdP = bow_p(D, sD, cD)
+            block_store(ws, o_bp + i, bP)
+            block_store(ws, o_bdp + i, bdP)
     cp = math.cos(th0)
     sp = math.sin(th0)
-    thp = th0
     wp = 0.0
     px = 0.0
     py = 0.0
@@ -353,26 +399,34 @@ def rhs_ws(y, dy, drive, P, U, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pas
     for i in range(n):
         th = y[i]
         w = y[n + i]
-        D = th - thp
+        D = ws[o_d + i]
         Dd = w - wp
         small = abs(D) < 0.6
-        if all_lane(small):
-            # rotate the previous tangent by D (series sin/cos, error < 2e-17): two libm calls fewer
-            ci, si, sD, cD = _rotate_series(D, cp, sp)
-        else:
+        if all_lane(small):  # rotate the previous tangent by D
+            sD = ws[o_sd + i]
+            cD = ws[o_cd + i]
+            ci = cp * cD - sp * sD
+            si = sp * cD + cp * sD
+            f1 = ws[o_f + i]
+            f2 = ws[o_f + npad + i]
+            f1p = ws[o_f + 2 * npad + i]
+            f2p = ws[o_f + 3 * npad + i]
+            f1pp = ws[o_f + 4 * npad + i]
+            f2pp = ws[o_f + 5 * npad + i]
+        else:  # libm's sin and cos of theta where |D| >= 0.6, and what follows from them (the rest as above)
             ci, si, sD, cD = _rotate_mixed(small, D, th, cp, sp)
+            f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
+            if bowing:
+                if bowrun:
+                    bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
+                    ws[o_bq + i] = bQ
+                    ws[o_bdq + i] = bdQ
+                else:
+                    bP, bdP = bow_p(D, sD, cD)
+                ws[o_bp + i] = bP
+                ws[o_bdp + i] = bdP
         ws[o_c + i] = ci
         ws[o_s + i] = si
-        if bowing:
-            if bowrun:
-                bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
-                ws[o_bq + i] = bQ
-                ws[o_bdq + i] = bdQ
-            else:
-                bP, bdP = bow_p(D, sD, cD)
-            ws[o_bp + i] = bP
-            ws[o_bdp + i] = bdP
-        f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
         chx = l_ * (cp * f1 - sp * f2)
         chy = l_ * (sp * f1 + cp * f2)
         ex = l_ * (cp * f1p - sp * f2p)
@@ -690,7 +744,7 @@ def rhs_ws(y, dy, drive, P, U, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pas
 def rhs(y, drive, P, mb, Jb, disc, W, cw):
     """Allocating wrapper of :func:`rhs_ws` (one scenario): returns ``(dy, e1, e2, lam1, lam2)``."""
     n = mb.shape[0]
-    ws = np.empty(N_WS_PER * n + 12 * (disc.shape[0] + 1) + 16)
+    ws = np.empty(N_WS_PER * n + 12 * (disc.shape[0] + 1) + 16 + N_BLOCK_ROWS * (n + BLOCK))
     dy = np.empty(y.shape[0])
     e1, e2, l1, l2 = rhs_ws(y, dy, drive, P, P, mb, Jb, disc, W, cw, ws)
     return dy, e1, e2, l1, l2

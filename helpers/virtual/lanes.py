@@ -477,3 +477,76 @@ def _type_binary(y=None, x=None, *rest):  # noqa: ANN001, ANN202
 for _fn, _math in ((vsin, math.sin), (vcos, math.cos), (vexp, math.exp), (vtanh, math.tanh)):
     _register(_fn, _type_unary, _lower_per_lane(_math, 1))
 _register(vatan2, _type_binary, _lower_per_lane(math.atan2, 2))
+
+
+# ---- blocks: several bodies of one scenario in one vector --------------------------------------------------
+BLOCK = 4
+"""Bodies per block of a scalar kernel's per-body pass (:func:`block_load`): four doubles, one ``ymm``."""
+
+
+def block_width(a):  # noqa: ANN001, ANN201
+    """Bodies per block of an array: :data:`BLOCK` for ``float64`` (one scenario), 1 for lanes (several)."""
+    raise NotImplementedError("compiled code only")
+
+
+def block_load(a, j):  # noqa: ANN001, ANN201
+    """``a[j : j + block_width(a)]`` as one value: lanes of consecutive elements (a lane array: ``a[j]``)."""
+    raise NotImplementedError("compiled code only")
+
+
+def block_store(a, j, v):  # noqa: ANN001, ANN201
+    """Store :func:`block_load`'s value back at ``a[j]`` onwards."""
+    raise NotImplementedError("compiled code only")
+
+
+def _block_of(a: types.Type) -> types.Type | None:
+    if not (isinstance(a, types.Array) and a.ndim == 1):
+        return None
+    if isinstance(a.dtype, Lanes):
+        return a.dtype
+    return Lanes(BLOCK) if a.dtype == types.float64 else None
+
+
+def _type_block_width(a=None, *rest):  # noqa: ANN001, ANN202
+    return None if rest or _block_of(a) is None else signature(types.intp, a)
+
+
+def _lower_block_width(context, builder, sig, args):  # noqa: ANN001, ANN202
+    return context.get_constant(types.intp, 1 if isinstance(sig.args[0].dtype, Lanes) else BLOCK)
+
+
+def _element_pointer(context, builder, aryty, ary, j):  # noqa: ANN001, ANN202
+    arr = context.make_array(aryty)(context, builder, ary)
+    return cgutils.get_item_pointer(context, builder, aryty, arr, [j], wraparound=False)
+
+
+def _type_block_load(a=None, j=None, *rest):  # noqa: ANN001, ANN202
+    t = _block_of(a)
+    return None if rest or t is None or not isinstance(j, types.Integer) else signature(t, a, j)
+
+
+def _lower_block_load(context, builder, sig, args):  # noqa: ANN001, ANN202
+    aryty, out = sig.args[0], sig.return_type
+    ptr = _element_pointer(context, builder, aryty, args[0], args[1])
+    vt = context.get_value_type(out)
+    return builder.load(builder.bitcast(ptr, vt.as_pointer()), align=8)
+
+
+def _type_block_store(a=None, j=None, v=None, *rest):  # noqa: ANN001, ANN202
+    t = _block_of(a)
+    if rest or t is None or not isinstance(j, types.Integer) or not (v == t or _scalar(v)):
+        return None
+    return signature(types.none, a, j, t)
+
+
+def _lower_block_store(context, builder, sig, args):  # noqa: ANN001, ANN202
+    aryty, t = sig.args[0], sig.args[2]
+    ptr = _element_pointer(context, builder, aryty, args[0], args[1])
+    vt = context.get_value_type(t)
+    builder.store(args[2], builder.bitcast(ptr, vt.as_pointer()), align=8)
+    return context.get_dummy_value()
+
+
+_register(block_width, _type_block_width, _lower_block_width)
+_register(block_load, _type_block_load, _lower_block_load)
+_register(block_store, _type_block_store, _lower_block_store)
