@@ -334,8 +334,6 @@ def rhs_ws(y, dy, drive, P, U, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pas
     o_fy = 13 * n
     o_fn = 14 * n  # external moment
     o_q = 15 * n  # joint generalised force
-    o_i = 16 * n  # six articulated-inertia accumulators (16n .. 22n)
-    o_p = 22 * n  # three bias-force accumulators (22n .. 25n)
     o_u = 25 * n  # U (3), 1/D, u  (25n .. 30n)
     o_qt = 30 * n  # generalised forces on theta (constant and chord damping, bowing)
     o_bgt = 35 * n  # bowing: d H / d(chord direction)
@@ -652,19 +650,27 @@ def rhs_ws(y, dy, drive, P, U, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pas
             for i in range(n - 1, -1, -1):
                 acc += ws[o_qt + i]
                 ws[o_q + i] = select(keep, ws[o_q + i] + acc, ws[o_q + i])
-    # ---- inward pass ----
-    for j in range(o_i, o_u):
-        ws[j] = 0.0
+    # ---- inward pass ---- (what each body passes to its parent: c.. its articulated inertia, cp. its bias
+    # force; 0.0 + x as the parent's accumulator held it, so a -0.0 becomes +0.0 as it did)
+    c00 = 0.0
+    c01 = 0.0
+    c02 = 0.0
+    c11 = 0.0
+    c12 = 0.0
+    c22 = 0.0
+    cp0 = 0.0
+    cp1 = 0.0
+    cp2 = 0.0
     for i in range(n - 1, -1, -1):
-        I00 = Jb[i] + ws[o_i + i]
-        I01 = ws[o_i + n + i]
-        I02 = ws[o_i + 2 * n + i]
-        I11 = mb[i] + ws[o_i + 3 * n + i]
-        I12 = ws[o_i + 4 * n + i]
-        I22 = mb[i] + ws[o_i + 5 * n + i]
-        p0 = -ws[o_fn + i] + ws[o_p + i]
-        p1 = -ws[o_fx + i] + ws[o_p + n + i]
-        p2 = -ws[o_fy + i] + ws[o_p + 2 * n + i]
+        I00 = Jb[i] + c00
+        I01 = c01
+        I02 = c02
+        I11 = mb[i] + c11
+        I12 = c12
+        I22 = mb[i] + c22
+        p0 = -ws[o_fn + i] + cp0
+        p1 = -ws[o_fx + i] + cp1
+        p2 = -ws[o_fy + i] + cp2
         ex = ws[o_ex + i]
         ey = ws[o_ey + i]
         U0 = I00 + I01 * ex + I02 * ey
@@ -695,16 +701,15 @@ def rhs_ws(y, dy, drive, P, U, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pas
             wy = ws[o_wy + i]
             Mwx = a11 * wx + a12 * wy
             Mwy = a12 * wx + a22 * wy
-            j = i - 1
-            ws[o_i + j] += a00 + 2.0 * (a01 * wx + a02 * wy) + wx * Mwx + wy * Mwy
-            ws[o_i + n + j] += a01 + Mwx
-            ws[o_i + 2 * n + j] += a02 + Mwy
-            ws[o_i + 3 * n + j] += a11
-            ws[o_i + 4 * n + j] += a12
-            ws[o_i + 5 * n + j] += a22
-            ws[o_p + j] += q0 + wx * q1 + wy * q2
-            ws[o_p + n + j] += q1
-            ws[o_p + 2 * n + j] += q2
+            c00 = 0.0 + (a00 + 2.0 * (a01 * wx + a02 * wy) + wx * Mwx + wy * Mwy)
+            c01 = 0.0 + (a01 + Mwx)
+            c02 = 0.0 + (a02 + Mwy)
+            c11 = 0.0 + a11
+            c12 = 0.0 + a12
+            c22 = 0.0 + a22
+            cp0 = 0.0 + (q0 + wx * q1 + wy * q2)
+            cp1 = 0.0 + q1
+            cp2 = 0.0 + q2
     # ---- outward pass 2: accelerations ----
     A0 = 0.0
     A1 = 0.0
