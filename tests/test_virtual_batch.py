@@ -1,4 +1,4 @@
-"""The virtual rig's batch API: many runs per call in threads, the same bits as one fresh plant per run."""
+"""The virtual rig's batch API: many runs per call (threads, lanes), the bits of one fresh plant per run."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 from helpers.board.programmes import experiment_programme
 from helpers.virtual import RigParameters, simulate
-from helpers.virtual.batch import BatchRun, PlantPool, run_batch
+from helpers.virtual.batch import BatchRun, PlantPool, lane_groups, run_batch
 
 # short pulses (1.4 s): up at 0.2 s, down at 0.8 s
 PROGRAMMES = [experiment_programme(200.0, x, None, 0.2, 0.8, 1.4)[0] for x in (2.0, 4.0, 6.0)]
@@ -45,3 +45,24 @@ def test_reduce_runs_in_the_worker_and_its_value_is_kept():
 def test_bad_thread_counts_are_refused(threads):
     with pytest.raises(ValueError, match="threads must be a positive integer"):
         run_batch([], threads=threads)
+
+
+def test_lanes_give_the_bits_of_one_run_per_call_in_order():
+    soft = RigParameters().replace(k=15000.0)
+    rosw = RigParameters().with_integrator("rosw")
+    cases = [(PROGRAMMES[0], RigParameters()), (PROGRAMMES[1], rosw), (PROGRAMMES[2], soft),
+             (PROGRAMMES[1], RigParameters()), (PROGRAMMES[0], rosw),
+             (PROGRAMMES[2], RigParameters())]  # fmt: skip
+    runs = [BatchRun(p, params, seed=i, tag=i) for i, (p, params) in enumerate(cases)]
+    # the RK4 rigs share a call (the soft cable too), the implicit step's two runs another
+    assert lane_groups(runs, 4) == [[0, 2, 3, 5], [1, 4]]
+    assert lane_groups(runs, 2) == [[0, 2], [1, 4], [3, 5]]
+    one, stats1 = run_batch(runs, threads=2)
+    many, stats4 = run_batch(runs, threads=2, lanes=4)
+    assert stats1.kernel_calls == 6 and stats4.kernel_calls == 2 and stats4.runs == 6
+    for a, b in zip(one, many, strict=True):
+        assert a.params == b.params and a.max_rotor_lag_steps == b.max_rotor_lag_steps
+        for name in ("tension", "output", "adc", "steps", "angles"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    with pytest.raises(ValueError, match="lanes must be an integer from 1 to 8"):
+        run_batch(runs, lanes=9)

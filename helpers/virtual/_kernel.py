@@ -52,9 +52,30 @@ State ``y = [theta (N), theta' (N), psi, psi', x_c, x_c']``.
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
+
+from helpers.virtual.lanes import (
+    BLOCK,
+    LaneArray,
+    all_lane,
+    any_lane,
+    block_load,
+    block_store,
+    block_width,
+    lane,
+    lane_count,
+    lnot,
+    select,
+    set_lane,
+    vatan2,
+    vexp,
+    vsin,
+    vsqrt,
+    vtanh,
+)
 
 # packed parameter indices
 (I_L, I_R, I_TH0, I_G, I_ALPHA, I_KAP, I_K2, I_ELLREF, I_MODE, I_RSP, I_JR, I_TH, I_NR, I_CR, I_K1,
@@ -88,9 +109,23 @@ N_WS_PER = 40
 """Work floats per body."""
 
 
+N_BLOCK_ROWS = 13
+"""Rows of the per-joint terms (:func:`rhs_ws`), each padded to whole blocks."""
+
+
 def workspace_size(n: int, n_eye: int) -> int:
     """Floats needed by :func:`rhs_ws` for ``n`` bodies and ``n_eye`` eyelets (guide included)."""
-    return N_WS_PER * n + 12 * n_eye + 16
+    return N_WS_PER * n + 12 * n_eye + 16 + N_BLOCK_ROWS * (n + BLOCK)
+
+
+UNIFORM = (I_TH0, I_MODE, I_TLAW, I_MEAS, I_BILAT, I_BOWRUN, I_MU)
+"""Packed scalars that steer the kernel's branches: equal in every lane of a call (``U``, below). The rest of
+``P`` may differ from lane to lane, except whether ``P[I_BOW]``, ``P[I_CDISC]``, ``P[I_CCHORD]`` are zero."""
+
+
+def lane_key(P: np.ndarray) -> tuple[float, ...]:
+    """What scenarios run in the lanes of one call must share, of their packed scalars ``P``."""
+    return tuple(float(P[i]) for i in UNIFORM) + tuple(float(P[i] != 0.0) for i in (I_BOW, I_CDISC, I_CCHORD))
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -102,26 +137,60 @@ def _horner(c, x):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def chord_funcs(D, sD, cD):
-    """``f1, f2, f1', f2', f1'', f2''`` of an arc turning by ``D`` (``sD, cD`` = sin D, cos D)."""
-    if abs(D) < 0.2:
-        x = D * D
-        f1 = _horner(_A1, x)
-        f2 = D * _horner(_B2, x)
-        f1p = D * _horner(_A1P, x)
-        f2p = _horner(_B2P, x)
-        f1pp = _horner(_A1PP, x)
-        f2pp = D * _horner(_B2PP, x)
-    else:
-        iD = 1.0 / D
-        omc = 1.0 - cD
-        f1 = sD * iD
-        f2 = omc * iD
-        f1p = (cD - f1) * iD
-        f2p = (sD - f2) * iD
-        f1pp = (-sD - 2.0 * f1p) * iD
-        f2pp = (cD - 2.0 * f2p) * iD
+def _chord_series(D):
+    x = D * D
+    return (_horner(_A1, x), D * _horner(_B2, x), D * _horner(_A1P, x), _horner(_B2P, x), _horner(_A1PP, x),
+            D * _horner(_B2PP, x))  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _chord_closed(D, sD, cD):
+    iD = 1.0 / D
+    omc = 1.0 - cD
+    f1 = sD * iD
+    f2 = omc * iD
+    f1p = (cD - f1) * iD
+    f2p = (sD - f2) * iD
+    f1pp = (-sD - 2.0 * f1p) * iD
+    f2pp = (cD - 2.0 * f2p) * iD
     return f1, f2, f1p, f2p, f1pp, f2pp
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def chord_funcs(D, sD, cD):
+    """``f1, f2, f1', f2', f1'', f2''`` of an arc turning by ``D`` (``sD, cD`` = sin D, cos D).
+
+    Series for ``|D| < 0.2``, closed forms beyond; lanes on both sides take both and keep their own.
+    """
+    small = abs(D) < 0.2
+    if all_lane(small):
+        return _chord_series(D)
+    if not any_lane(small):
+        return _chord_closed(D, sD, cD)
+    a = _chord_series(D)
+    b = _chord_closed(D, sD, cD)
+    return (select(small, a[0], b[0]), select(small, a[1], b[1]), select(small, a[2], b[2]),
+            select(small, a[3], b[3]), select(small, a[4], b[4]), select(small, a[5], b[5]))  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _bow_series(D):
+    x = D * D
+    return _horner(_BP, x), D * _horner(_BPD, x), _horner(_BQ, x), D * _horner(_BQD, x)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _bow_closed(D, sD, cD):
+    iD = 1.0 / D
+    S1 = sD * iD
+    S2 = 2.0 * (1.0 - cD) * iD * iD
+    dS1 = (cD - S1) * iD
+    dS2 = 2.0 * sD * iD * iD - 2.0 * S2 * iD
+    P = 0.5 * (1.0 + S1 - 2.0 * S2) * iD * iD
+    Q = (S2 - S1) * iD * iD
+    dP = 0.5 * (dS1 - 2.0 * dS2) * iD * iD - 2.0 * P * iD
+    dQ = (dS2 - dS1) * iD * iD - 2.0 * Q * iD
+    return P, dP, Q, dQ
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -131,34 +200,25 @@ def bow_funcs(D, sD, cD):
     ``sD, cD`` = sin D, cos D. The arc's mean square distance from a line, about its mean, is
     ``l^2 (P + Q sin^2 c)``, ``c`` the angle between its chord and the line.
     """
-    if abs(D) < 1.0:
-        x = D * D
-        P = _horner(_BP, x)
-        Q = _horner(_BQ, x)
-        dP = D * _horner(_BPD, x)
-        dQ = D * _horner(_BQD, x)
-    else:
-        iD = 1.0 / D
-        S1 = sD * iD
-        S2 = 2.0 * (1.0 - cD) * iD * iD
-        dS1 = (cD - S1) * iD
-        dS2 = 2.0 * sD * iD * iD - 2.0 * S2 * iD
-        P = 0.5 * (1.0 + S1 - 2.0 * S2) * iD * iD
-        Q = (S2 - S1) * iD * iD
-        dP = 0.5 * (dS1 - 2.0 * dS2) * iD * iD - 2.0 * P * iD
-        dQ = (dS2 - dS1) * iD * iD - 2.0 * Q * iD
-    return P, dP, Q, dQ
+    small = abs(D) < 1.0
+    if all_lane(small):
+        return _bow_series(D)
+    if not any_lane(small):
+        return _bow_closed(D, sD, cD)
+    a = _bow_series(D)
+    b = _bow_closed(D, sD, cD)
+    return (select(small, a[0], b[0]), select(small, a[1], b[1]), select(small, a[2], b[2]),
+            select(small, a[3], b[3]))  # fmt: skip
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def bow_p(D, sD, cD):
-    """``P, P'`` of :func:`bow_funcs` alone (a cable run of one element: ``c = 0``).
+def _bow_p_series(D):
+    x = D * D
+    return _horner(_BP7, x), D * _horner(_BPD6, x)
 
-    Shorter series, for ``|D| < 0.8``: relative truncation and the closed form's cancellation beyond < 1e-12.
-    """
-    if abs(D) < 0.8:
-        x = D * D
-        return _horner(_BP7, x), D * _horner(_BPD6, x)
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _bow_p_closed(D, sD, cD):
     iD = 1.0 / D
     S1 = sD * iD
     S2 = 2.0 * (1.0 - cD) * iD * iD
@@ -169,8 +229,65 @@ def bow_p(D, sD, cD):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass per stage, kept together
+def bow_p(D, sD, cD):
+    """``P, P'`` of :func:`bow_funcs` alone (a cable run of one element: ``c = 0``).
+
+    Shorter series, for ``|D| < 0.8``: relative truncation and the closed form's cancellation beyond < 1e-12.
+    """
+    small = abs(D) < 0.8
+    if all_lane(small):
+        return _bow_p_series(D)
+    if not any_lane(small):
+        return _bow_p_closed(D, sD, cD)
+    a = _bow_p_series(D)
+    b = _bow_p_closed(D, sD, cD)
+    return select(small, a[0], b[0]), select(small, a[1], b[1])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _rotate_series(D, cp, sp):
+    """The tangent ``(cos, sin)`` at ``theta_{i-1} + D`` from the one before; ``sin D, cos D`` (series)."""
+    x = D * D
+    sD = D * _horner(_SIN, x)
+    cD = _horner(_COS, x)
+    return cp * cD - sp * sD, sp * cD + cp * sD, sD, cD
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _rotate_mixed(small, D, th, cp, sp):
+    """:func:`_rotate_series` where ``small``, libm's ``cos, sin`` of ``theta`` in the other lanes."""
+    ci, si, sD, cD = _rotate_series(D, cp, sp)
+    for k in range(lane_count(D)):
+        if not lane(small, k):
+            c = math.cos(lane(th, k))
+            s = math.sin(lane(th, k))
+            c0 = lane(cp, k)
+            s0 = lane(sp, k)
+            ci = set_lane(ci, k, c)
+            si = set_lane(si, k, s)
+            sD = set_lane(sD, k, s * c0 - c * s0)
+            cD = set_lane(cD, k, c * c0 + s * s0)
+    return ci, si, sD, cD
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _rotor_acceleration(P, U, drive, psi, psid, lam_sp):
+    """The rotor's angular acceleration: the motor's torque on its lag, its damping, the cable's pull."""
+    delta = drive - psi
+    if U[I_TLAW] == 0.0:
+        tm = P[I_TH] * P[I_NR] * delta
+    else:
+        tm = P[I_TH] * vsin(P[I_NR] * delta)
+    return (tm - P[I_CR] * psid - P[I_RSP] * lam_sp) / P[I_JR]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def rhs_ws(y, dy, drive, P, U, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass per stage, kept together
     """Write ``dy = f(y)``; return ``(e1, e2, lam1, lam2)`` (stretches and tensions of the two cables).
+
+    Every array holds either scalars (one scenario) or :class:`helpers.virtual.lanes.Lanes` (one scenario
+    per lane, the same arithmetic on each): ``y``, ``dy``, ``P``, ``mb``, ``Jb``, ``W``, ``cw``, ``ws`` and
+    ``drive`` alike.
 
     Parameters
     ----------
@@ -180,6 +297,9 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         Cable displacement ``u`` (mode 0) or commanded rotor angle (modes 1, 2).
     P : float64[N_PACKED]
         Packed scalars (indices ``I_*``).
+    U : float64[N_PACKED]
+        The packed scalars that steer branches (:data:`UNIFORM`): ``P`` itself for one scenario, its first
+        lane for several.
     mb, Jb : float64[N]
         Node masses and rotary inertias.
     disc : int64[n_eyelets]
@@ -214,23 +334,61 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
     o_fy = 13 * n
     o_fn = 14 * n  # external moment
     o_q = 15 * n  # joint generalised force
-    o_i = 16 * n  # six articulated-inertia accumulators (16n .. 22n)
-    o_p = 22 * n  # three bias-force accumulators (22n .. 25n)
     o_u = 25 * n  # U (3), 1/D, u  (25n .. 30n)
     o_qt = 30 * n  # generalised forces on theta (constant and chord damping, bowing)
-    o_bp = 31 * n  # bowing: P, P', Q, Q' of each element, then d H / d(chord direction)
-    o_bdp = 32 * n
-    o_bq = 33 * n
-    o_bdq = 34 * n
-    o_bgt = 35 * n
+    o_bgt = 35 * n  # bowing: d H / d(chord direction)
     o_e = 40 * n  # eyelets: Ex, Ey, ux, uy, L, T, Evx, Evy (12 per eyelet)
     ne = nd + 1
+    # what depends on each joint's D alone, in rows padded to whole blocks (one scenario: BLOCK bodies per
+    # vector; lanes: one body, every lane): D, its sine and cosine, the chord functions, the bowing's factors
+    nb = block_width(ws)
+    npad = (n + nb - 1) // nb * nb
+    o_d = N_WS_PER * n + 12 * ne + 16
+    o_sd = o_d + npad
+    o_cd = o_sd + npad
+    o_f = o_cd + npad  # f1, f2, f1', f2', f1'', f2'' (six rows)
+    o_bp = o_f + 6 * npad  # bowing: P, P', Q, Q' of each element
+    o_bdp = o_bp + npad
+    o_bq = o_bdp + npad
+    o_bdq = o_bq + npad
     bow = P[I_BOW]  # l^3 / EI, or 0: no bowing
-    bowrun = P[I_BOWRUN] != 0.0  # some cable run spans several elements
+    bowing = U[I_BOW] != 0.0
+    bowrun = U[I_BOWRUN] != 0.0  # some cable run spans several elements
     # ---- outward pass 1: kinematics ----
-    cp = math.cos(P[I_TH0])
-    sp = math.sin(P[I_TH0])
-    thp = P[I_TH0]
+    th0 = U[I_TH0]
+    thp = th0
+    for i in range(n):
+        th = y[i]
+        ws[o_d + i] = th - thp
+        thp = th
+    for i in range(n, npad):
+        ws[o_d + i] = 0.0
+    for i in range(0, npad, nb):
+        D = block_load(ws, o_d + i)
+        # sin D, cos D by series (error < 2e-17: two libm calls fewer; |D| >= 0.6 is redone below)
+        x = D * D
+        sD = D * _horner(_SIN, x)
+        cD = _horner(_COS, x)
+        block_store(ws, o_sd + i, sD)
+        block_store(ws, o_cd + i, cD)
+        f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
+        block_store(ws, o_f + i, f1)
+        block_store(ws, o_f + npad + i, f2)
+        block_store(ws, o_f + 2 * npad + i, f1p)
+        block_store(ws, o_f + 3 * npad + i, f2p)
+        block_store(ws, o_f + 4 * npad + i, f1pp)
+        block_store(ws, o_f + 5 * npad + i, f2pp)
+        if bowing:
+            if bowrun:
+                bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
+                block_store(ws, o_bq + i, bQ)
+                block_store(ws, o_bdq + i, bdQ)
+            else:
+                bP, bdP = bow_p(D, sD, cD)
+            block_store(ws, o_bp + i, bP)
+            block_store(ws, o_bdp + i, bdP)
+    cp = math.cos(th0)
+    sp = math.sin(th0)
     wp = 0.0
     px = 0.0
     py = 0.0
@@ -239,32 +397,34 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
     for i in range(n):
         th = y[i]
         w = y[n + i]
-        D = th - thp
+        D = ws[o_d + i]
         Dd = w - wp
-        if abs(D) < 0.6:
-            # rotate the previous tangent by D (series sin/cos, error < 2e-17): two libm calls fewer
-            x = D * D
-            sD = D * _horner(_SIN, x)
-            cD = _horner(_COS, x)
+        small = abs(D) < 0.6
+        if all_lane(small):  # rotate the previous tangent by D
+            sD = ws[o_sd + i]
+            cD = ws[o_cd + i]
             ci = cp * cD - sp * sD
             si = sp * cD + cp * sD
-        else:
-            ci = math.cos(th)
-            si = math.sin(th)
-            sD = si * cp - ci * sp
-            cD = ci * cp + si * sp
+            f1 = ws[o_f + i]
+            f2 = ws[o_f + npad + i]
+            f1p = ws[o_f + 2 * npad + i]
+            f2p = ws[o_f + 3 * npad + i]
+            f1pp = ws[o_f + 4 * npad + i]
+            f2pp = ws[o_f + 5 * npad + i]
+        else:  # libm's sin and cos of theta where |D| >= 0.6, and what follows from them (the rest as above)
+            ci, si, sD, cD = _rotate_mixed(small, D, th, cp, sp)
+            f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
+            if bowing:
+                if bowrun:
+                    bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
+                    ws[o_bq + i] = bQ
+                    ws[o_bdq + i] = bdQ
+                else:
+                    bP, bdP = bow_p(D, sD, cD)
+                ws[o_bp + i] = bP
+                ws[o_bdp + i] = bdP
         ws[o_c + i] = ci
         ws[o_s + i] = si
-        if bow != 0.0:
-            if bowrun:
-                bP, bdP, bQ, bdQ = bow_funcs(D, sD, cD)
-                ws[o_bq + i] = bQ
-                ws[o_bdq + i] = bdQ
-            else:
-                bP, bdP = bow_p(D, sD, cD)
-            ws[o_bp + i] = bP
-            ws[o_bdp + i] = bdP
-        f1, f2, f1p, f2p, f1pp, f2pp = chord_funcs(D, sD, cD)
         chx = l_ * (cp * f1 - sp * f2)
         chy = l_ * (sp * f1 + cp * f2)
         ex = l_ * (cp * f1p - sp * f2p)
@@ -296,7 +456,6 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         thp = th
         wp = w
     # ---- cable geometry ----
-    th0 = P[I_TH0]
     ax = -r * math.sin(th0)
     ay = r * math.cos(th0)
     ell = 0.0
@@ -306,7 +465,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         by = ws[o_py + b] + r * ws[o_c + b]
         dx = bx - ax
         dyy = by - ay
-        Lq = math.sqrt(dx * dx + dyy * dyy)
+        Lq = vsqrt(dx * dx + dyy * dyy)
         ell += Lq
         base = o_e + 12 * qq
         ws[base + 0] = bx
@@ -321,7 +480,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
     # of one element is symmetric (c = 0): H depends on its D alone. Otherwise d H / d c turns the run (forces
     # on its two eyelets) and the element's chord (a force on theta_{e-1} and half of it on D_e).
     hb = 0.0
-    if bow != 0.0:
+    if bowing:
         if not bowrun:
             for i in range(n):
                 hb += ws[o_bp + i]
@@ -336,7 +495,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
                 while i < disc[qq - 1]:
                     cx = ws[o_wy + i]
                     cy = -ws[o_wx + i]
-                    ic = 1.0 / math.sqrt(cx * cx + cy * cy)
+                    ic = 1.0 / vsqrt(cx * cx + cy * cy)
                     sc = (cx * uy - cy * ux) * ic
                     cc = (cx * ux + cy * uy) * ic
                     hb += ws[o_bp + i] + ws[o_bq + i] * sc * sc
@@ -349,7 +508,7 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         hb *= bow
     ws[o_e] = hb  # (eyelet block 0 is free: the guide bears no force) for the implicit step's cable stiffness
     # ---- actuator and tensions ----
-    mode = P[I_MODE]
+    mode = U[I_MODE]
     e1 = 0.0
     lam1 = 0.0
     if mode == 0.0:
@@ -358,19 +517,17 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         e2 = P[I_RSP] * y[2 * n] + ell - P[I_ELLREF]
     else:
         e1 = P[I_RSP] * y[2 * n] - y[2 * n + 2] - P[I_S1REF]
-        lam1 = P[I_K1] * e1 if e1 > 0.0 else 0.0
+        lam1 = select(e1 > 0.0, P[I_K1] * e1, 0.0)
         e2 = y[2 * n + 2] + ell - P[I_ELLREF]
-    if e2 > 0.0 or P[I_BILAT] != 0.0:
-        lam2 = P[I_K2] * e2 if hb == 0.0 else e2 / (1.0 / P[I_K2] + hb)
-    else:
-        lam2 = 0.0
+    lam_taut = select(hb == 0.0, P[I_K2] * e2, e2 / (1.0 / P[I_K2] + hb))
+    lam2 = lam_taut if U[I_BILAT] != 0.0 else select(e2 > 0.0, lam_taut, 0.0)
     # run tensions (capstan friction at the guide and the eyelets, regularised)
-    mu = P[I_MU]
-    T = lam2
-    if mu == 0.0 or lam2 == 0.0:
+    if U[I_MU] == 0.0 or all_lane(lam2 == 0.0):
         for qq in range(1, ne):
             ws[o_e + 12 * qq + 5] = lam2
-    else:
+    else:  # (a slack lane gets 0 * its friction factors: 0, as above)
+        mu = P[I_MU]
+        T = lam2
         for qq in range(1, ne):
             b = disc[qq - 1] - 1
             w = y[n + b]
@@ -397,13 +554,10 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
             ux = ws[base + 2]
             uy = ws[base + 3]
             cosb = tx * ux + ty * uy
-            if cosb > 1.0:
-                cosb = 1.0
-            elif cosb < -1.0:
-                cosb = -1.0
+            cosb = select(cosb > 1.0, 1.0, select(cosb < -1.0, -1.0, cosb))
             sinb = abs(tx * uy - ty * ux)
-            wrap = math.atan2(sinb, cosb)
-            T = T * math.exp(-mu * wrap * math.tanh(-ws[base + 8] / P[I_V0]))
+            wrap = vatan2(sinb, cosb)
+            T = T * vexp(-mu * wrap * vtanh(-ws[base + 8] / P[I_V0]))
             ws[base + 5] = T
             tx = ux
             ty = uy
@@ -420,17 +574,18 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         ws[o_fy + b] += Fy
         ws[o_fn + b] += -r * (ws[o_c + b] * Fx + ws[o_s + b] * Fy)
     # bowing: generalised forces (lam2^2 / 2) dH (its potential is -lam2^2 H / 2 at the tension lam2)
-    if hb != 0.0 and lam2 != 0.0:
+    on = (hb != 0.0) & (lam2 != 0.0)
+    if bowing and any_lane(on):
         hl = 0.5 * lam2 * lam2
         if not bowrun:
             for i in range(n):
-                ws[o_q + i] += hl * ws[o_bdp + i]
+                ws[o_q + i] = select(on, ws[o_q + i] + hl * ws[o_bdp + i], ws[o_q + i])
         else:
             for i in range(n):
                 gt = ws[o_bgt + i]
-                ws[o_q + i] += hl * (ws[o_bdp + i] + 0.5 * gt)
+                ws[o_q + i] = select(on, ws[o_q + i] + hl * (ws[o_bdp + i] + 0.5 * gt), ws[o_q + i])
                 if i > 0:
-                    ws[o_qt + i - 1] += hl * gt
+                    ws[o_qt + i - 1] = select(on, ws[o_qt + i - 1] + hl * gt, ws[o_qt + i - 1])
             # the runs' directions: d gamma_q = perp_q . (dE_q - dE_{q-1}) / L_q, perp = (-u_y, u_x)
             for qq in range(1, ne):
                 b = disc[qq - 1] - 1
@@ -442,12 +597,13 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
                     g = hl * ws[base + 12 + 9]
                     Fx += g * ws[base + 12 + 3]
                     Fy -= g * ws[base + 12 + 2]
-                ws[o_fx + b] += Fx
-                ws[o_fy + b] += Fy
-                ws[o_fn + b] += -r * (ws[o_c + b] * Fx + ws[o_s + b] * Fy)
+                ws[o_fx + b] = select(on, ws[o_fx + b] + Fx, ws[o_fx + b])
+                ws[o_fy + b] = select(on, ws[o_fy + b] + Fy, ws[o_fy + b])
+                fn = ws[o_fn + b] + -r * (ws[o_c + b] * Fx + ws[o_s + b] * Fy)
+                ws[o_fn + b] = select(on, fn, ws[o_fn + b])
     # dashpots on the relative rotation of consecutive discs (clamp = disc 0)
-    cd = P[I_CDISC]
-    if cd != 0.0:
+    if U[I_CDISC] != 0.0:
+        cd = P[I_CDISC]
         prev_b = 0
         wprev = 0.0
         for k in range(nd):
@@ -458,8 +614,9 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
             prev_b = b
             wprev = y[n + b - 1]
     # dashpots between disc chords: d_0 = w_1 / 2, d_k = (w_{k+1} - w_{k-1}) / 2 (disc rates, clamp = 0)
-    cc_ = P[I_CCHORD]
-    if cc_ != 0.0:
+    chords = U[I_CCHORD] != 0.0
+    if chords:
+        cc_ = P[I_CCHORD]
         wm = 0.0
         w0 = y[n + disc[0] - 1]
         ws[o_qt + disc[0] - 1] -= cc_ * 0.25 * w0
@@ -473,32 +630,47 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
             w0 = wpk
     # constant damping on theta' (the high-mode floor)
     nr = cw.shape[0]
-    if nr > 0 or cc_ != 0.0 or (hb != 0.0 and bowrun):
-        for k in range(nr):
-            acc = 0.0
-            for i in range(n):
-                acc += W[k, i] * y[n + i]
-            acc *= cw[k]
-            for i in range(n):
-                ws[o_qt + i] -= acc * W[k, i]
-        # a force on theta_i acts on every joint j <= i (theta_i = sum_{j <= i} D_j)
+    for k in range(nr):
+        acc = 0.0
+        for i in range(n):
+            acc += W[k, i] * y[n + i]
+        acc *= cw[k]
+        for i in range(n):
+            ws[o_qt + i] -= acc * W[k, i]
+    # a force on theta_i acts on every joint j <= i (theta_i = sum_{j <= i} D_j)
+    if nr > 0 or chords:
         acc = 0.0
         for i in range(n - 1, -1, -1):
             acc += ws[o_qt + i]
             ws[o_q + i] += acc
-    # ---- inward pass ----
-    for j in range(o_i, o_u):
-        ws[j] = 0.0
+    elif bowing and bowrun:
+        keep = hb != 0.0
+        if any_lane(keep):
+            acc = 0.0
+            for i in range(n - 1, -1, -1):
+                acc += ws[o_qt + i]
+                ws[o_q + i] = select(keep, ws[o_q + i] + acc, ws[o_q + i])
+    # ---- inward pass ---- (what each body passes to its parent: c.. its articulated inertia, cp. its bias
+    # force; 0.0 + x as the parent's accumulator held it, so a -0.0 becomes +0.0 as it did)
+    c00 = 0.0
+    c01 = 0.0
+    c02 = 0.0
+    c11 = 0.0
+    c12 = 0.0
+    c22 = 0.0
+    cp0 = 0.0
+    cp1 = 0.0
+    cp2 = 0.0
     for i in range(n - 1, -1, -1):
-        I00 = Jb[i] + ws[o_i + i]
-        I01 = ws[o_i + n + i]
-        I02 = ws[o_i + 2 * n + i]
-        I11 = mb[i] + ws[o_i + 3 * n + i]
-        I12 = ws[o_i + 4 * n + i]
-        I22 = mb[i] + ws[o_i + 5 * n + i]
-        p0 = -ws[o_fn + i] + ws[o_p + i]
-        p1 = -ws[o_fx + i] + ws[o_p + n + i]
-        p2 = -ws[o_fy + i] + ws[o_p + 2 * n + i]
+        I00 = Jb[i] + c00
+        I01 = c01
+        I02 = c02
+        I11 = mb[i] + c11
+        I12 = c12
+        I22 = mb[i] + c22
+        p0 = -ws[o_fn + i] + cp0
+        p1 = -ws[o_fx + i] + cp1
+        p2 = -ws[o_fy + i] + cp2
         ex = ws[o_ex + i]
         ey = ws[o_ey + i]
         U0 = I00 + I01 * ex + I02 * ey
@@ -529,16 +701,15 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
             wy = ws[o_wy + i]
             Mwx = a11 * wx + a12 * wy
             Mwy = a12 * wx + a22 * wy
-            j = i - 1
-            ws[o_i + j] += a00 + 2.0 * (a01 * wx + a02 * wy) + wx * Mwx + wy * Mwy
-            ws[o_i + n + j] += a01 + Mwx
-            ws[o_i + 2 * n + j] += a02 + Mwy
-            ws[o_i + 3 * n + j] += a11
-            ws[o_i + 4 * n + j] += a12
-            ws[o_i + 5 * n + j] += a22
-            ws[o_p + j] += q0 + wx * q1 + wy * q2
-            ws[o_p + n + j] += q1
-            ws[o_p + 2 * n + j] += q2
+            c00 = 0.0 + (a00 + 2.0 * (a01 * wx + a02 * wy) + wx * Mwx + wy * Mwy)
+            c01 = 0.0 + (a01 + Mwx)
+            c02 = 0.0 + (a02 + Mwy)
+            c11 = 0.0 + a11
+            c12 = 0.0 + a12
+            c22 = 0.0 + a22
+            cp0 = 0.0 + (q0 + wx * q1 + wy * q2)
+            cp1 = 0.0 + q1
+            cp2 = 0.0 + q2
     # ---- outward pass 2: accelerations ----
     A0 = 0.0
     A1 = 0.0
@@ -562,14 +733,9 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
         dy[m2 + 2] = 0.0
         dy[m2 + 3] = 0.0
     else:
-        delta = drive - y[m2]
-        if P[I_TLAW] == 0.0:
-            tm = P[I_TH] * P[I_NR] * delta
-        else:
-            tm = P[I_TH] * math.sin(P[I_NR] * delta)
         lam_sp = lam2 if mode == 1.0 else lam1
         dy[m2] = y[m2 + 1]
-        dy[m2 + 1] = (tm - P[I_CR] * y[m2 + 1] - P[I_RSP] * lam_sp) / P[I_JR]
+        dy[m2 + 1] = _rotor_acceleration(P, U, drive, y[m2], y[m2 + 1], lam_sp)
         if mode == 2.0:
             dy[m2 + 2] = y[m2 + 3]
             dy[m2 + 3] = (lam1 - lam2 - P[I_CC] * y[m2 + 3]) / P[I_MC]
@@ -581,17 +747,17 @@ def rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws):  # noqa: C901 - one pass p
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def rhs(y, drive, P, mb, Jb, disc, W, cw):
-    """Allocating convenience wrapper of :func:`rhs_ws`: returns ``(dy, e1, e2, lam1, lam2)``."""
+    """Allocating wrapper of :func:`rhs_ws` (one scenario): returns ``(dy, e1, e2, lam1, lam2)``."""
     n = mb.shape[0]
-    ws = np.empty(N_WS_PER * n + 12 * (disc.shape[0] + 1) + 16)
+    ws = np.empty(N_WS_PER * n + 12 * (disc.shape[0] + 1) + 16 + N_BLOCK_ROWS * (n + BLOCK))
     dy = np.empty(y.shape[0])
-    e1, e2, l1, l2 = rhs_ws(y, dy, drive, P, mb, Jb, disc, W, cw, ws)
+    e1, e2, l1, l2 = rhs_ws(y, dy, drive, P, P, mb, Jb, disc, W, cw, ws)
     return dy, e1, e2, l1, l2
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _measured(P, lam1, lam2):
-    return lam1 if (P[I_MODE] == 2.0 and P[I_MEAS] == 1.0) else lam2
+def _measured(U, lam1, lam2):
+    return lam1 if (U[I_MODE] == 2.0 and U[I_MEAS] == 1.0) else lam2
 
 
 # ---- the linearly implicit step: the elastic stiffness implicit, everything else explicit ------------------
@@ -673,7 +839,7 @@ def wf_size(n: int) -> int:
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def wgeom(P, mb, disc, ws, taut1, taut2, wf):
+def wgeom(P, U, mb, disc, ws, taut1, taut2, wf):
     """Store what ``T`` needs of the state whose right-hand side :func:`rhs_ws` left in ``ws``.
 
     ``T = [[0, I], [-M^-1 K, 0]]`` in the coordinates ``z = (theta, psi, x_c)``, ``K`` the elastic stiffness:
@@ -681,11 +847,11 @@ def wgeom(P, mb, disc, ws, taut1, taut2, wf):
     coordinates), and each taut cable as a spring ``k_j G_j G_j^T`` along the gradient of its stretch: the
     arm side ``G_2 = (d ell/d theta, 0, 1)`` (stepper: ``(d ell/d theta, R)``; ideal: ``d ell/d theta``)
     with ``1/(1/k_2 + H)`` (the bowing's compliance in series), the spool side ``G_1 = (0, R, -1)``, ``k_1``.
-    A slack cable (``taut`` False) has none. Stored: each joint's motion (``ex, ey``), the chord's transform
-    (``wx, wy``), the cable's gradient in the joint coordinates (its unit tension's eyelet forces summed
-    inwards) and in ``theta``; the actuator's ``G`` and inverse masses; the stiffnesses. Gravity, damping,
-    eyelet friction, the tension's geometric stiffness and the bowing's gradients stay explicit (a W-method
-    is third order with any ``T``).
+    A slack cable (``taut`` False, per lane) has none. Stored: each joint's motion (``ex, ey``), the chord's
+    transform (``wx, wy``), the cable's gradient in the joint coordinates (its unit tension's eyelet forces
+    summed inwards) and in ``theta``; the actuator's ``G`` and inverse masses; the stiffnesses. Gravity,
+    damping, eyelet friction, the tension's geometric stiffness and the bowing's gradients stay explicit (a
+    W-method is third order with any ``T``).
     """
     n = mb.shape[0]
     nd = disc.shape[0]
@@ -725,9 +891,9 @@ def wgeom(P, mb, disc, ws, taut1, taut2, wf):
     x = N_WF_BODY * n
     for j in range(N_WF_SCAL):
         wf[x + j] = 0.0
-    mode = P[I_MODE]
-    if taut2 or P[I_BILAT] != 0.0:
-        wf[x + WS_K2] = 1.0 / (1.0 / P[I_K2] + ws[o_e])
+    mode = U[I_MODE]
+    k2 = 1.0 / (1.0 / P[I_K2] + ws[o_e])
+    wf[x + WS_K2] = k2 if U[I_BILAT] != 0.0 else select(taut2, k2, 0.0)
     R = P[I_RSP]
     if mode == 1.0:
         wf[x + WS_G2P] = R
@@ -738,8 +904,7 @@ def wgeom(P, mb, disc, ws, taut1, taut2, wf):
         wf[x + WS_G2X] = 1.0
         wf[x + WS_JP] = 1.0 / P[I_JR]
         wf[x + WS_JX] = 1.0 / P[I_MC]
-        if taut1:
-            wf[x + WS_K1] = P[I_K1]
+        wf[x + WS_K1] = select(taut1, P[I_K1], 0.0)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -912,7 +1077,7 @@ def _wsolve(P, wf, n, gh, u, tmp):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _step(scheme, y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, out):  # noqa: C901
+def _step(scheme, y, k1, h, drive, P, U, mb, Jb, disc, W, cw, ws, wf, bufs, out):  # noqa: C901
     """One step of ``scheme`` from ``y`` (``k1 = f(y)``) over ``h`` into ``out``.
 
     Classical RK4, or the Rosenbrock-W step (after :func:`wgeom` at ``y``). The three right-hand sides of
@@ -946,7 +1111,7 @@ def _step(scheme, y, k1, h, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, out):  
             for i in range(m):
                 tmp[i] = y[i] + c * kp[i]
         kout = fb if implicit else bufs[s]  # RK4: k2, k3, k4 in bufs[1..3]
-        rhs_ws(tmp, kout, drive, P, mb, Jb, disc, W, cw, ws)
+        rhs_ws(tmp, kout, drive, P, U, mb, Jb, disc, W, cw, ws)
         if implicit:
             u = bufs[s]
             for i in range(m):
@@ -974,191 +1139,362 @@ def _flip(a0, a1, b0, b1):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _filter(filt, h, x0, x1):
-    """First-order low-pass ``tau y' = x - y`` over ``h`` for an input linear from ``x0`` to ``x1``."""
-    tau = filt[0]
+def _filter(tau, y, h, x0, x1):
+    """Low-pass ``tau y' = x - y`` over ``h`` for an input linear from ``x0`` to ``x1``: the new ``y``."""
     if tau <= 0.0:
-        filt[1] = x1
-        return
+        return x1
     a = math.exp(-h / tau)
-    filt[1] = a * (filt[1] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
+    return a * (y - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
+
+
+# the driver's state of each lane, one row of ``S`` per quantity (lanes along it): what persists between
+# calls (time, drive, its increment, the largest step, the amplifier's time constant and output, the largest
+# rotor lag, steps and transitions counted), then the present piece and step; integers in ``L[lane]``
+(S_T, S_DRIVE, S_DDRIVE, S_HMAX, S_TAU, S_FILT, S_HEALTH, S_NSTEP, S_NTRANS, S_TARGET, S_H, S_REM, S_R0, S_R1,
+ S_FLO, S_FHI, S_LO, S_HI, S_HC, S_HSTEP, S_FH, S_FA, S_ACTIVE, S_LEFT, S_SPLITS, S_SEARCH, S_GEOM, S_COMMIT,
+ S_FULL, S_PEND) = range(30)  # fmt: skip
+N_STATE = 30
+"""Rows of the driver's float state (:func:`advance`)."""
+S_PERSIST = S_TARGET
+"""Rows ``0 .. S_PERSIST - 1`` carry over from one call to the next; the rest is work."""
+(L_QI, L_JS, L_USE1, L_SIDE, L_IT, L_TOSTEP, L_AIMED) = range(7)
+N_LANE_INTS = 7
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _lag(P, drive, y, n, health):
-    if P[I_MODE] != 0.0:
-        lag = abs(drive - y[2 * n])
-        if lag > health[0]:
-            health[0] = lag
+def _blend(mask, dst, src, count):
+    """``dst[:count] <- src[:count]`` in the lanes of ``mask``."""
+    if all_lane(mask):
+        for i in range(count):
+            dst[i] = src[i]
+    elif any_lane(mask):
+        for i in range(count):
+            dst[i] = select(mask, src[i], dst[i])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def integrate(scheme, y, k1, st, dt, drive, h_max, P, mb, Jb, disc, W, cw, ws, wf, bufs, filt, stats,  # noqa: C901
-              health):  # fmt: skip
-    """Integrate ``y`` (in place) over ``dt`` with constant ``drive``: equal steps ``<= h_max`` of ``scheme``.
+def _start_steps(S, mask, implicit, mode2, st):
+    """The lanes of ``mask`` begin a step of their piece's size from their present state."""
+    h = S[S_H]
+    S[S_REM] = select(mask, h, S[S_REM])
+    S[S_HSTEP] = select(mask, h, S[S_HSTEP])
+    S[S_R0] = select(mask, st[0] if mode2 else 1.0, S[S_R0])
+    S[S_R1] = select(mask, st[1], S[S_R1])
+    if implicit:
+        S[S_GEOM] = select(mask, 1.0, S[S_GEOM])
+    S[S_SPLITS] = select(mask, 0.0, S[S_SPLITS])
+    S[S_SEARCH] = select(mask, 0.0, S[S_SEARCH])
 
-    ``k1`` holds ``f(y)`` on entry and on exit (the evaluation at a step's end is the next step's first
-    stage), and ``ws`` the work of that evaluation. ``st = [e1, e2, lam1, lam2]`` of ``y`` (updated). A step
-    across which a cable changes between taut and slack is split at the transition (Illinois method on the
-    step size), so no step straddles the kink of ``max(0, .)``. With the implicit step (``SCHEME_ROSW``) each
-    step's cable stiffness ``T`` (:func:`wfactor`) is that of the branch the step lies on: the cables taut at
-    its start, and after a transition the branch the trial step ended on. ``filt = [tau, y]``: the
-    amplifier's low-pass, updated exactly for a tension linear over each step (``tau = 0``: off).
-    ``stats[0]`` counts steps, ``stats[1]`` transitions; ``health[0]`` is the largest rotor lag
-    ``|psi_cmd - psi|`` seen (rad).
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, out_raw, out_filt, out_theta,
+            implicit, mode2):  # fmt: skip
+    """Lane ``k`` has reached its target: record the sample or apply the step, then aim at the next target.
+
+    Stops at a step (its right-hand side must be evaluated again with the new drive: ``S_PEND``), at the
+    first piece with steps to take, or when the last sample is recorded (the lane goes idle).
     """
-    if dt <= 0.0:
+    n = out_theta.shape[2]
+    nq = sample_times.shape[1]
+    while True:
+        if L[k, L_AIMED] != 0 and lane(S[S_LEFT], k) == 0.0:  # arrived
+            L[k, L_AIMED] = 0
+            target = lane(S[S_TARGET], k)
+            if target > lane(S[S_T], k):
+                S[S_T] = set_lane(S[S_T], k, target)
+            if L[k, L_TOSTEP] != 0:
+                js = L[k, L_JS]
+                drive = lane(S[S_DRIVE], k) + lane(S[S_DDRIVE], k) * step_signs[k, js]
+                S[S_DRIVE] = set_lane(S[S_DRIVE], k, drive)
+                L[k, L_JS] = js + 1
+                S[S_PEND] = set_lane(S[S_PEND], k, 1.0)
+                return
+            qi = L[k, L_QI]
+            out_raw[k, qi] = lane(_measured(U, st[2], st[3]), k)
+            out_filt[k, qi] = lane(S[S_FILT], k)
+            for i in range(n):
+                out_theta[k, qi, i] = lane(y[i], k)
+            L[k, L_QI] = qi + 1
+        qi = L[k, L_QI]
+        if qi == nq:
+            S[S_ACTIVE] = set_lane(S[S_ACTIVE], k, 0.0)
+            return
+        ts = sample_times[k, qi]
+        js = L[k, L_JS]
+        to_step = js < n_steps[k] and step_times[k, js] <= ts
+        target = step_times[k, js] if to_step else ts
+        L[k, L_TOSTEP] = 1 if to_step else 0
+        L[k, L_AIMED] = 1
+        S[S_TARGET] = set_lane(S[S_TARGET], k, target)
+        dt = target - lane(S[S_T], k)
+        if dt <= 0.0:
+            S[S_LEFT] = set_lane(S[S_LEFT], k, 0.0)
+            continue
+        nst = math.ceil(dt / lane(S[S_HMAX], k) - 1e-9)
+        S[S_LEFT] = set_lane(S[S_LEFT], k, float(nst))
+        S[S_H] = set_lane(S[S_H], k, dt / nst)
         return
-    nst = int(math.ceil(dt / h_max - 1e-9))
-    h = dt / nst
-    m = y.shape[0]
-    n = mb.shape[0]
-    y1 = bufs[4]
-    k1n = bufs[6]
-    mode2 = P[I_MODE] == 2.0
-    implicit = scheme == SCHEME_ROSW
-    cap = MAX_SPLITS if implicit else 1
-    for _ in range(nst):
-        rem = h
-        splits = 0
-        r0 = st[0] if mode2 else 1.0  # the transition functions at the piece's start (their signs)
-        r1 = st[1]
-        if implicit:
-            wgeom(P, mb, disc, ws, r0 > 0.0, r1 > 0.0, wf)
-        search = False  # False: a trial of the rest of the step; True: the search for a transition
-        use1 = False
-        f_lo = 0.0
-        f_hi = 0.0
-        lo = 0.0
-        hi = 0.0
-        side = 0
-        hc = rem
-        it = 0
-        while True:  # one step and one right-hand side per pass (one call site of each)
-            _step(scheme, y, k1, hc if search else rem, drive, P, mb, Jb, disc, W, cw, ws, wf, bufs, y1)
-            stats[0] += 1
-            e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, drive, P, mb, Jb, disc, W, cw, ws)
-            if not search:
-                a1 = e1n if mode2 else 1.0
-                if splits >= cap or not _flip(r0, a1, r1, e2n):
-                    _filter(filt, rem, _measured(P, st[2], st[3]), _measured(P, l1n, l2n))
-                    break
-                stats[1] += 1
-                flip1 = (r0 > 0.0) != (a1 > 0.0)
-                flip2 = (r1 > 0.0) != (e2n > 0.0)
-                if implicit and flip1 and flip2:  # both: the one that comes first on the chord
-                    use1 = r0 / (r0 - a1) <= r1 / (r1 - e2n)
-                else:
-                    use1 = mode2 and flip1
-                f_lo = r0 if use1 else r1
-                f_hi = a1 if use1 else e2n
-                lo = 0.0
-                hi = rem
-                side = 0
-                it = 0
-                search = True
-            else:
-                fc = e1n if use1 else e2n
-                it += 1
-                if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
-                    # to the transition (the search's last point); the rest of the step from there, on the
-                    # branch just crossed into
-                    x0 = _measured(P, st[2], st[3])
-                    for i in range(m):
-                        y[i] = y1[i]
-                        k1[i] = k1n[i]
-                    _filter(filt, hc, x0, _measured(P, l1n, l2n))
-                    st[0] = e1n
-                    st[1] = e2n
-                    st[2] = l1n
-                    st[3] = l2n
-                    r0 = e1n if mode2 else 1.0
-                    r1 = e2n
-                    if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
-                        r0 = 1e-300 if f_hi > 0.0 else -1e-300
-                    if not use1 and (r1 > 0.0) != (f_hi > 0.0):
-                        r1 = 1e-300 if f_hi > 0.0 else -1e-300
-                    rem = rem - hc
-                    splits += 1
-                    if implicit:
-                        wgeom(P, mb, disc, ws, r0 > 0.0, r1 > 0.0, wf)
-                    search = False
-                    continue
-                if (fc > 0.0) == (f_lo > 0.0):
-                    lo = hc
-                    f_lo = fc
-                    if side == -1:
-                        f_hi *= 0.5
-                    side = -1
-                else:
-                    hi = hc
-                    f_hi = fc
-                    if side == 1:
-                        f_lo *= 0.5
-                    side = 1
-            den = f_hi - f_lo
-            hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
-            if not (hc > lo and hc < hi):
-                hc = 0.5 * (lo + hi)
-        for i in range(m):
-            y[i] = y1[i]
-            k1[i] = k1n[i]
-        st[0] = e1n
-        st[1] = e2n
-        st[2] = l1n
-        st[3] = l2n
-        _lag(P, drive, y, n, health)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def advance(scheme, y, t0, drive0, d_drive, sample_times, step_times, step_signs, h_max, P, mb, Jb, disc, W,
-            cw, filt, out_raw, out_filt, out_theta, stats, health):  # fmt: skip
-    """Advance ``y`` from ``t0`` through every sample time with ``scheme``; return ``(t, drive)``.
+def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap):  # noqa: C901 - the step's one decision
+    """Lane ``k`` after a trial step that is not simply accepted: the first sign of a transition, or a search.
 
-    ``drive`` (cable displacement or commanded rotor angle) jumps by ``d_drive * sign`` at each step time;
-    a step at exactly a sample time is applied before that sample. At each sample the measured tension (raw
-    and amplifier output) and the node angles are written into ``out_*``.
+    A transition starts the search for it (Illinois method on the step size). The search ends at the
+    transition, which becomes the state (``S_COMMIT``, the step not complete: ``S_FULL`` 0), the rest of the
+    step to follow on the branch just crossed into; otherwise the next trial's size is ``S_HSTEP``. ``x0``,
+    ``x1``: the measured tension at the piece's start and at the trial's end.
     """
+    if lane(S[S_SEARCH], k) == 0.0:
+        r0 = lane(S[S_R0], k)
+        r1 = lane(S[S_R1], k)
+        a1 = e1n if mode2 else 1.0
+        S[S_NTRANS] = set_lane(S[S_NTRANS], k, lane(S[S_NTRANS], k) + 1.0)
+        flip1 = (r0 > 0.0) != (a1 > 0.0)
+        flip2 = (r1 > 0.0) != (e2n > 0.0)
+        if implicit and flip1 and flip2:  # both: the one that comes first on the chord
+            use1 = r0 / (r0 - a1) <= r1 / (r1 - e2n)
+        else:
+            use1 = mode2 and flip1
+        f_lo = r0 if use1 else r1
+        f_hi = a1 if use1 else e2n
+        lo = 0.0
+        hi = lane(S[S_REM], k)
+        side = 0
+        L[k, L_IT] = 0
+        S[S_SEARCH] = set_lane(S[S_SEARCH], k, 1.0)
+        L[k, L_USE1] = 1 if use1 else 0
+    else:
+        use1 = L[k, L_USE1] != 0
+        f_lo = lane(S[S_FLO], k)
+        f_hi = lane(S[S_FHI], k)
+        lo = lane(S[S_LO], k)
+        hi = lane(S[S_HI], k)
+        side = L[k, L_SIDE]
+        hc = lane(S[S_HC], k)
+        fc = e1n if use1 else e2n
+        it = L[k, L_IT] + 1
+        L[k, L_IT] = it
+        if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
+            # to the transition (the search's last point); the rest of the step from there, on the branch
+            # just crossed into
+            S[S_FILT] = set_lane(S[S_FILT], k, _filter(lane(S[S_TAU], k), lane(S[S_FILT], k), hc, x0, x1))
+            S[S_COMMIT] = set_lane(S[S_COMMIT], k, 1.0)
+            r0 = e1n if mode2 else 1.0
+            r1 = e2n
+            if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
+                r0 = 1e-300 if f_hi > 0.0 else -1e-300
+            if not use1 and (r1 > 0.0) != (f_hi > 0.0):
+                r1 = 1e-300 if f_hi > 0.0 else -1e-300
+            S[S_R0] = set_lane(S[S_R0], k, r0)
+            S[S_R1] = set_lane(S[S_R1], k, r1)
+            rem = lane(S[S_REM], k) - hc
+            S[S_REM] = set_lane(S[S_REM], k, rem)
+            S[S_HSTEP] = set_lane(S[S_HSTEP], k, rem)
+            S[S_SPLITS] = set_lane(S[S_SPLITS], k, lane(S[S_SPLITS], k) + 1.0)
+            if implicit:
+                S[S_GEOM] = set_lane(S[S_GEOM], k, 1.0)
+            S[S_SEARCH] = set_lane(S[S_SEARCH], k, 0.0)
+            return
+        if (fc > 0.0) == (f_lo > 0.0):
+            lo = hc
+            f_lo = fc
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+        else:
+            hi = hc
+            f_hi = fc
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+    den = f_hi - f_lo
+    hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
+    if not (hc > lo and hc < hi):
+        hc = 0.5 * (lo + hi)
+    S[S_FLO] = set_lane(S[S_FLO], k, f_lo)
+    S[S_FHI] = set_lane(S[S_FHI], k, f_hi)
+    S[S_LO] = set_lane(S[S_LO], k, lo)
+    S[S_HI] = set_lane(S[S_HI], k, hi)
+    S[S_HC] = set_lane(S[S_HC], k, hc)
+    S[S_HSTEP] = set_lane(S[S_HSTEP], k, hc)
+    L[k, L_SIDE] = side
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _accept(S, accept, x0, x1):
+    """The amplifier's output over the accepted steps (``S_REM`` each): :func:`_filter`, lanes at once.
+
+    ``exp(-h / tau)`` is kept from the last step of the same size (the same bits as computing it again).
+    """
+    h = S[S_REM]
+    tau = S[S_TAU]
+    fresh = accept & (h != S[S_FH]) & (tau > 0.0)
+    if any_lane(fresh):
+        for k in range(lane_count(h)):
+            if lane(fresh, k):
+                hk = lane(h, k)
+                S[S_FA] = set_lane(S[S_FA], k, math.exp(-hk / lane(tau, k)))
+                S[S_FH] = set_lane(S[S_FH], k, hk)
+    a = S[S_FA]
+    y = a * (S[S_FILT] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
+    S[S_FILT] = select(accept, select(tau <= 0.0, x1, y), S[S_FILT])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def advance(scheme, y, S, L, sample_times, step_times, step_signs, n_steps, P, U, mb, Jb, disc, W, cw,  # noqa: C901
+            k1, st, ws, ws2, wf, wf2, bufs, out_raw, out_filt, out_theta):  # fmt: skip
+    """Advance every lane's ``y`` from its time ``S[S_T]`` through its sample times with ``scheme``.
+
+    One scenario (scalars) or several (lanes: one per scenario, the arrays of :func:`rhs_ws` and ``y``,
+    ``S``, ``k1``, ``st``, ``ws``, ``ws2``, ``wf``, ``wf2``, ``bufs`` as lane arrays). Each lane takes equal
+    steps ``<= S[S_HMAX]`` between its events (its stepper steps and its samples); a step across which a
+    cable changes between taut and slack is split at the transition (Illinois method on the step size), so
+    no step straddles the kink of ``max(0, .)``; with the implicit step (``SCHEME_ROSW``) each piece's cable
+    stiffness ``T`` (:func:`wfactor`) is that of the branch it lies on. Every lane takes exactly the steps it
+    takes alone: each pass of the loop below is one trial step of every lane (of its own size) and one
+    right-hand side at its end, then each lane's own decision (accept, split, search, its next event), so a
+    lane's arithmetic does not depend on the others.
+
+    The drive (cable displacement or commanded rotor angle) jumps by ``S[S_DDRIVE] * sign`` at each step
+    time; a step at exactly a sample time is applied before that sample. At each sample the measured
+    tension (raw and through the amplifier, ``S[S_TAU]``, ``S[S_FILT]``: the low-pass integrated exactly for
+    a tension linear over each step) and the node angles are written into ``out_*[lane]``. ``S[S_NSTEP]``,
+    ``S[S_NTRANS]`` count steps and transitions, ``S[S_HEALTH]`` is the largest rotor lag ``|psi_cmd - psi|``
+    seen (rad).
+
+    Parameters (besides :func:`rhs_ws`'s)
+    -------------------------------------
+    sample_times : float64[lanes, samples]
+        Strictly increasing, after ``S[S_T]``.
+    step_times, step_signs : float64[lanes, steps]
+        Each lane's stepper steps (its first ``n_steps[lane]``), sorted.
+    L : int64[lanes, N_LANE_INTS]
+        Work.
+    k1, st, ws, ws2, wf, wf2, bufs
+        Work: ``m``, 4, :func:`workspace_size` (twice), :func:`wf_size` (twice), ``(10, m)``.
+    """
+    nl = L.shape[0]
     n = mb.shape[0]
     m = y.shape[0]
-    ws = np.empty(N_WS_PER * n + 12 * (disc.shape[0] + 1) + 16)
-    bufs = np.empty((10, m))
-    wf = np.empty(N_WF_BODY * n + N_WF_SCAL)
-    k1 = np.empty(m)
-    st = np.empty(4)
-    t = t0
-    drive = drive0
-    js = 0
-    nst = step_times.shape[0]
-    e1, e2, l1, l2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
+    nws = ws.shape[0]
+    nwf = wf.shape[0]
+    implicit = scheme == SCHEME_ROSW
+    mode2 = U[I_MODE] == 2.0
+    lagging = U[I_MODE] != 0.0
+    cap = MAX_SPLITS if implicit else 1
+    y1 = bufs[4]
+    k1e = bufs[5]
+    k1n = bufs[6]
+    e1, e2, l1, l2 = rhs_ws(y, k1, S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws)
     st[0] = e1
     st[1] = e2
     st[2] = l1
     st[3] = l2
-    qi = 0
-    nq = sample_times.shape[0]
-    while qi < nq:  # to the next step or sample: one call site of the integrator
-        ts = sample_times[qi]
-        to_step = js < nst and step_times[js] <= ts
-        target = step_times[js] if to_step else ts
-        integrate(scheme, y, k1, st, target - t, drive, h_max, P, mb, Jb, disc, W, cw, ws, wf, bufs, filt,
-                  stats, health)  # fmt: skip
-        if target > t:
-            t = target
-        if to_step:
-            drive += d_drive * step_signs[js]
-            js += 1
-            e1, e2, l1, l2 = rhs_ws(y, k1, drive, P, mb, Jb, disc, W, cw, ws)
-            st[0] = e1
-            st[1] = e2
-            st[2] = l1
-            st[3] = l2
-            if filt[0] <= 0.0:
-                filt[1] = _measured(P, l1, l2)
-            continue
-        out_raw[qi] = _measured(P, st[2], st[3])
-        out_filt[qi] = filt[1]
-        for i in range(n):
-            out_theta[qi, i] = y[i]
-        qi += 1
-    return t, drive
+    for j in range(S_PERSIST, N_STATE):
+        S[j] = 0.0
+    S[S_ACTIVE] = 1.0
+    for k in range(nl):
+        L[k, L_AIMED] = 0
+        L[k, L_QI] = 0
+        L[k, L_JS] = 0
+    pending = True  # lanes to move on to their next event
+    while True:
+        if pending:
+            # the events of lanes that reached their targets; a step there evaluates the right-hand side
+            # again with the new drive (in its lanes only)
+            waiting = (S[S_ACTIVE] != 0.0) & (S[S_LEFT] == 0.0)
+            while True:
+                ready = (S[S_ACTIVE] != 0.0) & (S[S_LEFT] == 0.0)
+                for k in range(nl):
+                    if lane(ready, k):
+                        _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, out_raw,
+                                out_filt, out_theta, implicit, mode2)  # fmt: skip
+                pend = S[S_PEND] != 0.0
+                if not any_lane(pend):
+                    break
+                if all_lane(pend):
+                    e1, e2, l1, l2 = rhs_ws(y, k1, S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws)
+                else:
+                    e1, e2, l1, l2 = rhs_ws(y, k1e, S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws2)
+                    _blend(pend, k1, k1e, m)
+                    _blend(pend, ws, ws2, nws)
+                st[0] = select(pend, e1, st[0])
+                st[1] = select(pend, e2, st[1])
+                st[2] = select(pend, l1, st[2])
+                st[3] = select(pend, l2, st[3])
+                S[S_FILT] = select(pend & (S[S_TAU] <= 0.0), _measured(U, l1, l2), S[S_FILT])
+                S[S_PEND] = 0.0
+            started = waiting & (S[S_ACTIVE] != 0.0) & (S[S_LEFT] > 0.0)
+            _start_steps(S, started, implicit, mode2, st)
+            pending = False
+        active = S[S_ACTIVE] != 0.0
+        if not any_lane(active):
+            break
+        # one trial step of every lane (idle lanes repeat a harmless step that nothing keeps)
+        if implicit:
+            geom = S[S_GEOM] != 0.0
+            if all_lane(geom):
+                wgeom(P, U, mb, disc, ws, S[S_R0] > 0.0, S[S_R1] > 0.0, wf)
+            elif any_lane(geom):
+                wgeom(P, U, mb, disc, ws, S[S_R0] > 0.0, S[S_R1] > 0.0, wf2)
+                _blend(geom, wf, wf2, nwf)
+            S[S_GEOM] = 0.0
+        _step(scheme, y, k1, S[S_HSTEP], S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws, wf, bufs, y1)
+        e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws)
+        S[S_NSTEP] = select(active, S[S_NSTEP] + 1.0, S[S_NSTEP])
+        x0 = _measured(U, st[2], st[3])
+        x1 = _measured(U, l1n, l2n)
+        # the trial accepted where no cable changed between taut and slack (or no more splits are allowed)
+        flip = (S[S_R1] > 0.0) ^ (e2n > 0.0)
+        if mode2:
+            flip = flip | ((S[S_R0] > 0.0) ^ (e1n > 0.0))
+        search = S[S_SEARCH] != 0.0
+        accept = active & lnot(search) & ((S[S_SPLITS] >= cap) | lnot(flip))
+        _accept(S, accept, x0, x1)
+        S[S_COMMIT] = select(accept, 1.0, 0.0)
+        S[S_FULL] = S[S_COMMIT]
+        other = active & lnot(accept)
+        if any_lane(other):
+            for k in range(nl):
+                if lane(other, k):
+                    e1k, e2k = lane(e1n, k), lane(e2n, k)
+                    _decide(S, L, k, e1k, e2k, lane(x0, k), lane(x1, k), implicit, mode2, cap)
+        commit = S[S_COMMIT] != 0.0
+        if any_lane(commit):
+            _blend(commit, y, y1, m)
+            _blend(commit, k1, k1n, m)
+            st[0] = select(commit, e1n, st[0])
+            st[1] = select(commit, e2n, st[1])
+            st[2] = select(commit, l1n, st[2])
+            st[3] = select(commit, l2n, st[3])
+        full = S[S_FULL] != 0.0
+        if any_lane(full):
+            if lagging:
+                lag = abs(S[S_DRIVE] - y[2 * n])
+                S[S_HEALTH] = select(full & (lag > S[S_HEALTH]), lag, S[S_HEALTH])
+            S[S_LEFT] = select(full, S[S_LEFT] - 1.0, S[S_LEFT])
+            _start_steps(S, full & (S[S_LEFT] > 0.0), implicit, mode2, st)
+            pending = any_lane(full & (S[S_LEFT] == 0.0))
+
+
+class Work(NamedTuple):
+    """Work arrays of :func:`advance` (one set per plant, reused by every call)."""
+
+    k1: Any
+    st: Any
+    ws: Any
+    ws2: Any
+    wf: Any
+    wf2: Any
+    bufs: Any
+
+
+def make_work(n: int, n_eye: int, lanes: int = 0) -> Work:
+    """:func:`advance`'s work arrays for ``n`` bodies and ``n_eye`` eyelets: scalars, or ``lanes`` lanes."""
+    m = 2 * n + 4
+    shapes = ((m,), (4,), (workspace_size(n, n_eye + 1),), (workspace_size(n, n_eye + 1),), (wf_size(n),),
+              (wf_size(n),), (10, m))  # fmt: skip
+    if lanes == 0:
+        return Work(*(np.zeros(s) for s in shapes))
+    return Work(*(LaneArray(np.zeros((*s, lanes))) for s in shapes))

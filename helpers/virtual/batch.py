@@ -8,8 +8,10 @@ process. :func:`run_batch` runs a list of :class:`BatchRun` on ``threads`` threa
 depends only on its run, never on the thread, the order or the thread count (the same bits as a fresh
 plant). An optional ``reduce`` function turns each :class:`~helpers.virtual.simulate.SimResult` into what
 the caller keeps (for example a few metrics), in the same thread, so a batch holds no more time series than
-it has threads. :class:`BatchStats` says where the time went: inside :func:`simulate` (the integration and
-the ADC), in ``reduce``, and building plants.
+it has threads. With ``lanes`` > 1, runs that can share a kernel call run several at once in its SIMD lanes
+(:func:`~helpers.virtual.simulate.simulate_lanes`: each lane the same bits as its run alone).
+:class:`BatchStats` says where the time went: inside :func:`simulate` (the integration and the ADC), in
+``reduce``, and building plants.
 """
 
 from __future__ import annotations
@@ -23,10 +25,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from helpers.virtual.parameters import RigParameters
-from helpers.virtual.plant import ArmPlant
-from helpers.virtual.simulate import SimResult, simulate
+from helpers.virtual.plant import LANE_WIDTHS, ArmPlant, lane_group
+from helpers.virtual.simulate import SimResult, programme_steps, simulate, simulate_lanes
 
-__all__ = ["BatchRun", "BatchStats", "PlantPool", "run_batch"]
+__all__ = ["BatchRun", "BatchStats", "PlantPool", "lane_groups", "run_batch"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,8 @@ class BatchStats:
     ----------
     runs : int
         Runs done.
+    kernel_calls : int
+        Calls of the kernel that did them (fewer than ``runs`` with lanes).
     simulate_s : float
         Time inside :func:`~helpers.virtual.simulate.simulate` (the integration, the sample grid, the ADC).
     reduce_s : float
@@ -80,6 +84,7 @@ class BatchStats:
     """
 
     runs: int = 0
+    kernel_calls: int = 0
     simulate_s: float = 0.0
     reduce_s: float = 0.0
     build_s: float = 0.0
@@ -90,6 +95,7 @@ class BatchStats:
     def add(self, other: BatchStats) -> None:
         """Accumulate another batch's figures (wall times add up)."""
         self.runs += other.runs
+        self.kernel_calls += other.kernel_calls
         self.simulate_s += other.simulate_s
         self.reduce_s += other.reduce_s
         self.build_s += other.build_s
@@ -151,11 +157,31 @@ def _executor(threads: int) -> ThreadPoolExecutor:
         return ex
 
 
+def lane_groups(runs: Sequence[BatchRun], lanes: int) -> list[list[int]]:
+    """The runs' indices cut into groups of up to ``lanes`` that can share a kernel call, in order.
+
+    Runs share a call when their rigs share :func:`helpers.virtual.plant.lane_group` and their sample times
+    (rate and end) are the same; each group takes the next runs of its kind as they come.
+    """
+    groups: list[list[int]] = []
+    open_group: dict[tuple, list[int]] = {}
+    for i, run in enumerate(runs):
+        end = run.t_end if run.t_end is not None else programme_steps(run.programme)[2]
+        key = (lane_group(run.params), float(run.rate_hz), float(end))
+        group = open_group.get(key)
+        if group is None or len(group) >= lanes:
+            group = open_group[key] = []
+            groups.append(group)
+        group.append(i)
+    return groups
+
+
 def run_batch(
     runs: Sequence[BatchRun],
     threads: int = 1,
     reduce: Callable[[BatchRun, SimResult], Any] | None = None,
     pool: PlantPool | None = None,
+    lanes: int = 1,
 ) -> tuple[list[Any], BatchStats]:
     """Run every run of ``runs`` on the virtual rig, ``threads`` at a time, and return the results in order.
 
@@ -170,6 +196,10 @@ def run_batch(
         :class:`~helpers.virtual.simulate.SimResult`.
     pool : PlantPool, optional
         Where plants are kept (default: one pool shared by every batch of this process).
+    lanes : int
+        Runs per kernel call (1: one plant per run; up to ``max(LANE_WIDTHS)``: runs that can share a call,
+        :func:`lane_groups`, run in its SIMD lanes, :func:`~helpers.virtual.simulate.simulate_lanes`). The
+        results are the same bits either way.
 
     Returns
     -------
@@ -179,33 +209,51 @@ def run_batch(
     Raises
     ------
     ValueError
-        ``threads`` below 1, or a run that :func:`~helpers.virtual.simulate.simulate` refuses.
+        ``threads`` below 1, ``lanes`` outside 1..8, or a run that :func:`~helpers.virtual.simulate.simulate`
+        refuses.
     """
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
         raise ValueError(f"threads must be a positive integer, got {threads!r}")
+    if isinstance(lanes, bool) or not isinstance(lanes, int) or not 1 <= lanes <= max(LANE_WIDTHS):
+        raise ValueError(f"lanes must be an integer from 1 to {max(LANE_WIDTHS)}, got {lanes!r}")
     pool = _SHARED_POOL if pool is None else pool
     built0, build0 = pool.built, pool.build_s
     stats = BatchStats(threads=threads)
     lock = threading.Lock()
 
-    def one(run: BatchRun) -> Any:
-        plant = pool.plant(run.params)
+    def one(group: list[int]) -> list[Any]:
         t0 = time.perf_counter()
-        result = simulate(run.programme, run.rate_hz, t_end=run.t_end, seed=run.seed, plant=plant)
+        if len(group) == 1:
+            run = runs[group[0]]
+            plant = pool.plant(run.params)
+            t0 = time.perf_counter()
+            results = [simulate(run.programme, run.rate_hz, t_end=run.t_end, seed=run.seed, plant=plant)]
+        else:
+            chosen = [runs[i] for i in group]
+            first = chosen[0]
+            results = simulate_lanes([r.programme for r in chosen], [r.params for r in chosen], first.rate_hz,
+                                     first.t_end, [r.seed for r in chosen])  # fmt: skip
         t1 = time.perf_counter()
-        out = result if reduce is None else reduce(run, result)
+        pairs = zip(group, results, strict=True)
+        out = results if reduce is None else [reduce(runs[i], r) for i, r in pairs]
         t2 = time.perf_counter()
         with lock:
-            stats.runs += 1
+            stats.runs += len(group)
+            stats.kernel_calls += 1
             stats.simulate_s += t1 - t0
             stats.reduce_s += t2 - t1
         return out
 
+    groups = lane_groups(runs, lanes) if lanes > 1 else [[i] for i in range(len(runs))]
     start = time.perf_counter()
-    if threads == 1 or len(runs) <= 1:
-        results = [one(r) for r in runs]
+    if threads == 1 or len(groups) <= 1:
+        done = [one(g) for g in groups]
     else:
-        results = list(_executor(threads).map(one, runs))
+        done = list(_executor(threads).map(one, groups))
+    results: list[Any] = [None] * len(runs)
+    for group, outs in zip(groups, done, strict=True):
+        for i, out in zip(group, outs, strict=True):
+            results[i] = out
     stats.wall_s = time.perf_counter() - start
     stats.plants_built = pool.built - built0
     stats.build_s = pool.build_s - build0

@@ -81,19 +81,22 @@ def planar_system(params: RigParameters) -> System:
     """The planar rig at rest (:class:`helpers.virtual.plant.ArmPlant`'s kernel)."""
     plant = ArmPlant(params)
     a = plant._arr
-    n, m = a.n, 2 * a.n + 4
-    nws = kern.N_WS_PER * n + 12 * (a.disc.shape[0] + 1) + 16
+    n = a.n
+    work = kern.make_work(n, a.disc.shape[0])
 
     def rhs(y: np.ndarray) -> np.ndarray:
         return kern.rhs(y, 0.0, a.P, a.mb, a.Jb, a.disc, a.W, a.cw)[0]
 
     def step(y: np.ndarray, h: float, scheme: str) -> np.ndarray:
+        # one step of h from t = 0 to a sample at h, no drive, no amplifier (split at a taut/slack transition)
         y = np.array(y, dtype=float)
-        ws, k1, st = np.empty(nws), np.empty(m), np.empty(4)
-        st[:] = kern.rhs_ws(y, k1, 0.0, a.P, a.mb, a.Jb, a.disc, a.W, a.cw, ws)
-        kern.integrate(kern.SCHEMES.index(scheme), y, k1, st, h, 0.0, h, a.P, a.mb, a.Jb, a.disc, a.W, a.cw,
-                       ws, np.empty(kern.wf_size(n)), np.empty((10, m)), np.zeros(2), np.zeros(2, np.int64),
-                       np.zeros(1))  # fmt: skip
+        S = np.zeros(kern.N_STATE)
+        S[kern.S_HMAX] = h
+        none = np.zeros((1, 1))
+        kern.advance(kern.SCHEMES.index(scheme), y, S, np.zeros((1, kern.N_LANE_INTS), np.int64),
+                     np.array([[h]]), none, none, np.zeros(1, np.int64), a.P, a.P,
+                     a.mb, a.Jb, a.disc, a.W, a.cw, *work, np.empty((1, 1)), np.empty((1, 1)),
+                     np.empty((1, 1, n)))  # fmt: skip
         return y
 
     labels = tuple(f"node {i + 1}" for i in range(n)) + ("rotor", "carriage")

@@ -10,15 +10,73 @@ part of the state, so chunked calls give the same samples as one call.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from helpers.virtual import _kernel as kern
+from helpers.virtual.lanes import LaneArray
 from helpers.virtual.parameters import RigParameters
 from helpers.virtual.statics import ArcChain, model_arrays, node_positions
 
-__all__ = ["ArmPlant"]
+__all__ = ["ArmPlant", "ArmLanes", "LANE_WIDTHS", "lane_group"]
+
+LANE_WIDTHS = (4, 8)
+"""Lanes of one kernel call (:class:`ArmLanes`): four (256-bit registers) or eight (512-bit)."""
+
+
+def _checked_times(
+    sample_times: npt.ArrayLike, step_times: npt.ArrayLike, step_signs: npt.ArrayLike, t_now: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The times of one :meth:`ArmPlant.advance` as float arrays, checked (``ValueError`` naming a fault)."""
+    ts = np.ascontiguousarray(sample_times, dtype=float).reshape(-1)
+    st = np.ascontiguousarray(step_times, dtype=float).reshape(-1)
+    sg = np.ascontiguousarray(step_signs, dtype=float).reshape(-1)
+    if ts.size == 0:
+        return ts, st, sg
+    if not np.all(np.isfinite(ts)):
+        raise ValueError("sample_times must be finite")
+    if np.any(np.diff(ts) <= 0):
+        raise ValueError("sample_times must be strictly increasing")
+    if ts[0] < t_now - 1e-12:
+        raise ValueError(f"sample_times must not precede the plant's time {t_now:.6f} s (got {ts[0]:.6f})")
+    if st.shape != sg.shape:
+        raise ValueError(f"step_times ({st.size}) and step_signs ({sg.size}) differ in length")
+    if st.size:
+        if not np.all(np.isfinite(st)):
+            raise ValueError("step_times must be finite")
+        if np.any(np.diff(st) < 0):
+            raise ValueError("step_times must be sorted")
+        if st[0] < t_now - 1e-12 or st[-1] > ts[-1] + 1e-12:
+            raise ValueError(
+                f"step_times must lie in (t, last sample] = ({t_now:.6f}, {ts[-1]:.6f}] s, "
+                f"got {st[0]:.6f} .. {st[-1]:.6f}"
+            )
+        if not np.all(np.abs(sg) == 1):
+            raise ValueError("step_signs must be +1 (pull) or -1 (release)")
+    return ts, st, sg
+
+
+def _reset_state(S: np.ndarray, arr: Any, params: RigParameters) -> None:
+    """A lane's driver state at rest at ``t = 0`` (:data:`helpers.virtual._kernel.N_STATE` rows)."""
+    fc = params.amp_bandwidth_hz
+    S[:] = 0.0
+    S[kern.S_DDRIVE] = arr.d_drive
+    S[kern.S_HMAX] = params.max_step
+    S[kern.S_TAU] = 1.0 / (2.0 * math.pi * fc) if fc > 0 else 0.0
+    S[kern.S_FILT] = params.pretension
+
+
+def lane_group(params: RigParameters) -> tuple:
+    """What rigs must share to run in the lanes of one :class:`ArmLanes`.
+
+    The integrator, the elements, the eyelets, the damping's rank and the packed scalars that steer the
+    kernel's branches (:func:`helpers.virtual._kernel.lane_key`).
+    """
+    a = model_arrays(params)
+    return (params.integrator, a.n, tuple(int(d) for d in a.disc), a.cw.shape[0], kern.lane_key(a.P))
 
 
 class ArmPlant:
@@ -38,27 +96,22 @@ class ArmPlant:
         self.params = params
         self._arr = model_arrays(params)
         self._scheme = kern.SCHEMES.index(params.integrator)
-        self._stats = np.zeros(2, dtype=np.int64)
-        self._health = np.zeros(1)
-        fc = params.amp_bandwidth_hz
-        self._tau = 1.0 / (2.0 * math.pi * fc) if fc > 0 else 0.0
+        self._S = np.zeros(kern.N_STATE)
+        self._L = np.zeros((1, kern.N_LANE_INTS), dtype=np.int64)
+        self._work = kern.make_work(self._arr.n, self._arr.disc.shape[0])
         self.reset()
 
     # --- state -----------------------------------------------------------------------------------
     def reset(self) -> None:
         """Back to rest at cable position 0 and ``t = 0``."""
         self._y = np.array(self._arr.y_rest, dtype=float)
-        self._t = 0.0
-        self._drive = 0.0
         self._steps = 0
-        self._filt = np.array([self._tau, self.params.pretension])
-        self._stats[:] = 0
-        self._health[:] = 0.0
+        _reset_state(self._S, self._arr, self.params)
 
     @property
     def t(self) -> float:
         """Current simulated time, s."""
-        return self._t
+        return float(self._S[kern.S_T])
 
     @property
     def position_steps(self) -> int:
@@ -91,17 +144,17 @@ class ArmPlant:
         self._y = y.copy()
         if position_steps is not None:
             self._steps = int(position_steps)
-            self._drive = self._steps * self._arr.d_drive
+            self._S[kern.S_DRIVE] = self._steps * self._arr.d_drive
 
     @property
     def integrator_steps(self) -> int:
         """Integrator steps taken since the last reset (a cost measure; transition searches included)."""
-        return int(self._stats[0])
+        return int(self._S[kern.S_NSTEP])
 
     @property
     def transitions(self) -> int:
         """Taut/slack transitions of the cables since the last reset."""
-        return int(self._stats[1])
+        return int(self._S[kern.S_NTRANS])
 
     @property
     def max_rotor_lag_steps(self) -> float:
@@ -110,7 +163,7 @@ class ArmPlant:
         A health figure: the sinusoidal torque law pulls out at a quarter of a tooth pitch, one full step =
         4 of these at 800 steps/rev; 0 for the ideal actuator.
         """
-        return float(self._health[0] / self.params.step_angle)
+        return float(self._S[kern.S_HEALTH] / self.params.step_angle)
 
     @property
     def rotor_lag_steps(self) -> float:
@@ -122,18 +175,18 @@ class ArmPlant:
         if self.params.actuator == "ideal":
             return 0.0
         n = self.n_elements
-        return float((self._drive - self._y[2 * n]) / self.params.step_angle)
+        return float((self._S[kern.S_DRIVE] - self._y[2 * n]) / self.params.step_angle)
 
     def tension(self) -> float:
         """Tension of the measured cable now (true, not filtered), N."""
         a = self._arr
-        _, _, _, lam1, lam2 = kern.rhs(self._y, self._drive, a.P, a.mb, a.Jb, a.disc, a.W, a.cw)
+        _, _, _, lam1, lam2 = kern.rhs(self._y, self._S[kern.S_DRIVE], a.P, a.mb, a.Jb, a.disc, a.W, a.cw)
         spool = self.params.actuator == "stepper+carriage" and self.params.load_cell_side == "spool"
         return float(lam1 if spool else lam2)
 
     def amplifier_output(self) -> float:
         """The amplifier's output now, N (the tension through its low-pass filter)."""
-        return float(self._filt[1])
+        return float(self._S[kern.S_FILT])
 
     def energy(self) -> float:
         """Kinetic + bending + gravitational + cable + motor energy now, J (dissipated by damping).
@@ -156,6 +209,7 @@ class ArmPlant:
         c2 = 1.0 / a.P[kern.I_K2] + float(chain.bow_compliance(q)[0])  # arm-side cable and the bowing
         R = p.spool_radius
         psi, psid, xc, xcd = self._y[2 * n :]
+        drive = float(self._S[kern.S_DRIVE])
 
         def spring(k: float, e: float) -> float:
             return 0.5 * k * e * e if e > 0 else 0.0
@@ -167,9 +221,9 @@ class ArmPlant:
         if p.actuator == "ideal":
             return kinetic + bending + gravity + arm_side(self.u + ell - P[kern.I_ELLREF])
         if p.torque_law == "sin":
-            motor = p.holding_torque / p.rotor_teeth * (1.0 - math.cos(p.rotor_teeth * (self._drive - psi)))
+            motor = p.holding_torque / p.rotor_teeth * (1.0 - math.cos(p.rotor_teeth * (drive - psi)))
         else:
-            motor = 0.5 * p.motor_stiffness * (self._drive - psi) ** 2
+            motor = 0.5 * p.motor_stiffness * (drive - psi) ** 2
         rest = kinetic + bending + gravity + motor + 0.5 * p.drive_inertia * psid**2
         if p.actuator == "stepper":
             return rest + arm_side(R * psi + ell - P[kern.I_ELLREF])
@@ -222,48 +276,176 @@ class ArmPlant:
         self, sample_times: npt.ArrayLike, step_times: npt.ArrayLike = (), step_signs: npt.ArrayLike = ()
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """As :meth:`advance`, returning ``(amplifier output, true tension, angles)`` at the samples."""
-        ts = np.ascontiguousarray(sample_times, dtype=float).reshape(-1)
-        st = np.ascontiguousarray(step_times, dtype=float).reshape(-1)
-        sg = np.ascontiguousarray(step_signs, dtype=float).reshape(-1)
         n = self._arr.n
+        ts, st, sg = _checked_times(sample_times, step_times, step_signs, self.t)
         if ts.size == 0:
             return np.empty(0), np.empty(0), np.empty((0, n))
-        if not np.all(np.isfinite(ts)):
-            raise ValueError("sample_times must be finite")
-        if np.any(np.diff(ts) <= 0):
-            raise ValueError("sample_times must be strictly increasing")
-        if ts[0] < self._t - 1e-12:
-            raise ValueError(
-                f"sample_times must not precede the plant's time {self._t:.6f} s (got {ts[0]:.6f})"
-            )
-        if st.shape != sg.shape:
-            raise ValueError(f"step_times ({st.size}) and step_signs ({sg.size}) differ in length")
-        if st.size:
-            if not np.all(np.isfinite(st)):
-                raise ValueError("step_times must be finite")
-            if np.any(np.diff(st) < 0):
-                raise ValueError("step_times must be sorted")
-            if st[0] < self._t - 1e-12 or st[-1] > ts[-1] + 1e-12:
-                raise ValueError(
-                    f"step_times must lie in (t, last sample] = ({self._t:.6f}, {ts[-1]:.6f}] s, "
-                    f"got {st[0]:.6f} .. {st[-1]:.6f}"
-                )
-            if not np.all(np.abs(sg) == 1):
-                raise ValueError("step_signs must be +1 (pull) or -1 (release)")
-        out_raw = np.empty(ts.size)
-        out_filt = np.empty(ts.size)
-        angles = np.empty((ts.size, n))
+        out_raw = np.empty((1, ts.size))
+        out_filt = np.empty((1, ts.size))
+        angles = np.empty((1, ts.size, n))
         a = self._arr
-        t, drive = kern.advance(
-            self._scheme, self._y, self._t, self._drive, a.d_drive, ts, st, sg, self.params.max_step, a.P,
-            a.mb, a.Jb, a.disc, a.W, a.cw, self._filt, out_raw, out_filt, angles, self._stats, self._health,
+        w = self._work
+        kern.advance(
+            self._scheme, self._y, self._S, self._L, ts[None], st[None], sg[None],
+            np.array([st.size]), a.P, a.P, a.mb, a.Jb, a.disc, a.W, a.cw, *w, out_raw, out_filt, angles,
         )  # fmt: skip
-        if not (np.all(np.isfinite(self._y)) and math.isfinite(self._filt[1])):
+        if not (np.all(np.isfinite(self._y)) and math.isfinite(self._S[kern.S_FILT])):
             raise FloatingPointError(
                 f"the integration became unstable before t = {ts[-1]:.4f} s: max_step = "
                 f"{self.params.max_step:.2e} s is too large for these parameters"
             )
-        self._t = float(max(t, ts[-1]))
-        self._drive = float(drive)
+        self._S[kern.S_T] = max(self._S[kern.S_T], ts[-1])
         self._steps += int(np.sum(sg)) if sg.size else 0
-        return out_filt, out_raw, angles
+        return out_filt[0], out_raw[0], angles[0]
+
+
+class ArmLanes:
+    """Several rigs driven together, one per lane of the compiled kernel, each as its :class:`ArmPlant`.
+
+    The kernel's arithmetic runs on every lane at once (SIMD, :mod:`helpers.virtual.lanes`); each lane takes
+    exactly the steps, splits and events its rig takes alone. The rigs must share :func:`lane_group`. They
+    start at rest at ``t = 0``; lanes beyond the rigs given (up to :data:`LANE_WIDTHS`) repeat the last rig,
+    and their results are dropped.
+
+    Parameters
+    ----------
+    params : sequence of RigParameters
+        One rig per lane, 1 to ``max(LANE_WIDTHS)``.
+    """
+
+    def __init__(self, params: Sequence[RigParameters]) -> None:
+        params = list(params)
+        if not 1 <= len(params) <= max(LANE_WIDTHS):
+            raise ValueError(f"ArmLanes takes 1 to {max(LANE_WIDTHS)} rigs, got {len(params)}")
+        for p in params:
+            if not isinstance(p, RigParameters):
+                raise TypeError(f"params must be RigParameters, got {type(p).__name__}")
+        group = lane_group(params[0])
+        for p in params[1:]:
+            if lane_group(p) != group:
+                raise ValueError("the rigs of one ArmLanes must share lane_group (integrator, elements, "
+                                 "eyelets, damping rank, actuator and the kernel's switches)")  # fmt: skip
+        self.params = tuple(params)
+        width = min(w for w in LANE_WIDTHS if w >= len(params))
+        self._rigs = params + [params[-1]] * (width - len(params))
+        self._arrs = [model_arrays(p) for p in self._rigs]
+        a0 = self._arrs[0]
+        self._n = a0.n
+        self._disc = a0.disc
+        self._U = np.array(a0.P)
+        self._scheme = kern.SCHEMES.index(params[0].integrator)
+
+        def stacked(name: str) -> LaneArray:
+            return LaneArray(np.ascontiguousarray(np.stack([getattr(a, name) for a in self._arrs], axis=-1)))
+
+        self._P, self._mb, self._Jb, self._W, self._cw = (stacked(k) for k in ("P", "mb", "Jb", "W", "cw"))
+        self._y = LaneArray(np.zeros((2 * self._n + 4, width)))
+        self._S = LaneArray(np.zeros((kern.N_STATE, width)))
+        self._L = np.zeros((width, kern.N_LANE_INTS), dtype=np.int64)
+        self._work = kern.make_work(self._n, self._disc.shape[0], width)
+        self.reset()
+
+    @property
+    def lanes(self) -> int:
+        """Rigs driven (the lanes that count)."""
+        return len(self.params)
+
+    @property
+    def width(self) -> int:
+        """Lanes of the kernel call (the rigs, and the repeats that fill it)."""
+        return len(self._rigs)
+
+    def reset(self) -> None:
+        """Every lane back to rest at cable position 0 and ``t = 0``."""
+        for k, (a, p) in enumerate(zip(self._arrs, self._rigs, strict=True)):
+            self._y.data[:, k] = a.y_rest
+            _reset_state(self._S.data[:, k], a, p)
+
+    @property
+    def t(self) -> np.ndarray:
+        """Each lane's simulated time, s."""
+        return self._S.data[kern.S_T, : self.lanes].copy()
+
+    @property
+    def state(self) -> np.ndarray:
+        """Each lane's state (rows: lanes), a copy."""
+        return self._y.data[:, : self.lanes].T.copy()
+
+    @property
+    def integrator_steps(self) -> np.ndarray:
+        """Each lane's integrator steps since the last reset (as :attr:`ArmPlant.integrator_steps`)."""
+        return self._S.data[kern.S_NSTEP, : self.lanes].astype(np.int64)
+
+    @property
+    def transitions(self) -> np.ndarray:
+        """Each lane's taut/slack transitions since the last reset."""
+        return self._S.data[kern.S_NTRANS, : self.lanes].astype(np.int64)
+
+    @property
+    def max_rotor_lag_steps(self) -> np.ndarray:
+        """Each lane's largest rotor lag since the last reset, microsteps (as :class:`ArmPlant`'s)."""
+        lag = self._S.data[kern.S_HEALTH, : self.lanes]
+        return np.array([lag[k] / p.step_angle for k, p in enumerate(self.params)])
+
+    def advance_all(
+        self,
+        sample_times: npt.ArrayLike,
+        step_times: Sequence[npt.ArrayLike],
+        step_signs: Sequence[npt.ArrayLike],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Integrate every lane to ``sample_times[-1]``: :meth:`ArmPlant.advance_all` of each lane.
+
+        Parameters
+        ----------
+        sample_times : array_like
+            The samples, shared by every lane (strictly increasing, after every lane's time).
+        step_times, step_signs : sequence of array_like
+            Each rig's stepper steps and their signs (as :meth:`ArmPlant.advance`).
+
+        Returns
+        -------
+        (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+            Amplifier output and true tension ``(rigs, samples)``, angles ``(rigs, samples, elements)``.
+
+        Raises
+        ------
+        ValueError
+            As :meth:`ArmPlant.advance`, or not one step list per rig.
+        FloatingPointError
+            If a lane's integration became unstable.
+        """
+        if len(step_times) != self.lanes or len(step_signs) != self.lanes:
+            raise ValueError(f"one step_times and step_signs per rig: {self.lanes}, got {len(step_times)}, "
+                             f"{len(step_signs)}")  # fmt: skip
+        t_now = float(np.max(self._S.data[kern.S_T]))
+        pairs = zip(step_times, step_signs, strict=True)
+        checked = [_checked_times(sample_times, a, b, t_now) for a, b in pairs]
+        ts = checked[0][0]
+        n, width, lanes = self._n, self.width, self.lanes
+        if ts.size == 0:
+            return np.empty((lanes, 0)), np.empty((lanes, 0)), np.empty((lanes, 0, n))
+        checked += [checked[-1]] * (width - lanes)
+        counts = np.array([c[1].size for c in checked], dtype=np.int64)
+        st = np.zeros((width, max(1, int(counts.max()))))
+        sg = np.zeros_like(st)
+        for k, (_, times, signs) in enumerate(checked):
+            st[k, : times.size] = times
+            sg[k, : signs.size] = signs
+        out_raw = np.empty((width, ts.size))
+        out_filt = np.empty((width, ts.size))
+        angles = np.empty((width, ts.size, n))
+        w = self._work
+        kern.advance(
+            self._scheme, self._y, self._S, self._L, np.tile(ts, (width, 1)), st, sg, counts,
+            self._P, self._U, self._mb, self._Jb, self._disc, self._W, self._cw, *w, out_raw, out_filt,
+            angles,
+        )  # fmt: skip
+        bad = [k for k in range(lanes) if not (np.all(np.isfinite(self._y.data[:, k]))
+                                               and math.isfinite(self._S.data[kern.S_FILT, k]))]  # fmt: skip
+        if bad:
+            raise FloatingPointError(
+                f"the integration of lane(s) {bad} became unstable before t = {ts[-1]:.4f} s: max_step is "
+                "too large for those parameters"
+            )
+        self._S.data[kern.S_T] = np.maximum(self._S.data[kern.S_T], ts[-1])
+        return out_filt[:lanes], out_raw[:lanes], angles[:lanes]

@@ -8,6 +8,7 @@ DAQ rate.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,11 +18,11 @@ import pandas as pd
 
 from helpers.recordings import counts_to_newtons
 from helpers.virtual.parameters import RigParameters
-from helpers.virtual.plant import ArmPlant
+from helpers.virtual.plant import ArmLanes, ArmPlant
 from helpers.virtual.sensor import LoadCell
 from helpers.virtual.statics import node_positions
 
-__all__ = ["SimResult", "simulate", "programme_steps"]
+__all__ = ["SimResult", "simulate", "simulate_lanes", "programme_steps"]
 
 
 @dataclass(frozen=True)
@@ -158,12 +159,68 @@ def simulate(
     -------
     SimResult
     """
+    if params is None:
+        params = RigParameters() if plant is None else plant.params
+    t, times, signs = _grid(programme, rate_hz, t_go, t_end)
+    if plant is None:
+        plant = ArmPlant(params)
+    else:
+        plant.reset()
+    output, raw, angles = plant.advance_all(t, times, signs)
+    lag = plant.max_rotor_lag_steps
+    return _result(plant.params, t, times, signs, output, raw, angles, lag, seed, sensor)
+
+
+def simulate_lanes(
+    programmes: Sequence[Any],
+    params: Sequence[RigParameters],
+    rate_hz: float = 1000.0,
+    t_end: float | None = None,
+    seeds: Sequence[int | None] | None = None,
+) -> list[SimResult]:
+    """:func:`simulate` of several runs in the lanes of one kernel call: the same results, bit for bit.
+
+    Parameters
+    ----------
+    programmes : sequence
+        One programme per run (as :func:`simulate` takes), 1 to ``max(LANE_WIDTHS)`` runs.
+    params : sequence of RigParameters
+        One rig per run; all share :func:`helpers.virtual.plant.lane_group` (see :class:`ArmLanes`).
+    rate_hz, t_end
+        As :func:`simulate`, shared by every run (one sample grid; ``t_end`` None: each programme's end,
+        which must then be the same).
+    seeds : sequence of int or None, optional
+        Each run's load-cell noise seed (default 0 for all).
+
+    Returns
+    -------
+    list of SimResult
+        In the order of the runs.
+    """
+    if len(programmes) != len(params):
+        raise ValueError(f"one rig per programme: {len(programmes)} programmes, {len(params)} rigs")
+    seeds = [0] * len(params) if seeds is None else list(seeds)
+    if len(seeds) != len(params):
+        raise ValueError(f"one seed per run: {len(params)} runs, {len(seeds)} seeds")
+    grids = [_grid(prog, rate_hz, 0.0, t_end) for prog in programmes]
+    t = grids[0][0]
+    if any(g[0].shape != t.shape or np.any(g[0] != t) for g in grids[1:]):
+        raise ValueError("the runs of one simulate_lanes call must share their sample times (rate_hz, t_end)")
+    lanes = ArmLanes(params)
+    output, raw, angles = lanes.advance_all(t, [g[1] for g in grids], [g[2] for g in grids])
+    lags = lanes.max_rotor_lag_steps
+    return [
+        _result(p, t, g[1], g[2], output[k], raw[k], angles[k], float(lags[k]), seeds[k], None)
+        for k, (p, g) in enumerate(zip(params, grids, strict=True))
+    ]
+
+
+def _grid(programme: Any, rate_hz: float, t_go: float, t_end: float | None) -> tuple[np.ndarray, ...]:
+    """The sample times of a run and its step times and signs up to its end (checked)."""
     if not (math.isfinite(rate_hz) and rate_hz > 0):
         raise ValueError(f"rate_hz must be positive, got {rate_hz!r}")
     if not (math.isfinite(t_go) and t_go >= 0):
         raise ValueError(f"t_go must be >= 0, got {t_go!r}")
-    if params is None:
-        params = RigParameters() if plant is None else plant.params
     times, signs, duration = programme_steps(programme)
     times = times + t_go
     t_end = t_go + duration if t_end is None else float(t_end)
@@ -172,13 +229,16 @@ def simulate(
     keep = times <= t_end
     times, signs = times[keep], signs[keep]
     n = int(math.floor(t_end * rate_hz + 1e-9)) + 1
-    t = np.arange(n) / rate_hz
-    if plant is None:
-        plant = ArmPlant(params)
-    else:
-        plant.reset()
-    output, raw, angles = plant.advance_all(t, times, signs)
-    steps = np.cumsum(np.bincount(np.searchsorted(t, times, side="left"), weights=signs, minlength=n)[:n])
+    return np.arange(n) / rate_hz, times, signs
+
+
+def _result(
+    params: RigParameters, t: np.ndarray, times: np.ndarray, signs: np.ndarray, output: np.ndarray,
+    raw: np.ndarray, angles: np.ndarray, lag: float, seed: int | None, sensor: LoadCell | None,
+) -> SimResult:  # fmt: skip
+    """A run's :class:`SimResult` from what the plant produced (the ADC sampled here)."""
+    at = np.searchsorted(t, times, side="left")
+    steps = np.cumsum(np.bincount(at, weights=signs, minlength=t.size)[: t.size])
     sensor = LoadCell(params, seed=seed) if sensor is None else sensor
     adc = sensor.counts(output)
     return SimResult(
@@ -188,10 +248,10 @@ def simulate(
         adc=adc,
         steps=np.rint(steps).astype(np.int64),
         angles=angles,
-        params=plant.params,
+        params=params,
         newtons_per_count=sensor.newtons_per_count,
         offset_counts=sensor.offset_counts,
-        max_rotor_lag_steps=plant.max_rotor_lag_steps,
+        max_rotor_lag_steps=lag,
     )
 
 

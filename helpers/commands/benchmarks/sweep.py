@@ -5,11 +5,12 @@ The tasks are realistic: 12 s runs of the paper's pulse (200 mm/s, 20 mm) with t
 chunk, 6 tasks). Measured in one call, each configuration best of ``repeats`` (the machine may be shared):
 
 - a **bare loop** over the chunks in this process (:func:`helpers.research.sweep.runs.run_chunk`, no Dask),
-with the
-  time per run inside :func:`helpers.virtual.simulate` (the integration) and outside it (design, programme,
-  metrics): the per-run overhead;
-- the **batch API** in one process, 1 thread and 2 threads (the kernels release the GIL); and runs per CPU
-  second of one thread with each integrator (RK4, the implicit step);
+  with the time per run inside :func:`helpers.virtual.simulate` (the integration) and outside it (design,
+  programme, metrics): the per-run overhead;
+- **runs per CPU second** of one thread: the sweep's own tasks with one run per kernel call and with lanes
+  (a chunk's runs in the SIMD lanes of one call, :mod:`helpers.virtual.lanes`), and the batch API alone on
+  eight of those runs at 1, 4 and 8 runs per call, each integrator (RK4, the implicit step);
+- the **batch API** in one process, 1 thread and 2 threads (the kernels release the GIL);
 - a **local cluster** of 1 worker and of 2 workers (processes, one thread each), each started and warmed up
   (each worker has loaded the compiled kernels and run a chunk) before the clock starts, and each alone on
   the machine while it is measured: the bare loop and the 1-worker cluster take turns, ``repeats`` times, then
@@ -27,12 +28,11 @@ import os
 import time
 from typing import Any
 
-from helpers.board.programmes import experiment_programme
 from helpers.research.sweep.definition import SweepDefinition
 from helpers.research.sweep.execute import local_client
-from helpers.research.sweep.runs import run_chunk
+from helpers.research.sweep.runs import LANES, run_chunk, sweep_runs
 from helpers.virtual import RigParameters
-from helpers.virtual.batch import BatchRun, run_batch
+from helpers.virtual.batch import run_batch
 
 __all__ = ["BENCH_DEFINITION", "run_sweep_benchmark"]
 
@@ -65,6 +65,44 @@ def _bare(text: str, chunks: int) -> tuple[float, float]:
     return time.perf_counter() - t0, inside
 
 
+BATCH_RUNS = range(8)
+"""The benchmark sweep's runs given to the batch API (the first eight: ZVD, EI, 2-hump EI at three errors)."""
+
+
+def _cpu(fn: Any, repeats: int) -> float:
+    """Least CPU time of this process over ``repeats`` calls of ``fn``."""
+    best = float("inf")
+    for _ in range(repeats):
+        c0 = time.process_time()
+        fn()
+        best = min(best, time.process_time() - c0)
+    return best
+
+
+def _per_cpu_second(text: str, chunks: int, runs: int, repeats: int) -> dict[str, dict[int, float]]:
+    """Runs per CPU second of one thread, the sweep's tasks and the batch API (module docstring).
+
+    The sweep's tasks one run per call and with lanes take turns, so that a change in the machine's load hits
+    both alike.
+    """
+    out: dict[str, dict[int, float]] = {"sweep": {1: float("inf"), LANES: float("inf")}}
+    for c in range(chunks):  # every rig's statics and each lane width compiled or loaded before timing
+        run_chunk(text, c, lanes=1)
+        run_chunk(text, c)
+    for _ in range(repeats):
+        for lanes in (1, LANES):
+            cpu = _cpu(lambda: [run_chunk(text, c, lanes=lanes) for c in range(chunks)], 1)  # noqa: B023
+            out["sweep"][lanes] = min(out["sweep"][lanes], cpu)
+    out["sweep"] = {k: runs / v for k, v in out["sweep"].items()}
+    for integrator in ("rk4", "rosw"):
+        batch = sweep_runs(text, BATCH_RUNS, RigParameters().with_integrator(integrator))
+        for lanes in (1, 4, 8):
+            run_batch(batch, lanes=lanes)
+        out[integrator] = {lanes: len(batch) / _cpu(lambda: run_batch(batch, lanes=lanes), repeats)  # noqa: B023
+                           for lanes in (1, 4, 8)}  # fmt: skip
+    return out
+
+
 def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]:
     """Measure and print the sweep figures (module docstring); the last line names the scaling ratio.
 
@@ -80,7 +118,9 @@ def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]
     dict
         ``runs``, ``bare_runs_per_s``, ``runs_per_s_1``, ``runs_per_s_2``, ``scaling``,
         ``dask_overhead_pct``, ``sim_s_per_wall_s_2``, ``simulate_ms_per_run``, ``outside_ms_per_run``,
-        ``batch_thread_scaling``, ``cluster_start_s``, ``runs_per_cpu_s`` (per integrator, one thread).
+        ``batch_thread_scaling``, ``cluster_start_s``, ``runs_per_cpu_s`` (one thread: ``"sweep"`` -> runs per
+        kernel call (1 or ``LANES``) -> runs per CPU second of the sweep's tasks; ``"rk4"``, ``"rosw"`` -> 1,
+        4, 8 -> the batch API's).
     """
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats!r}")
@@ -113,8 +153,21 @@ def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]
         f"simulate (the integration) + {outside_ms:.1f} ms outside it (design, programme, metrics): "
         f"{100 * (bare - inside) / bare:.1f} %")  # fmt: skip
 
-    prog, _ = experiment_programme(200.0, 20.0, None)
-    batch = [BatchRun(prog, RigParameters(), seed=i, t_end=t_sim) for i in range(4)]
+    per_cpu = _per_cpu_second(text, chunks, runs, repeats)
+    one, lanes = per_cpu["sweep"][1], per_cpu["sweep"][LANES]
+    say(f"  runs per CPU second, one thread, the sweep's own tasks (run_chunk: design, run, metrics; RK4 as "
+        f"the sweeps run): one run per kernel call {one:.2f}, with lanes (a chunk's {d.chunk_runs} runs in "
+        f"one call) {lanes:.2f} -> {lanes / one:.2f}x per core (aim >= 3x)")  # fmt: skip
+    for integrator in ("rk4", "rosw"):
+        r = per_cpu[integrator]
+        name = "RK4" if integrator == "rk4" else "implicit step"
+        say(f"  runs per CPU second, one thread, the batch API ({len(BATCH_RUNS)} of those runs, {name}): "
+            f"one per call {r[1]:.2f}, 4 per call {r[4]:.2f} ({r[4] / r[1]:.2f}x), 8 per call {r[8]:.2f} "
+            f"({r[8] / r[1]:.2f}x)")  # fmt: skip
+    rk4_1, rosw_1 = per_cpu["rk4"][1], per_cpu["rosw"][1]
+    say(f"  (one run per call: the implicit step {rosw_1 / rk4_1:.2f}x RK4; every lane is bit for bit its "
+        "run alone: tests/test_lanes.py)")  # fmt: skip
+    batch = sweep_runs(text, BATCH_RUNS)[:4]
     run_batch(batch[:2], threads=2)
     walls, busy = {}, 0.0
     for threads in (1, 2):
@@ -125,25 +178,10 @@ def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]
             if wall < walls[threads]:
                 walls[threads], busy = wall, (time.process_time() - c0) / wall
     thread_scaling = walls[1] / walls[2]
-    # runs per CPU second of one thread, each integrator (one scenario per kernel call)
-    per_cpu = {}
-    for integrator in ("rk4", "rosw"):
-        runs_i = [BatchRun(prog, RigParameters().with_integrator(integrator), seed=i, t_end=t_sim)
-                  for i in range(4)]  # fmt: skip
-        run_batch(runs_i[:1])
-        best = float("inf")
-        for _ in range(repeats):
-            c0 = time.process_time()
-            run_batch(runs_i, threads=1)
-            best = min(best, time.process_time() - c0)
-        per_cpu[integrator] = len(runs_i) / best
-    say(f"  runs per CPU second, one thread, one scenario per kernel call: RK4 {per_cpu['rk4']:.2f}, "
-        f"implicit step {per_cpu['rosw']:.2f} ({per_cpu['rosw'] / per_cpu['rk4']:.2f}x); several scenarios "
-        "per call (lanes): not built (docs/virtual_rig.md, section 9)")
     # CPU time over wall time of the 2-thread batch: 2 when both threads ran at once (the kernels release the
     # GIL), 1 when another process held the second core
-    say(f"  batch API, one process, 4 unshaped runs: 1 thread {walls[1]:.2f} s, 2 threads {walls[2]:.2f} s "
-        f"-> {thread_scaling:.2f}x (cores busy with the 2 threads: {busy:.2f})")  # fmt: skip
+    say(f"  batch API, one process, 4 runs one per call: 1 thread {walls[1]:.2f} s, 2 threads "
+        f"{walls[2]:.2f} s -> {thread_scaling:.2f}x (cores busy with the 2 threads: {busy:.2f})")  # fmt: skip
 
     rate0, rate1, rate2 = runs / bare, runs / wall1, runs / wall2
     overhead = 100 * (wall1 - bare) / bare

@@ -2,7 +2,8 @@
 
 :func:`run_chunk` is the task a sweep sends to a Dask worker (or runs in a loop). It rebuilds the definition
 from its canonical JSON (cached per process), runs the chunk's runs through
-:func:`helpers.virtual.batch.run_batch` (one plant per thread and rig, reused) and returns small arrays
+:func:`helpers.virtual.batch.run_batch` (runs that can share a kernel call in its SIMD lanes, :data:`LANES`
+at a time; otherwise one plant per thread and rig, reused) and returns small arrays
 (:data:`VARIABLES`). Per run and move (Up, Down):
 
 - ``residual_pct``: residual vibration of the **true** tension of the measured cable
@@ -43,7 +44,7 @@ from helpers.virtual import LoadCell, RigParameters, linearise
 from helpers.virtual.batch import BatchRun, BatchStats, run_batch
 from helpers.virtual.simulate import SimResult
 
-__all__ = ["run_chunk", "rig_for", "rig_mode", "context_for"]
+__all__ = ["LANES", "run_chunk", "sweep_runs", "rig_for", "rig_mode", "context_for"]
 
 
 @functools.lru_cache(maxsize=8)
@@ -138,7 +139,41 @@ def _reseeded(sensor: LoadCell, seed: int, output: np.ndarray) -> np.ndarray:
     return sensor.counts(output)
 
 
-def run_chunk(definition_json: str, chunk: int, threads: int = 1) -> dict[str, Any]:
+LANES = 8
+"""Runs of a chunk per kernel call (:func:`helpers.virtual.batch.run_batch`'s ``lanes``): its SIMD lanes."""
+
+
+def _programme(point: dict[str, Any], ctx: ShapingContext, run_cfg: dict[str, float]) -> Any:
+    """A run's programme: its shaper designed, the pulse quantised (``ValueError`` if either is refused)."""
+    shaping = shaping_for(point["shaper"], point, ctx)
+    prog, _ = experiment_programme(
+        point["speed_mm_s"], point["amplitude_mm"], shaping, run_cfg["t_up_s"], run_cfg["t_down_s"],
+        run_cfg["t_end_s"],
+    )  # fmt: skip
+    return prog
+
+
+def sweep_runs(definition_json: str, runs: range, base: RigParameters | None = None) -> list[BatchRun]:
+    """Runs of a resolved definition as :class:`~helpers.virtual.batch.BatchRun` (for benchmarks).
+
+    The flat indices ``runs``, each on its rig (:func:`rig_for` on ``base``, default the tuned rig) with its
+    programme and first seed; runs whose design is refused are left out.
+    """
+    d = _definition(definition_json)
+    ctx = context_for(definition_json)
+    sample = d.sample_values()
+    out = []
+    for flat in runs:
+        point = d.point(flat, sample)
+        try:
+            prog = _programme(point, ctx, d.run)
+        except ValueError:
+            continue
+        out.append(BatchRun(prog, rig_for(point, base), d.seeds[0], d.run["t_end_s"], d.run["rate_hz"], flat))
+    return out
+
+
+def run_chunk(definition_json: str, chunk: int, threads: int = 1, lanes: int = LANES) -> dict[str, Any]:
     """Run chunk ``chunk`` of a resolved definition (its canonical JSON) and return its arrays.
 
     Parameters
@@ -149,6 +184,8 @@ def run_chunk(definition_json: str, chunk: int, threads: int = 1) -> dict[str, A
         Which chunk.
     threads : int
         Threads of the batch inside this task (the kernels release the GIL).
+    lanes : int
+        Runs per kernel call (1: one at a time); the numbers are the same bits either way.
 
     Returns
     -------
@@ -177,11 +214,7 @@ def run_chunk(definition_json: str, chunk: int, threads: int = 1) -> dict[str, A
         params = rig_for(point, base)
         res["rig_omega_d_rad_s"][i], res["rig_zeta"][i] = rig_mode(params)
         try:
-            shaping = shaping_for(point["shaper"], point, ctx)
-            prog, _ = experiment_programme(
-                point["speed_mm_s"], point["amplitude_mm"], shaping, run_cfg["t_up_s"], run_cfg["t_down_s"],
-                run_cfg["t_end_s"],
-            )  # fmt: skip
+            prog = _programme(point, ctx, run_cfg)
         except ValueError as exc:
             res["status"][i] = 1
             messages[flat] = f"{point['shaper']}: {exc}"
@@ -195,7 +228,8 @@ def run_chunk(definition_json: str, chunk: int, threads: int = 1) -> dict[str, A
 
     stats = BatchStats()
     try:
-        outputs, stats = run_batch(batch, threads=threads, reduce=reduce)
+        width = min(lanes, max(1, len(batch)))
+        outputs, stats = run_batch(batch, threads=threads, reduce=reduce, lanes=width)
     except FloatingPointError:  # one run at a time, to mark only the failing ones
         outputs = []
         for run in batch:
