@@ -289,7 +289,7 @@ def _weighted_line(x: FloatArray, y: FloatArray, w: FloatArray) -> tuple[float, 
     -------
     (a, b, b_std)
         Intercept, slope, and the slope's standard error with the residual variance estimated from the data
-        (NaN with fewer than three points).
+        (its callers pass the extrema of a window, at least three: :func:`_extrema` refuses fewer).
     """
     sw = w.sum()
     xm = float((w * x).sum() / sw)
@@ -297,8 +297,6 @@ def _weighted_line(x: FloatArray, y: FloatArray, w: FloatArray) -> tuple[float, 
     sxx = float((w * (x - xm) ** 2).sum())
     b = float((w * (x - xm) * (y - ym)).sum() / sxx)
     a = ym - b * xm
-    if x.size < 3:
-        return a, b, math.nan
     resid = y - a - b * x
     s2 = float((w * resid**2).sum() / (x.size - 2))
     return a, b, math.sqrt(s2 / sxx)

@@ -38,7 +38,7 @@ SUM_TOLERANCE = 1e-9
 """How far the amplitudes of a :class:`Shaper` may sum from 1."""
 
 MERGE_TOLERANCE_S = 1e-12
-"""Impulses closer than this (s) are merged when shapers are convolved."""
+"""Impulses closer than this (s) to the one before are merged when shapers are convolved."""
 
 
 def _as_1d_float(x: Any, what: str) -> np.ndarray:
@@ -256,17 +256,11 @@ class Shaper:
         a = (self.amplitudes[:, None] * other.amplitudes[None, :]).ravel()
         order = np.argsort(t, kind="stable")
         t, a = t[order], a[order]
-        merged_t: list[float] = []
-        merged_a: list[float] = []
-        for ti, ai in zip(t, a, strict=True):
-            if merged_t and ti - merged_t[-1] <= MERGE_TOLERANCE_S:
-                merged_a[-1] += ai
-            else:
-                merged_t.append(float(ti))
-                merged_a.append(float(ai))
-        merged = np.array(merged_t)
+        first = np.concatenate([[True], np.diff(t) > MERGE_TOLERANCE_S])  # the first impulse of each group
+        merged = t[first]
         merged[0] = 0.0
-        return Shaper(np.array(merged_a), merged, name or f"{self.name}*{other.name}")
+        sums = np.bincount(np.cumsum(first) - 1, weights=a)  # each group's amplitudes, added in order
+        return Shaper(sums, merged, name or f"{self.name}*{other.name}")
 
     def __mul__(self, other: Shaper) -> Shaper:
         if not isinstance(other, Shaper):

@@ -29,8 +29,8 @@ run whole. A run never overwrites a recording unless asked (``replace=True``).
 
 from __future__ import annotations
 
-import datetime as _dt
 import os
+import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -102,11 +102,6 @@ class NotAtZero(SafetyError):
     """A pulse experiment was asked for while the cable is not at position 0."""
 
 
-def utc_now() -> str:
-    """The present UTC time to the second, e.g. ``2026-01-02T03:04:05Z``."""
-    return _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
-
-
 def rest_of(adc: Any, rate_hz: int) -> tuple[bool, float, float]:
     """(steady?, std, noise) of the last :data:`REST_WINDOW_S` of ``adc`` (rows of every channel's counts).
 
@@ -162,7 +157,8 @@ class RunState:
 
     start: tuple[int, ...] = ()
     """Every tendon's position when the run started (the DAQ counts steps from there)."""
-    started_utc: str = field(default_factory=utc_now)
+    started_utc: str = field(default_factory=lambda: time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
+    """When the run started, UTC to the second (e.g. ``2026-01-02T03:04:05Z``)."""
     t_go_us: int | None = None
     windows: list[tuple[np.ndarray, np.ndarray]] | None = None
     """The programme's step windows relative to ``GO`` (:func:`step_windows`)."""
