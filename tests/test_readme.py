@@ -167,6 +167,15 @@ def test_every_docs_page_the_readme_names_exists():
     assert not missing, f"the README names docs that do not exist: {missing}"
 
 
+def test_the_number_of_notebooks_is_the_one_stated():
+    numbered = sorted((REPO_ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
+    first, last = numbered[0].name[:2], numbered[-1].name[:2]
+    stated = f"executes the {len(numbered)} notebooks in `notebooks/` ({first}-{last})"
+    assert stated in page("docs/notebooks.md")
+    listed = re.findall(r"^\| `(\d\d)_\w+` \|", page("docs/notebooks.md"), re.M)
+    assert listed == [p.name[:2] for p in numbered], "docs/notebooks.md's table lists every notebook once"
+
+
 def test_the_pages_the_readme_names_name_existing_docs():
     for name in PAGES:
         named = set(re.findall(r"(docs/[\w./-]+\.md)", page(name)))
