@@ -167,6 +167,19 @@ def test_every_docs_page_the_readme_names_exists():
     assert not missing, f"the README names docs that do not exist: {missing}"
 
 
+def test_the_readmes_table_ii_is_notebook_05s():
+    """The README's one table is ``figures/table2_vs_paper.md`` (notebook 05), its first ten columns."""
+    def rows(text: str) -> list[list[str]]:
+        found = [line.strip("|").split("|") for line in text.splitlines() if line.startswith("| v_in_mm_s")]
+        body = text.split("| v_in_mm_s", 1)[1].splitlines()[2:]
+        found += [line.strip("|").split("|") for line in body if line.startswith("| ")]
+        return [[cell.strip() for cell in row[:10]] for row in found]
+
+    table = README.split("## Results", 1)[1].split("\n## ", 1)[0]
+    shown, stored = rows(table), rows((REPO_ROOT / "figures" / "table2_vs_paper.md").read_text())
+    assert len(shown) == 25 and shown == stored[: len(shown)] and len(stored) == 25
+
+
 def test_the_number_of_notebooks_is_the_one_stated():
     numbered = sorted((REPO_ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
     first, last = numbered[0].name[:2], numbered[-1].name[:2]
