@@ -167,6 +167,14 @@ def test_every_docs_page_the_readme_names_exists():
     assert not missing, f"the README names docs that do not exist: {missing}"
 
 
+def test_the_readmes_test_commands_are_what_ci_runs():
+    """``.ci/run`` runs exactly the README's two test commands, each on a line of its own."""
+    ci = (REPO_ROOT / ".ci" / "run").read_text().splitlines()
+    for command in ("python -m pytest", "python -m pytest -m slow"):
+        assert command in readme_commands() and command in ci, command
+    assert "python -m pip install -q -r environment.txt" in ci  # the README's install, quietly
+
+
 def test_the_readmes_table_ii_is_notebook_05s():
     """The README's one table is ``figures/table2_vs_paper.md`` (notebook 05), its first ten columns."""
     def rows(text: str) -> list[list[str]]:
