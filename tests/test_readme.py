@@ -4,7 +4,9 @@ Every command the README shows (in a ``bash`` block, or inline as ``python -m he
 :data:`HOW`, which says how it is tested here: quick ones are run in the default suite, long ones under the
 ``slow`` marker, hardware-only ones by ``--help`` and a ``--dry-run``, and the set-up and test commands by CI
 itself (``.ci/run`` runs exactly them). A README edit that adds a command without a test fails
-:func:`test_every_readme_command_is_tested`.
+:func:`test_every_readme_command_is_tested`. The pages that took the README's longer sections (:data:`PAGES`)
+are held to the same rule, so a command moved out of the README keeps its test. The README itself stays short
+(at most :data:`README_BYTES`) and every ``docs/`` page it names exists.
 """
 
 from __future__ import annotations
@@ -26,6 +28,10 @@ from helpers.base.paths import DATA_DIR
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 README = (REPO_ROOT / "README.md").read_text()
+PAGES = ("docs/hardware.md", "docs/beyond_the_paper.md", "docs/performance.md", "docs/notebooks.md")
+"""The docs/ pages that hold the README's former sections; their commands are tested like the README's."""
+README_BYTES = 15_000
+"""A README a newcomer reads in ten minutes."""
 BIN = Path(sys.executable).parent
 
 MINE = "--v-in 250 --x-f 25 --system zvd --repetitions 3 --group mine"
@@ -50,6 +56,7 @@ HOW: dict[str, str] = {
     "python -m helpers record all": "slow",
     "time python -m helpers record all": "slow",
     "python -m helpers reproduce": "slow",
+    "python -m helpers reproduce 03": "slow",  # restores a notebook JupyterLab autosaved
     "python -m helpers bench": "slow",
     "python -m helpers bench plant": "slow",
     "python -m helpers bench serial": "slow",
@@ -64,6 +71,7 @@ HOW: dict[str, str] = {
     "python -m helpers sweep": "help",
     "python -m helpers sweep atlas": "help",
     "python -m helpers sweep info data/sweeps/atlas_uncertainty.nc": "quick",
+    "python -m helpers sweep info my_sweep.nc": "quick",  # test_a_small_sweep_of_ones_own_runs_serially
     "python -m helpers sweep run my_sweep.json --serial": "quick",
     "python -m helpers sweep run my_sweep.json": "slow",
     "python -m helpers sweep run my_sweep.json --scheduler tcp://head:8786": "help",  # and test_sweep.py
@@ -84,6 +92,7 @@ HOW: dict[str, str] = {
     "python -m helpers.rigfile.firmware_header FILE -o rig_config.h": "quick",
     # hardware only, shown as a dry run: test_your_own_rigs_firmware_upload_as_a_dry_run
     "python -m helpers rig firmware my_rig.toml --upload --board daq --port /dev/ttyACM0": "firmware",
+    "python -m helpers rig firmware my_rig.toml --dry-run": "firmware",
     # the second rig end to end: tests/test_rig_file_tuning.py::test_second_rig_end_to_end_on_its_twin
     "python -m helpers record calibration --rig long-arm --data-dir my_data": "slow",
     "python -m helpers record all --rig long-arm --data-dir my_data --repetitions 1": "slow",
@@ -120,11 +129,79 @@ def readme_commands(text: str = README) -> list[str]:
     return list(dict.fromkeys(found))
 
 
+def page(name: str) -> str:
+    """The text of a page of :data:`PAGES` (or the README)."""
+    return README if name == "README.md" else (REPO_ROOT / name).read_text()
+
+
+def documented_commands() -> list[str]:
+    """Every command of the README and of :data:`PAGES`."""
+    return list(dict.fromkeys(c for name in ("README.md", *PAGES) for c in readme_commands(page(name))))
+
+
 def test_every_readme_command_is_tested():
     commands = readme_commands()
-    assert len(commands) >= 20  # the extraction itself works
+    assert len(commands) >= 15  # the extraction itself works
     untested = [c for c in commands if c not in HOW]
     assert not untested, f"README commands with no test (add them to HOW): {untested}"
+
+
+@pytest.mark.parametrize("name", PAGES)
+def test_every_command_of_the_readmes_former_sections_is_tested(name):
+    commands = readme_commands(page(name))
+    assert commands, f"{name} shows no command: is it still one of the README's former sections?"
+    untested = [c for c in commands if c not in HOW]
+    assert not untested, f"{name}: commands with no test (add them to HOW): {untested}"
+
+
+def test_the_readme_is_read_in_ten_minutes():
+    size = len((REPO_ROOT / "README.md").read_bytes())
+    assert size <= README_BYTES, f"README.md: {size} bytes, at most {README_BYTES}: move a section to docs/"
+
+
+def test_every_docs_page_the_readme_names_exists():
+    named = set(re.findall(r"\(?(docs/[\w./-]+\.md)", README))
+    assert len(named) >= 10  # the index of docs/ by task
+    assert set(PAGES) <= named, "the README links every page that holds one of its former sections"
+    missing = sorted(n for n in named if not (REPO_ROOT / n).is_file())
+    assert not missing, f"the README names docs that do not exist: {missing}"
+
+
+def test_the_readmes_test_commands_are_what_ci_runs():
+    """``.ci/run`` runs exactly the README's two test commands, each on a line of its own."""
+    ci = (REPO_ROOT / ".ci" / "run").read_text().splitlines()
+    for command in ("python -m pytest", "python -m pytest -m slow"):
+        assert command in readme_commands() and command in ci, command
+    assert "python -m pip install -q -r environment.txt" in ci  # the README's install, quietly
+
+
+def test_the_readmes_table_ii_is_notebook_05s():
+    """The README's one table is ``figures/table2_vs_paper.md`` (notebook 05), its first ten columns."""
+    def rows(text: str) -> list[list[str]]:
+        found = [line.strip("|").split("|") for line in text.splitlines() if line.startswith("| v_in_mm_s")]
+        body = text.split("| v_in_mm_s", 1)[1].splitlines()[2:]
+        found += [line.strip("|").split("|") for line in body if line.startswith("| ")]
+        return [[cell.strip() for cell in row[:10]] for row in found]
+
+    table = README.split("## Results", 1)[1].split("\n## ", 1)[0]
+    shown, stored = rows(table), rows((REPO_ROOT / "figures" / "table2_vs_paper.md").read_text())
+    assert len(shown) == 25 and shown == stored[: len(shown)] and len(stored) == 25
+
+
+def test_the_number_of_notebooks_is_the_one_stated():
+    numbered = sorted((REPO_ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
+    first, last = numbered[0].name[:2], numbered[-1].name[:2]
+    stated = f"executes the {len(numbered)} notebooks in `notebooks/` ({first}-{last})"
+    assert stated in page("docs/notebooks.md")
+    listed = re.findall(r"^\| `(\d\d)_\w+` \|", page("docs/notebooks.md"), re.M)
+    assert listed == [p.name[:2] for p in numbered], "docs/notebooks.md's table lists every notebook once"
+
+
+def test_the_pages_the_readme_names_name_existing_docs():
+    for name in PAGES:
+        named = set(re.findall(r"(docs/[\w./-]+\.md)", page(name)))
+        missing = sorted(n for n in named if not (REPO_ROOT / n).is_file())
+        assert not missing, f"{name} names docs that do not exist: {missing}"
 
 
 def _argv(command: str) -> list[str]:
@@ -154,7 +231,7 @@ def _run_in(folder: Path, command: str, *extra: str) -> int:
 
 
 def test_the_walkthrough_records_and_analyses_an_own_scenario(newcomer, capsys):
-    shown = readme_commands()
+    shown = documented_commands()
     dry, rec = f"python -m helpers record pulse {MINE} --dry-run", f"python -m helpers record pulse {MINE}"
     metrics = "python -m helpers metrics data/mine"
     metrics_files = f"{metrics} --band 0.02 --csv results/mine --markdown results/mine.md"
@@ -210,7 +287,7 @@ def test_commands_shown_without_a_run_have_help(command, capsys):
 
 
 def test_a_new_rig_file_is_written_and_checked(newcomer, capsys):
-    shown = readme_commands()
+    shown = documented_commands()
     new, check = "python -m helpers rig new my_rig.toml", "python -m helpers rig check my_rig.toml"
     other = "python -m helpers rig check long-arm --json"
     assert {new, check, other} <= set(shown)
@@ -231,7 +308,7 @@ def test_your_own_rigs_firmware_upload_as_a_dry_run(newcomer, capsys):
     """The README's upload of an own rig's firmware, run with ``--dry-run``: the exact avrdude command of the
     Mega (tests/test_rig_firmware_command.py runs the rest; tests/firmware builds for real)."""
     command = "python -m helpers rig firmware my_rig.toml --upload --board daq --port /dev/ttyACM0"
-    assert command in readme_commands()
+    assert command in documented_commands()
     assert main(["rig", "new", "my_rig.toml"]) == 0
     capsys.readouterr()
     assert main([*_argv(command), "--dry-run"]) == 0
@@ -239,6 +316,18 @@ def test_your_own_rigs_firmware_upload_as_a_dry_run(newcomer, capsys):
     assert make.startswith("make -C ") and f"RIG={newcomer / 'my_rig.toml'} " in make
     assert avrdude.startswith("avrdude -p atmega2560 -c wiring -P /dev/ttyACM0 -b 115200 -D -U flash:w:")
     assert avrdude.endswith("/daq_mega.hex:i")
+
+
+def test_your_own_rigs_firmware_build_as_a_dry_run(newcomer, capsys):
+    """The README's build of an own rig's firmware: ``--dry-run`` prints the one make command, with the rig
+    file resolved from where the user stands, and no upload."""
+    command = "python -m helpers rig firmware my_rig.toml --dry-run"
+    assert command in readme_commands()
+    assert main(["rig", "new", "my_rig.toml"]) == 0
+    capsys.readouterr()
+    assert main(_argv(command)) == 0
+    (make,) = capsys.readouterr().out.splitlines()
+    assert make.startswith("make -C ") and f"RIG={newcomer / 'my_rig.toml'} " in make
 
 
 def test_jupyter_lab_is_installed_with_the_widget_extension():
@@ -254,7 +343,8 @@ def test_jupyter_lab_is_installed_with_the_widget_extension():
 
 
 def test_the_python_examples_run(newcomer, capsys):
-    first, second = re.findall(r"```python\n(.*?)```", README, re.S)[:2]
+    (first,) = re.findall(r"```python\n(.*?)```", README, re.S)
+    (second,) = re.findall(r"```python\n(.*?)```", page("docs/beyond_the_paper.md"), re.S)
     exec(compile(first, "README.md", "exec"), {})  # noqa: S102 - the README's own example
     out = capsys.readouterr().out
     assert "overshoot_pct" in out and "Up" in out and "Down" in out
@@ -267,7 +357,7 @@ def test_the_python_examples_run(newcomer, capsys):
 
 def test_a_saved_design_runs_again(newcomer, capsys):
     command = "python -m helpers record pulse --design data/tuning/designs/<file>.json"
-    assert command in readme_commands()
+    assert command in documented_commands()
     design = "map-following_v200_x20.json"
     (newcomer / "data" / "tuning" / "designs").mkdir(parents=True)
     shutil.copy(DATA_DIR / "tuning" / "designs" / design, newcomer / "data" / "tuning" / "designs" / design)
@@ -277,8 +367,8 @@ def test_a_saved_design_runs_again(newcomer, capsys):
 
 
 def _my_sweep(folder: Path) -> None:
-    """The README's own sweep definition, written where the README's commands expect it."""
-    (definition,) = re.findall(r"```json\n(.*?)```", README, re.S)
+    """docs/beyond_the_paper.md's sweep definition, written where its commands expect it."""
+    (definition,) = re.findall(r"```json\n(.*?)```", page("docs/beyond_the_paper.md"), re.S)
     assert json.loads(definition)["name"] == "my_sweep"
     (folder / "my_sweep.json").write_text(definition)
 
@@ -286,7 +376,7 @@ def _my_sweep(folder: Path) -> None:
 def test_sweep_info_reads_the_stored_atlas(capsys, monkeypatch):
     monkeypatch.chdir(REPO_ROOT)
     command = "python -m helpers sweep info data/sweeps/atlas_uncertainty.nc"
-    assert command in readme_commands()
+    assert command in documented_commands()
     assert main(_argv(command)) == 0
     out = capsys.readouterr().out
     assert "sample 64" in out and "shaper 22" in out  # 14 shapers and 8 families at the robust durations
@@ -294,16 +384,22 @@ def test_sweep_info_reads_the_stored_atlas(capsys, monkeypatch):
 
 def test_a_small_sweep_of_ones_own_runs_serially(newcomer, capsys):
     command = "python -m helpers sweep run my_sweep.json --serial"
-    assert command in readme_commands()
+    info = "python -m helpers sweep info my_sweep.nc"
+    assert {command, info} <= set(documented_commands())
     _my_sweep(newcomer)
     assert main(_argv(command) + ["--no-progress"]) == 0
     assert "my_sweep: 4 runs" in capsys.readouterr().out and (newcomer / "my_sweep.nc").exists()
+    assert main(_argv(info)) == 0
+    assert "dimensions: freq_error 2, shaper 2, move 2\n" in capsys.readouterr().out  # as the page lists them
+    assert "`freq_error`, `shaper`, `move`, as `python -m helpers sweep info my_sweep.nc`" in " ".join(
+        page("docs/beyond_the_paper.md").split()
+    )
 
 
 @pytest.mark.slow
 def test_a_small_sweep_on_a_local_cluster(newcomer, capsys):
     command = "python -m helpers sweep run my_sweep.json"
-    assert command in readme_commands()
+    assert command in documented_commands()
     _my_sweep(newcomer)
     assert main(_argv(command) + ["--no-progress", "--workers", "2"]) == 0
     out = capsys.readouterr().out
@@ -393,6 +489,28 @@ def _jupyterlab_autosave(path: Path, widget_cell: int | None = None) -> None:
         state = {"state": {}, "version_major": 2, "version_minor": 0}
         nb.metadata["widgets"] = {"application/vnd.jupyter.widget-state+json": state}
     nbformat.write(nb, path)
+
+
+@pytest.mark.slow
+def test_reproduce_nn_restores_a_notebook_jupyterlab_autosaved(tmp_path):
+    """The README: JupyterLab's autosave rewrites an opened notebook (notebook 03 with its sliders run), and
+    ``python -m helpers reproduce 03`` puts back every tracked byte."""
+    command = "python -m helpers reproduce 03"
+    assert command in readme_commands()
+    copy = tmp_path / "repo"
+    before = _tracked_copy(copy)
+    notebook = "notebooks/03_shaper_design.ipynb"
+    _jupyterlab_autosave(copy / notebook, widget_cell=16)
+    assert (copy / notebook).read_bytes() != before[notebook]  # the autosave did change it
+    env = {k: v for k, v in os.environ.items() if k != "HELPERS_FIGURES_DIR"}
+    env["PYTHONPATH"] = str(copy)
+    proc = subprocess.run(
+        [sys.executable, "-m", "helpers", *_argv(command)], cwd=copy, env=env, capture_output=True,
+        text=True, timeout=900,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    changed = [n for n, data in before.items() if (copy / n).read_bytes() != data]
+    assert not changed, f"reproduce 03 left tracked files changed: {changed}"
 
 
 @pytest.mark.slow

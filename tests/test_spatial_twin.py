@@ -221,9 +221,9 @@ def test_parse_values_and_the_command_line(capsys):
     assert parse_values("5", "x") == (5.0,)
     with pytest.raises(ValueError, match="--bends"):
         parse_values("a,b", "--bends")
-    # the README's command: the hanging rig bent 10 mm along tendon 1 and between tendons 1 and 2
+    # docs/beyond_the_paper.md's command: the hanging rig bent 10 mm along tendon 1 and between tendons 1, 2
     readme = "virtual-rig frequency-map --preset hanging --directions 0,45 --bends 10"
-    assert readme in (REPO_ROOT / "README.md").read_text()
+    assert readme in (REPO_ROOT / "docs" / "beyond_the_paper.md").read_text()
     assert main(readme.split()) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("direction_deg,bend_mm,u1_mm,tension1_n,u2_mm,tension2_n") and len(out) == 3
