@@ -1227,10 +1227,10 @@ def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, ou
         L[k, L_AIMED] = 1
         S[S_TARGET] = set_lane(S[S_TARGET], k, target)
         dt = target - lane(S[S_T], k)
-        if dt <= 0.0:
+        nst = math.ceil(dt / lane(S[S_HMAX], k) - 1e-9) if dt > 0.0 else 0
+        if nst < 1:  # at the target, or within 1e-9 steps of it (a few ulps): arrived, as no step is taken
             S[S_LEFT] = set_lane(S[S_LEFT], k, 0.0)
             continue
-        nst = math.ceil(dt / lane(S[S_HMAX], k) - 1e-9)
         S[S_LEFT] = set_lane(S[S_LEFT], k, float(nst))
         S[S_H] = set_lane(S[S_H], k, dt / nst)
         return
