@@ -60,7 +60,6 @@ HOW: dict[str, str] = {
     "python -m helpers bench": "slow",
     "python -m helpers bench plant": "slow",
     "python -m helpers bench serial": "slow",
-    "python -m helpers bench serial-tendons": "slow",
     "python -m helpers bench playground": "slow",
     "python -m helpers record pulse --design data/tuning/designs/<file>.json": "quick",
     "python -m helpers tune": "slow",
@@ -424,7 +423,7 @@ def test_record_all_regenerates_the_paper_experiment(newcomer):
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "suite",
-    ["plant", "serial", "serial-tendons", "sweep", "playground", "spatial", "segments", "convergence"],
+    ["plant", "serial", "sweep", "playground", "spatial", "segments", "convergence"],
 )
 def test_bench_prints_its_figures(suite):
     proc = subprocess.run(

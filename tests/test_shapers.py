@@ -153,7 +153,7 @@ def test_two_hump_ei_undamped_closed_form():
     v = 0.05
     x = (v**2 * (math.sqrt(1 - v**2) + 1)) ** (1 / 3)
     a1 = (3 * x**2 + 2 * x + 3 * v**2) / (16 * x)
-    s = families.two_hump_ei(OMEGA, 0.0)
+    s = families.multi_hump_ei(OMEGA, 0.0, humps=2)
     np.testing.assert_allclose(s.amplitudes, [a1, 0.5 - a1, 0.5 - a1, a1], atol=1.5e-3)
     np.testing.assert_allclose(s.times / (2 * math.pi / OMEGA), [0, 0.5, 1, 1.5], atol=3e-3)  # fit accuracy
 
@@ -162,7 +162,7 @@ def test_three_hump_ei_undamped_closed_form():
     v = 0.05
     a1 = (1 + 3 * v + 2 * math.sqrt(2 * v * (v + 1))) / 16
     a2 = (1 - v) / 4
-    s = families.three_hump_ei(OMEGA, 0.0)
+    s = families.multi_hump_ei(OMEGA, 0.0, humps=3)
     np.testing.assert_allclose(s.amplitudes, [a1, a2, 1 - 2 * (a1 + a2), a2, a1], atol=1e-3)
     periods = s.times / (2 * math.pi / OMEGA)
     np.testing.assert_allclose(periods, [0, 0.5, 1, 1.5, 2], atol=2e-3)  # the fit's accuracy
@@ -222,9 +222,11 @@ def test_um_zv_is_unity_magnitude():
     np.testing.assert_allclose(undamped.times / (2 * math.pi / OMEGA), [0, 1 / 6, 1 / 3], atol=1e-10)
 
 
-def test_multihump_refuses_other_tolerances():
+def test_multihump_refuses_other_tolerances_and_hump_counts():
     with pytest.raises(ValueError, match="vtol"):
-        families.two_hump_ei(OMEGA, 0.05, vtol=0.1)
+        families.multi_hump_ei(OMEGA, 0.05, vtol=0.1)
+    with pytest.raises(ValueError, match="humps"):
+        families.multi_hump_ei(OMEGA, 0.05, humps=4)
 
 
 # -- hypothesis properties -----------------------------------------------------------------------------------

@@ -23,7 +23,7 @@ from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
 from helpers.board.programmes import Dwell, Move, Programme
 from helpers.board.protocol import frame
-from helpers.commands.benchmarks.serial_tendons import pty_stream_tendons
+from helpers.commands.benchmarks.serial import pty_stream
 from helpers.commands.home import PositionUnknown, home
 from helpers.commands.metrics_report import move_tables
 from helpers.rig import Rig, SafetyError, WrongRig
@@ -657,13 +657,14 @@ def test_home_after_a_restart_asks_for_every_tendon_at_its_rest_pretension(four)
 
 
 @pytest.mark.slow
-def test_a_four_tendon_rig_over_the_pseudo_terminal_server_records_every_channel_without_a_drop():
+@pytest.mark.parametrize(("rig_name", "n"), [("paper", 1), ("four-tendon", 4)])
+def test_a_rig_over_the_pseudo_terminal_server_records_every_channel_without_a_drop(rig_name, n):
     # the server's intervals end at wall-clock instants, mid-conversion of a sample's channels: every sample
-    # still arrives, whole (2 s of device time at 1 kHz, 4 x real time)
-    r = pty_stream_tendons(device_s=2.0, rate_hz=1000, speed=4.0)
-    assert (r["rig"], r["tendons"]) == ("four-tendon", 4)
+    # still arrives, whole (2 s of device time at 1 kHz, 4 x real time); one benchmark for 1 to 4 tendons
+    r = pty_stream(device_s=2.0, rate_hz=1000, speed=4.0, rig_name=rig_name)
+    assert (r["rig"], r["tendons"]) == (rig_name, n)
     assert (r["dropped"], r["corrupted"], r["overruns"]) == (0, 0, 0)
     assert r["samples"] >= 2000 and r["rate_per_device_s"] == pytest.approx(1000.0, rel=1e-6)
-    # a data line: "D", ten fields (seq, t_us, four ADC counts, four step counts) of ",x" at least, "*hh\n";
-    # at most 91 characters before its newline (firmware/PROTOCOL.md)
-    assert 1 + 10 * 2 + 4 <= r["line_bytes_mean"] <= r["line_bytes_max"] <= 91 + 1
+    # a data line: "D", 2 + 2n fields (seq, t_us, n ADC counts, n step counts) of ",x" at least, "*hh\n";
+    # at most 91 characters before its newline at four tendons (firmware/PROTOCOL.md)
+    assert 1 + (2 + 2 * n) * 2 + 4 <= r["line_bytes_mean"] <= r["line_bytes_max"] <= 91 + 1

@@ -29,18 +29,16 @@ overwritten unless ``--replace`` is given; two recorders cannot write into one g
 from __future__ import annotations
 
 import argparse
-import contextlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.jsonfile import MissingDataError
-from helpers.base.locks import folder_lock
 from helpers.base.paths import DATA_DIR, repo_path
 from helpers.board.programmes import experiment_programme
 from helpers.commands.recording_paths import check_group, recording_path
-from helpers.commands.tendon_session import SESSION_LOCK, tendons_at_rest
+from helpers.commands.session import recording_session
 from helpers.commands.tip_stream import record_tip_stream
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
@@ -649,7 +647,7 @@ def _record_move(args: argparse.Namespace) -> int:
         return 0
     check_travel(plan, rig, start=move.start)
     check_programme(programme, rig, (0,) * rig.n_tendons)
-    with tendons_at_rest(args, rig, "a move") as (trig, noise_seed):
+    with recording_session(args, from_rest="a move") as (trig, noise_seed):
         print(f"  shaper: {design.describe()}")
         scenario = {
             "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm,
@@ -706,18 +704,7 @@ def run(args: argparse.Namespace) -> int:
     calibration = _calibration_for(args.what, args.data_dir, args.rig)
     if not args.replace:  # before any port is opened (opening one resets an Arduino)
         _refuse_existing_targets(args)
-    with contextlib.ExitStack() as stack:
-        for g in sorted(groups):  # one recorder per group at a time
-            stack.enter_context(  # beside the group, so that deleting its folder cannot let a second in
-                folder_lock(args.data_dir / g, what="recording", name=SESSION_LOCK, beside=True)
-            )
-        rig = Rig(args.ports, args.rig, calibration=calibration, world=args.rig_name)
-        stack.callback(rig.close)
-        print(
-            f"connected: daq firmware {rig.daq.version}, stepper firmware {rig.stepper.version}, "
-            f"source {rig.source['kind']}"
-        )
-        seeds = NoiseSeeds(args.seed if rig.world is not None else None)
-        RECORDERS[args.what](rig, args, seeds)
+    with recording_session(args, groups, calibration=calibration) as (rig, seed):
+        RECORDERS[args.what](rig, args, NoiseSeeds(seed))
     return 0
 

@@ -19,7 +19,7 @@ from typing import Any
 
 from helpers.base.paths import repo_path
 from helpers.commands.recording_paths import recording_path
-from helpers.commands.tendon_session import tendons_at_rest
+from helpers.commands.session import recording_session
 from helpers.recordings import refuse_existing
 from helpers.research.tip_stream import (
     board_counts,
@@ -123,7 +123,7 @@ def record_tip_stream(args: argparse.Namespace) -> int:
         "design": design.metadata(), **plan.metadata(), "speed_mm_s": path.speed_mm_s,
         "board_count_min_static_tension_n": [round(float(t), 6) for t in forecast],
     }  # fmt: skip
-    with tendons_at_rest(args, rig, "a tip stream") as (trig, noise_seed):
+    with recording_session(args, from_rest="a tip stream") as (trig, noise_seed):
         print(f"  {path.summary()}; shaper: {design.describe()}")
         rec = stream(trig, plan.setpoints_mm_s, design.shaper, path=target, scenario=scenario, lead_in_s=0.2,
                      rate_hz=args.rate, replace=args.replace, tail_s=TIP_TAIL_S, noise_seed=noise_seed,

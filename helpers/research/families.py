@@ -21,6 +21,7 @@ paper's (:mod:`helpers.paper.shapers`), every constructor takes ``(omega_n, zeta
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -194,58 +195,49 @@ _THREE_HUMP_A = (
 )
 
 
-def _from_fit(
-    omega_n: float, zeta: float, t_rows: tuple, a_rows: tuple, vtol: float, name: str
-) -> Shaper:
+_HUMP_FITS: dict[int, tuple[tuple, tuple]] = {
+    2: (_TWO_HUMP_T, _TWO_HUMP_A),
+    3: (_THREE_HUMP_T, _THREE_HUMP_A),
+}
+"""Singhose's fits by number of humps: (times in periods, amplitudes), each a cubic in zeta."""
+
+
+def multi_hump_ei(omega_n: float, zeta: float, humps: int = 2, vtol: float = MULTI_HUMP_VTOL) -> Shaper:
+    """Multi-hump EI shaper (Singhose's fits): ``humps`` humps of ``vtol``, ``(humps + 1) / 2`` periods long.
+
+    Two humps: ``V = 0`` at the design point, 1.5 periods; three humps: ``V = vtol`` at the design frequency,
+    2 periods.
+
+    Parameters
+    ----------
+    omega_n : float
+        Undamped natural frequency (rad/s).
+    zeta : float
+        Damping ratio in [0, 1) (fit valid to about 0.3).
+    humps : int
+        2 or 3.
+    vtol : float
+        Must be 0.05: the damped fits exist only for 5 %.
+
+    Returns
+    -------
+    Shaper
+    """
+    if humps not in _HUMP_FITS:
+        raise ValueError(f"multi-hump EI: Singhose's fits exist for 2 or 3 humps, got {humps!r}")
+    name = f"{humps}-hump EI"
     check_mode(omega_n, zeta)
     _check_vtol(vtol)
     if abs(vtol - MULTI_HUMP_VTOL) > 1e-12:
         raise ValueError(
             f"{name}: Singhose's fits are published only for vtol = {MULTI_HUMP_VTOL}, got vtol = {vtol}"
         )
+    t_rows, a_rows = _HUMP_FITS[humps]
     powers = float(zeta) ** np.arange(4)
     period = 2.0 * math.pi / omega_n
     times = np.array(t_rows) @ powers * period
     amps = np.array(a_rows) @ powers
     return normalised(amps, times, name)
-
-
-def two_hump_ei(omega_n: float, zeta: float, vtol: float = MULTI_HUMP_VTOL) -> Shaper:
-    """Two-hump EI shaper (Singhose's fit, 1.5 periods): ``V = 0`` at the design point, humps of ``vtol``.
-
-    Parameters
-    ----------
-    omega_n : float
-        Undamped natural frequency (rad/s).
-    zeta : float
-        Damping ratio in [0, 1) (fit valid to about 0.3).
-    vtol : float
-        Must be 0.05: the damped fit exists only for 5 %.
-
-    Returns
-    -------
-    Shaper
-    """
-    return _from_fit(omega_n, zeta, _TWO_HUMP_T, _TWO_HUMP_A, vtol, "2-hump EI")
-
-
-def three_hump_ei(omega_n: float, zeta: float, vtol: float = MULTI_HUMP_VTOL) -> Shaper:
-    """Three-hump EI shaper (Singhose's fit, 2 periods): ``V = vtol`` at the design frequency, three humps.
-
-    Parameters
-    ----------
-    omega_n : float
-        Undamped natural frequency (rad/s).
-    zeta : float
-        Damping ratio in [0, 1) (fit valid to about 0.3).
-    vtol : float
-        Must be 0.05: the damped fit exists only for 5 %.
-
-    Returns
-    -------
-    Shaper
-    """
-    return _from_fit(omega_n, zeta, _THREE_HUMP_T, _THREE_HUMP_A, vtol, "3-hump EI")
 
 
 def um_zv(omega_n: float, zeta: float) -> Shaper:
@@ -330,8 +322,8 @@ FAMILIES: dict[str, Family] = {
         Family("ZVDD", zvdd, (0.0, 0.99), 1.5),
         Family("MZV", mzv, (0.0, 0.99), 0.75),
         Family("EI", ei, (0.0, 0.3), 1.0),
-        Family("2-hump EI", two_hump_ei, (0.0, 0.3), 1.5),
-        Family("3-hump EI", three_hump_ei, (0.0, 0.3), 2.0),
+        Family("2-hump EI", functools.partial(multi_hump_ei, humps=2), (0.0, 0.3), 1.5),
+        Family("3-hump EI", functools.partial(multi_hump_ei, humps=3), (0.0, 0.3), 2.0),
         Family("UM-ZV", um_zv, (0.0, 0.76), 1.0 / 3.0),
     )
 }

@@ -81,7 +81,7 @@ from helpers.board.programmes import Dwell, Move, Programme
 from helpers.paper.modes import omega_n_from_damped
 from helpers.paper.shapers import Shaper
 from helpers.research.families import FAMILIES, multi_mode, zv, zvd
-from helpers.research.task_space import MovePlan, move_programme, plan_move
+from helpers.research.task_space import MovePlan, move_programme, plan_move, shaper_metadata
 from helpers.rig.safety import SafetyError
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived, lead_tendon
@@ -396,13 +396,11 @@ class MoveShaping:
         """The design for a recording's scenario."""
         if self.shaper is None:
             return {"shaper": "none"}
-        return {
-            "shaper": self.name, "family": self.shaper.name, "source": self.source, "tendon": self.lead + 1,
-            "modes": [{"omega_d_rad_s": o, "zeta": z} for o, z in self.modes], "split": self.split,
-            "predicted_residual_pct": self.predicted_pct, "note": self.note,
-            "amplitudes": [float(a) for a in self.shaper.amplitudes],
-            "times_s": [float(t) for t in self.shaper.times],
-        }  # fmt: skip
+        return shaper_metadata(
+            self.shaper, self.name, family=self.shaper.name, source=self.source,
+            tendon=self.lead + 1, modes=[{"omega_d_rad_s": o, "zeta": z} for o, z in self.modes],
+            split=self.split, predicted_residual_pct=self.predicted_pct, note=self.note,
+        )  # fmt: skip
 
 
 def _vmax(shaper: Shaper, omega_n: float, zeta: float, band: float) -> float:

@@ -49,6 +49,7 @@ from helpers.virtual.spatial.statics import equilibrium
 __all__ = [
     "MovePlan",
     "MoveDesign",
+    "shaper_metadata",
     "plan_move",
     "check_travel",
     "move_design",
@@ -117,6 +118,29 @@ class MovePlan:
         return out
 
 
+def shaper_metadata(shaper: Shaper, name: str, **design: object) -> dict[str, object]:
+    """A shaped move's or stream's design for a recording's scenario (every design class of the research).
+
+    Parameters
+    ----------
+    shaper : Shaper
+        The shaper (an unshaped design records ``{"shaper": "none"}`` instead).
+    name : str
+        The design's command-line name.
+    **design
+        What the design was made from, in the order recorded (after ``shaper``, before the impulses).
+
+    Returns
+    -------
+    dict
+        ``shaper``, the ``design`` fields, ``amplitudes`` and ``times_s``.
+    """
+    return {
+        "shaper": name, **design, "amplitudes": [float(a) for a in shaper.amplitudes],
+        "times_s": [float(t) for t in shaper.times],
+    }  # fmt: skip
+
+
 @dataclass(frozen=True)
 class MoveDesign:
     """A shaper designed for a move, and the mode it was designed from."""
@@ -143,12 +167,10 @@ class MoveDesign:
         """The design for a recording's scenario."""
         if self.shaper is None:
             return {"shaper": "none"}
-        return {
-            "shaper": self.name, "mode": "dominant mode of the lead tendon's tension (direction map)",
-            "tendon": int(self.tendon) + 1, "omega_d_rad_s": float(self.omega_d), "zeta": float(self.zeta),
-            "amplitudes": [float(a) for a in self.shaper.amplitudes],
-            "times_s": [float(t) for t in self.shaper.times],
-        }  # fmt: skip
+        return shaper_metadata(
+            self.shaper, self.name, mode="dominant mode of the lead tendon's tension (direction map)",
+            tendon=int(self.tendon) + 1, omega_d_rad_s=float(self.omega_d), zeta=float(self.zeta),
+        )  # fmt: skip
 
 
 def _twin(rig: RigFile, spatial: SpatialRig | None) -> SpatialRig:

@@ -50,7 +50,7 @@ import numpy as np
 from helpers.board import stream_reference as hs
 from helpers.board.programmes import Limits
 from helpers.paper.shapers import Shaper, design_tdfs
-from helpers.research.task_space import MAX_TRIM_STEPS
+from helpers.research.task_space import MAX_TRIM_STEPS, shaper_metadata
 from helpers.rig.safety import SafetyError
 from helpers.rig.stream import CheckedStream, SetpointSource, check_stream
 from helpers.rigfile import RigFile
@@ -749,14 +749,12 @@ class StreamDesign:
         """The design for a recording's scenario."""
         if self.shaper is None:
             return {"shaper": "none"}
-        return {
-            "shaper": self.name, "mode": "mean over the path's stops of the direction map's dominant mode",
-            "omega_d_rad_s": float(self.omega_d), "zeta": float(self.zeta),
-            "stops": [{"direction_deg": d, "bend_mm": m, "omega_d_rad_s": w, "zeta": z}
-                      for d, m, w, z in self.points],
-            "amplitudes": [float(a) for a in self.shaper.amplitudes],
-            "times_s": [float(t) for t in self.shaper.times],
-        }  # fmt: skip
+        return shaper_metadata(
+            self.shaper, self.name, mode="mean over the path's stops of the direction map's dominant mode",
+            omega_d_rad_s=float(self.omega_d), zeta=float(self.zeta),
+            stops=[{"direction_deg": d, "bend_mm": m, "omega_d_rad_s": w, "zeta": z}
+                   for d, m, w, z in self.points],
+        )  # fmt: skip
 
 
 def stream_design(

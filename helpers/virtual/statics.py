@@ -43,6 +43,8 @@ __all__ = [
     "Linearisation",
     "linearise",
     "frequency_map",
+    "floor_modes",
+    "modal_state",
     "state_space_poles",
     "DECAY_S",
     "rk4_stable_step",
@@ -518,11 +520,20 @@ def floor_damping(chain: ArcChain, q_rest: np.ndarray, tension: float) -> tuple[
         return np.zeros((0, chain.N)), np.zeros(0)
     kap, g = chain.cable_tangent(q_rest, tension, p.k)
     K = chain.hessian(q_rest, lam=tension) + kap * np.outer(g, g)
-    M = chain.mass_matrix(q_rest)
+    return floor_modes(K, chain.mass_matrix(q_rest), p.floor_omega, p.floor_zeta)
+
+
+def floor_modes(
+    K: np.ndarray, M: np.ndarray, floor_omega: float, floor_zeta: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``W = (M Phi)^T`` and ``c = 2 zeta_f omega s(omega)`` of the floor from the undamped modes of (K, M).
+
+    ``s = 1 / (1 + (omega_f / omega)^8)``; the planar (:func:`floor_damping`) and the spatial twin's floor.
+    """
     w2, V = linalg.eigh(K, M)
     om = np.sqrt(np.abs(w2))
-    s = 1.0 / (1.0 + (p.floor_omega / om) ** 8)
-    return np.ascontiguousarray((M @ V).T), 2.0 * p.floor_zeta * om * s
+    s = 1.0 / (1.0 + (floor_omega / om) ** 8)
+    return np.ascontiguousarray((M @ V).T), 2.0 * floor_zeta * om * s
 
 
 @functools.lru_cache(maxsize=64)
@@ -694,22 +705,22 @@ DECAY_S: float = 1.0
 9-10 s, 1-2 s after the release at 8 s, so the mode that dominates there is the one that matters."""
 
 
-def state_space_poles(
-    M: np.ndarray, C: np.ndarray, K: np.ndarray, f_in: np.ndarray, c_out: np.ndarray, decay_s: float = DECAY_S
-) -> tuple[np.ndarray, np.ndarray]:
-    """Poles of ``M x'' + C x' + K x = f_in u`` and their weights in the step response of ``y = c_out . x``.
+def modal_state(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The well-conditioned state form of ``M x'' + C x' + K x = 0`` (planar and spatial twins alike).
 
-    Well-conditioned form: mass-normalised modal coordinates from the flexibility problem
-    ``L_K^-1 M L_K^-T psi = omega^-2 psi`` (``K = L_K L_K^T``), whose largest eigenvalues (the low modes)
-    come out with full relative accuracy, and the near-normal state ``[Omega eta, eta']``. Weights:
-    ``2 |r / p| exp(Re p decay_s)``.
+    Mass-normalised modal coordinates from the flexibility problem ``L_K^-1 M L_K^-T psi = omega^-2 psi``
+    (``K = L_K L_K^T``), whose largest eigenvalues (the low modes) come out with full relative accuracy; the
+    mass-normalised form ``L_M^-1 K L_M^-T`` if ``K`` is not positive definite. The state is the near-normal
+    ``[Omega eta, eta']``.
 
     Returns
     -------
-    poles : numpy.ndarray
-        Sorted by modulus.
-    weights : numpy.ndarray
-        Amplitude of each pole's term in the step response, ``decay_s`` after the step.
+    T : numpy.ndarray
+        The modal transformation ``x = T eta``.
+    Om : numpy.ndarray
+        The undamped modal frequencies (rad/s).
+    A : numpy.ndarray
+        The state matrix (``2n x 2n``).
     """
     try:
         Lk = linalg.cholesky(K, lower=True)
@@ -733,6 +744,25 @@ def state_space_poles(
     A[:n, n:] = np.diag(Om)
     A[n:, :n] = -np.diag(Om)
     A[n:, n:] = -Cm
+    return T, Om, A
+
+
+def state_space_poles(
+    M: np.ndarray, C: np.ndarray, K: np.ndarray, f_in: np.ndarray, c_out: np.ndarray, decay_s: float = DECAY_S
+) -> tuple[np.ndarray, np.ndarray]:
+    """Poles of ``M x'' + C x' + K x = f_in u`` and their weights in the step response of ``y = c_out . x``.
+
+    The state form of :func:`modal_state`. Weights: ``2 |r / p| exp(Re p decay_s)``.
+
+    Returns
+    -------
+    poles : numpy.ndarray
+        Sorted by modulus.
+    weights : numpy.ndarray
+        Amplitude of each pole's term in the step response, ``decay_s`` after the step.
+    """
+    T, Om, A = modal_state(M, C, K)
+    n = M.shape[0]
     b = np.concatenate([np.zeros(n), T.T @ f_in])
     cc = np.concatenate([(c_out @ T) / Om, np.zeros(n)])
     ev, vl, vr = linalg.eig(A, left=True, right=True)

@@ -2,10 +2,9 @@
 
 - ``plant``: the virtual rig's plant in real-time factors of CPU time, the implicit step and the RK4
   reference on the same scenario (and a plain ``solve_ivp`` implementation of the same equations);
-- ``serial``: sustained DAQ rate over the pseudo-terminal server and the wall time to record one scenario on
-  the in-process virtual rig;
-- ``serial-tendons``: the same DAQ stream for a rig of several tendons (every channel, ``four-tendon``),
-  with the data lines' bytes against the build's baud rate;
+- ``serial``: sustained DAQ rate over the pseudo-terminal server for the paper's one tendon and
+  ``four-tendon`` (every channel, the data lines' bytes against the build's baud rate), and the wall time to
+  record one scenario on the in-process virtual rig;
 - ``playground``: CPU time of one update of notebook 03's interactive shaper study (target <= 0.3 s);
 - ``sweep``: runs per second of a sweep's tasks on 1 and 2 workers of a local Dask cluster, the scaling
   ratio, Dask's overhead against a bare loop, the per-run overhead outside the integration;
@@ -29,7 +28,6 @@ from helpers.commands.benchmarks.plant import run_plant_benchmark
 from helpers.commands.benchmarks.playground import run_playground_benchmark
 from helpers.commands.benchmarks.segments import run_segments_benchmark
 from helpers.commands.benchmarks.serial import run_serial_benchmark
-from helpers.commands.benchmarks.serial_tendons import run_serial_tendons_benchmark
 from helpers.commands.benchmarks.spatial import run_spatial_benchmark
 from helpers.commands.benchmarks.sweep import run_sweep_benchmark
 
@@ -37,7 +35,6 @@ SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "plant": run_plant_benchmark,
     "playground": run_playground_benchmark,
     "serial": run_serial_benchmark,
-    "serial-tendons": run_serial_tendons_benchmark,
     "sweep": run_sweep_benchmark,
     "spatial": run_spatial_benchmark,
     "segments": run_segments_benchmark,

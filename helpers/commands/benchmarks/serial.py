@@ -1,9 +1,12 @@
-"""Serial I/O figures: the DAQ stream over the pseudo-terminal server, and one scenario on the in-process rig.
+"""Serial I/O figures: the DAQ stream over the pseudo-terminal server (1 to 4 tendons), one in-process run.
 
-1. Start ``python -m helpers serve-virtual-rig`` (a separate process, paced at ``speed`` x real time), connect
-   to its two pseudo-terminals by device path exactly as to hardware, and stream ``device_s`` seconds of DAQ
-   samples at ``rate_hz``: report the samples received, the dropped / corrupted / overrun counts (target 0
-   dropped) and the sustained rate in samples per wall second and per device second.
+1. For each rig (default the paper's one tendon and ``four-tendon``): start ``python -m helpers
+   serve-virtual-rig --rig RIG`` (a separate process: the emulated boards of the rig's build and its twin,
+   paced at ``speed`` x real time), connect a :class:`~helpers.rig.Rig` to its two pseudo-terminals by device
+   path exactly as to hardware, and run a programme of ``device_s`` seconds (a small pull of tendon 1, a hold,
+   the pull back) at ``rate_hz``: report the samples received, the dropped / corrupted / overrun counts
+   (target 0 dropped), the bytes per data line the DAQ sent and the link's load at the build's baud rate
+   (``firmware/PROTOCOL.md``, link budget), and the sustained rate per wall and per device second.
 2. Record one 12 s scenario (200 mm/s, 20 mm, robust TDF) on the in-process virtual rig: report the wall time
    (target <= 1 s; the first run in a process also pays numba's compilation, reported separately).
 """
@@ -14,14 +17,23 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from helpers import rigfile
+from helpers.board.programmes import Dwell, Move, Programme
+from helpers.board.protocol import frame
 from helpers.paper.calibration import uncalibrated
 from helpers.paper.shapers import design_tdfs
 from helpers.rig import Rig
-from helpers.rig.static import record_static
 from helpers.rigfile import default_rig, derived
+
+PULL_STEPS = 4
+"""Steps of tendon 1's pull: small enough that no tendon leaves its pretension's neighbourhood."""
+
+RIGS = ("paper", "four-tendon")
+"""The shipped rigs ``bench serial`` streams from: one tendon (the paper's) and four."""
 
 
 def start_server(
@@ -52,36 +64,65 @@ def start_server(
     return proc, paths["daq"], paths["stepper"]
 
 
-def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0) -> dict[str, Any]:
-    """Stream ``device_s`` of DAQ samples through the pseudo-terminal server; return the figures."""
-    proc, daq, stepper = start_server(speed)
+def _line_bytes(row: tuple[int, ...]) -> int:
+    """Bytes on the wire of the data line ``row`` (``seq, t_us, adc_i.., steps_i..``) as the DAQ frames it."""
+    return len(frame("D," + ",".join(str(int(v)) for v in row)))
+
+
+def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0,
+               rig_name: str = "paper") -> dict[str, Any]:  # fmt: skip
+    """Run a ``device_s`` programme on the rig ``rig_name`` (1 to 4 tendons) through the pty server.
+
+    Parameters
+    ----------
+    device_s : float
+        Device seconds of the programme (a pull of tendon 1 by :data:`PULL_STEPS`, a hold, the pull back).
+    rate_hz : int
+        The DAQ's sample rate.
+    speed : float
+        Pacing of the server (1 = real time, as hardware streams).
+    rig_name : str
+        A shipped rig's name or a rig file's path.
+
+    Returns
+    -------
+    dict
+        The rig's name and tendon count, the sample, drop, corruption and overrun counts, wall and device
+        seconds, the rates, the data lines' mean and largest bytes, the baud rate and the link's load.
+    """
+    rig_file = rigfile.load(rigfile.resolve(rig_name))
+    proc, daq, stepper = start_server(speed, rig=str(rigfile.resolve(rig_name)))
     try:
-        paper = default_rig()
-        rig = Rig((daq, stepper), paper, calibration=uncalibrated(derived(paper).mm_per_step[0]))
+        n = rig_file.n_tendons
+        calibration = [uncalibrated(m) for m in derived(rig_file).mm_per_step]  # tension in counts
+        rig = Rig((daq, stepper), rig_file, calibration=calibration, hello_timeout=120.0)
+        window_us = 100_000
+        hold_ms = int(round(device_s * 1000)) - 2 * window_us // 1000
+        pull = (PULL_STEPS,) + (0,) * (n - 1)
+        back = (-PULL_STEPS,) + (0,) * (n - 1)
+        prog = Programme((Move(window_us, pull), Dwell(hold_ms), Move(window_us, back)))
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            rec = record_static(
-                rig, device_s, {"kind": "benchmark"}, path=Path(tmp) / "bench", rate_hz=rate_hz
-            )
+            rec = rig.run(prog, path=Path(tmp) / "bench", rate_hz=rate_hz, tail_s=0.2, progress=False)
+            frame_ = rec.frame
             wall = time.perf_counter() - t0
+        stats = rig.daq.parser.stats
+        rows = list(rig.daq.rows)
+        baud = rig_file.hardware.daq_baud
         rig.close()
     finally:
         proc.terminate()
         proc.wait(timeout=10)
-    c = rec.meta["counts"]
-    span = (rec.frame["t_us"].iloc[-1] - rec.frame["t_us"].iloc[0]) / 1e6 if len(rec.frame) > 1 else 0.0
+    sizes = [_line_bytes(r) for r in rows] if rows else [0]
+    span = (frame_["t_us"].iloc[-1] - frame_["t_us"].iloc[0]) / 1e6 if len(frame_) > 1 else 0.0
+    mean_bytes = sum(sizes) / len(sizes)
     return {
-        "samples": c["samples"],
-        "dropped": c["dropped"],
-        "corrupted": c["corrupted"],
-        "overruns": c["overruns"],
-        "wall_s": wall,
-        "device_s": span,
-        "rate_per_wall_s": c["samples"] / wall,
-        "rate_per_device_s": (c["samples"] - 1) / span if span else 0.0,
-        "source": rec.meta["source"]["kind"],
-        "speed": speed,
-    }
+        "rig": rig_file.name, "tendons": n, "samples": len(frame_), "dropped": stats.dropped,
+        "corrupted": stats.corrupted, "overruns": stats.overruns, "wall_s": wall, "device_s": span,
+        "rate_per_wall_s": len(frame_) / wall, "rate_per_device_s": (len(frame_) - 1) / span if span else 0.0,
+        "line_bytes_mean": mean_bytes, "line_bytes_max": max(sizes), "baud": baud,
+        "link_load": mean_bytes * 10 * rate_hz / baud, "speed": speed, "source": rec.meta["source"]["kind"],
+    }  # fmt: skip
 
 
 def in_process_scenario() -> dict[str, Any]:
@@ -103,23 +144,31 @@ def in_process_scenario() -> dict[str, Any]:
     }
 
 
-def run_serial_benchmark(device_s: float = 60.0, speed: float = 1.0) -> dict[str, Any]:
+def run_serial_benchmark(
+    device_s: float = 60.0, speed: float = 1.0, rigs: Sequence[str] = RIGS
+) -> dict[str, Any]:
     """Measure and print the serial figures; return them.
 
     Parameters
     ----------
     device_s : float
-        Device seconds streamed over the pseudo-terminals (60 s at 1 kHz in the issue).
+        Device seconds streamed over the pseudo-terminals per rig (60 s at 1 kHz in the issue).
     speed : float
         Pacing of the server (1 = real time, as hardware streams).
+    rigs : sequence of str
+        The rigs streamed from, each on its own server (default :data:`RIGS`).
     """
-    pty = pty_stream(device_s, 1000, speed)
-    print(
-        f"pty server, 1 kHz for {pty['device_s']:.1f} s of device time at speed {speed:g}: "
-        f"{pty['samples']} samples, {pty['dropped']} dropped (target 0), {pty['corrupted']} corrupted, "
-        f"{pty['overruns']} overruns; {pty['rate_per_device_s']:.1f} samples per device s, "
-        f"{pty['rate_per_wall_s']:.1f} per wall s ({pty['wall_s']:.1f} s wall)"
-    )
+    ptys = {}
+    for name in rigs:
+        r = ptys[name] = pty_stream(device_s, 1000, speed, name)
+        print(
+            f"pty server, rig {r['rig']} ({r['tendons']} channel(s) and step count(s) per line), 1 kHz for "
+            f"{r['device_s']:.1f} s of device time at speed {speed:g}: {r['samples']} samples, "
+            f"{r['dropped']} dropped (target 0), {r['corrupted']} corrupted, {r['overruns']} overruns; "
+            f"data lines {r['line_bytes_mean']:.1f} bytes on average ({r['line_bytes_max']} at most): "
+            f"{100 * r['link_load']:.0f} % of {r['baud']} baud; {r['rate_per_device_s']:.1f} samples per "
+            f"device s, {r['rate_per_wall_s']:.1f} per wall s ({r['wall_s']:.1f} s wall)"
+        )
     inproc = in_process_scenario()
     print(
         "in-process virtual rig, one 12 s scenario (200 mm/s, 20 mm, robust TDF, "
@@ -127,4 +176,4 @@ def run_serial_benchmark(device_s: float = 60.0, speed: float = 1.0) -> dict[str
         f"first run in the process {inproc['first_wall_s']:.2f} s "
         "(includes numba compilation)"
     )
-    return {"pty": pty, "in_process": inproc}
+    return {"pty": ptys, "in_process": inproc}

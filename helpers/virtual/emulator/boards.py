@@ -381,6 +381,19 @@ class EmulatedBoard:
             return f"ERR ARG {cmd.word} needs {n} integer{'s' if n != 1 else ''}"
         return None
 
+    def _refusal(self, cmd: _Command, n: int, running: bool = False) -> str | None:
+        """The firmware's refusals in its order, or None: ``ERR ARG``, ``ERR STATE running``, ``streaming``.
+
+        ``ERR STATE running`` only if ``running`` is asked for (the commands that start something).
+        """
+        if err := self._arg_error(cmd, n):
+            return err
+        if running and self.running:
+            return "ERR STATE running"
+        if self.stream is not None:
+            return "ERR STATE streaming"
+        return None
+
     def version_token(self) -> str:
         """``<version>+<rig hash>`` of ``HELLO``/``PONG``: the build's."""
         return board_version(self.rig_hash)
@@ -686,12 +699,8 @@ class StepperEmulator(EmulatedBoard):
 
     def cmd_GO(self, cmd: _Command) -> str:  # noqa: N802, D102
         # the refusals in the firmware's order: arguments, running, streaming, empty, disabled, travel
-        if err := self._arg_error(cmd, 0):
+        if err := self._refusal(cmd, 0, running=True):
             return err
-        if self.running:
-            return "ERR STATE running"
-        if self.stream is not None:
-            return "ERR STATE streaming"
         if not self.items:
             return "ERR STATE programme empty"
         if not self.enabled:
@@ -757,26 +766,18 @@ class StepperEmulator(EmulatedBoard):
 
     # --- streaming (PROTOCOL.md "Stepper board: streaming mode") -----------------------------------
     def cmd_SHAPER(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 2):
+        if err := self._refusal(cmd, 2):
             return err
-        if self.stream is not None:
-            return "ERR STATE streaming"
         return self.shaper.begin(*cmd.args)
 
     def cmd_IMP(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 3):
+        if err := self._refusal(cmd, 3):
             return err
-        if self.stream is not None:
-            return "ERR STATE streaming"
         return self.shaper.impulse(*cmd.args)
 
     def cmd_STREAM(self, cmd: _Command) -> str:  # noqa: N802, D102
-        if err := self._arg_error(cmd, 0):
+        if err := self._refusal(cmd, 0, running=True):
             return err
-        if self.running:
-            return "ERR STATE running"
-        if self.stream is not None:
-            return "ERR STATE streaming"
         if self.shaper.ready is None:
             return "ERR STATE no shaper"
         if not self.enabled:

@@ -29,6 +29,11 @@ def _velocity_terms(chain, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     return Mdot @ qd - 0.5 * grad
 
 
+def _split(y: np.ndarray, nq: int, nt: int) -> list[np.ndarray]:
+    """The state ``[phi, phi', psi, psi', x_c, x_c']`` in its six parts."""
+    return np.split(np.asarray(y, dtype=float), np.cumsum([nq, nq, nt, nt, nt]))
+
+
 def dense_rhs(rig: SpatialRig, y: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``dy/dt`` of the state ``[phi, phi', psi, psi', x_c, x_c']`` at commanded rotor angles ``drive``.
 
@@ -38,13 +43,8 @@ def dense_rhs(rig: SpatialRig, y: np.ndarray, drive: np.ndarray) -> tuple[np.nda
         The derivative and the arm-side tensions.
     """
     model = spatial_model(rig)
-    chain = model.chain
-    p = rig.arm
-    nq, nt = chain.nq, rig.n_tendons
-    y = np.asarray(y, dtype=float)
-    q, qd = y[:nq], y[nq : 2 * nq]
-    psi, psid = y[2 * nq : 2 * nq + nt], y[2 * nq + nt : 2 * nq + 2 * nt]
-    x, xd = y[2 * nq + 2 * nt : 2 * nq + 3 * nt], y[2 * nq + 3 * nt :]
+    chain, p, nt = model.chain, rig.arm, rig.n_tendons
+    q, qd, psi, psid, x, xd = _split(y, chain.nq, nt)
     ctrl = Control(lam=np.full(nt, np.nan), e0=x - model.ell_ref_arm, kinv=1.0 / model.k2)
     grad, lam2, _ = chain.potential_grad(q, ctrl)
     M = chain.mass_matrix(q)
@@ -69,13 +69,8 @@ def energy(rig: SpatialRig, y: np.ndarray, drive: np.ndarray) -> float:
     The arm-side cables and the bowing are ``max_{lam >= 0} lam . e2 - lam^T (diag(1/k2) + H) lam / 2``.
     """
     model = spatial_model(rig)
-    chain = model.chain
-    p = rig.arm
-    nq, nt = chain.nq, rig.n_tendons
-    y = np.asarray(y, dtype=float)
-    q, qd = y[:nq], y[nq : 2 * nq]
-    psi, psid = y[2 * nq : 2 * nq + nt], y[2 * nq + nt : 2 * nq + 2 * nt]
-    x, xd = y[2 * nq + 2 * nt : 2 * nq + 3 * nt], y[2 * nq + 3 * nt :]
+    chain, p, nt = model.chain, rig.arm, rig.n_tendons
+    q, qd, psi, psid, x, xd = _split(y, chain.nq, nt)
     kin = chain.kinematics(q)
     ell = chain.tendon_lengths(q, kin)
     H = chain.bow_matrix(q, kin)

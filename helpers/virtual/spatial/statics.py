@@ -27,7 +27,7 @@ from scipy import linalg
 
 from helpers.virtual.spatial.chain import Control, SpatialChain
 from helpers.virtual.spatial.rig import SpatialRig
-from helpers.virtual.statics import DECAY_S, rk4_stable_step
+from helpers.virtual.statics import DECAY_S, floor_modes, modal_state, rk4_stable_step
 
 __all__ = [
     "SpatialModel",
@@ -157,11 +157,7 @@ def _floor(
     e = (1.0 / ks) * lam + H @ lam
     ctrl = Control(lam=np.full(rig.n_tendons, np.nan), e0=e - ell, kinv=1.0 / ks)
     K = chain.hessian(q, ctrl)
-    M = chain.mass_matrix(q)
-    w2, V = linalg.eigh(K, M)
-    om = np.sqrt(np.abs(w2))
-    s = 1.0 / (1.0 + (p.floor_omega / om) ** 8)
-    return np.ascontiguousarray((M @ V).T), 2.0 * p.floor_zeta * om * s
+    return floor_modes(K, chain.mass_matrix(q), p.floor_omega, p.floor_zeta)
 
 
 @functools.lru_cache(maxsize=32)
@@ -334,9 +330,7 @@ def equilibrium_state(rig: SpatialRig, eq: SpatialEquilibrium) -> tuple[np.ndarr
 def modal_analysis(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Poles and mode shapes of ``M x'' + C x' + K x = 0`` in a well-conditioned form.
 
-    Mass-normalised modal coordinates from the flexibility problem ``L_K^-1 M L_K^-T psi = omega^-2 psi``
-    (as :func:`helpers.virtual.statics.state_space_poles`; the mass-normalised form if ``K`` is not positive
-    definite), then the near-normal state ``[Omega eta, eta']``.
+    The state form of :func:`helpers.virtual.statics.modal_state` (as the planar twin's poles).
 
     Returns
     -------
@@ -348,28 +342,8 @@ def modal_analysis(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.ndar
         ``(T, Omega, left, right)``: the modal transformation ``x = T eta`` and the state matrix's
         eigenvectors, for input/output weights.
     """
-    try:
-        Lk = linalg.cholesky(K, lower=True)
-        Lki = linalg.solve_triangular(Lk, np.eye(K.shape[0]), lower=True)
-        Mt = Lki @ M @ Lki.T
-        mu, Psi = linalg.eigh(0.5 * (Mt + Mt.T))
-        mu, Psi = mu[::-1], Psi[:, ::-1]
-        Om = 1.0 / np.sqrt(mu)
-        T = (Lki.T @ Psi) * Om
-    except linalg.LinAlgError:
-        Lc = linalg.cholesky(M, lower=True)
-        Li = linalg.solve_triangular(Lc, np.eye(M.shape[0]), lower=True)
-        Kt = Li @ K @ Li.T
-        w2, Phi = linalg.eigh(0.5 * (Kt + Kt.T))
-        Om = np.sqrt(np.abs(w2))
-        T = Li.T @ Phi
-    Cm = T.T @ C @ T
-    Cm = 0.5 * (Cm + Cm.T)
+    T, Om, A = modal_state(M, C, K)
     n = M.shape[0]
-    A = np.zeros((2 * n, 2 * n))
-    A[:n, n:] = np.diag(Om)
-    A[n:, :n] = -np.diag(Om)
-    A[n:, n:] = -Cm
     ev, vl, vr = linalg.eig(A, left=True, right=True)
     order = np.argsort(np.abs(ev), kind="stable")
     ev, vl, vr = ev[order], vl[:, order], vr[:, order]
