@@ -974,7 +974,8 @@ class ShapedMove:
     def metadata(self) -> dict[str, object]:
         """The design and the floor check for a recording's scenario."""
         meta: dict[str, object] = {"design": self.shaping.metadata(), "prepull_steps": self.prepull}
-        meta["floor_check"] = None if self.check is None else self.check.metadata()
+        if self.check is not None:  # skipped (--no-floor-check): no key, as docs/recording_format.md has it
+            meta["floor_check"] = self.check.metadata()
         return meta
 
 
