@@ -29,8 +29,14 @@ _TIP = ("tip_x_mm", "tip_y_mm", "tip_z_mm")
 
 
 def stream_clock(rec: Recording) -> np.ndarray:
-    """Every sample's time from the board's ``STREAM``, s."""
-    t0 = rec.meta["scenario"]["t_stream_us"]
+    """Every sample's time from the board's ``STREAM``, s.
+
+    The recording's ``t_go_us`` (for a stream, the device time of ``STREAM``); recordings of format 3 kept it
+    in ``scenario.t_stream_us``.
+    """
+    t0 = rec.meta["scenario"].get("t_stream_us", rec.meta.get("t_go_us"))
+    if t0 is None:
+        raise ValueError(f"{rec.path}: the recording does not say when the stream started (t_go_us)")
     return (rec.frame["t_us"].to_numpy(dtype=float) - t0) * 1e-6
 
 
