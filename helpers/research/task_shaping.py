@@ -112,7 +112,8 @@ SHAPERS = ("none", *FAMILY_OF, "fixed", "scheduled", "multimode", "auto")
 """Every shaper a task-space move can run."""
 
 FIXED_AT = (0.0, 0.0)
-"""Where the ``fixed`` ZVD is designed (direction deg, bend mm): the rest, as one tendon's rig identifies."""
+"""Where the ``fixed`` ZVD is designed (direction deg from tendon 1's, bend mm): the rest, as one tendon's rig
+identifies."""
 
 SPLIT_WEIGHT = 0.25
 """A second mode at least this share of the dominant's effective weight (lead tendon) splits the modes."""
@@ -514,10 +515,11 @@ def design_move(
     if name in FAMILY_OF:
         shaper, used = FAMILIES[FAMILY_OF[name]](wn, dom[1]), (dom,)
     elif name == "fixed":
-        rest = move_modes(twin, *FIXED_AT)
+        towards = rig.tendons[0].angle_deg + FIXED_AT[0]  # tendon 1's direction (one it faces, on any rig)
+        rest = move_modes(twin, towards, FIXED_AT[1])
         shaper = _renamed(zvd(rest.omega_n(0), rest.zeta[0]), "ZVD (fixed at rest)")
         used, source = ((rest.omega_d[0], rest.zeta[0]),), "rest"
-        note = f"designed once at {FIXED_AT[1]:g} mm towards {FIXED_AT[0]:g} deg, whatever the move"
+        note = f"designed once at {FIXED_AT[1]:g} mm towards {towards:g} deg (tendon 1), whatever the move"
     elif name == "scheduled" or (name == "multimode" and (k2 is None or ratio < SPLIT_WEIGHT)):
         shaper, used = _renamed(zvd(wn, dom[1]), "ZVD (scheduled)"), (dom,)
         if name == "multimode":
