@@ -26,7 +26,7 @@ def _python(code: str, env: dict[str, str] | None = None, *args: str) -> subproc
 
 
 def test_importing_any_module_reads_no_rig_and_no_environment():
-    # the rig is a value passed down (issue 36): a bad rig named in the environment changes nothing
+    # the rig is a value passed down: a bad rig named in the environment changes nothing
     proc = _python(PACKAGE_IMPORT, {"HELPERS_RIG": "/nonexistent"})
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert int(proc.stdout.split()[-1]) > 100  # every module of the package was imported

@@ -20,8 +20,8 @@ machine code (``helpers/virtual/__pycache__/*.nbi``, ``*.nbc``) must be cleared 
 
 Why not numba's own vectorisation: LLVM's loop vectoriser gives up on a loop that writes several arrays it
 cannot prove apart (it would need run-time overlap checks beyond its budget), and numba leaves LLVM's SLP
-vectoriser off (``NUMBA_SLP_VECTORIZE=0``, since a miscompilation, numba issue 8705). Explicit vector types
-need neither pass and compile the same on every setting of both.
+vectoriser off (``NUMBA_SLP_VECTORIZE=0``, since a miscompilation reported upstream as numba/numba#8705).
+Explicit vector types need neither pass and compile the same on every setting of both.
 """
 
 from __future__ import annotations

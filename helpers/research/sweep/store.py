@@ -65,10 +65,10 @@ LEGACY_FINGERPRINTS: dict[str, str] = {
 """Fingerprints of the same physics in an earlier form -> today's. The first form was a hash of the files'
 bytes (a moved import or a reworded docstring changed it); ``82ebe100f05565cc`` is the present form of the
 same sources before the sensor chain's constants became :class:`RigParameters` fields (the rig file as a
-value, issue 36: the same numbers, the gain, offset and every ADC count checked equal) and the kernels gained
+value: the same numbers, the gain, offset and every ADC count checked equal) and the kernels gained
 a second integrator (RK4, the default, bit for bit as before: ``tests/test_virtual_world.py`` pins the
 bytes). ``9c6e7182e7a5c303`` is the same physics before the planar kernel was written once for one run or
-several in SIMD lanes (issue 38) and the statics' modal state shared with the spatial twin: the stored
+several in SIMD lanes and the statics' modal state shared with the spatial twin: the stored
 atlases' runs recomputed by ``run_chunk`` (lanes) gave the same bits (first, middle and last chunk of each of
 the three atlases, ``residual_pct`` and ``max_rotor_lag_steps``). The stored atlas (``data/sweeps/``)
 carries the first form."""
