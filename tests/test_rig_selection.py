@@ -14,10 +14,17 @@ from helpers import recordings, rigfile
 from helpers.board.programmes import Dwell, Programme, Segment
 
 PACKAGE_IMPORT = (
-    "import importlib, pkgutil, helpers; "
-    "names = [m.name for m in pkgutil.walk_packages(helpers.__path__, 'helpers.')]; "
-    "[importlib.import_module(n) for n in names]; print(len(names))"
+    "import importlib, json, pkgutil, helpers\n"
+    "names = [m.name for m in pkgutil.walk_packages(helpers.__path__, 'helpers.')]\n"
+    "optional = {}\n"
+    "for n in names:\n"
+    "    try:\n"
+    "        importlib.import_module(n)\n"
+    "    except ModuleNotFoundError as exc:\n"
+    "        optional[n] = str(exc)\n"
+    "print(json.dumps({'imported': len(names) - len(optional), 'optional': optional}))"
 )
+"""Imports every module of the package; a module whose optional extra is not installed is listed with its message."""
 
 
 def _python(code: str, env: dict[str, str] | None = None, *args: str) -> subprocess.CompletedProcess:
@@ -29,7 +36,12 @@ def test_importing_any_module_reads_no_rig_and_no_environment():
     # the rig is a value passed down: a bad rig named in the environment changes nothing
     proc = _python(PACKAGE_IMPORT, {"HELPERS_RIG": "/nonexistent"})
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert int(proc.stdout.split()[-1]) > 100  # every module of the package was imported
+    result = json.loads(proc.stdout.splitlines()[-1])
+    assert result["imported"] > 100  # every module of the package was imported
+    # only a module of an optional extra may be missing its packages, and it says which extra to install
+    for name, message in result["optional"].items():
+        assert name == "helpers.virtual.spatial.cosseratbench_solver", (name, message)
+        assert message == 'the cosseratbench solver needs the [cosseratbench] extra: pip install -e ".[cosseratbench]"'
 
 
 @pytest.mark.parametrize("where", ["before", "after"])
