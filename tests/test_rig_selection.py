@@ -24,7 +24,10 @@ PACKAGE_IMPORT = (
     "        optional[n] = str(exc)\n"
     "print(json.dumps({'imported': len(names) - len(optional), 'optional': optional}))"
 )
-"""Imports every module of the package; a module whose optional extra is not installed is listed with its message."""
+"""Imports every module of the package; one of an extra not installed is listed with its message."""
+NEEDS_COSSERATBENCH = (
+    'the cosseratbench solver needs the [cosseratbench] extra: pip install -e ".[cosseratbench]"'
+)
 
 
 def _python(code: str, env: dict[str, str] | None = None, *args: str) -> subprocess.CompletedProcess:
@@ -41,7 +44,7 @@ def test_importing_any_module_reads_no_rig_and_no_environment():
     # only a module of an optional extra may be missing its packages, and it says which extra to install
     for name, message in result["optional"].items():
         assert name == "helpers.virtual.spatial.cosseratbench_solver", (name, message)
-        assert message == 'the cosseratbench solver needs the [cosseratbench] extra: pip install -e ".[cosseratbench]"'
+        assert message == NEEDS_COSSERATBENCH
 
 
 @pytest.mark.parametrize("where", ["before", "after"])
