@@ -2,7 +2,8 @@
 
 Running the tests writes nothing into the working tree: figures and tables (which the notebooks save when
 nbval executes them) go to a temporary folder named by ``HELPERS_FIGURES_DIR``, set here before any kernel
-starts, so every kernel nbval launches inherits it. Caches that ``.gitignore`` lists (numba, hypothesis, the
+starts, so every kernel nbval launches inherits it; so does the user's data folder (``HELPERS_USER_DATA_DIR``), where a command run
+without ``--data-dir`` records. Caches that ``.gitignore`` lists (numba, hypothesis, the
 firmware build) are the only files the tests leave behind.
 """
 
@@ -26,6 +27,12 @@ if not os.environ.get("HELPERS_FIGURES_DIR"):
     _figures = tempfile.mkdtemp(prefix="helpers-test-figures-")
     os.environ["HELPERS_FIGURES_DIR"] = _figures
     atexit.register(shutil.rmtree, _figures, ignore_errors=True)
+
+# A command run without --data-dir writes into the user's data folder (my_data/<rig>/): a temporary one here.
+if not os.environ.get("HELPERS_USER_DATA_DIR"):
+    _user_data = tempfile.mkdtemp(prefix="helpers-test-my-data-")
+    os.environ["HELPERS_USER_DATA_DIR"] = _user_data
+    atexit.register(shutil.rmtree, _user_data, ignore_errors=True)
 
 
 PAPER_NOTEBOOKS = range(0, 6)

@@ -24,6 +24,11 @@ STORED_TABLES_DIR: Path = REPO_ROOT / "figures"
 notebooks to *read* (the previous virtual rig's Table II, the virtual rig's study tables). Notebooks write
 through :func:`figure_path`; they read these through :func:`stored_table`."""
 
+USER_DATA_ENV = "HELPERS_USER_DATA_DIR"
+"""Environment variable that moves the user's data folder (:func:`user_data_dir`) elsewhere (the test suite
+points it at a temporary folder, so that a command run without ``--data-dir`` writes nothing into the working
+tree)."""
+
 EXTERNAL_DATA_DIR: Path = DATA_DIR / "external"
 """Data made elsewhere, in their own formats and with their licences (``docs/external_data.md``): read only,
 never recordings of this project (``helpers.recordings.catalogue`` leaves the folder out)."""
@@ -44,6 +49,37 @@ VIRTUAL_RIG_REGISTRY: Path = Path(tempfile.gettempdir()) / "helpers-virtual-rigs
 """Where ``python -m helpers serve-virtual-rig`` announces its pseudo-terminals, so that recordings made
 through them are labelled ``virtual-rig``, never ``hardware`` (read by
 ``helpers.rig.ports.virtual_source_for``)."""
+
+
+def user_data_dir(rig: object) -> Path:
+    """Where a user's recordings and results go by default: ``my_data/<rig name>/`` (gitignored).
+
+    ``data/`` holds the project's shipped recordings (the notebooks analyse them); commands write there only
+    when told to (``--data-dir data``). Every command that records or reads a previous step's result
+    (calibration, identification, tuning) uses this folder unless ``--data-dir`` is given: the same layout as
+    ``data/`` (``calibration/``, ``identification/``, ``experiments/``, ``tuning/``, one's own groups), one
+    folder per rig, so that two rigs never mix. ``HELPERS_USER_DATA_DIR`` (read when called) replaces
+    ``my_data``.
+
+    Parameters
+    ----------
+    rig : RigFile or str
+        The rig (its ``name``) or a rig's name.
+
+    Returns
+    -------
+    pathlib.Path
+        ``<repository>/my_data/<rig name>`` (not created).
+
+    Raises
+    ------
+    ValueError
+        If the name is not a single folder name.
+    """
+    name = str(getattr(rig, "name", rig))
+    if name in ("", ".", "..") or "/" in name or "\\" in name:
+        raise ValueError(f"rig name {name!r} cannot name a folder under my_data/")
+    return Path(os.environ.get(USER_DATA_ENV) or REPO_ROOT / "my_data") / name
 
 
 def figure_path(name: str) -> Path:

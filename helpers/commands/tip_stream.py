@@ -15,13 +15,18 @@ must stand at rest) into ``data/<group>/tip_<path>_<shaper>_b<bend>``.
 from __future__ import annotations
 
 import argparse
+import math
+from collections.abc import Callable
 from typing import Any
+
+import numpy as np
 
 from helpers.base.paths import repo_path
 from helpers.commands.recording_paths import recording_path
 from helpers.commands.session import recording_session
 from helpers.recordings import refuse_existing
 from helpers.research.tip_stream import (
+    TooFast,
     board_counts,
     board_tensions,
     check_plan,
@@ -58,13 +63,60 @@ def _plan(args: argparse.Namespace, rig: Any) -> tuple[Any, Any, Any]:
             "(--rig four-tendon)"
         )
     speed = args.v_in if args.v_in is not None else TIP_SPEED_MM_S
-    path = figure_path(args.path, args.bend_mm, speed_mm_s=speed, seed=args.path_seed,
-                       turn_deg=args.direction_deg or 0.0)  # fmt: skip
-    plan = plan_stream(
-        rig, path, margin_n=args.margin_n
-    )  # the floor at every period: refused before any port
+    limit = rig.hardware.speed_limit_mm_s
+    if speed > limit:
+        raise SafetyError(f"tip stream at --v-in {speed:g} mm/s refused: rig {rig.name!r} moves a cable at "
+                          f"most {limit:g} mm/s (speed_limit_mm_s)")  # fmt: skip
+
+    def figure(v: float) -> Any:
+        return figure_path(args.path, args.bend_mm, speed_mm_s=v, seed=args.path_seed,
+                           turn_deg=args.direction_deg or 0.0)  # fmt: skip
+
+    path = figure(speed)
+    try:
+        plan = plan_stream(rig, path, margin_n=args.margin_n)  # the floor at every period: before any port
+    except TooFast as exc:
+        raise TooFast(f"{exc}: {_fitting(rig, figure, speed, args.margin_n)}") from None
+    if not np.abs(plan.units).any():
+        raise ValueError(f"--bend-mm {args.bend_mm:g}: the {args.path} path moves no tendon a whole step "
+                         "(a stream of zero steps); nothing recorded")  # fmt: skip
     design = stream_design(rig, path, args.shaper)
     return path, plan, design
+
+
+FIT_TRIES = 6
+"""Halvings of the figure's speed, then as many bisections, that :func:`_fitting` plans at most."""
+
+
+def _fitting(rig: Any, figure: Callable[[float], Any], speed: float, margin_n: float) -> str:
+    """What figure speed fits, found by planning the figure (halving, then bisecting; every answer planned).
+
+    A speed fits when the whole plan passes (the speed limit, the floor, the statics); the set-points of a
+    line scale with the figure's speed, at a corner the statics make them scale less, so the speed is found
+    by planning, not by proportion.
+    """
+
+    def fits(v: float) -> bool:
+        try:
+            plan_stream(rig, figure(v), margin_n=margin_n)
+        except (SafetyError, ValueError, RuntimeError):  # too fast, or refused otherwise
+            return False
+        return True
+
+    hi, lo = speed, None
+    for _ in range(FIT_TRIES):
+        if fits(hi / 2):
+            lo = hi / 2
+            break
+        hi /= 2
+    if lo is None:
+        return f"still too fast at {hi:g} mm/s: a smaller --bend-mm or another --path"
+    for _ in range(FIT_TRIES):
+        mid = math.floor((lo + hi) / 2 * 10) / 10
+        if mid <= lo:
+            break
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    return f"--v-in {lo:g} fits (planned; {hi:g} is refused)"
 
 
 def _print(rig: Any, path: Any, plan: Any, design: Any) -> None:

@@ -374,9 +374,16 @@ def move_programme(
         raise ValueError(
             f"times must satisfy 0 <= t_up < t_down < t_end, got {t_up_s}, {t_down_s}, {t_end_s}"
         )
+    limit = rig.hardware.speed_limit_mm_s
+    if speed_mm_s > limit:
+        raise ValueError(f"the lead tendon at {speed_mm_s:g} mm/s exceeds the rig's speed limit: at most "
+                         f"{limit:g} mm/s (speed_limit_mm_s)")  # fmt: skip
     mm = derived(rig).mm_per_step
     lead = plan.lead
     window_s = abs(plan.steps[lead]) * mm[lead] / speed_mm_s
+    # at the rig's speed limit, the rounded speed may ask for a step a fraction of a us too fast: the fastest
+    # the board takes (as the pulse's quantiser does)
+    window_s = max(window_s, max(map(abs, plan.steps)) * derived(rig).min_interval_us / 1e6)
     duration = window_s + (float(shaper.times[-1]) if shaper is not None else 0.0)
     if t_up_s + duration > t_down_s or t_down_s + duration > t_end_s:
         raise ValueError(f"the move lasts {duration:.3f} s: it does not fit between t_up, t_down and t_end")
@@ -386,15 +393,18 @@ def move_programme(
     def span_ms(items: list[Move | Dwell]) -> float:
         return sum(it.duration_us for it in items) / 1000
 
-    items: list[Move | Dwell] = []
-    if round(1000 * t_up_s):
-        items.append(Dwell(round(1000 * t_up_s)))
+    longest = rig.hardware.max_dwell_ms
+
+    def dwell(ms: int) -> list[Move | Dwell]:  # split at the board's longest dwell
+        whole, rest = divmod(ms, longest) if ms > 0 else (0, 0)
+        return [Dwell(longest)] * whole + ([Dwell(rest)] if rest else [])
+
+    items: list[Move | Dwell] = dwell(round(1000 * t_up_s))
     items += up
-    hold = round(1000 * t_down_s - 1000 * t_up_s - span_ms(up))
-    if hold > 0:
-        items.append(Dwell(hold))
+    items += dwell(round(1000 * t_down_s - 1000 * t_up_s - span_ms(up)))
     items += down
     tail = round(1000 * t_end_s - 1000 * t_down_s - span_ms(down))
-    if tail > 0:
-        items.append(Dwell(tail))
+    ends_us = 1000 * tail + sum(it.duration_us for it in items)  # the roundings may end it past t_end: trim
+    tail -= max(0, math.ceil((ends_us - 1e6 * t_end_s) / 1000 - 1e-9))
+    items += dwell(tail)
     return Programme(tuple(items))

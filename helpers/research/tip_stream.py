@@ -579,6 +579,7 @@ def plan_stream(
     cum[0] = 0.0
     units = np.diff(cum, axis=0).astype(np.int64)
     mm_s = units * hs.STEPS_PER_S_PER_UNIT * (mm_m * 1e3)
+    _refuse_too_fast(units, rig, path, what)
     SetpointSource(mm_s, rig).check_all()  # the speed limit, one line naming the tendon and the set-point
     positions = cum / UNITS_PER_STEP
     tension, tip = _tensions(twin, positions * mm_m, knots, eqs, what, path)
@@ -645,6 +646,29 @@ def _tensions(
         out[k] = eq.tension
         tip[k] = eq.tip * 1e3
     return out, tip
+
+
+class TooFast(SafetyError):
+    """A figure whose set-points exceed the stream's speed limit at its speed.
+
+    A slower one may fit: the set-points of a line scale with the figure's speed; at a corner the statics
+    make them scale less.
+    """
+
+
+def _refuse_too_fast(units: np.ndarray, rig: RigFile, path: TipPath, what: str) -> None:
+    """Refuse set-points over the stream's speed limit, naming the fastest tendon and the speed that fits."""
+    limit = hs.v_max(derived(rig).min_interval_us)
+    peak = np.abs(units).max(axis=0) if len(units) else np.zeros(rig.n_tendons)
+    i = int(np.argmax(peak))
+    if peak[i] <= limit:
+        return
+    unit = hs.STEPS_PER_S_PER_UNIT * derived(rig).mm_per_step[i]
+    who = f"tendon {i + 1}" if rig.n_tendons > 1 else "the cable"
+    raise TooFast(
+        f"{what} at {path.speed_mm_s:g} mm/s refused: {who} would run at {peak[i] * unit:.1f} mm/s, over the "
+        f"stream's speed limit of {limit * unit:.1f} mm/s"
+    )
 
 
 def check_plan(
