@@ -11,19 +11,22 @@ disables the driver, stops the DAQ and saves what it recorded, and the line says
 
 from __future__ import annotations
 
+# Only the standard library and the core's light modules (standard library only) load here: the rig file
+# (numpy) and the command's module load by name once main() has installed the handlers (helpers/__init__.py
+# installs them even earlier for ``python -m helpers``).
 import argparse
+import contextlib
 import errno
 import importlib
 import sys
+import threading
 import traceback
 from pathlib import Path
+from typing import Any
 
-# Only the standard library and helpers.base.signals (standard library only) load before the signal handlers
-# are
-# in place: a Ctrl-C, SIGTERM or SIGHUP while the heavy modules load gives one line and its status too.
-from helpers import rigfile  # the standard library and numpy only
+from helpers.base.cli import RIG_HELP, rig_option
 from helpers.base.paths import shown
-from helpers.base.signals import Interrupted, interrupts_from_signals
+from helpers.base.signals import Interrupted, end_at_once_on_signals, interrupts_from_signals
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": (
@@ -61,8 +64,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
 }
 """command name -> (module, one-line help)."""
-
-RIG_HELP = "the rig file (a path, or a shipped rig's name: paper, four-tendon, ...; docs/rig_file.md)"
 
 EXIT_CODES: dict[int, str] = {
     0: "success",
@@ -163,12 +164,24 @@ class _Parser(argparse.ArgumentParser):
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line and return its exit status."""
+    """Run the command line and return its exit status.
+
+    Without ``argv`` (a process of its own: ``python -m helpers``, ``continuum-helpers``) a signal while the
+    modules load and the arguments are parsed ends the process at once with one line and its status
+    (:func:`helpers.base.signals.end_at_once_on_signals`); the command itself runs under
+    :func:`helpers.base.signals.interrupts_from_signals`, which ends a run cleanly. With ``argv`` (called in
+    a process that has its own handlers) both parts run under the latter.
+    """
+    own_process = argv is None and threading.current_thread() is threading.main_thread()
+    if own_process:
+        end_at_once_on_signals()
     argv = sys.argv[1:] if argv is None else argv
     debug = "--debug" in argv
     try:
-        with interrupts_from_signals():  # first: the commands' modules take seconds to load
-            return _main(argv)
+        with contextlib.nullcontext() if own_process else interrupts_from_signals():
+            args, command = _parse(argv)
+        with interrupts_from_signals():
+            return int(command.run(args))
     except SystemExit as exc:
         if isinstance(exc.code, str):  # a command's usage refusal: one line, status 2
             print(f"error: {exc.code}", file=sys.stderr)
@@ -182,7 +195,8 @@ def main(argv: list[str] | None = None) -> int:
         return status
 
 
-def _main(argv: list[str]) -> int:
+def _parse(argv: list[str]) -> tuple[argparse.Namespace, Any]:
+    """The parsed arguments (the rig file loaded into ``args.rig``) and the command's module."""
     parser = _Parser(
         prog="python -m helpers",
         description=__doc__.splitlines()[0].replace("``", ""),
@@ -190,18 +204,18 @@ def _main(argv: list[str]) -> int:
     )
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     parser.add_argument("--rig", metavar="FILE", default="paper", help=RIG_HELP)
-    rig_option = argparse.ArgumentParser(add_help=False)  # the same option after the command's name
-    rig_option.add_argument("--rig", metavar="FILE", default=argparse.SUPPRESS, help=RIG_HELP)
+    after = rig_option()  # the same option after the command's name
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")
     chosen = next((a for a in argv if a in COMMANDS), None)
     for name, (module, help_text) in COMMANDS.items():
-        p = sub.add_parser(name, help=help_text, description=help_text, parents=[rig_option])
+        p = sub.add_parser(name, help=help_text, description=help_text, parents=[after])
         p.set_defaults(module=module)
         if name == chosen:
             importlib.import_module(module).add_arguments(p)
     args = parser.parse_args(argv)
+    rigfile = importlib.import_module("helpers.rigfile")  # after the handlers: it loads numpy
     args.rig = rigfile.load(rigfile.resolve(args.rig))  # the rig, read once, passed to the command as a value
-    return int(importlib.import_module(args.module).run(args))
+    return args, importlib.import_module(args.module)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -43,3 +44,48 @@ def test_a_signal_while_the_command_loads_gives_one_line_and_its_status(command,
     assert proc.returncode == STATUS[signum], (lines, out[-300:])
     assert len(lines) == 1 and lines[0].startswith("interrupted by"), lines
     assert "Traceback" not in err
+
+
+DELAYS_S = (0.0, 0.05, 0.2, 0.5)
+"""Delays after the package's first module loaded (the handlers are in place) at which a signal is sent."""
+
+
+@pytest.mark.parametrize("delay", DELAYS_S)
+@pytest.mark.parametrize("signum", list(STATUS), ids=lambda s: signal.Signals(s).name)
+def test_a_signal_at_any_instant_of_start_up_gives_one_line_and_its_status(signum, delay):
+    """From the package's first lines (helpers/__init__.py installs the handlers for ``python -m helpers``)
+    through the imports, the parsing and the run: one line and the documented status, or the command had
+    finished (0). Readiness, not a clock: the signal goes out ``delay`` after the first module the package
+    loads after its handlers (``helpers.base.style``) has loaded; each delay lands wherever the host is by
+    then. Before that (Python's own start-up) the signal is Python's: see docs/faults.md."""
+    proc = subprocess.Popen(
+        [sys.executable, "-X", "importtime", "-m", "helpers", "metrics", "data/experiments"],
+        cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    seen = []
+    for line in proc.stderr:
+        seen.append(line)
+        if line.rstrip().endswith("helpers.base.style"):
+            break
+    if delay:
+        time.sleep(delay)
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=120)
+    lines = [ln for ln in (*seen, *err.splitlines(True)) if not ln.startswith("import time:")]
+    assert "Traceback" not in "".join(lines), lines
+    assert proc.returncode in (STATUS[signum], 0), (proc.returncode, lines)
+    if proc.returncode:
+        assert len(lines) == 1 and lines[0].startswith("interrupted by"), lines
+    else:  # finished before the signal: the table was printed whole
+        assert "Per scenario" in out and not lines
+
+
+def test_python_m_helpers_is_recognised_whatever_the_interpreter_options():
+    from helpers import _run_as_command
+
+    assert _run_as_command(["python", "-m", "helpers", "metrics"])
+    assert _run_as_command(["python", "-X", "importtime", "-u", "-m", "helpers"])
+    assert not _run_as_command(["python", "-m", "helpers.rigfile.firmware_header", "x"])
+    assert not _run_as_command(["python", "-m", "pytest", "-m", "helpers"])
+    assert not _run_as_command(["python", "-c", "import x", "-m", "helpers"])
+    assert not _run_as_command(["python", "script.py", "-m", "helpers"])

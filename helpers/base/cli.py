@@ -10,7 +10,18 @@ import argparse
 import math
 from typing import Any
 
-from helpers.base.validate import RIG_NAME
+RIG_HELP = "the rig file (a path, or a shipped rig's name: paper, four-tendon, ...; docs/rig_file.md)"
+
+
+def rig_option() -> argparse.ArgumentParser:
+    """A parent parser holding ``--rig FILE`` for a command's (or sub-command's) own options.
+
+    Its default is suppressed, so that ``python -m helpers --rig FILE <command>`` (the default ``paper``) is
+    kept unless the option is given again after the command.
+    """
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument("--rig", metavar="FILE", default=argparse.SUPPRESS, help=RIG_HELP)
+    return parent
 
 
 def arg_number(lo: float, hi: float, kind: type = float, lo_open: bool = False) -> Any:
@@ -35,7 +46,8 @@ def arg_number(lo: float, hi: float, kind: type = float, lo_open: bool = False) 
 
 
 def arg_rig_name(text: str) -> str:
-    """An argparse ``type`` for a virtual rig's name (:data:`RIG_NAME`)."""
+    """An argparse ``type`` for a virtual rig's name (:data:`helpers.base.validate.RIG_NAME`)."""
+    from helpers.base.validate import RIG_NAME  # numpy: not before the command line's signal handlers
     if not RIG_NAME.match(text):
         raise argparse.ArgumentTypeError(
             f"invalid virtual rig name {text!r}: letters, digits, '_', '-', '.' (at most 64)"

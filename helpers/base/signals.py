@@ -21,7 +21,9 @@ All of this works in the main thread; elsewhere (where Python cannot install han
 
 from __future__ import annotations
 
+import os
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -59,6 +61,26 @@ def _handler(signum: int, frame: object) -> None:
         _state.armed = False
         _state.depth += 1
     raise Interrupted(signum)
+
+
+def _at_once(signum: int, frame: object) -> None:
+    name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+    sys.stderr.write(f"interrupted by {name} (nothing was running)\n")
+    sys.stderr.flush()
+    os._exit(128 + signum)
+
+
+def end_at_once_on_signals() -> None:
+    """SIGINT, SIGTERM and SIGHUP end the process at once: one line on stderr, status 130, 143 or 129.
+
+    For a command line while it starts (its modules load, its arguments are parsed), when nothing is open
+    yet: an exception raised by a handler could land in an import's clean-up callback, where Python ignores
+    it and the command would run on. The command itself then runs under :func:`interrupts_from_signals`.
+    Main thread only (elsewhere a no-op).
+    """
+    if threading.current_thread() is threading.main_thread():
+        for s in HELD:
+            signal.signal(s, _at_once)
 
 
 @contextmanager
