@@ -33,7 +33,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "helpers.commands.reproduce",
         "execute every notebook in order; regenerate figures/ and tables",
     ),
-    "record": ("helpers.commands.record", "record experiments into data/ (hardware or virtual rig)"),
+    "record": ("helpers.commands.record", "record experiments into my_data/<rig>/ (hardware or virtual rig)"),
     "metrics": (
         "helpers.commands.metrics_report",
         "Table II metrics (peak, overshoot, settling) of any recordings",

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 RIG_HELP = "the rig file (a path, or a shipped rig's name: paper, four-tendon, ...; docs/rig_file.md)"
@@ -22,6 +24,46 @@ def rig_option() -> argparse.ArgumentParser:
     parent = argparse.ArgumentParser(add_help=False)
     parent.add_argument("--rig", metavar="FILE", default=argparse.SUPPRESS, help=RIG_HELP)
     return parent
+
+
+def step_command(args: argparse.Namespace, words: str) -> str:
+    """The command line that makes a previous step's result for the same rig and data folder.
+
+    E.g. ``python -m helpers --rig long-arm record calibration --data-dir D`` (``--rig`` left out for the
+    paper's rig, ``--data-dir`` for the default folder, :func:`helpers.base.paths.user_data_dir`).
+    """
+    from helpers.base.paths import REPO_ROOT, shown, user_data_dir
+
+    rig = args.rig
+    source = Path(getattr(rig, "source", ""))
+    shipped = source.parent == REPO_ROOT / "rigs" and source.stem == rig.name
+    parts = ["python -m helpers"]
+    if not (shipped and rig.name == "paper"):
+        parts.append(f"--rig {rig.name if shipped else shown(source)}")
+    parts.append(words)
+    data_dir = getattr(args, "data_dir", None)
+    if data_dir is not None and Path(data_dir).resolve() != user_data_dir(rig).resolve():
+        parts.append(f"--data-dir {data_dir}")  # as given
+    return " ".join(parts)
+
+
+def needs(load: Callable[[Path], Any], path: Path, what: str, args: argparse.Namespace, words: str) -> Any:
+    """``load(path)`` of a previous step's result; if missing, one line naming the command that makes it.
+
+    Raises
+    ------
+    helpers.base.jsonfile.MissingDataError
+        ``<path>: no <what> yet: make it with `<command>``` (exit status 5, ``docs/faults.md``).
+    """
+    from helpers.base.jsonfile import MissingDataError
+    from helpers.base.paths import repo_path
+
+    try:
+        return load(path)
+    except MissingDataError:
+        made = step_command(args, words)
+        raise MissingDataError(f"{repo_path(path)}: no {what} yet: make it with `{made}` (add --ports for "
+                               "hardware)") from None  # fmt: skip
 
 
 def arg_number(lo: float, hi: float, kind: type = float, lo_open: bool = False) -> Any:

@@ -1,29 +1,32 @@
-"""``python -m helpers record``: record experiments into ``data/`` through :class:`helpers.rig.Rig`.
+"""``python -m helpers record``: record experiments into the data folder through :class:`helpers.rig.Rig`.
 
 A procedure on top of the rig: it combines the drivers (:mod:`helpers.rig`), the identification
 (:mod:`helpers.paper.identify`), the shaper design (:mod:`helpers.paper.shapers`) and the load-cell
-calibration
-(:mod:`helpers.paper.calibration`).
+calibration (:mod:`helpers.paper.calibration`).
 
 The same code path serves the hardware (``--ports auto`` or ``--ports DAQ,STEPPER``) and the virtual rig
 (``--ports virtual``, the default: in-process; or the device paths printed by ``serve-virtual-rig``).
 
-Commands::
+The data folder is ``my_data/<rig name>/`` (:func:`helpers.base.paths.user_data_dir`, gitignored) unless
+``--data-dir`` is given; ``--data-dir data`` regenerates the project's shipped recordings. Each sub-command
+has its own options (``record pulse --help``)::
 
-    python -m helpers record calibration                     # known loads -> data/calibration/, fit, save
+    python -m helpers record calibration                     # known loads -> calibration/, fit, save
+    python -m helpers record identification                  # the identification run -> result.json
+    python -m helpers record table-i --repetitions 3         # 12 scenarios x 3
     python -m helpers record pulse --v-in 250 --x-f 25 --system zvd --repetitions 3 --group mine
     python -m helpers record pulse --v-in 200 --x-f 20 --design my_design.json   # a saved design
-    python -m helpers record table-i --repetitions 3         # 12 scenarios x 3
-    python -m helpers record all                             # identification + result.json + Table I x 3
+    python -m helpers record all                             # identification, then Table I x 3
     python -m helpers --rig four-tendon record move --direction-deg 45 --bend-mm 10 --shaper zvd --dry-run
 
 ``table-i`` and pulses with ``--system zv``, ``zvd`` or ``ei`` design the shapers from
-``data/identification/result.json`` (written by ``record all`` or notebook 02's live cell) unless ``--zeta``
-and ``--omega-d`` are given. A pulse with ``--design FILE`` runs a design saved by
-:func:`helpers.research.design.save_design` (a shaper, an Up/Down pair or a map-following schedule; the
-designs of a
-mode map, ``docs/shaper_design.md``) under the design's system. A recording that exists is never
-overwritten unless ``--replace`` is given; two recorders cannot write into one group at once.
+``identification/result.json`` in the data folder (written by ``record identification``, ``record all`` or
+notebook 02's live cell) unless ``--zeta`` and ``--omega-d`` are given; a missing calibration or
+identification is named in one line with the command that makes it (exit status 5). A pulse with
+``--design FILE`` runs a design saved by :func:`helpers.research.design.save_design` (a shaper, an Up/Down
+pair or a map-following schedule; the designs of a mode map, ``docs/shaper_design.md``) under the design's
+system. A recording that exists is never overwritten unless ``--replace`` is given; two recorders cannot
+write into one group at once.
 """
 
 from __future__ import annotations
@@ -33,13 +36,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from helpers.base.cli import DefaultsHelp, arg_number
+from helpers.base.cli import DefaultsHelp, arg_number, needs, rig_option, step_command
 from helpers.base.jsonfile import MissingDataError
-from helpers.base.paths import DATA_DIR, repo_path
+from helpers.base.paths import DATA_DIR, repo_path, user_data_dir
 from helpers.board.programmes import experiment_programme
 from helpers.commands.recording_paths import check_group, recording_path
 from helpers.commands.session import recording_session
-from helpers.commands.tip_stream import record_tip_stream
+from helpers.commands.tip_stream import TIP_SPEED_MM_S, record_tip_stream
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
 from helpers.paper.calibration import (
@@ -61,6 +64,7 @@ from helpers.research.task_shaping import ModeGrid, shaped_move
 from helpers.research.task_space import check_travel
 from helpers.research.teleop import record_streams
 from helpers.research.tip_stream import FIGURES as TIP_FIGURES
+from helpers.research.tip_stream import SHAPERS as TIP_SHAPERS
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.static import calibration_masses_kg, record_calibration
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
@@ -80,7 +84,7 @@ SYSTEM_HELP = (
 )
 DEFAULT_GROUPS = {
     "calibration": "calibration", "pulse": "runs", "table-i": "experiments", "all": "experiments",
-    "streams": "streams", "move": "moves", "tip-stream": "tip_streams",
+    "streams": "streams", "move": "moves", "tip-stream": "tip_streams", "identification": "identification",
 }  # fmt: skip
 """The lock a recorder holds on its group for the whole session (another recorder is refused)."""
 
@@ -99,149 +103,210 @@ def _group(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the ``record`` options (every default and accepted range is shown by ``--help``)."""
-    parser.formatter_class = DefaultsHelp
-    parser.add_argument(
-        "what",
-        choices=["calibration", "pulse", "table-i", "all", "streams", "move", "tip-stream"],  # RECORDERS, +2
-        help="calibration: known loads; pulse: one up-hold-down move; table-i: the paper's 12 scenarios; "
-        "all: the identification run, its analysis, then Table I; streams: notebook 08's two arbitrary "
-        "motions, unshaped, zv, zvd and scheduled (needs tuning/mode_map.json from `tune`); move: a bend "
-        "of a rig with several tendons (--direction-deg, --bend-mm; docs/task_space.md); tip-stream: a "
-        "figure of bends (--path, --bend-mm) streamed to a rig with several tendons, one shaper for all",
-    )
-    parser.add_argument(
-        "--ports",
-        default="virtual",
+WHAT: dict[str, str] = {
+    "calibration": "known loads hung on the load cell; the fit saved as calibration/calibration.json",
+    "identification": "the identification run (100 mm/s, 10 mm, scaled to the rig) and its analysis, saved "
+    "as identification/result.json (what table-i, pulse and tune design from)",
+    "table-i": "the paper's 12 scenarios (Table I), the TDFs designed from identification/result.json",
+    "all": "identification, then table-i with the TDFs designed from it",
+    "pulse": "one up-hold-down move (a scenario of your own), unshaped or shaped",
+    "streams": "notebook 08's two arbitrary motions, unshaped, zv, zvd and scheduled (needs "
+    "tuning/mode_map.json from `tune`)",
+    "move": "a bend of a rig with several tendons (docs/task_space.md)",
+    "tip-stream": "a figure of bends streamed to a rig with several tendons, one shaper for all",
+}
+"""``record``'s sub-commands -> their one-line help."""
+
+DATA_DIR_HELP = (
+    "the data folder (default: my_data/<rig name>/, gitignored; `--data-dir data` writes the project's "
+    "shipped recordings)"
+)
+
+_ABSENT: dict[str, Any] = {
+    "v_in": None, "x_f": None, "system": None, "design": None, "zeta": None, "omega_d": None,
+    "identification": None, "repetitions": None, "t_end": 12.0, "duration": 1.0, "name": None,
+    "direction_deg": None, "bend_mm": None, "path": "square", "path_seed": 0, "margin_n": 0.0,
+    "shaper": "none", "mode_grid": None, "no_floor_check": False, "group": None,
+}  # fmt: skip
+"""The options a sub-command does not have, as the code that serves several reads them."""
+
+
+def _parent() -> argparse.ArgumentParser:
+    return argparse.ArgumentParser(add_help=False)
+
+
+def _session_options() -> argparse.ArgumentParser:
+    """Every recorder's options: where it records, into which data folder, and how."""
+    p = _parent()
+    p.add_argument(
+        "--ports", default="virtual",
         help="'virtual' (in-process virtual rig), 'auto' (find the boards by USB id) or 'DAQ,STEPPER' "
         "(device paths, e.g. those serve-virtual-rig prints)",
-    )
-    parser.add_argument("--virtual-instance", "--rig-name", dest="rig_name", default="record", type=_name,
-                        help="name of the in-process virtual rig instance (old spelling: --rig-name)")
-    parser.add_argument(
-        "--seed",
-        type=arg_number(0, 2**32 - 1 - 10_000, int),
-        default=0,
+    )  # fmt: skip
+    p.add_argument("--virtual-instance", "--rig-name", dest="rig_name", default="record", type=_name,
+                   help="name of the in-process virtual rig instance (old spelling: --rig-name)")  # fmt: skip
+    p.add_argument(
+        "--seed", type=arg_number(0, 2**32 - 1 - 10_000, int), default=0,
         help="in-process virtual rig: noise seed of the first run; run k gets seed + k (recorded)",
-    )
-    parser.add_argument(
-        "--v-in", type=arg_number(0, 1e6, lo_open=True),
-        help="pulse speed, mm/s, in (0, the rig's speed_limit_mm_s] (paper: 400); required for pulse",
     )  # fmt: skip
-    parser.add_argument(
-        "--x-f", type=arg_number(0, 1e6, lo_open=True),
-        help="pulse displacement, mm, in (0, the rig's travel in whole steps] (paper: 39.82 mm, 156 steps); "
-        "required for pulse",
+    p.add_argument(
+        "--rate", type=arg_number(1, 1_000_000, int), default=None,
+        help="DAQ sample rate, Hz, within the rig's daq_rate_min_hz-daq_rate_max_hz, checked against the rig "
+        "(paper: 100-2000; default: the rig's daq_rate_default_hz, 1000)",
     )  # fmt: skip
-    parser.add_argument("--system", choices=list(SYSTEMS), default=None, help=SYSTEM_HELP)
-    parser.add_argument(
-        "--direction-deg", type=arg_number(-360, 360),
-        help="move: the bend's direction, deg around the backbone (0 = towards tendon 1, counter-clockwise); "
-        "tip-stream: the figure turned by it (the line's direction, the square's first corner; default 0)",
+    p.add_argument("--data-dir", type=Path, default=None, help=DATA_DIR_HELP)
+    p.add_argument(
+        "--replace", action="store_true",
+        help="replace recordings of the same names (each kept until the new one is whole)",
     )  # fmt: skip
-    parser.add_argument(
-        "--bend-mm", type=arg_number(0, 1000, lo_open=True),
-        help="move: the bend's magnitude, mm of cable (as the direction map's bend_mm); tip-stream: the "
-        "figure's size",
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument(
+        "--dry-run", action="store_true",
+        help="check everything and print the recordings that would be made, without opening a port",
     )  # fmt: skip
-    parser.add_argument(
-        "--path", choices=list(TIP_FIGURES), default="square",
-        help="tip-stream: the figure of bends (docs/task_space.md, arbitrary motion)",
+    return p
+
+
+def _group_option(default: str) -> argparse.ArgumentParser:
+    p = _parent()
+    p.add_argument("--group", type=_group, default=None,
+                   help=f"folder under the data folder (default: {default})")  # fmt: skip
+    return p
+
+
+def _t_end_option() -> argparse.ArgumentParser:
+    p = _parent()
+    p.add_argument(
+        "--t-end", type=arg_number(0, 1e6, lo_open=True), default=12.0,
+        help="programme (and recording) length, s, in (0, the rig's max_programme_s], checked against the "
+        "rig (paper: 600)",
     )  # fmt: skip
-    parser.add_argument(
-        "--path-seed", type=arg_number(0, 2**32 - 1, int), default=0,
-        help="tip-stream: the seed of the random path",
-    )  # fmt: skip
-    parser.add_argument(
-        "--margin-n", type=arg_number(0, 10), default=0.0,
-        help="tip-stream: trim the stops' whole steps to the tension floor plus this margin, N (0: record "
-        "move's policy)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--shaper", choices=list(MOVE_SHAPERS), default="none",
-        help="move: none; a family (zv, zvd, zvdd, mzv, ei, ei2, ei3, umzv) at the dominant mode at the "
-        "bend; scheduled (ZVD on the mode grid), multimode (two split modes) or auto (docs/task_space.md); "
-        "tip-stream: none, zv or zvd from the map's mode at the path's stops, one shaper for every tendon",
-    )  # fmt: skip
-    parser.add_argument(
-        "--mode-grid", type=Path, default=None,
-        help="move: a mode grid (CSV of helpers.research.task_shaping.ModeGrid.write_csv) that scheduled, "
-        "multimode and auto read the modes off (default: the modes at the move itself)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--no-floor-check", action="store_true",
-        help="move: do not simulate the shaped move's tensions in the spatial twin (nor change the "
-        "pretension or the design when a tendon would dip below the floor)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--design",
-        type=Path,
-        default=None,
-        help="pulse: run this saved design (JSON of helpers.research.design.save_design: a shaper, an "
-        "Up/Down pair or a map-following schedule, which also sets --v-in and --x-f); default: none, design "
-        "from --system",
-    )
-    parser.add_argument(
+    return p
+
+
+def _repetitions_option(default: int) -> argparse.ArgumentParser:
+    p = _parent()
+    p.add_argument("--repetitions", type=arg_number(1, 100, int), default=None,
+                   help=f"runs per scenario, 1-100 (default: {default})")  # fmt: skip
+    return p
+
+
+def _identified_options() -> argparse.ArgumentParser:
+    p = _parent()
+    p.add_argument(
         "--zeta", type=arg_number(0, 1, lo_open=True),
         help="design the shapers from this damping ratio (default: the identification result's)",
-    )
-    parser.add_argument(
+    )  # fmt: skip
+    p.add_argument(
         "--omega-d", type=arg_number(0, 1e4, lo_open=True),
         help="... and this damped frequency, rad/s (default: the identification result's)",
+    )  # fmt: skip
+    p.add_argument("--identification", default=None,
+                   help="identification result JSON (default: identification/result.json in the data folder, "
+                   "made by `record identification`)")  # fmt: skip
+    return p
+
+
+def _bend_options(what: str) -> argparse.ArgumentParser:
+    p = _parent()
+    move = what == "move"
+    p.add_argument(
+        "--direction-deg", type=arg_number(-360, 360),
+        help="the bend's direction, deg around the backbone (0 = towards tendon 1, counter-clockwise)" if move
+        else "the figure turned by this angle, deg (the line's direction, the square's first corner; "
+        "default 0)",
+    )  # fmt: skip
+    p.add_argument(
+        "--bend-mm", type=arg_number(0, 1000, lo_open=True),
+        help=("the bend's magnitude, mm of cable (as the direction map's bend_mm)" if move else
+              "the figure's size, mm of bend") + "; required; within every tendon's travel and at least one "
+        "whole step on some tendon (else refused: exit 3 for the travel, 2 for a move of zero steps)",
+    )  # fmt: skip
+    limit = "the rig's speed_limit_mm_s (faster: refused, exit 3, naming the limit)"
+    p.add_argument(
+        "--v-in", type=arg_number(0, 1e6, lo_open=True),
+        help=f"the lead tendon's cable speed, mm/s, in (0, {limit}] (default {MOVE_SPEED_MM_S:g})"
+        if move else
+        f"the figure's speed, mm of bend per second, in (0, {limit}], and every tendon's set-points within "
+        f"the stream's limit (else refused, saying what speed fits) (default {TIP_SPEED_MM_S:g})",
+    )  # fmt: skip
+    p.add_argument("--name", type=_name, default=None,
+                   help="file name (default: from the options)")  # fmt: skip
+    return p
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add ``record``'s sub-commands, each with its own options (``record pulse --help``: the pulse's)."""
+    parser.formatter_class = DefaultsHelp
+    parser.description = (
+        "Record experiments through the rig's boards (hardware or virtual rig) into the data folder: "
+        "my_data/<rig name>/ unless --data-dir is given."
     )
-    parser.add_argument(
-        "--identification",
-        default=None,
-        help="identification result JSON (default: identification/result.json in the data folder)",
-    )
-    parser.add_argument(
-        "--repetitions",
-        type=arg_number(1, 100, int),
-        default=None,
-        help="runs per scenario, 1-100 (default: 1 for pulse, 3 for table-i and all)",
-    )
-    parser.add_argument(
-        "--t-end",
-        type=arg_number(0, 1e6, lo_open=True),
-        default=12.0,
-        help="programme (and recording) length, s, in (0, the rig's max_programme_s] (paper: 600)",
-    )
-    parser.add_argument(
-        "--rate",
-        type=arg_number(1, 1_000_000, int),
-        default=None,
-        help="DAQ sample rate, Hz, within the rig's daq_rate_min_hz-daq_rate_max_hz (paper: 100-2000; "
-        "default: the rig's daq_rate_default_hz, 1000)",
-    )
-    parser.add_argument(
-        "--group",
-        type=_group,
-        default=None,
-        help="folder under the data folder (default: calibration, runs for pulse, experiments)",
-    )
-    parser.add_argument(
+    session, t_end = _session_options(), _t_end_option()
+    sub = parser.add_subparsers(dest="what", required=True, metavar="what")
+
+    def add(name: str, *parents: argparse.ArgumentParser) -> argparse.ArgumentParser:
+        return sub.add_parser(name, help=WHAT[name], description=WHAT[name], formatter_class=DefaultsHelp,
+                              parents=[rig_option(), session, *parents])  # fmt: skip
+
+    cal = add("calibration", _group_option("calibration"))
+    cal.add_argument(
+        "--duration", type=arg_number(0, 1e6, lo_open=True), default=1.0,
+        help="seconds per load, in (0, the rig's max_programme_s], checked against the rig",
+    )  # fmt: skip
+    add("identification", t_end)
+    add("table-i", _group_option("experiments"), _identified_options(), _repetitions_option(3), t_end)
+    add("all", _group_option("experiments"), _repetitions_option(3), t_end)
+    pulse = add("pulse", _group_option("runs"), _identified_options(), _repetitions_option(1), t_end)
+    pulse.add_argument(
+        "--v-in", type=arg_number(0, 1e6, lo_open=True),
+        help="pulse speed, mm/s, in (0, the rig's speed_limit_mm_s] (faster: refused, exit 3, naming the "
+        "limit; paper: 400); required unless --design holds a schedule",
+    )  # fmt: skip
+    pulse.add_argument(
+        "--x-f", type=arg_number(0, 1e6, lo_open=True),
+        help="pulse displacement, mm, from half a step to the rig's travel in whole steps (else refused, "
+        "exit 3; paper: 39.82 mm, 156 steps); required unless --design holds a schedule",
+    )  # fmt: skip
+    pulse.add_argument("--system", choices=list(SYSTEMS), default=None, help=SYSTEM_HELP)
+    pulse.add_argument(
+        "--design", type=Path, default=None,
+        help="run this saved design (JSON of helpers.research.design.save_design: a shaper, an Up/Down pair "
+        "or a map-following schedule, which also sets --v-in and --x-f); default: none, design from --system",
+    )  # fmt: skip
+    pulse.add_argument(
         "--name", type=_name, default=None,
-        help="pulse: file name; repetitions add _r<k> (default: <system>_v<v-in>_x<x-f>)",
-    )
-    parser.add_argument(
-        "--replace",
-        action="store_true",
-        help="replace recordings of the same names (each kept until the new one is whole)",
-    )
-    parser.add_argument(
-        "--duration",
-        type=arg_number(0, 1e6, lo_open=True),
-        default=1.0,
-        help="calibration: seconds per load, in (0, the rig's max_programme_s]",
-    )
-    parser.add_argument("--data-dir", type=Path, default=DATA_DIR, help="the data folder")
-    parser.add_argument("--quiet", action="store_true", help="no progress bars")
-    parser.add_argument(
-        "--dry-run",
-        action="store_true",
-        help="check everything and print the recordings that would be made, without opening a port",
-    )
+        help="file name; repetitions add _r<k> (default: <system>_v<v-in>_x<x-f>)",
+    )  # fmt: skip
+    add("streams", _group_option("streams"))
+    move = add("move", _group_option("moves"), _bend_options("move"), t_end)
+    move.add_argument(
+        "--shaper", choices=list(MOVE_SHAPERS), default="none",
+        help="none; a family (zv, zvd, zvdd, mzv, ei, ei2, ei3, umzv) at the dominant mode at the bend; "
+        "scheduled (ZVD on the mode grid), multimode (two split modes) or auto (docs/task_space.md)",
+    )  # fmt: skip
+    move.add_argument(
+        "--mode-grid", type=Path, default=None,
+        help="a mode grid (CSV of helpers.research.task_shaping.ModeGrid.write_csv) that scheduled, "
+        "multimode and auto read the modes off (default: the modes at the move itself)",
+    )  # fmt: skip
+    move.add_argument(
+        "--no-floor-check", action="store_true",
+        help="do not simulate the shaped move's tensions in the spatial twin (nor change the pretension or "
+        "the design when a tendon would dip below the floor)",
+    )  # fmt: skip
+    tip = add("tip-stream", _group_option("tip_streams"), _bend_options("tip-stream"))
+    tip.add_argument("--path", choices=list(TIP_FIGURES), default="square",
+                     help="the figure of bends (docs/task_space.md, arbitrary motion)")  # fmt: skip
+    tip.add_argument("--path-seed", type=arg_number(0, 2**32 - 1, int), default=0,
+                     help="the seed of the random path")  # fmt: skip
+    tip.add_argument(
+        "--margin-n", type=arg_number(0, 10), default=0.0,
+        help="trim the stops' whole steps to the tension floor plus this margin, N (0: record move's policy)",
+    )  # fmt: skip
+    tip.add_argument("--shaper", choices=list(TIP_SHAPERS), default="none",
+                     help="none, zv or zvd from the map's mode at the path's stops, one shaper for every "
+                     "tendon")  # fmt: skip
 
 
 def _shapers(args: argparse.Namespace, quiet: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -253,8 +318,12 @@ def _shapers(args: argparse.Namespace, quiet: bool = False) -> tuple[dict[str, A
         path = Path(args.identification or args.data_dir / "identification" / "result.json")
         try:
             found = load_identification(path)
-        except MissingDataError as exc:  # a data file is missing: status 5, not a usage error
-            raise MissingDataError(f"{exc} (or pass --zeta and --omega-d)") from None
+        except MissingDataError:  # a data file is missing: status 5, not a usage error
+            raise MissingDataError(
+                f"{repo_path(path)}: no identification result yet: make it with `"
+                f"{step_command(args, 'record identification')}` (add --ports for hardware), or pass --zeta "
+                "and --omega-d"
+            ) from None
         zeta, omega_d = found.zeta, found.omega_d
         origin = repo_path(path)
     zv, zvd = design_tdfs(omega_d, zeta)
@@ -349,6 +418,32 @@ def record_all(
         Folder of the Table I recordings under ``data_dir``.
     """
     seeds = seeds or NoiseSeeds(None)
+    result, path = record_identification(rig, t_end_s, rate_hz, data_dir, replace, seeds)
+    zv, zvd = design_tdfs(result.omega_d, result.zeta)
+    design = {"zeta": result.zeta, "omega_d": result.omega_d, "origin": repo_path(path)}
+    record_table_i(
+        rig,
+        {"unshaped": None, "zv": zv, "zvd": zvd},
+        design,
+        repetitions=repetitions,
+        group=Path(data_dir) / group,
+        t_end_s=t_end_s,
+        rate_hz=rate_hz,
+        replace=replace,
+        seeds=seeds,
+    )
+
+
+def record_identification(
+    rig: Any, t_end_s: float, rate_hz: int, data_dir: Path, replace: bool, seeds: NoiseSeeds
+) -> tuple[Any, Path]:
+    """The identification run into ``identification/`` and its analysis, saved as ``result.json`` there.
+
+    Returns
+    -------
+    tuple
+        The :class:`~helpers.paper.identify.IdentificationResult` and the path of ``result.json``.
+    """
     run = scenarios.identification_run(rig.rig)
     rec = rig.run_pulse(
         run["v_in_mm_s"],
@@ -366,19 +461,7 @@ def record_all(
     result = identify_recording(rec, window=run["window_s"], column="adc")
     path = save_identification(result, Path(data_dir) / "identification" / "result.json")
     print(f"identified zeta = {result.zeta:.4f}, omega_d = {result.omega_d:.3f} rad/s -> {repo_path(path)}")
-    zv, zvd = design_tdfs(result.omega_d, result.zeta)
-    design = {"zeta": result.zeta, "omega_d": result.omega_d, "origin": repo_path(path)}
-    record_table_i(
-        rig,
-        {"unshaped": None, "zv": zv, "zvd": zvd},
-        design,
-        repetitions=repetitions,
-        group=Path(data_dir) / group,
-        t_end_s=t_end_s,
-        rate_hz=rate_hz,
-        replace=replace,
-        seeds=seeds,
-    )
+    return result, path
 
 
 def _record_calibration(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
@@ -446,9 +529,14 @@ def _record_all(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
     )
 
 
+def _record_identification(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
+    record_identification(rig, args.t_end, args.rate, args.data_dir, args.replace, seeds)
+
+
 def _record_streams(rig: Rig, args: argparse.Namespace, seeds: NoiseSeeds) -> None:
-    mode_map = load_map(args.data_dir / "tuning" / "mode_map.json")
-    rest = load_identification(args.data_dir / "identification" / "result.json")
+    mode_map = needs(load_map, args.data_dir / "tuning" / "mode_map.json", "mode map", args, "tune")
+    rest = needs(load_identification, args.data_dir / "identification" / "result.json",
+                 "identification result", args, "record identification")  # fmt: skip
     recs = record_streams(rig, args.data_dir / args.group, mode_map, (rest.omega_d, rest.zeta),
                           replace=args.replace, seeds=seeds.take, rate_hz=args.rate)  # fmt: skip
     for rec in recs:
@@ -461,19 +549,27 @@ RECORDERS: dict[str, Callable[[Rig, argparse.Namespace, NoiseSeeds], None]] = {
     "table-i": _record_table_i,
     "all": _record_all,
     "streams": _record_streams,
+    "identification": _record_identification,
 }
 """What ``record`` can record -> the function that does it."""
 
 
-def _calibration_for(what: str, data_dir: Path, rig: RigFile) -> LoadCellCalibration | None:
+def missing_calibration(path: Path, args: argparse.Namespace) -> str:
+    """The one line for a missing load-cell calibration: the command that records it."""
+    return (f"{repo_path(path)}: no load-cell calibration yet: record it with "
+            f"`{step_command(args, 'record calibration')}` (add --ports for hardware)")  # fmt: skip
+
+
+def _calibration_for(what: str, args: argparse.Namespace) -> LoadCellCalibration | None:
     """The load-cell calibration a run uses: the saved one; recording a new one may start without any."""
+    data_dir, rig = args.data_dir, args.rig
     path = data_dir / "calibration" / "calibration.json"
     try:
         return load_calibration(path)
     except MissingDataError:
         if what == "calibration":
             return uncalibrated(derived(rig).mm_per_step[0])
-        raise
+        raise MissingDataError(missing_calibration(path, args)) from None
 
 
 def _planned_pulses(
@@ -490,10 +586,12 @@ def _planned_pulses(
         ]
     planned = []
     scaling_notes.announce(args.rig)
-    if args.what == "all":
+    if args.what in ("all", "identification"):
         run = scenarios.identification_run(args.rig)
         v, x = run["v_in_mm_s"], run["x_f_mm"]
         planned.append(("identification", scenarios.identification_name(args.rig), v, x, "unshaped", None))
+        if args.what == "identification":
+            return planned
         if not quiet:
             print("dry run: the shapers of Table I are designed from the identification run once recorded;")
             print("         the plan below checks them with the current identification result")
@@ -526,7 +624,7 @@ def dry_run(args: argparse.Namespace) -> int:
     int
         0 when the run would start; otherwise an exception names the first problem.
     """
-    _calibration_for(args.what, args.data_dir, args.rig)
+    _calibration_for(args.what, args)
     rows = []
     if args.what == "calibration":
         for grams in (round(1000 * m) for m in _masses(args.rig)):
@@ -565,7 +663,7 @@ def _refuse_existing_targets(args: argparse.Namespace) -> None:
     """Refuse a request whose recordings exist already, naming the options that avoid it."""
     if args.what == "calibration":
         names = [(args.group, f"load_{round(1000 * m):04d}g") for m in _masses(args.rig)]
-    elif args.what in ("pulse", "table-i", "all"):
+    elif args.what in ("pulse", "table-i", "all", "identification"):
         names = [(g, n) for g, n, *_ in _planned_pulses(args, quiet=True)]
     else:
         return  # streams: each is checked by helpers.rig.stream.stream before anything moves
@@ -636,6 +734,9 @@ def _record_move(args: argparse.Namespace) -> int:
     rig = args.rig
     move = _plan_move(args, rig)
     plan, design, programme = move.plan, move.shaping, move.programme
+    if not any(plan.steps):
+        raise ValueError(f"--bend-mm {args.bend_mm:g}: the move pulls no tendon a whole step (a move of zero "
+                         "steps); nothing recorded")  # fmt: skip
     target = recording_path(args.group, _move_name(args), args.data_dir)
     if not args.replace:
         refuse_existing(target)
@@ -686,6 +787,11 @@ def _within_the_rig(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers record`` (errors are turned into one line by ``python -m helpers``)."""
+    for key, value in _ABSENT.items():  # the options this sub-command does not have
+        if not hasattr(args, key):
+            setattr(args, key, value)
+    if args.data_dir is None:
+        args.data_dir = user_data_dir(args.rig)
     _within_the_rig(args)
     args.group = args.group or DEFAULT_GROUPS[args.what]
     if args.what == "move":
@@ -694,14 +800,14 @@ def run(args: argparse.Namespace) -> int:
         return record_tip_stream(args)
     if args.what != "pulse" and args.design is not None:
         raise ValueError(f"--design applies to record pulse only, not to record {args.what}")
-    if args.what in ("table-i", "all"):
+    if args.what in ("table-i", "all", "identification"):
         scaling_notes.announce(args.rig)  # once: which of the paper's scenarios this rig scales, and to what
     if args.dry_run:
         return dry_run(args)
     if args.what == "pulse":  # refuse a bad request before any port is opened
         args.pulse_request = _pulse_request(args)
     groups = {args.group, "identification"} if args.what == "all" else {args.group}
-    calibration = _calibration_for(args.what, args.data_dir, args.rig)
+    calibration = _calibration_for(args.what, args)
     if not args.replace:  # before any port is opened (opening one resets an Arduino)
         _refuse_existing_targets(args)
     with recording_session(args, groups, calibration=calibration) as (rig, seed):

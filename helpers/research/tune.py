@@ -12,11 +12,11 @@ two modes
    ``<data>/tuning/verify/`` (Table I grid) or ``<data>/tuning/wide/`` (the wider grid; regenerated, not
    committed), and measure each move's residual vibration, its noise floor, its duration and the Table II
    metrics (:func:`helpers.research.residuals.move_residuals`);
-4. **report**: ``figures/tuning_report.{md,csv,png}`` (``<data>/tuning/`` when ``--data-dir`` is not the
-   project's ``data/``) and ``<data>/tuning/<grid>_verification.json`` (every
-   run's rows, so that notebook 07 needs no recordings), and **choose**: the candidate whose worst measured
-   residual over every move of the grid is lowest among those whose moves are no longer than the paper's
-   non-robust TDF's, written to ``<data>/tuning/chosen.json``.
+4. **report**: ``<data>/tuning/tuning_report.{md,csv,png}`` (notebook 07 alone writes ``figures/``'s) and
+   ``<data>/tuning/<grid>_verification.json`` (every run's rows, so that notebook 07 needs no recordings),
+   and **choose**: the candidate whose worst measured residual over every move of the grid is lowest among
+   those whose moves are no longer than the paper's non-robust TDF's, written to
+   ``<data>/tuning/chosen.json``.
 
 The same code runs on the in-process virtual rig (``--ports virtual``, the default), the pseudo-terminal
 server and hardware (``--ports auto``).
@@ -40,10 +40,10 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from helpers import recordings
-from helpers.base.cli import DefaultsHelp, arg_number
+from helpers.base.cli import DefaultsHelp, arg_number, needs
 from helpers.base.jsonfile import write_json
 from helpers.base.locks import folder_lock
-from helpers.base.paths import DATA_DIR, figure_path, repo_path
+from helpers.base.paths import figure_path, repo_path, user_data_dir
 from helpers.base.style import SYSTEM_COLOURS
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
@@ -439,7 +439,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--bends", metavar="LIST", default=None,
         help="a rig with several tendons: the bend magnitudes, mm of cable (default 10,20)",
     )  # fmt: skip
-    parser.add_argument("--data-dir", type=Path, default=DATA_DIR, help="the data folder")
+    parser.add_argument(
+        "--data-dir", type=Path, default=None,
+        help="the data folder: reads calibration/ and identification/, writes tuning/ (default: "
+        "my_data/<rig name>/, gitignored; `--data-dir data` rewrites the project's shipped tuning)",
+    )  # fmt: skip
     parser.add_argument("--replace", action="store_true", help="replace earlier tuning recordings and files")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -447,6 +451,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``python -m helpers tune`` (a rig with several tendons: :mod:`helpers.research.tune_tendons`)."""
     selected: RigFile = args.rig
+    if args.data_dir is None:
+        args.data_dir = user_data_dir(selected)
     lo, hi = selected.hardware.daq_rate_min_hz, selected.hardware.daq_rate_max_hz
     if not lo <= args.rate <= hi:
         raise ValueError(f"--rate {args.rate} Hz: rig {selected.name!r} samples at {lo}-{hi} Hz")
@@ -461,11 +467,13 @@ def run(args: argparse.Namespace) -> int:
     repetitions = args.repetitions or REPETITIONS[args.grid]
     tuning = args.data_dir / "tuning"
     map_path = tuning / "mode_map.json"
-    rest = load_identification(args.data_dir / "identification" / "result.json")
+    rest = needs(load_identification, args.data_dir / "identification" / "result.json",
+                 "identification result", args, "record identification")  # fmt: skip
     rest_run = args.data_dir / "identification" / f"{rest.recording}.csv"
     if rest.recording and rest_run.exists():  # the mode at rest must be this rig's
         refuse_other_rig(recordings.load(rest_run, derive=False).meta, selected, rest_run, what="tune on")
-    calibration = load_calibration(args.data_dir / "calibration" / "calibration.json")
+    calibration = needs(load_calibration, args.data_dir / "calibration" / "calibration.json",
+                        "load-cell calibration", args, "record calibration")  # fmt: skip
     reused = load_map(map_path) if args.reuse_map else None
     if reused is not None:  # before any port is opened: the map must be this rig's
         refuse_map_of_other_rig(reused, selected, repo_path(map_path))
@@ -554,9 +562,8 @@ def run(args: argparse.Namespace) -> int:
                 },
             },
         )
-    # the project's figures come from the project's data: a tuning run on other data keeps its report there
-    ours = args.data_dir.resolve() == DATA_DIR.resolve()
-    for path in write_report(document, None if ours else tuning):
+    # a command writes its report beside its data: figures/tuning_report.* are notebook 07's alone
+    for path in write_report(document, tuning):
         say(f"wrote {repo_path(path)}")
     print(report_markdown(document), end="")
     return 0
