@@ -79,7 +79,12 @@ def user_data_dir(rig: object) -> Path:
     name = str(getattr(rig, "name", rig))
     if name in ("", ".", "..") or "/" in name or "\\" in name:
         raise ValueError(f"rig name {name!r} cannot name a folder under my_data/")
-    return Path(os.environ.get(USER_DATA_ENV) or REPO_ROOT / "my_data") / name
+    return user_data_root() / name
+
+
+def user_data_root() -> Path:
+    """The folder of every rig's :func:`user_data_dir`: ``my_data/`` (or ``HELPERS_USER_DATA_DIR``)."""
+    return Path(os.environ.get(USER_DATA_ENV) or REPO_ROOT / "my_data")
 
 
 def figure_path(name: str) -> Path:

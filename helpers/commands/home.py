@@ -175,7 +175,12 @@ def run(args: argparse.Namespace) -> int:
     if args.speed > rig.hardware.speed_limit_mm_s:
         raise ValueError(f"--speed {args.speed:g} mm/s: rig {rig.name!r} moves at most "
                          f"{rig.hardware.speed_limit_mm_s:g} mm/s (speed_limit_mm_s)")  # fmt: skip
-    url = args.ports if "," not in args.ports and args.ports != "auto" else rig_urls(args.ports, rig, "")[1]
+    alone = "," not in args.ports and args.ports != "auto"  # the stepper's port
+    try:
+        url = args.ports if alone else rig_urls(args.ports, rig, "")[1]
+    except ValueError:
+        raise ValueError(f"--ports {args.ports!r}: home takes 'virtual', 'auto', 'DAQ,STEPPER' or the "
+                         "stepper's port alone") from None  # fmt: skip
     stepper = Link.open(url, "stepper", rig, rig.hardware.stepper_baud)
     try:
         print(home(stepper, rig, confirm_slack=args.confirm_slack, speed_mm_s=args.speed))

@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 
 from helpers.base.cli import DefaultsHelp, arg_number
-from helpers.base.paths import shown
+from helpers.base.paths import shown, user_data_root
 from helpers.base.tables import to_markdown
 from helpers.paper import metrics
 from helpers.paper import numbers as paper
@@ -542,6 +542,32 @@ def moves_markdown(t: MoveTables, band: float) -> str:
     return "\n".join(parts)
 
 
+def check_output_folder(path: Path) -> None:
+    """Refuse to create an output's missing folder anywhere but under the working directory or ``my_data/``.
+
+    A folder that exists is used wherever it is; a missing one is created only inside the current directory or
+    the user's data folder (:func:`helpers.base.paths.user_data_root`), never e.g. at the file
+    system's root from a mistyped absolute path.
+
+    Raises
+    ------
+    ValueError
+        A missing folder elsewhere (exit status 2: nothing was written).
+    """
+    parent = Path(os.path.abspath(path)).parent
+    if parent.is_dir():
+        return
+    roots = (Path.cwd().resolve(), user_data_root().resolve())
+    missing = parent
+    while not missing.parent.is_dir() and missing.parent != missing:
+        missing = missing.parent
+    if not any(Path(os.path.realpath(missing.parent)).is_relative_to(r) for r in roots):
+        raise ValueError(
+            f"{path}: the folder {missing} does not exist; outputs create folders only inside the "
+            "current directory or my_data/ (create it first, or write elsewhere)"
+        )
+
+
 def _write(path: Path, text: str, replace: bool) -> Path:
     """Write ``text`` to ``path`` whole (temporary file, then rename); refuse to overwrite unless asked."""
     if path.exists() and not replace:
@@ -574,7 +600,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--csv", metavar="STEM", type=Path,
-        help="also write STEM_runs.csv and STEM_scenarios.csv (full precision, with the data source)",
+        help="also write STEM_runs.csv and STEM_scenarios.csv (full precision, with the data source); a "
+        "missing folder is created only inside the current directory or my_data/",
     )  # fmt: skip
     parser.add_argument(
         "--markdown", metavar="FILE",
@@ -626,6 +653,7 @@ def run(args: argparse.Namespace) -> int:
     if args.markdown not in (None, "-"):
         targets.append((Path(args.markdown), markdown))
     for path, _ in targets:  # refuse before writing any, so that a refusal leaves nothing half-done
+        check_output_folder(path)
         if path.exists() and not args.replace:
             raise RecordingExists(f"{shown(path)} exists; pass --replace to overwrite it")
     sys.stdout.write(markdown if args.markdown == "-" else text)
