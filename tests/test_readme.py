@@ -24,7 +24,7 @@ import nbformat
 import pytest
 
 from helpers.__main__ import COMMANDS, main
-from helpers.base.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR, USER_DATA_ENV
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 README = (REPO_ROOT / "README.md").read_text()
@@ -50,9 +50,14 @@ HOW: dict[str, str] = {
     "jupyter lab notebooks/": "quick",
     f"python -m helpers record pulse {MINE} --dry-run": "quick",
     f"python -m helpers record pulse {MINE}": "quick",
-    "python -m helpers metrics data/mine": "quick",
-    "python -m helpers metrics data/mine --band 0.02 --csv results/mine --markdown results/mine.md": "quick",
+    "python -m helpers metrics my_data/paper/mine": "quick",
+    "python -m helpers metrics my_data/paper/mine --band 0.02 --csv my_data/paper/results/mine --markdown "
+    "my_data/paper/results/mine.md": "quick",
     "python -m helpers record calibration": "quick",
+    "python -m helpers record identification": "quick",
+    # regenerating the shipped data (data/README.md; tests/test_recordings.py and the slow runs of record all)
+    "python -m helpers record calibration --data-dir data --replace": "help",
+    "python -m helpers record all --data-dir data --replace": "help",
     "python -m helpers record all": "slow",
     "time python -m helpers record all": "slow",
     "python -m helpers reproduce": "slow",
@@ -100,6 +105,7 @@ HOW: dict[str, str] = {
     "python -m helpers virtual-rig tune --rig long-arm --data-dir my_data --out long-arm-tuned.toml": "slow",
     # hardware only: --help and a dry run
     "python -m helpers record calibration --ports auto": "dry-run",
+    "python -m helpers record identification --ports auto": "dry-run",
     "python -m helpers record all --ports auto": "dry-run",
     f"python -m helpers record pulse {MINE} --ports auto --dry-run": "dry-run",
     f"python -m helpers record pulse {MINE} --ports auto": "dry-run",
@@ -212,7 +218,9 @@ def _argv(command: str) -> list[str]:
 
 @pytest.fixture
 def newcomer(tmp_path, monkeypatch):
-    """A temporary working folder whose data/ holds what a fresh clone has (calibration, identification)."""
+    """A temporary working folder whose data/ holds what a fresh clone has (calibration, identification); the
+    user's data folder (``my_data/``) is its own, empty."""
+    monkeypatch.setenv(USER_DATA_ENV, str(tmp_path / "my_data"))
     data = tmp_path / "data"
     for group, name in (("calibration", "calibration.json"), ("identification", "result.json")):
         (data / group).mkdir(parents=True)
@@ -230,17 +238,28 @@ def _run_in(folder: Path, command: str, *extra: str) -> int:
 
 
 def test_the_walkthrough_records_and_analyses_an_own_scenario(newcomer, capsys):
+    """The README's day as written, in its order, into the user's data folder (here a temporary my_data/):
+    calibration, identification, a dry run, the pulses, their metrics; the example output to the digit."""
     shown = documented_commands()
     dry, rec = f"python -m helpers record pulse {MINE} --dry-run", f"python -m helpers record pulse {MINE}"
-    metrics = "python -m helpers metrics data/mine"
-    metrics_files = f"{metrics} --band 0.02 --csv results/mine --markdown results/mine.md"
+    metrics = "python -m helpers metrics my_data/paper/mine"
+    metrics_files = (f"{metrics} --band 0.02 --csv my_data/paper/results/mine --markdown "
+                     "my_data/paper/results/mine.md")  # fmt: skip
     calibration = "python -m helpers record calibration"
-    assert {dry, rec, metrics, metrics_files, calibration} <= set(shown)
-    assert _run_in(newcomer, dry) == 0
+    identification = "python -m helpers record identification"
+    assert {dry, rec, metrics, metrics_files, calibration, identification} <= set(shown)
+    mine = newcomer / "my_data" / "paper"
+    assert main(_argv(dry)) == 5  # no calibration yet in my_data/paper: the line names the command
+    assert "`python -m helpers record calibration`" in capsys.readouterr().err
+    assert main(_argv(calibration)) == 0
+    assert (mine / "calibration" / "load_1900g.json").exists()
+    assert main(_argv(identification)) == 0
+    assert (mine / "identification" / "result.json").exists()
+    assert main(_argv(dry)) == 0
     assert "3 recording(s) would be made" in capsys.readouterr().out
-    assert not (newcomer / "data" / "mine").exists()
-    assert _run_in(newcomer, rec) == 0
-    folder = newcomer / "data" / "mine"
+    assert not (mine / "mine").exists()
+    assert main(_argv(rec)) == 0
+    folder = mine / "mine"
     assert sorted(p.name for p in folder.glob("*.json")) == [f"zvd_v250_x25_r{k}.json" for k in (1, 2, 3)]
     assert main(_argv(metrics)) == 0
     out = capsys.readouterr().out
@@ -248,9 +267,8 @@ def test_the_walkthrough_records_and_analyses_an_own_scenario(newcomer, capsys):
     shown = README.split("Example output (virtual rig):\n\n```text\n")[1].split("```")[0]
     assert shown in out  # the README's example output is what the command prints for these runs
     assert main(_argv(metrics_files)) == 0
-    assert (newcomer / "results" / "mine_runs.csv").exists() and (newcomer / "results" / "mine.md").exists()
-    assert _run_in(newcomer, calibration) == 0
-    assert (newcomer / "data" / "calibration" / "load_1900g.json").exists()
+    assert (mine / "results" / "mine_runs.csv").exists() and (mine / "results" / "mine.md").exists()
+    assert not list((newcomer / "data").rglob("*.csv"))  # nothing recorded into the shipped data's place
 
 
 @pytest.mark.parametrize("command", [c for c, how in HOW.items() if how == "dry-run"])
@@ -347,7 +365,7 @@ def test_the_python_examples_run(newcomer, capsys):
     exec(compile(first, "README.md", "exec"), {})  # noqa: S102 - the README's own example
     out = capsys.readouterr().out
     assert "overshoot_pct" in out and "Up" in out and "Down" in out
-    assert (newcomer / "data" / "mine" / "zvd_v250_x25_py.json").exists()
+    assert (newcomer / "my_data" / "paper" / "mine" / "zvd_v250_x25_py.json").exists()
     (newcomer / "data" / "runs").mkdir()
     scope: dict = {}
     exec(compile(second, "README.md", "exec"), scope)  # noqa: S102 - the streaming example
@@ -447,7 +465,7 @@ def test_reproduce_on_a_copy_of_the_repository_changes_no_tracked_file(tmp_path)
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(REPO_ROOT / name, target)
     before = {n: (copy / n).read_bytes() for n in filter(None, files)}
-    env = {k: v for k, v in os.environ.items() if k != "HELPERS_FIGURES_DIR"}
+    env = {k: v for k, v in os.environ.items() if k not in ("HELPERS_FIGURES_DIR", USER_DATA_ENV)}
     env["PYTHONPATH"] = str(copy)
     for _ in range(2):
         proc = subprocess.run(
@@ -519,7 +537,7 @@ def test_the_researchers_day_leaves_the_tests_and_reproduce_green_and_the_tree_c
     then nbval over every notebook passes, and ``reproduce`` leaves every tracked byte as it was."""
     copy = tmp_path / "repo"
     before = _tracked_copy(copy)
-    env = {k: v for k, v in os.environ.items() if k != "HELPERS_FIGURES_DIR"}
+    env = {k: v for k, v in os.environ.items() if k not in ("HELPERS_FIGURES_DIR", USER_DATA_ENV)}
     env["PYTHONPATH"] = str(copy)
 
     def run(*argv: str, extra_env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
@@ -530,10 +548,12 @@ def test_the_researchers_day_leaves_the_tests_and_reproduce_green_and_the_tree_c
         assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
         return done
 
+    run("-m", "helpers", "record", "calibration", "--quiet")  # into the copy's my_data/paper (gitignored)
+    run("-m", "helpers", "record", "identification", "--quiet")
     run("-m", "helpers", "record", "pulse", *shlex.split(MINE), "--quiet")
-    assert len(list((copy / "data" / "mine").glob("*.csv"))) == 3
-    run("-m", "helpers", "metrics", "data/mine", "--band", "0.02", "--csv", "results/mine", "--markdown",
-        "results/mine.md")  # fmt: skip
+    assert len(list((copy / "my_data" / "paper" / "mine").glob("*.csv"))) == 3
+    run("-m", "helpers", "metrics", "my_data/paper/mine", "--band", "0.02", "--csv",
+        "my_data/paper/results/mine", "--markdown", "my_data/paper/results/mine.md")  # fmt: skip
     for path in sorted((copy / "notebooks").glob("[0-9][0-9]_*.ipynb")):
         _jupyterlab_autosave(path, widget_cell=16 if path.name.startswith("03_") else None)
     elsewhere = tmp_path / "elsewhere"
