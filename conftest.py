@@ -2,9 +2,9 @@
 
 Running the tests writes nothing into the working tree: figures and tables (which the notebooks save when
 nbval executes them) go to a temporary folder named by ``HELPERS_FIGURES_DIR``, set here before any kernel
-starts, so every kernel nbval launches inherits it; so does the user's data folder (``HELPERS_USER_DATA_DIR``), where a command run
-without ``--data-dir`` records. Caches that ``.gitignore`` lists (numba, hypothesis, the
-firmware build) are the only files the tests leave behind.
+starts, so every kernel nbval launches inherits it; so does the user's data folder
+(``HELPERS_USER_DATA_DIR``), where a command run without ``--data-dir`` records. Caches that ``.gitignore``
+lists (numba, hypothesis, the firmware build) are the only files the tests leave behind.
 """
 
 import atexit
