@@ -24,7 +24,6 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from helpers.base.cli import RIG_HELP, rig_option
 from helpers.base.paths import shown
 from helpers.base.signals import Interrupted, end_at_once_on_signals, interrupts_from_signals
 
@@ -203,8 +202,9 @@ def _parse(argv: list[str]) -> tuple[argparse.Namespace, Any]:
         epilog="exit status: " + "; ".join(f"{k} {v}" for k, v in EXIT_CODES.items()),
     )
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
-    parser.add_argument("--rig", metavar="FILE", default="paper", help=RIG_HELP)
-    after = rig_option()  # the same option after the command's name
+    cli = importlib.import_module("helpers.base.cli")  # after the handlers: it loads numpy
+    parser.add_argument("--rig", metavar="FILE", default="paper", help=cli.RIG_HELP)
+    after = cli.rig_option()  # the same option after the command's name
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")
     chosen = next((a for a in argv if a in COMMANDS), None)
     for name, (module, help_text) in COMMANDS.items():

@@ -12,6 +12,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from helpers.base.jsonfile import MissingDataError
+from helpers.base.paths import REPO_ROOT, repo_path, shown, user_data_dir
+from helpers.base.validate import RIG_NAME
+
 RIG_HELP = "the rig file (a path, or a shipped rig's name: paper, four-tendon, ...; docs/rig_file.md)"
 
 
@@ -32,8 +36,6 @@ def step_command(args: argparse.Namespace, words: str) -> str:
     E.g. ``python -m helpers --rig long-arm record calibration --data-dir D`` (``--rig`` left out for the
     paper's rig, ``--data-dir`` for the default folder, :func:`helpers.base.paths.user_data_dir`).
     """
-    from helpers.base.paths import REPO_ROOT, shown, user_data_dir
-
     rig = args.rig
     source = Path(getattr(rig, "source", ""))
     shipped = source.parent == REPO_ROOT / "rigs" and source.stem == rig.name
@@ -55,9 +57,6 @@ def needs(load: Callable[[Path], Any], path: Path, what: str, args: argparse.Nam
     helpers.base.jsonfile.MissingDataError
         ``<path>: no <what> yet: make it with `<command>``` (exit status 5, ``docs/faults.md``).
     """
-    from helpers.base.jsonfile import MissingDataError
-    from helpers.base.paths import repo_path
-
     try:
         return load(path)
     except MissingDataError:
@@ -88,8 +87,7 @@ def arg_number(lo: float, hi: float, kind: type = float, lo_open: bool = False) 
 
 
 def arg_rig_name(text: str) -> str:
-    """An argparse ``type`` for a virtual rig's name (:data:`helpers.base.validate.RIG_NAME`)."""
-    from helpers.base.validate import RIG_NAME  # numpy: not before the command line's signal handlers
+    """An argparse ``type`` for a virtual rig's name (:data:`RIG_NAME`)."""
     if not RIG_NAME.match(text):
         raise argparse.ArgumentTypeError(
             f"invalid virtual rig name {text!r}: letters, digits, '_', '-', '.' (at most 64)"
