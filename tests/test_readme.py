@@ -369,10 +369,10 @@ def test_the_python_examples_run(newcomer, capsys):
     out = capsys.readouterr().out
     assert "overshoot_pct" in out and "Up" in out and "Down" in out
     assert (newcomer / "my_data" / "paper" / "mine" / "zvd_v250_x25_py.json").exists()
-    (newcomer / "data" / "runs").mkdir()
     scope: dict = {}
     exec(compile(second, "README.md", "exec"), scope)  # noqa: S102 - the streaming example
     assert scope["rec"].meta["scenario"]["kind"] == "stream" and scope["rec"].status == "complete"
+    assert (newcomer / "my_data" / "paper" / "runs" / "my_stream.json").exists()
 
 
 def test_a_saved_design_runs_again(newcomer, capsys):
