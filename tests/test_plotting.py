@@ -3,8 +3,11 @@
 import matplotlib
 import numpy as np
 import pytest
+from rig_fakes import make_rig
 
+from helpers import recordings
 from helpers.plotting import identification
+from helpers.plotting.experiments import fig_scenario
 
 matplotlib.use("Agg")
 
@@ -34,3 +37,17 @@ def test_fig5_names_itself_the_pulse_and_the_virtual_rig():
     assert title.startswith("Fig. 5 (virtual rig)") and "100 mm/s, 10 mm, up at 1 s, down at 8 s" in title
     labels = fig.axes[0].get_legend_handles_labels()[1]
     assert any("cable slack" in label for label in labels)
+
+
+def test_fig_scenario_draws_a_recording_of_todays_format_and_marks_its_clipped_samples(tmp_path):
+    # the driver records format 4 (the calibration one value per tendon, in lists), as a live cell of notebook
+    # 04 does: its figure draws it as it draws the shipped format-1 recordings
+    rig, _ = make_rig()
+    with rig:
+        path = rig.run_pulse(200, 20, path=tmp_path / "unshaped_v200_x20_r1", progress=False).path
+    rec = recordings.load(path)
+    assert rec.meta["schema_version"] == 4 and isinstance(rec.meta["calibration"]["offset_counts"], list)
+    rec.frame.loc[rec.frame.index[5000:5007], "adc"] = 1023  # seven samples at the ADC's top: clipped
+    fig = fig_scenario([rec], (200.0, 20.0))
+    crosses = [line for line in fig.axes[0].get_lines() if line.get_label().startswith("clipped")]
+    assert len(crosses) == 1 and len(crosses[0].get_xdata()) == 7

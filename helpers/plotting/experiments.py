@@ -11,7 +11,7 @@ import numpy as np
 from helpers.paper import numbers as paper
 from helpers.paper.metrics import clipped_samples
 from helpers.plotting import SYSTEM_COLOURS, finish
-from helpers.rigfile.recorded import recording_rig
+from helpers.rigfile.recorded import calibration_of, recording_rig
 
 PAPER_FIGURE_NUMBERS: dict[tuple[float, float], int | str] = {
     (200.0, 20.0): 9,
@@ -110,8 +110,8 @@ def fig_scenario(
         for rec in recs:
             f = rec.frame
             if "adc" in f.columns:
-                meta = rec.meta or {}
-                clip = clipped_samples(f["adc"].to_numpy(), meta.get("calibration"), recording_rig(meta))
+                cal = calibration_of(rec.meta) if "calibration" in (rec.meta or {}) else None  # any version
+                clip = clipped_samples(f["adc"].to_numpy(), cal, recording_rig(rec.meta or {}))
                 if clip.any():
                     ax_t.plot(f["t_s"][clip], f["tension_n"][clip], "x", color="k", ms=4, label=clipped_label)
                     clipped_label = None
