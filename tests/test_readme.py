@@ -107,6 +107,11 @@ HOW: dict[str, str] = {
     "python -m helpers record calibration --ports auto": "dry-run",
     "python -m helpers record identification --ports auto": "dry-run",
     "python -m helpers record all --ports auto": "dry-run",
+    # the hardware day of docs/hardware.md (run whole over serve-virtual-rig: tests/test_hardware_day.py)
+    "python -m helpers record table-i --ports auto": "dry-run",
+    "python -m helpers tune --ports auto": "help",
+    "python -m helpers record pulse --v-in 250 --x-f 25 --system zvd --group mine --ports auto": "dry-run",
+    "python -m helpers home --ports auto": "help",
     f"python -m helpers record pulse {MINE} --ports auto --dry-run": "dry-run",
     f"python -m helpers record pulse {MINE} --ports auto": "dry-run",
     "python -m helpers home": "help",
