@@ -14,7 +14,7 @@ from rig_fakes import CALIBRATION, MM_PER_STEP, make_rig, make_world
 from test_old_firmware import FakeBoard
 
 from helpers import recordings, rigfile
-from helpers.base.paths import REPO_ROOT
+from helpers.base.paths import REPO_ROOT, repo_path
 from helpers.board.programmes import experiment_programme
 from helpers.board.protocol import FW_VERSION
 from helpers.paper import numbers as paper
@@ -176,28 +176,35 @@ def _cell(notebook: str, start: str) -> str:
 
 def test_notebook_02s_live_cell_records_the_identification_run(tmp_path):
     world = make_world()
-    identified = []
+    identified, calibrations, saved = [], [], []
     namespace = {
         "LIVE": True, "PORTS": _ports(world), "RIG_FILE": PAPER, "V_IN_MM_S": 100, "X_F_MM": 10,
-        "WINDOW_S": (9.0, 10.0),
-        "RECORDING": tmp_path / "identification" / "pulse_v100_x10", "REPO_ROOT": tmp_path,
+        "WINDOW_S": (9.0, 10.0), "DATA": tmp_path,
+        "RECORDING": tmp_path / "identification" / "pulse_v100_x10", "repo_path": repo_path,
+        "load_calibration": lambda path: calibrations.append(path) or CALIBRATION,
         "identify_recording": lambda rec, window, column: identified.append(rec) or rec.path,
-        "save_identification": lambda path: path,
+        "save_identification": lambda result, path: saved.append((result, path)) or path,
     }  # fmt: skip
     exec(_cell("02_pulse_identification.ipynb", "run_pulse"), namespace)  # noqa: S102
     (rec,) = identified
     assert recordings.load(tmp_path / "identification" / "pulse_v100_x10.csv").status == "complete"
     assert rec.meta["scenario"]["v_in_mm_s"] == 100 and rec.frame["steps"].max() == round(10 / MM_PER_STEP)
+    # the calibration and the result in the notebook's data folder (my_data/<rig>/ when LIVE), not in data/
+    assert calibrations == [tmp_path / "calibration" / "calibration.json"]
+    assert saved == [(rec.path, tmp_path / "identification" / "result.json")]
+    assert rec.meta["calibration"]["origin"] == ["test double"]
 
 
 def test_notebook_04s_live_cell_records_every_system_of_a_condition(tmp_path, monkeypatch, capsys):
     world = make_world()
     monkeypatch.setattr(scenarios, "table_i_conditions", lambda rig: ((200.0, 10.0),))  # one of four
     zv, zvd = design_tdfs(paper.OMEGA_D, paper.ZETA)
+    calibrations = []
     namespace = {
         "LIVE": True, "PORTS": _ports(world), "RIG_FILE": PAPER, "REPETITIONS": 1,
-        "GROUP": tmp_path / "experiments",
-        "REPO_ROOT": tmp_path, "paper": paper, "shapers": {"unshaped": None, "zv": zv, "zvd": zvd},
+        "DATA": tmp_path, "GROUP": tmp_path / "experiments", "repo_path": repo_path,
+        "load_calibration": lambda path: calibrations.append(path) or CALIBRATION,
+        "paper": paper, "shapers": {"unshaped": None, "zv": zv, "zvd": zvd},
         "zeta": paper.ZETA, "omega_d": paper.OMEGA_D,
     }  # fmt: skip
     exec(_cell("04_experiments.ipynb", "run_pulse"), namespace)  # noqa: S102
@@ -207,4 +214,5 @@ def test_notebook_04s_live_cell_records_every_system_of_a_condition(tmp_path, mo
     assert rec.meta["scenario"]["design"] == {"zeta": paper.ZETA, "omega_d": paper.OMEGA_D}
     assert rec.meta["scenario"]["system"] == "zvd" and rec.meta["scenario"]["repetition"] == 1
     assert np.allclose(rec.meta["scenario"]["shaper"]["amplitudes"], zvd.amplitudes)
-    assert "3 recordings written under experiments" in capsys.readouterr().out
+    assert calibrations == [tmp_path / "calibration" / "calibration.json"]  # the data folder's, not data/'s
+    assert f"3 recordings written under {tmp_path / 'experiments'}" in capsys.readouterr().out

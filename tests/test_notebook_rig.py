@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers.base.paths import REPO_ROOT
+from helpers.base.paths import DATA_DIR, FIGURES_ENV, REPO_ROOT, USER_DATA_ENV
 
 NOTEBOOKS = sorted((REPO_ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
 LOAD_LINE = "RIG_FILE = rigfile.load(rigfile.resolve(RIG))"
@@ -79,3 +79,37 @@ def test_a_rig_named_in_the_parameters_cell_is_the_rig_the_cells_use() -> None:
     assert (name, other) == ("long-arm", "paper")
     assert math.isclose(float(mm), math.pi * 40.0 / 1600, rel_tol=1e-12)
     assert math.isclose(float(other_mm), math.pi * 65.0 / 800, rel_tol=1e-12)
+
+
+def _files(folder: Path) -> dict[Path, tuple[int, int]]:
+    return {p: (p.stat().st_size, p.stat().st_mtime_ns) for p in folder.rglob("*") if p.is_file()}
+
+
+def test_live_cells_record_into_my_data_and_the_cells_below_analyse_it_there(tmp_path: Path) -> None:
+    # notebooks 00 and 02 with LIVE = True on the in-process virtual rig, injected after the parameters cell
+    # as papermill does: the calibration, the identification run and its result go to my_data/<rig>/ (a
+    # temporary folder here), the analysis below reads them there, and nothing under data/ changes
+    script = []
+    for name in ("00_rig_and_calibration.ipynb", "02_pulse_identification.ipynb"):
+        before, params, after = _parts(REPO_ROOT / "notebooks" / name)
+        script += [*before, params, "LIVE = True", *after]
+        if name.startswith("00"):
+            script.append("print('analysed', *sorted({str(r.path.parent) for r in cal_recs}))")
+    data, my_data = _files(DATA_DIR), (REPO_ROOT / "my_data").exists()
+    env = {**os.environ, USER_DATA_ENV: str(tmp_path / "my_data"), FIGURES_ENV: str(tmp_path / "figures"),
+           "MPLBACKEND": "Agg"}  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", "\n".join(script)], capture_output=True, text=True, env=env,
+                         cwd=REPO_ROOT / "notebooks", timeout=600)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    mine = tmp_path / "my_data" / "paper"
+    loads = sorted(p.name for p in (mine / "calibration").glob("load_*g.csv"))
+    assert loads == [f"load_{g:04d}g.csv" for g in (0, 200, 500, 1000, 1500, 1900)]  # the notebook's masses
+    assert f"analysed {mine / 'calibration'}\n" in out.stdout  # notebook 00's fit: the new recordings
+    # notebook 02: the run recorded with the calibration just made, and the result its analysis checks
+    run = json.loads((mine / "identification" / "pulse_v100_x10.json").read_text())
+    assert run["source"]["kind"] == "virtual-rig" and run["calibration"]["origin"] == [
+        str(mine / "calibration" / "calibration.json")
+    ]
+    assert f"stored {mine / 'identification' / 'result.json'}: zeta = " in out.stdout
+    assert "it matches this analysis: yes" in out.stdout
+    assert _files(DATA_DIR) == data and (REPO_ROOT / "my_data").exists() == my_data
