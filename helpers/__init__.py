@@ -12,21 +12,9 @@ damped), both in rad/s. ``helpers.paper.modes`` holds the conversion ``omega_n =
 
 import sys
 
-
-def _run_as_command(argv: list[str]) -> bool:
-    """Whether the interpreter was started as ``python [options] -m helpers ...`` (``sys.orig_argv``)."""
-    with_value = ("-X", "-W", "-Q")
-    i = 1
-    while i < len(argv) and argv[i].startswith("-"):
-        if argv[i] == "-m":
-            return argv[i + 1 : i + 2] == ["helpers"]
-        if argv[i] == "-c":
-            return False
-        i += 2 if argv[i] in with_value else 1
-    return False
-
-
-if _run_as_command(getattr(sys, "orig_argv", [])):  # before anything else loads: a signal gives one line
+# ``python -m helpers ...``: while the package is imported to find the command, sys.argv[0] is "-m" (the
+# interpreter's documented behaviour). Before anything else loads, a signal gives one line and its status.
+if sys.argv[:1] == ["-m"]:
     from helpers.base.signals import end_at_once_on_signals
 
     end_at_once_on_signals()

@@ -64,9 +64,7 @@ def _handler(signum: int, frame: object) -> None:
 
 
 def _at_once(signum: int, frame: object) -> None:
-    name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
-    sys.stderr.write(f"interrupted by {name} (nothing was running)\n")
-    sys.stderr.flush()
+    sys.stderr.write(f"{Interrupted(signum)} (nothing was running)\n")  # stderr is line-buffered
     os._exit(128 + signum)
 
 
