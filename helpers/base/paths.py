@@ -34,11 +34,9 @@ EXTERNAL_DATA_DIR: Path = DATA_DIR / "external"
 never recordings of this project (``helpers.recordings.catalogue`` leaves the folder out)."""
 
 IDENTIFICATION_RESULT: Path = DATA_DIR / "identification" / "result.json"
-"""The identified dominant mode: written by ``helpers.paper.identify.save_identification`` (notebook 02's
-live cell
-and ``python -m helpers record all``), read by ``helpers.paper.identify.load_identification`` (notebook 03
-onwards,
-``record``)."""
+"""The shipped identified dominant mode: written by ``helpers.paper.identify.save_identification`` through
+``python -m helpers record all --data-dir data`` (without ``--data-dir``, and in notebook 02's live cell, into
+:func:`user_data_dir` instead), read by ``helpers.paper.identify.load_identification`` (notebooks 03 on)."""
 
 LOADCELL_CALIBRATION: Path = DATA_DIR / "calibration" / "calibration.json"
 """The load-cell calibration: written by ``helpers.paper.calibration.save_calibration`` (``python -m helpers
