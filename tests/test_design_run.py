@@ -12,6 +12,7 @@ import pytest
 from rig_fakes import MM_PER_STEP, make_world
 
 from helpers import recordings, rigfile
+from helpers.__main__ import main
 from helpers.base.jsonfile import DataFileError
 from helpers.base.paths import DATA_DIR
 from helpers.board.programmes import experiment_programme
@@ -134,11 +135,12 @@ def test_dry_run_describes_a_pair(tmp_path, capsys):
     assert "runs/scheduled_v200_x10.csv: 10 mm at 200 mm/s, scheduled (Up up: 2 impulses; Down down: 3" in out
 
 
-def test_record_help_names_the_vocabulary_and_the_papers_filters(monkeypatch):
+def test_record_help_names_the_vocabulary_and_the_papers_filters(monkeypatch, capsys):
     monkeypatch.setenv("COLUMNS", "1000")  # no wrapping inside the phrases
-    p = argparse.ArgumentParser(prog="record")
-    record.add_arguments(p)
-    text = " ".join(p.format_help().split())
+    with pytest.raises(SystemExit) as done:
+        main(["record", "pulse", "--help"])  # the pulse's own options
+    assert done.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
     assert "zv = the paper's non-robust TDF (ZV shaper)" in text
     assert "zvd = the paper's robust TDF (ZVD shaper)" in text
     assert "Default: unshaped, or the design file's system" in text
