@@ -229,7 +229,8 @@ def test_a_move_at_the_rigs_speed_limit_and_length_is_accepted(tmp_path, capsys)
     assert _status([*base, "--v-in", f"{limit:g}"]) == 0  # was refused by a rounding of the step interval
     out = capsys.readouterr().out
     assert "would be made" in out
-    assert _status([*base, "--t-end", f"{longest:g}"]) == 0  # its dwells split at the board's longest
+    # its dwells split at the board's longest (the dynamic floor check, minutes of the twin, is not the point)
+    assert _status([*base, "--t-end", f"{longest:g}", "--no-floor-check"]) == 0
     assert f"{longest:.2f} s)" in capsys.readouterr().out
 
 
