@@ -241,6 +241,7 @@ def test_a_move_too_fast_says_the_limit(tmp_path, capsys):
     assert "at most 400 mm/s (speed_limit_mm_s)" in _one_line(capsys)
 
 
+@pytest.mark.slow  # the refusal plans the figure at several speeds to find what fits, then it runs: 12 s
 def test_a_three_tendon_tip_stream_too_fast_says_what_speed_fits(tmp_path, capsys):
     import re
 
