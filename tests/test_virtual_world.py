@@ -11,8 +11,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import hashlib
 import json
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -143,7 +146,7 @@ CHAIN = {"loop_zero_ma": 4.0, "loop_full_ma": 20.0, "loop_min_ma": 3.8, "loop_ma
          "shunt_ohm": 150.0,
          "adc_vref_v": 5.0, "adc_bits": 10}  # fmt: skip
 """The fields the twin's parameters gained since the pins: the sensor chain's when the rig became a value
-(every shipped rig's ``[hardware]`` chain, by hand) and the integrator (RK4, as before); the rest of the
+(every shipped rig's ``[hardware]`` chain, by hand) and the integrator (RK4, as pinned); the rest of the
 provenance is as pinned."""
 ADDED = {**CHAIN, "integrator": "rk4"}
 
@@ -157,16 +160,33 @@ def _without_chain(info: dict) -> dict:
     return out
 
 
-def _digests(world: VirtualWorld, axes: int) -> tuple[str, str, str]:
+def _digests(world: VirtualWorld, axes: int, integrator: str = "rk4") -> tuple[str, str, str]:
     calls = hashlib.sha256()
     world.plant = RecordingPlant(world.plant, calls)
     data = session(world, axes)
-    info = json.dumps(_without_chain(world.info), sort_keys=True, default=str).encode()
+    info = world.info if integrator != "rk4" else _without_chain(world.info)
+    info = json.dumps(info, sort_keys=True, default=str).encode()
     return tuple(h.hexdigest()[:16] for h in (calls, hashlib.sha256(data), hashlib.sha256(info)))
 
 
+@contextlib.contextmanager
+def _integrated_by(integrator: str):
+    """Worlds built inside integrate their twin by ``integrator`` at its step (the pins predate ``rosw``)."""
+    import helpers.virtual.emulator.world as w
+
+    planar, spatial = w.rig_parameters, w.spatial_rig
+    with mock.patch.multiple(
+        w,
+        RigParameters=lambda: RigParameters().with_integrator(integrator),
+        rig_parameters=lambda rig, **kw: planar(rig, **kw).with_integrator(integrator),
+        spatial_rig=lambda rig, **kw: dataclasses.replace(
+            spatial(rig, **kw), arm=spatial(rig, **kw).arm.with_integrator(integrator)),
+    ):
+        yield
+
+
 def _world(rig: rigfile.RigFile, variant: str) -> VirtualWorld:
-    if variant == "twin":  # the rig's world as a port builds it, its clock 0.5 s before micros() wraps
+    if variant in ("twin", "twin-rosw"):  # the rig's world as a port builds it, 0.5 s before the wrap
         return build_world(rig, "pinned", {"seed": "7", "t0_us": str(2**32 - 500_000)})
     if variant == "faults":  # every transport fault of the DAQ's data lines
         world = build_world(rig, "pinned", {"seed": "3"})
@@ -198,11 +218,33 @@ plants, sensors, faults and commands): computed there, never by the code under t
 def test_every_world_sends_the_bytes_it_sent_before_the_boards_were_merged(rig, variant) -> None:
     """The paper's world records byte-identically to before: the same plant calls (sample and step
     instants: the emulator's timing, whatever the twin's numerics), the same lines from a plant double (the
-    boards alone), the same lines from the tuned twin and the same provenance. The "twin" bytes also pin the
-    twin's numerics: a deliberate change of its integrator changes them, and only them, and is re-pinned from
-    main with its reason."""
+    boards alone), the same lines from the tuned twin and the same provenance, with the twin integrated by
+    RK4 at its step as when these were pinned (the default since is ``rosw``: :data:`PINNED_ROSW`)."""
     r = load(rig)
-    assert _digests(_world(r, variant), r.n_tendons) == PINNED[(rig, variant)]
+    with _integrated_by("rk4"):
+        assert _digests(_world(r, variant), r.n_tendons) == PINNED[(rig, variant)]
+
+
+PINNED_ROSW = {
+    "paper": ("db16d46353958182", "2e592acd665dae6e", "e54bdb6c0c7b53ba"),
+    "long-arm": ("db16d46353958182", "03c15a34883d936c", "3c07723f2db7cb35"),
+    "four-tendon": ("193bc8638803bc36", "30e0125f562127e9", "1a300612e17d57ba"),
+}
+"""The "twin" digests of :data:`PINNED` with the default integrator, the Rosenbrock-W step at 0.5 ms: pinned
+when it became the default (issue 38; the plant calls are :data:`PINNED`'s, the bytes and the provenance are
+the new integrator's). They pin the twin's numerics: a deliberate change of them is re-pinned with its
+reason."""
+
+
+@pytest.mark.parametrize("rig", list(PINNED_ROSW))
+def test_the_default_twin_sends_the_bytes_pinned_when_rosw_became_the_default(rig) -> None:
+    r = load(rig)
+    world = _world(r, "twin-rosw")
+    parameters = world.info["parameters"]
+    assert parameters.get("arm", parameters)["integrator"] == "rosw"
+    digests = _digests(world, r.n_tendons, integrator="rosw")
+    assert digests[0] == PINNED[(rig, "twin")][0]  # the emulator asked the plant the same as with RK4
+    assert digests == PINNED_ROSW[rig]
 
 
 # --- the rig as a value, through the in-process port ----------------------------------------------------

@@ -273,7 +273,7 @@ def build_world(rig: RigFile, name: str | None = None, options: dict[str, str] |
         world = VirtualWorld(ArmPlant(params), LoadCell(params, seed=seed), info=info, **common)
     else:
         twin = spatial_rig(rig)
-        plant = SpatialPlant(twin)  # at RK4's stable step for this rig (four tendons: 1/6 ms, not 0.25 ms)
+        plant = SpatialPlant(twin)  # at the arm's step (RK4: within its stable step, 1/6 ms for four tendons)
         cells = [
             LoadCell(twin.arm, seed=seed if c == 0 else [seed, c], span_n=t.load_cell_range_n)
             for c, t in enumerate(twin.tendons)
