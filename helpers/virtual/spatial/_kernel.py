@@ -938,6 +938,9 @@ def wfactor(geo, mb, Jd, Jp, tp, h, wfb, wft, wfs):
     nq = 3 * n
     gh = _RW_GAM * h
     beta = gh * gh
+    if gh < 1e-20:  # a sliver of a step at a transition: T = 0 (a W-method's order holds for any T); its
+        wfs[WS_BETA] = 0.0  # Woodbury form (K^-1 / beta) would divide by a beta that underflows to 0
+        return
     wfs[WS_BETA] = beta
     kd0 = beta * geo[G_KB]
     kd2 = beta * geo[G_KT]
@@ -1079,10 +1082,12 @@ def _wsolve(geo, tp, gh, wfb, wft, wfs, u, tmp):
     ``X = y - M'^-1 G_a Q^-1 G_a^T y`` with ``y = M'^-1 K c`` (Woodbury; :func:`wfactor`); ``tmp``: a
     position-space vector of work.
     """
+    beta = wfs[WS_BETA]
+    if beta == 0.0:  # T = 0 for this step (wfactor): u unchanged
+        return
     n = wfb.shape[0]
     nt = tp.shape[0]
     nq = 3 * n
-    beta = wfs[WS_BETA]
     kb = geo[G_KB]
     kt = geo[G_KT]
     # c (positions) into tmp; the springs' joint forces K_b c into tmp's arm part after the cable terms
