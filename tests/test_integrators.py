@@ -235,7 +235,7 @@ def test_a_sliver_of_a_step_stays_finite_with_four_tendons(h):
     """A piece of a step far shorter than any physics (a transition's search can end next to a kink marked
     with +-1e-300 and leave such a piece) is integrated with ``T = 0``: the Woodbury form of the four-tendon
     solve divides by ``beta = (gamma h)^2``, which underflows to 0 below about 1e-154 s. Found in a four-
-    tendon random tip stream at 0.5 ms: the state became NaN at 6.32 s, though 0.25 ms and 1 ms ran through."""
+    tendon random tip stream at 0.5 ms: its state went NaN at 6.32 s, at 0.25 ms and 1 ms it ran through."""
     from helpers.virtual.spatial import _kernel as sk
     from helpers.virtual.spatial.plant import kernel_arrays
 
