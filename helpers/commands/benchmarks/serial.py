@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import copy
 import subprocess
 import sys
 import tempfile
@@ -20,6 +21,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from helpers import rigfile
 from helpers.board.programmes import Dwell, Move, Programme
@@ -125,20 +128,65 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0,
     }  # fmt: skip
 
 
+class _PlantCalls:
+    """The world's plant, keeping every ``advance`` call's arguments and outputs (to replay them bare)."""
+
+    def __init__(self, plant: Any) -> None:
+        self.plant, self.calls = plant, []
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.plant, name)
+
+    def advance(self, times: np.ndarray, *steps: np.ndarray) -> Any:
+        out = self.plant.advance(times, *steps)
+        self.calls.append((np.array(times), *(np.array(s) for s in steps), np.array(out)))
+        return out
+
+
+def _bare_plant_cpu(plant: Any, calls: list[tuple[np.ndarray, ...]]) -> tuple[float, float]:
+    """CPU time of ``plant`` (a copy of the world's at the run's start) advanced over the run's instants.
+
+    One call over every instant the recording asked of the plant and every step it was given: the physics
+    of the same scenario without boards, lines or host. Returns the CPU seconds and the largest difference
+    (N) from the outputs the recording's plant gave.
+    """
+    times, outs = (np.concatenate([c[i] for c in calls]) for i in (0, -1))
+    steps = [np.concatenate([c[i] for c in calls]) for i in range(1, len(calls[0]) - 1)]
+    copy.deepcopy(plant).advance(*calls[0][:-1])  # a copy's first call may compile again: not timed
+    c0 = time.process_time()
+    out = plant.advance(times, *steps)
+    return time.process_time() - c0, float(np.max(np.abs(np.asarray(out) - outs)))
+
+
 def in_process_scenario() -> dict[str, Any]:
-    """Wall time of one 12 s scenario on the in-process virtual rig (first run and a warm second run)."""
+    """One 12 s scenario on the in-process virtual rig: wall time (first and warm run), CPU over the plant's.
+
+    The warm run's CPU time (``time.process_time``: emulated boards, lines, host, recording saved) over the
+    CPU time of the bare plant on the same scenario (:func:`_bare_plant_cpu`), measured in the same call.
+    """
     _, zvd = design_tdfs()
     rig = Rig("virtual", default_rig(), world="bench-inprocess")
     walls = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(2):
-            t0 = time.perf_counter()
+            if i == 1:
+                world = rig.world
+                bare = copy.deepcopy(world.plant)
+                world.plant = calls = _PlantCalls(world.plant)
+            t0, c0 = time.perf_counter(), time.process_time()
             rec = rig.run_pulse(200, 20, zvd, system="zvd", path=Path(tmp) / f"s{i}", progress=False)
             walls.append(time.perf_counter() - t0)
+        cpu = time.process_time() - c0
+        world.plant = calls.plant
     rig.close()
+    plant_cpu, diff = _bare_plant_cpu(bare, calls.calls)
     return {
         "first_wall_s": walls[0],
         "wall_s": walls[1],
+        "cpu_s": cpu,
+        "plant_cpu_s": plant_cpu,
+        "cpu_over_plant": cpu / plant_cpu,
+        "plant_max_diff_n": diff,
         "samples": len(rec.frame),
         "device_s": float(rec.frame["t_s"].iloc[-1]),
     }
@@ -175,5 +223,10 @@ def run_serial_benchmark(
         f"{inproc['samples']} samples): {inproc['wall_s']:.2f} s wall (target <= 1 s); "
         f"first run in the process {inproc['first_wall_s']:.2f} s "
         "(includes numba compilation)"
+    )
+    print(
+        f"the same run's CPU time over the bare plant's on the same scenario: {inproc['cpu_s']:.3f} s / "
+        f"{inproc['plant_cpu_s']:.3f} s = {inproc['cpu_over_plant']:.2f}x (aim <= 1.3x; the bare plant's "
+        f"outputs differ from the run's by {inproc['plant_max_diff_n']:.1e} N)"
     )
     return {"pty": ptys, "in_process": inproc}
