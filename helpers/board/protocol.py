@@ -35,6 +35,7 @@ from operator import xor
 import numpy as np
 
 from helpers.board.crc8 import crc8
+from helpers.board.lines import MAX_DIGITS, scan_data_lines
 
 FW_VERSION = "2.3.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
@@ -269,22 +270,104 @@ class StreamParser:
         self._last = (t_us, steps)
         out.append((seq, t_us, *sample[2:]))
 
-    def _lines(self, data: bytes) -> list[bytes]:
-        r"""Append ``data`` and return the complete lines it finishes (without ``\\n``).
+    def _accept_block(self, values: np.ndarray, out: list) -> None:
+        """Place the checked data lines ``values`` (rows of :meth:`_accept`'s fields) in order, as a block.
 
-        A run of bytes without ``\\n`` longer than :data:`MAX_PENDING` is returned as one line (so it is
-        flagged corrupted) and the rest of it up to the next ``\\n`` is discarded into a second corrupted line
-        at most.
+        The rows up to the first one that does not simply follow (a ``seq`` not increasing, an implausible
+        step count: judged as though every row before it was placed) are placed at once, exactly as
+        :meth:`_accept` would place them one by one; that row goes to :meth:`_data`, and so on.
         """
-        self._buf += data
-        parts = self._buf.split(b"\n")
-        rest = parts.pop()
-        lines = [bytes(p) for p in parts]
-        if len(rest) > MAX_PENDING:
-            lines.append(bytes(rest))
-            rest = b""
-        self._buf = bytearray(rest)
-        return lines
+        while len(values):
+            if not self._in_range():  # compared exactly below only with numbers of at most 15 digits
+                self._data(tuple(values[0].tolist()), out)
+                values = values[1:]
+                continue
+            t, bad = self._unwrapped_block(values[:, 1]), np.zeros(len(values), dtype=bool)
+            seq = values[:, 0]
+            bad[1:] = seq[1:] <= seq[:-1]
+            bad[0] = self.last_seq is not None and seq[0] <= self.last_seq
+            bad |= ~self._plausible_block(t, values[:, 2 + self.channels :])
+            k = int(np.argmax(bad)) if bad.any() else len(values)
+            if k:
+                base = 0 if self.last_seq is None else self.last_seq + 1
+                self.stats.dropped += int(seq[k - 1]) - base - (k - 1)  # the gaps between them, summed
+                self.last_seq = int(seq[k - 1])
+                self.stats.samples += k
+                self._t_offset, self._last_raw_t = int(t[k - 1] - values[k - 1, 1]), int(values[k - 1, 1])
+                placed = values[:k].copy()
+                placed[:, 1] = t[:k]
+                rows = placed.tolist()
+                self._last = (rows[-1][1], tuple(rows[-1][2 + self.channels :]))
+                out.extend(map(tuple, rows))
+            if k == len(values):
+                return
+            self._data(tuple(values[k].tolist()), out)
+            values = values[k + 1 :]
+
+    def _in_range(self) -> bool:
+        """The last placed sample's numbers are all below ``10**MAX_DIGITS`` (those of a block are)."""
+        big = 10**MAX_DIGITS
+        last = () if self._last is None else (self._last[0], *self._last[1])
+        return all(abs(v) < big for v in (*last, 0 if self.last_seq is None else self.last_seq))
+
+    def _unwrapped_block(self, t_raw: np.ndarray) -> np.ndarray:
+        """:meth:`_unwrapped` of consecutive times, as though every one before was placed."""
+        wrapped = np.empty(len(t_raw), dtype=np.int64)
+        wrapped[0] = self._last_raw_t is not None and t_raw[0] < self._last_raw_t
+        wrapped[1:] = t_raw[1:] < t_raw[:-1]
+        return t_raw + self._t_offset + WRAP_US * np.cumsum(wrapped)
+
+    def _plausible_block(self, t_us: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """:meth:`_plausible` of every row, as though every row before it was placed."""
+        ok = np.ones(len(t_us), dtype=bool)
+        if self.steps_range is not None:
+            lo, hi = np.array(self.steps_range, dtype=np.int64).T
+            ok &= np.all((lo <= steps) & (steps <= hi), axis=1)
+        first = 0 if self._last is not None else 1  # the first sample ever is judged by its range only
+        if self._last is not None:
+            t_prev = np.concatenate([[self._last[0]], t_us[:-1]])
+            s_prev = np.concatenate([np.array(self._last[1], dtype=np.int64)[None], steps[:-1]])
+        else:
+            t_prev, s_prev = t_us[:-1], steps[:-1]
+        t, s = t_us[first:], steps[first:]
+        changed = s != s_prev
+        if self.max_step_rate_hz is not None:
+            limit = self.max_step_rate_hz * np.maximum(t - t_prev, 0) * 1e-6 + 1
+            changed_ok = ~(changed & (np.abs(s - s_prev) > limit[:, None]))
+            ok[first:] &= np.all(changed_ok, axis=1)
+        if self.step_windows is not None:
+            for a, (starts, ends) in enumerate(self.step_windows):
+                i = np.searchsorted(starts, t, side="right") - 1
+                inside = (i >= 0) & (np.asarray(ends)[np.maximum(i, 0)] >= t_prev) if len(starts) else i >= 0
+                ok[first:] &= ~changed[:, a] | inside
+        return ok
+
+    def _data(self, item: tuple[int, ...], out: list) -> None:
+        """A checked data line: corrupted if its ``seq`` does not increase, else :meth:`_accept`'s."""
+        if self.last_seq is not None and item[0] <= self.last_seq:
+            self.stats.corrupted += 1
+            return
+        self._accept(item, out)
+
+    def _line(self, line: bytes, samples: list, messages: list) -> None:
+        r"""Check and classify one complete line (without its ``\n``), line by line."""
+        if not line.strip(b"\r"):
+            return
+        try:
+            item = parse_body(unframe(line), self.channels, self.axes, self.adc_max)
+        except FramingError as exc:
+            self.stats.corrupted += 1
+            if isinstance(exc, LegacyChecksum) and self.legacy is None:
+                body = line.rstrip(b"\r").rpartition(b"*")[0].decode("ascii")
+                if _LEGACY_BODY.fullmatch(body):
+                    self.legacy = body
+            return
+        if isinstance(item, tuple):
+            self._data(item, samples)
+        elif isinstance(item, Overrun):
+            self.stats.overruns += item.n
+        else:
+            messages.append(item)
 
     @property
     def pending(self) -> int:
@@ -297,28 +380,32 @@ class StreamParser:
         return t_raw + self._t_offset + (WRAP_US if wrapped else 0)
 
     def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
-        """Parse ``data`` (any chunking) and return the samples and messages it completes."""
+        r"""Parse ``data`` (any chunking) and return the samples and messages it completes.
+
+        The lines it completes are scanned at once (:func:`~helpers.board.lines.scan_data_lines`): the valid
+        data lines among them are placed in blocks (:meth:`_accept_block`), every other line is checked on
+        its own (:meth:`_line`), in the order they came. A run of bytes without ``\n`` longer than
+        :data:`MAX_PENDING` is taken as one line (so it is flagged corrupted) and the rest of it up to the
+        next ``\n`` is discarded into a second corrupted line at most.
+        """
         samples: list[tuple[int, ...]] = []
         messages: list[str] = []
-        for line in self._lines(data):
-            if not line.strip(b"\r"):
-                continue
-            try:
-                item = parse_body(unframe(line), self.channels, self.axes, self.adc_max)
-            except FramingError as exc:
-                self.stats.corrupted += 1
-                if isinstance(exc, LegacyChecksum) and self.legacy is None:
-                    body = line.rstrip(b"\r").rpartition(b"*")[0].decode("ascii")
-                    if _LEGACY_BODY.fullmatch(body):
-                        self.legacy = body
-                continue
-            if isinstance(item, tuple):
-                if self.last_seq is not None and item[0] <= self.last_seq:
-                    self.stats.corrupted += 1
-                    continue
-                self._accept(item, samples)
-            elif isinstance(item, Overrun):
-                self.stats.overruns += item.n
-            else:
-                messages.append(item)
+        self._buf += data
+        cut = self._buf.rfind(b"\n") + 1
+        complete, rest = bytes(self._buf[:cut]), self._buf[cut:]
+        self._buf = bytearray() if len(rest) > MAX_PENDING else rest
+        if complete:
+            arr = np.frombuffer(complete, dtype=np.uint8)
+            c, a = self.channels, self.axes
+            starts, ends, fast, values = scan_data_lines(arr, c, a, self.adc_max, MAX_LINE, WRAP_US)
+            done = row = 0  # lines handled, rows of values placed
+            for j in [*np.flatnonzero(~fast).tolist(), len(ends)]:  # the lines checked alone, the end
+                if j > done:  # lines done .. j - 1: valid data lines
+                    self._accept_block(values[row : row + j - done], samples)
+                    row += j - done
+                if j < len(ends):
+                    self._line(complete[starts[j] : ends[j]], samples, messages)
+                done = j + 1
+        if len(rest) > MAX_PENDING:
+            self._line(bytes(rest), samples, messages)
         return samples, messages

@@ -1,0 +1,268 @@
+"""The DAQ's lines in blocks (``helpers.board.lines``) against line by line: the same bytes, rows and counts.
+
+The emulated board frames a chunk of samples at once and the host scans a read at once; both must give
+exactly what the line-by-line protocol gives. The expected bytes come from the bitwise reference CRC
+(``crc_reference``), and the parser is compared with the line-by-line parser of the same rules
+(:class:`LineByLine`: every line through ``unframe`` and ``parse_body``, as the parser did before blocks) on
+random streams with every kind of damage, every channel count and any chunking.
+"""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+from crc_reference import link_hex, xor_hex
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from helpers.board.lines import MAX_DIGITS, crc8_rows, frame_data_lines, scan_data_lines
+from helpers.board.protocol import MAX_LINE, MAX_PENDING, WRAP_US, StreamParser
+
+
+def _reference_line(row: list[int]) -> bytes:
+    body = "D," + ",".join(str(v) for v in row)
+    return f"{body}*{link_hex(body)}\n".encode()
+
+
+class LineByLine(StreamParser):
+    """The parser with every line checked on its own (``unframe``, ``parse_body``): the reference."""
+
+    def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
+        samples: list[tuple[int, ...]] = []
+        messages: list[str] = []
+        self._buf += data
+        parts = self._buf.split(b"\n")
+        rest = parts.pop()
+        lines = [bytes(p) for p in parts]
+        if len(rest) > MAX_PENDING:
+            lines.append(bytes(rest))
+            rest = b""
+        self._buf = bytearray(rest)
+        for line in lines:
+            self._line(line, samples, messages)
+        return samples, messages
+
+
+# --- the emulator's side: framing ---------------------------------------------------------------------------
+@pytest.mark.parametrize("tendons", [1, 2, 3, 4])
+def test_a_block_of_data_lines_is_the_lines_framed_one_by_one(tendons):
+    r = np.random.default_rng(tendons)
+    n = 400
+    seq = np.sort(r.integers(0, 10**6, n))
+    t_us = r.integers(0, WRAP_US, n)
+    t_us[:3] = [0, 9, WRAP_US - 1]
+    counts = r.integers(0, 1024, (n, tendons))
+    counts[0] = 0
+    steps = r.integers(-20_000, 20_000, (n, tendons)) // r.choice([1, 10, 1000], (n, tendons))
+    steps[1], steps[2] = 0, -1  # zero, minus one
+    fields = np.column_stack([seq, t_us, counts, steps])
+    assert (fields < 0).any() and (fields == 0).any()
+    assert frame_data_lines(fields) == b"".join(_reference_line(row) for row in fields.tolist())
+    assert frame_data_lines(fields[:1]) == _reference_line(fields[0].tolist())
+    assert frame_data_lines(fields[:0]) == b""
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.binary(min_size=0, max_size=64), min_size=1, max_size=20), st.integers(0, 2**32 - 1))
+def test_the_crc_of_many_rows_at_once_is_the_crc_of_each(rows, seed):
+    """Rows of any length with skipped bytes among them: each row's CRC as the bitwise reference gives it."""
+    r = np.random.default_rng(seed)
+    width = max(len(x) for x in rows) + 5
+    grid = r.integers(0, 256, (len(rows), width)).astype(np.uint8)
+    valid = np.zeros((len(rows), width), dtype=bool)
+    for i, row in enumerate(rows):
+        where = np.sort(r.choice(width, len(row), replace=False))
+        grid[i, where], valid[i, where] = np.frombuffer(row, dtype=np.uint8), True
+    got = crc8_rows(grid, valid)
+    assert [f"{x:02X}" for x in got.tolist()] == [link_hex(row) for row in rows]
+
+
+# --- the host's side: scanning and the parser ---------------------------------------------------------------
+def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_parser():
+    good = [
+        _reference_line([5, 1000, 512, -3]),
+        _reference_line([6, 2000, 0, 0]),
+        _reference_line([7, 3, 9, -0]),
+    ]
+    other = [
+        b"OK STOP 7*" + link_hex("OK STOP 7").encode() + b"\n",  # a reply
+        _reference_line([8, 4000, 1024, 1]),  # a count beyond the ADC
+        _reference_line([9, WRAP_US, 5, 1]),  # a time beyond the clock
+        _reference_line([10 ** (MAX_DIGITS + 1), 5, 5, 1]),  # valid, but too long to read here
+        _reference_line([11, 5, 5, 1])[:-4] + b"00\n",  # wrong CRC
+        _reference_line([12, 5, 5, 1]).replace(b"\n", b"\r\n"),  # valid with \r: left to the parser
+        b"D,13,5,5,1*" + xor_hex("D,13,5,5,1").encode() + b"\n",  # protocol 1's checksum
+        b"D,14,5,5*" + link_hex("D,14,5,5").encode() + b"\n",  # a field short
+        b"D,15,5,-5,1*" + link_hex("D,15,5,-5,1").encode() + b"\n",  # a negative count
+        b"D,16,5,5,1-*" + link_hex("D,16,5,5,1-").encode() + b"\n",  # a minus inside a field
+        b"D,17,,5,1*" + link_hex("D,17,,5,1").encode() + b"\n",  # an empty field
+        b"\n",
+    ]
+    data = b"".join(good + other + good[:1])
+    starts, ends, fast, values = scan_data_lines(np.frombuffer(data, np.uint8), 1, 1, 1023, MAX_LINE, WRAP_US)
+    assert fast.tolist() == [True] * 3 + [False] * len(other) + [True]
+    assert values.tolist() == [[5, 1000, 512, -3], [6, 2000, 0, 0], [7, 3, 9, 0], [5, 1000, 512, -3]]
+    assert [data[s:e] + b"\n" for s, e in zip(starts, ends, strict=True)] == good + other + good[:1]
+
+
+_HEX = "0123456789ABCDEF"
+
+
+def _body_line(body: str, r: random.Random) -> bytes:
+    """``body`` framed, mostly with the right CRC-8, sometimes with a wrong one or protocol 1's XOR."""
+    x = r.random()
+    check = link_hex(body) if x < 0.9 else xor_hex(body) if x < 0.95 else r.choice(_HEX) + r.choice(_HEX)
+    return f"{body}*{check}\n".encode()
+
+
+def _damage(line: bytes, r: random.Random) -> bytes:
+    b = bytearray(line[:-1])
+    how = r.choice(["flip", "truncate", "insert", "delete", "newline", "cr"])
+    i = r.randrange(len(b) + 1)
+    if how == "flip" and b:
+        b[min(i, len(b) - 1)] ^= 1 << r.randrange(8)
+    elif how == "truncate":
+        del b[i:]
+    elif how == "insert":
+        b[i:i] = bytes([r.choice(b"0123456789,-*D\r\xff ")])
+    elif how == "delete" and b:
+        del b[min(i, len(b) - 1)]
+    elif how == "newline":  # the line broken in two
+        b[i:i] = b"\n"
+    elif how == "cr":
+        b += b"\r"
+    return bytes(b) + b"\n"
+
+
+def _stream(r: random.Random, channels: int, axes: int, n: int) -> bytes:
+    """Data lines with gaps, repeats and jumps of ``seq``, clock wraps, steps that jump, and every fault."""
+    out = []
+    seq, t = r.randrange(1000), r.choice([0, WRAP_US - 3000, r.randrange(WRAP_US)])
+    steps = [r.randint(-50, 50) for _ in range(axes)]
+    for _ in range(n):
+        seq += r.choice([1] * 20 + [0, 2, 3, -1, -5, 40])
+        t = (t + r.choice([1000] * 20 + [0, 500, 7000, -1000])) % WRAP_US
+        for a in range(axes):
+            steps[a] += r.choice([0] * 10 + [1, -1, 2, -2, 60, -300])
+        counts = [r.choice([r.randrange(1024), 0, 1023, 1024, 99999]) for _ in range(channels)]
+        fields = [max(seq, 0), t, *counts, *steps]
+        if r.random() < 0.02:
+            fields[r.randrange(len(fields))] = r.choice([10**15, 10**16 + 7, -(10**15), 10**30])
+        if r.random() < 0.03:  # a field too many or too few
+            fields = fields[:-1] if r.random() < 0.5 else [*fields, 1]
+        text = [str(v) for v in fields]
+        if r.random() < 0.02:
+            i = r.randrange(len(text))
+            text[i] = r.choice(["0" + text[i], "-0", "", "-", "+1", " 1", "1e3", "x"])
+        body = "D," + ",".join(text)
+        line = _body_line(body, r) if len(body) <= 60 or r.random() < 0.5 else (body + "*00\n").encode()
+        if r.random() < 0.08:
+            line = _damage(line, r)
+        if r.random() < 0.03:
+            continue  # lost
+        out.append(line)
+        x = r.random()
+        if x < 0.03:
+            out.append(
+                _body_line(
+                    r.choice(
+                        [
+                            "OK STOP 5",
+                            "HELLO daq 2.3.0 481e87e3",
+                            "PONG daq 1.0.0",
+                            "N,LIMIT,1",
+                            "W,OVERRUN,3",
+                            "W,OVERRUN,x",
+                            "ERR CHECKSUM",
+                        ]
+                    ),
+                    r,
+                )
+            )
+        elif x < 0.04:
+            out.append(
+                r.choice([b"\n", b"\r\n", b"\r", bytes(r.randrange(256) for _ in range(r.randrange(80)))])
+            )
+        elif x < 0.045:
+            out.append(b"x" * r.randrange(MAX_PENDING - 5, 3 * MAX_PENDING))
+    return b"".join(out)
+
+
+def _parsers(r: random.Random, channels: int, axes: int) -> tuple[StreamParser, StreamParser]:
+    rate = r.choice([None, 2000.0, 2000, 150.5, 1e6])
+    adc_max = r.choice([1023, 4095, 600])
+    ranges = r.choice([None, [(r.randint(-400, 0), r.randint(0, 400)) for _ in range(axes)]])
+    windows = None
+    if r.random() < 0.5:
+        windows = []
+        for _ in range(axes):
+            edges = np.cumsum([r.randrange(WRAP_US // 50) for _ in range(2 * r.randrange(6))])
+            windows.append((edges[0::2], edges[1::2]))
+    parsers = (StreamParser(channels, axes, rate, adc_max), LineByLine(channels, axes, rate, adc_max))
+    for p in parsers:
+        p.steps_range, p.step_windows = ranges, windows
+    return parsers
+
+
+def _same(data: bytes, blocks: StreamParser, lines: StreamParser, r: random.Random) -> None:
+    cuts = sorted(r.randrange(len(data) + 1) for _ in range(r.randrange(6)))
+    for a, b in zip([0, *cuts], [*cuts, len(data)], strict=True):
+        assert blocks.feed(data[a:b]) == lines.feed(data[a:b])
+        assert blocks.stats == lines.stats and blocks.pending == lines.pending
+        assert blocks.legacy == lines.legacy and blocks.last_seq == lines.last_seq
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), channels=st.integers(1, 4), n=st.integers(0, 300))
+def test_blocks_give_the_rows_and_counts_of_line_by_line(seed, channels, n):
+    r = random.Random(seed)
+    axes = channels if r.random() < 0.8 else r.randint(1, 4)
+    data = _stream(r, channels, axes, n)
+    blocks, lines = _parsers(r, channels, axes)
+    _same(data, blocks, lines, r)
+    # restarted (a new START) with the buffer kept: still the same
+    blocks.restart(), lines.restart()
+    _same(_stream(r, channels, axes, n // 3), blocks, lines, r)
+
+
+def test_the_fuzzed_streams_exercise_every_outcome():
+    """The comparison above sees every count move and rows both placed and refused."""
+    seen = {
+        "samples": 0,
+        "dropped": 0,
+        "corrupted": 0,
+        "implausible": 0,
+        "overruns": 0,
+        "legacy": 0,
+        "msgs": 0,
+    }
+    r = random.Random(7)
+    for _ in range(60):
+        c = r.randint(1, 4)
+        blocks, lines = _parsers(r, c, c)
+        data = _stream(r, c, c, 200)
+        rows, msgs = blocks.feed(data)
+        assert (rows, msgs) == lines.feed(data) and blocks.stats == lines.stats
+        for k in ("samples", "dropped", "corrupted", "implausible", "overruns"):
+            seen[k] += getattr(blocks.stats, k) > 0
+        seen["legacy"] += blocks.legacy is not None
+        seen["msgs"] += len(msgs) > 0
+    assert all(v > 0 for v in seen.values()), seen
+
+
+def test_an_emulated_stream_is_read_whole_by_the_scan():
+    """Undamaged, the DAQ's own lines never leave the fast path, across the clock's wrap, for 1-4 channels."""
+    for c in range(1, 5):
+        n = 300
+        t_us = (WRAP_US - 150_000 + 1000 * np.arange(n)) % WRAP_US
+        steps = np.arange(n * c).reshape(n, c) // 7 - 20
+        fields = np.column_stack([np.arange(n), t_us, np.full((n, c), 511), steps])
+        data = frame_data_lines(fields)
+        assert scan_data_lines(np.frombuffer(data, np.uint8), c, c, 1023, MAX_LINE, WRAP_US)[2].all()
+        p = StreamParser(c, c, 2000.0)
+        rows, msgs = p.feed(data)
+        assert msgs == [] and len(rows) == n and p.stats.samples == n and p.stats.corrupted == 0
+        assert [r[1] for r in rows] == (WRAP_US - 150_000 + 1000 * np.arange(n)).tolist()
+        assert rows[-1] == (n - 1, WRAP_US - 150_000 + 1000 * (n - 1), *[511] * c, *(fields[-1, 2 + c :]))
