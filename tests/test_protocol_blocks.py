@@ -17,7 +17,7 @@ from crc_reference import link_hex, xor_hex
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from helpers.board.lines import MAX_DIGITS, crc8_rows, frame_data_lines, scan_data_lines
+from helpers.board.lines import MAX_DIGITS, crc8_spans, frame_data_lines, scan_data_lines
 from helpers.board.protocol import MAX_LINE, MAX_PENDING, WRAP_US, StreamParser
 
 
@@ -65,18 +65,14 @@ def test_a_block_of_data_lines_is_the_lines_framed_one_by_one(tendons):
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.binary(min_size=0, max_size=64), min_size=1, max_size=20), st.integers(0, 2**32 - 1))
-def test_the_crc_of_many_rows_at_once_is_the_crc_of_each(rows, seed):
-    """Rows of any length with skipped bytes among them: each row's CRC as the bitwise reference gives it."""
-    r = np.random.default_rng(seed)
-    width = max(len(x) for x in rows) + 5
-    grid = r.integers(0, 256, (len(rows), width)).astype(np.uint8)
-    valid = np.zeros((len(rows), width), dtype=bool)
-    for i, row in enumerate(rows):
-        where = np.sort(r.choice(width, len(row), replace=False))
-        grid[i, where], valid[i, where] = np.frombuffer(row, dtype=np.uint8), True
-    got = crc8_rows(grid, valid)
-    assert [f"{x:02X}" for x in got.tolist()] == [link_hex(row) for row in rows]
+@given(st.lists(st.binary(min_size=0, max_size=64), min_size=1, max_size=20), st.binary(max_size=30))
+def test_the_crc_of_many_spans_at_once_is_the_crc_of_each(spans, gap):
+    """Spans of 0-64 bytes with bytes between them: the CRC of each as the bitwise reference gives it."""
+    data = gap + b"".join(x + gap for x in spans)
+    lengths = np.array([len(x) + len(gap) for x in spans])
+    starts = len(gap) + np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    got = crc8_spans(np.frombuffer(data, np.uint8), starts, starts + [len(x) for x in spans])
+    assert [f"{x:02X}" for x in got.tolist()] == [link_hex(x) for x in spans]
 
 
 # --- the host's side: scanning and the parser ---------------------------------------------------------------
@@ -101,7 +97,7 @@ def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_pars
         b"\n",
     ]
     data = b"".join(good + other + good[:1])
-    starts, ends, fast, values = scan_data_lines(np.frombuffer(data, np.uint8), 1, 1, 1023, MAX_LINE, WRAP_US)
+    starts, ends, fast, values = scan_data_lines(data, 1, 1, 1023, MAX_LINE, WRAP_US)
     assert fast.tolist() == [True] * 3 + [False] * len(other) + [True]
     assert values.tolist() == [[5, 1000, 512, -3], [6, 2000, 0, 0], [7, 3, 9, 0], [5, 1000, 512, -3]]
     assert [data[s:e] + b"\n" for s, e in zip(starts, ends, strict=True)] == good + other + good[:1]
@@ -260,7 +256,7 @@ def test_an_emulated_stream_is_read_whole_by_the_scan():
         steps = np.arange(n * c).reshape(n, c) // 7 - 20
         fields = np.column_stack([np.arange(n), t_us, np.full((n, c), 511), steps])
         data = frame_data_lines(fields)
-        assert scan_data_lines(np.frombuffer(data, np.uint8), c, c, 1023, MAX_LINE, WRAP_US)[2].all()
+        assert scan_data_lines(data, c, c, 1023, MAX_LINE, WRAP_US)[2].all()
         p = StreamParser(c, c, 2000.0)
         rows, msgs = p.feed(data)
         assert msgs == [] and len(rows) == n and p.stats.samples == n and p.stats.corrupted == 0

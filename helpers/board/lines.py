@@ -8,9 +8,8 @@ whole chunk of samples at once (:func:`frame_data_lines`) and the host scans a w
 The CRC-8 (:mod:`helpers.board.crc8`) is linear over GF(2) apart from its initial value: one step of the
 register is ``r -> TABLE[r ^ b] = TABLE[r] ^ TABLE[b]``. A byte ``b`` followed by ``m`` more bytes therefore
 adds ``A^m(TABLE[b])`` to the final register (``A``: the map ``r -> TABLE[r]``) and the initial value adds
-``A^L(INIT)`` for a line of ``L`` bytes; :func:`crc8_rows` is the XOR of table look-ups over a byte matrix,
-whatever the lines' lengths (a test checks it against :func:`~helpers.board.crc8.crc8` and the bitwise
-reference).
+``A^L(INIT)`` for a line of ``L`` bytes: the CRC-8s of many lines are XORs of table look-ups over their bytes
+whatever the lines' lengths (:func:`crc8_spans`; a test checks it against the bitwise reference).
 
 The scan is a fast path, not a second parser: it accepts only a line that is certainly a valid data line
 (``D,`` then the board's number of integer fields of at most 15 digits, counts in range, the right CRC-8), and
@@ -19,12 +18,15 @@ gives its fields; every other line goes to the line-by-line parser, which decide
 
 from __future__ import annotations
 
+import re
+from functools import cache
+
 import numpy as np
 
 from helpers.board.crc8 import INIT, TABLE, XOROUT
 
 MAX_BYTES = 64
-"""Longest run of bytes :func:`crc8_rows` takes per row (a line of the protocol has at most 63)."""
+"""Longest span :func:`crc8_spans` takes (a line of the protocol has at most 63 bytes)."""
 
 MAX_DIGITS = 15
 """Digits of a field the scan reads (10**15 < 2**53: exact as int64 and as float64)."""
@@ -44,42 +46,37 @@ def _tables() -> tuple[np.ndarray, np.ndarray]:
 
 
 _AFTER, _INIT_AFTER = _tables()
-_POW10 = 10 ** np.arange(MAX_DIGITS + 4, dtype=np.int64)
-_HEX = np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)
-_HEX_VALUE = np.full(256, -1, dtype=np.int16)
-_HEX_VALUE[_HEX] = np.arange(16)
-COMMA, MINUS, STAR, NEWLINE = b",-*\n"
-_WEIGHT = np.full(256, 4096, dtype=np.int64)
-_WEIGHT[48:58], _WEIGHT[COMMA], _WEIGHT[MINUS] = 0, 1, 64
 _AFTER_OFFSET = 256 * np.arange(MAX_BYTES, dtype=np.int64)
+_HEX2 = [f"{x:02X}" for x in range(256)]
+_HEX_VALUE = np.full(256, -1, dtype=np.int16)
+_HEX_VALUE[np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)] = np.arange(16)
+NEWLINE = ord("\n")
 
 
-def _crc8(index: np.ndarray, length: np.ndarray) -> np.ndarray:
-    """The CRC-8 of rows of bytes given as ``index = 256 * (bytes after it in its row) + byte`` (0: none)."""
-    crc = np.bitwise_xor.reduce(_AFTER[index], axis=1) if index.shape[1] else np.zeros(len(index), np.uint8)
-    return crc ^ _INIT_AFTER[length] ^ XOROUT
-
-
-def crc8_rows(grid: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """The CRC-8 of every row's valid bytes in their order (the bytes between are skipped).
+def crc8_spans(data: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """The CRC-8 (:func:`~helpers.board.crc8.crc8`) of every span ``data[starts[i]:ends[i]]``, at once.
 
     Parameters
     ----------
-    grid : ndarray of uint8, shape (n, w)
-        The bytes, ``w <= MAX_BYTES`` valid ones per row at most.
-    valid : ndarray of bool, shape (n, w)
-        Which bytes belong to the row's line.
+    data : ndarray of uint8
+        The bytes.
+    starts, ends : ndarray of int
+        The spans, each at most :data:`MAX_BYTES` long.
 
     Returns
     -------
-    ndarray of uint8, shape (n,)
-        ``crc8(bytes(grid[i][valid[i]]))`` for every row ``i``.
+    ndarray of uint8
+        One CRC-8 per span.
     """
-    kept = np.cumsum(valid, axis=1)
-    length = kept[:, -1] if grid.shape[1] else np.zeros(len(grid), dtype=np.int64)
-    if length.size and length.max() > MAX_BYTES:
-        raise ValueError(f"a row of {length.max()} bytes: the CRC tables cover {MAX_BYTES}")
-    return _crc8(np.where(valid, (length[:, None] - kept) * 256 + grid, 0), length)
+    length = ends - starts
+    w = int(length.max(initial=0))
+    if w > MAX_BYTES:
+        raise ValueError(f"a span of {w} bytes: the CRC tables cover {MAX_BYTES}")
+    if w == 0:
+        return np.full(len(starts), _INIT_AFTER[0] ^ XOROUT, dtype=np.uint8)
+    pos = ends[:, None] + np.arange(-w, 0)  # right-aligned: byte j has w - 1 - j bytes after it
+    index = np.where(pos >= starts[:, None], data[np.maximum(pos, 0)] + _AFTER_OFFSET[w - 1 :: -1], 0)
+    return np.bitwise_xor.reduce(_AFTER[index], axis=1) ^ _INIT_AFTER[length] ^ XOROUT
 
 
 def frame_data_lines(fields: np.ndarray) -> bytes:
@@ -88,40 +85,39 @@ def frame_data_lines(fields: np.ndarray) -> bytes:
     Parameters
     ----------
     fields : ndarray of int, shape (n, F)
-        Every line's integers (``seq, t_us, adc_0.., steps_0..``), any sign, at most 18 digits.
+        Every line's integers (``seq, t_us, adc_0.., steps_0..``), a line's body at most :data:`MAX_BYTES`.
     """
-    fields = np.asarray(fields, dtype=np.int64)
-    n, f = fields.shape
-    if n == 0:
+    fields = np.asarray(fields)
+    if len(fields) == 0:
         return b""
-    mag = np.abs(fields)
-    digits = 1 + np.count_nonzero(mag[..., None] >= _POW10[1:19], axis=-1)  # (n, F)
-    w = int(digits.max())
-    slot = np.empty((n, f, w + 2), dtype=np.uint8)  # per field: ',', '-', w digits right-aligned
-    slot[..., 0] = COMMA
-    slot[..., 1] = MINUS
-    slot[..., 2:] = (mag[..., None] // _POW10[w - 1 :: -1]) % 10 + 48
-    keep = np.empty((n, f, w + 2), dtype=bool)
-    keep[..., 0] = True
-    keep[..., 1] = fields < 0
-    keep[..., 2:] = np.arange(w) >= (w - digits)[..., None]
-    body = np.concatenate([np.full((n, 1), ord("D"), np.uint8), slot.reshape(n, -1)], axis=1)
-    body_keep = np.concatenate([np.ones((n, 1), bool), keep.reshape(n, -1)], axis=1)
-    crc = crc8_rows(body, body_keep)
-    tail = np.empty((n, 4), dtype=np.uint8)
-    tail[:, 0], tail[:, 1], tail[:, 2], tail[:, 3] = STAR, _HEX[crc >> 4], _HEX[crc & 15], NEWLINE
-    grid = np.concatenate([body, tail], axis=1)
-    return grid[np.concatenate([body_keep, np.ones((n, 4), bool)], axis=1)].tobytes()
+    form = "D" + ",%d" * fields.shape[1]
+    bodies = [form % tuple(row) for row in fields.tolist()]
+    data = np.frombuffer("\n".join(bodies).encode("ascii") + b"\n", dtype=np.uint8)
+    ends = np.flatnonzero(data == NEWLINE)
+    crc = crc8_spans(data, np.concatenate([[0], ends[:-1] + 1]), ends).tolist()
+    return "".join([f"{b}*{_HEX2[c]}\n" for b, c in zip(bodies, crc, strict=True)]).encode("ascii")
+
+
+@cache
+def _patterns(channels: int, axes: int) -> tuple[re.Pattern[bytes], re.Pattern[bytes]]:
+    r"""A data line's shape (each field of at most :data:`MAX_DIGITS` digits, ``\n`` included), any number."""
+    count, step = rb",[0-9]{1,%d}" % MAX_DIGITS, rb",-?[0-9]{1,%d}" % MAX_DIGITS
+    line = rb"D(?:%s){%d}(?:%s){%d}\*[0-9A-F]{2}\n" % (count, 2 + channels, step, axes)
+    return re.compile(line), re.compile(rb"(?:%s)*" % line)
+
+
+_BETWEEN = re.compile(rb"\*[0-9A-F]{2}\nD,")
+"""From one data line's fields to the next's."""
 
 
 def scan_data_lines(
-    data: np.ndarray, channels: int, axes: int, adc_max: int, max_line: int, wrap: int
+    raw: bytes, channels: int, axes: int, adc_max: int, max_line: int, wrap: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     r"""Split complete lines and read the certainly valid data lines among them, all at once.
 
     Parameters
     ----------
-    data : ndarray of uint8
+    raw : bytes
         Complete lines, each ending in ``\n``.
     channels, axes : int
         The board's fields: ``D,<seq>,<t_us>,<adc_0>..<adc_{C-1}>,<steps_0>..<steps_{A-1}>``.
@@ -139,45 +135,24 @@ def scan_data_lines(
         Their fields, as ``parse_body`` gives them.
     """
     k = 2 + channels + axes
+    data = np.frombuffer(raw, dtype=np.uint8)
     ends = np.flatnonzero(data == NEWLINE)
     starts = np.empty_like(ends)
     starts[:1], starts[1:] = 0, ends[:-1] + 1
-    # every byte weighs: a comma 1, a minus 64, anything but a digit 4096; a line holds fewer than 64 of each
-    weight = np.zeros(len(data) + 1, dtype=np.int64)
-    np.cumsum(_WEIGHT[data], out=weight[1:])
-    after_d = np.minimum(starts + 1, ends)
-    e = np.maximum(ends - 3, after_d)  # the body's end (at the '*')
-    inside = weight[e] - weight[after_d]  # of the fields: from the first comma to the '*'
-    hi, lo = _HEX_VALUE[data[np.maximum(ends - 2, 0)]], _HEX_VALUE[data[np.maximum(ends - 1, 0)]]
-    ok = (
-        (ends - starts >= 2 * k + 4) & (ends - starts <= max_line) & (inside % 64 == k) & (inside < 4096)
-        & (data[starts] == ord("D")) & (data[after_d] == COMMA) & (data[e] == STAR) & (hi >= 0) & (lo >= 0)
-    )  # fmt: skip
+    line, block = _patterns(channels, axes)
+    if block.fullmatch(raw):  # every line has a data line's shape (the usual case)
+        shaped, fields = np.ones(len(ends), dtype=bool), raw
+    else:
+        bounds = list(zip(starts.tolist(), (ends + 1).tolist(), strict=True))
+        shaped = np.array([line.fullmatch(raw, a, b) is not None for a, b in bounds], dtype=bool)
+        fields = b"".join([raw[a:b] for (a, b), ok in zip(bounds, shaped.tolist(), strict=True) if ok])
+    # every shaped line's fields, one comma-separated list of integers
+    values = np.fromstring(_BETWEEN.sub(b",", fields)[2:-4], dtype=np.int64, sep=",").reshape(-1, k)
+    idx = np.flatnonzero(shaped)
+    s, e = starts[idx], ends[idx] - 3  # the body, up to the '*'
+    good = (e + 3 - s <= max_line) & (values[:, 1] < wrap)
+    good &= np.all(values[:, 2 : 2 + channels] <= adc_max, axis=1)
+    good &= crc8_spans(data, s, e) == _HEX_VALUE[data[e + 1]] * 16 + _HEX_VALUE[data[e + 2]]
     fast = np.zeros(len(ends), dtype=bool)
-    if not ok.any():
-        return starts, ends, fast, np.zeros((0, k), dtype=np.int64)
-    commas = np.flatnonzero(data == COMMA)
-    commas = commas[ok[np.searchsorted(ends, commas)]].reshape(-1, k)  # k in every line kept, in order
-    idx = np.flatnonzero(ok)
-    s, e = starts[idx], e[idx]
-    first = commas + 1
-    last = np.empty_like(commas)  # one past each field's end
-    last[:, :-1], last[:, -1] = commas[:, 1:], e
-    signed = data[first] == MINUS
-    width = last - first - signed
-    good = (
-        np.all((width >= 1) & (width <= MAX_DIGITS) & ((np.arange(k) >= 2 + channels) | ~signed), axis=1)
-        & (np.count_nonzero(signed, axis=1) == inside[idx] // 64)
-    )  # fmt: skip
-    w = int(np.clip(width, 1, MAX_DIGITS).max(initial=1))  # a wider field is not read (not good)
-    pos = last[..., None] - w + np.arange(w)
-    digits = np.where(pos >= (first + signed)[..., None], data[np.maximum(pos, 0)].astype(np.int64) - 48, 0)
-    values = digits @ _POW10[w - 1 :: -1]
-    values = np.where(signed, -values, values)
-    good &= (values[:, 1] < wrap) & np.all(values[:, 2 : 2 + channels] <= adc_max, axis=1)
-    w = int((e - s).max(initial=0))  # the longest body: right-aligned, byte j has w - 1 - j after it
-    pos = e[:, None] - w + np.arange(w)
-    index = np.where(pos >= s[:, None], data[np.maximum(pos, 0)] + _AFTER_OFFSET[w - 1 :: -1], 0)
-    good &= _crc8(index, e - s) == hi[idx] * 16 + lo[idx]
     fast[idx[good]] = True
     return starts, ends, fast, values[good]

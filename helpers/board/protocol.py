@@ -273,25 +273,19 @@ class StreamParser:
     def _accept_block(self, values: np.ndarray, out: list) -> None:
         """Place the checked data lines ``values`` (rows of :meth:`_accept`'s fields) in order, as a block.
 
-        The rows up to the first one that does not simply follow (a ``seq`` not increasing, an implausible
-        step count: judged as though every row before it was placed) are placed at once, exactly as
-        :meth:`_accept` would place them one by one; that row goes to :meth:`_data`, and so on.
+        The rows up to the first one that does not simply follow (:meth:`_block_end`) are placed at once,
+        exactly as :meth:`_accept` would place them one by one; that row goes to :meth:`_data`, and so on.
         """
         while len(values):
             if not self._in_range():  # compared exactly below only with numbers of at most 15 digits
                 self._data(tuple(values[0].tolist()), out)
                 values = values[1:]
                 continue
-            t, bad = self._unwrapped_block(values[:, 1]), np.zeros(len(values), dtype=bool)
-            seq = values[:, 0]
-            bad[1:] = seq[1:] <= seq[:-1]
-            bad[0] = self.last_seq is not None and seq[0] <= self.last_seq
-            bad |= ~self._plausible_block(t, values[:, 2 + self.channels :])
-            k = int(np.argmax(bad)) if bad.any() else len(values)
+            k, t = self._block_end(values)
             if k:
-                base = 0 if self.last_seq is None else self.last_seq + 1
-                self.stats.dropped += int(seq[k - 1]) - base - (k - 1)  # the gaps between them, summed
-                self.last_seq = int(seq[k - 1])
+                seq = int(values[k - 1, 0])
+                self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1) - (k - 1)
+                self.last_seq = seq
                 self.stats.samples += k
                 self._t_offset, self._last_raw_t = int(t[k - 1] - values[k - 1, 1]), int(values[k - 1, 1])
                 placed = values[:k].copy()
@@ -310,37 +304,52 @@ class StreamParser:
         last = () if self._last is None else (self._last[0], *self._last[1])
         return all(abs(v) < big for v in (*last, 0 if self.last_seq is None else self.last_seq))
 
-    def _unwrapped_block(self, t_raw: np.ndarray) -> np.ndarray:
-        """:meth:`_unwrapped` of consecutive times, as though every one before was placed."""
-        wrapped = np.empty(len(t_raw), dtype=np.int64)
-        wrapped[0] = self._last_raw_t is not None and t_raw[0] < self._last_raw_t
-        wrapped[1:] = t_raw[1:] < t_raw[:-1]
-        return t_raw + self._t_offset + WRAP_US * np.cumsum(wrapped)
+    def _block_end(self, values: np.ndarray) -> tuple[int, np.ndarray]:
+        """``(k, t_us)``: the first row that does not simply follow, and every row's unwrapped time.
 
-    def _plausible_block(self, t_us: np.ndarray, steps: np.ndarray) -> np.ndarray:
-        """:meth:`_plausible` of every row, as though every row before it was placed."""
-        ok = np.ones(len(t_us), dtype=bool)
+        Row ``k`` is the first whose ``seq`` does not increase or that :meth:`_plausible` refuses, each
+        judged as though every row before it was placed (as :meth:`_accept` would, row by row);
+        ``len(values)`` if there is none. ``t_us``: :meth:`_unwrapped` of every row on the same assumption.
+        """
+        n, seq, t_raw, steps = len(values), values[:, 0], values[:, 1], values[:, 2 + self.channels :]
+        wrapped = np.empty(n, dtype=bool)
+        wrapped[0] = self._last_raw_t is not None and t_raw[0] < self._last_raw_t
+        np.less(t_raw[1:], t_raw[:-1], out=wrapped[1:])
+        t = t_raw + self._t_offset
+        if wrapped.any():
+            t += WRAP_US * np.cumsum(wrapped)
+        if self.last_seq is not None and seq[0] <= self.last_seq:
+            return 0, t
+        ends = [n]
+        down = seq[1:] <= seq[:-1]
+        if down.any():
+            ends.append(int(np.argmax(down)) + 1)
         if self.steps_range is not None:
             lo, hi = np.array(self.steps_range, dtype=np.int64).T
-            ok &= np.all((lo <= steps) & (steps <= hi), axis=1)
+            outside = np.any((steps < lo) | (steps > hi), axis=1)
+            if outside.any():
+                ends.append(int(np.argmax(outside)))
         first = 0 if self._last is not None else 1  # the first sample ever is judged by its range only
         if self._last is not None:
-            t_prev = np.concatenate([[self._last[0]], t_us[:-1]])
+            t_prev = np.concatenate([[self._last[0]], t[:-1]])
             s_prev = np.concatenate([np.array(self._last[1], dtype=np.int64)[None], steps[:-1]])
         else:
-            t_prev, s_prev = t_us[:-1], steps[:-1]
-        t, s = t_us[first:], steps[first:]
-        changed = s != s_prev
-        if self.max_step_rate_hz is not None:
-            limit = self.max_step_rate_hz * np.maximum(t - t_prev, 0) * 1e-6 + 1
-            changed_ok = ~(changed & (np.abs(s - s_prev) > limit[:, None]))
-            ok[first:] &= np.all(changed_ok, axis=1)
-        if self.step_windows is not None:
-            for a, (starts, ends) in enumerate(self.step_windows):
-                i = np.searchsorted(starts, t, side="right") - 1
-                inside = (i >= 0) & (np.asarray(ends)[np.maximum(i, 0)] >= t_prev) if len(starts) else i >= 0
-                ok[first:] &= ~changed[:, a] | inside
-        return ok
+            t_prev, s_prev = t[:-1], steps[:-1]
+        changed = steps[first:] != s_prev
+        if changed.any() and (self.max_step_rate_hz is not None or self.step_windows is not None):
+            tt, refused = t[first:], np.zeros(changed.shape, dtype=bool)
+            if self.max_step_rate_hz is not None:
+                limit = self.max_step_rate_hz * np.maximum(tt - t_prev, 0) * 1e-6 + 1
+                refused |= np.abs(steps[first:] - s_prev) > limit[:, None]
+            if self.step_windows is not None:  # the count changed in (last t, t]: a window must overlap it
+                for a, (starts, stops) in enumerate(self.step_windows):
+                    i = np.searchsorted(starts, tt, side="right") - 1
+                    late = np.asarray(stops)[np.maximum(i, 0)] < t_prev if len(starts) else True
+                    refused[:, a] |= (i < 0) | late
+            refused = np.any(refused & changed, axis=1)
+            if refused.any():
+                ends.append(int(np.argmax(refused)) + first)
+        return min(ends), t
 
     def _data(self, item: tuple[int, ...], out: list) -> None:
         """A checked data line: corrupted if its ``seq`` does not increase, else :meth:`_accept`'s."""
@@ -395,9 +404,8 @@ class StreamParser:
         complete, rest = bytes(self._buf[:cut]), self._buf[cut:]
         self._buf = bytearray() if len(rest) > MAX_PENDING else rest
         if complete:
-            arr = np.frombuffer(complete, dtype=np.uint8)
             c, a = self.channels, self.axes
-            starts, ends, fast, values = scan_data_lines(arr, c, a, self.adc_max, MAX_LINE, WRAP_US)
+            starts, ends, fast, values = scan_data_lines(complete, c, a, self.adc_max, MAX_LINE, WRAP_US)
             done = row = 0  # lines handled, rows of values placed
             for j in [*np.flatnonzero(~fast).tolist(), len(ends)]:  # the lines checked alone, the end
                 if j > done:  # lines done .. j - 1: valid data lines
