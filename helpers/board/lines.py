@@ -74,9 +74,10 @@ def crc8_spans(data: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.nda
         raise ValueError(f"a span of {w} bytes: the CRC tables cover {MAX_BYTES}")
     if w == 0:
         return np.full(len(starts), _INIT_AFTER[0] ^ XOROUT, dtype=np.uint8)
-    pos = ends[:, None] + np.arange(-w, 0)  # right-aligned: byte j has w - 1 - j bytes after it
-    index = np.where(pos >= starts[:, None], data[np.maximum(pos, 0)] + _AFTER_OFFSET[w - 1 :: -1], 0)
-    return np.bitwise_xor.reduce(_AFTER[index], axis=1) ^ _INIT_AFTER[length] ^ XOROUT
+    pos = np.arange(-w, 0)[:, None] + ends  # a column per span, right-aligned: w - 1 - j bytes after row j
+    index = data.take(pos, mode="wrap") + _AFTER_OFFSET[w - 1 :: -1, None]
+    index[pos < starts] = 0  # before the span: no byte (the register unchanged by it)
+    return np.bitwise_xor.reduce(_AFTER[index], axis=0) ^ _INIT_AFTER[length] ^ XOROUT
 
 
 def frame_data_lines(fields: np.ndarray) -> bytes:
