@@ -1,10 +1,11 @@
-"""The DAQ's lines in blocks (``helpers.board.lines``) against line by line: the same bytes, rows and counts.
+"""The DAQ's lines in blocks against line by line: the same bytes, rows and counts.
 
-The emulated board frames a chunk of samples at once and the host scans a read at once; both must give
-exactly what the line-by-line protocol gives. The expected bytes come from the bitwise reference CRC
-(``crc_reference``), and the parser is compared with the line-by-line parser of the same rules
-(:class:`LineByLine`: every line through ``unframe`` and ``parse_body``, as the parser did before blocks) on
-random streams with every kind of damage, every channel count and any chunking.
+The emulated board frames a chunk of samples at once (``helpers.virtual.emulator.framing``) and the host
+scans a read at once (``helpers.board.lines``); both must give exactly what the line-by-line protocol gives.
+The expected bytes come from the bitwise reference CRC (``crc_reference``), and the parser is compared with
+the line-by-line parser of the same rules (:class:`LineByLine`: every line through ``unframe`` and
+``parse_body``, as the parser did before blocks) on random streams with every kind of damage, every channel
+count and any chunking.
 """
 
 from __future__ import annotations
@@ -17,8 +18,9 @@ from crc_reference import link_hex, xor_hex
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from helpers.board.lines import MAX_DIGITS, crc8_spans, frame_data_lines, scan_data_lines
+from helpers.board.lines import MAX_DIGITS, crc8_spans, scan_data_lines
 from helpers.board.protocol import MAX_LINE, MAX_PENDING, WRAP_US, StreamParser
+from helpers.virtual.emulator.framing import frame_data_lines
 
 
 def _reference_line(row: list[int]) -> bytes:

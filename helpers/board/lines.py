@@ -1,9 +1,9 @@
-r"""The DAQ's data lines in blocks: the CRC-8 of many lines at once, framing and scanning them in numpy.
+r"""The DAQ's data lines in blocks, host-side: the CRC-8 of many lines at once, and scanning a read in numpy.
 
-At 1-5 kHz a line costs more in Python than the twin's physics of its sample, so the emulated DAQ frames a
-whole chunk of samples at once (:func:`frame_data_lines`) and the host scans a whole read at once
-(:func:`scan_data_lines`); both give exactly what :func:`helpers.board.protocol.frame`,
-:func:`~helpers.board.protocol.unframe` and :func:`~helpers.board.protocol.parse_body` give line by line.
+At 1-5 kHz a line costs more in Python than the twin's physics of its sample, so the host scans a whole read
+at once (:func:`scan_data_lines`), with exactly the result of :func:`helpers.board.protocol.unframe` and
+:func:`~helpers.board.protocol.parse_body` line by line. The emulated DAQ frames its chunks of samples with
+the same CRC-8s (:mod:`helpers.virtual.emulator.framing`).
 
 The CRC-8 (:mod:`helpers.board.crc8`) is linear over GF(2) apart from its initial value: one step of the
 register is ``r -> TABLE[r ^ b] = TABLE[r] ^ TABLE[b]``. A byte ``b`` followed by ``m`` more bytes therefore
@@ -47,7 +47,6 @@ def _tables() -> tuple[np.ndarray, np.ndarray]:
 
 _AFTER, _INIT_AFTER = _tables()
 _AFTER_OFFSET = 256 * np.arange(MAX_BYTES, dtype=np.int64)
-_HEX2 = [f"{x:02X}" for x in range(256)]
 _HEX_VALUE = np.full(256, -1, dtype=np.int16)
 _HEX_VALUE[np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)] = np.arange(16)
 NEWLINE = ord("\n")
@@ -78,25 +77,6 @@ def crc8_spans(data: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.nda
     index = data.take(pos, mode="wrap") + _AFTER_OFFSET[w - 1 :: -1, None]
     index[pos < starts] = 0  # before the span: no byte (the register unchanged by it)
     return np.bitwise_xor.reduce(_AFTER[index], axis=0) ^ _INIT_AFTER[length] ^ XOROUT
-
-
-def frame_data_lines(fields: np.ndarray) -> bytes:
-    r"""``D,<f_0>,<f_1>,...*hh\n`` for every row of ``fields``, joined: the bytes of ``frame`` line by line.
-
-    Parameters
-    ----------
-    fields : ndarray of int, shape (n, F)
-        Every line's integers (``seq, t_us, adc_0.., steps_0..``), a line's body at most :data:`MAX_BYTES`.
-    """
-    fields = np.asarray(fields)
-    if len(fields) == 0:
-        return b""
-    form = "D" + ",%d" * fields.shape[1]
-    bodies = [form % tuple(row) for row in fields.tolist()]
-    data = np.frombuffer("\n".join(bodies).encode("ascii") + b"\n", dtype=np.uint8)
-    ends = np.flatnonzero(data == NEWLINE)
-    crc = crc8_spans(data, np.concatenate([[0], ends[:-1] + 1]), ends).tolist()
-    return "".join([f"{b}*{_HEX2[c]}\n" for b, c in zip(bodies, crc, strict=True)]).encode("ascii")
 
 
 @cache

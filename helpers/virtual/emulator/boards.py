@@ -37,11 +37,11 @@ from typing import Any
 
 import numpy as np
 
-from helpers.board.lines import frame_data_lines
 from helpers.board.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, frame
 from helpers.board.stream_reference import MAX_DELAY_US, MAX_DELAY_US_AXES, v_max
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
+from helpers.virtual.emulator.framing import frame_data_lines
 from helpers.virtual.emulator.stream_mode import ShaperLoader, StreamMode
 
 __all__ = ["BuildLimits", "build_limits", "board_version", "Faults", "Disconnected", "EmulatedBoard",
