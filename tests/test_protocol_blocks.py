@@ -89,6 +89,7 @@ def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_pars
         _reference_line([8, 4000, 1024, 1]),  # a count beyond the ADC
         _reference_line([9, WRAP_US, 5, 1]),  # a time beyond the clock
         _reference_line([10 ** (MAX_DIGITS + 1), 5, 5, 1]),  # valid, but too long to read here
+        _reference_line([10**MAX_DIGITS - 1] * 3 + [1 - 10**MAX_DIGITS]),  # a data line's shape, 70 bytes
         _reference_line([11, 5, 5, 1])[:-4] + b"00\n",  # wrong CRC
         _reference_line([12, 5, 5, 1]).replace(b"\n", b"\r\n"),  # valid with \r: left to the parser
         b"D,13,5,5,1*" + xor_hex("D,13,5,5,1").encode() + b"\n",  # protocol 1's checksum
@@ -147,7 +148,9 @@ def _stream(r: random.Random, channels: int, axes: int, n: int) -> bytes:
         counts = [r.choice([r.randrange(1024), 0, 1023, 1024, 99999]) for _ in range(channels)]
         fields = [max(seq, 0), t, *counts, *steps]
         if r.random() < 0.02:
-            fields[r.randrange(len(fields))] = r.choice([10**15, 10**16 + 7, -(10**15), 10**30])
+            fields[r.randrange(len(fields))] = r.choice([10**15, 10**16 + 7, -(10**15), 10**30, 10**15 - 1])
+        if r.random() < 0.01:  # every field of a data line's shape at its longest: beyond the longest line
+            fields = [10**MAX_DIGITS - 1] * (len(fields) - axes) + [1 - 10**MAX_DIGITS] * axes
         if r.random() < 0.03:  # a field too many or too few
             fields = fields[:-1] if r.random() < 0.5 else [*fields, 1]
         text = [str(v) for v in fields]
