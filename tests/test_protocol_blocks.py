@@ -4,8 +4,8 @@ The emulated board frames a chunk of samples at once (``helpers.virtual.emulator
 scans a read at once (``helpers.board.lines``); both must give exactly what the line-by-line protocol gives.
 The expected bytes come from the bitwise reference CRC (``crc_reference``), and the parser is compared with
 the line-by-line parser of the same rules (:class:`LineByLine`: every line through ``unframe`` and
-``parse_body``, as the parser did before blocks) on random streams with every kind of damage, every channel
-count and any chunking.
+``parse_body`` and every data line placed on its own, as the parser did before blocks) on random streams with
+every kind of damage, every channel count and any chunking.
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ def _reference_line(row: list[int]) -> bytes:
 
 
 class LineByLine(StreamParser):
-    """The parser with every line checked on its own (``unframe``, ``parse_body``): the reference."""
+    """The parser as it was before blocks, the reference: every line checked on its own (``unframe``,
+    ``parse_body``) and every data line placed on its own (its checks as the parser made them, row by row)."""
 
     def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
         samples: list[tuple[int, ...]] = []
@@ -45,6 +46,43 @@ class LineByLine(StreamParser):
         for line in lines:
             self._line(line, samples, messages)
         return samples, messages
+
+    def _place(self, values: np.ndarray, out: list) -> None:
+        for sample in values.tolist():
+            if self.last_seq is not None and sample[0] <= self.last_seq:
+                self.stats.corrupted += 1
+            else:
+                self._accept(tuple(sample), out)
+
+    def _accept(self, sample: tuple[int, ...], out: list) -> None:
+        wrapped = self._last_raw_t is not None and sample[1] < self._last_raw_t
+        seq, t_us = sample[0], sample[1] + self._t_offset + (WRAP_US if wrapped else 0)
+        steps = sample[2 + self.channels :]
+        if not self._plausible(t_us, steps):
+            self.stats.implausible += 1
+            return
+        self._t_offset, self._last_raw_t = t_us - sample[1], sample[1]  # the clock moves on with a placed one
+        self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
+        self.last_seq = seq
+        self.stats.samples += 1
+        self._last = (t_us, steps)
+        out.append((seq, t_us, *sample[2:]))
+
+    def _plausible(self, t_us: int, steps: tuple[int, ...]) -> bool:
+        for a, n in enumerate(steps):
+            if self.steps_range is not None and not self.steps_range[a][0] <= n <= self.steps_range[a][1]:
+                return False
+            if self._last is None or n == self._last[1][a]:
+                continue
+            t_last, rate = self._last[0], self.max_step_rate_hz
+            if rate is not None and abs(n - self._last[1][a]) > rate * max(t_us - t_last, 0) * 1e-6 + 1:
+                return False
+            if self.step_windows is not None:
+                starts, ends = self.step_windows[a]
+                i = int(np.searchsorted(starts, t_us, side="right")) - 1
+                if i < 0 or ends[i] < t_last:
+                    return False
+        return True
 
 
 # --- the emulator's side: framing ---------------------------------------------------------------------------

@@ -240,47 +240,14 @@ class StreamParser:
         """Every axis's sorted, disjoint ``(starts, ends)`` in device us where the programme steps it, or None
         (no check): a count that changes outside them is impossible."""
 
-    def _plausible(self, t_us: int, steps: tuple[int, ...]) -> bool:
-        """Every axis within its range, no faster than the step-rate limit, changed only while it steps."""
-        for a, n in enumerate(steps):
-            if self.steps_range is not None and not self.steps_range[a][0] <= n <= self.steps_range[a][1]:
-                return False
-            if self._last is None or n == self._last[1][a]:
-                continue
-            t_last, rate = self._last[0], self.max_step_rate_hz
-            if rate is not None and abs(n - self._last[1][a]) > rate * max(t_us - t_last, 0) * 1e-6 + 1:
-                return False
-            if self.step_windows is not None:  # the count changed in (last t, t]: a window must overlap it
-                starts, ends = self.step_windows[a]
-                i = int(np.searchsorted(starts, t_us, side="right")) - 1
-                if i < 0 or ends[i] < t_last:
-                    return False
-        return True
+    def _place(self, values: np.ndarray, out: list) -> None:
+        """Place the checked data lines ``values`` (rows ``seq, t_us, adc_0.., steps_0..``) in order.
 
-    def _accept(self, sample: tuple[int, ...], out: list) -> None:
-        """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
-        seq, t_us, steps = sample[0], self._unwrapped(sample[1]), sample[2 + self.channels :]
-        if not self._plausible(t_us, steps):
-            self.stats.implausible += 1
-            return
-        self._t_offset, self._last_raw_t = t_us - sample[1], sample[1]  # the clock moves on with a placed one
-        self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
-        self.last_seq = seq
-        self.stats.samples += 1
-        self._last = (t_us, steps)
-        out.append((seq, t_us, *sample[2:]))
-
-    def _accept_block(self, values: np.ndarray, out: list) -> None:
-        """Place the checked data lines ``values`` (rows of :meth:`_accept`'s fields) in order, as a block.
-
-        The rows up to the first one that does not simply follow (:meth:`_block_end`) are placed at once,
-        exactly as :meth:`_accept` would place them one by one; that row goes to :meth:`_data`, and so on.
+        The rows before the first one that does not follow (:meth:`_block_end`) are placed at once; that
+        row is corrupted if its ``seq`` does not increase, else implausible (rejected: its ``seq`` then
+        counts as dropped), and the rows after it are placed in the same way.
         """
         while len(values):
-            if not self._in_range():  # compared exactly below only with numbers of at most 15 digits
-                self._data(tuple(values[0].tolist()), out)
-                values = values[1:]
-                continue
             k, t = self._block_end(values)
             if k:
                 seq = int(values[k - 1, 0])
@@ -293,70 +260,43 @@ class StreamParser:
                 rows = placed.tolist()
                 self._last = (rows[-1][1], tuple(rows[-1][2 + self.channels :]))
                 out.extend(map(tuple, rows))
-            if k == len(values):
-                return
-            self._data(tuple(values[k].tolist()), out)
+            if k < len(values):
+                if self.last_seq is not None and values[k, 0] <= self.last_seq:
+                    self.stats.corrupted += 1
+                else:
+                    self.stats.implausible += 1
             values = values[k + 1 :]
 
-    def _in_range(self) -> bool:
-        """The last placed sample's numbers are all below ``10**MAX_DIGITS`` (those of a block are)."""
-        big = 10**MAX_DIGITS
-        last = () if self._last is None else (self._last[0], *self._last[1])
-        return all(abs(v) < big for v in (*last, 0 if self.last_seq is None else self.last_seq))
-
     def _block_end(self, values: np.ndarray) -> tuple[int, np.ndarray]:
-        """``(k, t_us)``: the first row that does not simply follow, and every row's unwrapped time.
+        """``(k, t_us)``: the first row that does not follow, and every row's unwrapped time.
 
-        Row ``k`` is the first whose ``seq`` does not increase or that :meth:`_plausible` refuses, each
-        judged as though every row before it was placed (as :meth:`_accept` would, row by row);
-        ``len(values)`` if there is none. ``t_us``: :meth:`_unwrapped` of every row on the same assumption.
+        Row ``k`` is the first whose ``seq`` does not increase or that is implausible: a step count outside
+        its axis's range, changed faster than the step-rate limit allows or while no window of the
+        programme steps that axis; each row judged as though every row before it was placed (the first
+        sample ever by its range only); ``len(values)`` if there is none. The clock unwraps on the same
+        assumption (a time earlier than the one before it wrapped).
         """
-        n, seq, t_raw, steps = len(values), values[:, 0], values[:, 1], values[:, 2 + self.channels :]
-        wrapped = np.empty(n, dtype=bool)
-        wrapped[0] = self._last_raw_t is not None and t_raw[0] < self._last_raw_t
-        np.less(t_raw[1:], t_raw[:-1], out=wrapped[1:])
-        t = t_raw + self._t_offset
-        if wrapped.any():
-            t += WRAP_US * np.cumsum(wrapped)
-        if self.last_seq is not None and seq[0] <= self.last_seq:
-            return 0, t
-        ends = [n]
-        down = seq[1:] <= seq[:-1]
-        if down.any():
-            ends.append(int(np.argmax(down)) + 1)
+        seq, t_raw, steps = values[:, 0], values[:, 1].astype(np.int64), values[:, 2 + self.channels :]
+        if self._last is not None and max(map(abs, self._last[1])) >= 10**MAX_DIGITS:
+            steps = steps.astype(object)  # compared exactly with a count too large for int64 and float64
+        last_raw = t_raw[0] if self._last_raw_t is None else self._last_raw_t
+        t = t_raw + self._t_offset + WRAP_US * np.cumsum(np.diff(t_raw, prepend=last_raw) < 0)
+        refused = np.diff(seq, prepend=-1 if self.last_seq is None else self.last_seq) <= 0
         if self.steps_range is not None:
-            lo, hi = np.array(self.steps_range, dtype=np.int64).T
-            outside = np.any((steps < lo) | (steps > hi), axis=1)
-            if outside.any():
-                ends.append(int(np.argmax(outside)))
-        first = 0 if self._last is not None else 1  # the first sample ever is judged by its range only
-        if self._last is not None:
-            t_prev = np.concatenate([[self._last[0]], t[:-1]])
-            s_prev = np.concatenate([np.array(self._last[1], dtype=np.int64)[None], steps[:-1]])
-        else:
-            t_prev, s_prev = t[:-1], steps[:-1]
-        changed = steps[first:] != s_prev
-        if changed.any() and (self.max_step_rate_hz is not None or self.step_windows is not None):
-            tt, refused = t[first:], np.zeros(changed.shape, dtype=bool)
-            if self.max_step_rate_hz is not None:
-                limit = self.max_step_rate_hz * np.maximum(tt - t_prev, 0) * 1e-6 + 1
-                refused |= np.abs(steps[first:] - s_prev) > limit[:, None]
-            if self.step_windows is not None:  # the count changed in (last t, t]: a window must overlap it
-                for a, (starts, stops) in enumerate(self.step_windows):
-                    i = np.searchsorted(starts, tt, side="right") - 1
-                    late = np.asarray(stops)[np.maximum(i, 0)] < t_prev if len(starts) else True
-                    refused[:, a] |= (i < 0) | late
-            refused = np.any(refused & changed, axis=1)
-            if refused.any():
-                ends.append(int(np.argmax(refused)) + first)
-        return min(ends), t
-
-    def _data(self, item: tuple[int, ...], out: list) -> None:
-        """A checked data line: corrupted if its ``seq`` does not increase, else :meth:`_accept`'s."""
-        if self.last_seq is not None and item[0] <= self.last_seq:
-            self.stats.corrupted += 1
-            return
-        self._accept(item, out)
+            lo, hi = np.array(self.steps_range).T
+            refused |= np.any((steps < lo) | (steps > hi), axis=1)
+        t_last, s_last = (t[:1], steps[:1]) if self._last is None else ([self._last[0]], [self._last[1]])
+        t_prev, s_prev = np.concatenate([t_last, t[:-1]]), np.concatenate([s_last, steps[:-1]])
+        changed = steps != s_prev  # the first sample ever compared with itself: unchanged
+        if changed.any() and self.max_step_rate_hz is not None:
+            limit = self.max_step_rate_hz * np.maximum(t - t_prev, 0) * 1e-6 + 1
+            refused |= np.any(changed & (np.abs(steps - s_prev) > limit[:, None]), axis=1)
+        if changed.any() and self.step_windows is not None:  # a count changed in (last t, t]: in a window
+            for a, (starts, stops) in enumerate(self.step_windows):
+                i = np.searchsorted(starts, t, side="right") - 1
+                late = np.asarray(stops)[np.maximum(i, 0)] < t_prev if len(starts) else True
+                refused |= changed[:, a] & ((i < 0) | late)
+        return int(np.argmax(refused)) if refused.any() else len(values), t
 
     def _line(self, line: bytes, samples: list, messages: list) -> None:
         r"""Check and classify one complete line (without its ``\n``), line by line."""
@@ -372,7 +312,7 @@ class StreamParser:
                     self.legacy = body
             return
         if isinstance(item, tuple):
-            self._data(item, samples)
+            self._place(np.array([item], dtype=object), samples)  # its numbers may be of any size
         elif isinstance(item, Overrun):
             self.stats.overruns += item.n
         else:
@@ -383,17 +323,12 @@ class StreamParser:
         """Bytes of an unfinished line held back."""
         return len(self._buf)
 
-    def _unwrapped(self, t_raw: int) -> int:
-        """``t_raw`` with the 32-bit wraps before it added back (a time earlier than the last one wrapped)."""
-        wrapped = self._last_raw_t is not None and t_raw < self._last_raw_t
-        return t_raw + self._t_offset + (WRAP_US if wrapped else 0)
-
     def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
         r"""Parse ``data`` (any chunking) and return the samples and messages it completes.
 
         The lines it completes are scanned at once (:func:`~helpers.board.lines.scan_data_lines`): the valid
-        data lines among them are placed in blocks (:meth:`_accept_block`), every other line is checked on
-        its own (:meth:`_line`), in the order they came. A run of bytes without ``\n`` longer than
+        data lines among them are placed in blocks (:meth:`_place`), every other line is checked on its own
+        (:meth:`_line`), in the order they came. A run of bytes without ``\n`` longer than
         :data:`MAX_PENDING` is taken as one line (so it is flagged corrupted) and the rest of it up to the
         next ``\n`` is discarded into a second corrupted line at most.
         """
@@ -409,7 +344,7 @@ class StreamParser:
             done = row = 0  # lines handled, rows of values placed
             for j in [*np.flatnonzero(~fast).tolist(), len(ends)]:  # the lines checked alone, the end
                 if j > done:  # lines done .. j - 1: valid data lines
-                    self._accept_block(values[row : row + j - done], samples)
+                    self._place(values[row : row + j - done], samples)
                     row += j - done
                 if j < len(ends):
                     self._line(complete[starts[j] : ends[j]], samples, messages)
