@@ -33,20 +33,15 @@ MAX_DIGITS = 15
 
 
 def _tables() -> tuple[np.ndarray, np.ndarray]:
-    table = np.frombuffer(TABLE, dtype=np.uint8)
-    after = np.empty((MAX_BYTES, 256), dtype=np.uint8)  # after[m, b]: byte b followed by m bytes
-    after[0] = table
-    init = np.empty(MAX_BYTES + 1, dtype=np.uint8)  # init[L]: the initial value after L bytes
-    init[0] = INIT
-    for m in range(1, MAX_BYTES + 1):
-        init[m] = table[init[m - 1]]
-        if m < MAX_BYTES:
-            after[m] = table[after[m - 1]]
-    return after.reshape(-1), init
+    """``after[256 m + b]``: byte ``b`` followed by ``m`` more bytes; ``init[L]``: INIT after ``L`` bytes."""
+    after, init = [np.frombuffer(TABLE, dtype=np.uint8)], [INIT]
+    for _ in range(MAX_BYTES):
+        after.append(after[0][after[-1]])
+        init.append(TABLE[init[-1]])
+    return np.concatenate(after[:MAX_BYTES]), np.array(init, dtype=np.uint8)
 
 
 _AFTER, _INIT_AFTER = _tables()
-_AFTER_OFFSET = 256 * np.arange(MAX_BYTES, dtype=np.int64)
 _HEX_VALUE = np.full(256, -1, dtype=np.int16)
 _HEX_VALUE[np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)] = np.arange(16)
 NEWLINE = ord("\n")
@@ -71,10 +66,8 @@ def crc8_spans(data: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.nda
     w = int(length.max(initial=0))
     if w > MAX_BYTES:
         raise ValueError(f"a span of {w} bytes: the CRC tables cover {MAX_BYTES}")
-    if w == 0:
-        return np.full(len(starts), _INIT_AFTER[0] ^ XOROUT, dtype=np.uint8)
     pos = np.arange(-w, 0)[:, None] + ends  # a column per span, right-aligned: w - 1 - j bytes after row j
-    index = data.take(pos, mode="wrap") + _AFTER_OFFSET[w - 1 :: -1, None]
+    index = data.take(pos, mode="wrap") + 256 * np.arange(w - 1, -1, -1)[:, None]
     index[pos < starts] = 0  # before the span: no byte (the register unchanged by it)
     return np.bitwise_xor.reduce(_AFTER[index], axis=0) ^ _INIT_AFTER[length] ^ XOROUT
 
@@ -99,7 +92,7 @@ def scan_data_lines(
     Parameters
     ----------
     raw : bytes
-        Complete lines, each ending in ``\n``.
+        One or more complete lines, each ending in ``\n``.
     channels, axes : int
         The board's fields: ``D,<seq>,<t_us>,<adc_0>..<adc_{C-1}>,<steps_0>..<steps_{A-1}>``.
     adc_max, max_line, wrap : int
@@ -118,8 +111,7 @@ def scan_data_lines(
     k = 2 + channels + axes
     data = np.frombuffer(raw, dtype=np.uint8)
     ends = np.flatnonzero(data == NEWLINE)
-    starts = np.empty_like(ends)
-    starts[:1], starts[1:] = 0, ends[:-1] + 1
+    starts = np.concatenate([[0], ends[:-1] + 1])
     line, block = _patterns(channels, axes)
     if block.fullmatch(raw):  # every line has a data line's shape (the usual case)
         shaped, fields = np.ones(len(ends), dtype=bool), raw
