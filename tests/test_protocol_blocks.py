@@ -121,6 +121,7 @@ def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_pars
         _reference_line([5, 1000, 512, -3]),
         _reference_line([6, 2000, 0, 0]),
         _reference_line([7, 3, 9, -0]),
+        _reference_line([12, 5, 5, 1]).replace(b"\n", b"\r\n"),  # a \r before the \n is ignored
     ]
     other = [
         b"OK STOP 7*" + link_hex("OK STOP 7").encode() + b"\n",  # a reply
@@ -129,7 +130,8 @@ def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_pars
         _reference_line([10 ** (MAX_DIGITS + 1), 5, 5, 1]),  # valid, but too long to read here
         _reference_line([10**MAX_DIGITS - 1] * 3 + [1 - 10**MAX_DIGITS]),  # a data line's shape, 70 bytes
         _reference_line([11, 5, 5, 1])[:-4] + b"00\n",  # wrong CRC
-        _reference_line([12, 5, 5, 1]).replace(b"\n", b"\r\n"),  # valid with \r: left to the parser
+        _reference_line([12, 5, 5, 1]).replace(b"\n", b"\r\r\n"),  # two: the \r is the line's
+        b"D,18,5,5,1\r*" + link_hex("D,18,5,5,1\r").encode() + b"\n",  # a \r inside the line: a control byte
         b"D,13,5,5,1*" + xor_hex("D,13,5,5,1").encode() + b"\n",  # protocol 1's checksum
         b"D,14,5,5*" + link_hex("D,14,5,5").encode() + b"\n",  # a field short
         b"D,15,5,-5,1*" + link_hex("D,15,5,-5,1").encode() + b"\n",  # a negative count
@@ -139,8 +141,9 @@ def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_pars
     ]
     data = b"".join(good + other + good[:1])
     starts, ends, fast, values = scan_data_lines(data, 1, 1, 1023, MAX_LINE, WRAP_US)
-    assert fast.tolist() == [True] * 3 + [False] * len(other) + [True]
-    assert values.tolist() == [[5, 1000, 512, -3], [6, 2000, 0, 0], [7, 3, 9, 0], [5, 1000, 512, -3]]
+    assert fast.tolist() == [True] * 4 + [False] * len(other) + [True]
+    read = [[5, 1000, 512, -3], [6, 2000, 0, 0], [7, 3, 9, 0], [12, 5, 5, 1], [5, 1000, 512, -3]]
+    assert values.tolist() == read
     assert [data[s:e] + b"\n" for s, e in zip(starts, ends, strict=True)] == good + other + good[:1]
 
 

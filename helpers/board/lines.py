@@ -12,8 +12,9 @@ adds ``A^m(TABLE[b])`` to the final register (``A``: the map ``r -> TABLE[r]``) 
 whatever the lines' lengths (:func:`crc8_spans`; a test checks it against the bitwise reference).
 
 The scan is a fast path, not a second parser: it accepts only a line that is certainly a valid data line
-(``D,`` then the board's number of integer fields of at most 15 digits, counts in range, the right CRC-8), and
-gives its fields; every other line goes to the line-by-line parser, which decides it as before.
+(``D,`` then the board's number of integer fields of at most 15 digits, counts in range, the right CRC-8, a
+``\r`` before its ``\n`` or none), and gives its fields; every other line goes to the line-by-line parser,
+which decides it as before.
 """
 
 from __future__ import annotations
@@ -74,14 +75,14 @@ def crc8_spans(data: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.nda
 
 @cache
 def _patterns(channels: int, axes: int) -> tuple[re.Pattern[bytes], re.Pattern[bytes]]:
-    r"""A data line's shape (each field of at most :data:`MAX_DIGITS` digits, ``\n`` included), any number."""
+    r"""A data line's shape (fields of at most :data:`MAX_DIGITS` digits, ``\r\n`` or ``\n``), any number."""
     count, step = rb",[0-9]{1,%d}" % MAX_DIGITS, rb",-?[0-9]{1,%d}" % MAX_DIGITS
-    line = rb"D(?:%s){%d}(?:%s){%d}\*[0-9A-F]{2}\n" % (count, 2 + channels, step, axes)
+    line = rb"D(?:%s){%d}(?:%s){%d}\*[0-9A-F]{2}\r?\n" % (count, 2 + channels, step, axes)
     return re.compile(line), re.compile(rb"(?:%s)*" % line)
 
 
-_BETWEEN = re.compile(rb"\*[0-9A-F]{2}\nD,")
-"""From one data line's fields to the next's."""
+_BETWEEN = re.compile(rb"\*[0-9A-F]{2}\r?\n(?:D,|$)")
+"""From one data line's fields to the next's, or to the end."""
 
 
 def scan_data_lines(
@@ -120,9 +121,9 @@ def scan_data_lines(
         shaped = np.array([line.fullmatch(raw, a, b) is not None for a, b in bounds], dtype=bool)
         fields = b"".join([raw[a:b] for (a, b), ok in zip(bounds, shaped.tolist(), strict=True) if ok])
     # every shaped line's fields, one comma-separated list of integers
-    values = np.fromstring(_BETWEEN.sub(b",", fields)[2:-4], dtype=np.int64, sep=",").reshape(-1, k)
+    values = np.fromstring(_BETWEEN.sub(b",", fields)[2:-1], dtype=np.int64, sep=",").reshape(-1, k)
     idx = np.flatnonzero(shaped)
-    s, e = starts[idx], ends[idx] - 3  # the body, up to the '*'
+    s, e = starts[idx], ends[idx] - 3 - (data[ends[idx] - 1] == ord("\r"))  # the body, up to the '*'
     good = (e + 3 - s <= max_line) & (values[:, 1] < wrap)
     good &= np.all(values[:, 2 : 2 + channels] <= adc_max, axis=1)
     s = np.maximum(s, e - max_line)  # a longer line is refused by its length above: its CRC is not needed
