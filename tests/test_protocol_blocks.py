@@ -308,3 +308,26 @@ def test_an_emulated_stream_is_read_whole_by_the_scan():
         assert msgs == [] and len(rows) == n and p.stats.samples == n and p.stats.corrupted == 0
         assert [r[1] for r in rows] == (WRAP_US - 150_000 + 1000 * np.arange(n)).tolist()
         assert rows[-1] == (n - 1, WRAP_US - 150_000 + 1000 * (n - 1), *[511] * c, *(fields[-1, 2 + c :]))
+
+
+@pytest.mark.parametrize("big", [10**15, 2**53 + 1, 2**63 - 1, -(2**63), 10**30, -(10**40)])
+def test_a_count_of_any_size_is_placed_and_judged_exactly(big):
+    """A step count the scan cannot read (over 15 digits) is placed as a block of one, exactly; scanned rows
+    after it are judged against it exactly (int64's extremes included, where a difference overflows)."""
+    lines = [
+        _reference_line([0, 1000, 5, big]),  # the first sample ever: judged by its range only
+        _reference_line([1, 2000, 5, big + 1]),  # one step in 1 ms: plausible at 2 kHz
+        _reference_line([2, 3000, 5, 1]),  # scanned: a jump from big (2**63 from int64's least), implausible
+        _reference_line([3, 4000, 5, big + 3]),  # two steps in 2 ms: plausible
+        _reference_line([4, 5000, 5, big + 7]),  # four steps in 1 ms: implausible
+        _reference_line([5, 6000, 5, big + 4]),
+        _reference_line([6, 7000, 5, 3]),
+    ]
+    data = b"".join(lines)
+    for rate in (2000.0, None):
+        blocks, lines_ = StreamParser(1, 1, rate), LineByLine(1, 1, rate)
+        got = blocks.feed(data)
+        assert got == lines_.feed(data) and blocks.stats == lines_.stats
+        assert [r[3] for r in got[0]] == (
+            [big, big + 1, big + 3, big + 4] if rate else [big, big + 1, 1, big + 3, big + 7, big + 4, 3]
+        )
