@@ -255,9 +255,7 @@ class StreamParser:
                 self.last_seq = seq
                 self.stats.samples += k
                 self._t_offset, self._last_raw_t = int(t[k - 1] - values[k - 1, 1]), int(values[k - 1, 1])
-                placed = values[:k].copy()
-                placed[:, 1] = t[:k]
-                rows = placed.tolist()
+                rows = np.column_stack([values[:k, :1], t[:k], values[:k, 2:]]).tolist()  # t_us unwrapped
                 self._last = (rows[-1][1], tuple(rows[-1][2 + self.channels :]))
                 out.extend(map(tuple, rows))
             if k < len(values):
