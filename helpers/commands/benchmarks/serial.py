@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import copy
+import os
 import subprocess
 import sys
 import tempfile
@@ -221,7 +222,8 @@ def run_serial_benchmark(
             f"{r['dropped']} dropped (target 0), {r['corrupted']} corrupted, {r['overruns']} overruns; "
             f"data lines {r['line_bytes_mean']:.1f} bytes on average ({r['line_bytes_max']} at most): "
             f"{100 * r['link_load']:.0f} % of {r['baud']} baud; {r['rate_per_device_s']:.1f} samples per "
-            f"device s, {r['rate_per_wall_s']:.1f} per wall s ({r['wall_s']:.1f} s wall)"
+            f"device s, {r['rate_per_wall_s']:.1f} per wall s ({r['wall_s']:.1f} s wall); load average "
+            + ", ".join(f"{x:.2f}" for x in os.getloadavg())
         )
     inproc = in_process_scenario()
     print(
@@ -235,6 +237,7 @@ def run_serial_benchmark(
         f"its CPU time over the bare plant's on the same scenario, {len(ratios)} warm runs: "
         f"{' / '.join(f'{r:.2f}x' for r in ratios)} (sorted; aim <= 1.3x; median "
         f"{np.median(inproc['cpu_s']):.3f} s against {np.median(inproc['plant_cpu_s']):.3f} s; the bare "
-        f"plant's outputs differ from the runs' by {inproc['plant_max_diff_n']:.1e} N)"
+        f"plant's outputs differ from the runs' by {inproc['plant_max_diff_n']:.1e} N); load average "
+        + ", ".join(f"{x:.2f}" for x in os.getloadavg())
     )
     return {"pty": ptys, "in_process": inproc}
