@@ -255,7 +255,7 @@ class StreamParser:
                 self.last_seq = seq
                 self.stats.samples += k
                 self._t_offset, self._last_raw_t = int(t[k - 1] - values[k - 1, 1]), int(values[k - 1, 1])
-                rows = np.column_stack([values[:k, :1], t[:k], values[:k, 2:]]).tolist()  # t_us unwrapped
+                rows = np.concatenate([values[:k, :1], t[:k, None], values[:k, 2:]], axis=1).tolist()
                 self._last = (rows[-1][1], tuple(rows[-1][2 + self.channels :]))
                 out.extend(map(tuple, rows))
             if k < len(values):
@@ -278,17 +278,17 @@ class StreamParser:
         if self._last is not None and max(map(abs, self._last[1])) >= 10**MAX_DIGITS:
             steps = steps.astype(object)  # compared exactly with a count too large for int64 and float64
         last_raw = t_raw[0] if self._last_raw_t is None else self._last_raw_t
-        t = t_raw + self._t_offset + WRAP_US * np.cumsum(np.diff(t_raw, prepend=last_raw) < 0)
-        refused = np.diff(seq, prepend=-1 if self.last_seq is None else self.last_seq) <= 0
+        t = t_raw + self._t_offset + WRAP_US * np.cumsum(t_raw < np.concatenate([[last_raw], t_raw[:-1]]))
+        refused = seq <= np.concatenate([[-1 if self.last_seq is None else self.last_seq], seq[:-1]])
         if self.steps_range is not None:
             lo, hi = np.array(self.steps_range).T
-            refused |= np.any((steps < lo) | (steps > hi), axis=1)
+            refused |= ((steps < lo) | (steps > hi)).any(axis=1)
         t_last, s_last = (t[:1], steps[:1]) if self._last is None else ([self._last[0]], [self._last[1]])
         t_prev, s_prev = np.concatenate([t_last, t[:-1]]), np.concatenate([s_last, steps[:-1]])
         changed = steps != s_prev  # the first sample ever compared with itself: unchanged
         if changed.any() and self.max_step_rate_hz is not None:
             limit = self.max_step_rate_hz * np.maximum(t - t_prev, 0) * 1e-6 + 1
-            refused |= np.any(changed & (np.abs(steps - s_prev) > limit[:, None]), axis=1)
+            refused |= (changed & (np.abs(steps - s_prev) > limit[:, None])).any(axis=1)
         if changed.any() and self.step_windows is not None:  # a count changed in (last t, t]: in a window
             for a, (starts, stops) in enumerate(self.step_windows):
                 i = np.searchsorted(starts, t, side="right") - 1
