@@ -1,11 +1,11 @@
 """The DAQ's lines in blocks against line by line: the same bytes, rows and counts.
 
 The emulated board frames a chunk of samples at once (``helpers.virtual.emulator.framing``) and the host
-scans a read at once (``helpers.board.lines``); both must give exactly what the line-by-line protocol gives.
-The expected bytes come from the bitwise reference CRC (``crc_reference``), and the parser is compared with
-the line-by-line parser of the same rules (:class:`LineByLine`: every line through ``unframe`` and
-``parse_body`` and every data line placed on its own, as the parser did before blocks) on random streams with
-every kind of damage, every channel count and any chunking.
+checks a read at once (``helpers.board.protocol.unframe``); both must give exactly what the line-by-line
+protocol gives. The expected bytes come from the bitwise reference CRC (``crc_reference``), and the parser is
+compared with the line-by-line parser of the same rules (:class:`LineByLine`: every line through
+``line_reference``'s ``unframe`` and ``parse_body`` and every data line placed on its own, as the parser did
+before blocks) on random streams with every kind of damage, every channel count and any chunking.
 """
 
 from __future__ import annotations
@@ -17,9 +17,10 @@ import pytest
 from crc_reference import link_hex, xor_hex
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from line_reference import check_line
 
-from helpers.board.lines import MAX_DIGITS, crc8_spans, scan_data_lines
-from helpers.board.protocol import MAX_LINE, MAX_PENDING, WRAP_US, StreamParser
+from helpers.board.lines import crc8_spans
+from helpers.board.protocol import MAX_DIGITS, MAX_PENDING, WRAP_US, StreamParser, unframe
 from helpers.virtual.emulator.framing import frame_data_lines
 
 
@@ -44,7 +45,7 @@ class LineByLine(StreamParser):
             rest = b""
         self._buf = bytearray(rest)
         for line in lines:
-            self._line(line, samples, messages)
+            check_line(self, line, samples, messages)
         return samples, messages
 
     def _place(self, values: np.ndarray, out: list) -> None:
@@ -116,7 +117,7 @@ def test_the_crc_of_many_spans_at_once_is_the_crc_of_each(spans, gap):
 
 
 # --- the host's side: scanning and the parser ---------------------------------------------------------------
-def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_parser():
+def test_a_read_is_checked_at_once_as_each_of_its_lines_alone():
     good = [
         _reference_line([5, 1000, 512, -3]),
         _reference_line([6, 2000, 0, 0]),
@@ -127,9 +128,9 @@ def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_pars
         b"OK STOP 7*" + link_hex("OK STOP 7").encode() + b"\n",  # a reply
         _reference_line([8, 4000, 1024, 1]),  # a count beyond the ADC
         _reference_line([9, WRAP_US, 5, 1]),  # a time beyond the clock
-        _reference_line([10 ** (MAX_DIGITS + 1), 5, 5, 1]),  # valid, but too long to read here
+        _reference_line([10 ** (MAX_DIGITS + 1), 5, 5, 1]),  # valid: read as a Python int
         _reference_line([10**MAX_DIGITS - 1] * 3 + [1 - 10**MAX_DIGITS]),  # a data line's shape, 70 bytes
-        _reference_line([11, 5, 5, 1])[:-4] + b"00\n",  # wrong CRC
+        _reference_line([11, 5, 5, 1])[:-4] + b"00\n",  # "*hh" lost: no checksum
         _reference_line([12, 5, 5, 1]).replace(b"\n", b"\r\r\n"),  # two: the \r is the line's
         b"D,18,5,5,1\r*" + link_hex("D,18,5,5,1\r").encode() + b"\n",  # a \r inside the line: a control byte
         b"D,13,5,5,1*" + xor_hex("D,13,5,5,1").encode() + b"\n",  # protocol 1's checksum
@@ -140,11 +141,25 @@ def test_the_scan_reads_valid_data_lines_and_leaves_every_other_line_to_the_pars
         b"\n",
     ]
     data = b"".join(good + other + good[:1])
-    starts, ends, fast, values = scan_data_lines(data, 1, 1, 1023, MAX_LINE, WRAP_US)
-    assert fast.tolist() == [True] * 4 + [False] * len(other) + [True]
-    read = [[5, 1000, 512, -3], [6, 2000, 0, 0], [7, 3, 9, 0], [12, 5, 5, 1], [5, 1000, 512, -3]]
-    assert values.tolist() == read
-    assert [data[s:e] + b"\n" for s, e in zip(starts, ends, strict=True)] == good + other + good[:1]
+    starts, stars, ok, unframed = unframe(data)
+    assert unframed == 4  # 70 bytes, no checksum, two \r, a \r inside (the blank line is not counted)
+    bodies = [data[a:b] for a, b in zip(starts.tolist(), stars.tolist(), strict=True)]
+    assert bodies == [
+        line.rstrip(b"\r\n").rpartition(b"*")[0] for line in good + other[:4] + other[8:-1] + good[:1]
+    ]
+    assert ok.tolist() == [True] * 8 + [False] + [True] * 5  # protocol 1's checksum
+    parser, reference = StreamParser(), LineByLine()
+    assert parser.feed(data) == reference.feed(data) and parser.stats == reference.stats
+    rows, messages = StreamParser().feed(data)
+    w = WRAP_US  # the clock wrapped before seq 7
+    assert rows == [
+        (5, 1000, 512, -3),
+        (6, 2000, 0, 0),
+        (7, w + 3, 9, 0),
+        (12, w + 5, 5, 1),
+        (10**16, w + 5, 5, 1),
+    ]
+    assert messages == ["OK STOP 7"] and parser.stats.corrupted == len(other) - 3 + 1  # the last: seq 5 again
 
 
 _HEX = "0123456789ABCDEF"
@@ -302,7 +317,8 @@ def test_an_emulated_stream_is_read_whole_by_the_scan():
         steps = np.arange(n * c).reshape(n, c) // 7 - 20
         fields = np.column_stack([np.arange(n), t_us, np.full((n, c), 511), steps])
         data = frame_data_lines(fields)
-        assert scan_data_lines(data, c, c, 1023, MAX_LINE, WRAP_US)[2].all()
+        starts, stars, ok, unframed = unframe(data)
+        assert ok.all() and unframed == 0 and np.array_equal(stars, unframe(data, shaped=True)[1])
         p = StreamParser(c, c, 2000.0)
         rows, msgs = p.feed(data)
         assert msgs == [] and len(rows) == n and p.stats.samples == n and p.stats.corrupted == 0

@@ -29,13 +29,13 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from functools import reduce
+from functools import cache, reduce
 from operator import xor
 
 import numpy as np
 
 from helpers.board.crc8 import crc8
-from helpers.board.lines import MAX_DIGITS, scan_data_lines
+from helpers.board.lines import NEWLINE, crc8_spans
 
 FW_VERSION = "2.3.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
@@ -57,16 +57,18 @@ PROTOCOL_MAJOR = int(FW_VERSION.split(".")[0])
 MAX_PENDING = 4 * (MAX_LINE + 1)
 """Bytes of an unterminated line kept before it is declared corrupted (garbage without newlines)."""
 
-_HEX = "0123456789ABCDEF"
-_LEGACY_BODY = re.compile(r"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
+MAX_DIGITS = 15
+"""Digits of a field read as int64 (10**15 < 2**53: exact as float64 too); a longer one is a Python int."""
 
-
-class FramingError(ValueError):
-    """A line failed a framing check; the message names the check."""
-
-
-class LegacyChecksum(FramingError):
-    """The line's CRC-8 is wrong but its ``*hh`` is the XOR checksum of protocol 1 (firmware 1.x)."""
+CR = ord("\r")
+_FRAMED = re.compile(rb"([ -)+-~]{0,%d})\*[0-9A-F]{2}\r?\n" % (MAX_LINE - 3))
+"""A framed line: printable ASCII, one ``*`` and two upper-case hex digits, at most MAX_LINE long."""
+_HEX_VALUE = np.full(256, -1, dtype=np.int16)
+_HEX_VALUE[np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)] = np.arange(16)
+_LEGACY_BODY = re.compile(rb"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
+_OVERRUN = re.compile(rb"W,OVERRUN,([0-9]+)")
+_BETWEEN = re.compile(rb"\*[0-9A-F]{2}\r?\n(?:D,|$)")
+"""From one data line's fields to the next's, or to the end."""
 
 
 def checksum(body: bytes | str) -> str:
@@ -102,89 +104,56 @@ def frame(body: str) -> bytes:
     return (line + "\n").encode("ascii")
 
 
-def unframe(line: bytes) -> str:
-    r"""Check one line (without its ``\\n``) and return its body.
+def unframe(raw: bytes, shaped: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    r"""Check complete lines at once: every framed line's body and whether its CRC-8 is right.
 
     Parameters
     ----------
-    line : bytes
-        The raw line; a trailing ``\\r`` is ignored. Every line of protocol 2 carries a checksum, commands
-        included.
+    raw : bytes
+        One or more complete lines, each ending in ``\\n``; a ``\\r`` before it is ignored, and a line of
+        nothing but ``\\r`` is blank (neither framed nor corrupted). Every line of protocol 2 carries a
+        checksum, commands included.
+    shaped : bool
+        Every line of ``raw`` is known to be framed but for its length and CRC (the parser's data lines): its
+        body is then found from its ``\\n`` alone.
 
     Returns
     -------
-    str
-        The text before ``*hh``.
-
-    Raises
-    ------
-    FramingError
-        Non-ASCII or control bytes, too long, missing or malformed or wrong checksum
-        (:class:`LegacyChecksum` when the wrong checksum is the XOR of protocol 1).
+    starts, stars : ndarray of int64
+        Every framed line's body ``raw[starts[i]:stars[i]]``: the printable ASCII before its one ``*``.
+    good : ndarray of bool
+        Its line is at most :data:`MAX_LINE` long and its ``*hh`` is the CRC-8 of its body.
+    unframed : int
+        The other lines but the blank ones: non-ASCII or control bytes, too long, no or a malformed checksum.
     """
-    line = line.removesuffix(b"\r")
-    if len(line) > MAX_LINE:
-        raise FramingError(f"line of {len(line)} characters exceeds {MAX_LINE}")
-    try:
-        text = line.decode("ascii")
-    except UnicodeDecodeError:
-        raise FramingError("non-ASCII bytes") from None
-    if not text.isprintable():
-        raise FramingError("control characters")
-    body, star, given = text.rpartition("*")
-    if not star:
-        raise FramingError("missing checksum")
-    if "*" in body:
-        raise FramingError("more than one '*'")
-    if len(given) != 2 or any(c not in _HEX for c in given):
-        raise FramingError(f"malformed checksum {given!r}")
-    x = crc8(body)
-    if x != int(given, 16):
-        if reduce(xor, body.encode("ascii"), 0) == int(given, 16):
-            raise LegacyChecksum(f"checksum {given} is the XOR of protocol 1 (firmware 1.x), not the CRC-8")
-        raise FramingError(f"checksum {given} does not match {x:02X}")
-    return body
+    data = np.frombuffer(raw, dtype=np.uint8)
+    ends = np.flatnonzero(data == NEWLINE) + 1
+    starts, unframed = np.concatenate([[0], ends[:-1]]), 0
+    if shaped:
+        stars = ends - 4 - (data[ends - 2] == CR)
+    else:
+        spans = zip(starts.tolist(), ends.tolist(), strict=True)
+        lines = [(a, b) for a, b in spans if raw[a : b - 1].strip(b"\r")]  # the blank ones left out
+        framed = [m.span(1) for a, b in lines if (m := _FRAMED.fullmatch(raw, a, b))]
+        starts, stars = np.array(framed, dtype=np.int64).reshape(-1, 2).T
+        unframed = len(lines) - len(framed)
+    given = _HEX_VALUE[data[stars + 1]] * 16 + _HEX_VALUE[data[stars + 2]]
+    crc = crc8_spans(data, np.maximum(starts, stars - MAX_LINE), stars)  # a longer line: refused by length
+    return starts, stars, (stars - starts <= MAX_LINE - 3) & (crc == given), unframed
 
 
-@dataclass(frozen=True)
-class Overrun:
-    """``W,OVERRUN,<n>``: the board missed ``n`` sample periods."""
+def _integers(fields: bytes, k: int) -> np.ndarray:
+    """Comma-separated integers as rows of ``k``: int64, or Python ints if one has over :data:`MAX_DIGITS`."""
+    if re.search(rb"[0-9]{%d}" % (MAX_DIGITS + 1), fields):
+        return np.array([int(f) for f in fields.split(b",")], dtype=object).reshape(-1, k)
+    return np.fromstring(fields, dtype=np.int64, sep=",").reshape(-1, k)
 
-    n: int
 
-
-def parse_body(
-    body: str, channels: int = 1, axes: int = 1, adc_max: int = 1023
-) -> tuple[int, ...] | Overrun | str:
-    """Classify a checked line body (printable ASCII, :func:`unframe`'s) of a board with C channels, A axes.
-
-    Returns
-    -------
-    tuple of int, Overrun or str
-        A data line ``(seq, t_us, adc_0..adc_{C-1}, steps_0..steps_{A-1})`` (``t_us`` as sent), an overrun
-        warning, or any other message (replies, ``HELLO``, ``DONE``) as text.
-
-    Raises
-    ------
-    FramingError
-        A body starting with ``D,`` or ``W,`` whose fields are malformed (another number of them too) or out
-        of range.
-    """
-    if body.startswith("D,"):
-        parts = body.split(",")[1:]
-        if len(parts) != 2 + channels + axes:
-            raise FramingError(f"data line with {len(parts) + 1} fields, expected {3 + channels + axes}")
-        if not re.fullmatch(rf"D(,\d+){{{2 + channels}}}(,-?\d+){{{axes}}}", body):  # counts >= 0, steps any
-            raise FramingError("data line with a non-integer field")
-        values = tuple(int(f) for f in parts)
-        if values[1] >= WRAP_US or max(values[2 : 2 + channels]) > adc_max:
-            raise FramingError("data line field out of range")
-        return values
-    if body.startswith("W,"):
-        if not (warning := re.fullmatch(r"W,OVERRUN,(\d+)", body)):
-            raise FramingError(f"malformed warning {body!r}")
-        return Overrun(int(warning[1]))
-    return body
+@cache
+def _data_line(channels: int, axes: int) -> tuple[re.Pattern[bytes], re.Pattern[bytes]]:
+    r"""A data line's body (integer fields, counts >= 0), and a run of framed data lines."""
+    body = rb"D(?:,[0-9]+){%d}(?:,-?[0-9]+){%d}" % (2 + channels, axes)
+    return re.compile(body), re.compile(rb"(?:%s\*[0-9A-F]{2}\r?\n)*" % body)
 
 
 @dataclass
@@ -296,25 +265,38 @@ class StreamParser:
                 refused |= changed[:, a] & ((i < 0) | late)
         return int(np.argmax(refused)) if refused.any() else len(values), t
 
-    def _line(self, line: bytes, samples: list, messages: list) -> None:
-        r"""Check and classify one complete line (without its ``\n``), line by line."""
-        if not line.strip(b"\r"):
-            return
-        try:
-            item = parse_body(unframe(line), self.channels, self.axes, self.adc_max)
-        except FramingError as exc:
-            self.stats.corrupted += 1
-            if isinstance(exc, LegacyChecksum) and self.legacy is None:
-                body = line.rstrip(b"\r").rpartition(b"*")[0].decode("ascii")
-                if _LEGACY_BODY.fullmatch(body):
-                    self.legacy = body
-            return
-        if isinstance(item, tuple):
-            self._place(np.array([item], dtype=object), samples)  # its numbers may be of any size
-        elif isinstance(item, Overrun):
-            self.stats.overruns += item.n
+    def _lines(self, raw: bytes, samples: list, messages: list) -> None:
+        r"""Check and classify complete lines at once (:func:`unframe`): each as it would be alone.
+
+        The valid data lines are placed in the order they came (:meth:`_place`), the overruns counted, the
+        other valid lines' bodies kept as messages; a line that fails a check is corrupted (a data line's
+        fields: the board's number of integers, counts >= 0 and in range; a warning: ``W,OVERRUN,<n>``).
+        """
+        line, block = _data_line(self.channels, self.axes)
+        shaped = block.fullmatch(raw) is not None  # only data lines (the usual case): their fields at once
+        starts, stars, good, corrupted = unframe(raw, shaped)
+        for a, b in zip(starts[~good].tolist(), stars[~good].tolist(), strict=True):
+            given, body = int(raw[b + 1 : b + 3], 16), raw[a:b]  # protocol 1's XOR of a 1.x board's line?
+            if self.legacy is None and reduce(xor, body, 0) == given and _LEGACY_BODY.fullmatch(body):
+                self.legacy = body.decode("ascii")
+        if shaped:
+            values = _integers(_BETWEEN.sub(b",", raw)[2:-1], 2 + self.channels + self.axes)[good]
         else:
-            messages.append(item)
+            data = []
+            for a, b in zip(starts[good].tolist(), stars[good].tolist(), strict=True):
+                body = raw[a:b]
+                if body.startswith(b"D,") and line.fullmatch(body):
+                    data.append(body[2:])
+                elif body.startswith(b"W,") and (warning := _OVERRUN.fullmatch(body)):
+                    self.stats.overruns += int(warning[1])
+                elif body.startswith((b"D,", b"W,")):
+                    corrupted += 1
+                else:
+                    messages.append(body.decode("ascii"))
+            values = _integers(b",".join(data), 2 + self.channels + self.axes)
+        ok = (values[:, 1] < WRAP_US) & np.all(values[:, 2 : 2 + self.channels] <= self.adc_max, axis=1)
+        self.stats.corrupted += corrupted + int((~good).sum()) + int((~ok).sum())
+        self._place(values[ok], samples)
 
     @property
     def pending(self) -> int:
@@ -324,29 +306,18 @@ class StreamParser:
     def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
         r"""Parse ``data`` (any chunking) and return the samples and messages it completes.
 
-        The lines it completes are scanned at once (:func:`~helpers.board.lines.scan_data_lines`): the valid
-        data lines among them are placed in blocks (:meth:`_place`), every other line is checked on its own
-        (:meth:`_line`), in the order they came. A run of bytes without ``\n`` longer than
-        :data:`MAX_PENDING` is taken as one line (so it is flagged corrupted) and the rest of it up to the
-        next ``\n`` is discarded into a second corrupted line at most.
+        The lines it completes are checked and classified at once (:meth:`_lines`). A run of bytes without
+        ``\n`` longer than :data:`MAX_PENDING` is taken as one line (so it is flagged corrupted) and the rest
+        of it up to the next ``\n`` is discarded into a second corrupted line at most.
         """
         samples: list[tuple[int, ...]] = []
         messages: list[str] = []
         self._buf += data
         cut = self._buf.rfind(b"\n") + 1
         complete, rest = bytes(self._buf[:cut]), self._buf[cut:]
-        self._buf = bytearray() if len(rest) > MAX_PENDING else rest
+        if len(rest) > MAX_PENDING:  # garbage without newlines: one line (a corrupted one)
+            complete, rest = complete + rest + b"\n", bytearray()
+        self._buf = rest
         if complete:
-            c, a = self.channels, self.axes
-            starts, ends, fast, values = scan_data_lines(complete, c, a, self.adc_max, MAX_LINE, WRAP_US)
-            done = row = 0  # lines handled, rows of values placed
-            for j in [*np.flatnonzero(~fast).tolist(), len(ends)]:  # the lines checked alone, the end
-                if j > done:  # lines done .. j - 1: valid data lines
-                    self._place(values[row : row + j - done], samples)
-                    row += j - done
-                if j < len(ends):
-                    self._line(complete[starts[j] : ends[j]], samples, messages)
-                done = j + 1
-        if len(rest) > MAX_PENDING:
-            self._line(bytes(rest), samples, messages)
+            self._lines(complete, samples, messages)
         return samples, messages
