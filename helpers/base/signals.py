@@ -48,8 +48,8 @@ class _State:
     armed: bool = False
     """An interruptible part is running: the next signal raises (once) and latches the deferral."""
     pending: list[int] = field(default_factory=list)
-    installed: int = 0
-    """> 0: an :func:`interrupts_from_signals` block has put :func:`_handler` in place (and restores)."""
+    installed: bool = False
+    """An :func:`interrupts_from_signals` block has put :func:`_handler` in place (and restores)."""
 
 
 _state = _State()
@@ -96,18 +96,14 @@ def interrupts_from_signals() -> Iterator[bool]:
     if _state.installed:  # inside such a block: the handler is in place (and is restored by that block)
         yield True
         return
-    previous = {s: signal.getsignal(s) for s in HELD}
-    for s, h in previous.items():
-        if h is not _handler:
-            signal.signal(s, _handler)
-    _state.installed += 1
+    previous = {s: signal.signal(s, _handler) for s in HELD}
+    _state.installed = True
     try:
         yield True
     finally:
-        _state.installed -= 1
+        _state.installed = False
         for s, h in previous.items():
-            if h is not _handler:
-                signal.signal(s, h if h is not None else signal.SIG_DFL)
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
 @contextmanager

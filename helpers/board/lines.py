@@ -48,11 +48,14 @@ def crc8_spans(data: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.nda
     -------
     ndarray of uint8
         One CRC-8 per span.
+
+    Raises
+    ------
+    IndexError
+        If a span is longer than :data:`MAX_BYTES` (beyond the tables).
     """
     length = ends - starts
     w = int(length.max(initial=0))
-    if w > MAX_BYTES:
-        raise ValueError(f"a span of {w} bytes: the CRC tables cover {MAX_BYTES}")
     pos = np.arange(-w, 0)[:, None] + ends  # a column per span, right-aligned: w - 1 - j bytes after row j
     index = data.take(pos, mode="wrap") + 256 * np.arange(w - 1, -1, -1)[:, None]
     index[pos < starts] = 0  # before the span: no byte (the register unchanged by it)

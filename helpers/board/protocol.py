@@ -60,11 +60,9 @@ MAX_PENDING = 4 * (MAX_LINE + 1)
 MAX_DIGITS = 15
 """Digits of a field read as int64 (10**15 < 2**53: exact as float64 too); a longer one is a Python int."""
 
-CR = ord("\r")
 _FRAMED = re.compile(rb"([ -)+-~]{0,%d})\*[0-9A-F]{2}\r?\n" % (MAX_LINE - 3))
 """A framed line: printable ASCII, one ``*`` and two upper-case hex digits, at most MAX_LINE long."""
-_HEX_VALUE = np.full(256, -1, dtype=np.int16)
-_HEX_VALUE[np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)] = np.arange(16)
+_HEX_DIGITS = np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)
 _LEGACY_BODY = re.compile(rb"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
 _OVERRUN = re.compile(rb"W,OVERRUN,([0-9]+)")
 _BETWEEN = re.compile(rb"\*[0-9A-F]{2}\r?\n(?:D,|$)")
@@ -130,14 +128,14 @@ def unframe(raw: bytes, shaped: bool = False) -> tuple[np.ndarray, np.ndarray, n
     ends = np.flatnonzero(data == NEWLINE) + 1
     starts, unframed = np.concatenate([[0], ends[:-1]]), 0
     if shaped:
-        stars = ends - 4 - (data[ends - 2] == CR)
+        stars = ends - 4 - (data[ends - 2] == ord("\r"))
     else:
         spans = zip(starts.tolist(), ends.tolist(), strict=True)
         lines = [(a, b) for a, b in spans if raw[a : b - 1].strip(b"\r")]  # the blank ones left out
         framed = [m.span(1) for a, b in lines if (m := _FRAMED.fullmatch(raw, a, b))]
         starts, stars = np.array(framed, dtype=np.int64).reshape(-1, 2).T
         unframed = len(lines) - len(framed)
-    given = _HEX_VALUE[data[stars + 1]] * 16 + _HEX_VALUE[data[stars + 2]]
+    given = 16 * _HEX_DIGITS.searchsorted(data[stars + 1]) + _HEX_DIGITS.searchsorted(data[stars + 2])
     crc = crc8_spans(data, np.maximum(starts, stars - MAX_LINE), stars)  # a longer line: refused by length
     return starts, stars, (stars - starts <= MAX_LINE - 3) & (crc == given), unframed
 
@@ -201,7 +199,6 @@ class StreamParser:
         self.stats = StreamStats()
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
-        self._t_offset = 0
         self._last: tuple[int, tuple[int, ...]] | None = None  # (t_us unwrapped, steps) of the last one
         self.steps_range: list[tuple[int, int]] | None = None
         """Every axis's step counts the running programme can reach (from ``ZERO``), or None (no check)."""
@@ -223,7 +220,7 @@ class StreamParser:
                 self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1) - (k - 1)
                 self.last_seq = seq
                 self.stats.samples += k
-                self._t_offset, self._last_raw_t = int(t[k - 1] - values[k - 1, 1]), int(values[k - 1, 1])
+                self._last_raw_t = int(values[k - 1, 1])
                 rows = np.concatenate([values[:k, :1], t[:k, None], values[:k, 2:]], axis=1).tolist()
                 self._last = (rows[-1][1], tuple(rows[-1][2 + self.channels :]))
                 out.extend(map(tuple, rows))
@@ -246,8 +243,8 @@ class StreamParser:
         seq, t_raw, steps = values[:, 0], values[:, 1].astype(np.int64), values[:, 2 + self.channels :]
         if self._last is not None and max(map(abs, self._last[1])) >= 10**MAX_DIGITS:
             steps = steps.astype(object)  # compared exactly with a count too large for int64 and float64
-        last_raw = t_raw[0] if self._last_raw_t is None else self._last_raw_t
-        t = t_raw + self._t_offset + WRAP_US * np.cumsum(t_raw < np.concatenate([[last_raw], t_raw[:-1]]))
+        last_t, last_raw = (t_raw[0], t_raw[0]) if self._last is None else (self._last[0], self._last_raw_t)
+        t = t_raw - last_raw + last_t + WRAP_US * np.cumsum(t_raw < np.concatenate([[last_raw], t_raw[:-1]]))
         refused = seq <= np.concatenate([[-1 if self.last_seq is None else self.last_seq], seq[:-1]])
         if self.steps_range is not None:
             lo, hi = np.array(self.steps_range).T
@@ -265,12 +262,13 @@ class StreamParser:
                 refused |= changed[:, a] & ((i < 0) | late)
         return int(np.argmax(refused)) if refused.any() else len(values), t
 
-    def _lines(self, raw: bytes, samples: list, messages: list) -> None:
+    def _lines(self, raw: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
         r"""Check and classify complete lines at once (:func:`unframe`): each as it would be alone.
 
-        The valid data lines are placed in the order they came (:meth:`_place`), the overruns counted, the
-        other valid lines' bodies kept as messages; a line that fails a check is corrupted (a data line's
-        fields: the board's number of integers, counts >= 0 and in range; a warning: ``W,OVERRUN,<n>``).
+        Returns the valid data lines placed in the order they came (:meth:`_place`) and the other valid
+        lines' bodies (messages); the overruns are counted, and a line that fails a check is corrupted (a data
+        line's fields: the board's number of integers, counts >= 0 and in range; a warning:
+        ``W,OVERRUN,<n>``).
         """
         line, block = _data_line(self.channels, self.axes)
         shaped = block.fullmatch(raw) is not None  # only data lines (the usual case): their fields at once
@@ -279,29 +277,22 @@ class StreamParser:
             given, body = int(raw[b + 1 : b + 3], 16), raw[a:b]  # protocol 1's XOR of a 1.x board's line?
             if self.legacy is None and reduce(xor, body, 0) == given and _LEGACY_BODY.fullmatch(body):
                 self.legacy = body.decode("ascii")
+        k = 2 + self.channels + self.axes
         if shaped:
-            values = _integers(_BETWEEN.sub(b",", raw)[2:-1], 2 + self.channels + self.axes)[good]
+            values, messages = _integers(_BETWEEN.sub(b",", raw)[2:-1], k)[good], []
         else:
-            data = []
-            for a, b in zip(starts[good].tolist(), stars[good].tolist(), strict=True):
-                body = raw[a:b]
-                if body.startswith(b"D,") and line.fullmatch(body):
-                    data.append(body[2:])
-                elif body.startswith(b"W,") and (warning := _OVERRUN.fullmatch(body)):
-                    self.stats.overruns += int(warning[1])
-                elif body.startswith((b"D,", b"W,")):
-                    corrupted += 1
-                else:
-                    messages.append(body.decode("ascii"))
-            values = _integers(b",".join(data), 2 + self.channels + self.axes)
+            bodies = [raw[a:b] for a, b in zip(starts[good].tolist(), stars[good].tolist(), strict=True)]
+            data = [body[2:] for body in bodies if line.fullmatch(body)]
+            warnings = [int(m[1]) for body in bodies if (m := _OVERRUN.fullmatch(body))]
+            messages = [body.decode("ascii") for body in bodies if not body.startswith((b"D,", b"W,"))]
+            corrupted += len(bodies) - len(data) - len(warnings) - len(messages)  # malformed D and W lines
+            self.stats.overruns += sum(warnings)
+            values = _integers(b",".join(data), k)
         ok = (values[:, 1] < WRAP_US) & np.all(values[:, 2 : 2 + self.channels] <= self.adc_max, axis=1)
         self.stats.corrupted += corrupted + int((~good).sum()) + int((~ok).sum())
+        samples: list[tuple[int, ...]] = []
         self._place(values[ok], samples)
-
-    @property
-    def pending(self) -> int:
-        """Bytes of an unfinished line held back."""
-        return len(self._buf)
+        return samples, messages
 
     def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
         r"""Parse ``data`` (any chunking) and return the samples and messages it completes.
@@ -310,14 +301,10 @@ class StreamParser:
         ``\n`` longer than :data:`MAX_PENDING` is taken as one line (so it is flagged corrupted) and the rest
         of it up to the next ``\n`` is discarded into a second corrupted line at most.
         """
-        samples: list[tuple[int, ...]] = []
-        messages: list[str] = []
         self._buf += data
         cut = self._buf.rfind(b"\n") + 1
         complete, rest = bytes(self._buf[:cut]), self._buf[cut:]
         if len(rest) > MAX_PENDING:  # garbage without newlines: one line (a corrupted one)
             complete, rest = complete + rest + b"\n", bytearray()
         self._buf = rest
-        if complete:
-            self._lines(complete, samples, messages)
-        return samples, messages
+        return self._lines(complete) if complete else ([], [])
