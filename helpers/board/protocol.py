@@ -124,14 +124,12 @@ def unframe(raw: bytes, shaped: bool = False) -> tuple[np.ndarray, np.ndarray, n
     unframed : int
         The other lines but the blank ones: non-ASCII or control bytes, too long, no or a malformed checksum.
     """
-    data = np.frombuffer(raw, dtype=np.uint8)
-    ends = np.flatnonzero(data == NEWLINE) + 1
-    starts, unframed = np.concatenate([[0], ends[:-1]]), 0
+    data, unframed = np.frombuffer(raw, dtype=np.uint8), 0
     if shaped:
-        stars = ends - 4 - (data[ends - 2] == ord("\r"))
+        ends = np.flatnonzero(data == NEWLINE) + 1
+        starts, stars = np.concatenate([[0], ends[:-1]]), ends - 4 - (data[ends - 2] == ord("\r"))
     else:
-        spans = zip(starts.tolist(), ends.tolist(), strict=True)
-        lines = [(a, b) for a, b in spans if raw[a : b - 1].strip(b"\r")]  # the blank ones left out
+        lines = [m.span() for m in re.finditer(rb"[^\n]*\n", raw) if m[0].strip(b"\r\n")]  # blank: left out
         framed = [m.span(1) for a, b in lines if (m := _FRAMED.fullmatch(raw, a, b))]
         starts, stars = np.array(framed, dtype=np.int64).reshape(-1, 2).T
         unframed = len(lines) - len(framed)
@@ -224,11 +222,10 @@ class StreamParser:
                 rows = np.concatenate([values[:k, :1], t[:k, None], values[:k, 2:]], axis=1).tolist()
                 self._last = (rows[-1][1], tuple(rows[-1][2 + self.channels :]))
                 out.extend(map(tuple, rows))
-            if k < len(values):
-                if self.last_seq is not None and values[k, 0] <= self.last_seq:
-                    self.stats.corrupted += 1
-                else:
-                    self.stats.implausible += 1
+            if k < len(values) and self.last_seq is not None and values[k, 0] <= self.last_seq:
+                self.stats.corrupted += 1
+            elif k < len(values):
+                self.stats.implausible += 1
             values = values[k + 1 :]
 
     def _block_end(self, values: np.ndarray) -> tuple[int, np.ndarray]:
