@@ -19,8 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from line_reference import check_line
 
-from helpers.board.lines import crc8_spans
-from helpers.board.protocol import MAX_DIGITS, MAX_PENDING, WRAP_US, StreamParser, unframe
+from helpers.board.protocol import MAX_DIGITS, MAX_PENDING, WRAP_US, StreamParser, crc8_spans, unframe
 from helpers.virtual.emulator.framing import frame_data_lines
 
 

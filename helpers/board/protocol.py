@@ -23,6 +23,15 @@ of load-cell channels and step counters (``D,<seq>,<t_us>,<adc_0>,...,<adc_{C-1}
   counts as dropped too),
 
 and unwraps the board's 32-bit microsecond clock.
+
+The CRC-8 (:mod:`helpers.board.crc8`) is linear over GF(2) apart from its initial value: one step of the
+register is ``r -> TABLE[r ^ b] = TABLE[r] ^ TABLE[b]``. A byte ``b`` followed by ``m`` more bytes therefore
+adds ``A^m(TABLE[b])`` to the final register (``A``: the map ``r -> TABLE[r]``) and the initial value adds
+``A^L(INIT)`` for a line of ``L`` bytes: the CRC-8s of many lines are XORs of table look-ups over their bytes
+whatever the lines' lengths (:func:`crc8_spans`; a test checks it against the bitwise reference). The host
+checks every line of a read at once with them (:func:`unframe`), the emulated DAQ frames its chunks of
+samples with them (:mod:`helpers.virtual.emulator.framing`): at 1-5 kHz a line costs more in Python than the
+twin's physics of its sample.
 """
 
 from __future__ import annotations
@@ -34,8 +43,7 @@ from operator import xor
 
 import numpy as np
 
-from helpers.board.crc8 import crc8
-from helpers.board.lines import NEWLINE, crc8_spans
+from helpers.board.crc8 import INIT, TABLE, XOROUT, crc8
 
 FW_VERSION = "2.3.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
@@ -67,6 +75,51 @@ _LEGACY_BODY = re.compile(rb"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CH
 _OVERRUN = re.compile(rb"W,OVERRUN,([0-9]+)")
 _BETWEEN = re.compile(rb"\*[0-9A-F]{2}\r?\n(?:D,|$)")
 """From one data line's fields to the next's, or to the end."""
+
+
+MAX_BYTES = 64
+"""Longest span :func:`crc8_spans` takes (a line of the protocol has at most 63 bytes)."""
+
+
+def _tables() -> tuple[np.ndarray, np.ndarray]:
+    """``after[256 m + b]``: byte ``b`` followed by ``m`` more bytes; ``init[L]``: INIT after ``L`` bytes."""
+    after, init = [np.frombuffer(TABLE, dtype=np.uint8)], [INIT]
+    for _ in range(MAX_BYTES):
+        after.append(after[0][after[-1]])
+        init.append(TABLE[init[-1]])
+    return np.concatenate(after[:MAX_BYTES]), np.array(init, dtype=np.uint8)
+
+
+_AFTER, _INIT_AFTER = _tables()
+NEWLINE = ord("\n")
+
+
+def crc8_spans(data: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """The CRC-8 (:func:`~helpers.board.crc8.crc8`) of every span ``data[starts[i]:ends[i]]``, at once.
+
+    Parameters
+    ----------
+    data : ndarray of uint8
+        The bytes.
+    starts, ends : ndarray of int
+        The spans, each at most :data:`MAX_BYTES` long.
+
+    Returns
+    -------
+    ndarray of uint8
+        One CRC-8 per span.
+
+    Raises
+    ------
+    IndexError
+        If a span is longer than :data:`MAX_BYTES` (beyond the tables).
+    """
+    length = ends - starts
+    w = int(length.max(initial=0))
+    pos = np.arange(-w, 0)[:, None] + ends  # a column per span, right-aligned: w - 1 - j bytes after row j
+    index = data.take(pos, mode="wrap") + 256 * np.arange(w - 1, -1, -1)[:, None]
+    index[pos < starts] = 0  # before the span: no byte (the register unchanged by it)
+    return np.bitwise_xor.reduce(_AFTER[index], axis=0) ^ _INIT_AFTER[length] ^ XOROUT
 
 
 def checksum(body: bytes | str) -> str:

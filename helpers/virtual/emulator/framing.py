@@ -2,14 +2,14 @@
 
 The same bytes as :func:`helpers.board.protocol.frame` line by line, without its checks (the emulator makes
 the bodies); an emulated board streaming at 1-5 kHz faster than real time needs the speed. The CRC-8s are the
-host's own (:func:`helpers.board.lines.crc8_spans`, which the host's scan checks lines with).
+host's own (:func:`helpers.board.protocol.crc8_spans`, which the host checks lines with).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from helpers.board.lines import NEWLINE, crc8_spans
+from helpers.board.protocol import NEWLINE, crc8_spans
 
 _HEX2 = [f"{x:02X}" for x in range(256)]
 
@@ -21,7 +21,7 @@ def frame_data_lines(fields: np.ndarray) -> bytes:
     ----------
     fields : ndarray of int, shape (n, F)
         Every line's integers (``seq, t_us, adc_0.., steps_0..``), a line's body at most
-        :data:`~helpers.board.lines.MAX_BYTES` long.
+        :data:`~helpers.board.protocol.MAX_BYTES` long.
 
     Returns
     -------
