@@ -157,3 +157,18 @@ def test_signals_held_defers_a_signal_sent_from_another_thread():
         except Interrupted as exc:
             got.append(exc.signum)
     assert got == ["not interrupted inside", signal.SIGTERM]
+
+
+def test_nested_blocks_keep_the_handler_and_leave_the_handlers_as_they_found_them():
+    """A block inside another finds the handler in place; the outermost one alone installs and restores it."""
+    before = signal.getsignal(signal.SIGTERM)
+    assert before is not signals._handler
+    with interrupts_from_signals():
+        with signals.signals_held():
+            with interrupts_from_signals():
+                assert signal.getsignal(signal.SIGTERM) is signals._handler
+        assert signal.getsignal(signal.SIGTERM) is signals._handler
+    assert signal.getsignal(signal.SIGTERM) == before
+    with signals.signals_held():  # alone again: it installs the handler itself
+        assert signal.getsignal(signal.SIGTERM) is signals._handler
+    assert signal.getsignal(signal.SIGTERM) == before

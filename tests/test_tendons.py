@@ -103,8 +103,10 @@ def test_emulated_daq_sends_every_channel_and_axis(four: rigfile.RigFile) -> Non
     d = DaqEmulator(clock, build_limits(four))
     d.reset()
     assert talk(d, "CONFIG", "RATE 50")[1:] == ["OK CONFIG 4 4 100 2000", "ERR RANGE rate 100-2000 Hz"]
-    body = d.payload(np.array([[180, 181, 182, 183]]), np.array([[0, 5, -3, 156]]))
-    assert body == ["180,181,182,183,0,5,-3,156"]
+    d.take_output()
+    counts, steps = np.array([[180, 181, 182, 183]]), np.array([[0, 5, -3, 156]])
+    d.emit_samples(np.array([1]), np.array([0.001]), counts, steps)  # slot 1: 1 ms after START
+    assert d.take_output() == frame("D,0,1000,180,181,182,183,0,5,-3,156")
 
 
 @pytest.fixture(scope="module")

@@ -48,6 +48,8 @@ class _State:
     armed: bool = False
     """An interruptible part is running: the next signal raises (once) and latches the deferral."""
     pending: list[int] = field(default_factory=list)
+    installed: bool = False
+    """An :func:`interrupts_from_signals` block has put :func:`_handler` in place (and restores)."""
 
 
 _state = _State()
@@ -91,16 +93,17 @@ def interrupts_from_signals() -> Iterator[bool]:
     if threading.current_thread() is not threading.main_thread():
         yield False
         return
-    previous = {s: signal.getsignal(s) for s in HELD}
-    for s, h in previous.items():
-        if h is not _handler:
-            signal.signal(s, _handler)
+    if _state.installed:  # inside such a block: the handler is in place (and is restored by that block)
+        yield True
+        return
+    previous = {s: signal.signal(s, _handler) for s in HELD}
+    _state.installed = True
     try:
         yield True
     finally:
+        _state.installed = False
         for s, h in previous.items():
-            if h is not _handler:
-                signal.signal(s, h if h is not None else signal.SIG_DFL)
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
 @contextmanager

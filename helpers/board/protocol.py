@@ -23,18 +23,27 @@ of load-cell channels and step counters (``D,<seq>,<t_us>,<adc_0>,...,<adc_{C-1}
   counts as dropped too),
 
 and unwraps the board's 32-bit microsecond clock.
+
+The CRC-8 (:mod:`helpers.board.crc8`) is linear over GF(2) apart from its initial value: one step of the
+register is ``r -> TABLE[r ^ b] = TABLE[r] ^ TABLE[b]``. A byte ``b`` followed by ``m`` more bytes therefore
+adds ``A^m(TABLE[b])`` to the final register (``A``: the map ``r -> TABLE[r]``) and the initial value adds
+``A^L(INIT)`` for a line of ``L`` bytes: the CRC-8s of many lines are XORs of table look-ups over their bytes
+whatever the lines' lengths (:func:`crc8_spans`; a test checks it against the bitwise reference). The host
+checks every line of a read at once with them (:func:`unframe`), the emulated DAQ frames its chunks of
+samples with them (:mod:`helpers.virtual.emulator.framing`): at 1-5 kHz a line costs more in Python than the
+twin's physics of its sample.
 """
 
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from functools import reduce
+from functools import cache, reduce
 from operator import xor
 
 import numpy as np
 
-from helpers.board.crc8 import crc8
+from helpers.board.crc8 import INIT, TABLE, XOROUT, crc8
 
 FW_VERSION = "2.3.0"
 """The protocol version the firmware and the emulated boards report (``MAJOR.MINOR.PATCH``)."""
@@ -56,16 +65,61 @@ PROTOCOL_MAJOR = int(FW_VERSION.split(".")[0])
 MAX_PENDING = 4 * (MAX_LINE + 1)
 """Bytes of an unterminated line kept before it is declared corrupted (garbage without newlines)."""
 
-_HEX = "0123456789ABCDEF"
-_LEGACY_BODY = re.compile(r"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
+MAX_DIGITS = 15
+"""Digits of a field read as int64 (10**15 < 2**53: exact as float64 too); a longer one is a Python int."""
+
+_FRAMED = re.compile(rb"([ -)+-~]{0,%d})\*[0-9A-F]{2}\r?\n" % (MAX_LINE - 3))
+"""A framed line: printable ASCII, one ``*`` and two upper-case hex digits, at most MAX_LINE long."""
+_HEX_DIGITS = np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)
+_LEGACY_BODY = re.compile(rb"(HELLO|PONG) (daq|stepper) 1\.[0-9]+\.[0-9]+|ERR CHECKSUM( .*)?")
+_OVERRUN = re.compile(rb"W,OVERRUN,([0-9]+)")
+_BETWEEN = re.compile(rb"\*[0-9A-F]{2}\r?\n(?:D,|$)")
+"""From one data line's fields to the next's, or to the end."""
 
 
-class FramingError(ValueError):
-    """A line failed a framing check; the message names the check."""
+MAX_BYTES = 64
+"""Longest span :func:`crc8_spans` takes (a line of the protocol has at most 63 bytes)."""
 
 
-class LegacyChecksum(FramingError):
-    """The line's CRC-8 is wrong but its ``*hh`` is the XOR checksum of protocol 1 (firmware 1.x)."""
+def _tables() -> tuple[np.ndarray, np.ndarray]:
+    """``after[256 m + b]``: byte ``b`` followed by ``m`` more bytes; ``init[L]``: INIT after ``L`` bytes."""
+    after, init = [np.frombuffer(TABLE, dtype=np.uint8)], [INIT]
+    for _ in range(MAX_BYTES):
+        after.append(after[0][after[-1]])
+        init.append(TABLE[init[-1]])
+    return np.concatenate(after[:MAX_BYTES]), np.array(init, dtype=np.uint8)
+
+
+_AFTER, _INIT_AFTER = _tables()
+NEWLINE = ord("\n")
+
+
+def crc8_spans(data: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """The CRC-8 (:func:`~helpers.board.crc8.crc8`) of every span ``data[starts[i]:ends[i]]``, at once.
+
+    Parameters
+    ----------
+    data : ndarray of uint8
+        The bytes.
+    starts, ends : ndarray of int
+        The spans, each at most :data:`MAX_BYTES` long.
+
+    Returns
+    -------
+    ndarray of uint8
+        One CRC-8 per span.
+
+    Raises
+    ------
+    IndexError
+        If a span is longer than :data:`MAX_BYTES` (beyond the tables).
+    """
+    length = ends - starts
+    w = int(length.max(initial=0))
+    pos = np.arange(-w, 0)[:, None] + ends  # a column per span, right-aligned: w - 1 - j bytes after row j
+    index = data.take(pos, mode="wrap") + 256 * np.arange(w - 1, -1, -1)[:, None]
+    index[pos < starts] = 0  # before the span: no byte (the register unchanged by it)
+    return np.bitwise_xor.reduce(_AFTER[index], axis=0) ^ _INIT_AFTER[length] ^ XOROUT
 
 
 def checksum(body: bytes | str) -> str:
@@ -101,89 +155,54 @@ def frame(body: str) -> bytes:
     return (line + "\n").encode("ascii")
 
 
-def unframe(line: bytes) -> str:
-    r"""Check one line (without its ``\\n``) and return its body.
+def unframe(raw: bytes, shaped: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    r"""Check complete lines at once: every framed line's body and whether its CRC-8 is right.
 
     Parameters
     ----------
-    line : bytes
-        The raw line; a trailing ``\\r`` is ignored. Every line of protocol 2 carries a checksum, commands
-        included.
+    raw : bytes
+        One or more complete lines, each ending in ``\\n``; a ``\\r`` before it is ignored, and a line of
+        nothing but ``\\r`` is blank (neither framed nor corrupted). Every line of protocol 2 carries a
+        checksum, commands included.
+    shaped : bool
+        Every line of ``raw`` is known to be framed but for its length and CRC (the parser's data lines): its
+        body is then found from its ``\\n`` alone.
 
     Returns
     -------
-    str
-        The text before ``*hh``.
-
-    Raises
-    ------
-    FramingError
-        Non-ASCII or control bytes, too long, missing or malformed or wrong checksum
-        (:class:`LegacyChecksum` when the wrong checksum is the XOR of protocol 1).
+    starts, stars : ndarray of int64
+        Every framed line's body ``raw[starts[i]:stars[i]]``: the printable ASCII before its one ``*``.
+    good : ndarray of bool
+        Its line is at most :data:`MAX_LINE` long and its ``*hh`` is the CRC-8 of its body.
+    unframed : int
+        The other lines but the blank ones: non-ASCII or control bytes, too long, no or a malformed checksum.
     """
-    line = line.removesuffix(b"\r")
-    if len(line) > MAX_LINE:
-        raise FramingError(f"line of {len(line)} characters exceeds {MAX_LINE}")
-    try:
-        text = line.decode("ascii")
-    except UnicodeDecodeError:
-        raise FramingError("non-ASCII bytes") from None
-    if not text.isprintable():
-        raise FramingError("control characters")
-    body, star, given = text.rpartition("*")
-    if not star:
-        raise FramingError("missing checksum")
-    if "*" in body:
-        raise FramingError("more than one '*'")
-    if len(given) != 2 or any(c not in _HEX for c in given):
-        raise FramingError(f"malformed checksum {given!r}")
-    x = crc8(body)
-    if x != int(given, 16):
-        if reduce(xor, body.encode("ascii"), 0) == int(given, 16):
-            raise LegacyChecksum(f"checksum {given} is the XOR of protocol 1 (firmware 1.x), not the CRC-8")
-        raise FramingError(f"checksum {given} does not match {x:02X}")
-    return body
+    data, unframed = np.frombuffer(raw, dtype=np.uint8), 0
+    if shaped:
+        ends = np.flatnonzero(data == NEWLINE) + 1
+        starts, stars = np.concatenate([[0], ends[:-1]]), ends - 4 - (data[ends - 2] == ord("\r"))
+    else:
+        lines = [m.span() for m in re.finditer(rb"[^\n]*\n", raw) if m[0].strip(b"\r\n")]  # blank: left out
+        framed = [m.span(1) for a, b in lines if (m := _FRAMED.fullmatch(raw, a, b))]
+        starts, stars = np.array(framed, dtype=np.int64).reshape(-1, 2).T
+        unframed = len(lines) - len(framed)
+    given = 16 * _HEX_DIGITS.searchsorted(data[stars + 1]) + _HEX_DIGITS.searchsorted(data[stars + 2])
+    crc = crc8_spans(data, np.maximum(starts, stars - MAX_LINE), stars)  # a longer line: refused by length
+    return starts, stars, (stars - starts <= MAX_LINE - 3) & (crc == given), unframed
 
 
-@dataclass(frozen=True)
-class Overrun:
-    """``W,OVERRUN,<n>``: the board missed ``n`` sample periods."""
+def _integers(fields: bytes, k: int) -> np.ndarray:
+    """Comma-separated integers as rows of ``k``: int64, or Python ints if one has over :data:`MAX_DIGITS`."""
+    if re.search(rb"[0-9]{%d}" % (MAX_DIGITS + 1), fields):
+        return np.array([int(f) for f in fields.split(b",")], dtype=object).reshape(-1, k)
+    return np.fromstring(fields, dtype=np.int64, sep=",").reshape(-1, k)
 
-    n: int
 
-
-def parse_body(
-    body: str, channels: int = 1, axes: int = 1, adc_max: int = 1023
-) -> tuple[int, ...] | Overrun | str:
-    """Classify a checked line body (printable ASCII, :func:`unframe`'s) of a board with C channels, A axes.
-
-    Returns
-    -------
-    tuple of int, Overrun or str
-        A data line ``(seq, t_us, adc_0..adc_{C-1}, steps_0..steps_{A-1})`` (``t_us`` as sent), an overrun
-        warning, or any other message (replies, ``HELLO``, ``DONE``) as text.
-
-    Raises
-    ------
-    FramingError
-        A body starting with ``D,`` or ``W,`` whose fields are malformed (another number of them too) or out
-        of range.
-    """
-    if body.startswith("D,"):
-        parts = body.split(",")[1:]
-        if len(parts) != 2 + channels + axes:
-            raise FramingError(f"data line with {len(parts) + 1} fields, expected {3 + channels + axes}")
-        if not re.fullmatch(rf"D(,\d+){{{2 + channels}}}(,-?\d+){{{axes}}}", body):  # counts >= 0, steps any
-            raise FramingError("data line with a non-integer field")
-        values = tuple(int(f) for f in parts)
-        if values[1] >= WRAP_US or max(values[2 : 2 + channels]) > adc_max:
-            raise FramingError("data line field out of range")
-        return values
-    if body.startswith("W,"):
-        if not (warning := re.fullmatch(r"W,OVERRUN,(\d+)", body)):
-            raise FramingError(f"malformed warning {body!r}")
-        return Overrun(int(warning[1]))
-    return body
+@cache
+def _data_line(channels: int, axes: int) -> tuple[re.Pattern[bytes], re.Pattern[bytes]]:
+    r"""A data line's body (integer fields, counts >= 0), and a run of framed data lines."""
+    body = rb"D(?:,[0-9]+){%d}(?:,-?[0-9]+){%d}" % (2 + channels, axes)
+    return re.compile(body), re.compile(rb"(?:%s\*[0-9A-F]{2}\r?\n)*" % body)
 
 
 @dataclass
@@ -231,7 +250,6 @@ class StreamParser:
         self.stats = StreamStats()
         self.last_seq: int | None = None
         self._last_raw_t: int | None = None
-        self._t_offset = 0
         self._last: tuple[int, tuple[int, ...]] | None = None  # (t_us unwrapped, steps) of the last one
         self.steps_range: list[tuple[int, int]] | None = None
         """Every axis's step counts the running programme can reach (from ``ZERO``), or None (no check)."""
@@ -239,86 +257,104 @@ class StreamParser:
         """Every axis's sorted, disjoint ``(starts, ends)`` in device us where the programme steps it, or None
         (no check): a count that changes outside them is impossible."""
 
-    def _plausible(self, t_us: int, steps: tuple[int, ...]) -> bool:
-        """Every axis within its range, no faster than the step-rate limit, changed only while it steps."""
-        for a, n in enumerate(steps):
-            if self.steps_range is not None and not self.steps_range[a][0] <= n <= self.steps_range[a][1]:
-                return False
-            if self._last is None or n == self._last[1][a]:
-                continue
-            t_last, rate = self._last[0], self.max_step_rate_hz
-            if rate is not None and abs(n - self._last[1][a]) > rate * max(t_us - t_last, 0) * 1e-6 + 1:
-                return False
-            if self.step_windows is not None:  # the count changed in (last t, t]: a window must overlap it
-                starts, ends = self.step_windows[a]
-                i = int(np.searchsorted(starts, t_us, side="right")) - 1
-                if i < 0 or ends[i] < t_last:
-                    return False
-        return True
+    def _place(self, values: np.ndarray, out: list) -> None:
+        """Place the checked data lines ``values`` (rows ``seq, t_us, adc_0.., steps_0..``) in order.
 
-    def _accept(self, sample: tuple[int, ...], out: list) -> None:
-        """Place a checked data line, or reject it as implausible (its ``seq`` then counts as dropped)."""
-        seq, t_us, steps = sample[0], self._unwrapped(sample[1]), sample[2 + self.channels :]
-        if not self._plausible(t_us, steps):
-            self.stats.implausible += 1
-            return
-        self._t_offset, self._last_raw_t = t_us - sample[1], sample[1]  # the clock moves on with a placed one
-        self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1)
-        self.last_seq = seq
-        self.stats.samples += 1
-        self._last = (t_us, steps)
-        out.append((seq, t_us, *sample[2:]))
-
-    def _lines(self, data: bytes) -> list[bytes]:
-        r"""Append ``data`` and return the complete lines it finishes (without ``\\n``).
-
-        A run of bytes without ``\\n`` longer than :data:`MAX_PENDING` is returned as one line (so it is
-        flagged corrupted) and the rest of it up to the next ``\\n`` is discarded into a second corrupted line
-        at most.
+        The rows before the first one that does not follow (:meth:`_block_end`) are placed at once; that
+        row is corrupted if its ``seq`` does not increase, else implausible (rejected: its ``seq`` then
+        counts as dropped), and the rows after it are placed in the same way.
         """
-        self._buf += data
-        parts = self._buf.split(b"\n")
-        rest = parts.pop()
-        lines = [bytes(p) for p in parts]
-        if len(rest) > MAX_PENDING:
-            lines.append(bytes(rest))
-            rest = b""
-        self._buf = bytearray(rest)
-        return lines
+        while len(values):
+            k, t = self._block_end(values)
+            if k:
+                seq = int(values[k - 1, 0])
+                self.stats.dropped += seq - (0 if self.last_seq is None else self.last_seq + 1) - (k - 1)
+                self.last_seq = seq
+                self.stats.samples += k
+                self._last_raw_t = int(values[k - 1, 1])
+                rows = np.concatenate([values[:k, :1], t[:k, None], values[:k, 2:]], axis=1).tolist()
+                self._last = (rows[-1][1], tuple(rows[-1][2 + self.channels :]))
+                out.extend(map(tuple, rows))
+            if k < len(values) and self.last_seq is not None and values[k, 0] <= self.last_seq:
+                self.stats.corrupted += 1
+            elif k < len(values):
+                self.stats.implausible += 1
+            values = values[k + 1 :]
 
-    @property
-    def pending(self) -> int:
-        """Bytes of an unfinished line held back."""
-        return len(self._buf)
+    def _block_end(self, values: np.ndarray) -> tuple[int, np.ndarray]:
+        """``(k, t_us)``: the first row that does not follow, and every row's unwrapped time.
 
-    def _unwrapped(self, t_raw: int) -> int:
-        """``t_raw`` with the 32-bit wraps before it added back (a time earlier than the last one wrapped)."""
-        wrapped = self._last_raw_t is not None and t_raw < self._last_raw_t
-        return t_raw + self._t_offset + (WRAP_US if wrapped else 0)
+        Row ``k`` is the first whose ``seq`` does not increase or that is implausible: a step count outside
+        its axis's range, changed faster than the step-rate limit allows or while no window of the
+        programme steps that axis; each row judged as though every row before it was placed (the first
+        sample ever by its range only); ``len(values)`` if there is none. The clock unwraps on the same
+        assumption (a time earlier than the one before it wrapped).
+        """
+        seq, t_raw, steps = values[:, 0], values[:, 1].astype(np.int64), values[:, 2 + self.channels :]
+        if self._last is not None and max(map(abs, self._last[1])) >= 10**MAX_DIGITS:
+            steps = steps.astype(object)  # compared exactly with a count too large for int64 and float64
+        last_t, last_raw = (t_raw[0], t_raw[0]) if self._last is None else (self._last[0], self._last_raw_t)
+        t = t_raw - last_raw + last_t + WRAP_US * np.cumsum(t_raw < np.concatenate([[last_raw], t_raw[:-1]]))
+        refused = seq <= np.concatenate([[-1 if self.last_seq is None else self.last_seq], seq[:-1]])
+        if self.steps_range is not None:
+            lo, hi = np.array(self.steps_range).T
+            refused |= ((steps < lo) | (steps > hi)).any(axis=1)
+        t_last, s_last = (t[:1], steps[:1]) if self._last is None else ([self._last[0]], [self._last[1]])
+        t_prev, s_prev = np.concatenate([t_last, t[:-1]]), np.concatenate([s_last, steps[:-1]])
+        changed = steps != s_prev  # the first sample ever compared with itself: unchanged
+        if changed.any() and self.max_step_rate_hz is not None:
+            limit = self.max_step_rate_hz * np.maximum(t - t_prev, 0) * 1e-6 + 1
+            refused |= (changed & (np.abs(steps - s_prev) > limit[:, None])).any(axis=1)
+        if changed.any() and self.step_windows is not None:  # a count changed in (last t, t]: in a window
+            for a, (starts, stops) in enumerate(self.step_windows):
+                i = np.searchsorted(starts, t, side="right") - 1
+                late = np.asarray(stops)[np.maximum(i, 0)] < t_prev if len(starts) else True
+                refused |= changed[:, a] & ((i < 0) | late)
+        return int(np.argmax(refused)) if refused.any() else len(values), t
+
+    def _lines(self, raw: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
+        r"""Check and classify complete lines at once (:func:`unframe`): each as it would be alone.
+
+        Returns the valid data lines placed in the order they came (:meth:`_place`) and the other valid
+        lines' bodies (messages); the overruns are counted, and a line that fails a check is corrupted (a data
+        line's fields: the board's number of integers, counts >= 0 and in range; a warning:
+        ``W,OVERRUN,<n>``).
+        """
+        line, block = _data_line(self.channels, self.axes)
+        shaped = block.fullmatch(raw) is not None  # only data lines (the usual case): their fields at once
+        starts, stars, good, corrupted = unframe(raw, shaped)
+        for a, b in zip(starts[~good].tolist(), stars[~good].tolist(), strict=True):
+            given, body = int(raw[b + 1 : b + 3], 16), raw[a:b]  # protocol 1's XOR of a 1.x board's line?
+            if self.legacy is None and reduce(xor, body, 0) == given and _LEGACY_BODY.fullmatch(body):
+                self.legacy = body.decode("ascii")
+        k = 2 + self.channels + self.axes
+        if shaped:
+            values, messages = _integers(_BETWEEN.sub(b",", raw)[2:-1], k)[good], []
+        else:
+            bodies = [raw[a:b] for a, b in zip(starts[good].tolist(), stars[good].tolist(), strict=True)]
+            data = [body[2:] for body in bodies if line.fullmatch(body)]
+            warnings = [int(m[1]) for body in bodies if (m := _OVERRUN.fullmatch(body))]
+            messages = [body.decode("ascii") for body in bodies if not body.startswith((b"D,", b"W,"))]
+            corrupted += len(bodies) - len(data) - len(warnings) - len(messages)  # malformed D and W lines
+            self.stats.overruns += sum(warnings)
+            values = _integers(b",".join(data), k)
+        ok = (values[:, 1] < WRAP_US) & np.all(values[:, 2 : 2 + self.channels] <= self.adc_max, axis=1)
+        self.stats.corrupted += corrupted + int((~good).sum()) + int((~ok).sum())
+        samples: list[tuple[int, ...]] = []
+        self._place(values[ok], samples)
+        return samples, messages
 
     def feed(self, data: bytes) -> tuple[list[tuple[int, ...]], list[str]]:
-        """Parse ``data`` (any chunking) and return the samples and messages it completes."""
-        samples: list[tuple[int, ...]] = []
-        messages: list[str] = []
-        for line in self._lines(data):
-            if not line.strip(b"\r"):
-                continue
-            try:
-                item = parse_body(unframe(line), self.channels, self.axes, self.adc_max)
-            except FramingError as exc:
-                self.stats.corrupted += 1
-                if isinstance(exc, LegacyChecksum) and self.legacy is None:
-                    body = line.rstrip(b"\r").rpartition(b"*")[0].decode("ascii")
-                    if _LEGACY_BODY.fullmatch(body):
-                        self.legacy = body
-                continue
-            if isinstance(item, tuple):
-                if self.last_seq is not None and item[0] <= self.last_seq:
-                    self.stats.corrupted += 1
-                    continue
-                self._accept(item, samples)
-            elif isinstance(item, Overrun):
-                self.stats.overruns += item.n
-            else:
-                messages.append(item)
-        return samples, messages
+        r"""Parse ``data`` (any chunking) and return the samples and messages it completes.
+
+        The lines it completes are checked and classified at once (:meth:`_lines`). A run of bytes without
+        ``\n`` longer than :data:`MAX_PENDING` is taken as one line (so it is flagged corrupted) and the rest
+        of it up to the next ``\n`` is discarded into a second corrupted line at most.
+        """
+        self._buf += data
+        cut = self._buf.rfind(b"\n") + 1
+        complete, rest = bytes(self._buf[:cut]), self._buf[cut:]
+        if len(rest) > MAX_PENDING:  # garbage without newlines: one line (a corrupted one)
+            complete, rest = complete + rest + b"\n", bytearray()
+        self._buf = rest
+        return self._lines(complete) if complete else ([], [])

@@ -4,7 +4,7 @@
   reference on the same scenario (and a plain ``solve_ivp`` implementation of the same equations);
 - ``serial``: sustained DAQ rate over the pseudo-terminal server for the paper's one tendon and
   ``four-tendon`` (every channel, the data lines' bytes against the build's baud rate), and the wall time to
-  record one scenario on the in-process virtual rig;
+  record one scenario on the in-process virtual rig with its CPU time over the bare plant's (aim <= 1.3x);
 - ``playground``: CPU time of one update of notebook 03's interactive shaper study (target <= 0.3 s);
 - ``sweep``: runs per second of a sweep's tasks on 1 and 2 workers of a local Dask cluster, the scaling
   ratio, Dask's overhead against a bare loop, the per-run overhead outside the integration;

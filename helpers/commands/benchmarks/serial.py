@@ -8,11 +8,15 @@
    (target 0 dropped), the bytes per data line the DAQ sent and the link's load at the build's baud rate
    (``firmware/PROTOCOL.md``, link budget), and the sustained rate per wall and per device second.
 2. Record one 12 s scenario (200 mm/s, 20 mm, robust TDF) on the in-process virtual rig: report the wall time
-   (target <= 1 s; the first run in a process also pays numba's compilation, reported separately).
+   (target <= 1 s; the first run in a process also pays numba's compilation, reported separately) and the
+   recording's CPU time over the bare plant's on the same scenario, measured in the same call (aim <= 1.3x):
+   what the emulated boards, the lines, the host and the saved recording add to the physics.
 """
 
 from __future__ import annotations
 
+import copy
+import os
 import subprocess
 import sys
 import tempfile
@@ -20,6 +24,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from helpers import rigfile
 from helpers.board.programmes import Dwell, Move, Programme
@@ -125,20 +131,69 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0,
     }  # fmt: skip
 
 
-def in_process_scenario() -> dict[str, Any]:
-    """Wall time of one 12 s scenario on the in-process virtual rig (first run and a warm second run)."""
+class _PlantCalls:
+    """The world's plant, keeping every ``advance`` call's arguments and outputs (to replay them bare)."""
+
+    def __init__(self, plant: Any) -> None:
+        self.plant, self.calls = plant, []
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.plant, name)
+
+    def advance(self, times: np.ndarray, *steps: np.ndarray) -> Any:
+        out = self.plant.advance(times, *steps)
+        self.calls.append((np.array(times), *(np.array(s) for s in steps), np.array(out)))
+        return out
+
+
+def _bare_plant_cpu(plant: Any, calls: list[tuple[np.ndarray, ...]]) -> tuple[float, float]:
+    """CPU time of ``plant`` (a copy of the world's at the run's start) advanced over the run's instants.
+
+    One call over every instant the recording asked of the plant and every step it was given: the physics
+    of the same scenario without boards, lines or host. Returns the CPU seconds and the largest difference
+    (N) from the outputs the recording's plant gave.
+    """
+    times, outs = (np.concatenate([c[i] for c in calls]) for i in (0, -1))
+    steps = [np.concatenate([c[i] for c in calls]) for i in range(1, len(calls[0]) - 1)]
+    copy.deepcopy(plant).advance(*calls[0][:-1])  # a copy's first call may compile again: not timed
+    c0 = time.process_time()
+    out = plant.advance(times, *steps)
+    return time.process_time() - c0, float(np.max(np.abs(np.asarray(out) - outs)))
+
+
+def in_process_scenario(repeats: int = 3) -> dict[str, Any]:
+    """One 12 s scenario on the in-process virtual rig: wall time (first and warm run), CPU over the plant's.
+
+    Each of ``repeats`` warm runs' CPU time (``time.process_time``: emulated boards, lines, host, recording
+    saved) over the CPU time of the bare plant on the same scenario (:func:`_bare_plant_cpu`), measured
+    right after it in the same call; the ratios sorted.
+    """
     _, zvd = design_tdfs()
     rig = Rig("virtual", default_rig(), world="bench-inprocess")
-    walls = []
+    walls, cpus, plants, diffs = [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
-        for i in range(2):
-            t0 = time.perf_counter()
+        for i in range(1 + repeats):
+            world = rig.world
+            bare = copy.deepcopy(world.plant)
+            world.plant = calls = _PlantCalls(world.plant)
+            t0, c0 = time.perf_counter(), time.process_time()
             rec = rig.run_pulse(200, 20, zvd, system="zvd", path=Path(tmp) / f"s{i}", progress=False)
             walls.append(time.perf_counter() - t0)
+            cpus.append(time.process_time() - c0)
+            world.plant = calls.plant
+            if i:  # the first run also compiles
+                plant_cpu, diff = _bare_plant_cpu(bare, calls.calls)
+                plants.append(plant_cpu)
+                diffs.append(diff)
     rig.close()
+    ratios = sorted(c / p for c, p in zip(cpus[1:], plants, strict=True))
     return {
         "first_wall_s": walls[0],
-        "wall_s": walls[1],
+        "wall_s": float(np.median(walls[1:])),
+        "cpu_s": cpus[1:],
+        "plant_cpu_s": plants,
+        "cpu_over_plant": ratios,
+        "plant_max_diff_n": max(diffs),
         "samples": len(rec.frame),
         "device_s": float(rec.frame["t_s"].iloc[-1]),
     }
@@ -167,13 +222,22 @@ def run_serial_benchmark(
             f"{r['dropped']} dropped (target 0), {r['corrupted']} corrupted, {r['overruns']} overruns; "
             f"data lines {r['line_bytes_mean']:.1f} bytes on average ({r['line_bytes_max']} at most): "
             f"{100 * r['link_load']:.0f} % of {r['baud']} baud; {r['rate_per_device_s']:.1f} samples per "
-            f"device s, {r['rate_per_wall_s']:.1f} per wall s ({r['wall_s']:.1f} s wall)"
+            f"device s, {r['rate_per_wall_s']:.1f} per wall s ({r['wall_s']:.1f} s wall); load average "
+            + ", ".join(f"{x:.2f}" for x in os.getloadavg())
         )
     inproc = in_process_scenario()
     print(
         "in-process virtual rig, one 12 s scenario (200 mm/s, 20 mm, robust TDF, "
-        f"{inproc['samples']} samples): {inproc['wall_s']:.2f} s wall (target <= 1 s); "
+        f"{inproc['samples']} samples): {inproc['wall_s']:.2f} s wall (median warm run; target <= 1 s); "
         f"first run in the process {inproc['first_wall_s']:.2f} s "
         "(includes numba compilation)"
+    )
+    ratios = inproc["cpu_over_plant"]
+    print(
+        f"its CPU time over the bare plant's on the same scenario, {len(ratios)} warm runs: "
+        f"{' / '.join(f'{r:.2f}x' for r in ratios)} (sorted; aim <= 1.3x; median "
+        f"{np.median(inproc['cpu_s']):.3f} s against {np.median(inproc['plant_cpu_s']):.3f} s; the bare "
+        f"plant's outputs differ from the runs' by {inproc['plant_max_diff_n']:.1e} N); load average "
+        + ", ".join(f"{x:.2f}" for x in os.getloadavg())
     )
     return {"pty": ptys, "in_process": inproc}

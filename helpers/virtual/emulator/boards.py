@@ -41,7 +41,7 @@ from helpers.board.protocol import FW_VERSION, MAX_LINE, WRAP_US, checksum, fram
 from helpers.board.stream_reference import MAX_DELAY_US, MAX_DELAY_US_AXES, v_max
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
-from helpers.virtual.emulator.framing import frame_many
+from helpers.virtual.emulator.framing import frame_data_lines
 from helpers.virtual.emulator.stream_mode import ShaperLoader, StreamMode
 
 __all__ = ["BuildLimits", "build_limits", "board_version", "Faults", "Disconnected", "EmulatedBoard",
@@ -491,14 +491,6 @@ class DaqEmulator(EmulatedBoard):
             return np.zeros(0, dtype=np.int64)
         return np.arange(self._next_slot, k_last + 1, dtype=np.int64)
 
-    def payload(self, counts: np.ndarray, steps: np.ndarray) -> list[str]:
-        """``<adc_0>,...,<adc_{C-1}>,<steps_0>,...,<steps_{A-1}>`` per row of ``counts``, ``steps``."""
-        counts, steps = np.atleast_2d(counts), np.atleast_2d(steps)
-        if counts.shape[1] == steps.shape[1] == 1:  # the paper's build, the common case: quickly
-            return [f"{c},{s}" for c, s in zip(counts[:, 0].tolist(), steps[:, 0].tolist(), strict=True)]
-        both = np.concatenate([counts, steps], axis=1).astype(np.int64)
-        return [",".join(map(str, row)) for row in both.tolist()]
-
     def steps_at(self, times: np.ndarray, step_t: np.ndarray, step_axes: np.ndarray,
                  step_signs: np.ndarray) -> np.ndarray:  # fmt: skip
         """Each axis's count at the sample instants (a step at a sample's instant counts), shape (n, A)."""
@@ -525,28 +517,28 @@ class DaqEmulator(EmulatedBoard):
         t_us = (np.rint(times * 1e6).astype(np.int64) + self.world.t0_us) % WRAP_US
         rng = self._rng
         transport = f.drop > 0 or f.corrupt > 0 or f.garbage > 0
-        payload = self.payload(counts, steps)
-        if not (transport or f.overrun_every or self._pending_overrun):  # the common case, vectorised
-            seq0 = self.n_sent
-            seqs = range(seq0, seq0 + len(slots))
-            columns = zip(seqs, t_us.tolist(), payload, strict=True)
-            bodies = [f"D,{a},{b},{c}" for a, b, c in columns]
-            self.n_sent = seq0 + len(slots)
+        late = np.zeros(len(slots), dtype=bool)  # the periods the board misses (not sampled, no seq)
+        if f.overrun_every:
+            late = slots % f.overrun_every == 0
+        fields = np.column_stack([np.zeros(len(slots), dtype=np.int64), t_us, counts, steps])[~late]
+        fields[:, 0] = np.arange(self.n_sent, self.n_sent + len(fields))
+        block = frame_data_lines(fields)  # every data line, framed at once
+        self.n_sent += len(fields)
+        if not (transport or f.overrun_every or self._pending_overrun):  # the common case
             if not (self.hung or self.disconnected):
-                self.out.append(frame_many(bodies))
+                self.out.append(block)
             return
+        framed = iter(block.splitlines(keepends=True))
         lines = []
-        seq = self.n_sent
         for i in range(len(slots)):
-            if f.overrun_every and int(slots[i]) % f.overrun_every == 0:
+            if late[i]:
                 self._pending_overrun += 1
                 self.injected["overrun_periods"] += 1
                 continue
             if self._pending_overrun:
                 lines.append(frame(f"W,OVERRUN,{self._pending_overrun}"))
                 self._pending_overrun = 0
-            body = f"D,{seq},{t_us[i]},{payload[i]}"
-            seq += 1
+            line = next(framed)
             if transport:
                 if f.garbage and rng.random() < f.garbage:
                     junk = bytes(rng.integers(0, 256, size=int(rng.integers(1, 40)), dtype=np.uint8))
@@ -555,14 +547,10 @@ class DaqEmulator(EmulatedBoard):
                 if f.drop and rng.random() < f.drop:
                     self.injected["dropped"] += 1
                     continue
-                line = frame(body)
                 if f.corrupt and rng.random() < f.corrupt:
                     line = _damaged(line, rng)
                     self.injected["corrupted"] += 1
-                lines.append(line)
-            else:
-                lines.append(frame(body))
-        self.n_sent = seq
+            lines.append(line)
         if not (self.hung or self.disconnected):
             self.out.extend(lines)
 
