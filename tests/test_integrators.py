@@ -27,7 +27,7 @@ from helpers.virtual.spatial.rig import four_tendon_rig, paper_rig
 from helpers.virtual.spatial.simulate import merge_programmes
 from helpers.virtual.statics import equilibrium, model_arrays
 
-RIG = RigParameters()
+RIG = RigParameters().with_integrator("rk4")  # the reference
 ROSW = RIG.with_integrator("rosw")
 UNDAMPED = {"alpha": 0.0, "beta_chord": 0.0, "floor_zeta": 0.0, "rotor_zeta": 0.0, "carriage_zeta": 0.0}
 # docs/virtual_rig.md, section 2: the implicit step at its step against RK4 at a quarter of it
@@ -222,7 +222,8 @@ def test_spatial_and_planar_implicit_steps_agree_on_one_tendon():
 
 
 def test_integrator_is_a_parameter_and_refused_when_unknown():
-    assert RIG.integrator == "rk4" and ROSW.max_step == 5e-4
+    assert RIG.integrator == "rk4" and RIG.max_step == 2.5e-4 and ROSW.max_step == 5e-4
+    assert (RigParameters().integrator, RigParameters().max_step) == ("rosw", 5e-4)  # the default (issue 38)
     with pytest.raises(ValueError, match="integrator must be one of"):
         RIG.replace(integrator="euler")
     with pytest.raises(ValueError, match="integrator must be one of"):

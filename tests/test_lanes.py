@@ -136,7 +136,7 @@ def test_eight_lanes_over_a_full_table_i_run(integrator):
 
 def test_rigs_that_cannot_share_a_call_are_refused():
     assert lane_group(RigParameters()) == lane_group(RigParameters().replace(k=15000.0, alpha=3.0))
-    assert lane_group(RigParameters()) != lane_group(RigParameters().with_integrator("rosw"))
+    assert lane_group(RigParameters()) != lane_group(RigParameters().with_integrator("rk4"))
     with pytest.raises(ValueError, match="must share lane_group"):
         ArmLanes([RigParameters(), RigParameters().replace(actuator="ideal")])
     with pytest.raises(ValueError, match="1 to 8 rigs"):

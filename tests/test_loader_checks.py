@@ -12,7 +12,7 @@ import pytest
 
 from helpers import recordings
 from helpers.__main__ import main
-from helpers.base.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR, REPO_ROOT
 from helpers.recordings import RecordingError
 
 STREAM = DATA_DIR / "streams"
@@ -59,7 +59,8 @@ def _teleport(frame):  # within the travel, but 40 steps between two samples 1 m
     ],
 )
 def test_impossible_contents_are_refused_whatever_the_checksum(tmp_path, change, message):
-    csv = _copy(DATA_DIR / "experiments" / "zvd_v200_x20_r1.csv", tmp_path / "g", "run")
+    old = REPO_ROOT / "tests" / "fixtures" / "recordings"  # a version-1 pulse: the damage edits its columns
+    csv = _copy(old / "experiments" / "zvd_v200_x20_r1.csv", tmp_path / "g", "run")
     recordings.load(csv)  # sound as stored
     _edit_csv(csv, change)
     with pytest.raises(RecordingError, match=message) as info:

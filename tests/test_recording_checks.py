@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from helpers import recordings, rigfile
-from helpers.base.paths import DATA_DIR, REPO_ROOT
+from helpers.base.paths import REPO_ROOT
 from helpers.recordings import RecordingError
 from helpers.recordings.checks import SCHEMA, validate_meta
 from helpers.recordings.shaping import SYSTEMS
@@ -32,9 +32,10 @@ PAPER = rigfile.default_rig()
 FOUR = rigfile.load(rigfile.resolve("four-tendon"))
 UTC = "2026-12-01T18:26:44Z"
 FIRMWARE = {"daq": "test", "stepper": "test"}
-V1_PULSE = DATA_DIR / "experiments" / "zvd_v200_x20_r1"
-V1_STREAM = DATA_DIR / "streams" / "teleop_zv"
-V3_TIP = DATA_DIR / "tip_streams" / "tip_random_zv_b10"
+OLD = REPO_ROOT / "tests" / "fixtures" / "recordings"  # versions 1 and 3, as data/ had them before version 4
+V1_PULSE = OLD / "experiments" / "zvd_v200_x20_r1"
+V1_STREAM = OLD / "streams" / "teleop_zv"
+V3_TIP = OLD / "tip_streams" / "tip_random_zv_b10"
 UNIT = 2.0**-16 / 16e-6  # steps/s of one set-point unit: 2^-16 step per 16 us (firmware/PROTOCOL.md)
 
 

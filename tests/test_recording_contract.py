@@ -2,8 +2,10 @@
 
 The reader here is written independently of ``helpers.recordings`` (plain csv, json and hashlib), as a tool
 outside the project would read the files: versions 1 and 2 (one tendon) and 3 and 4 (per-tendon columns).
-``data/`` holds versions 1 and 3; a version-4 recording of each layout (one tendon, four with the tip) is
-written by :func:`helpers.recordings.from_samples` into a temporary folder and read the same way.
+``data/`` holds versions 1 (the calibration) and 4, ``tests/fixtures/recordings/`` a version-1 pulse and
+stream and a version-3 tip stream as ``data/`` held them before; a version-4 recording of each layout (one
+tendon, four with the tip) is also written by :func:`helpers.recordings.from_samples` into a temporary folder
+and read the same way.
 """
 
 from __future__ import annotations
@@ -22,7 +24,10 @@ import numpy as np
 import pytest
 
 from helpers import recordings, rigfile
-from helpers.base.paths import DATA_DIR
+from helpers.base.paths import DATA_DIR, REPO_ROOT
+
+OLD = REPO_ROOT / "tests" / "fixtures" / "recordings"
+"""Recordings of versions 1 and 3 as ``data/`` held them before it was recorded again in version 4."""
 
 NOT_RECORDINGS = {"calibration.json", "result.json"}
 
@@ -48,7 +53,12 @@ def _is_recording(path: Path) -> bool:
     return not (isinstance(doc, dict) and "format" in doc and "schema_version" not in doc)
 
 
-RECORDINGS = sorted(p for p in _tracked_json() if _is_recording(p))
+RECORDINGS = sorted(p for p in _tracked_json() if _is_recording(p)) + sorted(OLD.rglob("*.json"))
+
+
+def _root(path: Path) -> Path:
+    """The folder a recording's group is relative to: ``data/``, or the old versions' fixtures."""
+    return OLD if path.is_relative_to(OLD) else DATA_DIR
 VIRTUAL_PARAMETER_KEYS = (
     "E", "rho", "d", "L", "n_discs", "disc_mass", "r", "k", "pretension", "g", "base_angle_deg",
 )  # fmt: skip
@@ -63,10 +73,10 @@ def test_there_are_recordings_to_check():
     assert len(RECORDINGS) >= 40
 
 
-@pytest.mark.parametrize("path", RECORDINGS, ids=lambda p: str(p.relative_to(DATA_DIR)))
+@pytest.mark.parametrize("path", RECORDINGS, ids=lambda p: str(p.relative_to(_root(p).parent)))
 def test_recording_follows_the_contract(path: Path):
     meta = json.loads(path.read_text())
-    group = path.parent.relative_to(DATA_DIR)
+    group = path.parent.relative_to(_root(path))
     assert all(NAME.match(part) for part in (*group.parts, path.stem))
     data = path.with_suffix(".csv").read_bytes()
     if meta["schema_version"] in (3, 4):
@@ -166,14 +176,14 @@ def _check_several_tendons(path: Path, meta: dict, data: bytes) -> None:
 def test_a_version_4_recording_of_each_layout_follows_the_contract(tmp_path):
     """Versions 4 of the paper's one tendon (its pulse's samples and scenario from data/) and of four tendons
     with the twin's tip and a stream, read by the independent reader above."""
-    pulse = recordings.load(DATA_DIR / "experiments" / "zvd_v200_x20_r1.csv")
+    pulse = recordings.load(OLD / "experiments" / "zvd_v200_x20_r1.csv")
     m = pulse.meta
     one = recordings.from_samples(
         pulse.frame[["seq", "t_us", "adc", "steps"]].to_numpy(), rigfile.default_rig(), [m["calibration"]],
         source=m["source"], scenario=m["scenario"], rate_hz=1000, started_utc=m["started_utc"],
         firmware=m["firmware"], counts=m["counts"],
     )  # fmt: skip
-    tip = json.loads((DATA_DIR / "tip_streams" / "tip_random_zv_b10.json").read_text())
+    tip = json.loads((OLD / "tip_streams" / "tip_random_zv_b10.json").read_text())
     four = rigfile.load(rigfile.resolve("four-tendon"))
     rows = [(s, 1000 * s, 120, 121, 122, 123, s // 8, 0, 0, -(s // 8), -5000, 3, 230_000) for s in range(200)]
     several = recordings.from_samples(

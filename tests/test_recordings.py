@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from helpers import recordings, rigfile
-from helpers.base.paths import DATA_DIR
+from helpers.base.paths import REPO_ROOT
 from helpers.commands.recording_paths import recording_path
 from helpers.paper import metrics
 from helpers.recordings import Recording, RecordingError, RecordingExists
@@ -411,7 +411,7 @@ def test_two_writers_of_one_new_name_one_wins_the_other_is_refused(tmp_path):
 def test_every_version_of_one_tendon_loads_into_one_frame_and_the_same_metrics(tmp_path):
     """A version-1 recording of data/, its samples written as version 2 (by hand) and as version 4 (by the one
     writer): the same frame on load, and the paper's metrics read the same numbers from each."""
-    v1 = recordings.load(DATA_DIR / "experiments" / "zvd_v200_x20_r1.csv")
+    v1 = recordings.load(REPO_ROOT / "tests" / "fixtures" / "recordings" / "experiments" / "zvd_v200_x20_r1")
     m = v1.meta
     v4 = recordings.from_samples(
         v1.frame[["seq", "t_us", "adc", "steps"]].to_numpy(), PAPER, [m["calibration"]], source=m["source"],

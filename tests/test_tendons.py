@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from tendon_fakes import Clock, talk
+from twins import integrated_by
 
 from helpers import recordings, rigfile
 from helpers.__main__ import error_line, main
@@ -163,9 +164,10 @@ def test_intervals_ending_mid_conversion_give_the_samples_of_whole_ones(four: ri
     # the pseudo-terminal server advances the world to wall-clock instants, often between a sample's
     # channel 0 and its channel 3 (312 us later): every sample must still come, from the twin at each
     # channel's own instant, as when the world moves on whole milliseconds
-    whole = _pull_data(build_world(four, "tendons-test-whole"), np.arange(1, 201) * 1e-3)
-    ragged_ends = np.cumsum(np.tile([0.37e-3, 0.05e-3, 0.21e-3, 0.53e-3, 0.11e-3], 200))
-    ragged = _pull_data(build_world(four, "tendons-test-ragged"), ragged_ends[ragged_ends <= 0.2])
+    with integrated_by("rk4"):  # the emulator's timing is the point: RK4 at its stable step in both
+        whole = _pull_data(build_world(four, "tendons-test-whole"), np.arange(1, 201) * 1e-3)
+        ragged_ends = np.cumsum(np.tile([0.37e-3, 0.05e-3, 0.21e-3, 0.53e-3, 0.11e-3], 200))
+        ragged = _pull_data(build_world(four, "tendons-test-ragged"), ragged_ends[ragged_ends <= 0.2])
     n = min(len(whole), len(ragged))
     assert n >= 195  # 1 kHz for 0.2 s, the last sample still converting at 0.2 s in one of them
     np.testing.assert_array_equal(ragged[:n, :2], whole[:n, :2])  # seq and t_us: no sample lost or repeated

@@ -48,11 +48,12 @@ def test_bad_thread_counts_are_refused(threads):
 
 
 def test_lanes_give_the_bits_of_one_run_per_call_in_order():
-    soft = RigParameters().replace(k=15000.0)
+    rk4 = RigParameters().with_integrator("rk4")
+    soft = rk4.replace(k=15000.0)
     rosw = RigParameters().with_integrator("rosw")
-    cases = [(PROGRAMMES[0], RigParameters()), (PROGRAMMES[1], rosw), (PROGRAMMES[2], soft),
-             (PROGRAMMES[1], RigParameters()), (PROGRAMMES[0], rosw),
-             (PROGRAMMES[2], RigParameters())]  # fmt: skip
+    cases = [(PROGRAMMES[0], rk4), (PROGRAMMES[1], rosw), (PROGRAMMES[2], soft),
+             (PROGRAMMES[1], rk4), (PROGRAMMES[0], rosw),
+             (PROGRAMMES[2], rk4)]  # fmt: skip
     runs = [BatchRun(p, params, seed=i, tag=i) for i, (p, params) in enumerate(cases)]
     # the RK4 rigs share a call (the soft cable too), the implicit step's two runs another
     assert lane_groups(runs, 4) == [[0, 2, 3, 5], [1, 4]]

@@ -30,7 +30,7 @@ from helpers.virtual.statics import equilibrium_at_tension, model_arrays
 from helpers.virtual.studies import SENSITIVITY_VARIANTS, _variant, actuator_sensitivity
 from rigs import SHIPPED
 
-CAL = RigParameters()
+CAL = RigParameters().with_integrator("rk4")  # the explicit kernel (the implicit step: test_integrators)
 MM_PER_STEP = SHIPPED["paper"].mm_per_step  # the paper's cable per step, by hand (tests/rigs.py)
 UNDAMPED = {"alpha": 0.0, "beta_chord": 0.0, "floor_zeta": 0.0, "rotor_zeta": 0.0, "carriage_zeta": 0.0}
 

@@ -11,16 +11,14 @@
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
 import hashlib
 import json
-from unittest import mock
 
 import numpy as np
 import pytest
 import serial
 from serial.serialutil import SerialException
+from twins import integrated_by
 
 from helpers import rigfile
 from helpers.board.protocol import checksum, frame
@@ -169,22 +167,6 @@ def _digests(world: VirtualWorld, axes: int, integrator: str = "rk4") -> tuple[s
     return tuple(h.hexdigest()[:16] for h in (calls, hashlib.sha256(data), hashlib.sha256(info)))
 
 
-@contextlib.contextmanager
-def _integrated_by(integrator: str):
-    """Worlds built inside integrate their twin by ``integrator`` at its step (the pins predate ``rosw``)."""
-    import helpers.virtual.emulator.world as w
-
-    planar, spatial = w.rig_parameters, w.spatial_rig
-    with mock.patch.multiple(
-        w,
-        RigParameters=lambda: RigParameters().with_integrator(integrator),
-        rig_parameters=lambda rig, **kw: planar(rig, **kw).with_integrator(integrator),
-        spatial_rig=lambda rig, **kw: dataclasses.replace(
-            spatial(rig, **kw), arm=spatial(rig, **kw).arm.with_integrator(integrator)),
-    ):
-        yield
-
-
 def _world(rig: rigfile.RigFile, variant: str) -> VirtualWorld:
     if variant in ("twin", "twin-rosw"):  # the rig's world as a port builds it, 0.5 s before the wrap
         return build_world(rig, "pinned", {"seed": "7", "t0_us": str(2**32 - 500_000)})
@@ -221,7 +203,7 @@ def test_every_world_sends_the_bytes_it_sent_before_the_boards_were_merged(rig, 
     boards alone), the same lines from the tuned twin and the same provenance, with the twin integrated by
     RK4 at its step as when these were pinned (the default since is ``rosw``: :data:`PINNED_ROSW`)."""
     r = load(rig)
-    with _integrated_by("rk4"):
+    with integrated_by("rk4"):
         assert _digests(_world(r, variant), r.n_tendons) == PINNED[(rig, variant)]
 
 
