@@ -115,7 +115,9 @@ def test_signals_at_random_instants_never_lose_a_finished_run(tmp_path):
         if rec.status == "complete":
             assert len(rec.frame) == len(full.frame)
         else:
-            assert rec.status == "aborted" and len(rec.frame) <= len(full.frame)
+            # not fewer samples than the full run: the boards stream from START in device time, and on a
+            # busy host the wait before GO can outlast the whole run (500 samples against 300 seen so)
+            assert rec.status == "aborted" and (rec.frame["steps"] <= full.frame["steps"].max()).all()
         outcomes[rec.status] += 1
         rig.stepper.command("EN 0")
     assert sum(outcomes.values()) == 30
