@@ -3,8 +3,8 @@
 Scenario: the tuned rig (12-disc arc chain, stepper, load-cell carriage, amplifier) running the Table I
 condition 200 mm/s, 20 mm, unshaped, for the full 12 s programme, sampled at 1 kHz, on one core. In one call:
 
-- the **RK4 reference** (the integrator the stored data were made with, 0.25 ms) and the **implicit step**
-  (``integrator="rosw"``, the elastic stiffness implicit, at its own step): real-time factors in CPU time
+- the **RK4 reference** (0.25 ms) and the **implicit step** (``integrator="rosw"``, the elastic stiffness
+  implicit, at its own step: the default, which made the stored data): real-time factors in CPU time
   (``time.process_time``, best of ``repeats``), their ratio, and the largest difference of every signal the
   plant records (amplifier output, true tension, every node angle, the tip's position);
 - the straightforward numpy + ``solve_ivp`` implementation of the same equations

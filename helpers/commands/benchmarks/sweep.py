@@ -155,9 +155,9 @@ def run_sweep_benchmark(repeats: int = 2, quiet: bool = False) -> dict[str, Any]
 
     per_cpu = _per_cpu_second(text, chunks, runs, repeats)
     one, lanes = per_cpu["sweep"][1], per_cpu["sweep"][LANES]
-    say(f"  runs per CPU second, one thread, the sweep's own tasks (run_chunk: design, run, metrics; RK4 as "
-        f"the sweeps run): one run per kernel call {one:.2f}, with lanes (a chunk's {d.chunk_runs} runs in "
-        f"one call) {lanes:.2f} -> {lanes / one:.2f}x per core (aim >= 3x)")  # fmt: skip
+    say(f"  runs per CPU second, one thread, the sweep's own tasks (run_chunk: design, run, metrics; the "
+        f"default integrator, as the sweeps run): one run per kernel call {one:.2f}, with lanes (a chunk's "
+        f"{d.chunk_runs} runs in one call) {lanes:.2f} -> {lanes / one:.2f}x per core (aim >= 3x)")
     for integrator in ("rk4", "rosw"):
         r = per_cpu[integrator]
         name = "RK4" if integrator == "rk4" else "implicit step"

@@ -66,12 +66,12 @@ LEGACY_FINGERPRINTS: dict[str, str] = {
 bytes (a moved import or a reworded docstring changed it); ``82ebe100f05565cc`` is the present form of the
 same sources before the sensor chain's constants became :class:`RigParameters` fields (the rig file as a
 value: the same numbers, the gain, offset and every ADC count checked equal) and the kernels gained
-a second integrator (RK4, the default, bit for bit as before: ``tests/test_virtual_world.py`` pins the
+a second integrator (RK4, then the default, bit for bit as before: ``tests/test_virtual_world.py`` pins the
 bytes). ``9c6e7182e7a5c303`` is the same physics before the planar kernel was written once for one run or
 several in SIMD lanes and the statics' modal state shared with the spatial twin: the stored
 atlases' runs recomputed by ``run_chunk`` (lanes) gave the same bits (first, middle and last chunk of each of
-the three atlases, ``residual_pct`` and ``max_rotor_lag_steps``). The stored atlas (``data/sweeps/``)
-carries the first form."""
+the three atlases, ``residual_pct`` and ``max_rotor_lag_steps``). The stored atlas (``data/sweeps/``) is
+made with the implicit step, the default since: a physics of its own (its own fingerprint, no mapping)."""
 
 
 def _canonical(source: str) -> str:
