@@ -115,9 +115,9 @@ def test_signals_at_random_instants_never_lose_a_finished_run(tmp_path):
         if rec.status == "complete":
             assert len(rec.frame) == len(full.frame)
         else:
-            # loadable (checksum, gaps, time: _only_pair) and aborted; its length is no check: the boards stream
-            # from START in device time, and on a busy host the wait before GO can outlast the whole run (500
-            # samples against 300 seen so)
+            # loadable (checksum, gaps, time: _only_pair) and aborted; its length is no check: the boards
+            # stream from START in device time, and on a busy host the wait before GO can outlast the whole
+            # run (500 samples against 300 seen so)
             assert rec.status == "aborted" and rec.meta["abort_reason"]
         outcomes[rec.status] += 1
         rig.stepper.command("EN 0")
