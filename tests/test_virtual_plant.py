@@ -567,7 +567,7 @@ def test_eyelet_friction_only_dissipates():
 def test_a_weaker_motor_on_the_same_cable_loses_steps_where_the_assumed_one_holds():
     """The actuator assumption that matters (docs/virtual_rig.md): the paper's 4.3 kg cm cannot hold the
     unshaped 300 mm/s pulse, whose peak tension passes the motor's pull-out; the assumed 1.5x holds it."""
-    rig = RigParameters()
+    rig = RigParameters().with_integrator("rk4")  # the studies' reference (helpers.virtual.studies)
     weak = _variant(rig, SENSITIVITY_VARIANTS["paper torque"])
     assert weak.k_cable == pytest.approx(rig.k_cable, rel=1e-12) and weak.k < rig.k  # the same cable
     assert weak.pull_out_tension == pytest.approx(rig.pull_out_tension / 1.5, rel=1e-12)
