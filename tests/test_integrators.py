@@ -223,7 +223,7 @@ def test_spatial_and_planar_implicit_steps_agree_on_one_tendon():
 
 def test_integrator_is_a_parameter_and_refused_when_unknown():
     assert RIG.integrator == "rk4" and RIG.max_step == 2.5e-4 and ROSW.max_step == 5e-4
-    assert (RigParameters().integrator, RigParameters().max_step) == ("rosw", 5e-4)  # the default (issue 38)
+    assert (RigParameters().integrator, RigParameters().max_step) == ("rosw", 5e-4)  # the default
     with pytest.raises(ValueError, match="integrator must be one of"):
         RIG.replace(integrator="euler")
     with pytest.raises(ValueError, match="integrator must be one of"):

@@ -213,7 +213,7 @@ PINNED_ROSW = {
     "four-tendon": ("193bc8638803bc36", "30e0125f562127e9", "1a300612e17d57ba"),
 }
 """The "twin" digests of :data:`PINNED` with the default integrator, the Rosenbrock-W step at 0.5 ms: pinned
-when it became the default (issue 38; the plant calls are :data:`PINNED`'s, the bytes and the provenance are
+when it became the default (the plant calls are :data:`PINNED`'s, the bytes and the provenance are
 the new integrator's). They pin the twin's numerics: a deliberate change of them is re-pinned with its
 reason."""
 

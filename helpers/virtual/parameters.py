@@ -62,7 +62,7 @@ section 2)."""
 DEFAULT_INTEGRATOR: tuple[str, float] = ("rosw", INTEGRATOR_STEPS["rosw"])
 """The integrator and largest step of :class:`RigParameters` (``integrator``, ``max_step``).
 
-The Rosenbrock-W step at 0.5 ms: every recording in ``data/`` is made with it (until issue 38 they were made
+The Rosenbrock-W step at 0.5 ms: every recording in ``data/`` is made with it (before it they were made
 with RK4 at 0.25 ms; what the switch moved, and by how much: ``docs/virtual_rig.md``, section 2).
 """
 

@@ -61,6 +61,7 @@ LEGACY_FINGERPRINTS: dict[str, str] = {
     "c7ea1e195e31eb10": "34ade0a9fd216a8f",
     "82ebe100f05565cc": "34ade0a9fd216a8f",
     "9c6e7182e7a5c303": "34ade0a9fd216a8f",
+    "04b23f845147a1c0": "1511e4c01b0a1df1",
 }
 """Fingerprints of the same physics in an earlier form -> today's. The first form was a hash of the files'
 bytes (a moved import or a reworded docstring changed it); ``82ebe100f05565cc`` is the present form of the
@@ -71,7 +72,8 @@ bytes). ``9c6e7182e7a5c303`` is the same physics before the planar kernel was wr
 several in SIMD lanes and the statics' modal state shared with the spatial twin: the stored
 atlases' runs recomputed by ``run_chunk`` (lanes) gave the same bits (first, middle and last chunk of each of
 the three atlases, ``residual_pct`` and ``max_rotor_lag_steps``). The stored atlas (``data/sweeps/``) is
-made with the implicit step, the default since: a physics of its own (its own fingerprint, no mapping)."""
+made with the implicit step, the default since: a physics of its own. ``04b23f845147a1c0`` is its
+physics before the integrator's docstring in ``virtual/parameters.py`` was reworded (the same code)."""
 
 
 def _canonical(source: str) -> str:
