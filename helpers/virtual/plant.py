@@ -398,7 +398,8 @@ class ArmLanes:
         Parameters
         ----------
         sample_times : array_like
-            The samples, shared by every lane (strictly increasing, after every lane's time).
+            The samples, shared by every lane (strictly increasing, after every lane's time); or one row
+            per rig ``(rigs, samples)``, each after that rig's own time (every rig the same number).
         step_times, step_signs : sequence of array_like
             Each rig's stepper steps and their signs (as :meth:`ArmPlant.advance`).
 
@@ -417,14 +418,19 @@ class ArmLanes:
         if len(step_times) != self.lanes or len(step_signs) != self.lanes:
             raise ValueError(f"one step_times and step_signs per rig: {self.lanes}, got {len(step_times)}, "
                              f"{len(step_signs)}")  # fmt: skip
-        t_now = float(np.max(self._S.data[kern.S_T]))
-        pairs = zip(step_times, step_signs, strict=True)
-        checked = [_checked_times(sample_times, a, b, t_now) for a, b in pairs]
-        ts = checked[0][0]
         n, width, lanes = self._n, self.width, self.lanes
+        each = np.ndim(sample_times) == 2  # one row of samples per rig, each after that rig's own time
+        if each and np.shape(sample_times)[0] != lanes:
+            raise ValueError(f"one row of sample_times per rig: {lanes}, got {np.shape(sample_times)[0]}")
+        rows = list(sample_times) if each else [sample_times] * lanes
+        t_now = self._S.data[kern.S_T] if each else np.full(width, np.max(self._S.data[kern.S_T]))
+        pairs = zip(rows, step_times, step_signs, strict=True)
+        checked = [_checked_times(r, a, b, float(t_now[k])) for k, (r, a, b) in enumerate(pairs)]
+        ts = checked[0][0]
         if ts.size == 0:
             return np.empty((lanes, 0)), np.empty((lanes, 0)), np.empty((lanes, 0, n))
         checked += [checked[-1]] * (width - lanes)
+        samples = np.stack([c[0] for c in checked])
         counts = np.array([c[1].size for c in checked], dtype=np.int64)
         st = np.zeros((width, max(1, int(counts.max()))))
         sg = np.zeros_like(st)
@@ -436,7 +442,7 @@ class ArmLanes:
         angles = np.empty((width, ts.size, n))
         w = self._work
         kern.advance(
-            self._scheme, self._y, self._S, self._L, np.tile(ts, (width, 1)), st, sg, counts,
+            self._scheme, self._y, self._S, self._L, samples, st, sg, counts,
             self._P, self._U, self._mb, self._Jb, self._disc, self._W, self._cw, *w, out_raw, out_filt,
             angles,
         )  # fmt: skip
@@ -447,5 +453,5 @@ class ArmLanes:
                 f"the integration of lane(s) {bad} became unstable before t = {ts[-1]:.4f} s: max_step is "
                 "too large for those parameters"
             )
-        self._S.data[kern.S_T] = np.maximum(self._S.data[kern.S_T], ts[-1])
+        self._S.data[kern.S_T] = np.maximum(self._S.data[kern.S_T], samples[:, -1])
         return out_filt[:lanes], out_raw[:lanes], angles[:lanes]

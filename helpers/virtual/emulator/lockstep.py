@@ -1,0 +1,229 @@
+"""Several in-process virtual rigs in lockstep: their plants integrated together, one lane each.
+
+PROTOTYPE (issue 38, part 3, ``tune``'s verification runs). Each session (a function that opens a
+:class:`~helpers.rig.Rig` on its own world and records) runs in its own thread; its world's plant is a
+:class:`LanePlant` that hands every ``advance`` call to the :class:`Lockstep`, which waits until every session
+still running is waiting on the plant, integrates all their calls in one :class:`~helpers.virtual.ArmLanes`
+(one lane per session) and gives each session its outputs. Nothing is learnt in advance: whatever the host
+decides from the measured tension (the wait for rest, the checks), it decides from the very outputs its
+plant would have given alone, so each recording is the one its session makes alone (its lane takes exactly
+the steps its :class:`~helpers.virtual.ArmPlant` takes, and chunked calls give the bits of one call).
+
+Calls of different sessions hold different numbers of samples: a kernel call advances every lane by the
+smallest number left (a lane's call in pieces: the same bits); a lane with nothing left in that call (its
+session finished, or its call done) is parked: integrated a few microseconds on junk and put back as it was.
+Python's threads run one at a time: the sessions' Python (boards, lines, host) stays serial, only the
+kernel's arithmetic is shared.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from helpers.virtual import _kernel as kern
+from helpers.virtual.parameters import RigParameters
+from helpers.virtual.plant import LANE_WIDTHS, ArmLanes, _checked_times
+
+__all__ = ["Lockstep", "LanePlant"]
+
+_PARK_DT = 1e-6
+"""Spacing (s) of the junk samples a parked lane is integrated over (and then restored)."""
+
+
+class LanePlant:
+    """Lane ``k`` of a :class:`Lockstep` as a world's plant (``advance(sample_times, step_times, signs)``)."""
+
+    def __init__(self, lockstep: Lockstep, k: int) -> None:
+        self.lockstep, self.k = lockstep, k
+        self.params = lockstep.params[k]
+
+    @property
+    def t(self) -> float:
+        """The lane's simulated time, s."""
+        return float(self.lockstep.lanes._S.data[kern.S_T, self.k])
+
+    def advance(self, sample_times: Any, step_times: Any = (), step_signs: Any = ()) -> np.ndarray:
+        """The amplifier's output at ``sample_times`` (as :meth:`ArmPlant.advance`), integrated in lanes."""
+        return self.lockstep.request(self.k, sample_times, step_times, step_signs)
+
+
+class Lockstep:
+    """Up to ``max(LANE_WIDTHS)`` sessions whose plants share one kernel call per round.
+
+    Parameters
+    ----------
+    params : sequence of RigParameters
+        One rig per session (sharing :func:`~helpers.virtual.plant.lane_group`).
+    """
+
+    def __init__(self, params: Sequence[RigParameters]) -> None:
+        self.params = list(params)
+        if not 1 <= len(self.params) <= max(LANE_WIDTHS):
+            raise ValueError(f"Lockstep takes 1 to {max(LANE_WIDTHS)} sessions, got {len(self.params)}")
+        self.lanes = ArmLanes(self.params)
+        # one lock for the bookkeeping; one event wakes the broker (every running session waits on its
+        # plant), one per lane wakes that session (its outputs are ready): no thread is woken for nothing
+        self._lock = threading.Lock()
+        self._ready = threading.Event()
+        self._done = [threading.Event() for _ in self.params]
+        self._pending: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._results: dict[int, np.ndarray | BaseException] = {}
+        self._running: set[int] = set()
+        self._queue: list[int] = []
+        self.kernel_calls = 0
+        """Kernel calls made (rounds split into pieces)."""
+        self.rounds = 0
+        """Rounds served (one call of every waiting session)."""
+        self.serve_cpu_s = 0.0
+        """Process CPU time (s) spent serving rounds (every session waits meanwhile: the plants' share)."""
+
+    def plant(self, k: int) -> LanePlant:
+        """Lane ``k``'s plant, to put in session ``k``'s world before its first ``advance``."""
+        return LanePlant(self, k)
+
+    # --- the sessions' side --------------------------------------------------------------------------
+    def request(self, k: int, sample_times: Any, step_times: Any, step_signs: Any) -> np.ndarray:
+        """Session ``k``'s call: wait for its round, return its outputs."""
+        ts = np.ascontiguousarray(sample_times, dtype=float).reshape(-1)
+        st = np.ascontiguousarray(step_times, dtype=float).reshape(-1)
+        sg = np.ascontiguousarray(step_signs, dtype=float).reshape(-1)
+        with self._lock:
+            self._pending[k] = (ts, st, sg)
+            self._pass_on()
+        self._done[k].wait()
+        self._done[k].clear()
+        with self._lock:
+            out = self._results.pop(k)
+        if isinstance(out, BaseException):
+            raise out
+        return out
+
+    def _pass_on(self) -> None:
+        """Wake the next session of the round, or the broker once none is left (lock held).
+
+        One thread runs at a time (a baton): the sessions' Python does not contend for the interpreter.
+        """
+        if self._queue:
+            self._done[self._queue.pop(0)].set()
+        elif self._running <= set(self._pending):
+            self._ready.set()
+
+    # --- the broker's side ---------------------------------------------------------------------------
+    def run(self, sessions: Sequence[Callable[[], Any]]) -> list[Any]:
+        """Run session ``k`` (a function of no arguments using :meth:`plant` ``(k)``) on lane ``k``, together.
+
+        Returns each session's result; the first session's exception (by lane) is raised once all ended.
+        """
+        if len(sessions) != len(self.params):
+            raise ValueError(f"{len(self.params)} lanes, {len(sessions)} sessions")
+        results: list[Any] = [None] * len(sessions)
+        errors: list[BaseException | None] = [None] * len(sessions)
+
+        def body(k: int, fn: Callable[[], Any]) -> None:
+            self._done[k].wait()  # its turn
+            self._done[k].clear()
+            try:
+                results[k] = fn()
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller
+                errors[k] = exc
+            finally:
+                with self._lock:
+                    self._running.discard(k)
+                    self._pass_on()
+
+        self._running = set(range(len(sessions)))
+        self._queue = list(range(1, len(sessions)))
+        threads = [threading.Thread(target=body, args=(k, fn), daemon=True) for k, fn in enumerate(sessions)]
+        for t in threads:
+            t.start()
+        self._done[0].set()
+        while True:
+            # a round: every running session waits on its plant (none is between calls)
+            self._ready.wait()
+            with self._lock:
+                self._ready.clear()
+                if not self._running:
+                    break
+                if not self._running <= set(self._pending):
+                    continue
+                calls = {k: self._pending.pop(k) for k in list(self._running)}
+            c0 = time.process_time()
+            try:
+                outs = self._serve(dict(calls))
+            except BaseException as exc:  # noqa: BLE001 - every waiting session gets it (an unstable lane)
+                outs = dict.fromkeys(calls, exc)
+            self.serve_cpu_s += time.process_time() - c0
+            self.rounds += 1
+            with self._lock:
+                self._results.update(outs)
+                self._queue = sorted(outs)
+                self._done[self._queue.pop(0)].set()
+        for t in threads:
+            t.join()
+        for e in errors:
+            if e is not None:
+                raise e
+        return results
+
+    def _serve(
+        self, calls: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]
+    ) -> dict[int, np.ndarray | BaseException]:
+        """Integrate every lane's call; lanes without one are parked (restored after each kernel call).
+
+        A call :class:`~helpers.virtual.ArmPlant` would refuse gets its ``ValueError`` (its lane parked); the
+        others go on.
+        """
+        lanes = self.lanes
+        nl = lanes.lanes
+        refused: dict[int, np.ndarray | BaseException] = {}
+        for k, (ts, st, sg) in list(calls.items()):
+            try:
+                _checked_times(ts, st, sg, float(lanes._S.data[kern.S_T, k]))
+            except ValueError as exc:
+                refused[k] = exc
+                del calls[k]
+        at = {k: 0 for k in calls}  # samples of its call each lane has had
+        st_at = {k: 0 for k in calls}
+        outs: dict[int, list[np.ndarray]] = {k: [] for k in calls}
+        while True:
+            left = {k: calls[k][0].size - at[k] for k in calls if calls[k][0].size - at[k] > 0}
+            if not left:
+                break
+            m = min(left.values())
+            rows, steps, signs, parked = [], [], [], []
+            for k in range(nl):
+                if k in left:
+                    ts, st, sg = calls[k]
+                    piece = ts[at[k] : at[k] + m]
+                    j = int(np.searchsorted(st, piece[-1], side="right"))
+                    rows.append(piece)
+                    steps.append(st[st_at[k] : j])
+                    signs.append(sg[st_at[k] : j])
+                    st_at[k] = j
+                else:  # parked: a few microseconds of junk, then put back
+                    t = float(lanes._S.data[kern.S_T, k])
+                    rows.append(t + _PARK_DT * np.arange(1, m + 1))
+                    steps.append(np.empty(0))
+                    signs.append(np.empty(0))
+                    parked.append(k)
+            saved = [(k, lanes._y.data[:, k].copy(), lanes._S.data[:, k].copy()) for k in parked]
+            out, _, _ = lanes.advance_all(np.stack(rows), steps, signs)
+            self.kernel_calls += 1
+            for k, y, s in saved:
+                lanes._y.data[:, k] = y
+                lanes._S.data[:, k] = s
+            # the lanes that fill the call repeat the last rig's: kept where it is (they follow its times)
+            lanes._y.data[:, nl:] = lanes._y.data[:, nl - 1 : nl]
+            lanes._S.data[:, nl:] = lanes._S.data[:, nl - 1 : nl]
+            for k in left:
+                outs[k].append(out[k].copy())
+                at[k] += m
+        for k, (_, st, _) in calls.items():
+            if st_at[k] != st.size:
+                raise ValueError(f"lane {k}: steps after its last sample time")
+        return refused | {k: np.concatenate(v) if v else np.empty(0) for k, v in outs.items()}
