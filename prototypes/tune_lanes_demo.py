@@ -67,8 +67,13 @@ class Timed:
         return out
 
 
-def session(k: int, job, folder: Path, plant=None, world_name: str | None = None, runs: int = 1):
-    """Job ``k`` recorded in its own world (``plant``: that world's plant instead of its ``ArmPlant``)."""
+def session(k: int, job, folder: Path, plant=None, world_name: str | None = None, runs: int = 1,
+            ends: tuple[float, ...] | None = None):  # fmt: skip
+    """Job ``k`` recorded in its own world (``plant``: that world's plant instead of its ``ArmPlant``).
+
+    ``runs`` > 1: the job again in the same world (a chain, as today's ``tune`` runs every job), run ``i``
+    ``ends[i]`` s long (a short one leaves the arm ringing: the next run waits longer for rest).
+    """
     rig = default_rig()
     name = world_name or f"lanes{k}"
     world = build_world(rig, name)
@@ -78,7 +83,7 @@ def session(k: int, job, folder: Path, plant=None, world_name: str | None = None
     recs = []
     try:
         with Rig("virtual", rig, world=name) as r:
-            for i in range(runs):  # runs > 1: the same job again in the same world (today's tune chains)
+            for i in range(runs):
                 recs.append(
                     r.run_pulse(
                         v,
@@ -87,7 +92,7 @@ def session(k: int, job, folder: Path, plant=None, world_name: str | None = None
                         system=system,
                         path=folder / f"{system}_r{rep}_{k}_{i}",
                         repetition=rep,
-                        t_end_s=T_END_S,
+                        t_end_s=T_END_S if ends is None else ends[i],
                         rate_hz=RATE_HZ,
                         progress=False,
                         noise_seed=seed,
@@ -114,6 +119,11 @@ def main() -> None:
     ap.add_argument("--condition", default="v200_x20")
     ap.add_argument("--lanes", type=int, default=8)
     ap.add_argument("--chain", action="store_true")
+    ap.add_argument(
+        "--ringing", action="store_true",
+        help="each session two runs in its world, the first cut short after the down move (8.6-8.95 s): the "
+        "second waits for rest, for as long as its own measured tension says",
+    )  # fmt: skip
     args = ap.parse_args()
     group = jobs(args.condition, args.lanes)
     with tempfile.TemporaryDirectory() as tmp:
@@ -123,20 +133,29 @@ def main() -> None:
         Lockstep(warm).lanes.advance_all([1e-3], [()] * len(group), [()] * len(group))  # compiles this width
         Timed.cpu_s = 0.0
         c0 = time.process_time()
-        recs_alone = [session(k, job, alone)[0] for k, job in enumerate(group)]
+        chain = {"runs": 2, "ends": None} if args.ringing else {}
+
+        def ends(k: int) -> dict:
+            return {**chain, "ends": (8.6 + 0.05 * k, T_END_S)} if chain else {}
+
+        recs_alone = [r for k, job in enumerate(group) for r in session(k, job, alone, **ends(k))]
         cpu_alone, plant_alone = time.process_time() - c0, Timed.cpu_s
         load_a = os.getloadavg()
         params = [build_world(default_rig(), "w").plant.params for _ in group]
         ls = Lockstep(params)
         c0 = time.process_time()
         out = ls.run(
-            [lambda k=k, job=job: session(k, job, lanes, ls.plant(k)) for k, job in enumerate(group)]
+            [
+                lambda k=k, job=job: session(k, job, lanes, ls.plant(k), **ends(k))
+                for k, job in enumerate(group)
+            ]
         )
         cpu_lanes = time.process_time() - c0
         load_l = os.getloadavg()
-        recs_lanes = [o[0] for o in out]
+        recs_lanes = [r for o in out for r in o]
         ok = True
-        for (system, *_), a, b in zip(group, recs_alone, recs_lanes, strict=True):
+        for a, b in zip(recs_alone, recs_lanes, strict=True):
+            system = Path(a.path).name
             csv, js, diff = same(Path(a.path), Path(b.path))
             ok &= csv and js
             print(
@@ -144,7 +163,7 @@ def main() -> None:
                 f"{a.meta['scenario']['rest']['waited_s']} s:"
                 f" csv {'identical' if csv else 'DIFFERS'}, json {'identical' if js else f'DIFFERS {diff}'}"
             )
-        print(f"{len(group)} runs of {args.condition}: all byte-identical: {ok}")
+        print(f"{len(recs_alone)} runs of {args.condition}: all byte-identical: {ok}")
         print(
             f"plants' CPU: alone {plant_alone:.3f} s, in lanes {ls.serve_cpu_s:.3f} s: ratio "
             f"{plant_alone / ls.serve_cpu_s:.2f}x; the rest (boards, lines, host, saving, threads): "
