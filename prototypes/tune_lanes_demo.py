@@ -1,4 +1,4 @@
-"""PROTOTYPE (issue 38 part 3): ``tune``'s one-tendon verification runs with their plants in lanes.
+"""PROTOTYPE: ``tune``'s one-tendon verification runs with their plants in lanes.
 
 One scenario group (one condition of the Table I grid, every candidate design saved in
 ``data/tuning/designs/``), each run as ``tune``'s ``verify`` runs it (``Rig.run_pulse``, 10 s, 500 Hz, a noise
@@ -175,14 +175,20 @@ def main() -> None:
             f"{' '.join(f'{x:.2f}' for x in load_a)} / {' '.join(f'{x:.2f}' for x in load_l)}"
         )
         if args.chain:
-            chained = session(0, group[0], Path(tmp, "chain"), world_name="chain", runs=2)
-            csv, js, diff = same(Path(chained[1].path), Path(recs_alone[0].path))
-            print(
-                f"the same run second in a chained world against alone: csv "
-                f"{'identical' if csv else 'DIFFERS'}"
-                f", json differs in {diff}; rest waited {chained[1].meta['scenario']['rest']['waited_s']} s "
-                f"against {recs_alone[0].meta['scenario']['rest']['waited_s']} s"
-            )
+            # the same job three times in one world (as tune runs every job) against once alone (world lanes0)
+            chained = session(0, group[0], Path(tmp, "chain"), world_name="lanes0", runs=3)
+            first = recs_alone[0].frame
+            for i, rec in enumerate(chained):
+                csv, js, diff = same(Path(rec.path), Path(recs_alone[0].path))
+                n = min(len(first), len(rec.frame))
+                adc = (first["adc_0"].to_numpy()[:n] != rec.frame["adc_0"].to_numpy()[:n]).sum()
+                steps = bool((first["steps_0"].to_numpy()[:n] == rec.frame["steps_0"].to_numpy()[:n]).all())
+                offset = int(rec.frame["t_us"].iloc[0] - first["t_us"].iloc[0])
+                print(
+                    f"run {i + 1} of a chain against alone: csv {'identical' if csv else 'DIFFERS'}, json "
+                    f"differs in {diff}; device clock {offset} us later, {adc} of {n} ADC samples differ; "
+                    f"steps equal: {steps}"
+                )
 
 
 if __name__ == "__main__":

@@ -1,19 +1,21 @@
 """Several in-process virtual rigs in lockstep: their plants integrated together, one lane each.
 
-PROTOTYPE (issue 38, part 3, ``tune``'s verification runs). Each session (a function that opens a
-:class:`~helpers.rig.Rig` on its own world and records) runs in its own thread; its world's plant is a
-:class:`LanePlant` that hands every ``advance`` call to the :class:`Lockstep`, which waits until every session
-still running is waiting on the plant, integrates all their calls in one :class:`~helpers.virtual.ArmLanes`
-(one lane per session) and gives each session its outputs. Nothing is learnt in advance: whatever the host
-decides from the measured tension (the wait for rest, the checks), it decides from the very outputs its
-plant would have given alone, so each recording is the one its session makes alone (its lane takes exactly
-the steps its :class:`~helpers.virtual.ArmPlant` takes, and chunked calls give the bits of one call).
+PROTOTYPE (for ``tune``'s verification runs on the in-process virtual rig). Each session (a function that
+opens a :class:`~helpers.rig.Rig` on its own world and records) runs in its own thread; its world's plant is
+a :class:`LanePlant` that hands every ``advance`` call to the :class:`Lockstep`, which waits until every
+session still running is waiting on its plant, integrates all their calls in one
+:class:`~helpers.virtual.ArmLanes` (one lane per session) and gives each session its outputs. Nothing is
+learnt in advance: whatever the host decides from the measured tension (the wait for rest, the checks), it
+decides from the very outputs its plant would have given alone, so each recording is the one its session
+makes alone (its lane takes exactly the steps its :class:`~helpers.virtual.ArmPlant` takes, and chunked
+calls give the bits of one call).
 
 Calls of different sessions hold different numbers of samples: a kernel call advances every lane by the
 smallest number left (a lane's call in pieces: the same bits); a lane with nothing left in that call (its
 session finished, or its call done) is parked: integrated a few microseconds on junk and put back as it was.
-Python's threads run one at a time: the sessions' Python (boards, lines, host) stays serial, only the
-kernel's arithmetic is shared.
+Python's threads run one at a time, and the sessions pass a baton (one runnable thread at a time, no
+contention for the interpreter): the sessions' Python (boards, lines, host) stays serial, only the kernel's
+arithmetic is shared.
 """
 
 from __future__ import annotations
