@@ -1,16 +1,21 @@
 """``tune``'s verification runs in lanes (PROTOTYPE, ``verify(lanes=...)``): the recordings do not depend on
 the lane width."""
 
+import json
+import os
+import signal
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from helpers.paper.calibration import uncalibrated
 from helpers.paper.shapers import design_tdfs
 from helpers.research import design, tune
 from helpers.rig import Rig
 from helpers.rigfile import default_rig, derived
-from helpers.virtual.emulator.world import forget_world
+from helpers.virtual.emulator.lockstep import Lockstep
+from helpers.virtual.emulator.world import build_world, forget_world, register_world
 
 
 def _candidates() -> tune.Candidates:
@@ -44,3 +49,47 @@ def test_verification_in_lanes_does_not_depend_on_the_lane_width(tmp_path):
     a, b = ((tmp_path / f / f"{chained['recording'].iloc[-1]}.csv").read_text().splitlines()[1] for f in
             ("one", "chain"))  # fmt: skip
     assert a.split(",")[1] != b.split(",")[1]
+
+
+def test_an_interrupt_reaches_every_session_and_each_saves_its_run_aborted(tmp_path):
+    """SIGINT in the middle of a batch (sent from a session's plant call, so that it comes mid-run): every
+    session's guard gets it at its next plant call and saves what it recorded, marked aborted."""
+    rig = default_rig()
+    calibration = [uncalibrated(m) for m in derived(rig).mm_per_step]
+    zv, _ = design_tdfs()
+    names = [f"lanes-int-{k}" for k in range(3)]
+    worlds = [build_world(rig, n) for n in names]
+    lockstep = Lockstep([w.plant.params for w in worlds])
+    calls = []
+
+    class Kicking:  # lane 1's plant: sends SIGINT to the process at its 60th call (about 2 s into its run)
+        def __init__(self, plant):
+            self.plant = plant
+
+        def advance(self, *args):
+            calls.append(1)
+            if len(calls) == 60:
+                os.kill(os.getpid(), signal.SIGINT)
+            return self.plant.advance(*args)
+
+    for k, w in enumerate(worlds):
+        w.plant = lockstep.plant(k) if k != 1 else Kicking(lockstep.plant(k))
+        register_world(w)
+
+    def session(k):
+        with Rig("virtual", rig, calibration=calibration, world=names[k]) as r:
+            return r.run_pulse(200, 20, zv, system="zv", path=tmp_path / f"run{k}", t_end_s=10.0, rate_hz=500,
+                               progress=False, noise_seed=7 + k)  # fmt: skip
+
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            lockstep.run([lambda k=k: session(k) for k in range(3)])
+    finally:
+        for n in names:
+            forget_world(n, rig)
+    saved = sorted(tmp_path.glob("run*_aborted_*.json"))
+    assert len(saved) == 3 and not list(tmp_path.glob("run?.json"))
+    for path in saved:
+        meta = json.loads(path.read_text())
+        assert meta["status"] == "aborted" and "Ctrl-C" in meta["abort_reason"]
+        assert 0 < meta["counts"]["samples"] < 5075  # cut in the middle

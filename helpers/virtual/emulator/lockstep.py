@@ -20,6 +20,7 @@ arithmetic is shared.
 
 from __future__ import annotations
 
+import signal
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -27,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from helpers.base.signals import Interrupted, run_guard
 from helpers.virtual import _kernel as kern
 from helpers.virtual.parameters import RigParameters
 from helpers.virtual.plant import LANE_WIDTHS, ArmLanes, _checked_times
@@ -77,6 +79,9 @@ class Lockstep:
         self._results: dict[int, np.ndarray | BaseException] = {}
         self._running: set[int] = set()
         self._queue: list[int] = []
+        self._interrupt: BaseException | None = None
+        """The signal the broker took (as an exception), handed to each session once."""
+        self._told: set[int] = set()
         self.kernel_calls = 0
         """Kernel calls made (rounds split into pieces)."""
         self.rounds = 0
@@ -90,7 +95,10 @@ class Lockstep:
 
     # --- the sessions' side --------------------------------------------------------------------------
     def request(self, k: int, sample_times: Any, step_times: Any, step_signs: Any) -> np.ndarray:
-        """Session ``k``'s call: wait for its round, return its outputs."""
+        """Session ``k``'s call: wait for its round, return its outputs (or the interrupt, once)."""
+        if self._interrupt is not None and k not in self._told:
+            self._told.add(k)
+            raise Interrupted(getattr(self._interrupt, "signum", signal.SIGINT))
         ts = np.ascontiguousarray(sample_times, dtype=float).reshape(-1)
         st = np.ascontiguousarray(step_times, dtype=float).reshape(-1)
         sg = np.ascontiguousarray(step_signs, dtype=float).reshape(-1)
@@ -144,32 +152,46 @@ class Lockstep:
         for t in threads:
             t.start()
         self._done[0].set()
-        while True:
-            # a round: every running session waits on its plant (none is between calls)
-            self._ready.wait()
-            with self._lock:
-                self._ready.clear()
-                if not self._running:
-                    break
-                if not self._running <= set(self._pending):
+        # signals come to the main thread (the broker's): the first one is handed to every session at its
+        # next plant call, as it would interrupt that session alone (its guard saves its run aborted, its
+        # cleanup's calls are served as usual); none interrupts a kernel call
+        with run_guard() as guard:
+            while True:
+                # a round: every running session waits on its plant (none is between calls)
+                try:
+                    with guard.interruptible():
+                        self._ready.wait()
+                except KeyboardInterrupt as exc:
+                    self._interrupt = self._interrupt or exc
                     continue
-                calls = {k: self._pending.pop(k) for k in list(self._running)}
-            c0 = time.process_time()
-            try:
-                outs = self._serve(dict(calls))
-            except BaseException as exc:  # noqa: BLE001 - every waiting session gets it (an unstable lane)
-                outs = dict.fromkeys(calls, exc)
-            self.serve_cpu_s += time.process_time() - c0
-            self.rounds += 1
-            with self._lock:
-                self._results.update(outs)
-                self._queue = sorted(outs)
-                self._done[self._queue.pop(0)].set()
+                with self._lock:
+                    self._ready.clear()
+                    if not self._running:
+                        break
+                    if not self._running <= set(self._pending):
+                        continue
+                    calls = {k: self._pending.pop(k) for k in list(self._running)}
+                c0 = time.process_time()
+                try:
+                    outs = self._serve(dict(calls))
+                except BaseException as exc:  # noqa: BLE001 - every waiting session gets it (an unstable lane)
+                    outs = dict.fromkeys(calls, exc)
+                self.serve_cpu_s += time.process_time() - c0
+                self.rounds += 1
+                signum = guard.take_pending()
+                if signum is not None and self._interrupt is None:
+                    self._interrupt = Interrupted(signum)
+                with self._lock:
+                    self._results.update(outs)
+                    self._queue = sorted(outs)
+                    self._done[self._queue.pop(0)].set()
         for t in threads:
             t.join()
         for e in errors:
             if e is not None:
                 raise e
+        if self._interrupt is not None:  # it came after every session's last plant call: their runs are whole
+            raise self._interrupt
         return results
 
     def _serve(
