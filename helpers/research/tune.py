@@ -236,7 +236,8 @@ def _record_in_lanes(
         worlds = [build_world(rig.rig, f"{rig.world.name}.{names[i]}") for i in batch]
         lockstep = Lockstep([w.plant.params for w in worlds])
         for k, w in enumerate(worlds):
-            w.plant = lockstep.plant(k)
+            if len(batch) > 1:  # one run alone keeps its ArmPlant (the same bits, without idle lanes)
+                w.plant = lockstep.plant(k)
             register_world(w)
 
         def session(i: int, w: Any) -> recordings.Recording:
@@ -244,7 +245,11 @@ def _record_in_lanes(
                 return record(r, jobs[i], names[i], seeds[i])
 
         try:
-            out += lockstep.run([lambda i=i, w=w: session(i, w) for i, w in zip(batch, worlds, strict=True)])
+            if len(batch) == 1:  # in this thread, as any run
+                out.append(session(batch[0], worlds[0]))
+            else:
+                pairs = zip(batch, worlds, strict=True)
+                out += lockstep.run([lambda i=i, w=w: session(i, w) for i, w in pairs])
         finally:
             for w in worlds:
                 forget_world(w.name, rig.rig)
