@@ -58,3 +58,28 @@ def test_a_session_that_fails_raises_and_the_others_finish():
     with pytest.raises(ValueError, match="strictly increasing"):
         lockstep.run([good, bad])
     assert done == [True]
+
+
+def _outcomes(plant, calls) -> list:
+    """Each call's outputs (their bits), or the message of the error it raised; the session goes on."""
+    got = []
+    for c in calls:
+        try:
+            got.append(plant.advance(*c).view(np.int64).tolist())
+        except FloatingPointError as exc:
+            got.append(str(exc))
+    return got
+
+
+def test_an_unstable_lane_fails_its_own_session_only_as_its_plant_alone():
+    """Lane 1's step is far too long for RK4: its calls raise from about 0.1 s on (every later one too, as
+    alone), while lanes 0 and 2, in the same kernel calls, get the bits they get alone."""
+    rk4 = RigParameters().with_integrator("rk4")
+    rigs = [rk4, rk4.replace(max_step=1e-3), rk4.replace(k=rk4.k * 1.1)]
+    lockstep = Lockstep(rigs)
+    got = lockstep.run([lambda k=k: _outcomes(lockstep.plant(k), _calls(k)) for k in range(3)])
+    for k, rig in enumerate(rigs):
+        assert got[k] == _outcomes(ArmPlant(rig), _calls(k)), k
+    errors = [o for o in got[1] if isinstance(o, str)]
+    assert errors and got[1][0] != errors[0] and got[1][-1] == errors[-1]  # fine at first, unstable to the end
+    assert not any(isinstance(o, str) for o in got[0] + got[2])

@@ -1,8 +1,8 @@
 """Several in-process virtual rigs in lockstep: their plants integrated together, one lane each.
 
-PROTOTYPE (for ``tune``'s verification runs on the in-process virtual rig). Each session (a function that
-opens a :class:`~helpers.rig.Rig` on its own world and records) runs in its own thread; its world's plant is
-a :class:`LanePlant` that hands every ``advance`` call to the :class:`Lockstep`, which waits until every
+For ``tune``'s verification runs on the in-process virtual rig (``tune --lanes N``). Each session (a function
+that opens a :class:`~helpers.rig.Rig` on its own world and records) runs in its own thread; its world's plant
+is a :class:`LanePlant` that hands every ``advance`` call to the :class:`Lockstep`, which waits until every
 session still running is waiting on its plant, integrates all their calls in one
 :class:`~helpers.virtual.ArmLanes` (one lane per session) and gives each session its outputs. Nothing is
 learnt in advance: whatever the host decides from the measured tension (the wait for rest, the checks), it
@@ -13,6 +13,8 @@ calls give the bits of one call).
 Calls of different sessions hold different numbers of samples: a kernel call advances every lane by the
 smallest number left (a lane's call in pieces: the same bits); a lane with nothing left in that call (its
 session finished, or its call done) is parked: integrated a few microseconds on junk and put back as it was.
+A lane that becomes unstable fails its own session only, as its plant alone would (``FloatingPointError`` at
+that call and at every later one); the other lanes go on.
 Python's threads run one at a time, and the sessions pass a baton (one runnable thread at a time, no
 contention for the interpreter): the sessions' Python (boards, lines, host) stays serial, only the kernel's
 arithmetic is shared.
@@ -22,16 +24,14 @@ from __future__ import annotations
 
 import signal
 import threading
-import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
 from helpers.base.signals import Interrupted, run_guard
-from helpers.virtual import _kernel as kern
 from helpers.virtual.parameters import RigParameters
-from helpers.virtual.plant import LANE_WIDTHS, ArmLanes, _checked_times
+from helpers.virtual.plant import LANE_WIDTHS, ArmLanes, _checked_times, unstable_error
 
 __all__ = ["Lockstep", "LanePlant"]
 
@@ -49,7 +49,7 @@ class LanePlant:
     @property
     def t(self) -> float:
         """The lane's simulated time, s."""
-        return float(self.lockstep.lanes._S.data[kern.S_T, self.k])
+        return self.lockstep.time(self.k)
 
     def advance(self, sample_times: Any, step_times: Any = (), step_signs: Any = ()) -> np.ndarray:
         """The amplifier's output at ``sample_times`` (as :meth:`ArmPlant.advance`), integrated in lanes."""
@@ -82,16 +82,20 @@ class Lockstep:
         self._interrupt: BaseException | None = None
         """The signal the broker took (as an exception), handed to each session once."""
         self._told: set[int] = set()
+        self._unstable: dict[int, float] = {}
+        """Lanes that became unstable -> their time (s): parked for good, every later call refused."""
         self.kernel_calls = 0
         """Kernel calls made (rounds split into pieces)."""
         self.rounds = 0
         """Rounds served (one call of every waiting session)."""
-        self.serve_cpu_s = 0.0
-        """Process CPU time (s) spent serving rounds (every session waits meanwhile: the plants' share)."""
 
     def plant(self, k: int) -> LanePlant:
         """Lane ``k``'s plant, to put in session ``k``'s world before its first ``advance``."""
         return LanePlant(self, k)
+
+    def time(self, k: int) -> float:
+        """Lane ``k``'s simulated time, s."""
+        return self._unstable.get(k, float(self.lanes.t[k]))
 
     # --- the sessions' side --------------------------------------------------------------------------
     def request(self, k: int, sample_times: Any, step_times: Any, step_signs: Any) -> np.ndarray:
@@ -171,12 +175,10 @@ class Lockstep:
                     if not self._running <= set(self._pending):
                         continue
                     calls = {k: self._pending.pop(k) for k in list(self._running)}
-                c0 = time.process_time()
                 try:
                     outs = self._serve(dict(calls))
-                except BaseException as exc:  # noqa: BLE001 - every waiting session gets it (an unstable lane)
+                except BaseException as exc:  # noqa: BLE001 - a fault of the broker: every waiting session gets it
                     outs = dict.fromkeys(calls, exc)
-                self.serve_cpu_s += time.process_time() - c0
                 self.rounds += 1
                 signum = guard.take_pending()
                 if signum is not None and self._interrupt is None:
@@ -199,17 +201,23 @@ class Lockstep:
     ) -> dict[int, np.ndarray | BaseException]:
         """Integrate every lane's call; lanes without one are parked (restored after each kernel call).
 
-        A call :class:`~helpers.virtual.ArmPlant` would refuse gets its ``ValueError`` (its lane parked); the
-        others go on.
+        A call :class:`~helpers.virtual.ArmPlant` would refuse gets its ``ValueError``; a lane that becomes
+        unstable gets its ``FloatingPointError`` (now and at every later call, as its plant alone); the others
+        go on.
         """
         lanes = self.lanes
         nl = lanes.lanes
-        refused: dict[int, np.ndarray | BaseException] = {}
+        failed: dict[int, np.ndarray | BaseException] = {}
         for k, (ts, st, sg) in list(calls.items()):
             try:
-                _checked_times(ts, st, sg, float(lanes._S.data[kern.S_T, k]))
+                _checked_times(ts, st, sg, self.time(k))
             except ValueError as exc:
-                refused[k] = exc
+                failed[k] = exc
+                del calls[k]
+                continue
+            if k in self._unstable and ts.size:  # alone: its state is not finite, every call raises
+                failed[k] = unstable_error(ts[-1], self.params[k].max_step)
+                self._unstable[k] = float(ts[-1])
                 del calls[k]
         at = {k: 0 for k in calls}  # samples of its call each lane has had
         st_at = {k: 0 for k in calls}
@@ -219,7 +227,7 @@ class Lockstep:
             if not left:
                 break
             m = min(left.values())
-            rows, steps, signs, parked = [], [], [], []
+            rows, steps, signs = [], [], []
             for k in range(nl):
                 if k in left:
                     ts, st, sg = calls[k]
@@ -230,24 +238,22 @@ class Lockstep:
                     signs.append(sg[st_at[k] : j])
                     st_at[k] = j
                 else:  # parked: a few microseconds of junk, then put back
-                    t = float(lanes._S.data[kern.S_T, k])
-                    rows.append(t + _PARK_DT * np.arange(1, m + 1))
+                    rows.append(float(lanes.t[k]) + _PARK_DT * np.arange(1, m + 1))
                     steps.append(np.empty(0))
                     signs.append(np.empty(0))
-                    parked.append(k)
-            saved = [(k, lanes._y.data[:, k].copy(), lanes._S.data[:, k].copy()) for k in parked]
-            out, _, _ = lanes.advance_all(np.stack(rows), steps, signs)
+            saved = lanes.save()
+            out, _, _ = lanes.advance_all(np.stack(rows), steps, signs, check=False)
             self.kernel_calls += 1
-            for k, y, s in saved:
-                lanes._y.data[:, k] = y
-                lanes._S.data[:, k] = s
-            # the lanes that fill the call repeat the last rig's: kept where it is (they follow its times)
-            lanes._y.data[:, nl:] = lanes._y.data[:, nl - 1 : nl]
-            lanes._S.data[:, nl:] = lanes._S.data[:, nl - 1 : nl]
-            for k in left:
+            bad = set(lanes.unstable()) & set(left)
+            for k in bad:  # its session gets what its plant alone raises; its lane is parked from now on
+                failed[k] = unstable_error(calls[k][0][-1], self.params[k].max_step)
+                self._unstable[k] = float(calls[k][0][-1])
+                del calls[k], outs[k]
+            lanes.restore(saved, [k for k in range(nl) if k not in left or k in bad])
+            for k in set(left) - bad:
                 outs[k].append(out[k].copy())
                 at[k] += m
         for k, (_, st, _) in calls.items():
             if st_at[k] != st.size:
                 raise ValueError(f"lane {k}: steps after its last sample time")
-        return refused | {k: np.concatenate(v) if v else np.empty(0) for k, v in outs.items()}
+        return failed | {k: np.concatenate(v) if v else np.empty(0) for k, v in outs.items()}
