@@ -81,5 +81,5 @@ def test_an_unstable_lane_fails_its_own_session_only_as_its_plant_alone():
     for k, rig in enumerate(rigs):
         assert got[k] == _outcomes(ArmPlant(rig), _calls(k)), k
     errors = [o for o in got[1] if isinstance(o, str)]
-    assert errors and got[1][0] != errors[0] and got[1][-1] == errors[-1]  # fine at first, unstable to the end
+    assert errors and got[1][0] != errors[0] and got[1][-1] == errors[-1]  # fine at first, unstable after
     assert not any(isinstance(o, str) for o in got[0] + got[2])

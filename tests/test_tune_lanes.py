@@ -1,5 +1,5 @@
-"""``tune``'s verification runs in lanes (PROTOTYPE, ``verify(lanes=...)``): the recordings do not depend on
-the lane width."""
+"""``tune``'s verification runs in lanes (``verify(lanes=...)``, ``tune --lanes N``): the recordings do not
+depend on the lane width; an interrupt and an unstable lane end the runs they reach as they end alone."""
 
 import json
 import os
@@ -36,6 +36,7 @@ def _verify(folder: Path, lanes: int):
     return rows
 
 
+@pytest.mark.slow  # about 3-4 s
 def test_verification_in_lanes_does_not_depend_on_the_lane_width(tmp_path):
     one, four = _verify(tmp_path / "one", 1), _verify(tmp_path / "four", 4)
     assert list(one["recording"]) == list(four["recording"]) and len(set(one["recording"])) == 4
@@ -93,3 +94,54 @@ def test_an_interrupt_reaches_every_session_and_each_saves_its_run_aborted(tmp_p
         meta = json.loads(path.read_text())
         assert meta["status"] == "aborted" and "Ctrl-C" in meta["abort_reason"]
         assert 0 < meta["counts"]["samples"] < 5075  # cut in the middle
+
+
+def _sessions(tmp: Path, tag: str, params: list, lockstep: Lockstep | None) -> list:
+    """Three runs, each in a world of its own on ``params[k]`` (its plant lane ``k`` of ``lockstep``, or
+    an ``ArmPlant`` alone, in turn); each run's outcome: its saved recording's path and status."""
+    from helpers.virtual import ArmPlant
+
+    rig = default_rig()
+    calibration = [uncalibrated(m) for m in derived(rig).mm_per_step]
+    zv, _ = design_tdfs()
+    names = [f"lanes-{tag}-{k}" for k in range(len(params))]
+    for k, (n, p) in enumerate(zip(names, params, strict=True)):
+        w = build_world(rig, n)
+        w.plant = lockstep.plant(k) if lockstep else ArmPlant(p)
+        register_world(w)
+
+    def session(k):
+        try:
+            with Rig("virtual", rig, calibration=calibration, world=names[k]) as r:
+                rec = r.run_pulse(200, 20, zv, system="zv", path=tmp / f"run{k}", t_end_s=10.0, rate_hz=310,
+                                  progress=False, noise_seed=7 + k)  # fmt: skip
+                return rec.path, rec.meta["status"]
+        except FloatingPointError as exc:
+            return exc.saved_path, "raised"
+
+    try:
+        if lockstep:
+            return lockstep.run([lambda k=k: session(k) for k in range(len(params))])
+        return [session(k) for k in range(len(params))]
+    finally:
+        for n in names:
+            forget_world(n, rig)
+
+
+@pytest.mark.slow  # about 3-4 s
+def test_an_unstable_lane_aborts_its_own_run_only_saved_as_alone(tmp_path):
+    """Lane 1's RK4 step is too long (steps of 0.645 ms at 310 Hz): its integration blows up about 1.35 s
+    into its world, in its run. Its run is saved aborted, byte for byte as alone; the other two runs go on to
+    the end in the same kernel calls and are saved complete, as alone."""
+    rk4 = build_world(default_rig(), "lanes-params").plant.params.with_integrator("rk4")
+    params = [rk4, rk4.replace(max_step=6.7e-4), rk4.replace(k=rk4.k * 0.9)]
+    alone = _sessions(tmp_path / "alone", "alone", params, None)
+    lanes = _sessions(tmp_path / "lanes", "lanes", params, Lockstep(params))
+    assert [status for _, status in lanes] == ["complete", "raised", "complete"]
+    assert [status for _, status in alone] == ["complete", "raised", "complete"]
+    assert "_aborted_" in lanes[1][0].name and "_aborted_" in alone[1][0].name
+    for (a, _), (b, _) in zip(alone, lanes, strict=True):
+        assert a.with_suffix(".csv").read_bytes() == b.with_suffix(".csv").read_bytes(), b.name
+    meta = json.loads(lanes[1][0].with_suffix(".json").read_text())
+    assert meta["status"] == "aborted" and meta["abort_reason"].startswith("FloatingPointError")
+    assert 0 < meta["counts"]["samples"] < 3000  # cut during its run
