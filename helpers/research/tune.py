@@ -182,10 +182,13 @@ def verify(
 ) -> pd.DataFrame:
     """Run every candidate on every condition ``repetitions`` times; one row per run and move.
 
-    ``lanes`` (PROTOTYPE; 0: every run in ``rig``'s world, one after the other, as before): on the in-process
-    virtual rig of one tendon, each run in a fresh world of its own (at rest, ``t = 0``), up to ``lanes``
-    of them at once with their plants in the lanes of one kernel call
-    (:mod:`helpers.virtual.emulator.lockstep`); the recordings do not depend on ``lanes`` (1 to 8).
+    ``lanes`` (0, the default: every run in ``rig``'s world, one after the other, each starting where the one
+    before left the arm and the device clock; what made ``data/tuning``): on the in-process virtual rig of one
+    tendon, each run in a fresh world of its own (at rest, ``t = 0``, named ``<world>.<run>``), up to
+    ``lanes`` of them at once with their plants in the lanes of one kernel call
+    (:mod:`helpers.virtual.emulator.lockstep`). Its recordings do not depend on ``lanes`` (1 to 8), and differ
+    from the chained runs' (``docs/performance.md``). Hardware, the pseudo-terminal server and the spatial
+    twin (several tendons) ignore it.
 
     Returns
     -------
@@ -487,8 +490,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--lanes", type=arg_number(0, 8, int), default=0,
-        help="PROTOTYPE, in-process virtual rig of one tendon: each verification run in a fresh world of its "
-        "own, up to LANES at once with their plants in one kernel call (0: every run in one world, in turn)",
+        help="in-process virtual rig of one tendon: each verification run in a fresh world of its own, up to "
+        "LANES at once with their plants in one kernel call (the recordings differ from the default's by the "
+        "state the chain carried; 0: every run in the one world, in turn, as data/tuning was made)",
     )  # fmt: skip
     parser.add_argument("--replace", action="store_true", help="replace earlier tuning recordings and files")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
