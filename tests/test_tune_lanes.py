@@ -145,3 +145,10 @@ def test_an_unstable_lane_aborts_its_own_run_only_saved_as_alone(tmp_path):
     meta = json.loads(lanes[1][0].with_suffix(".json").read_text())
     assert meta["status"] == "aborted" and meta["abort_reason"].startswith("FloatingPointError")
     assert 0 < meta["counts"]["samples"] < 3000  # cut during its run
+
+
+@pytest.mark.parametrize("lanes", [-1, 9, 2.0])
+def test_a_lane_count_out_of_range_is_refused_before_any_run(tmp_path, lanes):
+    with pytest.raises(ValueError, match=r"lanes must be an integer in 0-8"):
+        tune.verify(None, _candidates(), tmp_path, 1, lanes=lanes)  # type: ignore[arg-type]
+    assert not list(tmp_path.iterdir())

@@ -59,6 +59,7 @@ from helpers.rigfile import RigFile
 from helpers.virtual import ArmPlant
 from helpers.virtual.emulator.lockstep import Lockstep
 from helpers.virtual.emulator.world import build_world, forget_world, register_world
+from helpers.virtual.plant import LANE_WIDTHS
 from helpers.virtual.rig_file_tuning import refuse_other_rig
 
 CANDIDATES = ("zv", "zvd", "ei", "multi-mode", "scheduled", "map-following", "auto")
@@ -187,7 +188,7 @@ def verify(
     tendon, each run in a fresh world of its own (at rest, ``t = 0``, named ``<world>.<run>``), up to
     ``lanes`` of them at once with their plants in the lanes of one kernel call
     (:mod:`helpers.virtual.emulator.lockstep`). Its recordings do not depend on ``lanes`` (1 to 8), and differ
-    from the chained runs' (``docs/performance.md``). Hardware, the pseudo-terminal server and the spatial
+    from the chained runs' (``docs/shaper_design.md``). Hardware, the pseudo-terminal server and the spatial
     twin (several tendons) ignore it.
 
     Returns
@@ -196,6 +197,8 @@ def verify(
         ``system``, ``v_in_mm_s``, ``x_f_mm``, ``repetition``, ``recording`` and the columns of
         :func:`helpers.research.residuals.move_residuals`.
     """
+    if type(lanes) is not int or not 0 <= lanes <= max(LANE_WIDTHS):
+        raise ValueError(f"lanes must be an integer in 0-{max(LANE_WIDTHS)}, got {lanes!r}")
     jobs = [
         (cond, system, d, k)
         for cond, systems in candidates.designs.items()
@@ -237,9 +240,10 @@ def _record_in_lanes(
     for start in range(0, len(jobs), lanes):
         batch = list(range(start, min(start + lanes, len(jobs))))
         worlds = [build_world(rig.rig, f"{rig.world.name}.{names[i]}") for i in batch]
-        lockstep = Lockstep([w.plant.params for w in worlds])
+        # one run alone keeps its ArmPlant (the same bits, without idle lanes)
+        lockstep = Lockstep([w.plant.params for w in worlds]) if len(batch) > 1 else None
         for k, w in enumerate(worlds):
-            if len(batch) > 1:  # one run alone keeps its ArmPlant (the same bits, without idle lanes)
+            if lockstep is not None:
                 w.plant = lockstep.plant(k)
             register_world(w)
 
@@ -248,7 +252,7 @@ def _record_in_lanes(
                 return record(r, jobs[i], names[i], seeds[i])
 
         try:
-            if len(batch) == 1:  # in this thread, as any run
+            if lockstep is None:  # in this thread, as any run
                 out.append(session(batch[0], worlds[0]))
             else:
                 pairs = zip(batch, worlds, strict=True)
