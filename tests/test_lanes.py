@@ -159,3 +159,22 @@ def test_a_sample_a_few_ulps_ahead_takes_no_step(integrator):
     again = plant.advance([np.nextafter(0.2, 1.0), 0.2 + 1e-15])
     assert plant.integrator_steps == steps and np.array_equal(again, np.repeat(before, 2))
     assert plant.t == 0.2 + 1e-15
+
+
+def test_each_lane_on_its_own_samples_takes_the_bits_of_its_run_alone():
+    # per-lane sample times (the lockstep of several worlds: each board samples on its own clock), two calls
+    rigs, progs = _runs(RigParameters().with_integrator("rosw"), 3, t_end=1.6)
+    times = [np.arange(1, 1601) * 1e-3 + k * 0.37e-3 for k in range(3)]
+    lanes = ArmLanes(rigs)
+    got = []
+    for part in (slice(0, 700), slice(700, 1600)):
+        rows = np.stack([t[part] for t in times])
+        sel = [(st > t0 - 1e-12) & (st <= r[-1]) for (st, _), t0, r in zip(progs, lanes.t, rows, strict=True)]
+        out, _, _ = lanes.advance_all(rows, [st[s] for (st, _), s in zip(progs, sel, strict=True)],
+                                      [sg[s] for (_, sg), s in zip(progs, sel, strict=True)])  # fmt: skip
+        got.append(out)
+    output = np.concatenate(got, axis=1)
+    for k, (rig, (st, sg)) in enumerate(zip(rigs, progs, strict=True)):
+        alone = ArmPlant(rig).advance(times[k], st, sg)
+        assert np.array_equal(output[k].view(np.int64), alone.view(np.int64)), k
+    assert not np.array_equal(output[0], output[1])  # the lanes did differ

@@ -56,6 +56,10 @@ from helpers.research.modemap import ModeMap, load_map, refuse_map_of_other_rig
 from helpers.research.survey import POSITIONS_MM, survey
 from helpers.rig import Rig
 from helpers.rigfile import RigFile
+from helpers.virtual import ArmPlant
+from helpers.virtual.emulator.lockstep import Lockstep
+from helpers.virtual.emulator.world import build_world, forget_world, register_world
+from helpers.virtual.plant import LANE_WIDTHS
 from helpers.virtual.rig_file_tuning import refuse_other_rig
 
 CANDIDATES = ("zv", "zvd", "ei", "multi-mode", "scheduled", "map-following", "auto")
@@ -175,8 +179,17 @@ def verify(
     replace: bool = False,
     seeds: Callable[[], int | None] = lambda: None,
     progress: bool = True,
+    lanes: int = 0,
 ) -> pd.DataFrame:
     """Run every candidate on every condition ``repetitions`` times; one row per run and move.
+
+    ``lanes`` (0, the default: every run in ``rig``'s world, one after the other, each starting where the one
+    before left the arm and the device clock; what made ``data/tuning``): on the in-process virtual rig of one
+    tendon, each run in a fresh world of its own (at rest, ``t = 0``, named ``<world>.<run>``), up to
+    ``lanes`` of them at once with their plants in the lanes of one kernel call
+    (:mod:`helpers.virtual.emulator.lockstep`). Its recordings do not depend on ``lanes`` (1 to 8), and differ
+    from the chained runs' (``docs/shaper_design.md``). Hardware, the pseudo-terminal server and the spatial
+    twin (several tendons) ignore it.
 
     Returns
     -------
@@ -184,6 +197,8 @@ def verify(
         ``system``, ``v_in_mm_s``, ``x_f_mm``, ``repetition``, ``recording`` and the columns of
         :func:`helpers.research.residuals.move_residuals`.
     """
+    if type(lanes) is not int or not 0 <= lanes <= max(LANE_WIDTHS):
+        raise ValueError(f"lanes must be an integer in 0-{max(LANE_WIDTHS)}, got {lanes!r}")
     jobs = [
         (cond, system, d, k)
         for cond, systems in candidates.designs.items()
@@ -191,22 +206,20 @@ def verify(
         if d is not None
         for k in range(1, repetitions + 1)
     ]
+    names = [f"{system}_{condition_name(v, x)}_r{k}".replace("-", "_") for (v, x), system, _, k in jobs]
+
+    def record(r: Rig, job: tuple, name: str, seed: int | None) -> recordings.Recording:
+        (v, x), system, d, k = job
+        return r.run_pulse(v, x, d, system=system, path=folder / name, repetition=k, t_end_s=T_END_S,
+                           rate_hz=rate_hz, progress=False, replace=replace, noise_seed=seed)  # fmt: skip
+
+    if lanes and rig.world is not None and isinstance(rig.world.plant, ArmPlant):
+        recs = _record_in_lanes(rig, jobs, names, [seeds() for _ in jobs], record, lanes, progress)
+    else:
+        recs = (record(rig, job, name, seeds()) for job, name in zip(jobs, names, strict=True))
+        recs = tqdm(recs, total=len(jobs), desc="verify", unit="run", disable=not progress)
     rows = []
-    for (v, x), system, d, k in tqdm(jobs, desc="verify", unit="run", disable=not progress):
-        name = f"{system}_{condition_name(v, x)}_r{k}".replace("-", "_")
-        rec = rig.run_pulse(
-            v,
-            x,
-            d,
-            system=system,
-            path=folder / name,
-            repetition=k,
-            t_end_s=T_END_S,
-            rate_hz=rate_hz,
-            progress=False,
-            replace=replace,
-            noise_seed=seeds(),
-        )
+    for ((v, x), system, _, k), name, rec in zip(jobs, names, recs, strict=True):
         table = residuals.move_residuals(rec.frame)
         table.insert(0, "recording", name)
         table.insert(0, "repetition", k)
@@ -215,6 +228,41 @@ def verify(
         table.insert(0, "system", system)
         rows.append(table)
     return pd.concat(rows, ignore_index=True)
+
+
+def _record_in_lanes(
+    rig: Rig, jobs: list, names: list[str], seeds: list[int | None], record: Callable[..., Any], lanes: int,
+    progress: bool,
+) -> list[recordings.Recording]:  # fmt: skip
+    """Each job in a fresh world of its own (``<world>.<name>``), ``lanes`` at a time in lockstep."""
+    out: list[recordings.Recording] = []
+    bar = tqdm(total=len(jobs), desc="verify", unit="run", disable=not progress)
+    for start in range(0, len(jobs), lanes):
+        batch = list(range(start, min(start + lanes, len(jobs))))
+        worlds = [build_world(rig.rig, f"{rig.world.name}.{names[i]}") for i in batch]
+        # one run alone keeps its ArmPlant (the same bits, without idle lanes)
+        lockstep = Lockstep([w.plant.params for w in worlds]) if len(batch) > 1 else None
+        for k, w in enumerate(worlds):
+            if lockstep is not None:
+                w.plant = lockstep.plant(k)
+            register_world(w)
+
+        def session(i: int, w: Any) -> recordings.Recording:
+            with Rig("virtual", rig.rig, calibration=list(rig.calibration), world=w.name) as r:
+                return record(r, jobs[i], names[i], seeds[i])
+
+        try:
+            if lockstep is None:  # in this thread, as any run
+                out.append(session(batch[0], worlds[0]))
+            else:
+                pairs = zip(batch, worlds, strict=True)
+                out += lockstep.run([lambda i=i, w=w: session(i, w) for i, w in pairs])
+        finally:
+            for w in worlds:
+                forget_world(w.name, rig.rig)
+        bar.update(len(batch))
+    bar.close()
+    return out
 
 
 def summarise(rows: pd.DataFrame) -> pd.DataFrame:
@@ -444,6 +492,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the data folder: reads calibration/ and identification/, writes tuning/ (default: "
         "my_data/<rig name>/, gitignored; `--data-dir data` rewrites the project's shipped tuning)",
     )  # fmt: skip
+    parser.add_argument(
+        "--lanes", type=arg_number(0, 8, int), default=0,
+        help="in-process virtual rig of one tendon: each verification run in a fresh world of its own, up to "
+        "LANES at once with their plants in one kernel call (the recordings differ from the default's by the "
+        "state the chain carried; 0: every run in the one world, in turn, as data/tuning was made)",
+    )  # fmt: skip
     parser.add_argument("--replace", action="store_true", help="replace earlier tuning recordings and files")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -525,6 +579,7 @@ def run(args: argparse.Namespace) -> int:
             replace=args.replace,
             seeds=seeds,
             progress=not args.quiet,
+            lanes=args.lanes,
         )
     source = str(rig.source.get("kind", "hardware"))
     rows.insert(0, "source", source)

@@ -21,7 +21,7 @@ from helpers.virtual.lanes import LaneArray
 from helpers.virtual.parameters import RigParameters
 from helpers.virtual.statics import ArcChain, model_arrays, node_positions
 
-__all__ = ["ArmPlant", "ArmLanes", "LANE_WIDTHS", "lane_group"]
+__all__ = ["ArmPlant", "ArmLanes", "LANE_WIDTHS", "lane_group", "unstable_error"]
 
 LANE_WIDTHS = (4, 8)
 """Lanes of one kernel call (:class:`ArmLanes`): four (256-bit registers) or eight (512-bit)."""
@@ -57,6 +57,14 @@ def _checked_times(
         if not np.all(np.abs(sg) == 1):
             raise ValueError("step_signs must be +1 (pull) or -1 (release)")
     return ts, st, sg
+
+
+def unstable_error(t_end: float, max_step: float) -> FloatingPointError:
+    """What :meth:`ArmPlant.advance` raises when its call to ``t_end`` (s) became unstable."""
+    return FloatingPointError(
+        f"the integration became unstable before t = {t_end:.4f} s: max_step = {max_step:.2e} s is too large "
+        "for these parameters"
+    )
 
 
 def _reset_state(S: np.ndarray, arr: Any, params: RigParameters) -> None:
@@ -290,10 +298,7 @@ class ArmPlant:
             np.array([st.size]), a.P, a.P, a.mb, a.Jb, a.disc, a.W, a.cw, *w, out_raw, out_filt, angles,
         )  # fmt: skip
         if not (np.all(np.isfinite(self._y)) and math.isfinite(self._S[kern.S_FILT])):
-            raise FloatingPointError(
-                f"the integration became unstable before t = {ts[-1]:.4f} s: max_step = "
-                f"{self.params.max_step:.2e} s is too large for these parameters"
-            )
+            raise unstable_error(ts[-1], self.params.max_step)
         self._S[kern.S_T] = max(self._S[kern.S_T], ts[-1])
         self._steps += int(np.sum(sg)) if sg.size else 0
         return out_filt[0], out_raw[0], angles[0]
@@ -387,20 +392,42 @@ class ArmLanes:
         lag = self._S.data[kern.S_HEALTH, : self.lanes]
         return np.array([lag[k] / p.step_angle for k, p in enumerate(self.params)])
 
+    def save(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every lane's state and time, a copy (for :meth:`restore`)."""
+        return self._y.data.copy(), self._S.data.copy()
+
+    def restore(self, saved: tuple[np.ndarray, np.ndarray], lanes: Sequence[int]) -> None:
+        """Put ``lanes`` back as they were when :meth:`save` gave ``saved`` (the others as they are)."""
+        y, S = saved
+        for k in lanes:
+            self._y.data[:, k] = y[:, k]
+            self._S.data[:, k] = S[:, k]
+
+    def unstable(self) -> list[int]:
+        """The lanes (of the rigs) whose state is no longer finite."""
+        y, filt = self._y.data[:, : self.lanes], self._S.data[kern.S_FILT, : self.lanes]
+        ok = np.all(np.isfinite(y), axis=0) & np.isfinite(filt)
+        return [int(k) for k in np.flatnonzero(~ok)]
+
     def advance_all(
         self,
         sample_times: npt.ArrayLike,
         step_times: Sequence[npt.ArrayLike],
         step_signs: Sequence[npt.ArrayLike],
+        check: bool = True,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Integrate every lane to ``sample_times[-1]``: :meth:`ArmPlant.advance_all` of each lane.
 
         Parameters
         ----------
         sample_times : array_like
-            The samples, shared by every lane (strictly increasing, after every lane's time).
+            The samples, shared by every lane (strictly increasing, after every lane's time); or one row
+            per rig ``(rigs, samples)``, each after that rig's own time (every rig the same number).
         step_times, step_signs : sequence of array_like
             Each rig's stepper steps and their signs (as :meth:`ArmPlant.advance`).
+        check : bool
+            Raise if a lane became unstable; False leaves that to the caller (:meth:`unstable`: those lanes'
+            outputs are not finite, the others' are what they are alone).
 
         Returns
         -------
@@ -412,19 +439,27 @@ class ArmLanes:
         ValueError
             As :meth:`ArmPlant.advance`, or not one step list per rig.
         FloatingPointError
-            If a lane's integration became unstable.
+            If a lane's integration became unstable (and ``check``).
         """
         if len(step_times) != self.lanes or len(step_signs) != self.lanes:
             raise ValueError(f"one step_times and step_signs per rig: {self.lanes}, got {len(step_times)}, "
                              f"{len(step_signs)}")  # fmt: skip
-        t_now = float(np.max(self._S.data[kern.S_T]))
-        pairs = zip(step_times, step_signs, strict=True)
-        checked = [_checked_times(sample_times, a, b, t_now) for a, b in pairs]
-        ts = checked[0][0]
         n, width, lanes = self._n, self.width, self.lanes
+        each = np.ndim(sample_times) == 2  # one row of samples per rig, each after that rig's own time
+        if each and np.shape(sample_times)[0] != lanes:
+            raise ValueError(f"one row of sample_times per rig: {lanes}, got {np.shape(sample_times)[0]}")
+        rows = list(sample_times) if each else [sample_times] * lanes
+        t_now = self._S.data[kern.S_T] if each else np.full(width, np.max(self._S.data[kern.S_T]))
+        pairs = zip(rows, step_times, step_signs, strict=True)
+        checked = [_checked_times(r, a, b, float(t_now[k])) for k, (r, a, b) in enumerate(pairs)]
+        ts = checked[0][0]
         if ts.size == 0:
             return np.empty((lanes, 0)), np.empty((lanes, 0)), np.empty((lanes, 0, n))
         checked += [checked[-1]] * (width - lanes)
+        # the lanes that fill the call repeat the last rig (from where it is: it may have been restored)
+        self._y.data[:, lanes:] = self._y.data[:, lanes - 1 : lanes]
+        self._S.data[:, lanes:] = self._S.data[:, lanes - 1 : lanes]
+        samples = np.stack([c[0] for c in checked])
         counts = np.array([c[1].size for c in checked], dtype=np.int64)
         st = np.zeros((width, max(1, int(counts.max()))))
         sg = np.zeros_like(st)
@@ -436,16 +471,15 @@ class ArmLanes:
         angles = np.empty((width, ts.size, n))
         w = self._work
         kern.advance(
-            self._scheme, self._y, self._S, self._L, np.tile(ts, (width, 1)), st, sg, counts,
+            self._scheme, self._y, self._S, self._L, samples, st, sg, counts,
             self._P, self._U, self._mb, self._Jb, self._disc, self._W, self._cw, *w, out_raw, out_filt,
             angles,
         )  # fmt: skip
-        bad = [k for k in range(lanes) if not (np.all(np.isfinite(self._y.data[:, k]))
-                                               and math.isfinite(self._S.data[kern.S_FILT, k]))]  # fmt: skip
+        bad = self.unstable() if check else []
         if bad:
             raise FloatingPointError(
                 f"the integration of lane(s) {bad} became unstable before t = {ts[-1]:.4f} s: max_step is "
                 "too large for those parameters"
             )
-        self._S.data[kern.S_T] = np.maximum(self._S.data[kern.S_T], ts[-1])
+        self._S.data[kern.S_T] = np.maximum(self._S.data[kern.S_T], samples[:, -1])
         return out_filt[:lanes], out_raw[:lanes], angles[:lanes]

@@ -12,7 +12,10 @@
   step and the RK4 reference, and the paper's one tendon beside the planar plant;
 - ``segments``: the planar twin's cost per simulated second with 12, 24, 36 and 48 arc elements, each
   integrator, and the modes that set each one's step;
-- ``convergence``: the implicit step against RK4 at a quarter of its step, Table I and four tendons.
+- ``convergence``: the implicit step against RK4 at a quarter of its step, Table I and four tendons;
+- ``tune-lanes``: runs per CPU second of ``tune``'s verification runs of one Table I condition, each alone in
+  a world of its own and 8 worlds in lockstep (their plants in one kernel call), the ratio, and whether every
+  recording in lanes is byte-identical to the same run alone.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from helpers.commands.benchmarks.segments import run_segments_benchmark
 from helpers.commands.benchmarks.serial import run_serial_benchmark
 from helpers.commands.benchmarks.spatial import run_spatial_benchmark
 from helpers.commands.benchmarks.sweep import run_sweep_benchmark
+from helpers.commands.benchmarks.tune_lanes import run_tune_lanes_benchmark
 
 SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "plant": run_plant_benchmark,
@@ -39,6 +43,7 @@ SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "spatial": run_spatial_benchmark,
     "segments": run_segments_benchmark,
     "convergence": run_convergence_benchmark,
+    "tune-lanes": run_tune_lanes_benchmark,
 }
 """suite name -> function; each prints its figures and returns them as a dict."""
 

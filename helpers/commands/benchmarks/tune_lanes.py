@@ -1,0 +1,159 @@
+"""Speed of ``tune``'s verification runs in lanes: runs per CPU second alone and in lockstep, in one call.
+
+One condition of the Table I grid (200 mm/s, 20 mm by default): every candidate design ``tune`` saved for it
+in ``data/tuning/designs/``, :data:`~helpers.research.tune.REPETITIONS` runs each, as ``tune`` verifies them
+(:func:`helpers.research.tune.verify`: 10 s at 500 Hz on the in-process virtual rig of one tendon, noise seed
+1000 + k, the shipped calibration). Three ways, taking turns ``repeats`` times (the best of each is reported),
+so that a change in the machine's load hits all alike:
+
+- **alone** (``verify(lanes=1)``): each run in a fresh world of its own, its plant an ``ArmPlant``, one after
+  the other;
+- **in lanes** (``verify(lanes=N)``): the same runs, N worlds at a time in lockstep
+  (:mod:`helpers.virtual.emulator.lockstep`: their plants in the lanes of one kernel call per round);
+- **the chain** (``verify(lanes=0)``, the default, which made ``data/tuning``): every run in one world, each
+  starting where the one before left the arm and the device clock; for reference only, its recordings are
+  not those of the other two.
+
+CPU time is the process's (``time.process_time``): the boards, the lines, the host, the saving and each
+move's residuals as well as the plants. Every recording made in lanes is compared with the same run alone:
+csv bytes, and the json but its ``started_utc``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from helpers.base.paths import DATA_DIR
+from helpers.paper.tension import load_calibration
+from helpers.research import design, tune
+from helpers.rig import Rig
+from helpers.rigfile import default_rig
+from helpers.virtual.emulator.world import forget_world
+
+__all__ = ["run_tune_lanes_benchmark"]
+
+WORLD = "bench-tune-lanes"
+"""The benchmark's world (the chain's; the runs alone and in lanes get ``<WORLD>.<run>``)."""
+SEED = 1000
+"""Noise seed of the first run (``tune``'s default)."""
+
+
+def _load() -> str:
+    try:
+        return "load average " + ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:  # pragma: no cover - not on every platform
+        return "load average unavailable"
+
+
+def _candidates(v: float, x: float) -> tune.Candidates:
+    """Every design ``tune`` saved in ``data/tuning/designs/`` for the condition, in ``CANDIDATES`` order."""
+    name = tune.condition_name(v, x)
+    folder = DATA_DIR / "tuning" / "designs"
+    made = {s: design.load_design(folder / f"{s}_{name}.json") for s in tune.CANDIDATES
+            if (folder / f"{s}_{name}.json").is_file()}  # fmt: skip
+    if not made:
+        raise FileNotFoundError(f"no design for {name} in {folder}: run `python -m helpers tune` first")
+    return tune.Candidates({(v, x): made}, {(v, x): {}})
+
+
+def _verify(folder: Path, lanes: int, candidates: tune.Candidates, repetitions: int) -> float:
+    """CPU time (s) of ``tune.verify`` of ``candidates`` with ``lanes``, recordings in ``folder``."""
+    rig = default_rig()
+    calibration = load_calibration(DATA_DIR / "calibration" / "calibration.json")
+    seeds = itertools.count(SEED)
+    forget_world(WORLD, rig)
+    try:
+        with Rig("virtual", rig, calibration=calibration, world=WORLD) as r:
+            c0 = time.process_time()
+            tune.verify(r, candidates, folder, repetitions, seeds=lambda: next(seeds), progress=False,
+                        lanes=lanes)  # fmt: skip
+            return time.process_time() - c0
+    finally:
+        forget_world(WORLD, rig)
+
+
+def _same(a: Path, b: Path) -> bool:
+    """Recording ``a`` is ``b``: csv bytes, json but ``started_utc``."""
+    if a.with_suffix(".csv").read_bytes() != b.with_suffix(".csv").read_bytes():
+        return False
+    ja, jb = (json.loads(p.with_suffix(".json").read_text()) for p in (a, b))
+    ja.pop("started_utc", None)
+    jb.pop("started_utc", None)
+    return ja == jb
+
+
+def run_tune_lanes_benchmark(
+    lanes: int = 8, v: float = 200.0, x: float = 20.0, repeats: int = 2, quiet: bool = False
+) -> dict[str, Any]:
+    """Measure and print the figures of the module docstring; the last line names the ratio.
+
+    Parameters
+    ----------
+    lanes : int
+        Runs in lockstep (2 to 8).
+    v, x : float
+        The condition (mm/s, mm), one of the Table I grid's.
+    repeats : int
+        Turns of the three ways (the best of each is reported).
+    quiet : bool
+        Do not print.
+
+    Returns
+    -------
+    dict
+        ``runs``, ``lanes``, ``runs_per_cpu_s`` (``"alone"``, ``"lanes"``, ``"chain"``), ``ratio`` (lanes /
+        alone), ``identical`` and ``compared`` (recordings in lanes equal to the same run alone), ``load``
+        (before, after).
+    """
+    if not 2 <= lanes <= 8:
+        raise ValueError(f"lanes must be 2 to 8, got {lanes!r}")
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats!r}")
+    say = (lambda *a: None) if quiet else print
+    candidates = _candidates(v, x)
+    systems = list(candidates.designs[(v, x)])
+    repetitions = tune.REPETITIONS["table-i"]
+    runs = len(systems) * repetitions
+    before = _load()
+    say(f"tune's verification runs, one Table I condition ({v:g} mm/s, {x:g} mm): {len(systems)} designs x "
+        f"{repetitions} = {runs} runs of {tune.T_END_S:g} s at {tune.RATE_HZ} Hz, in-process virtual rig; "
+        f"{os.cpu_count()} cores; {before}")  # fmt: skip
+    ways = {"alone": 1, "lanes": lanes, "chain": 0}
+    best = dict.fromkeys(ways, float("inf"))
+    identical = compared = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        warm = tune.Candidates({(v, x): {systems[0]: candidates.designs[(v, x)][systems[0]]}}, {(v, x): {}})
+        for way, n in ways.items():  # every kernel (scalar, this lane width) compiled or loaded, not timed
+            _verify(Path(tmp, f"warm-{way}"), n, warm, max(n, 1))
+        for turn in range(repeats):
+            for way, n in ways.items():
+                best[way] = min(best[way], _verify(Path(tmp, f"{way}{turn}"), n, candidates, repetitions))
+            for path in sorted(Path(tmp, f"alone{turn}").glob("*.csv")):
+                compared += 1
+                identical += _same(path, Path(tmp, f"lanes{turn}", path.name))
+    after = _load()
+    rate = {way: runs / cpu for way, cpu in best.items()}
+    ratio = rate["lanes"] / rate["alone"]
+    say(f"  alone (each run in a world of its own, one at a time): {rate['alone']:.2f} runs per CPU second "
+        f"({best['alone']:.2f} s)")
+    say(f"  in lanes ({lanes} worlds in lockstep, their plants in one kernel call): {rate['lanes']:.2f} runs "
+        f"per CPU second ({best['lanes']:.2f} s)")
+    say(f"  the chain (every run in one world, as data/tuning was made; other recordings): "
+        f"{rate['chain']:.2f} runs per CPU second ({best['chain']:.2f} s)")
+    say(f"  recordings in lanes byte-identical to the same run alone (csv bytes; json but started_utc): "
+        f"{identical} of {compared}")
+    say(f"  after: {after}")
+    say(f"runs per CPU second in lanes / alone: {ratio:.2f}x (lanes / the chain: "
+        f"{rate['lanes'] / rate['chain']:.2f}x)")
+    return {"runs": runs, "lanes": lanes, "runs_per_cpu_s": rate, "ratio": ratio, "identical": identical,
+            "compared": compared, "load": (before, after)}  # fmt: skip
+
+
+if __name__ == "__main__":  # pragma: no cover
+    run_tune_lanes_benchmark()
