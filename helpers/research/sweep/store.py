@@ -61,7 +61,8 @@ LEGACY_FINGERPRINTS: dict[str, str] = {
     "c7ea1e195e31eb10": "34ade0a9fd216a8f",
     "82ebe100f05565cc": "34ade0a9fd216a8f",
     "9c6e7182e7a5c303": "34ade0a9fd216a8f",
-    "04b23f845147a1c0": "1511e4c01b0a1df1",
+    "04b23f845147a1c0": "b992664fcc1c845a",
+    "1511e4c01b0a1df1": "b992664fcc1c845a",
 }
 """Fingerprints of the same physics in an earlier form -> today's. The first form was a hash of the files'
 bytes (a moved import or a reworded docstring changed it); ``82ebe100f05565cc`` is the present form of the
@@ -73,7 +74,10 @@ several in SIMD lanes and the statics' modal state shared with the spatial twin:
 atlases' runs recomputed by ``run_chunk`` (lanes) gave the same bits (first, middle and last chunk of each of
 the three atlases, ``residual_pct`` and ``max_rotor_lag_steps``). The stored atlas (``data/sweeps/``) is
 made with the implicit step, the default since: a physics of its own. ``04b23f845147a1c0`` is its
-physics before the integrator's docstring in ``virtual/parameters.py`` was reworded (the same code)."""
+physics before the integrator's docstring in ``virtual/parameters.py`` was reworded (the same code), and
+``1511e4c01b0a1df1`` before :class:`~helpers.virtual.plant.ArmLanes` could save, restore and set aside a lane
+and take one row of sample times per rig (``tune --lanes``): the kernels unchanged, both integrators' bytes
+pinned by ``tests/test_virtual_world.py`` and every lane bitwise its run alone (``tests/test_lanes.py``)."""
 
 
 def _canonical(source: str) -> str:
