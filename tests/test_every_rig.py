@@ -17,7 +17,8 @@ Each rig, through the command line (``helpers.__main__.main``) as a user types i
   ``scheduled``, ``map-following``, ``auto`` ...);
 - several tendons: ``record move`` 10 mm towards tendon 1 with every ``--shaper``, ``record tip-stream`` (a
   line towards tendon 1, 5 mm at 50 mm/s, ZVD; the square as well where the tendons surround the backbone on
-  a shipped rig), a reduced ``tune --directions A --bends 10 --repetitions 1``;
+  a shipped rig; refused at the board's whole steps, again with the ``--prepull`` the refusal names, or not
+  at all on an arm a pre-pull would bend), a reduced ``tune --directions A --bends 10 --repetitions 1``;
 - ``metrics`` of what was recorded: one tendon, the Table II rows of every pulse; several, the lead tendon's
   rows (tendon 1, the one that pulls most towards the bend) and a finite tip row of every move;
 - ``home`` over the pseudo-terminals of ``serve-virtual-rig`` after a programme left the tendons off zero;
@@ -155,9 +156,9 @@ def _several(cli: Cli, rig: rigfile.RigFile, data: Path, shipped: bool) -> None:
     moves = sorted((data / "moves").glob("*.csv"))
     assert len(moves) == len(MOVE_SHAPERS)
     stream = ["record", "tip-stream", "--bend-mm", "5", "--v-in", "50", "--shaper", "zvd", "--quiet"]
-    cli(*stream, "--path", "line", "--direction-deg", a1)
+    _tip_stream(cli, *stream, "--path", "line", "--direction-deg", a1)
     if shipped and _surrounds(rig):
-        cli(*stream, "--path", "square")
+        _tip_stream(cli, *stream, "--path", "square")
     for p in sorted((data / "tip_streams").glob("*.csv")):
         rec = recordings.load(p)
         assert rec.status == "complete" and rec.tendons == rig.n_tendons
@@ -180,6 +181,26 @@ def _several(cli: Cli, rig: rigfile.RigFile, data: Path, shipped: bool) -> None:
         rec = recordings.load(p)
         assert rec.status == "complete"
         assert [int(rec.frame[f"steps_{i}"].iloc[-1]) for i in range(rig.n_tendons)] == [0] * rig.n_tendons
+
+
+def _tip_stream(cli: Cli, *argv: str) -> None:
+    """``record tip-stream`` as a user follows its refusal at the board's whole steps.
+
+    A tendon below the floor at the whole steps the board counts is refused in one line (exit 3, nothing
+    written) that names the ``--prepull`` that passes, then run with it; on an arm a pre-pull would bend (its
+    tendons do not balance) the refusal says so, and nothing is recorded.
+    """
+    args = ["--rig", str(cli.path), *argv, "--data-dir", str(cli.data)]
+    rc = main(args)
+    err = cli.capsys.readouterr().err
+    if rc == 0:
+        return
+    assert rc == 3 and err.count("\n") == 1 and "by statics at the board's whole steps at " in err, err
+    hint = re.search(r"; --prepull (\d+) passes \(", err)
+    if hint is None:
+        assert "; no --prepull can lift it on this rig: pulling every tendon in would bend" in err, err
+        return
+    cli(*argv, "--prepull", hint.group(1))
 
 
 def _home_over_the_pty(rig: rigfile.RigFile, path: Path, folder: Path, capsys) -> None:

@@ -59,8 +59,8 @@ from helpers.recordings import RecordingExists, check_name, refuse_existing
 from helpers.research.design import SYSTEMS, Design, Schedule, load_design, up_down
 from helpers.research.families import ei
 from helpers.research.modemap import load_map
+from helpers.research.task_shaping import MAX_PREPULL_STEPS, ModeGrid, shaped_move
 from helpers.research.task_shaping import SHAPERS as MOVE_SHAPERS
-from helpers.research.task_shaping import ModeGrid, shaped_move
 from helpers.research.task_space import check_travel
 from helpers.research.teleop import record_streams
 from helpers.research.tip_stream import FIGURES as TIP_FIGURES
@@ -303,6 +303,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     tip.add_argument(
         "--margin-n", type=arg_number(0, 10), default=0.0,
         help="trim the stops' whole steps to the tension floor plus this margin, N (0: record move's policy)",
+    )  # fmt: skip
+    tip.add_argument(
+        "--prepull", type=arg_number(0, MAX_PREPULL_STEPS, int), default=0,
+        help="pull every tendon this many whole steps in before the path and let it out after (one tendon at "
+        "a time), as record move's pre-pull; the path planned from there (a path whose static tensions at "
+        "the board's whole steps leave a tendon below the floor is refused, saying which --prepull passes)",
     )  # fmt: skip
     tip.add_argument("--shaper", choices=list(TIP_SHAPERS), default="none",
                      help="none, zv or zvd from the map's mode at the path's stops, one shaper for every "

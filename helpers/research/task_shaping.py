@@ -96,8 +96,8 @@ __all__ = [
     "SHAPERS", "FAMILY_OF", "SPLIT_WEIGHT", "SPLIT_APART", "SECOND_WEIGHT", "BAND", "AUTO_FAMILIES",
     "AUTO_TOLERANCE_PCT", "MAX_PREPULL_STEPS", "ROBUST_CHAIN", "MoveModes", "move_modes", "ModeGrid",
     "mode_grid", "ramp_factor", "split_ratio", "MoveShaping", "predicted_residual_pct", "design_move",
-    "programme_step_times", "pretensioned", "prepull_programme", "MoveRun", "simulate_move", "residuals",
-    "FloorCheck", "dynamic_floor", "floor_check",
+    "programme_step_times", "pretensioned", "prepull_programme", "release_order", "MoveRun", "simulate_move",
+    "residuals", "FloorCheck", "dynamic_floor", "floor_check",
     "AUTO_TARGET_PCT", "simulated_pct", "verify_auto",
     "ShapedMove", "shaped_move", "residual_table", "TABLE_POINTS", "TABLE_SHAPERS", "benchmark",
 ]  # fmt: skip
@@ -584,9 +584,8 @@ def prepull_programme(
     if k == 0:
         return programme, 0.0, programme.duration_s
     pull = [Move(1000 * k, (k,) * n_tendons), Dwell(PREPULL_SETTLE_MS)]
-    order = list(range(0, n_tendons, 2)) + list(range(1, n_tendons, 2))
     release = []
-    for j in order:
+    for j in release_order(n_tendons):
         release += [
             Move(1000 * k, tuple(-k * (i == j) for i in range(n_tendons))),
             Dwell(RELEASE_GAP_MS),
@@ -594,6 +593,11 @@ def prepull_programme(
     moved = Programme(tuple(pull) + programme.items + tuple(release))
     start = sum(it.duration_us for it in pull) / 1e6
     return moved, start, start + programme.duration_s
+
+
+def release_order(n_tendons: int) -> list[int]:
+    """The order (0-based) a pre-pull lets the tendons out: every other one first (1, 3, then 2, 4 ...)."""
+    return list(range(0, n_tendons, 2)) + list(range(1, n_tendons, 2))
 
 
 PREPULL_SETTLE_MS = 500
