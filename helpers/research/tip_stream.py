@@ -32,6 +32,20 @@ naming the tendon, the period and time, the bend and the figure (:class:`~helper
 exit status 3, ``docs/safety.md``). The travel and the speed limits, and the board's shaped motion, are the
 stream's own checks (:func:`~helpers.rig.stream.check_stream`, called by :func:`check_plan`).
 
+**The floor at the board's whole steps** (:func:`check_whole_steps`, before any byte): the board does not
+stand at the planned positions but at whole-step counts that follow its shaped cable with a one-step
+hysteresis (:func:`board_path`); one step of a tendon against its antagonist is about 2.7 N of static tension
+on the four-tendon rig, more than its rest pretension, so the static tensions at those counts
+(:func:`board_tensions`) at every period's end are checked against the floor too, refused in one line naming
+the tendon, the period (:meth:`StreamPlan.board_where`) and the figure (exit status 3).
+
+**A pre-pull** (``plan_stream(..., prepull=k)``, a move's
+:func:`~helpers.research.task_shaping.pretensioned` rest for a stream): every tendon pulled ``k`` whole steps
+in at once (one period), :data:`PREPULL_SETTLE_PERIODS` at rest, the path planned and designed from that
+pre-pulled rest, then each tendon let out one at a time
+(:func:`~helpers.research.task_shaping.release_order`), :data:`RELEASE_GAP_PERIODS` apart: all of it
+set-points of the one stream (:attr:`StreamPlan.board_units`), shaped by the board like the path.
+
 **One shaper for every tendon** (:func:`stream_design`): the paper's ZV or ZVD designed from the direction
 map's dominant mode, averaged over the path's stops away from rest (each stop's ``dominant_omega_d_rad_s``
 and ``dominant_zeta``; the mean): one shaper loaded on the board shapes every axis.
