@@ -133,18 +133,18 @@ def test_the_same_stream_pulled_one_step_in_keeps_every_tendon_taut_at_the_whole
 
 
 def test_record_tip_stream_refuses_at_the_whole_steps_saying_which_prepull_passes(tmp_path, capsys) -> None:
-    base = ["--rig", "four-tendon", "record", "tip-stream", "--path", "line", "--bend-mm", "5", "--dry-run",
+    base = ["--rig", "four-tendon", "record", "tip-stream", "--path", "line", "--bend-mm", "2", "--dry-run",
             "--data-dir", str(tmp_path / "data")]  # fmt: skip
     assert main([*base, "--v-in", "50"]) == 3
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("error: tendon 3: the line path (5 mm) leaves it at ")
+    assert err.count("\n") == 1 and err.startswith("error: tendon 3: the line path (2 mm) leaves it at ")
     assert "by statics at the board's whole steps at period " in err
     assert err.rstrip().endswith("N at the board's whole steps)") and "; --prepull 1 passes (" in err
     # a line fast enough that the counts keep up passes without a pre-pull
     assert main([*base, "--v-in", "200"]) == 0
     out = capsys.readouterr().out
     assert "checked: the least static tensions at the board's whole-step counts at every period" in out
-    assert "at or above the floor 1.00 N" in out and "tip_line_none_b5.csv; nothing was sent" in out
+    assert "at or above the floor 1.00 N" in out and "tip_line_none_b2.csv; nothing was sent" in out
     assert not (tmp_path / "data").exists()
 
 
@@ -153,7 +153,7 @@ def test_a_prepull_is_not_offered_on_an_arm_it_would_bend(four, tmp_path, capsys
     text = four.text.replace("[[tendon]]\nangle_deg = 270.0\n", "[[tendon]]\nangle_deg = 260.0\n")
     path = tmp_path / "turned.toml"
     path.write_text(text.replace('name = "four-tendon"', 'name = "turned"'))
-    argv = ["--rig", str(path), "record", "tip-stream", "--path", "line", "--bend-mm", "5", "--v-in", "50",
+    argv = ["--rig", str(path), "record", "tip-stream", "--path", "line", "--bend-mm", "2", "--v-in", "50",
             "--dry-run", "--data-dir", str(tmp_path / "data")]  # fmt: skip
     assert main(argv) == 3
     err = capsys.readouterr().err
