@@ -88,6 +88,7 @@ def _statics(rig: rigfile.RigFile, counts: np.ndarray) -> np.ndarray:
     return np.array([solved[tuple(c)] for c in counts])
 
 
+@pytest.mark.slow  # plans the line and solves the statics at its whole steps: about 5 s on two shared cores
 def test_a_stream_whose_whole_steps_leave_a_tendon_short_is_refused_naming_it(four, line) -> None:
     plan = ts.plan_stream(four, line)
     assert plan.tension_n.min() >= 1.0  # the plan's own check, at the fractional positions, passes
@@ -107,6 +108,7 @@ def test_a_stream_whose_whole_steps_leave_a_tendon_short_is_refused_naming_it(fo
     assert error_line(info.value)[1] == 3
 
 
+@pytest.mark.slow  # plans the pre-pulled line and checks its whole steps: about 5 s
 def test_the_same_stream_pulled_one_step_in_keeps_every_tendon_taut_at_the_whole_steps(four, line) -> None:
     plan = ts.plan_stream(four, line, prepull=1)
     units, n = plan.board_units, line.periods
@@ -132,6 +134,7 @@ def test_the_same_stream_pulled_one_step_in_keeps_every_tendon_taut_at_the_whole
     assert ts.board_path(plan, four, None)[-1].tolist() == [0, 0, 0, 0]
 
 
+@pytest.mark.slow  # three dry runs of the command line, one planning each pre-pull: about 5 s
 def test_record_tip_stream_refuses_at_the_whole_steps_saying_which_prepull_passes(tmp_path, capsys) -> None:
     base = ["--rig", "four-tendon", "record", "tip-stream", "--path", "line", "--bend-mm", "2", "--dry-run",
             "--data-dir", str(tmp_path / "data")]  # fmt: skip
@@ -148,6 +151,7 @@ def test_record_tip_stream_refuses_at_the_whole_steps_saying_which_prepull_passe
     assert not (tmp_path / "data").exists()
 
 
+@pytest.mark.slow  # two dry runs of the command line: over 1 s
 def test_a_prepull_is_not_offered_on_an_arm_it_would_bend(four, tmp_path, capsys) -> None:
     """Tendon 4 turned from 270 to 260 deg: the four do not balance, pulling them all in bends the arm."""
     text = four.text.replace("[[tendon]]\nangle_deg = 270.0\n", "[[tendon]]\nangle_deg = 260.0\n")
