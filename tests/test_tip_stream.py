@@ -216,6 +216,7 @@ def test_the_design_is_the_mean_of_the_maps_mode_at_the_stops(two) -> None:
 
 
 # --- python -m helpers record tip-stream ------------------------------------------------------------------
+@pytest.mark.slow  # the whole-step check of the pre-pulled square: 35 s on two loaded cores (main's: 20 s)
 def test_record_tip_stream_dry_run_prints_every_tendons_range_and_least_tension(tmp_path, monkeypatch,
                                                                              capsys) -> None:  # fmt: skip
     """A square of 5 mm at 200 mm/s on the four-tendon rig, every tendon pulled one step in first (without,
