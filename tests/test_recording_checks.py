@@ -140,6 +140,12 @@ def _as_v2(meta: dict) -> dict:
     return {**copy.deepcopy(meta), "schema_version": 2, "rig": recordings.rig_section(PAPER)}
 
 
+PREPULL = {"prepull_steps": 1, "prepull_periods": 51, "release_periods": 104}
+"""A tip stream's pre-pull as ``record tip-stream --prepull 1`` writes it on four tendons: the pull's
+period and its 0.5 s at rest before the path's period 0, then each tendon's let-out and its 0.25 s at rest
+after the path's last."""
+
+
 def _fixtures() -> dict[str, dict]:
     """Metadata of every version and kind (checksums aside): together they hold every documented key."""
     pulse = _json(V1_PULSE)
@@ -160,7 +166,7 @@ def _fixtures() -> dict[str, dict]:
                                  status="deviated", deviation="late"),
         "v4 stream (four)": _v4(FOUR, v4_stream, tip=True, done_positions=[0, 0, 0, 0]),
         "v4 move (four)": _v4(FOUR, _move(FOUR), status="aborted", reason="test"),
-        "v4 tip stream (four)": _v4(FOUR, dict(tip_stream["scenario"]), tip=True),
+        "v4 tip stream (four)": _v4(FOUR, {**tip_stream["scenario"], **PREPULL}, tip=True),
         "v4 programme (four)": _v4(FOUR, {"kind": "programme", "items": ["WAIT 10"]}),
     }  # fmt: skip
     return {
