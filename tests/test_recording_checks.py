@@ -125,6 +125,9 @@ def _move(rig) -> dict:
         "speed_mm_s": 50.0, "steps": [5] + [0] * (n - 1), "planned_tension_n": [2.5] * n,
         "tension_floor_n": 1.0, "trimmed_steps": [0] * n, "items": ["MSEG 40000 5" + " 0" * (n - 1)],
         "noise_seed": 3, "prepull_steps": 0, "floor_check": {"simulated": True},
+        "measured_trim": {"steps": [1] + [0] * (n - 1), "moves": 1, "targets_n": [2.3554] * n,
+                          "before_n": [0.4] + [2.36] * (n - 1), "after_n": [2.9] + [2.4] * (n - 1),
+                          "tolerance_n": 0.1},
     }  # fmt: skip
 
 

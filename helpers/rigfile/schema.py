@@ -174,6 +174,15 @@ ARM: tuple[Key, ...] = (
         "in task space (record move; below it a tendon is close to slack and stops controlling the arm)",
         10_000.0,
     ),
+    _int(
+        "floor_watch_ms",
+        20,
+        "during a run of several tendons, a tendon whose measured tension stays below tension_floor_n for "
+        "longer than this stops the run (saved aborted, the tendon named; device time, counted in samples); "
+        "longer than a pay-out step's dip (3 ms at the median)",
+        hi=60_000,
+        unit="ms",
+    ),
     _pos(
         "cable_stiffness_n_m",
         "N/m",

@@ -1,0 +1,201 @@
+"""Tension held by measurement (issue 40, part 1): the host's trim, the floor watch, the twin's eyelet error.
+
+The trim's rule and the floor watch are tested on fake measurements and synthetic parsed samples (no board,
+well under a second); the driver running both on the virtual four-tendon rig, and the eyelet error of the
+twin, are the slow tests at the end.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from helpers import rigfile
+from helpers.rig.trim import TRIM_MAX_STEPS, BelowFloor, FloorWatch, TrimFailed, trim_steps
+
+NPC, OFFSET = 0.040690104166666664, 122.88  # the four-tendon rigs' nominal chain: N per count, zero counts
+
+
+class Arm:
+    """A fake arm: each tendon's tension linear in every tendon's whole steps, read with a fixed error."""
+
+    def __init__(self, base, per_step=2.7, coupling=0.3, error=0.0, stuck=()):
+        self.base = np.asarray(base, dtype=float)
+        n = self.base.size
+        self.k = np.full((n, n), coupling) + np.eye(n) * (per_step - coupling)
+        for i in stuck:  # a slack cable: its steps change nothing
+            self.k[i, :] = 0.0
+        self.steps = np.zeros(n, dtype=int)
+        self.error, self.moves = error, []
+
+    def measure(self):
+        return self.base + self.k @ self.steps + self.error
+
+    def move(self, vector):
+        assert sum(map(abs, vector)) == 1  # one whole step of one tendon
+        self.moves.append(vector)
+        self.steps += np.asarray(vector)
+
+
+def _fewest(arm, targets, tolerance=0.1):
+    """Each tendon's fewest whole steps at which it reads >= its target (the others where the trim left
+    them)."""
+    out = []
+    for i in range(arm.base.size):
+        s = arm.steps.copy()
+        s[i] = -20
+        while (arm.base + arm.k @ s + arm.error)[i] < targets[i] - tolerance:
+            s[i] += 1
+        out.append(int(s[i]))
+    return out
+
+
+def test_a_tendon_below_its_target_is_pulled_to_the_fewest_steps_that_reach_it():
+    targets = [2.355] * 4
+    arm = Arm([0.25, 2.36, 1.0, 2.355])  # tendon 1 about 0.1 mm slack, tendon 3 half of it
+    result = trim_steps(targets, arm.measure, arm.move)
+    assert result.steps == (1, 0, 1, 0)
+    assert list(arm.steps) == _fewest(arm, targets)
+    assert all(t >= g - 0.1 for t, g in zip(result.after_n, targets, strict=True))
+    assert result.moves == 2 and result.before_n[0] == pytest.approx(0.25)
+    # one step is 2.7 N: with a band of +-1 N this would oscillate; here a tendon at 0.3 N above stays
+    assert trim_steps(targets, Arm([2.655] * 4).measure, Arm([0] * 4).move).steps == (0, 0, 0, 0)
+
+
+def test_a_tendon_a_whole_step_above_its_target_is_let_out_when_the_planners_step_is_given():
+    targets = [2.355] * 4
+    arm = Arm([8.0, 2.4, 2.4, 2.4])  # tendon 1 two steps too tight
+    result = trim_steps(targets, arm.measure, arm.move, step_n=[2.7] * 4)
+    assert list(arm.steps) == _fewest(arm, targets) and result.steps[0] == -2
+    assert arm.measure()[0] >= 2.355 - 0.1
+    # without the planner's step a tendon above its target is left there (pulled in only)
+    assert trim_steps(targets, Arm([8.0, 2.4, 2.4, 2.4]).measure, lambda v: None).steps == (0, 0, 0, 0)
+
+
+def test_a_let_out_that_goes_below_is_pulled_back_one_step():
+    arm = Arm([5.2, 2.4], per_step=2.7, coupling=0.0)
+    arm.k[0, 0] = 4.0  # stiffer than the planner thought: one step out takes it below
+    result = trim_steps([2.355, 2.355], arm.measure, arm.move, step_n=[2.7, 2.7])
+    assert result.steps == (0, 0) and arm.moves == [(-1, 0), (1, 0)]
+
+
+def test_a_tendon_that_cannot_reach_its_target_is_refused_naming_it():
+    arm = Arm([2.4, 0.2, 2.4], stuck=(1,))
+    with pytest.raises(TrimFailed, match=rf"^tendon 2: 0.20 N measured after {TRIM_MAX_STEPS} move"):
+        trim_steps([2.355] * 3, arm.measure, arm.move)
+    assert len(arm.moves) == TRIM_MAX_STEPS  # bounded
+    with pytest.raises(TrimFailed, match="one finite tension per tendon"):
+        trim_steps([2.0, 2.0], lambda: [2.0, float("nan")], arm.move)
+    with pytest.raises(TrimFailed, match="finite tensions >= 0"):
+        trim_steps([2.0, -1.0], lambda: [2.0, 2.0], arm.move)
+
+
+# -- the floor watch on parsed samples (device time: counted in samples) ------------------------------------
+def _rows(tension: np.ndarray, t0_us: int = 5_000_000) -> np.ndarray:
+    """Parsed samples ``[seq, t_us, adc..., steps...]`` at 1 kHz giving ``tension`` (rows x tendons, N)."""
+    k, n = tension.shape
+    adc = np.round(tension / NPC + OFFSET)
+    rows = np.column_stack([np.arange(k), t0_us + 1000 * np.arange(k), adc, np.zeros((k, n))])
+    return rows.astype(np.int64)
+
+
+def _watch(watch_ms=20):
+    return FloorWatch(1.0, watch_ms, 1000, [NPC] * 4, [OFFSET] * 4)
+
+
+def _dip(length: int, tendon: int = 2, total: int = 200) -> np.ndarray:
+    t = np.full((total, 4), 2.355)
+    t[50 : 50 + length, tendon] = 0.4
+    return t
+
+
+def test_a_pay_out_steps_dip_of_3_ms_is_no_abort():
+    watch = _watch()
+    watch.feed(_rows(_dip(3)))
+    assert watch.longest.tolist() == [0, 0, 3, 0]
+    watch.feed(_rows(_dip(20)))  # exactly the watch time: still allowed
+    assert watch.longest[2] == 20
+
+
+def test_a_tendon_below_the_floor_for_longer_than_the_watch_stops_the_run_naming_it():
+    watch = _watch()
+    watch.t0_us = 4_000_000  # GO's device time
+    with pytest.raises(BelowFloor) as info:
+        watch.feed(_rows(_dip(30)))
+    message = str(info.value)
+    assert message.startswith("tendon 3 below the floor 1.00 N for 21 ms (21 samples at 1000 Hz, least 0.4")
+    assert "at device time t = 1.070 s after GO (from 1.050 s)" in message
+    assert "[arm] floor_watch_ms" in message
+
+
+def test_the_watch_counts_samples_across_blocks_and_at_the_rate():
+    watch = _watch()
+    rows = _rows(_dip(30))
+    with pytest.raises(BelowFloor, match="^tendon 3 .* for 21 ms"):
+        for k in range(0, len(rows), 7):  # the link's blocks: the count carries over
+            watch.feed(rows[k : k + 7])
+    slow = FloorWatch(1.0, 20, 500, [NPC] * 4, [OFFSET] * 4)  # 2 ms per sample: 10 samples are 20 ms
+    slow.feed(_rows(_dip(10)))
+    with pytest.raises(BelowFloor, match="for 22 ms \\(11 samples at 500 Hz"):
+        slow.feed(_rows(_dip(11)))
+
+
+def test_the_rig_file_states_the_watch_time_and_its_default():
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    assert four.arm.floor_watch_ms == 20
+    text = (rigfile.RIGS_DIR / "four-tendon.toml").read_text()
+    longer = rigfile.loads(text.replace("gravity_m_s2 = 9.81", "gravity_m_s2 = 9.81\nfloor_watch_ms = 35"))
+    assert longer.arm.floor_watch_ms == 35
+    with pytest.raises(rigfile.RigFileError, match="floor_watch_ms"):
+        rigfile.loads(text.replace("gravity_m_s2 = 9.81", "gravity_m_s2 = 9.81\nfloor_watch_ms = 0"))
+
+
+# -- the driver on the virtual four-tendon rig (slow: device seconds of the spatial twin) --------------------
+@pytest.fixture(scope="module")
+def four_rig():
+    from helpers.rig import Rig
+    from helpers.virtual.emulator.world import build_world, forget_world, register_world
+
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    register_world(build_world(four, "trim-test-rig")).stepper.take_output()
+    rig = Rig("virtual", four, world="trim-test-rig", stepper_options="&reset_on_open=0")
+    yield rig
+    rig.close()
+    forget_world("trim-test-rig")
+
+
+@pytest.mark.slow
+def test_a_run_that_slackens_a_tendon_is_stopped_by_the_floor_watch_and_saved_aborted(four_rig, tmp_path):
+    from helpers.board.programmes import Move, Programme
+    from helpers.commands.home import home
+
+    with pytest.raises(BelowFloor) as info:  # tendon 3 paid out 10 mm: the arm bends onto tendon 1, slack too
+        four_rig.run(Programme((Move(100_000, (0, 0, -40, 0)),)), path=tmp_path / "slack", progress=False)
+    rec = info.value.recording
+    assert rec.meta["status"] == "aborted" and info.value.saved_path.name.startswith("slack_aborted_")
+    assert rec.meta["abort_reason"].startswith("BelowFloor: tendon ")
+    assert " below the floor 1.00 N for 21 ms (21 samples at 1000 Hz" in rec.meta["abort_reason"]
+    assert "after GO" in rec.meta["abort_reason"]
+    assert four_rig.positions()[2] > -40  # stopped before the end
+    home(four_rig.stepper, four_rig.rig)
+
+
+@pytest.mark.slow
+def test_the_trim_brings_a_paid_out_tendon_back_to_its_target_and_a_run_records_it(four_rig, tmp_path):
+    from helpers.board.programmes import Move, Programme
+    from helpers.commands.home import home
+
+    pre = four_rig.rig.arm.pretension_n  # the planner's static tension at rest
+    assert four_rig.nudge((-1, 0, 0, 0)) == (-1, 0, 0, 0)  # one step paid out: about 2.7 N less on tendon 1
+    _, before = four_rig.rest_tensions()
+    assert before[0] < pre - 1.0
+    result = four_rig.trim([pre] * 4)
+    assert result.steps == (1, 0, 0, 0) and four_rig.positions() == (0, 0, 0, 0)
+    assert all(abs(t - pre) < 0.1 for t in result.after_n)
+    four_rig.nudge((0, -1, 0, 0))
+    rec = four_rig.run(Programme((Move(40_000, (2, 0, 0, 0)), Move(40_000, (-2, 0, 0, 0)))),
+                       path=tmp_path / "trimmed", progress=False, trim=[pre] * 4)  # fmt: skip
+    trim = rec.meta["scenario"]["measured_trim"]
+    assert trim["steps"] == [0, 1, 0, 0] and rec.meta["scenario"]["start_positions_steps"] == [0, 0, 0, 0]
+    assert rec.meta["status"] == "complete" and four_rig.positions() == (0, 0, 0, 0)
+    home(four_rig.stepper, four_rig.rig)
