@@ -199,3 +199,78 @@ def test_the_trim_brings_a_paid_out_tendon_back_to_its_target_and_a_run_records_
     assert trim["steps"] == [0, 1, 0, 0] and rec.meta["scenario"]["start_positions_steps"] == [0, 0, 0, 0]
     assert rec.meta["status"] == "complete" and four_rig.positions() == (0, 0, 0, 0)
     home(four_rig.stepper, four_rig.rig)
+
+
+# -- the twin's eyelet error ([[tendon]] twin_eyelet_error_mm): read by the virtual rig's twin only ----------
+FOUR_TEXT = (rigfile.RIGS_DIR / "four-tendon.toml").read_text()
+
+
+def _with_errors(errors) -> rigfile.RigFile:
+    text = FOUR_TEXT
+    for angle, error in zip(("0.0", "90.0", "180.0", "270.0"), errors, strict=True):
+        key = f"angle_deg = {angle}\n"
+        text = text.replace(key, f"{key}twin_eyelet_error_mm = {error}\n")
+    return rigfile.loads(text)
+
+
+def test_without_an_eyelet_error_the_virtual_rigs_twin_is_the_planners():
+    from helpers.virtual.spatial.from_rig import spatial_rig
+
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    nominal = spatial_rig(four)
+    assert spatial_rig(four, as_built=True) == nominal  # absent: the same twin, so the same bytes
+    assert spatial_rig(_with_errors([0.0] * 4), as_built=True) == nominal  # 0 on every tendon: the same
+
+
+def test_an_eyelet_error_lowers_that_tendons_tension_in_the_virtual_rig_only():
+    from helpers.virtual.spatial.from_rig import spatial_rig
+
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    one = _with_errors([0.1, 0.0, 0.0, 0.0])
+    assert spatial_rig(one) == spatial_rig(four)  # the planners do not know it
+    built = spatial_rig(one, as_built=True).pretensions
+    pre = four.arm.pretension_n
+    assert built[0] == pytest.approx(pre - 1.07, abs=0.05)  # 0.1 mm of cable: about 1 N of 2.36 N
+    assert built[2] < pre - 0.5  # its antagonist eases with it (the arm bends towards tendon 1)
+    assert built[1] == pytest.approx(pre, abs=0.01) and built[3] == pytest.approx(pre, abs=0.01)
+    every = spatial_rig(_with_errors([0.1] * 4), as_built=True).pretensions
+    assert np.all(every < 0.35)  # 0.1 mm on every tendon: all four below the 1 N floor at rest
+    with pytest.raises(ValueError, match="twin_eyelet_error_mm: 0.5 mm leaves tendon 1 slack"):
+        spatial_rig(_with_errors([0.5] * 4), as_built=True)
+
+
+@pytest.mark.slow
+def test_a_short_run_is_byte_identical_with_the_eyelet_errors_at_zero(tmp_path):
+    import hashlib
+
+    from helpers.board.programmes import Move, Programme
+    from helpers.rig import Rig
+
+    digests = []
+    for k, rig in enumerate((rigfile.load(rigfile.resolve("four-tendon")), _with_errors([0.0] * 4))):
+        with Rig("virtual", rig, world=f"trim-identical-{k}") as trig:
+            rec = trig.run(Programme((Move(40_000, (3, 0, 0, 0)),)), path=tmp_path / f"r{k}", progress=False,
+                           noise_seed=7)  # fmt: skip
+        digests.append(hashlib.sha256(rec.path.with_suffix(".csv").read_bytes()).hexdigest())
+    assert digests[0] == digests[1]
+
+
+@pytest.mark.slow
+def test_with_the_eyelets_off_open_loop_breaks_the_floor_and_the_measured_trim_keeps_it(tmp_path):
+    from helpers.board.programmes import Move, Programme
+    from helpers.rig import Rig
+
+    rig = _with_errors([0.1] * 4)  # unknown to the planner: every tendon about 2.1 N slacker at rest
+    pre = [rig.arm.pretension_n] * 4  # the planner's static tension at rest
+    there_and_back = Programme((Move(60_000, (4, 0, 0, 0)), Move(60_000, (-4, 0, 0, 0))))
+    with Rig("virtual", rig, world="trim-eyelets-open") as trig:
+        with pytest.raises(BelowFloor, match=r"^tendon \d below the floor 1.00 N .* \(from 0.00"):  # at rest
+            trig.run(there_and_back, path=tmp_path / "open", progress=False)
+    with Rig("virtual", rig, world="trim-eyelets-trimmed") as trig:  # the same arm, from its rest
+        rec = trig.run(there_and_back, path=tmp_path / "trimmed", progress=False, trim=pre)
+    trim = rec.meta["scenario"]["measured_trim"]
+    assert all(t < 1.0 for t in trim["before_n"]) and all(t >= 2.355 - 0.1 for t in trim["after_n"])
+    assert trim["steps"] == [1, 0, 0, 1]  # two tendons pulled a step: the arm's coupling lifts the other two
+    assert rec.meta["status"] == "complete"
+    tension = rec.frame[[f"tension_n_{i}" for i in range(4)]].to_numpy()
+    assert tension.min() >= rig.arm.tension_floor_n  # every sample of every tendon above the floor
