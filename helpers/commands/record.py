@@ -295,6 +295,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="do not simulate the shaped move's tensions in the spatial twin (nor change the pretension or "
         "the design when a tendon would dip below the floor)",
     )  # fmt: skip
+    move.add_argument(
+        "--trim", action="store_true",
+        help="before the move, trim every tendon by whole steps until its measured tension at rest is at its "
+        "planned rest tension (the fewest steps at which it is >= it; helpers.rig.trim, docs/safety.md)",
+    )  # fmt: skip
+    move.add_argument(
+        "--no-floor-watch", action="store_true",
+        help="record the whole move even where a tendon's measured tension stays below [arm] tension_floor_n "
+        "for longer than [arm] floor_watch_ms (by default that stops the run, saved aborted)",
+    )  # fmt: skip
     tip = add("tip-stream", _group_option("tip_streams"), _bend_options("tip-stream"))
     tip.add_argument("--path", choices=list(TIP_FIGURES), default="square",
                      help="the figure of bends (docs/task_space.md, arbitrary motion)")  # fmt: skip
@@ -763,8 +773,11 @@ def _record_move(args: argparse.Namespace) -> int:
             "steps": list(plan.steps), "planned_tension_n": list(plan.tension_n),
             "tension_floor_n": plan.floor_n, "trimmed_steps": list(plan.trimmed),
         }  # fmt: skip
+        # the trim's targets: the planner's static tension at the pose the move starts from, the rest
+        trim = [t.pretension_n for t in rig.tendons] if args.trim else None
         rec = trig.run(programme, path=target, scenario=scenario, rate_hz=args.rate, tail_s=0.5,
-                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet)  # fmt: skip
+                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet, trim=trim,
+                       floor_watch=not args.no_floor_watch)  # fmt: skip
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0
 
