@@ -279,8 +279,9 @@ def test_a_four_tendon_move_pays_out_and_holds_the_planned_statics(tmp_path, mon
     the ringing (zeta 0.045 at 24.7 rad/s) has decayed to exp(-0.045 x 24.7 x 5) = 0.4 % of its ~2 N.
     """
     rig_args = ["--rig", "four-tendon"]
+    # unshaped, every tendon goes slack while it rings (docs/task_space.md): recorded whole, without the watch
     argv = ["record", "move", "--direction-deg", "45", "--bend-mm", "10", "--quiet", "--data-dir",
-            str(tmp_path / "data"), "--virtual-instance", "task-space-four"]  # fmt: skip
+            str(tmp_path / "data"), "--virtual-instance", "task-space-four", "--no-floor-watch"]  # fmt: skip
     try:
         assert main(rig_args + argv) == 0
     finally:
