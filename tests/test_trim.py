@@ -201,6 +201,21 @@ def test_the_trim_brings_a_paid_out_tendon_back_to_its_target_and_a_run_records_
     home(four_rig.stepper, four_rig.rig)
 
 
+@pytest.mark.slow
+def test_a_trim_that_cannot_reach_a_target_stops_the_run_before_it_moves_saved_aborted(four_rig, tmp_path):
+    from helpers.board.programmes import Move, Programme
+    from helpers.commands.home import home
+
+    four_rig.nudge((0, 0, -20, 0))  # tendon 3 paid out 5 mm: six steps do not take it back to its tension
+    with pytest.raises(TrimFailed, match=r"^tendon 3: -?0.00 N measured after 6 move\(s\) of one step") as info:
+        four_rig.run(Programme((Move(40_000, (2, 0, 0, 0)),)), path=tmp_path / "t", progress=False,
+                     trim=[four_rig.rig.arm.pretension_n] * 4)  # fmt: skip
+    assert info.value.recording.meta["status"] == "aborted"
+    assert info.value.recording.meta["abort_reason"].startswith("TrimFailed: tendon 3: ")
+    assert four_rig.positions() == (0, 0, -14, 0)  # the programme never ran
+    home(four_rig.stepper, four_rig.rig)
+
+
 # -- the twin's eyelet error ([[tendon]] twin_eyelet_error_mm): read by the virtual rig's twin only ----------
 FOUR_TEXT = (rigfile.RIGS_DIR / "four-tendon.toml").read_text()
 

@@ -18,6 +18,11 @@ stepper running late, is not a dead board), and a board is declared gone only wh
 the stated silence interval (:data:`SILENCE_S`: no sample from the DAQ, no reply from the stepper).
 :meth:`Rig.run_pulse` runs the paper's pulse from position 0. Streams are :func:`helpers.rig.stream.stream`'s.
 
+A run of several tendons watches the floor on every parsed sample (:class:`~helpers.rig.trim.FloorWatch`: a
+tendon below ``[arm] tension_floor_n`` for longer than ``[arm] floor_watch_ms`` of device time stops it, saved
+``aborted``), and may first trim every tendon by whole steps to its target tension measured at rest
+(:meth:`Rig.trim`, ``run(..., trim=targets)``); neither for one tendon (``docs/safety.md``).
+
 Every run sits in one guard (:meth:`Rig._guarded`): on any exception (``KeyboardInterrupt``, and
 SIGTERM/SIGHUP turned into one by :mod:`helpers.base.signals`, a board that hangs, resets or disconnects) the
 stepper is sent ``ABORT`` and ``EN 0`` and the DAQ ``STOP``, and what was recorded is saved marked
