@@ -216,6 +216,35 @@ def test_a_trim_that_cannot_reach_a_target_stops_the_run_before_it_moves_saved_a
     home(four_rig.stepper, four_rig.rig)
 
 
+@pytest.mark.slow
+def test_a_stream_asked_to_watch_the_floor_is_stopped_and_one_asked_to_trim_streams_from_the_trim(tmp_path):
+    from helpers.board import stream_reference as hs
+    from helpers.rig import Rig
+    from helpers.rig.stream import stream
+
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    shaper = hs.StreamShaper((2048, 2048), (0, 50_000))
+    sp = np.zeros((40, 4))
+    sp[:20, 0], sp[:10, 3], sp[:10, 2] = 20.0, 30.0, -30.0  # tendon 3 paid out 3 mm at 30 mm/s
+    with Rig("virtual", four, world="trim-stream-watched") as trig:
+        with pytest.raises(BelowFloor, match=r"^tendon \d below the floor 1.00 N for 21 ms") as info:
+            stream(trig, sp, shaper, path=tmp_path / "watched", tail_s=0.3, lead_in_s=0.2, progress=False,
+                   floor_watch=True)  # fmt: skip
+    assert info.value.recording.meta["status"] == "aborted"
+    small = np.zeros((20, 4))
+    small[:10, 0] = 5.0  # tendon 1 pulled about 0.5 mm
+    pre = four.arm.pretension_n
+    with Rig("virtual", four, world="trim-stream-trimmed") as trig:
+        trig.nudge((-1, 0, 0, 0))  # one step paid out: the trim pulls it back before the stream
+        rec = stream(trig, small, shaper, path=tmp_path / "trimmed", tail_s=0.3, lead_in_s=0.2,
+                     progress=False, floor_watch=True, trim=[pre] * 4)  # fmt: skip
+        end = trig.positions()
+    sc = rec.meta["scenario"]
+    assert rec.meta["status"] == "complete" and sc["measured_trim"]["steps"] == [1, 0, 0, 0]
+    assert sc["start_positions_steps"] == [0, 0, 0, 0]
+    assert end[0] == int(rec.frame["steps_0"].iloc[-1]) > 0
+
+
 # -- the twin's eyelet error ([[tendon]] twin_eyelet_error_mm): read by the virtual rig's twin only ----------
 FOUR_TEXT = (rigfile.RIGS_DIR / "four-tendon.toml").read_text()
 

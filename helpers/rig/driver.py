@@ -628,8 +628,8 @@ class Rig:
                 rows = self.daq.rows
                 if new and state.t_go_us is None:
                     self._went(state, rows[-new][1] - round(1e6 / rate_hz))
-                if new and state.watch is not None:  # every parsed sample against the floor (device time)
-                    state.watch.feed(rows[-new:])
+                if state.watch is not None:  # every parsed sample against the floor (device time)
+                    state.watch.catch_up(rows)
                 if state.t_go_us is None:
                     continue
                 now = rows[-1][1] - state.t_go_us

@@ -470,7 +470,8 @@ def stream(
     rig: Rig, setpoints: Any, shaper: Any = None, *, path: str | os.PathLike,
     scenario: dict[str, Any] | None = None, lead_periods: int = 4,
     lead_in_s: float = 1.0, tail_s: float = 1.0, allow_clamps: bool = False, rate_hz: int = 1000,
-    progress: bool = True, replace: bool = False, noise_seed: int | None = None,
+    progress: bool = True, replace: bool = False, noise_seed: int | None = None, trim: Any = None,
+    trim_step_n: Any = None, floor_watch: bool = False,
 ) -> Recording:  # fmt: skip
     """Stream every tendon's cable speeds through the board's shaper; return (and save) the recording.
 
@@ -498,8 +499,11 @@ def stream(
         Device time recorded before ``STREAM`` and after the stream's end (0-60 s).
     allow_clamps : bool
         Go on when the board clamps the shaped motion (the recording is then ``deviated``).
-    rate_hz, progress, replace, noise_seed
-        As :meth:`Rig.run`'s.
+    rate_hz, progress, replace, noise_seed, trim, trim_step_n, floor_watch
+        As :meth:`Rig.run`'s: the trim (several tendons) before the stream, after the rest (the whole stream
+        checked again from where it leaves the tendons), and the floor watch on every sample; asked for
+        (a stream is any motion, a teleoperator's or a test's, that may slacken a tendon on purpose): off by
+        default, unlike a run's.
 
     Raises
     ------
@@ -510,6 +514,11 @@ def stream(
         A shaper that cannot be loaded, an out-of-range ``lead_periods``, ``lead_in_s`` or ``tail_s``.
     """
     rig._check_run(rate_hz, noise_seed, tail_s)
+    if trim is not None and rig.n == 1:
+        raise ValueError("the trim is for rigs of several tendons (one tendon: the paper's protocol)")
+    if floor_watch and rig.n == 1:
+        raise ValueError("the floor watch is for rigs of several tendons")
+    watch = bool(floor_watch)
     if type(lead_in_s) not in (int, float) or not 0 <= lead_in_s <= 60:
         raise ValueError(f"lead_in_s must be a number of seconds in 0-60, got {lead_in_s!r}")
     board = board_shaper(shaper, rig.n)
@@ -531,10 +540,20 @@ def stream(
         check = ShapedCheck(board, start, rig.rig, refuse=not allow_clamps)
 
         def body(state: RunState) -> None:
+            nonlocal reach, check
+            if trim is not None:
+                scene["measured_trim"] = rig.trim(trim, rate_hz, trim_step_n).metadata()
+                state.start = rig.positions()  # the stream counts from where the trim left the tendons
+                reach = _anywhere(rig.rig, state.start)
+                if units is not None:  # the whole stream checked again from there
+                    reach = check_stream(units * units_mm_s, rig.rig, state.start, board, allow_clamps).reach
+                check = ShapedCheck(board, state.start, rig.rig, refuse=not allow_clamps)
+                rig._note_start(scene, state.start, None)
             scene["rest"] = rig.wait_for_rest(rate_hz)
             rig.stepper.command("ABORT")  # whatever an earlier session left running stops; driver off
             rig.daq.command("STOP")
             rig.stepper.send_all(board.commands())  # SHAPER first: loading again discards it
+            state.watch = rig.floor_watch(rate_hz) if watch else None
             rig._start(rate_hz, reach)
             timeout = rig.daq.port.timeout
             rig.daq.port.timeout = min(timeout or FEED_READ_S, FEED_READ_S)  # device time in small steps

@@ -220,10 +220,18 @@ class FloorWatch:
         """Each tendon's longest run below the floor so far (samples)."""
         self.t0_us: int | None = None
         """``GO``'s device time once known (the reason then gives times from it)."""
+        self.seen = 0
+        """Rows checked so far (:meth:`catch_up`)."""
+
+    def catch_up(self, rows: Any) -> None:
+        """Check the rows of ``rows`` (a run's growing list of parsed samples) not checked yet."""
+        if len(rows) > self.seen:
+            self.feed(rows[self.seen :])
 
     def feed(self, rows: Any) -> None:
         """Check a block of parsed samples; :class:`BelowFloor` at the first sample past the watch time."""
         r = np.asarray(rows, dtype=float).reshape(len(rows), -1) if len(rows) else np.zeros((0, 2 + self.n))
+        self.seen += len(r)
         tension = (r[:, 2 : 2 + self.n] - self.offset) * self.npc
         below = tension < self.floor_n
         for k in range(len(r)):
