@@ -7,11 +7,20 @@ twin, are the slow tests at the end.
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import pytest
 
-from helpers import rigfile
+from helpers import recordings, rigfile
+from helpers.board import stream_reference as hs
+from helpers.board.programmes import Move, Programme
+from helpers.commands.home import home
+from helpers.rig import Rig
+from helpers.rig.stream import stream
 from helpers.rig.trim import TRIM_MAX_STEPS, BelowFloor, FloorWatch, TrimFailed, trim_steps
+from helpers.virtual.emulator.world import build_world, forget_world, register_world
+from helpers.virtual.spatial.from_rig import spatial_rig
 
 NPC, OFFSET = 0.040690104166666664, 122.88  # the four-tendon rigs' nominal chain: N per count, zero counts
 
@@ -153,9 +162,6 @@ def test_the_rig_file_states_the_watch_time_and_its_default():
 # -- the driver on the virtual four-tendon rig (slow: device seconds of the spatial twin) --------------------
 @pytest.fixture(scope="module")
 def four_rig():
-    from helpers.rig import Rig
-    from helpers.virtual.emulator.world import build_world, forget_world, register_world
-
     four = rigfile.load(rigfile.resolve("four-tendon"))
     register_world(build_world(four, "trim-test-rig")).stepper.take_output()
     rig = Rig("virtual", four, world="trim-test-rig", stepper_options="&reset_on_open=0")
@@ -166,9 +172,6 @@ def four_rig():
 
 @pytest.mark.slow
 def test_a_run_that_slackens_a_tendon_is_stopped_by_the_floor_watch_and_saved_aborted(four_rig, tmp_path):
-    from helpers.board.programmes import Move, Programme
-    from helpers.commands.home import home
-
     with pytest.raises(BelowFloor) as info:  # tendon 3 paid out 10 mm: the arm bends onto tendon 1, slack too
         four_rig.run(Programme((Move(100_000, (0, 0, -40, 0)),)), path=tmp_path / "slack", progress=False)
     rec = info.value.recording
@@ -182,9 +185,6 @@ def test_a_run_that_slackens_a_tendon_is_stopped_by_the_floor_watch_and_saved_ab
 
 @pytest.mark.slow
 def test_the_trim_brings_a_paid_out_tendon_back_to_its_target_and_a_run_records_it(four_rig, tmp_path):
-    from helpers.board.programmes import Move, Programme
-    from helpers.commands.home import home
-
     pre = four_rig.rig.arm.pretension_n  # the planner's static tension at rest
     assert four_rig.nudge((-1, 0, 0, 0)) == (-1, 0, 0, 0)  # one step paid out: about 2.7 N less on tendon 1
     _, before = four_rig.rest_tensions()
@@ -198,14 +198,12 @@ def test_the_trim_brings_a_paid_out_tendon_back_to_its_target_and_a_run_records_
     trim = rec.meta["scenario"]["measured_trim"]
     assert trim["steps"] == [0, 1, 0, 0] and rec.meta["scenario"]["start_positions_steps"] == [0, 0, 0, 0]
     assert rec.meta["status"] == "complete" and four_rig.positions() == (0, 0, 0, 0)
+    assert recordings.load(rec.path).meta["scenario"]["measured_trim"] == trim  # checked on load
     home(four_rig.stepper, four_rig.rig)
 
 
 @pytest.mark.slow
 def test_a_trim_that_cannot_reach_a_target_stops_the_run_before_it_moves_saved_aborted(four_rig, tmp_path):
-    from helpers.board.programmes import Move, Programme
-    from helpers.commands.home import home
-
     four_rig.nudge((0, 0, -20, 0))  # tendon 3 paid out 5 mm: six steps do not take it back to its tension
     with pytest.raises(TrimFailed, match=r"^tendon 3: -?0.00 N measured after 6 move\(s\) of one") as info:
         four_rig.run(Programme((Move(40_000, (2, 0, 0, 0)),)), path=tmp_path / "t", progress=False,
@@ -218,10 +216,6 @@ def test_a_trim_that_cannot_reach_a_target_stops_the_run_before_it_moves_saved_a
 
 @pytest.mark.slow
 def test_a_stream_asked_to_watch_the_floor_is_stopped_and_one_asked_to_trim_streams_from_the_trim(tmp_path):
-    from helpers.board import stream_reference as hs
-    from helpers.rig import Rig
-    from helpers.rig.stream import stream
-
     four = rigfile.load(rigfile.resolve("four-tendon"))
     shaper = hs.StreamShaper((2048, 2048), (0, 50_000))
     sp = np.zeros((40, 4))
@@ -243,6 +237,7 @@ def test_a_stream_asked_to_watch_the_floor_is_stopped_and_one_asked_to_trim_stre
     assert rec.meta["status"] == "complete" and sc["measured_trim"]["steps"] == [1, 0, 0, 0]
     assert sc["start_positions_steps"] == [0, 0, 0, 0]
     assert end[0] == int(rec.frame["steps_0"].iloc[-1]) > 0
+    assert recordings.load(rec.path).meta["scenario"]["measured_trim"] == sc["measured_trim"]  # on load
 
 
 # -- the twin's eyelet error ([[tendon]] twin_eyelet_error_mm): read by the virtual rig's twin only ----------
@@ -258,8 +253,6 @@ def _with_errors(errors) -> rigfile.RigFile:
 
 
 def test_without_an_eyelet_error_the_virtual_rigs_twin_is_the_planners():
-    from helpers.virtual.spatial.from_rig import spatial_rig
-
     four = rigfile.load(rigfile.resolve("four-tendon"))
     nominal = spatial_rig(four)
     assert spatial_rig(four, as_built=True) == nominal  # absent: the same twin, so the same bytes
@@ -267,8 +260,6 @@ def test_without_an_eyelet_error_the_virtual_rigs_twin_is_the_planners():
 
 
 def test_an_eyelet_error_lowers_that_tendons_tension_in_the_virtual_rig_only():
-    from helpers.virtual.spatial.from_rig import spatial_rig
-
     four = rigfile.load(rigfile.resolve("four-tendon"))
     one = _with_errors([0.1, 0.0, 0.0, 0.0])
     assert spatial_rig(one) == spatial_rig(four)  # the planners do not know it
@@ -285,11 +276,6 @@ def test_an_eyelet_error_lowers_that_tendons_tension_in_the_virtual_rig_only():
 
 @pytest.mark.slow
 def test_a_short_run_is_byte_identical_with_the_eyelet_errors_at_zero(tmp_path):
-    import hashlib
-
-    from helpers.board.programmes import Move, Programme
-    from helpers.rig import Rig
-
     digests = []
     for k, rig in enumerate((rigfile.load(rigfile.resolve("four-tendon")), _with_errors([0.0] * 4))):
         with Rig("virtual", rig, world=f"trim-identical-{k}") as trig:
@@ -301,9 +287,6 @@ def test_a_short_run_is_byte_identical_with_the_eyelet_errors_at_zero(tmp_path):
 
 @pytest.mark.slow
 def test_with_the_eyelets_off_open_loop_breaks_the_floor_and_the_measured_trim_keeps_it(tmp_path):
-    from helpers.board.programmes import Move, Programme
-    from helpers.rig import Rig
-
     rig = _with_errors([0.1] * 4)  # unknown to the planner: every tendon about 2.1 N slacker at rest
     pre = [rig.arm.pretension_n] * 4  # the planner's static tension at rest
     there_and_back = Programme((Move(60_000, (4, 0, 0, 0)), Move(60_000, (-4, 0, 0, 0))))
