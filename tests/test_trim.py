@@ -1,4 +1,4 @@
-"""Tension held by measurement (issue 40, part 1): the host's trim, the floor watch, the twin's eyelet error.
+"""Tension held by measurement: the host's trim, the floor watch, the twin's eyelet error.
 
 The trim's rule and the floor watch are tested on fake measurements and synthetic parsed samples (no board,
 well under a second); the driver running both on the virtual four-tendon rig, and the eyelet error of the
@@ -18,8 +18,18 @@ from helpers.board.programmes import Move, Programme
 from helpers.commands.home import home
 from helpers.rig import Rig
 from helpers.rig.stream import stream
-from helpers.rig.trim import TRIM_MAX_STEPS, BelowFloor, FloorWatch, TrimFailed, trim_steps
-from helpers.virtual.emulator.world import build_world, forget_world, register_world
+from helpers.rig.trim import (
+    TRIM_MAX_STEPS,
+    BelowFloor,
+    FloorWatch,
+    TensionGuard,
+    TrimFailed,
+    nudge,
+    rest_tensions,
+    trim,
+    trim_steps,
+)  # fmt: skip
+from helpers.virtual.emulator.world import build_world, forget_world, get_world, register_world
 from helpers.virtual.spatial.from_rig import spatial_rig
 
 NPC, OFFSET = 0.040690104166666664, 122.88  # the four-tendon rigs' nominal chain: N per count, zero counts
@@ -149,6 +159,55 @@ def test_the_watch_counts_samples_across_blocks_and_at_the_rate():
         slow.feed(_rows(_dip(11)))
 
 
+def _reference_watch(tension: np.ndarray, floor_n: float, limit: int) -> tuple[int, int] | None:
+    """Sample by sample, tendon by tendon: the first (sample, tendon) whose run below the floor exceeds
+    ``limit`` samples, or None (the watch's rule written out plainly)."""
+    run = [0] * tension.shape[1]
+    for k, row in enumerate(tension):
+        for i, t in enumerate(row):
+            run[i] = run[i] + 1 if t < floor_n else 0
+            if run[i] > limit:
+                return k, i
+    return None
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_block_watch_stops_where_a_sample_by_sample_watch_stops_whatever_the_blocks(seed):
+    rng = np.random.default_rng(seed)
+    tension = np.full((3000, 4), 2.355)
+    for _ in range(40):  # dips of 1-40 samples on random tendons, some overlapping
+        k, i, n = rng.integers(0, 2990), rng.integers(0, 4), rng.integers(1, 41)
+        tension[k : k + n, i] = rng.uniform(0.0, 0.99)
+    counted = (np.round(tension / NPC + OFFSET) - OFFSET) * NPC  # the tension the rows' counts give back
+    expected = _reference_watch(counted, 1.0, 20)
+    rows = _rows(tension)
+    watch, cuts = _watch(), np.sort(rng.choice(np.arange(1, 3000), size=60, replace=False))
+    got = None
+    try:
+        for block in np.split(rows, cuts):  # blocks of 1 to a few hundred rows, as the link gives them
+            watch.feed(block)
+    except BelowFloor as exc:
+        got = str(exc)
+    if expected is None:
+        assert got is None
+    else:
+        k, i = expected
+        assert got is not None and got.startswith(f"tendon {i + 1} below the floor 1.00 N for 21 ms")
+        assert f"t = {(5_000_000 + 1000 * k) / 1e6:.3f} s on the DAQ's clock" in got
+
+
+def test_a_run_of_several_tendons_without_its_guard_is_refused_before_a_byte(tmp_path):
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    register_world(build_world(four, "trim-guardless")).stepper.take_output()
+    with Rig("virtual", four, world="trim-guardless") as rig:
+        sent = len(get_world("trim-guardless").stepper.received)
+        with pytest.raises(ValueError, match=r"^a run of 4 tendons needs its guard: guard=helpers\.rig"):
+            rig.run(Programme((Move(40_000, (2, 0, 0, 0)),)), path=tmp_path / "p", progress=False)
+        assert len(get_world("trim-guardless").stepper.received) == sent
+    forget_world("trim-guardless")
+    assert not list(tmp_path.iterdir())  # nothing reserved, nothing saved
+
+
 def test_the_rig_file_states_the_watch_time_and_its_default():
     four = rigfile.load(rigfile.resolve("four-tendon"))
     assert four.arm.floor_watch_ms == 20
@@ -173,7 +232,8 @@ def four_rig():
 @pytest.mark.slow
 def test_a_run_that_slackens_a_tendon_is_stopped_by_the_floor_watch_and_saved_aborted(four_rig, tmp_path):
     with pytest.raises(BelowFloor) as info:  # tendon 3 paid out 10 mm: the arm bends onto tendon 1, slack too
-        four_rig.run(Programme((Move(100_000, (0, 0, -40, 0)),)), path=tmp_path / "slack", progress=False)
+        four_rig.run(Programme((Move(100_000, (0, 0, -40, 0)),)), path=tmp_path / "slack", progress=False,
+                     guard=TensionGuard())  # fmt: skip
     rec = info.value.recording
     assert rec.meta["status"] == "aborted" and info.value.saved_path.name.startswith("slack_aborted_")
     assert rec.meta["abort_reason"].startswith("BelowFloor: tendon ")
@@ -186,28 +246,28 @@ def test_a_run_that_slackens_a_tendon_is_stopped_by_the_floor_watch_and_saved_ab
 @pytest.mark.slow
 def test_the_trim_brings_a_paid_out_tendon_back_to_its_target_and_a_run_records_it(four_rig, tmp_path):
     pre = four_rig.rig.arm.pretension_n  # the planner's static tension at rest
-    assert four_rig.nudge((-1, 0, 0, 0)) == (-1, 0, 0, 0)  # one step paid out: about 2.7 N less on tendon 1
-    _, before = four_rig.rest_tensions()
+    assert nudge(four_rig, (-1, 0, 0, 0)) == (-1, 0, 0, 0)  # one step paid out: about 2.7 N less on tendon 1
+    _, before = rest_tensions(four_rig)
     assert before[0] < pre - 1.0
-    result = four_rig.trim([pre] * 4)
+    result = trim(four_rig, [pre] * 4)
     assert result.steps == (1, 0, 0, 0) and four_rig.positions() == (0, 0, 0, 0)
     assert all(abs(t - pre) < 0.1 for t in result.after_n)
-    four_rig.nudge((0, -1, 0, 0))
+    nudge(four_rig, (0, -1, 0, 0))
     rec = four_rig.run(Programme((Move(40_000, (2, 0, 0, 0)), Move(40_000, (-2, 0, 0, 0)))),
-                       path=tmp_path / "trimmed", progress=False, trim=[pre] * 4)  # fmt: skip
-    trim = rec.meta["scenario"]["measured_trim"]
-    assert trim["steps"] == [0, 1, 0, 0] and rec.meta["scenario"]["start_positions_steps"] == [0, 0, 0, 0]
+                       path=tmp_path / "trimmed", progress=False, guard=TensionGuard([pre] * 4))  # fmt: skip
+    measured = rec.meta["scenario"]["measured_trim"]
+    assert measured["steps"] == [0, 1, 0, 0] and rec.meta["scenario"]["start_positions_steps"] == [0, 0, 0, 0]
     assert rec.meta["status"] == "complete" and four_rig.positions() == (0, 0, 0, 0)
-    assert recordings.load(rec.path).meta["scenario"]["measured_trim"] == trim  # checked on load
+    assert recordings.load(rec.path).meta["scenario"]["measured_trim"] == measured  # checked on load
     home(four_rig.stepper, four_rig.rig)
 
 
 @pytest.mark.slow
 def test_a_trim_that_cannot_reach_a_target_stops_the_run_before_it_moves_saved_aborted(four_rig, tmp_path):
-    four_rig.nudge((0, 0, -20, 0))  # tendon 3 paid out 5 mm: six steps do not take it back to its tension
+    nudge(four_rig, (0, 0, -20, 0))  # tendon 3 paid out 5 mm: six steps do not take it back to its tension
     with pytest.raises(TrimFailed, match=r"^tendon 3: -?0.00 N measured after 6 move\(s\) of one") as info:
         four_rig.run(Programme((Move(40_000, (2, 0, 0, 0)),)), path=tmp_path / "t", progress=False,
-                     trim=[four_rig.rig.arm.pretension_n] * 4)  # fmt: skip
+                     guard=TensionGuard([four_rig.rig.arm.pretension_n] * 4))  # fmt: skip
     assert info.value.recording.meta["status"] == "aborted"
     assert info.value.recording.meta["abort_reason"].startswith("TrimFailed: tendon 3: ")
     assert four_rig.positions() == (0, 0, -14, 0)  # the programme never ran
@@ -223,15 +283,15 @@ def test_a_stream_asked_to_watch_the_floor_is_stopped_and_one_asked_to_trim_stre
     with Rig("virtual", four, world="trim-stream-watched") as trig:
         with pytest.raises(BelowFloor, match=r"^tendon \d below the floor 1.00 N for 21 ms") as info:
             stream(trig, sp, shaper, path=tmp_path / "watched", tail_s=0.3, lead_in_s=0.2, progress=False,
-                   floor_watch=True)  # fmt: skip
+                   guard=TensionGuard())  # fmt: skip
     assert info.value.recording.meta["status"] == "aborted"
     small = np.zeros((20, 4))
     small[:10, 0] = 5.0  # tendon 1 pulled about 0.5 mm
     pre = four.arm.pretension_n
     with Rig("virtual", four, world="trim-stream-trimmed") as trig:
-        trig.nudge((-1, 0, 0, 0))  # one step paid out: the trim pulls it back before the stream
+        nudge(trig, (-1, 0, 0, 0))  # one step paid out: the trim pulls it back before the stream
         rec = stream(trig, small, shaper, path=tmp_path / "trimmed", tail_s=0.3, lead_in_s=0.2,
-                     progress=False, floor_watch=True, trim=[pre] * 4)  # fmt: skip
+                     progress=False, guard=TensionGuard([pre] * 4))  # fmt: skip
         end = trig.positions()
     sc = rec.meta["scenario"]
     assert rec.meta["status"] == "complete" and sc["measured_trim"]["steps"] == [1, 0, 0, 0]
@@ -280,7 +340,7 @@ def test_a_short_run_is_byte_identical_with_the_eyelet_errors_at_zero(tmp_path):
     for k, rig in enumerate((rigfile.load(rigfile.resolve("four-tendon")), _with_errors([0.0] * 4))):
         with Rig("virtual", rig, world=f"trim-identical-{k}") as trig:
             rec = trig.run(Programme((Move(40_000, (3, 0, 0, 0)),)), path=tmp_path / f"r{k}", progress=False,
-                           noise_seed=7)  # fmt: skip
+                           noise_seed=7, guard=TensionGuard())  # fmt: skip
         digests.append(hashlib.sha256(rec.path.with_suffix(".csv").read_bytes()).hexdigest())
     assert digests[0] == digests[1]
 
@@ -292,9 +352,9 @@ def test_with_the_eyelets_off_open_loop_breaks_the_floor_and_the_measured_trim_k
     there_and_back = Programme((Move(60_000, (4, 0, 0, 0)), Move(60_000, (-4, 0, 0, 0))))
     with Rig("virtual", rig, world="trim-eyelets-open") as trig:
         with pytest.raises(BelowFloor, match=r"^tendon \d below the floor 1.00 N .* \(from 0.00"):  # at rest
-            trig.run(there_and_back, path=tmp_path / "open", progress=False)
+            trig.run(there_and_back, path=tmp_path / "open", progress=False, guard=TensionGuard())
     with Rig("virtual", rig, world="trim-eyelets-trimmed") as trig:  # the same arm, from its rest
-        rec = trig.run(there_and_back, path=tmp_path / "trimmed", progress=False, trim=pre)
+        rec = trig.run(there_and_back, path=tmp_path / "trimmed", progress=False, guard=TensionGuard(pre))
     trim = rec.meta["scenario"]["measured_trim"]
     assert all(t < 1.0 for t in trim["before_n"]) and all(t >= 2.355 - 0.1 for t in trim["after_n"])
     assert trim["steps"] == [1, 0, 0, 1]  # two tendons pulled a step: the arm's coupling lifts the other two

@@ -1,4 +1,4 @@
-"""Every tendon taut at the whole steps the board executes (``record tip-stream``, issue 40 part 2).
+"""Every tendon taut at the whole steps the board executes (``record tip-stream``).
 
 A tip stream is checked, before any port opens, on the static tensions at the board's whole-step counts at
 every period (:func:`helpers.research.tip_stream.check_whole_steps`), and pre-pulled on request

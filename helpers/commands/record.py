@@ -68,6 +68,7 @@ from helpers.research.tip_stream import SHAPERS as TIP_SHAPERS
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.static import calibration_masses_kg, record_calibration
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
+from helpers.rig.trim import TensionGuard
 from helpers.rigfile import RigFile, derived
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
@@ -775,9 +776,9 @@ def _record_move(args: argparse.Namespace) -> int:
         }  # fmt: skip
         # the trim's targets: the planner's static tension at the pose the move starts from, the rest
         trim = [t.pretension_n for t in rig.tendons] if args.trim else None
+        guard = TensionGuard(trim, watch=not args.no_floor_watch)  # several tendons (_plan_move)
         rec = trig.run(programme, path=target, scenario=scenario, rate_hz=args.rate, tail_s=0.5,
-                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet, trim=trim,
-                       floor_watch=not args.no_floor_watch)  # fmt: skip
+                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet, guard=guard)
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0
 

@@ -63,6 +63,7 @@ from helpers.research.task_shaping import (
 from helpers.research.task_space import MoveDesign, MovePlan, check_travel, move_programme, plan_move
 from helpers.rig import Rig
 from helpers.rig.safety import SafetyError
+from helpers.rig.trim import TensionGuard
 from helpers.rigfile import RigFile
 from helpers.virtual.spatial.direction_map import frequency_map, parse_values
 from helpers.virtual.spatial.from_rig import spatial_rig
@@ -204,7 +205,7 @@ def run_move(
     # every move recorded whole, the unshaped reference too (it dips below the floor for 20-110 ms at 20 mm):
     # the verification counts every sample below the floor itself (below_floor) instead of the floor watch
     return trig.run(programme, path=target, scenario=scenario, rate_hz=rate_hz, tail_s=0.5, replace=replace,
-                    progress=False, floor_watch=False)  # fmt: skip
+                    progress=False, guard=TensionGuard(watch=False))  # fmt: skip
 
 
 def _hold_window(rec: Recording, lead: int) -> tuple[float, float]:

@@ -18,10 +18,12 @@ stepper running late, is not a dead board), and a board is declared gone only wh
 the stated silence interval (:data:`SILENCE_S`: no sample from the DAQ, no reply from the stepper).
 :meth:`Rig.run_pulse` runs the paper's pulse from position 0. Streams are :func:`helpers.rig.stream.stream`'s.
 
-A run of several tendons watches the floor on every parsed sample (:class:`~helpers.rig.trim.FloorWatch`: a
-tendon below ``[arm] tension_floor_n`` for longer than ``[arm] floor_watch_ms`` of device time stops it, saved
-``aborted``), and may first trim every tendon by whole steps to its target tension measured at rest
-(:meth:`Rig.trim`, ``run(..., trim=targets)``); neither for one tendon (``docs/safety.md``).
+A run of several tendons is given its guard (``run(..., guard=...)``, a
+:class:`helpers.rig.trim.TensionGuard`): what may trim every tendon by whole steps to its target tension
+measured at rest before the programme, and what watches the floor on every parsed sample during it (a tendon
+below ``[arm] tension_floor_n`` for longer than ``[arm] floor_watch_ms`` of device time stops it, saved
+``aborted``). Neither is for one tendon, whose run is the paper's (``docs/safety.md``); the driver only calls
+them, so the paper's path does not hold them.
 
 Every run sits in one guard (:meth:`Rig._guarded`): on any exception (``KeyboardInterrupt``, and
 SIGTERM/SIGHUP turned into one by :mod:`helpers.base.signals`, a board that hangs, resets or disconnects) the
@@ -52,7 +54,7 @@ except ImportError:  # pragma: no cover - the light environment
 from helpers import recordings
 from helpers.base.noise import white_noise_std
 from helpers.base.signals import Interrupted, run_guard
-from helpers.board.programmes import Move, Programme, experiment_programme
+from helpers.board.programmes import Programme, experiment_programme
 from helpers.board.protocol import StreamParser
 from helpers.paper import numbers as paper
 from helpers.paper.tension import LoadCellCalibration, load_calibration
@@ -71,7 +73,6 @@ from helpers.rig.link import (
 )  # fmt: skip
 from helpers.rig.ports import rig_urls, virtual_source_for
 from helpers.rig.safety import SafetyError, check_programme, check_request
-from helpers.rig.trim import FloorWatch, TrimResult, trim_steps
 from helpers.rigfile import RigFile, derived
 
 REST_WINDOW_S = 0.5
@@ -172,8 +173,8 @@ class RunState:
     """Every sample of the run is in: an interrupt from now on cannot make it partial."""
     deviation: str | None = None
     """Why the motion differed from its command (a stream's underruns, clamps), or None."""
-    watch: FloorWatch | None = None
-    """The floor watch on every parsed sample (:class:`~helpers.rig.trim.FloorWatch`), or None."""
+    watch: Any = None
+    """What checks every parsed sample (``catch_up(rows)``, ``t0_us`` set at ``GO``; the guard's), or None."""
 
 
 class Rig:
@@ -204,6 +205,8 @@ class Rig:
         if not isinstance(rig, RigFile):
             raise ValueError(f"rig must be a rig file loaded by helpers.rigfile.load, got {rig!r}")
         self.rig, self.n, self.silence_s = rig, rig.n_tendons, silence_s
+        self.rest_window: list[Any] = []
+        """The counts of the last :meth:`wait_for_rest`'s window, one row per sample."""
         self.calibration = self._calibrations(calibration)
         urls = rig_urls(ports, rig, world or rig.name, (daq_options, stepper_options))
         self.daq = Link.open(urls[0], "daq", rig, rig.hardware.daq_baud, timeout, hello_timeout)
@@ -338,8 +341,7 @@ class Rig:
     def run(
         self, programme: Programme, *, path: str | os.PathLike, scenario: dict[str, Any] | None = None,
         rate_hz: int = 1000, tail_s: float = 0.1, progress: bool = True, replace: bool = False,
-        noise_seed: int | None = None, from_zero: bool = False, trim: Any = None, trim_step_n: Any = None,
-        floor_watch: bool | None = None,
+        noise_seed: int | None = None, from_zero: bool = False, guard: Any = None,
     ) -> Recording:  # fmt: skip
         """Run one programme as one board-timed experiment of every tendon; return (and save) its recording.
 
@@ -363,23 +365,16 @@ class Rig:
             In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
         from_zero : bool
             Refuse (:class:`NotAtZero`) unless every tendon is at position 0 (the paper's experiments).
-        trim : sequence of float, optional
-            Several tendons: each tendon's target tension at the start (N, the planner's static tension at
-            that pose); after the rest every tendon is trimmed by whole steps to the fewest at which its
-            measured tension is >= its target (:meth:`trim`; ``scenario.measured_trim``), and the programme
-            runs from there. None (the default, and always for one tendon): no trim.
-        trim_step_n : sequence of float, optional
-            The planner's tension per step of each tendon (:func:`~helpers.rig.trim.trim_steps`: a tendon
-            that much above its target is let out).
-        floor_watch : bool, optional
-            Watch every tendon's measured tension against ``[arm] tension_floor_n`` on every sample
-            (:class:`~helpers.rig.trim.FloorWatch`: below it for longer than ``[arm] floor_watch_ms`` stops
-            the run, saved ``aborted``). Default: on for several tendons, off for one (the paper's pulses).
+        guard : helpers.rig.trim.TensionGuard, optional
+            Several tendons (and needed for them): ``guard.before(rig, scenario, rate_hz)`` after the rest
+            (the trim: True if it moved the tendons, the programme then checked again from there) and
+            ``guard.watcher(rig, rate_hz)`` (the floor watch, or None). ``TensionGuard(watch=False)`` runs
+            without either. None for one tendon: the paper's run.
         """
         self._check_run(rate_hz, noise_seed, tail_s)
-        if trim is not None and self.n == 1:
-            raise ValueError("the trim is for rigs of several tendons (one tendon: the paper's protocol)")
-        watch = self.n > 1 if floor_watch is None else bool(floor_watch)
+        if guard is None and self.n > 1:
+            raise ValueError(f"a run of {self.n} tendons needs its guard: guard=helpers.rig.trim"
+                             ".TensionGuard() watches the floor (TensionGuard(watch=False): none)")
         check_programme(programme, self.rig, (0,) * self.n)  # before a byte: as far as it can be
         scenario = {"kind": "programme", **(scenario or {})}
         scenario.setdefault("programme", programme.to_dict())
@@ -399,8 +394,7 @@ class Rig:
             cum = programme.positions(0, self.n)  # steps from where the run starts (the DAQ's ZERO)
 
             def body(state: RunState) -> None:
-                if trim is not None:
-                    scenario["measured_trim"] = self.trim(trim, rate_hz, trim_step_n).metadata()
+                if guard is not None and guard.before(self, scenario, rate_hz):  # the trim moved them
                     state.start = self.positions()
                     check_programme(programme, self.rig, state.start)  # from where the trim left it
                     self._note_start(scenario, state.start, None)
@@ -412,7 +406,7 @@ class Rig:
                 if ints(replies[-1])[-1] != len(programme):
                     raise BoardError(f"the stepper board holds {replies[-1]}, not {len(programme)} items")
                 state.windows = step_windows(programme, self.n)
-                state.watch = self.floor_watch(rate_hz) if watch else None
+                state.watch = None if guard is None else guard.watcher(self, rate_hz)
                 self._start(rate_hz, list(zip(cum.min(axis=0), cum.max(axis=0), strict=True)))
                 self.stepper.command("EN 1")
                 self._go(state, "GO")
@@ -454,81 +448,14 @@ class Rig:
         Returns
         -------
         dict
-            ``waited_s`` (device s), ``std_counts``, ``noise_counts`` of the last window.
+            ``waited_s`` (device s), ``std_counts``, ``noise_counts`` of the last window, whose counts (every
+            channel's) stay in :attr:`rest_window` (what :func:`helpers.rig.trim.rest_tensions` measures).
         """
-        return self._rest(rate_hz)[0]
-
-    def rest_tensions(self, rate_hz: int = 1000) -> tuple[dict[str, Any], np.ndarray]:
-        """Wait for rest (:meth:`wait_for_rest`): its dict and every tendon's mean tension over the window.
-
-        The tension is each tendon's counts averaged over the rest window (:data:`REST_WINDOW_S`) and
-        calibrated with its load cell's calibration, N.
-        """
-        rest, window = self._rest(rate_hz)
-        counts = np.asarray(window, dtype=float).reshape(len(window), -1).mean(axis=0)
-        cal = self.calibration
-        return rest, np.array([(counts[i] - c.offset_counts) * c.newtons_per_count
-                               for i, c in enumerate(cal)])  # fmt: skip
-
-    def floor_watch(self, rate_hz: int) -> FloorWatch:
-        """The rig's floor watch (``[arm] tension_floor_n``, ``[arm] floor_watch_ms``) at ``rate_hz``."""
-        arm, cal = self.rig.arm, self.calibration
-        return FloorWatch(arm.tension_floor_n, arm.floor_watch_ms, rate_hz,
-                          [c.newtons_per_count for c in cal], [c.offset_counts for c in cal])  # fmt: skip
-
-    def trim(self, targets_n: Any, rate_hz: int = 1000, step_n: Any = None) -> TrimResult:
-        """Trim every tendon by whole steps to its target tension, measured at rest (several tendons).
-
-        :func:`helpers.rig.trim.trim_steps` with each measurement a wait for rest and its mean calibrated
-        tension (:meth:`rest_tensions`), each move one whole step of one tendon (:meth:`nudge`).
-
-        Raises
-        ------
-        helpers.rig.trim.TrimFailed
-            A tendon not at its target within :data:`~helpers.rig.trim.TRIM_MAX_STEPS` moves (named).
-        """
-        if self.n == 1:
-            raise ValueError("the trim is for rigs of several tendons (one tendon: the paper's protocol)")
-        if len(np.atleast_1d(np.asarray(targets_n, dtype=float))) != self.n:
-            raise ValueError(f"{len(targets_n)} trim target(s) for the rig's {self.n} tendons")
-        return trim_steps(targets_n, lambda: self.rest_tensions(rate_hz)[1],
-                          lambda steps: self.nudge(steps, rate_hz), step_n=step_n)  # fmt: skip
-
-    def nudge(self, steps: tuple[int, ...], rate_hz: int = 1000, window_us: int = 20_000) -> tuple[int, ...]:
-        """Move every tendon by its whole ``steps`` in one ``MSEG`` item of ``window_us`` (not recorded).
-
-        Checked against every tendon's limits from where the stepper says they are; ``DONE`` awaited in device
-        time as a run's (:meth:`_until_done`). Returns every tendon's position after it.
-        """
-        start = self.positions()
-        programme = Programme((Move(window_us, tuple(int(s) for s in steps)),))
-        check_programme(programme, self.rig, start)
-        end = tuple(int(p) for p in programme.positions(start, self.n)[-1])
-        self.stepper.command("ABORT")
-        self.daq.command("STOP")
-        replies = self.stepper.send_all(programme.commands(self.n))
-        if ints(replies[-1])[-1] != len(programme):
-            raise BoardError(f"the stepper board holds {replies[-1]}, not {len(programme)} items")
-        self._start(rate_hz, None, zero=False)
-        self.stepper.command("EN 1")
-        state = RunState(start=start)
-        try:
-            self._go(state, "GO")
-            self._until_done(state, lambda now: (programme.duration_us, end), rate_hz, 0.0, None, False)
-        finally:
-            self.daq.command("STOP")
-            self.daq.rows.clear()
-        self.stepper.command("EN 0")  # as a run leaves it
-        return end
-
-    def _rest(self, rate_hz: int) -> tuple[dict[str, Any], list[Any]]:
-        """:meth:`wait_for_rest`'s dict and the rest window's rows of counts (every channel)."""
         self.daq.check_reset()
         self.daq.command("STOP")
         self._start(rate_hz, None, zero=False)
         c, n, period = self.daq.parser.channels, max(3, round(REST_WINDOW_S * rate_hz)), round(1e6 / rate_hz)
         rest: dict[str, Any] = {}
-        window: list[Any] = []
 
         def steady(now: int) -> tuple[int, tuple[int, ...]] | None:  # read on: None; at rest: the end, now
             last = [r[2 : 2 + c] for r in self.daq.rows[-n:]]
@@ -536,7 +463,7 @@ class Rig:
             waited = (now - period) / 1e6  # from the first sample (the reader starts a period before it)
             if ok:
                 rest.update(waited_s=round(waited, 3), std_counts=std, noise_counts=noise)
-                window[:] = last
+                self.rest_window = last
                 return now, ()
             if waited > REST_TIMEOUT_S:
                 raise NotAtRest(
@@ -551,7 +478,7 @@ class Rig:
         finally:
             self.daq.command("STOP")
             self.daq.rows.clear()
-        return rest, window
+        return rest
 
     def _start(self, rate_hz: int, reach: list[tuple[int, int]] | None, zero: bool = True) -> None:
         """``RATE``, ``ZERO`` (if ``zero``), ``START`` the DAQ; a sample outside ``reach`` is refused.

@@ -40,6 +40,7 @@ from helpers.recordings import Recording, reserve
 from helpers.rig.driver import Rig, RunState
 from helpers.rig.link import BoardError, CommandRefused, ints
 from helpers.rig.safety import SafetyError, check_slack
+from helpers.rig.trim import TensionGuard
 from helpers.rigfile import RigFile, derived
 
 STREAM_RATE_HZ = round(1.0 / (hs.PERIOD_TICKS * hs.TICK_S))
@@ -470,8 +471,8 @@ def stream(
     rig: Rig, setpoints: Any, shaper: Any = None, *, path: str | os.PathLike,
     scenario: dict[str, Any] | None = None, lead_periods: int = 4,
     lead_in_s: float = 1.0, tail_s: float = 1.0, allow_clamps: bool = False, rate_hz: int = 1000,
-    progress: bool = True, replace: bool = False, noise_seed: int | None = None, trim: Any = None,
-    trim_step_n: Any = None, floor_watch: bool = False,
+    progress: bool = True, replace: bool = False, noise_seed: int | None = None,
+    guard: TensionGuard | None = None,
 ) -> Recording:  # fmt: skip
     """Stream every tendon's cable speeds through the board's shaper; return (and save) the recording.
 
@@ -499,11 +500,13 @@ def stream(
         Device time recorded before ``STREAM`` and after the stream's end (0-60 s).
     allow_clamps : bool
         Go on when the board clamps the shaped motion (the recording is then ``deviated``).
-    rate_hz, progress, replace, noise_seed, trim, trim_step_n, floor_watch
+    rate_hz, progress, replace, noise_seed
+        As :meth:`Rig.run`'s.
+    guard : helpers.rig.trim.TensionGuard, optional
         As :meth:`Rig.run`'s: the trim (several tendons) before the stream, after the rest (the whole stream
-        checked again from where it leaves the tendons), and the floor watch on every sample; asked for
-        (a stream is any motion, a teleoperator's or a test's, that may slacken a tendon on purpose): off by
-        default, unlike a run's.
+        checked again from where it leaves the tendons), and the floor watch on every sample. Unlike a run's,
+        optional for several tendons (None: neither): a stream is any motion, a teleoperator's or a test's,
+        that may slacken a tendon on purpose.
 
     Raises
     ------
@@ -514,11 +517,6 @@ def stream(
         A shaper that cannot be loaded, an out-of-range ``lead_periods``, ``lead_in_s`` or ``tail_s``.
     """
     rig._check_run(rate_hz, noise_seed, tail_s)
-    if trim is not None and rig.n == 1:
-        raise ValueError("the trim is for rigs of several tendons (one tendon: the paper's protocol)")
-    if floor_watch and rig.n == 1:
-        raise ValueError("the floor watch is for rigs of several tendons")
-    watch = bool(floor_watch)
     if type(lead_in_s) not in (int, float) or not 0 <= lead_in_s <= 60:
         raise ValueError(f"lead_in_s must be a number of seconds in 0-60, got {lead_in_s!r}")
     board = board_shaper(shaper, rig.n)
@@ -541,8 +539,7 @@ def stream(
 
         def body(state: RunState) -> None:
             nonlocal reach, check
-            if trim is not None:
-                scene["measured_trim"] = rig.trim(trim, rate_hz, trim_step_n).metadata()
+            if guard is not None and guard.before(rig, scene, rate_hz):
                 state.start = rig.positions()  # the stream counts from where the trim left the tendons
                 reach = _anywhere(rig.rig, state.start)
                 if units is not None:  # the whole stream checked again from there
@@ -553,7 +550,7 @@ def stream(
             rig.stepper.command("ABORT")  # whatever an earlier session left running stops; driver off
             rig.daq.command("STOP")
             rig.stepper.send_all(board.commands())  # SHAPER first: loading again discards it
-            state.watch = rig.floor_watch(rate_hz) if watch else None
+            state.watch = None if guard is None else guard.watcher(rig, rate_hz)
             rig._start(rate_hz, reach)
             timeout = rig.daq.port.timeout
             rig.daq.port.timeout = min(timeout or FEED_READ_S, FEED_READ_S)  # device time in small steps

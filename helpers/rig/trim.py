@@ -15,6 +15,10 @@ sample, calibrated per tendon, and already waits for the arm to come to rest (:m
   on the four-tendon rigs (1 N is about 47 um of cable), so a band of +-1 N would oscillate; the band is
   ``[target - tolerance, target - tolerance + one step)``. At most :data:`TRIM_MAX_STEPS` moves per tendon;
   past them, :class:`TrimFailed` naming the tendon. Off for one tendon (the paper's Table II unchanged).
+- :func:`trim` (with :func:`rest_tensions`, :func:`nudge`): the rule on a :class:`~helpers.rig.driver.Rig`.
+- :class:`TensionGuard`: what a run of several tendons is given (``Rig.run(..., guard=...)``, ``stream(...,
+  guard=...)``): the trim before it (its targets, optional) and the floor watch during it. The driver only
+  calls it, so this module is off the paper's one-tendon path (``tests/test_reading_path.py``).
 - :class:`FloorWatch`: during a run, every parsed sample's calibrated tension of every tendon against
   ``[arm] tension_floor_n``; a tendon below it for longer than ``[arm] floor_watch_ms`` (default 20 ms; a
   pay-out step's dip lasts 3 ms at the median, the pre-pull's let-out 2-4 samples) raises :class:`BelowFloor`
@@ -31,11 +35,14 @@ from typing import Any
 
 import numpy as np
 
-from helpers.rig.safety import SafetyError
+from helpers.board.programmes import Move, Programme
+from helpers.rig.driver import Rig, RunState
+from helpers.rig.link import BoardError, ints
+from helpers.rig.safety import SafetyError, check_programme
 
 __all__ = [
-    "TRIM_MAX_STEPS", "TRIM_TOLERANCE_N", "BelowFloor", "FloorWatch", "TrimFailed", "TrimResult",
-    "trim_steps",
+    "TRIM_MAX_STEPS", "TRIM_TOLERANCE_N", "BelowFloor", "FloorWatch", "TensionGuard", "TrimFailed",
+    "TrimResult", "nudge", "rest_tensions", "trim", "trim_steps",
 ]  # fmt: skip
 
 TRIM_MAX_STEPS = 6
@@ -185,6 +192,103 @@ def trim_steps(
     )  # fmt: skip
 
 
+def rest_tensions(rig: Rig, rate_hz: int = 1000) -> tuple[dict[str, Any], np.ndarray]:
+    """Wait for rest; its dict and every tendon's mean tension over the rest window, N.
+
+    :meth:`Rig.wait_for_rest <helpers.rig.driver.Rig.wait_for_rest>`, then each tendon's counts in the window
+    averaged and calibrated with its load cell's calibration.
+    """
+    rest = rig.wait_for_rest(rate_hz)
+    counts = np.asarray(rig.rest_window, dtype=float).reshape(len(rig.rest_window), -1).mean(axis=0)
+    return rest, np.array([(counts[i] - c.offset_counts) * c.newtons_per_count
+                           for i, c in enumerate(rig.calibration)])  # fmt: skip
+
+
+def nudge(rig: Rig, steps: Sequence[int], rate_hz: int = 1000, window_us: int = 20_000) -> tuple[int, ...]:
+    """Move every tendon by its whole ``steps`` in one ``MSEG`` item of ``window_us`` (not recorded).
+
+    Checked against every tendon's limits from where the stepper says they are; ``DONE`` awaited in device
+    time as a run's. Returns every tendon's position after it.
+    """
+    start = rig.positions()
+    programme = Programme((Move(window_us, tuple(int(s) for s in steps)),))
+    check_programme(programme, rig.rig, start)
+    end = tuple(int(p) for p in programme.positions(start, rig.n)[-1])
+    rig.stepper.command("ABORT")
+    rig.daq.command("STOP")
+    replies = rig.stepper.send_all(programme.commands(rig.n))
+    if ints(replies[-1])[-1] != len(programme):
+        raise BoardError(f"the stepper board holds {replies[-1]}, not {len(programme)} items")
+    rig._start(rate_hz, None, zero=False)
+    rig.stepper.command("EN 1")
+    state = RunState(start=start)
+    try:
+        rig._go(state, "GO")
+        rig._until_done(state, lambda now: (programme.duration_us, end), rate_hz, 0.0, None, False)
+    finally:
+        rig.daq.command("STOP")
+        rig.daq.rows.clear()
+    rig.stepper.command("EN 0")  # as a run leaves it
+    return end
+
+
+def trim(rig: Rig, targets_n: Sequence[float], rate_hz: int = 1000, step_n: Any = None) -> TrimResult:
+    """Trim every tendon of ``rig`` by whole steps to its target tension, measured at rest (several tendons).
+
+    :func:`trim_steps` with each measurement a wait for rest and its mean calibrated tension
+    (:func:`rest_tensions`), each move one whole step of one tendon (:func:`nudge`).
+
+    Raises
+    ------
+    ValueError
+        One tendon (the paper's protocol has no trim), or not one target per tendon.
+    TrimFailed
+        A tendon not at its target within :data:`TRIM_MAX_STEPS` moves (named).
+    """
+    if rig.n == 1:
+        raise ValueError("the trim is for rigs of several tendons (one tendon: the paper's protocol)")
+    if len(np.atleast_1d(np.asarray(targets_n, dtype=float))) != rig.n:
+        raise ValueError(f"{len(targets_n)} trim target(s) for the rig's {rig.n} tendons")
+    return trim_steps(targets_n, lambda: rest_tensions(rig, rate_hz)[1],
+                      lambda steps: nudge(rig, steps, rate_hz), step_n=step_n)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class TensionGuard:
+    """What holds every tendon of a run of several tendons taut: the trim before it, the floor watch during.
+
+    Attributes
+    ----------
+    targets_n : sequence of float, optional
+        Each tendon's target tension at the start (N, the planner's static tension at that pose): after the
+        rest every tendon is trimmed (:func:`trim`, the recording's ``scenario.measured_trim``). None: none.
+    step_n : sequence of float, optional
+        The planner's tension per step of each tendon (:func:`trim_steps`: a tendon that much above its
+        target is let out).
+    watch : bool
+        Watch every tendon's measured tension on every sample (:class:`FloorWatch`).
+    """
+
+    targets_n: Sequence[float] | None = None
+    step_n: Sequence[float] | None = None
+    watch: bool = True
+
+    def before(self, rig: Rig, scenario: dict[str, Any], rate_hz: int) -> bool:
+        """Trim (if there are targets), noted in ``scenario``; True if it ran (the tendons may have moved)."""
+        if self.targets_n is None:
+            return False
+        scenario["measured_trim"] = trim(rig, self.targets_n, rate_hz, self.step_n).metadata()
+        return True
+
+    def watcher(self, rig: Rig, rate_hz: int) -> FloorWatch | None:
+        """The rig's floor watch at ``rate_hz`` (``[arm] tension_floor_n``, ``floor_watch_ms``), or None."""
+        if not self.watch:
+            return None
+        arm, cal = rig.rig.arm, rig.calibration
+        return FloorWatch(arm.tension_floor_n, arm.floor_watch_ms, rate_hz,
+                          [c.newtons_per_count for c in cal], [c.offset_counts for c in cal])  # fmt: skip
+
+
 class FloorWatch:
     """Every tendon's calibrated tension, sample by sample, against the floor (device time: samples).
 
@@ -229,27 +333,42 @@ class FloorWatch:
             self.feed(rows[self.seen :])
 
     def feed(self, rows: Any) -> None:
-        """Check a block of parsed samples; :class:`BelowFloor` at the first sample past the watch time."""
-        r = np.asarray(rows, dtype=float).reshape(len(rows), -1) if len(rows) else np.zeros((0, 2 + self.n))
+        """Check a block of parsed samples; :class:`BelowFloor` at the first sample past the watch time.
+
+        Each tendon's run of samples below the floor is counted across blocks (a run carried over from the
+        last block goes on), in one pass of array operations per block.
+        """
+        if not len(rows):
+            return
+        r = np.asarray(rows, dtype=float).reshape(len(rows), -1)
         self.seen += len(r)
         tension = (r[:, 2 : 2 + self.n] - self.offset) * self.npc
         below = tension < self.floor_n
-        for k in range(len(r)):
-            for i in range(self.n):
-                if not below[k, i]:
-                    self.run[i], self.least[i] = 0, np.inf
-                    continue
-                if self.run[i] == 0:
-                    self.first_us[i] = int(r[k, 1])
-                self.run[i] += 1
-                self.least[i] = min(self.least[i], tension[k, i])
-                self.longest[i] = max(self.longest[i], self.run[i])
-                if self.run[i] > self.limit:
-                    ms = self.run[i] * 1000.0 / self.rate_hz
-                    t0, clock = (0, "on the DAQ's clock") if self.t0_us is None else (self.t0_us, "after GO")
-                    raise BelowFloor(
-                        f"tendon {i + 1} below the floor {self.floor_n:.2f} N for {ms:g} ms ({self.run[i]} "
-                        f"samples at {self.rate_hz} Hz, least {self.least[i]:.2f} N) at device time "
-                        f"t = {(r[k, 1] - t0) / 1e6:.3f} s {clock} (from {(self.first_us[i] - t0) / 1e6:.3f} "
-                        f"s): longer than the floor watch's {self.watch_ms:g} ms ([arm] floor_watch_ms)"
-                    )
+        k = np.arange(len(r))[:, None]
+        last_above = np.maximum.accumulate(np.where(below, -1, k), axis=0)  # -1: below since the block began
+        run = np.where(below, k - last_above + np.where(last_above < 0, self.run, 0), 0)
+        over = run > self.limit
+        if over.any():
+            k_over, i = np.unravel_index(np.argmax(over), over.shape)  # the first sample past the watch time
+            count = int(run[k_over, i])
+            begin = k_over - min(count, k_over + 1) + 1  # the run's first sample in this block
+            least = min(tension[begin : k_over + 1, i].min(), self.least[i] if count > k_over + 1 else np.inf)
+            first_us = self.first_us[i] if count > k_over + 1 else int(r[begin, 1])
+            ms = count * 1000.0 / self.rate_hz
+            t0, clock = (0, "on the DAQ's clock") if self.t0_us is None else (self.t0_us, "after GO")
+            raise BelowFloor(
+                f"tendon {i + 1} below the floor {self.floor_n:.2f} N for {ms:g} ms ({count} samples at "
+                f"{self.rate_hz} Hz, least {least:.2f} N) at device time "
+                f"t = {(r[k_over, 1] - t0) / 1e6:.3f} s {clock} (from {(first_us - t0) / 1e6:.3f} s): "
+                f"longer than the floor watch's {self.watch_ms:g} ms ([arm] floor_watch_ms)"
+            )
+        self.longest = np.maximum(self.longest, run.max(axis=0))
+        tail = run[-1]  # each tendon's run still going at the block's end, carried to the next block
+        for i in np.flatnonzero(tail):
+            begin = len(r) - min(int(tail[i]), len(r))
+            if tail[i] > len(r):  # going on since an earlier block
+                self.least[i] = min(self.least[i], tension[begin:, i].min())
+            else:
+                self.first_us[i], self.least[i] = int(r[begin, 1]), tension[begin:, i].min()
+        self.least[tail == 0] = np.inf
+        self.run = tail.astype(np.int64)
