@@ -41,7 +41,7 @@ from helpers.base.jsonfile import MissingDataError
 from helpers.base.paths import DATA_DIR, repo_path, user_data_dir
 from helpers.board.programmes import experiment_programme
 from helpers.commands.recording_paths import check_group, recording_path
-from helpers.commands.session import recording_session
+from helpers.commands.session import recording_session, tension_guard
 from helpers.commands.tip_stream import TIP_SPEED_MM_S, record_tip_stream
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
@@ -68,7 +68,6 @@ from helpers.research.tip_stream import SHAPERS as TIP_SHAPERS
 from helpers.rig import Rig, SafetyError, check_programme, check_request
 from helpers.rig.static import calibration_masses_kg, record_calibration
 from helpers.rig.table_i import NoiseSeeds, record_table_i, scenario_name
-from helpers.rig.trim import TensionGuard
 from helpers.rigfile import RigFile, derived
 
 IDENTIFIED_SYSTEMS = ("zv", "zvd", "ei")
@@ -296,16 +295,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="do not simulate the shaped move's tensions in the spatial twin (nor change the pretension or "
         "the design when a tendon would dip below the floor)",
     )  # fmt: skip
-    move.add_argument(
-        "--trim", action="store_true",
-        help="before the move, trim every tendon by whole steps until its measured tension at rest is at its "
-        "planned rest tension (the fewest steps at which it is >= it; helpers.rig.trim, docs/safety.md)",
-    )  # fmt: skip
-    move.add_argument(
-        "--no-floor-watch", action="store_true",
-        help="record the whole move even where a tendon's measured tension stays below [arm] tension_floor_n "
-        "for longer than [arm] floor_watch_ms (by default that stops the run, saved aborted)",
-    )  # fmt: skip
+    _tension_options(move, "move")
     tip = add("tip-stream", _group_option("tip_streams"), _bend_options("tip-stream"))
     tip.add_argument("--path", choices=list(TIP_FIGURES), default="square",
                      help="the figure of bends (docs/task_space.md, arbitrary motion)")  # fmt: skip
@@ -324,6 +314,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     tip.add_argument("--shaper", choices=list(TIP_SHAPERS), default="none",
                      help="none, zv or zvd from the map's mode at the path's stops, one shaper for every "
                      "tendon")  # fmt: skip
+    _tension_options(tip, "stream")
+
+
+def _tension_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--trim`` and ``--no-floor-watch``: a motion of several tendons (``record move``, ``tip-stream``)."""
+    parser.add_argument(
+        "--trim", action="store_true",
+        help=f"before the {what}, trim every tendon by whole steps until its measured tension at rest is at "
+        "its planned rest tension (the fewest steps at which it is >= it; helpers.rig.trim, docs/safety.md)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--no-floor-watch", action="store_true",
+        help=f"record the whole {what} even where a tendon's measured tension stays below [arm] "
+        "tension_floor_n for longer than [arm] floor_watch_ms (by default that stops it, saved aborted)",
+    )  # fmt: skip
 
 
 def _shapers(args: argparse.Namespace, quiet: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -774,11 +779,9 @@ def _record_move(args: argparse.Namespace) -> int:
             "steps": list(plan.steps), "planned_tension_n": list(plan.tension_n),
             "tension_floor_n": plan.floor_n, "trimmed_steps": list(plan.trimmed),
         }  # fmt: skip
-        # the trim's targets: the planner's static tension at the pose the move starts from, the rest
-        trim = [t.pretension_n for t in rig.tendons] if args.trim else None
-        guard = TensionGuard(trim, watch=not args.no_floor_watch)  # several tendons (_plan_move)
         rec = trig.run(programme, path=target, scenario=scenario, rate_hz=args.rate, tail_s=0.5,
-                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet, guard=guard)
+                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet,
+                       guard=tension_guard(args, rig))  # several tendons (_plan_move)
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from helpers.base.paths import repo_path
 from helpers.commands.recording_paths import recording_path
-from helpers.commands.session import recording_session
+from helpers.commands.session import recording_session, tension_guard
 from helpers.recordings import refuse_existing
 from helpers.research.task_shaping import MAX_PREPULL_STEPS, pretensioned, release_order
 from helpers.research.tip_stream import (
@@ -236,6 +236,6 @@ def record_tip_stream(args: argparse.Namespace) -> int:
         print(f"  {path.summary()}; shaper: {design.describe()}")
         rec = stream(trig, plan.board_setpoints_mm_s, design.shaper, path=target, scenario=scenario,
                      lead_in_s=0.2, rate_hz=args.rate, replace=args.replace, tail_s=TIP_TAIL_S,
-                     noise_seed=noise_seed, progress=False)  # fmt: skip
+                     noise_seed=noise_seed, progress=False, guard=tension_guard(args, rig))  # fmt: skip
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0
