@@ -48,6 +48,7 @@ from helpers.commands.metrics_report import move_tables
 from helpers.recordings import nominal_calibration
 from helpers.research.task_shaping import SHAPERS as MOVE_SHAPERS
 from helpers.rig import Rig
+from helpers.rig.trim import TensionGuard
 from helpers.virtual.emulator import server
 from helpers.virtual.emulator.world import build_world
 
@@ -241,7 +242,7 @@ def _home_over_the_pty(rig: rigfile.RigFile, path: Path, folder: Path, capsys) -
     try:
         with Rig(pair, rig, calibration=nominal_calibration(rig)) as r:
             r.run(Programme((Move(30_000, (3,) * n), Dwell(100))), path=folder / "off_zero", tail_s=0.1,
-                  progress=False)  # fmt: skip
+                  progress=False, guard=TensionGuard() if n > 1 else None)  # fmt: skip
             assert r.positions() == (3,) * n
         assert main(["--rig", str(path), "home", "--ports", pair]) == 0
         capsys.readouterr()
