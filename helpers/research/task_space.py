@@ -151,6 +151,8 @@ class MoveDesign:
     zeta: float | None = None
     tendon: int | None = None
     """The tendon (0-based) whose tension's dominant mode the design used."""
+    higher: tuple[tuple[float, float], ...] = ()
+    """``(omega_d, zeta)`` of each mode above the dominant pair a ZV was convolved in for (none: empty)."""
 
     def describe(self) -> str:
         """One line: the shaper and the mode it used."""
@@ -167,9 +169,11 @@ class MoveDesign:
         """The design for a recording's scenario."""
         if self.shaper is None:
             return {"shaper": "none"}
+        modes = [{"omega_d_rad_s": o, "zeta": z} for o, z in self.higher]
+        higher = {"higher_modes": modes} if modes else {}
         return shaper_metadata(
             self.shaper, self.name, mode="dominant mode of the lead tendon's tension (direction map)",
-            tendon=int(self.tendon) + 1, omega_d_rad_s=float(self.omega_d), zeta=float(self.zeta),
+            tendon=int(self.tendon) + 1, omega_d_rad_s=float(self.omega_d), zeta=float(self.zeta), **higher,
         )  # fmt: skip
 
 

@@ -55,10 +55,12 @@ from helpers.research.residuals import recording_residuals
 from helpers.research.task_shaping import (
     MAX_PREPULL_STEPS,
     design_move,
+    higher_modes,
     prepull_programme,
     pretensioned,
     simulate_move,
     verify_auto,
+    with_higher_modes,
 )
 from helpers.research.task_space import MoveDesign, MovePlan, check_travel, move_programme, plan_move
 from helpers.rig import Rig
@@ -71,7 +73,7 @@ from helpers.virtual.spatial.plant import SpatialPlant
 
 __all__ = [
     "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "SEARCH_BAND", "ENVELOPE_FLOOR", "MOVE_TIMES_S",
-    "MapPoint", "scheduled_mode",
+    "MapPoint", "scheduled_mode", "scheduled",
     "design_for", "run_move", "identify_hold", "measure_map", "verify", "SUMMARY_COLUMNS", "summarise",
     "tune_tendons", "choose_prepull", "tendon_folder", "run_tendons", "write_report", "reference", "grid",
 ]  # fmt: skip
@@ -91,9 +93,11 @@ def reference(rig: RigFile) -> tuple[float, float]:
     """The fixed designs' bend on ``rig``: :data:`REFERENCE`'s bend towards its tendon 1."""
     return float(rig.tendons[0].angle_deg % 360.0), REFERENCE[1]
 
-SYSTEMS = ("unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd", "auto")
+SYSTEMS = ("unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd", "auto", "zvd-zv34")
 """The designs verified, by the name each recording's scenario carries (``auto``: the automatic choice of
-:mod:`helpers.research.task_shaping`, designed from the twin's modes and checked in it)."""
+:mod:`helpers.research.task_shaping`, designed from the twin's modes and checked in it; ``zvd-zv34``: the
+fixed ZVD convolved with a ZV on each mode of the second bending pair, the twin's third and fourth modes at
+the move, :func:`helpers.research.task_shaping.higher_modes`, read off the map's ``predicted_higher``)."""
 
 MOVE_TIMES_S = (1.5, 4.5, 8.0)
 """(move out, move back, end) of every tuning run, s: 1.5 s at rest first, so that the ringing a run leaves
@@ -116,6 +120,10 @@ class MapPoint:
     recording: str
     predicted_split: tuple[float, float] = (math.nan, math.nan)
     """The twin's two lowest bending modes with every spool held, rad/s: the pair the bend splits."""
+    predicted_higher: tuple[tuple[float, float], ...] = ()
+    """The twin's modes above the dominant pair at the bend, ``(omega_d, zeta)`` lowest first (the second
+    bending pair, :func:`helpers.research.task_shaping.higher_modes`; rotors free): predicted, not measured
+    (the hold's ring-down identifies the dominant mode only)."""
 
 
 def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: float) -> tuple[float, float]:
@@ -123,8 +131,18 @@ def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: fl
 
     Outside the grid's bends the nearest bend's values are used (no extrapolation).
     """
-    table = pd.DataFrame([(p.direction_deg % 360.0, p.bend_mm, p.omega_d, p.zeta) for p in points],
-                         columns=["d", "b", "w", "z"])  # fmt: skip
+    w, z = scheduled(points, direction_deg, bend_mm, lambda p: (p.omega_d, p.zeta))
+    return float(w), float(z)
+
+
+def scheduled(
+    points: Sequence[MapPoint], direction_deg: float, bend_mm: float,
+    values: Callable[[MapPoint], Sequence[float]],
+) -> np.ndarray:  # fmt: skip
+    """``values`` of the map's points at a bend, interpolated as :func:`scheduled_mode` does."""
+    cols = [f"v{i}" for i in range(len(values(points[0])))]
+    table = pd.DataFrame([(p.direction_deg % 360.0, p.bend_mm, *values(p)) for p in points],
+                         columns=["d", "b", *cols])  # fmt: skip
     ds = np.sort(table["d"].unique())
     bs = np.sort(table["b"].unique())
     grid = table.set_index(["d", "b"])
@@ -140,12 +158,11 @@ def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: fl
     fb = 0.0 if b1 == b0 else (b - b0) / (b1 - b0)
 
     def at(k: int, bb: float) -> np.ndarray:
-        return grid.loc[(ds[k], bb), ["w", "z"]].to_numpy(float)
+        return grid.loc[(ds[k], bb), cols].to_numpy(float)
 
     lo = (1 - fd) * at(i0, b0) + fd * at(i1, b0)
     hi = (1 - fd) * at(i0, b1) + fd * at(i1, b1)
-    w, z = (1 - fb) * lo + fb * hi
-    return float(w), float(z)
+    return (1 - fb) * lo + fb * hi
 
 
 def design_for(
@@ -167,6 +184,14 @@ def design_for(
     where = fixed_at if not system.startswith("scheduled") else (direction_deg, bend_mm)
     omega_d, zeta = scheduled_mode(points, *where)
     zv, zvd = design_tdfs(omega_d, zeta)
+    if system == "zvd-zv34":  # the fixed ZVD and a ZV on each mode of the second bending pair at the move
+        if any(not p.predicted_higher for p in points):
+            raise ValueError("zvd-zv34 needs the map's predicted_higher at every point (a map measured "
+                             "before it was kept has none: tune again)")  # fmt: skip
+        flat = scheduled(points, direction_deg, bend_mm, lambda p: [v for m in p.predicted_higher for v in m])
+        higher = tuple((float(flat[i]), float(flat[i + 1])) for i in range(0, len(flat), 2))
+        shaper = with_higher_modes(zvd, higher, "ZVD * ZV * ZV (second bending pair)")
+        return MoveDesign(shaper, system, omega_d, zeta, 0, higher)
     shaper: Shaper = zvd if system.endswith("zvd") else zv
     return MoveDesign(shaper, system, omega_d, zeta, 0)
 
@@ -341,7 +366,8 @@ def measure_map(
             omega_d, zeta = identify_hold(rec, plan.lead, float(pred["dominant_omega_d_rad_s"]))
             split = (float(pred["omega_d1_rad_s"]), float(pred["omega_d2_rad_s"]))
             points.append(MapPoint(d, b, omega_d, zeta, float(pred["dominant_omega_d_rad_s"]),
-                                   float(pred["dominant_zeta"]), name, split))  # fmt: skip
+                                   float(pred["dominant_zeta"]), name, split,
+                                   higher_modes(rig, twin, plan)))  # fmt: skip
             progress(f"map {d:g} deg, {b:g} mm: omega_d {omega_d:.3f} rad/s (twin predicts "
                      f"{points[-1].predicted_omega_d:.3f}), zeta {zeta:.4f}")  # fmt: skip
     return points
