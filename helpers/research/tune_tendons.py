@@ -16,6 +16,9 @@ direction and the magnitude of the bend. So, on the rig (the in-process virtual 
    at the reference bend (:data:`REFERENCE`: 10 mm towards tendon 1, as one would tune along one tendon);
    and the **direction-scheduled** ZV and ZVD, each move's designed from the map's mode at its own direction
    and bend (:func:`scheduled_mode`: the map interpolated, periodic in the direction, linear in the bend);
+   and ``zvd-zv34``, the fixed ZVD convolved with a ZV on each mode of the arm's second bending pair at the
+   move (the twin's third and fourth modes, kept in the map as ``predicted_higher`` and interpolated as the
+   dominant mode is: the hold's ring-down identifies the dominant mode only);
 3. **verify** each design on every bend of the grid, ``repetitions`` runs each: the residual vibration of
    every tendon's tension and of the tip after the Up and Down motions, and the samples below the tension
    floor (:func:`helpers.research.residuals.recording_residuals`: the lead tendon that pulls most towards the
@@ -24,8 +27,9 @@ direction and the magnitude of the bend. So, on the rig (the in-process virtual 
    bends and repetitions, the slack samples, the move's duration; the wall time of the whole run.
 
 Every move of a design lasts its ramp plus the shaper's last impulse time: ZV and the scheduled ZV last
-about half a period longer than unshaped, ZVD one period (durations are in the report; comparisons across
-families are not at equal duration).
+about half a period longer than unshaped, ZVD one period, ``zvd-zv34`` ZVD's and half a period of each
+mode of the pair (61-97 ms longer than the ZVD; durations are in the report; comparisons across families are
+not at equal duration).
 """
 
 from __future__ import annotations
