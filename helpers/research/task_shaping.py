@@ -66,11 +66,11 @@ attempt with the highest least tension is returned with ``ok`` False.
 
 **The second bending pair** (:func:`higher_modes`, :func:`with_higher_modes`). Above the dominant pair (each
 plane's first bending mode, 21-27 rad/s on the four-tendon twin) the arm's next two modes are each plane's
-second bending mode (two sign changes of the discs' rotations along the arm against one), at 2.5-4.8 times
-the dominant: 58-61 and 74-82 rad/s at a 20 mm bend, 77-90 and 94-110 rad/s at 10 mm (the bend softens them).
-A ZVD has zeros at its design frequency and its odd multiples only, so at 2.5-4.8 times it leaves 15-65 % of
-what the move's ramp puts into them; :func:`with_higher_modes` convolves the design with a ZV on each
-(about ``pi / omega`` longer each: 35-55 ms).
+second bending mode (its bending coordinates along the discs change sign twice, against once), 2.5-4.9
+times the dominant: 58-61 and 75-82 rad/s at a 20 mm bend, 77-90 and 94-110 rad/s at 10 mm (the bend
+softens them). A ZVD has zeros at its design frequency and its odd multiples only, so there it leaves 13-64 %
+of what the move's ramp puts into them; :func:`with_higher_modes` convolves the design with a ZV on each
+(``pi / omega_d`` longer each: 28-54 ms). ``docs/task_space.md`` has the measurements.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ direction and the magnitude of the bend. So, on the rig (the in-process virtual 
 
 Every move of a design lasts its ramp plus the shaper's last impulse time: ZV and the scheduled ZV last
 about half a period longer than unshaped, ZVD one period, ``zvd-zv34`` ZVD's and half a period of each
-mode of the pair (61-97 ms longer than the ZVD; durations are in the report; comparisons across families are
+mode of the pair (63-96 ms longer than the ZVD; durations are in the report; comparisons across families are
 not at equal duration).
 """
 
