@@ -186,7 +186,7 @@ def _several(cli: Cli, rig: rigfile.RigFile, data: Path, case: str) -> None:
     cli("tune", "--directions", a1, "--bends", "10", "--repetitions", "1", "--quiet")
     doc = json.loads((data / "tuning" / "tendons" / rig.name / "verification.json").read_text())
     assert {r["system"] for r in doc["summary"]} == {"unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd",
-                                                     "auto"}  # fmt: skip
+                                                     "zvd-zv34", "auto"}  # fmt: skip
     assert all(math.isfinite(r["lead_residual_n"]) for r in doc["summary"])
     out = cli("metrics", str(data / "moves"), data=False, rig=False)
     assert f"lead tendon 1 (pulls most towards {a1} deg)" in out
