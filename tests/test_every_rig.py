@@ -127,12 +127,17 @@ class Cli:
         self.path, self.data, self.capsys = path, data, capsys
 
     def __call__(self, *argv: str, rig: bool = True, data: bool = True) -> str:
+        rc, out, err, args = self.returning(*argv, rig=rig, data=data)
+        assert rc == 0, f"{' '.join(args)} -> {rc}: {err[-2000:]}"
+        return out
+
+    def returning(self, *argv: str, rig: bool = True, data: bool = True) -> tuple[int, str, str, list[str]]:
+        """The command's exit code, output, error output and arguments, whatever it returns."""
         args = (["--rig", str(self.path)] if rig else []) + list(argv)
         args += ["--data-dir", str(self.data)] if data else []
         rc = main(args)
         out, err = self.capsys.readouterr()
-        assert rc == 0, f"{' '.join(args)} -> {rc}: {err[-2000:]}"
-        return out
+        return rc, out, err, args
 
 
 def _one_tendon(cli: Cli, data: Path) -> list[Path]:
@@ -165,9 +170,23 @@ def _one_tendon(cli: Cli, data: Path) -> list[Path]:
 def _several(cli: Cli, rig: rigfile.RigFile, data: Path, case: str) -> None:
     shipped = case.startswith("shipped-")
     a1 = f"{rig.tendons[0].angle_deg:g}"
-    for shaper in MOVE_SHAPERS:  # the unshaped move slackens a tendon for longer than the floor watch allows
-        watch = ["--no-floor-watch"] if shaper == "none" else []  # (four-tendon, 10 mm: stopped at 1.05 s)
-        cli("record", "move", "--direction-deg", a1, "--bend-mm", "10", "--shaper", shaper, "--quiet", *watch)
+    for shaper in MOVE_SHAPERS:
+        move = ["record", "move", "--direction-deg", a1, "--bend-mm", "10", "--shaper", shaper]
+        if shaper == "none":  # it slackens a tendon for longer than the floor watch allows (four-tendon,
+            cli(*move, "--quiet", "--no-floor-watch")  # 10 mm: stopped at 1.05 s)
+            continue
+        rc, out, err, args = cli.returning(*move)
+        if rc != 0:  # only where the twin foresaw the slack: the watch stops the run, saved aborted
+            assert rc == 3 and "warning: the twin foresees a tendon below the floor" in out, (args, rc, err)
+            assert err.count("\n") == 1 and " below the floor " in err and "floor_watch_ms)" in err, err
+            aborted = sorted((data / "moves").glob(f"move_{shaper}_*_aborted_*"))
+            assert [p.suffix for p in aborted] == [".csv", ".json"], aborted
+            meta = recordings.load(aborted[0]).meta
+            assert meta["abort_reason"].startswith("BelowFloor: tendon ")
+            assert meta["scenario"]["floor_check"]["ok"] is False  # foreseen by the twin before the run
+            for p in aborted:  # recorded again whole, for the figures below
+                p.unlink()
+            cli(*move, "--quiet", "--no-floor-watch")
     moves = sorted((data / "moves").glob("*.csv"))
     assert len(moves) == len(MOVE_SHAPERS)
     stream = ["record", "tip-stream", "--bend-mm", "5", "--v-in", "50", "--shaper", "zvd", "--quiet"]

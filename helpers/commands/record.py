@@ -772,6 +772,9 @@ def _record_move(args: argparse.Namespace) -> int:
     check_programme(programme, rig, (0,) * rig.n_tendons)
     with recording_session(args, from_rest="a move") as (trig, noise_seed):
         print(f"  shaper: {design.describe()}")
+        if move.check is not None and not move.check.ok and design.shaper is not None:
+            print(f"  warning: the twin foresees a tendon below the floor ({move.check.lines()[-1]}); the "
+                  "floor watch stops the run if one stays below it longer than [arm] floor_watch_ms")
         scenario = {
             "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm,
             "shaper": design.name, **move.metadata(),
