@@ -178,7 +178,9 @@ def _several(cli: Cli, rig: rigfile.RigFile, data: Path, case: str) -> None:
         rc, out, err, args = cli.returning(*move)
         if rc != 0:  # only where the twin foresaw the slack: the watch stops the run, saved aborted
             assert rc == 3 and "warning: the twin foresees a tendon below the floor" in out, (args, rc, err)
-            assert err.count("\n") == 1 and " below the floor " in err and "floor_watch_ms)" in err, err
+            line = err.rstrip("\n").split("\n")[-1]  # one line after the progress bar's
+            assert line.startswith("error: tendon ") and " below the floor " in line, err
+            assert "floor_watch_ms)" in line and "partial recording saved to " in line, err
             aborted = sorted((data / "moves").glob(f"move_{shaper}_*_aborted_*"))
             assert [p.suffix for p in aborted] == [".csv", ".json"], aborted
             meta = recordings.load(aborted[0]).meta
