@@ -135,6 +135,28 @@ def test_a_pre_pull_is_no_part_of_the_move() -> None:
                                       "tendon 3": {"role": "paid out", "held_steps": -24}}  # fmt: skip
 
 
+def test_the_pre_pulls_let_out_is_counted_with_the_moves_down_motion() -> None:
+    """Dips below a 1 N floor as the pre-pull is let out (tendon 1: 2 samples at 9.000 s, tendon 3: 3 at
+    9.250 s, the steps' transients) and one at 8.0 s, at rest between the Down's residual window (6.2-7.2 s)
+    and the release: the Down motion counts the let-out's five, the Up none, the rest at 8.0 s neither."""
+    f = _three()
+    for i, at, n in ((0, 9000, 2), (2, 9250, 3), (1, 8000, 1)):
+        f.loc[at : at + n - 1, f"tension_n_{i}"] = 0.4
+    phases = move_phases(f["t_s"].to_numpy(), f[["steps_0", "steps_1", "steps_2"]].to_numpy(), 0, prepull=1,
+                         start=(0, 0, 0))  # fmt: skip
+    df = residual_table(f, 3, phases, floor_n=1.0).set_index(["motion", "signal"])
+    down = df.loc["Down"]
+    assert down["below_floor"].tolist() == [2, 0, 3] and down["below_floor_letout"].tolist() == [2, 0, 3]
+    assert down.loc["tendon 1", "least"] == pytest.approx(0.4)
+    up = df.loc["Up"]
+    assert up["below_floor"].tolist() == [0, 0, 0] and up["below_floor_letout"].tolist() == [0, 0, 0]
+    # without a pre-pull there is no let-out: the column is there, and nothing counts in it
+    two = _two()
+    phases = move_phases(two["t_s"].to_numpy(), two[["steps_0", "steps_1"]].to_numpy(), 0)
+    plain = residual_table(two, 2, phases, floor_n=1.5)
+    assert plain["below_floor_letout"].tolist() == [0] * len(plain) and plain["below_floor"].sum() == 10
+
+
 def test_a_move_whose_count_turns_back_within_itself_is_one_motion() -> None:
     """A shaper with a negative impulse (UMZV) takes the count back within the move: out 40 steps, back 37,
     out 37 again (2.0-2.25 s), held to 6 s; the move back mirrored (its antagonist, paying out, falls below

@@ -56,10 +56,16 @@ nothing could reach). That was 81 over the budget. 5,102 once a hardware user's 
 user's data folder the live cells record into (``helpers.base.paths.user_data_dir``, 8 lines) and the
 handlers that turn a signal during ``python -m helpers``'s start-up into one line and its status (13 lines in
 ``helpers/__init__.py`` and ``helpers.base.signals``), after the package's own test of ``-m`` was replaced by
-the interpreter's (``sys.argv[0] == "-m"`` while the package loads): 102 over the budget, which this test
-therefore fails."""
-CODE_LINES_CEILING = 5_102
-"""What the path holds today (the goal above missed by 102, 2.0 %): it may shrink; it grows only for a job
+the interpreter's (``sys.argv[0] == "-m"`` while the package loads): 102 over the budget. 5,139 once every
+tendon of an arm of several was held taut by measurement: the rig file's two keys for it (21 lines:
+``[arm] floor_watch_ms``, the virtual rig's ``[[tendon]] twin_eyelet_error_mm``; the reader must know every
+key a rig file may hold) and the one driver's calls of a run's guard (16 lines: the guard a run of several
+tendons must be given, its trim before the programme and its watch on every read, the rest window kept for
+the trim's measure). The trim and the floor watch themselves (196 lines, ``helpers.rig.trim``) are passed in
+as a value and stay off the path; a first form that imported them from the driver reached 5,315. 139 over the
+budget, which this test therefore fails."""
+CODE_LINES_CEILING = 5_139
+"""What the path holds today (the goal above missed by 139, 2.8 %): it may shrink; it grows only for a job
 the paper's notebooks must do, said in the history above. The live cells'
 one driver carries every protection of the one-tendon path to 1-4 tendons (a run saved ``aborted`` on any
 end, device-time waits, the builds checked against the rig file), which the three slimming passes above did
@@ -185,7 +191,7 @@ def test_the_paper_notebooks_reach_no_more_than_today():
     assert total <= CODE_LINES_CEILING, f"{len(path)} modules, {total} code lines"
 
 
-@pytest.mark.xfail(strict=True, reason="the goal of 5,000 is missed by 102 lines: see CODE_LINES_CEILING")
+@pytest.mark.xfail(strict=True, reason="the goal of 5,000 is missed by 139 lines: see CODE_LINES_CEILING")
 def test_the_paper_notebooks_reach_a_core_one_can_read():
     path, total = _total()
     assert total <= CODE_LINES_BUDGET, f"{len(path)} modules, {total} code lines"

@@ -125,6 +125,9 @@ def _move(rig) -> dict:
         "speed_mm_s": 50.0, "steps": [5] + [0] * (n - 1), "planned_tension_n": [2.5] * n,
         "tension_floor_n": 1.0, "trimmed_steps": [0] * n, "items": ["MSEG 40000 5" + " 0" * (n - 1)],
         "noise_seed": 3, "prepull_steps": 0, "floor_check": {"simulated": True},
+        "measured_trim": {"steps": [1] + [0] * (n - 1), "moves": 1, "targets_n": [2.3554] * n,
+                          "before_n": [0.4] + [2.36] * (n - 1), "after_n": [2.9] + [2.4] * (n - 1),
+                          "tolerance_n": 0.1},
     }  # fmt: skip
 
 
@@ -138,6 +141,12 @@ def _as_v3(meta: dict) -> dict:
 
 def _as_v2(meta: dict) -> dict:
     return {**copy.deepcopy(meta), "schema_version": 2, "rig": recordings.rig_section(PAPER)}
+
+
+PREPULL = {"prepull_steps": 1, "prepull_periods": 51, "release_periods": 104}
+"""A tip stream's pre-pull as ``record tip-stream --prepull 1`` writes it on four tendons: the pull's
+period and its 0.5 s at rest before the path's period 0, then each tendon's let-out and its 0.25 s at rest
+after the path's last."""
 
 
 def _fixtures() -> dict[str, dict]:
@@ -160,7 +169,7 @@ def _fixtures() -> dict[str, dict]:
                                  status="deviated", deviation="late"),
         "v4 stream (four)": _v4(FOUR, v4_stream, tip=True, done_positions=[0, 0, 0, 0]),
         "v4 move (four)": _v4(FOUR, _move(FOUR), status="aborted", reason="test"),
-        "v4 tip stream (four)": _v4(FOUR, dict(tip_stream["scenario"]), tip=True),
+        "v4 tip stream (four)": _v4(FOUR, {**tip_stream["scenario"], **PREPULL}, tip=True),
         "v4 programme (four)": _v4(FOUR, {"kind": "programme", "items": ["WAIT 10"]}),
     }  # fmt: skip
     return {

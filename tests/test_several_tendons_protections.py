@@ -27,6 +27,7 @@ from helpers.base.signals import Interrupted, interrupts_from_signals
 from helpers.board.programmes import Dwell, Move, Programme
 from helpers.rig import BoardReset, BoardTimeout, Rig, SafetyError, WrongRig
 from helpers.rig.stream import stream
+from helpers.rig.trim import TensionGuard
 from helpers.virtual.emulator.world import build_world, forget_world, register_world
 
 PULL = (8, 0, 0, 5)
@@ -82,7 +83,7 @@ def test_a_signal_mid_run_stops_every_tendon_and_saves_what_was_recorded(rig_of,
 
     world.listeners.append(send_in_the_hold)
     with interrupts_from_signals(), pytest.raises(KeyboardInterrupt) as info:
-        rig.run(PROGRAMME, path=tmp_path / "p", progress=False)
+        rig.run(PROGRAMME, path=tmp_path / "p", progress=False, guard=TensionGuard())
     exc = info.value
     assert exc.cleanup == []  # ABORT, EN 0 and STOP reached the boards
     assert world.stepper.received[-2:] == ["ABORT", "EN 0"] and not world.stepper.enabled
@@ -109,7 +110,7 @@ def test_a_signal_after_the_last_sample_saves_the_run_whole(rig_of, tmp_path, mo
 
     monkeypatch.setattr(rig, "recording", signalled)
     with interrupts_from_signals(), pytest.raises(Interrupted) as info:
-        rig.run(PROGRAMME, path=tmp_path / "p", progress=False)
+        rig.run(PROGRAMME, path=tmp_path / "p", progress=False, guard=TensionGuard())
         time.sleep(0)  # a signal handled after the run comes here
     assert info.value.complete and info.value.saved_path == tmp_path / "p.csv"
     rec = _only(tmp_path)
@@ -121,7 +122,7 @@ def test_a_signal_after_the_last_sample_saves_the_run_whole(rig_of, tmp_path, mo
 def test_a_stepper_that_hangs_is_found_by_pos_when_done_is_late_on_the_daqs_clock(rig_of, tmp_path):
     rig, world = rig_of(stepper_options="&hang_at=1.5", silence_s=0.5)  # device s after the port opens
     with pytest.raises(BoardTimeout, match="the stepper board did not answer 'POS' in 0.5 s") as info:
-        rig.run(PROGRAMME, path=tmp_path / "p", progress=False)
+        rig.run(PROGRAMME, path=tmp_path / "p", progress=False, guard=TensionGuard())
     rec = recordings.load(info.value.saved_path)
     assert rec.status == "aborted" and rec.meta["abort_reason"].startswith("BoardTimeout")
     assert "cleanup: ABORT to the stepper board failed" in rec.meta["abort_reason"]  # the line says so
@@ -134,7 +135,7 @@ def test_a_stepper_that_hangs_is_found_by_pos_when_done_is_late_on_the_daqs_cloc
 def test_a_daq_that_resets_mid_run_stops_the_stepper_and_saves_what_came_before(rig_of, tmp_path):
     rig, world = rig_of(daq_options="&reset_at=1.5")
     with pytest.raises(BoardReset, match="the daq board reset") as info:
-        rig.run(PROGRAMME, path=tmp_path / "p", progress=False)
+        rig.run(PROGRAMME, path=tmp_path / "p", progress=False, guard=TensionGuard())
     assert info.value.cleanup == []
     rec = recordings.load(info.value.saved_path)
     assert rec.status == "aborted" and len(rec.frame) == rec.meta["counts"]["samples"] > 100
@@ -147,7 +148,7 @@ def test_a_move_of_a_tendon_the_rig_does_not_have_is_refused_with_nothing_sent(r
     sent = len(world.stepper.received), len(world.daq.received)
     five = Programme((Move(100_000, (1, 0, 0, 0, 2)),))
     with pytest.raises(SafetyError) as info:
-        rig.run(five, path=tmp_path / "never", progress=False)
+        rig.run(five, path=tmp_path / "never", progress=False, guard=TensionGuard())
     assert str(info.value) == (
         "programme refused: item 1 (MSEG 100000 1 0 0 0 2): 5 step counts, but the rig has 4 tendon(s)"
     )
@@ -196,7 +197,7 @@ def test_a_move_over_the_pseudo_terminal_server_at_half_speed_completes(four, tm
             short = Programme((
                 Dwell(100), Move(50_000, (3, 0, 0, 2)), Dwell(100), Move(50_000, (-3, 0, 0, -2),
             )))
-            rec = rig.run(short, path=tmp_path / "pty", progress=False)
+            rec = rig.run(short, path=tmp_path / "pty", progress=False, guard=TensionGuard())
     finally:
         stop.set()
         server.join(timeout=60.0)

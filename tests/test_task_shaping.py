@@ -362,3 +362,54 @@ def test_on_two_tendons_that_do_not_balance_the_floor_changes_the_design(four, t
     assert "+1 step(s) before the move: refused (pulling every tendon in would bend this arm" in out
     assert "dynamic floor kept: changed the design: the design ZVD" in out
     assert "MSEG 35736 8 8" in out  # ZVD's first impulse, 1 / (1 + K)^2 = 0.29 of 28 steps
+
+
+# --- the second bending pair (the modes above the dominant pair) -------------------------------------------
+@pytest.fixture(scope="module")
+def pulled(four):
+    """The four-tendon twin one step in on every tendon (the tune's pretension) and its move 20 mm at 180."""
+    twin = ts.pretensioned(four, spatial_rig(four), 1)
+    return twin, plan_move(four, 180.0, 20.0, twin)
+
+
+def test_the_second_bending_pair_lies_where_a_zvd_leaves_it_and_a_zv_on_each_cancels_it(four, pulled) -> None:
+    twin, plan = pulled
+    dom = ts.move_modes(twin, 180.0, 20.0)
+    k0 = int(np.argmax(dom.effective(0.1)))
+    w1, z1 = dom.omega_d[k0], dom.zeta[k0]
+    higher = ts.higher_modes(four, twin, plan)
+    assert len(higher) == 2 and higher[0][0] < higher[1][0]
+    assert all(2.0 * w1 < w < 5.0 * w1 and 0 < z < 0.1 for w, z in higher)
+    # the ZVD at the dominant mode, by hand (module docstring)
+    k = math.exp(-z1 * math.pi / math.sqrt(1 - z1**2))
+    zvd = Shaper(np.array([1, 2 * k, k * k]) / (1 + k) ** 2, np.array([0, 1, 2]) * math.pi / w1)
+    shaped = ts.with_higher_modes(zvd, higher, "ZVD * ZV * ZV")
+    assert shaped.name == "ZVD * ZV * ZV"
+    assert shaped.duration == pytest.approx(2 * math.pi / w1 + sum(math.pi / w for w, _ in higher))
+    for w, z in higher:
+        wn = w / math.sqrt(1 - z * z)
+        assert _v(list(shaped.amplitudes), list(shaped.times), wn, z) < 1e-9
+    # the plain ZVD leaves a share of at least one of them (its zeros: the design frequency's odd multiples)
+    left = [_v(list(zvd.amplitudes), list(zvd.times), w / math.sqrt(1 - z * z), z) for w, z in higher]
+    assert max(left) > 0.1
+
+
+@pytest.mark.slow
+def test_a_zv_on_the_second_bending_pair_takes_out_what_the_zvd_leaves_after_a_move(four, pulled) -> None:
+    """Simulated (the twin, 20 mm towards 180 deg, one step pre-pulled): the ZVD designed at 10 mm towards
+    tendon 1 (22.4 rad/s, as the tune's fixed ZVD) leaves 0.37-0.39 N on tendons 1 and 3, tendon 1 ringing
+    mostly at the pair's upper mode (75.6 rad/s, 3.4 times the design's); a ZV on each mode of the pair
+    takes out over half of it."""
+    twin, plan = pulled
+    ref = ts.move_modes(twin, 0.0, 10.0)  # the tune's fixed ZVD: the mode at 10 mm towards tendon 1
+    k0 = int(np.argmax(ref.effective(0.05)))
+    zvd = ts.FAMILIES["ZVD"](ref.omega_n(k0), ref.zeta[k0])
+    both = ts.with_higher_modes(zvd, ts.higher_modes(four, twin, plan), "ZVD * ZV * ZV")
+    plain = spatial_rig(four)
+    worst = []
+    for shaper in (zvd, both):
+        run = ts.simulate_move(four, plan, shaper, 200.0, 1.5, 4.5, 8.0, twin=plain, prepull=1)
+        w = (run.t >= run.end_up_s + 0.1) & (run.t <= run.end_up_s + 1.1)
+        worst.append(float(np.max(np.ptp(run.output[w], axis=0)) / 2))
+    assert worst[0] > 0.2
+    assert worst[1] < 0.5 * worst[0]

@@ -23,10 +23,12 @@ from helpers.board import stream_reference as hs
 from helpers.recordings import Recording
 from helpers.research import tip_stream as ts
 from helpers.research import tip_stream_metrics as tm
+from helpers.research.task_shaping import pretensioned
 from helpers.research.task_space import plan_move
 from helpers.rig.safety import SafetyError
 from helpers.rig.stream import StreamLimit, check_stream
 from helpers.virtual.emulator.world import forget_world
+from helpers.virtual.spatial.from_rig import spatial_rig
 
 MM = math.pi * 65 / 800
 
@@ -214,18 +216,20 @@ def test_the_design_is_the_mean_of_the_maps_mode_at_the_stops(two) -> None:
 
 
 # --- python -m helpers record tip-stream ------------------------------------------------------------------
+@pytest.mark.slow  # the whole-step check of the pre-pulled square: 35 s on two loaded cores (main's: 20 s)
 def test_record_tip_stream_dry_run_prints_every_tendons_range_and_least_tension(tmp_path, monkeypatch,
                                                                              capsys) -> None:  # fmt: skip
-    """A square of 5 mm at 200 mm/s on the four-tendon rig: its corners are plan_move's bends (5 mm towards
-    a tendon pulls it 5 / 0.255 = 19.6 steps and pays the opposite out about as much), within the travel
-    -78..156 steps."""
+    """A square of 5 mm at 200 mm/s on the four-tendon rig, every tendon pulled one step in first (without,
+    its whole steps leave a tendon slack: tests/test_whole_steps.py): its corners are plan_move's bends from
+    that pre-pulled rest (5 mm towards a tendon pulls it 5 / 0.255 = 19.6 steps and pays the opposite out
+    about as much), within the travel -78..156 steps."""
     rig_args = ["--rig", "four-tendon"]
     argv = ["record", "tip-stream", "--path", "square", "--bend-mm", "5", "--v-in", "200", "--dry-run",
-            "--data-dir", str(tmp_path / "data")]  # fmt: skip
+            "--prepull", "1", "--data-dir", str(tmp_path / "data")]  # fmt: skip
     assert main(rig_args + argv) == 0
     out = capsys.readouterr().out
     four = rigfile.load(rigfile.resolve("four-tendon"))
-    corner = plan_move(four, 0.0, 5.0).steps
+    corner = plan_move(four, 0.0, 5.0, spatial=pretensioned(four, spatial_rig(four), 1)).steps
     assert f"5 mm towards 0 deg: {', '.join(f'{n:+d}' for n in corner)}" in out
     for i in range(1, 5):
         line = next(x for x in out.splitlines() if x.strip().startswith(f"tendon {i}: positions"))
@@ -233,8 +237,11 @@ def test_record_tip_stream_dry_run_prints_every_tendons_range_and_least_tension(
             "its travel -78-156 steps" in line and "least static tension" in line and "floor 1.00 N" in line
         )
     assert "shaper: unshaped" in out
+    assert "pre-pull: every tendon pulled 1 step(s) in before the path (1 period, then 0.50 s at rest)" in out
+    assert "(tendons 1, 3, 2, 4, 0.25 s apart)" in out
+    assert "checked: the least static tensions at the board's whole-step counts at every period" in out
     assert "stands at the plan's whole steps at every stop" in out
-    assert "tip_streams/tip_square_none_b5.csv; nothing was sent" in out
+    assert "tip_streams/tip_square_none_b5_pre1.csv; nothing was sent" in out
     assert not (tmp_path / "data").exists()
 
 
@@ -268,18 +275,20 @@ def test_record_tip_stream_refuses_a_figure_the_rig_cannot_reach(two, tmp_path, 
 def test_a_tip_stream_on_the_virtual_rig_stands_at_the_plan_and_records_tip_and_tensions(
     tmp_path, monkeypatch
 ) -> None:
-    """The four-tendon square of 5 mm shaped by ZVD, recorded: every stop's step counts are the plan's, the
-    stream ends at rest, the scenario names the stream, the shaper and the path; the twin's tip and every
-    tension are recorded (simulated)."""
+    """The four-tendon square of 5 mm shaped by ZVD, every tendon pulled one step in first, recorded: every
+    stop's step counts are the plan's (one above them), the stream ends at rest, the scenario names the
+    stream, the shaper, the path and the pre-pull; the twin's tip and every tension are recorded
+    (simulated)."""
     rig_args = ["--rig", "four-tendon"]
     data = tmp_path / "data"
     argv = ["record", "tip-stream", "--path", "square", "--bend-mm", "5", "--v-in", "200", "--shaper", "zvd",
-            "--data-dir", str(data), "--virtual-instance", "tip-stream-test", "--quiet"]  # fmt: skip
+            "--prepull", "1", "--data-dir", str(data), "--virtual-instance", "tip-stream-test",
+            "--quiet"]  # fmt: skip
     try:
         assert main(rig_args + argv) == 0
     finally:
         forget_world("tip-stream-test")
-    rec = recordings.load(data / "tip_streams" / "tip_square_zvd_b5.csv")
+    rec = recordings.load(data / "tip_streams" / "tip_square_zvd_b5_pre1.csv")
     scenario = rec.meta["scenario"]
     assert rec.status == "complete" and scenario["kind"] == "stream"
     assert scenario["shaper_name"] == "zvd" and scenario["design"]["shaper"] == "zvd"
@@ -289,12 +298,15 @@ def test_a_tip_stream_on_the_virtual_rig_stands_at_the_plan_and_records_tip_and_
         (0.0, 5.0), (90.0, 5.0), (180.0, 5.0), (270.0, 5.0),
     ]  # fmt: skip
     four = rigfile.load(rigfile.resolve("four-tendon"))
-    plan = ts.plan_stream(four, ts.figure_path("square", 5.0, speed_mm_s=200.0))
+    plan = ts.plan_stream(four, ts.figure_path("square", 5.0, speed_mm_s=200.0), prepull=1)
     assert scenario["stop_steps"] == [list(s) for s in plan.stop_steps]
-    t = tm.stream_clock(rec)
+    pre = (scenario["prepull_steps"], scenario["prepull_periods"], scenario["release_periods"])
+    assert pre == (1, 51, 104)  # the pull and 0.5 s; 4 x (the let-out and 0.25 s)
+    assert scenario["stream"]["n_setpoints"] == 51 + plan.path.periods + 104
+    t = tm.stream_clock(rec)  # from the path's period 0: 0.51 s after STREAM
     for (_a, b), steps in zip(plan.path.stops, plan.stop_steps, strict=True):
         k = np.searchsorted(t, (b + 2) * ts.PERIOD_S) - 1  # the stop's last boundary, before the next move
-        assert [int(rec.frame[f"steps_{i}"].iloc[k]) for i in range(4)] == list(steps)
+        assert [int(rec.frame[f"steps_{i}"].iloc[k]) for i in range(4)] == [v + 1 for v in steps]
     assert [int(rec.frame[f"steps_{i}"].iloc[-1]) for i in range(4)] == [0, 0, 0, 0]
     assert all(c in rec.frame.columns for c in ("tip_x_mm", "tip_y_mm", "tip_z_mm"))
     least = tm.tension_summary(rec, plan.floor_n)

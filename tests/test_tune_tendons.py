@@ -8,6 +8,7 @@ the bend; ZV's second impulse follows a half damped period, pi / omega_d, and ZV
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -199,3 +200,23 @@ def test_the_report_lists_every_direction_and_design_with_the_pre_pull(tmp_path)
     assert "| direction_deg | system | lead_residual_n | below_floor |" in text
     assert "| 90.000 | zvd | 0.590 | 0 |" in text
     assert sorted((tmp_path / "out").iterdir()) == [md]
+
+
+def test_the_higher_mode_design_is_the_fixed_zvd_and_a_zv_on_each_mode_of_the_map_at_the_move() -> None:
+    """ZVD (last impulse 2 pi / omega_d at the reference) convolved with ZV at 60 + d / 10 and 80 + b rad/s,
+    each pi / omega_d longer: the map's higher modes interpolated at the move as its dominant mode is."""
+    pts = [dataclasses.replace(
+        p, predicted_higher=((60 + p.direction_deg / 10, 0.03), (80 + p.bend_mm, 0.04))
+    ) for p in _points()]  # fmt: skip
+    w_ref = 20 + REFERENCE[0] / 10 + REFERENCE[1] / 10
+    d = design_for("zvd-zv34", pts, 135.0, 15.0)
+    w3, w4 = 60 + 13.5, 80 + 15.0
+    assert d.omega_d == pytest.approx(w_ref)
+    assert np.ravel(d.higher) == pytest.approx([w3, 0.03, w4, 0.04])
+    assert d.shaper.times[-1] == pytest.approx(2 * math.pi / w_ref + math.pi / w3 + math.pi / w4)
+    assert len(d.shaper) == 12 and sum(d.shaper.amplitudes) == pytest.approx(1.0)
+    meta = d.metadata()
+    assert [m["omega_d_rad_s"] for m in meta["higher_modes"]] == pytest.approx([w3, w4])
+    assert "higher_modes" not in design_for("zvd", pts, 135.0, 15.0).metadata()
+    with pytest.raises(ValueError, match="predicted_higher"):
+        design_for("zvd-zv34", _points(), 135.0, 15.0)

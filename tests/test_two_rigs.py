@@ -18,6 +18,7 @@ from helpers import rigfile
 from helpers.board.programmes import Dwell, Move, Programme
 from helpers.recordings import nominal_calibration
 from helpers.rig import Rig
+from helpers.rig.trim import TensionGuard
 from helpers.virtual.emulator.world import build_world, forget_world, register_world
 
 WORLD = "two-rigs-test"
@@ -46,7 +47,7 @@ def _run(rig: Rig, k: int, folder: Path) -> Path:
                             noise_seed=10 + k)  # fmt: skip
     else:
         rec = rig.run(FOUR_MOVE, path=folder / f"move_{k}", scenario={"purpose": "two rigs"}, tail_s=0.3,
-                      progress=False, noise_seed=20 + k)  # fmt: skip
+                      progress=False, noise_seed=20 + k, guard=TensionGuard())  # fmt: skip
     return rec.path
 
 

@@ -41,7 +41,7 @@ from helpers.base.jsonfile import MissingDataError
 from helpers.base.paths import DATA_DIR, repo_path, user_data_dir
 from helpers.board.programmes import experiment_programme
 from helpers.commands.recording_paths import check_group, recording_path
-from helpers.commands.session import recording_session
+from helpers.commands.session import recording_session, tension_guard
 from helpers.commands.tip_stream import TIP_SPEED_MM_S, record_tip_stream
 from helpers.paper import numbers as paper
 from helpers.paper import scaling_notes, scenarios
@@ -59,8 +59,8 @@ from helpers.recordings import RecordingExists, check_name, refuse_existing
 from helpers.research.design import SYSTEMS, Design, Schedule, load_design, up_down
 from helpers.research.families import ei
 from helpers.research.modemap import load_map
+from helpers.research.task_shaping import MAX_PREPULL_STEPS, ModeGrid, shaped_move
 from helpers.research.task_shaping import SHAPERS as MOVE_SHAPERS
-from helpers.research.task_shaping import ModeGrid, shaped_move
 from helpers.research.task_space import check_travel
 from helpers.research.teleop import record_streams
 from helpers.research.tip_stream import FIGURES as TIP_FIGURES
@@ -295,6 +295,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="do not simulate the shaped move's tensions in the spatial twin (nor change the pretension or "
         "the design when a tendon would dip below the floor)",
     )  # fmt: skip
+    _tension_options(move, "move")
     tip = add("tip-stream", _group_option("tip_streams"), _bend_options("tip-stream"))
     tip.add_argument("--path", choices=list(TIP_FIGURES), default="square",
                      help="the figure of bends (docs/task_space.md, arbitrary motion)")  # fmt: skip
@@ -304,9 +305,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--margin-n", type=arg_number(0, 10), default=0.0,
         help="trim the stops' whole steps to the tension floor plus this margin, N (0: record move's policy)",
     )  # fmt: skip
+    tip.add_argument(
+        "--prepull", type=arg_number(0, MAX_PREPULL_STEPS, int), default=0,
+        help="pull every tendon this many whole steps in before the path and let it out after (one tendon at "
+        "a time), as record move's pre-pull; the path planned from there (a path whose static tensions at "
+        "the board's whole steps leave a tendon below the floor is refused, saying which --prepull passes)",
+    )  # fmt: skip
     tip.add_argument("--shaper", choices=list(TIP_SHAPERS), default="none",
                      help="none, zv or zvd from the map's mode at the path's stops, one shaper for every "
                      "tendon")  # fmt: skip
+    _tension_options(tip, "stream")
+
+
+def _tension_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--trim`` and ``--no-floor-watch``: a motion of several tendons (``record move``, ``tip-stream``)."""
+    parser.add_argument(
+        "--trim", action="store_true",
+        help=f"before the {what}, trim every tendon by whole steps until its measured tension at rest is at "
+        "its planned rest tension (the fewest steps at which it is >= it; helpers.rig.trim, docs/safety.md)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--no-floor-watch", action="store_true",
+        help=f"record the whole {what} even where a tendon's measured tension stays below [arm] "
+        "tension_floor_n for longer than [arm] floor_watch_ms (by default that stops it, saved aborted)",
+    )  # fmt: skip
 
 
 def _shapers(args: argparse.Namespace, quiet: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -750,6 +772,9 @@ def _record_move(args: argparse.Namespace) -> int:
     check_programme(programme, rig, (0,) * rig.n_tendons)
     with recording_session(args, from_rest="a move") as (trig, noise_seed):
         print(f"  shaper: {design.describe()}")
+        if move.check is not None and not move.check.ok and design.shaper is not None:
+            print(f"  warning: the twin foresees a tendon below the floor ({move.check.lines()[-1]}); the "
+                  "floor watch stops the run if one stays below it longer than [arm] floor_watch_ms")
         scenario = {
             "kind": "move", "direction_deg": plan.direction_deg, "bend_mm": plan.bend_mm,
             "shaper": design.name, **move.metadata(),
@@ -758,7 +783,8 @@ def _record_move(args: argparse.Namespace) -> int:
             "tension_floor_n": plan.floor_n, "trimmed_steps": list(plan.trimmed),
         }  # fmt: skip
         rec = trig.run(programme, path=target, scenario=scenario, rate_hz=args.rate, tail_s=0.5,
-                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet)  # fmt: skip
+                       replace=args.replace, noise_seed=noise_seed, progress=not args.quiet,
+                       guard=tension_guard(args, rig))  # several tendons (_plan_move)
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0
 

@@ -4,7 +4,7 @@ Every ``record`` command (``calibration``, ``pulse``, ``table-i``, ``all``, ``st
 ``tip-stream``) records inside :func:`recording_session`: one recorder per group folder at a time, the boards
 opened through :class:`helpers.rig.Rig`, the firmware that answered printed, and the virtual rig's noise seed
 for the run (None on hardware). Commands that plan from rest (``move``, ``tip-stream``) have the stepper's
-positions checked before anything is sent.
+positions checked before anything is sent, and are given their run's guard (:func:`tension_guard`).
 """
 
 from __future__ import annotations
@@ -15,6 +15,8 @@ from contextlib import ExitStack, contextmanager
 
 from helpers.base.locks import folder_lock
 from helpers.rig import Rig, SafetyError
+from helpers.rig.trim import TensionGuard
+from helpers.rigfile import RigFile
 
 SESSION_LOCK = ".recording.lock"
 """The lock beside a group's folder: one recording session per folder at a time."""
@@ -69,3 +71,13 @@ def recording_session(
             f"source {trig.source['kind']}"
         )
         yield trig, (args.seed if trig.world is not None else None)
+
+
+def tension_guard(args: argparse.Namespace, rig: RigFile) -> TensionGuard:
+    """The guard of a motion of several tendons that ``--trim`` and ``--no-floor-watch`` ask for.
+
+    The trim's targets are the planner's static tension at the rest the motion starts from: each tendon's
+    ``pretension_n`` (a pre-pull is part of the motion that follows the trim).
+    """
+    targets = [t.pretension_n for t in rig.tendons] if args.trim else None
+    return TensionGuard(targets, watch=not args.no_floor_watch)

@@ -32,7 +32,10 @@ displacement ``|p - p_0|`` in mm from where it stood before the move, the median
 - ``noise``: the same half peak-to-peak at rest: the recording's first second (the second before Up after a
   pre-pull), and ``noise_floor_pct`` in % of the step;
 - ``below_floor`` (samples of the tension below the floor from the motion's start to the end of its residual
-  window: the slack events), ``least``, and ``slack`` (a sample below :data:`SLACK_N` in the residual window);
+  window: the slack events; for the Down motion of a pre-pulled move also every sample from the release's
+  first to the recording's last, the **let-out counted with the move**), ``below_floor_letout`` (those of the
+  let-out alone: 0 for Up and without a pre-pull), ``least`` (over the same samples), and ``slack`` (a sample
+  below :data:`SLACK_N` in the residual window);
 - ``role``: ``lead``, ``pulled`` (its count above its pre-pulled level in the hold: an up-hold-down move of
   its own), ``paid out`` or ``held`` (no up-hold-down move: no Table II row in ``metrics``), ``tip``.
 
@@ -285,8 +288,9 @@ def residual_table(
         One row per motion and signal (module docstring): ``motion``, ``signal`` (``tendon 1`` .. or
         ``tip``), ``tendon`` (1-based; 0 for the tip), ``role``, ``held_steps``, ``unit``, ``lead`` (1-based),
         ``move_start_s``, ``move_end_s``, ``move_duration_s``, ``window_end_s``, ``residual``, ``step``,
-        ``residual_pct``, ``noise``, ``noise_floor_pct``, ``slack``, ``below_floor``, ``least``, ``y0``,
-        ``yf``, ``peak``, ``overshoot_pct``, ``settling_ms``, ``peak_is_bound``, ``n_clipped``, ``reason``.
+        ``residual_pct``, ``noise``, ``noise_floor_pct``, ``slack``, ``below_floor`` (the Down motion's with
+        a pre-pull's let-out), ``below_floor_letout``, ``least``, ``y0``, ``yf``, ``peak``,
+        ``overshoot_pct``, ``settling_ms``, ``peak_is_bound``, ``n_clipped``, ``reason``.
     """
     t = frame["t_s"].to_numpy(dtype=float)
     c = _counts(frame, tendons)
@@ -304,12 +308,14 @@ def residual_table(
         rest = t < min(t[0] + metrics.RESIDUAL_LENGTH_S, phases.up_start_s)
     spans = (("Up", phases.up_start_s, phases.down_start_s, phases.up_end_s),
              ("Down", phases.down_start_s, phases.end_s, phases.down_end_s))  # fmt: skip
+    letout = t >= phases.release_s  # the pre-pull's let-out to the end (none: NaN compares False)
     rows = []
     for motion, start, stop, end in spans:
         lo = end + metrics.RESIDUAL_START_S
         hi = lo + metrics.RESIDUAL_LENGTH_S
         window = (t >= lo) & (t <= hi)
-        span = (t >= start) & (t <= hi)
+        out = letout if motion == "Down" else np.zeros_like(letout)
+        span = ((t >= start) & (t <= hi)) | out  # the let-out counted with the move's Down motion
         short = not window.any() or t[window][-1] < hi - 0.01
         for k, (role, held, unit, y, clip) in enumerate(signals):
             m = metrics.motion_metrics(t, y, start, stop, motion, band, clipped=clip)
@@ -333,6 +339,8 @@ def residual_table(
                 "noise": noise, "noise_floor_pct": 100.0 * noise / abs(step) if big else math.nan,
                 "slack": slack,
                 "below_floor": int(np.count_nonzero(y[span] < floor_n)) if unit == "N" and floor_n else 0,
+                "below_floor_letout": int(np.count_nonzero(y[out] < floor_n)) if unit == "N" and floor_n
+                else 0,
                 "least": float(np.min(y[span])) if span.any() else math.nan, "y0": m.y0, "yf": m.yf,
                 "peak": m.peak, "overshoot_pct": m.overshoot_pct, "settling_ms": m.settling_ms,
                 "peak_is_bound": m.peak_is_bound, "n_clipped": m.n_clipped, "reason": reason,

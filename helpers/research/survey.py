@@ -42,6 +42,7 @@ from helpers.board.programmes import Dwell, Programme, Segment
 from helpers.recordings import Recording
 from helpers.research.modemap import ModeMap
 from helpers.research.ringdown import fit_two_modes
+from helpers.rig.trim import TensionGuard
 from helpers.rigfile import RigFile, derived
 
 POSITIONS_MM = tuple(float(x) for x in range(0, 41, 5))
@@ -279,7 +280,8 @@ def survey(
             }  # fmt: skip
             seed = None if seeds is None else seeds()
             rec = rig.run(plan.programme, scenario=scenario, path=folder / name, rate_hz=rate_hz,
-                          replace=replace, progress=False, noise_seed=seed)  # fmt: skip
+                          replace=replace, progress=False, noise_seed=seed,
+                          guard=TensionGuard() if rig.n > 1 else None)  # fmt: skip
             for row in analyse(rec if "tension_n" in rec.frame else rec.derive(), plan):
                 row["repetition"] = k
                 rows.append(row)

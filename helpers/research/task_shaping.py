@@ -63,6 +63,14 @@ milliseconds whatever the shaper and even at 25 mm/s (one step of cable is about
 pretension 2.36 N); only a higher tension before the move absorbs that lag. Unshaped moves are simulated and
 reported, never changed (below the floor is the measured problem). If nothing lifts the move to the floor the
 attempt with the highest least tension is returned with ``ok`` False.
+
+**The second bending pair** (:func:`higher_modes`, :func:`with_higher_modes`). Above the dominant pair (each
+plane's first bending mode, 21-27 rad/s on the four-tendon twin) the arm's next two modes are each plane's
+second bending mode (its bending coordinates along the discs change sign twice, against once), 2.5-4.9
+times the dominant: 58-61 and 75-82 rad/s at a 20 mm bend, 77-90 and 94-110 rad/s at 10 mm (the bend
+softens them). A ZVD has zeros at its design frequency and its odd multiples only, so there it leaves 13-64 %
+of what the move's ramp puts into them; :func:`with_higher_modes` convolves the design with a ZV on each
+(``pi / omega_d`` longer each: 28-54 ms). ``docs/task_space.md`` has the measurements.
 """
 
 from __future__ import annotations
@@ -96,10 +104,11 @@ __all__ = [
     "SHAPERS", "FAMILY_OF", "SPLIT_WEIGHT", "SPLIT_APART", "SECOND_WEIGHT", "BAND", "AUTO_FAMILIES",
     "AUTO_TOLERANCE_PCT", "MAX_PREPULL_STEPS", "ROBUST_CHAIN", "MoveModes", "move_modes", "ModeGrid",
     "mode_grid", "ramp_factor", "split_ratio", "MoveShaping", "predicted_residual_pct", "design_move",
-    "programme_step_times", "pretensioned", "prepull_programme", "MoveRun", "simulate_move", "residuals",
-    "FloorCheck", "dynamic_floor", "floor_check",
+    "programme_step_times", "pretensioned", "prepull_programme", "release_order", "MoveRun", "simulate_move",
+    "residuals", "FloorCheck", "dynamic_floor", "floor_check",
     "AUTO_TARGET_PCT", "simulated_pct", "verify_auto",
     "ShapedMove", "shaped_move", "residual_table", "TABLE_POINTS", "TABLE_SHAPERS", "benchmark",
+    "N_HIGHER", "higher_modes", "with_higher_modes",
 ]  # fmt: skip
 
 FAMILY_OF = {
@@ -198,6 +207,37 @@ def move_modes(twin: SpatialRig, direction_deg: float, bend_mm: float, n_modes: 
         omega_d=tuple(float(v) for v in p.imag), zeta=tuple(float(v) for v in -p.real / np.abs(p)),
         weight=tuple(tuple(float(v) for v in w[i, order]) for i in range(twin.n_tendons)),
     )  # fmt: skip
+
+
+N_HIGHER = 2
+"""Modes above the dominant pair that :func:`higher_modes` keeps: the second bending pair."""
+
+
+def higher_modes(
+    rig: RigFile, twin: SpatialRig, plan: MovePlan, n_higher: int = N_HIGHER
+) -> tuple[tuple[float, float], ...]:
+    """The modes above the dominant pair at the pose a move reaches: ``(omega_d, zeta)``, lowest first.
+
+    The twin's linearisation (rotors free) about the equilibrium with every stepper at the plan's whole steps
+    (``twin``: the rest the plan starts from, pre-pulled where it is), its oscillatory modes by frequency:
+    the first two are the dominant pair (each plane's first bending mode), the next ``n_higher`` the second
+    bending pair (module docstring). The twin's prediction: nothing here is measured.
+    """
+    mm = np.asarray(derived(rig).mm_per_step, float)
+    eq = equilibrium(twin, np.asarray(plan.steps, float) * mm * 1e-3, rotor="free")
+    poles = linearise(twin, eq, rotor="free").poles
+    osc = sorted(poles[poles.imag > 1e-9], key=lambda p: p.imag)
+    if len(osc) < 2 + n_higher:
+        raise ValueError(f"the twin has {len(osc)} oscillatory modes at the move, fewer than {2 + n_higher}")
+    return tuple((float(p.imag), float(-p.real / abs(p))) for p in osc[2 : 2 + n_higher])
+
+
+def with_higher_modes(shaper: Shaper, modes: Sequence[tuple[float, float]], name: str) -> Shaper:
+    """``shaper`` convolved with a ZV on each of ``modes`` (``(omega_d, zeta)``), named ``name``."""
+    out = shaper
+    for omega_d, zeta in modes:
+        out = out.convolve(zv(omega_n_from_damped(omega_d, zeta), zeta))
+    return _renamed(out, name)
 
 
 def split_ratio(modes: MoveModes, window_s: float) -> tuple[float, int | None]:
@@ -584,9 +624,8 @@ def prepull_programme(
     if k == 0:
         return programme, 0.0, programme.duration_s
     pull = [Move(1000 * k, (k,) * n_tendons), Dwell(PREPULL_SETTLE_MS)]
-    order = list(range(0, n_tendons, 2)) + list(range(1, n_tendons, 2))
     release = []
-    for j in order:
+    for j in release_order(n_tendons):
         release += [
             Move(1000 * k, tuple(-k * (i == j) for i in range(n_tendons))),
             Dwell(RELEASE_GAP_MS),
@@ -594,6 +633,11 @@ def prepull_programme(
     moved = Programme(tuple(pull) + programme.items + tuple(release))
     start = sum(it.duration_us for it in pull) / 1e6
     return moved, start, start + programme.duration_s
+
+
+def release_order(n_tendons: int) -> list[int]:
+    """The order (0-based) a pre-pull lets the tendons out: every other one first (1, 3, then 2, 4 ...)."""
+    return list(range(0, n_tendons, 2)) + list(range(1, n_tendons, 2))
 
 
 PREPULL_SETTLE_MS = 500

@@ -151,6 +151,8 @@ class MoveDesign:
     zeta: float | None = None
     tendon: int | None = None
     """The tendon (0-based) whose tension's dominant mode the design used."""
+    higher: tuple[tuple[float, float], ...] = ()
+    """``(omega_d, zeta)`` of each mode above the dominant pair a ZV was convolved in for (none: empty)."""
 
     def describe(self) -> str:
         """One line: the shaper and the mode it used."""
@@ -167,9 +169,11 @@ class MoveDesign:
         """The design for a recording's scenario."""
         if self.shaper is None:
             return {"shaper": "none"}
+        modes = [{"omega_d_rad_s": o, "zeta": z} for o, z in self.higher]
+        higher = {"higher_modes": modes} if modes else {}
         return shaper_metadata(
             self.shaper, self.name, mode="dominant mode of the lead tendon's tension (direction map)",
-            tendon=int(self.tendon) + 1, omega_d_rad_s=float(self.omega_d), zeta=float(self.zeta),
+            tendon=int(self.tendon) + 1, omega_d_rad_s=float(self.omega_d), zeta=float(self.zeta), **higher,
         )  # fmt: skip
 
 
@@ -325,8 +329,15 @@ def move_design(
     return MoveDesign(zv if shaper == "zv" else zvd, shaper, omega_d, zeta, int(np.argmax(u)))
 
 
-def _pieces(steps: Sequence[int], window_s: float, shaper: Shaper | None, sign: int) -> list[Move | Dwell]:
-    """The items of one move: every tendon's ramp convolved with the shaper, each constant piece an item."""
+def _pieces(
+    steps: Sequence[int], window_s: float, shaper: Shaper | None, sign: int, min_interval_us: float = 0.0
+) -> list[Move | Dwell]:
+    """The items of one move: every tendon's ramp convolved with the shaper, each constant piece an item.
+
+    A piece too short for the whole steps its rounding gives it (a step faster than ``min_interval_us``: two
+    of the shaper's edges a fraction of a millisecond apart, as where a ramp's end meets a later impulse) is
+    merged into the next piece, its steps and its time with it; the last piece is never merged.
+    """
     amps, times = ((1.0,), (0.0,)) if shaper is None else (tuple(shaper.amplitudes), tuple(shaper.times))
     edges_us = sorted({round(1e6 * t) for t in times} | {round(1e6 * (t + window_s)) for t in times})
     n = np.asarray(steps, dtype=float)
@@ -339,14 +350,20 @@ def _pieces(steps: Sequence[int], window_s: float, shaper: Shaper | None, sign: 
 
     items: list[Move | Dwell] = []
     carry_us = 0
-    for a, b in zip(edges_us[:-1], edges_us[1:], strict=True):
-        counts = reached(b) - reached(a)
+    pending = np.zeros(len(n), dtype=int)
+    pairs = list(zip(edges_us[:-1], edges_us[1:], strict=True))
+    for k, (a, b) in enumerate(pairs):
+        counts = reached(b) - reached(a) + pending
         width = b - a + carry_us
         if not counts.any():  # a pause between impulses: whole ms, the rest carried into the next item
             ms, carry_us = divmod(width, 1000)
             if ms:
                 items.append(Dwell(ms))
             continue
+        if k < len(pairs) - 1 and np.abs(counts).max() * min_interval_us > width:
+            pending, carry_us = counts, width  # too fast for the board: into the next piece
+            continue
+        pending[:] = 0
         carry_us = 0
         items.append(Move(int(width), tuple(int(c) for c in counts)))
     return items
@@ -387,8 +404,9 @@ def move_programme(
     duration = window_s + (float(shaper.times[-1]) if shaper is not None else 0.0)
     if t_up_s + duration > t_down_s or t_down_s + duration > t_end_s:
         raise ValueError(f"the move lasts {duration:.3f} s: it does not fit between t_up, t_down and t_end")
-    up = _pieces(plan.steps, window_s, shaper, +1)
-    down = _pieces(plan.steps, window_s, shaper, -1)
+    fastest = derived(rig).min_interval_us
+    up = _pieces(plan.steps, window_s, shaper, +1, fastest)
+    down = _pieces(plan.steps, window_s, shaper, -1, fastest)
 
     def span_ms(items: list[Move | Dwell]) -> float:
         return sum(it.duration_us for it in items) / 1000

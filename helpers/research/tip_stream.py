@@ -32,6 +32,20 @@ naming the tendon, the period and time, the bend and the figure (:class:`~helper
 exit status 3, ``docs/safety.md``). The travel and the speed limits, and the board's shaped motion, are the
 stream's own checks (:func:`~helpers.rig.stream.check_stream`, called by :func:`check_plan`).
 
+**The floor at the board's whole steps** (:func:`check_whole_steps`, before any byte): the board does not
+stand at the planned positions but at whole-step counts that follow its shaped cable with a one-step
+hysteresis (:func:`board_path`); one step of a tendon against its antagonist is about 2.7 N of static tension
+on the four-tendon rig, more than its rest pretension, so the static tensions at those counts
+(:func:`board_tensions`) at every period's end are checked against the floor too, refused in one line naming
+the tendon, the period (:meth:`StreamPlan.board_where`) and the figure (exit status 3).
+
+**A pre-pull** (``plan_stream(..., prepull=k)``, a move's
+:func:`~helpers.research.task_shaping.pretensioned` rest for a stream): every tendon pulled ``k`` whole steps
+in at once (one period), :data:`PREPULL_SETTLE_PERIODS` at rest, the path planned and designed from that
+pre-pulled rest, then each tendon let out one at a time
+(:func:`~helpers.research.task_shaping.release_order`), :data:`RELEASE_GAP_PERIODS` apart: all of it
+set-points of the one stream (:attr:`StreamPlan.board_units`), shaped by the board like the path.
+
 **One shaper for every tendon** (:func:`stream_design`): the paper's ZV or ZVD designed from the direction
 map's dominant mode, averaged over the path's stops away from rest (each stop's ``dominant_omega_d_rad_s``
 and ``dominant_zeta``; the mean): one shaper loaded on the board shapes every axis.
@@ -42,7 +56,7 @@ Everything here is the spatial twin's statics and modes: **simulated**, never me
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +64,13 @@ import numpy as np
 from helpers.board import stream_reference as hs
 from helpers.board.programmes import Limits
 from helpers.paper.shapers import Shaper, design_tdfs
+from helpers.research.task_shaping import (
+    MAX_PREPULL_STEPS,
+    PREPULL_SETTLE_MS,
+    RELEASE_GAP_MS,
+    pretensioned,
+    release_order,
+)
 from helpers.research.task_space import MAX_TRIM_STEPS, shaper_metadata
 from helpers.rig.safety import SafetyError
 from helpers.rig.stream import CheckedStream, SetpointSource, check_stream
@@ -77,6 +98,9 @@ __all__ = [
     "board_path",
     "board_counts",
     "board_tensions",
+    "check_whole_steps",
+    "PREPULL_SETTLE_PERIODS",
+    "RELEASE_GAP_PERIODS",
     "stream_design",
     "interpolation_error",
 ]
@@ -322,10 +346,23 @@ def _knots(path: TipPath, knot_mm: float) -> np.ndarray:
 
 
 def _bend_eq(twin: SpatialRig, bend: np.ndarray, start: SpatialEquilibrium | None) -> SpatialEquilibrium:
+    """The bend's equilibrium, continued from ``start``; solved afresh where the continuation fails.
+
+    Continuing along a square's edge from its corner (a tendon that faced the corner side-on is pulled past
+    it), the solver can leave the branch and report a pull-out no fresh solve finds, or not converge (the
+    four-tendon twin pre-pulled one step, the square of 5 mm at 200 mm/s, 3.95 mm towards 18.4 deg:
+    111.7 N from the corner's state, 8.53 N from its own); a pull-out the fresh solve finds too is refused
+    as before.
+    """
     m = float(np.hypot(*bend))
     # at rest any direction is the rest: tendon 1's, which it faces (0 deg may face no tendon)
     d = math.degrees(math.atan2(bend[1], bend[0])) if m > 1e-9 else twin.tendons[0].angle_deg
-    return bend_equilibrium(twin, d, m, start=start)
+    try:
+        return bend_equilibrium(twin, d, m, start=start)
+    except (ValueError, RuntimeError):
+        if start is None:
+            raise
+        return bend_equilibrium(twin, d, m)
 
 
 def _commands(twin: SpatialRig, path: TipPath, knots: np.ndarray) -> tuple[np.ndarray, list]:
@@ -396,6 +433,9 @@ class StreamPlan:
         The rig file's tension floor, N.
     knot_mm : float
         The statics' knot spacing along the path.
+    board_units, board_setpoints_mm_s : numpy.ndarray
+        What the board is sent: ``units`` (``setpoints_mm_s``) with a pre-pull's periods before them (the
+        pull, its settling) and after them (the let-out, one tendon at a time); ``units`` without a pre-pull.
     """
 
     path: TipPath
@@ -408,10 +448,36 @@ class StreamPlan:
     tip_mm: np.ndarray
     floor_n: float
     knot_mm: float
+    board_units: np.ndarray
+    board_setpoints_mm_s: np.ndarray
     margin_n: float = 0.0
     """The margin above the floor the stops were trimmed to, N."""
     interpolated: int = 0
     """Boundaries in motion whose command was interpolated between knots (not solved there)."""
+    prepull: int = 0
+    """Steps every tendon is pulled in before the path and let out after it (:func:`plan_stream`); 0: none.
+    ``positions``, ``stop_steps`` and ``tension_n`` count from the pre-pulled rest."""
+    offset: int = 0
+    """The board's periods before the path's first (the pre-pull and its settling; 0 without one)."""
+
+    def stop_counts(self) -> list[tuple[int, ...]]:
+        """Every stop's whole steps as the board counts them (from the rest before any pre-pull)."""
+        return [tuple(int(v) + self.prepull for v in s) for s in self.stop_steps]
+
+    def board_where(self, r: int) -> str:
+        """Where boundary ``r`` of the board's set-points lies (a row of :func:`board_path`).
+
+        The path's :meth:`TipPath.where`, or the pre-pull before it, or the let-out (or the shaper's tail)
+        after it.
+        """
+        k = r - self.offset
+        if k < 0:
+            return f"the pre-pull (t = {k * PERIOD_S:.2f} s, before the path's period 0)"
+        if k <= self.path.periods:
+            return self.path.where(k)
+        t = f"t = {k * PERIOD_S:.2f} s"
+        return (f"the let-out ({t}, after the path's period {self.path.periods})" if self.prepull
+                else f"the shaper's tail ({t}, after the path's period {self.path.periods})")  # fmt: skip
 
     def least_tension(self) -> list[tuple[float, int]]:
         """Each tendon's least planned static tension and the boundary where it is."""
@@ -441,7 +507,9 @@ class StreamPlan:
             "trimmed_steps": [list(s) for s in self.trimmed],
             "planned_min_tension_n": [round(t, 6) for t, _ in self.least_tension()],
             "tension_floor_n": self.floor_n, "margin_n": self.margin_n, "knot_mm": self.knot_mm,
-            "interpolated_periods": self.interpolated,
+            "interpolated_periods": self.interpolated, "prepull_steps": self.prepull,
+            "prepull_periods": self.offset,
+            "release_periods": len(self.board_units) - self.offset - len(self.units),
         }  # fmt: skip
 
 
@@ -492,6 +560,7 @@ def plan_stream(
     spatial: SpatialRig | None = None,
     mapping: str = "statics",
     margin_n: float = 0.0,
+    prepull: int = 0,
 ) -> StreamPlan:
     """Every tendon's set-points for a tip path, the static tensions checked against the floor (module doc).
 
@@ -504,7 +573,8 @@ def plan_stream(
     knot_mm : float
         Path length between the statics' knots, mm of bend.
     spatial : SpatialRig, optional
-        The twin of ``rig`` (default :func:`~helpers.virtual.spatial.from_rig.spatial_rig`).
+        The twin of ``rig`` at its own rest, never pre-pulled (default
+        :func:`~helpers.virtual.spatial.from_rig.spatial_rig`).
     mapping : {"statics", "kinematic"}
         :data:`MAPPINGS`; with ``"kinematic"`` every tendon's cable is ``b (r_i / r_mean) cos(beta - a_i)``
         and a stop's steps are only rounded (the floor is still checked by the statics).
@@ -512,6 +582,12 @@ def plan_stream(
         At the stops, trim every tendon up to the floor plus this margin (N; 0: ``plan_move``'s policy), for
         the ringing on arrival: a tendon the rounding leaves just above the floor (1.18 N beside a bend of
         10 mm towards a tendon of the four-tendon rig) dips below it as the arm settles.
+    prepull : int
+        Every tendon pulled this many whole steps in before the path and let out after it, as a move's
+        pre-pull (0 to :data:`~helpers.research.task_shaping.MAX_PREPULL_STEPS`; module docstring): the path
+        is planned on the pre-pulled twin (:func:`~helpers.research.task_shaping.pretensioned`), its rest that
+        pre-pulled rest; the board is sent the pull, :data:`PREPULL_SETTLE_PERIODS` at rest, the path, and the
+        let-out (``board_units``).
 
     Raises
     ------
@@ -520,11 +596,17 @@ def plan_stream(
         statics load to its stepper's pull-out, or a set-point over the stream's speed limit: one line naming
         the tendon and the figure.
     ValueError
-        A path that does not start at rest, a bad ``knot_mm``.
+        A path that does not start at rest, a bad ``knot_mm``, a pre-pull out of range or on an arm whose
+        tendons do not balance (pulling every tendon in would bend it).
     """
     if float(np.hypot(*path.bends[0])) > 1e-9:
         raise ValueError(f"a tip stream starts at rest: the path starts at bend {path.polar(0)[1]:.2f} mm")
+    if isinstance(prepull, bool) or not isinstance(prepull, int | np.integer) or not \
+            0 <= prepull <= MAX_PREPULL_STEPS:  # fmt: skip
+        raise ValueError(f"prepull must be a whole number of steps in 0-{MAX_PREPULL_STEPS}, got {prepull!r}")
     twin = spatial_rig(rig) if spatial is None else spatial
+    if prepull:
+        twin = pretensioned(rig, twin, int(prepull))
     floor = float(rig.arm.tension_floor_n)
     what = f"the {path.name} path ({path.bend_mm:g} mm)"
     for i, t in enumerate(rig.tendons):
@@ -575,22 +657,55 @@ def plan_stream(
     idx = np.arange(path.periods + 1)
     for i in range(x.shape[1]):
         corr[:, i] = np.interp(idx, ks, ds[:, i])
-    cum = _units(x + corr, path, stop_steps)
-    cum[0] = 0.0
+    # the board counts from the rest before the pre-pull: whole set-point units there, and at every stop on
+    # the side the count comes from
+    cum = _units(x + corr + prepull, path, [s + prepull for s in stop_steps])
+    cum[0] = math.ceil(prepull * UNITS_PER_STEP - 1e-9)  # the pull's units: the count reaches the pre-pull
     units = np.diff(cum, axis=0).astype(np.int64)
     mm_s = units * hs.STEPS_PER_S_PER_UNIT * (mm_m * 1e3)
     _refuse_too_fast(units, rig, path, what)
     SetpointSource(mm_s, rig).check_all()  # the speed limit, one line naming the tendon and the set-point
-    positions = cum / UNITS_PER_STEP
+    positions = cum / UNITS_PER_STEP - prepull
     tension, tip = _tensions(twin, positions * mm_m, knots, eqs, what, path)
     check_floor(tension, floor, path, what)
+    board = _prepulled(units, cum[0].astype(np.int64), cum[-1].astype(np.int64))
     return StreamPlan(
         path=path, units=units, setpoints_mm_s=mm_s, positions=positions,
         stop_steps=tuple(tuple(int(v) for v in s) for s in stop_steps),
         trimmed=tuple(tuple(int(v) for v in t) for t in trims), tension_n=tension, tip_mm=tip, floor_n=floor,
-        knot_mm=float(knot_mm), margin_n=float(margin_n),
-        interpolated=_interpolated(path, knots) if mapping == "statics" else 0,
+        knot_mm=float(knot_mm), board_units=board,
+        board_setpoints_mm_s=board * hs.STEPS_PER_S_PER_UNIT * (mm_m * 1e3), margin_n=float(margin_n),
+        interpolated=_interpolated(path, knots) if mapping == "statics" else 0, prepull=int(prepull),
+        offset=PREPULL_SETTLE_PERIODS + 1 if prepull else 0,
     )  # fmt: skip
+
+
+PREPULL_SETTLE_PERIODS = round(PREPULL_SETTLE_MS / 1e3 / PERIOD_S)
+"""Periods at rest after a stream's pre-pull, before the path (a move's
+:data:`~helpers.research.task_shaping.PREPULL_SETTLE_MS`)."""
+
+RELEASE_GAP_PERIODS = round(RELEASE_GAP_MS / 1e3 / PERIOD_S)
+"""Periods at rest after each tendon's let-out (a move's
+:data:`~helpers.research.task_shaping.RELEASE_GAP_MS`)."""
+
+
+def _prepulled(units: np.ndarray, pull: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """The board's set-points for a pre-pulled path (``units``); ``units`` alone without a pre-pull.
+
+    The pull (``pull`` units on every tendon in one period), the settling, the path's ``units``, then each
+    tendon's ``end`` units let out in one period, one tendon at a time
+    (:func:`~helpers.research.task_shaping.release_order`), every let-out followed by its gap at rest.
+
+    """
+    if not pull.any():
+        return units
+    n = units.shape[1]
+    rows = [pull[None, :], np.zeros((PREPULL_SETTLE_PERIODS, n), dtype=np.int64), units]
+    for j in release_order(n):
+        out = np.zeros((1 + RELEASE_GAP_PERIODS, n), dtype=np.int64)
+        out[0, j] = -end[j]
+        rows.append(out)
+    return np.vstack(rows).astype(np.int64)
 
 
 def _interpolated(path: TipPath, knots: np.ndarray) -> int:
@@ -601,23 +716,39 @@ def _interpolated(path: TipPath, knots: np.ndarray) -> int:
     return int(np.count_nonzero(~held))
 
 
-def check_floor(tension_n: np.ndarray, floor_n: float, path: TipPath, what: str) -> None:
-    """Refuse planned static tensions (one row per boundary) with a tendon below the floor.
+def check_floor(
+    tension_n: np.ndarray,
+    floor_n: float,
+    path: TipPath,
+    what: str,
+    where: Callable[[int], str] | None = None,
+    how: str = "by statics",
+) -> None:
+    """Refuse static tensions (one row per boundary) with a tendon below the floor.
+
+    ``where(k)`` names row ``k`` (default the path's :meth:`TipPath.where`); ``how`` says what the tensions
+    are (the plan's, or those at the board's whole steps).
 
     Raises
     ------
     SafetyError
-        ``tendon i: <what> leaves it at T N by statics at period k (t = ... s, bend ...), below the tension
-        floor F N ([arm] tension_floor_n)``: the first period with a tendon short, its lowest tendon.
+        ``tendon i: <what> leaves it at T N <how> at period k (t = ... s, bend ...), below the tension floor
+        F N ([arm] tension_floor_n)``: the first period with a tendon short, its lowest tendon; when the least
+        tension is elsewhere, ``(the least: L N, tendon j at ...)`` after it.
     """
-    low = np.argwhere(np.asarray(tension_n) < floor_n)
+    tension_n = np.asarray(tension_n)
+    where = path.where if where is None else where
+    low = np.argwhere(tension_n < floor_n)
     if low.size:
         k = int(low[0, 0])
-        row = np.asarray(tension_n)[k]
+        row = tension_n[k]
         i = int(np.argmin(row))
+        kl, il = np.unravel_index(int(np.argmin(tension_n)), tension_n.shape)
+        least = ("" if tension_n[kl, il] >= row[i] else
+                 f" (the least: {tension_n[kl, il]:.2f} N, tendon {il + 1} at {where(int(kl))})")  # fmt: skip
         raise SafetyError(
-            f"tendon {i + 1}: {what} leaves it at {row[i]:.2f} N by statics at {path.where(k)}, below the "
-            f"tension floor {floor_n:.2f} N ([arm] tension_floor_n)"
+            f"tendon {i + 1}: {what} leaves it at {row[i]:.2f} N {how} at {where(k)}, below the "
+            f"tension floor {floor_n:.2f} N ([arm] tension_floor_n){least}"
         )
 
 
@@ -685,22 +816,26 @@ def check_plan(
         As :func:`~helpers.rig.stream.check_stream`: one line naming the tendon and the figure.
     """
     start = tuple(start) if start is not None else (0,) * rig.n_tendons
-    return check_stream(plan.setpoints_mm_s, rig, start, shaper)
+    return check_stream(plan.board_setpoints_mm_s, rig, start, shaper)
 
 
 def board_path(plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper | None) -> np.ndarray:
-    """Every tendon's step count at every boundary, by the board's own planner (the shaped motion, from rest).
+    """Every tendon's step count at every boundary of what the board is sent, by the board's own planner.
+
+    :attr:`StreamPlan.board_units`: the path, and a pre-pull's periods before and after it; the shaped
+    motion, from rest.
 
     Row ``k`` is the count ``(k + 2)`` periods after ``STREAM`` (row ``r`` of the set-points, taken at tick
     ``r + 1``, drives ``[(r + 2) T, (r + 3) T)``); a last row is the count when the board has finished (the
-    shaper's delays carry the motion past the set-points). Shape (periods + 2, tendons).
+    shaper's delays carry the motion past the set-points). Shape (board periods + 2, tendons); the path's
+    boundary ``k`` is row ``k + plan.offset`` (:meth:`StreamPlan.board_where` names a row).
     """
     board = hs.board_shaper(shaper)
     d = derived(rig)
     v_max = hs.v_max(d.min_interval_us)  # the build's set-point limit
     run = hs.AxesRun(board, (0,) * rig.n_tendons, d.travel_steps, d.release_steps, v_max)
-    hs.drive_axes(run, plan.units.tolist())
-    edges = np.append((np.arange(plan.path.periods + 1) + 2) * hs.PERIOD_TICKS, np.iinfo(np.int64).max)
+    hs.drive_axes(run, plan.board_units.tolist())
+    edges = np.append((np.arange(len(plan.board_units) + 1) + 2) * hs.PERIOD_TICKS, np.iinfo(np.int64).max)
     out = np.zeros((len(edges), rig.n_tendons), dtype=np.int64)
     for i, p in enumerate(run.planners):
         ticks, dirs = np.asarray(p.ticks, dtype=np.int64), np.asarray(p.dirs, dtype=np.int64)
@@ -715,10 +850,13 @@ def board_counts(
     """Every tendon's step count at the end of each stop, by the board's own planner (:func:`board_path`).
 
     The count at the last boundary of a stop (a stop lasts longer than the shaper), or when the board has
-    finished for a stop that ends the path.
+    finished for a stop that ends a path without a pre-pull; counted from the rest before any pre-pull (to
+    compare with :meth:`StreamPlan.stop_counts`).
     """
     counts = board_path(plan, rig, shaper)
-    return [tuple(int(c) for c in counts[b if b < plan.path.periods else -1]) for _a, b in plan.path.stops]
+    n = plan.path.periods
+    return [tuple(int(c) for c in counts[plan.offset + b if b < n or plan.prepull else -1])
+            for _a, b in plan.path.stops]  # fmt: skip
 
 
 def board_tensions(
@@ -726,9 +864,12 @@ def board_tensions(
 ) -> np.ndarray:
     """The static tensions (rotors free, N) at the board's whole-step counts at every boundary.
 
-    A forecast, not a check: the board's count follows the shaped cable with a one-step hysteresis, and one
-    step is 2-3 N on a tendon of the four-tendon rigs, so these can fall well below the plan's
-    (:attr:`StreamPlan.tension_n`, at the integrated set-points) while the tendons move.
+    Rows as :func:`board_path`'s (a pre-pull, its let-out and the shaper's tail included), solved on the twin
+    of ``rig`` at its own rest (``spatial``: never a pre-pulled twin; the counts include the pre-pull). The
+    board's count follows the shaped cable with a one-step hysteresis, and one step is 2-3 N on a tendon of
+    the four-tendon rigs, so these can fall well below the plan's (:attr:`StreamPlan.tension_n`, at the
+    integrated set-points) while the tendons move: a tendon paid out from its pretension is a step ahead of
+    its cable. :func:`check_whole_steps` checks them against the floor.
     """
     twin = spatial_rig(rig) if spatial is None else spatial
     mm_m = np.asarray(derived(rig).mm_per_step, dtype=float) * 1e-3
@@ -743,6 +884,29 @@ def board_tensions(
             cache[key] = eq.tension
         out[k] = cache[key]
     return out
+
+
+def check_whole_steps(
+    plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper | None, spatial: SpatialRig | None = None
+) -> np.ndarray:
+    """Refuse a plan whose static tensions at the board's whole-step counts leave a tendon below the floor.
+
+    :func:`board_tensions` at every boundary the board runs (a pre-pull and its let-out included), checked
+    with :func:`check_floor`; returns them, shape as :func:`board_path`'s.
+
+    Raises
+    ------
+    SafetyError
+        ``tendon i: the <figure> path (B mm) leaves it at T N by statics at the board's whole steps at period
+        k (t = ..., bend ...), below the tension floor F N ([arm] tension_floor_n)``, the least after it.
+    """
+    tension = board_tensions(plan, rig, shaper, spatial)
+    what = f"the {plan.path.name} path ({plan.path.bend_mm:g} mm)"
+    if plan.prepull:
+        what += f" pre-pulled {plan.prepull} step(s)"
+    check_floor(tension, plan.floor_n, plan.path, what, plan.board_where,
+                "by statics at the board's whole steps")  # fmt: skip
+    return tension
 
 
 # --- the shaper ------------------------------------------------------------------------------------------

@@ -9,8 +9,11 @@ frame has the twin's tip, ``tip_x_mm`` ..) is measured against the plan:
   offset from where the statics puts it (mm), and each tendon's tension peak to peak (N);
 - :func:`tracking`: the delay of the tip behind the plan's static tip path that best aligns them, and the RMS
   distance left at that delay (mm);
-- :func:`tension_summary`: each tendon's least tension over the stream and the samples below the floor (raw,
-  and over a 20 ms moving mean that leaves out the steps' transients).
+- :func:`tension_summary`: each tendon's least tension over the stream (a pre-pull and its let-out included)
+  and the samples below the floor (raw, and over a 20 ms moving mean that leaves out the steps' transients).
+
+Times are from the path's period 0 (:func:`stream_clock`): the board's ``STREAM``, plus the periods of a
+pre-pull (``scenario.prepull_periods``, :func:`helpers.research.tip_stream.plan_stream`).
 
 On the virtual rig every figure is **simulated** (the twin's tip is not measured).
 """
@@ -23,21 +26,30 @@ import pandas as pd
 from helpers.recordings import Recording
 from helpers.research.tip_stream import PERIOD_S, StreamPlan
 
-__all__ = ["stop_metrics", "tracking", "tension_summary", "stream_clock", "summary"]
+__all__ = ["stop_metrics", "tracking", "tension_summary", "stream_clock", "prepull_s", "summary"]
 
 _TIP = ("tip_x_mm", "tip_y_mm", "tip_z_mm")
 
 
+def prepull_s(rec: Recording) -> float:
+    """Seconds from the board's ``STREAM`` to the path's period 0 (0 without a pre-pull).
+
+    A pre-pull's periods: the pull and its settling, ``scenario.prepull_periods``.
+    """
+    return float(rec.meta["scenario"].get("prepull_periods") or 0) * PERIOD_S
+
+
 def stream_clock(rec: Recording) -> np.ndarray:
-    """Every sample's time from the board's ``STREAM``, s.
+    """Every sample's time from the path's period 0, s: the board's ``STREAM``, plus a pre-pull's periods.
 
     The recording's ``t_go_us`` (for a stream, the device time of ``STREAM``); recordings of format 3 kept it
-    in ``scenario.t_stream_us``.
+    in ``scenario.t_stream_us``. Without a pre-pull (every recording before ``scenario.prepull_periods``) the
+    time from ``STREAM``.
     """
     t0 = rec.meta["scenario"].get("t_stream_us", rec.meta.get("t_go_us"))
     if t0 is None:
         raise ValueError(f"{rec.path}: the recording does not say when the stream started (t_go_us)")
-    return (rec.frame["t_us"].to_numpy(dtype=float) - t0) * 1e-6
+    return (rec.frame["t_us"].to_numpy(dtype=float) - t0) * 1e-6 - prepull_s(rec)
 
 
 def _shaper_s(rec: Recording) -> float:
@@ -106,6 +118,8 @@ def tracking(rec: Recording, plan: StreamPlan, max_lag_s: float = 0.6) -> tuple[
 def tension_summary(rec: Recording, floor_n: float, smooth_s: float = 0.02) -> pd.DataFrame:
     """Each tendon's least tension from ``STREAM`` on and the samples below ``floor_n``.
 
+    From ``STREAM`` to the recording's end: a pre-pull's pull, the path, and the let-out after it.
+
     Also over the tension's centred moving mean of ``smooth_s``: each step of a stepper moves its tendon's
     tension by several newtons for a few milliseconds (the cable's stiffness before the arm follows), and the
     smoothed figures separate those transients from a tendon that stays slack.
@@ -113,11 +127,11 @@ def tension_summary(rec: Recording, floor_n: float, smooth_s: float = 0.02) -> p
     Returns
     -------
     pandas.DataFrame
-        One row per tendon (1-based): ``tendon``, ``least_n``, ``at_s`` (from ``STREAM``), ``below_floor``
-        (samples), ``least_smoothed_n``, ``below_floor_smoothed``, ``samples``.
+        One row per tendon (1-based): ``tendon``, ``least_n``, ``at_s`` (:func:`stream_clock`),
+        ``below_floor`` (samples), ``least_smoothed_n``, ``below_floor_smoothed``, ``samples``.
     """
     t = stream_clock(rec)
-    after = t >= 0.0
+    after = t >= -prepull_s(rec)
     width = max(1, round(smooth_s * float(rec.meta["rate_hz"])))
     rows = []
     for i in range(rec.meta["tendons"]):

@@ -16,6 +16,9 @@ direction and the magnitude of the bend. So, on the rig (the in-process virtual 
    at the reference bend (:data:`REFERENCE`: 10 mm towards tendon 1, as one would tune along one tendon);
    and the **direction-scheduled** ZV and ZVD, each move's designed from the map's mode at its own direction
    and bend (:func:`scheduled_mode`: the map interpolated, periodic in the direction, linear in the bend);
+   and ``zvd-zv34``, the fixed ZVD convolved with a ZV on each mode of the arm's second bending pair at the
+   move (the twin's third and fourth modes, kept in the map as ``predicted_higher`` and interpolated as the
+   dominant mode is: the hold's ring-down identifies the dominant mode only);
 3. **verify** each design on every bend of the grid, ``repetitions`` runs each: the residual vibration of
    every tendon's tension and of the tip after the Up and Down motions, and the samples below the tension
    floor (:func:`helpers.research.residuals.recording_residuals`: the lead tendon that pulls most towards the
@@ -24,8 +27,9 @@ direction and the magnitude of the bend. So, on the rig (the in-process virtual 
    bends and repetitions, the slack samples, the move's duration; the wall time of the whole run.
 
 Every move of a design lasts its ramp plus the shaper's last impulse time: ZV and the scheduled ZV last
-about half a period longer than unshaped, ZVD one period (durations are in the report; comparisons across
-families are not at equal duration).
+about half a period longer than unshaped, ZVD one period, ``zvd-zv34`` ZVD's and half a period of each
+mode of the pair (63-96 ms longer than the ZVD; durations are in the report; comparisons across families are
+not at equal duration).
 """
 
 from __future__ import annotations
@@ -55,14 +59,17 @@ from helpers.research.residuals import recording_residuals
 from helpers.research.task_shaping import (
     MAX_PREPULL_STEPS,
     design_move,
+    higher_modes,
     prepull_programme,
     pretensioned,
     simulate_move,
     verify_auto,
+    with_higher_modes,
 )
 from helpers.research.task_space import MoveDesign, MovePlan, check_travel, move_programme, plan_move
 from helpers.rig import Rig
 from helpers.rig.safety import SafetyError
+from helpers.rig.trim import TensionGuard
 from helpers.rigfile import RigFile
 from helpers.virtual.spatial.direction_map import frequency_map, parse_values
 from helpers.virtual.spatial.from_rig import spatial_rig
@@ -70,7 +77,7 @@ from helpers.virtual.spatial.plant import SpatialPlant
 
 __all__ = [
     "DIRECTIONS_DEG", "BENDS_MM", "REFERENCE", "SYSTEMS", "SEARCH_BAND", "ENVELOPE_FLOOR", "MOVE_TIMES_S",
-    "MapPoint", "scheduled_mode",
+    "MapPoint", "scheduled_mode", "scheduled",
     "design_for", "run_move", "identify_hold", "measure_map", "verify", "SUMMARY_COLUMNS", "summarise",
     "tune_tendons", "choose_prepull", "tendon_folder", "run_tendons", "write_report", "reference", "grid",
 ]  # fmt: skip
@@ -90,9 +97,11 @@ def reference(rig: RigFile) -> tuple[float, float]:
     """The fixed designs' bend on ``rig``: :data:`REFERENCE`'s bend towards its tendon 1."""
     return float(rig.tendons[0].angle_deg % 360.0), REFERENCE[1]
 
-SYSTEMS = ("unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd", "auto")
+SYSTEMS = ("unshaped", "zv", "zvd", "scheduled-zv", "scheduled-zvd", "auto", "zvd-zv34")
 """The designs verified, by the name each recording's scenario carries (``auto``: the automatic choice of
-:mod:`helpers.research.task_shaping`, designed from the twin's modes and checked in it)."""
+:mod:`helpers.research.task_shaping`, designed from the twin's modes and checked in it; ``zvd-zv34``: the
+fixed ZVD convolved with a ZV on each mode of the second bending pair, the twin's third and fourth modes at
+the move, :func:`helpers.research.task_shaping.higher_modes`, read off the map's ``predicted_higher``)."""
 
 MOVE_TIMES_S = (1.5, 4.5, 8.0)
 """(move out, move back, end) of every tuning run, s: 1.5 s at rest first, so that the ringing a run leaves
@@ -115,6 +124,10 @@ class MapPoint:
     recording: str
     predicted_split: tuple[float, float] = (math.nan, math.nan)
     """The twin's two lowest bending modes with every spool held, rad/s: the pair the bend splits."""
+    predicted_higher: tuple[tuple[float, float], ...] = ()
+    """The twin's modes above the dominant pair at the bend, ``(omega_d, zeta)`` lowest first (the second
+    bending pair, :func:`helpers.research.task_shaping.higher_modes`; rotors free): predicted, not measured
+    (the hold's ring-down identifies the dominant mode only)."""
 
 
 def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: float) -> tuple[float, float]:
@@ -122,8 +135,18 @@ def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: fl
 
     Outside the grid's bends the nearest bend's values are used (no extrapolation).
     """
-    table = pd.DataFrame([(p.direction_deg % 360.0, p.bend_mm, p.omega_d, p.zeta) for p in points],
-                         columns=["d", "b", "w", "z"])  # fmt: skip
+    w, z = scheduled(points, direction_deg, bend_mm, lambda p: (p.omega_d, p.zeta))
+    return float(w), float(z)
+
+
+def scheduled(
+    points: Sequence[MapPoint], direction_deg: float, bend_mm: float,
+    values: Callable[[MapPoint], Sequence[float]],
+) -> np.ndarray:  # fmt: skip
+    """``values`` of the map's points at a bend, interpolated as :func:`scheduled_mode` does."""
+    cols = [f"v{i}" for i in range(len(values(points[0])))]
+    table = pd.DataFrame([(p.direction_deg % 360.0, p.bend_mm, *values(p)) for p in points],
+                         columns=["d", "b", *cols])  # fmt: skip
     ds = np.sort(table["d"].unique())
     bs = np.sort(table["b"].unique())
     grid = table.set_index(["d", "b"])
@@ -139,12 +162,11 @@ def scheduled_mode(points: Sequence[MapPoint], direction_deg: float, bend_mm: fl
     fb = 0.0 if b1 == b0 else (b - b0) / (b1 - b0)
 
     def at(k: int, bb: float) -> np.ndarray:
-        return grid.loc[(ds[k], bb), ["w", "z"]].to_numpy(float)
+        return grid.loc[(ds[k], bb), cols].to_numpy(float)
 
     lo = (1 - fd) * at(i0, b0) + fd * at(i1, b0)
     hi = (1 - fd) * at(i0, b1) + fd * at(i1, b1)
-    w, z = (1 - fb) * lo + fb * hi
-    return float(w), float(z)
+    return (1 - fb) * lo + fb * hi
 
 
 def design_for(
@@ -166,6 +188,14 @@ def design_for(
     where = fixed_at if not system.startswith("scheduled") else (direction_deg, bend_mm)
     omega_d, zeta = scheduled_mode(points, *where)
     zv, zvd = design_tdfs(omega_d, zeta)
+    if system == "zvd-zv34":  # the fixed ZVD and a ZV on each mode of the second bending pair at the move
+        if any(not p.predicted_higher for p in points):
+            raise ValueError("zvd-zv34 needs the map's predicted_higher at every point (a map measured "
+                             "before it was kept has none: tune again)")  # fmt: skip
+        flat = scheduled(points, direction_deg, bend_mm, lambda p: [v for m in p.predicted_higher for v in m])
+        higher = tuple((float(flat[i]), float(flat[i + 1])) for i in range(0, len(flat), 2))
+        shaper = with_higher_modes(zvd, higher, "ZVD * ZV * ZV (second bending pair)")
+        return MoveDesign(shaper, system, omega_d, zeta, 0, higher)
     shaper: Shaper = zvd if system.endswith("zvd") else zv
     return MoveDesign(shaper, system, omega_d, zeta, 0)
 
@@ -201,8 +231,10 @@ def run_move(
         "trimmed_steps": list(plan.trimmed), "noise_seed": seed, "prepull_steps": prepull,
         **(extra or {}),
     }  # fmt: skip
+    # every move recorded whole, the unshaped reference too (it dips below the floor for 20-110 ms at 20 mm):
+    # the verification counts every sample below the floor itself (below_floor) instead of the floor watch
     return trig.run(programme, path=target, scenario=scenario, rate_hz=rate_hz, tail_s=0.5, replace=replace,
-                    progress=False)  # fmt: skip
+                    progress=False, guard=TensionGuard(watch=False))  # fmt: skip
 
 
 def _hold_window(rec: Recording, lead: int) -> tuple[float, float]:
@@ -338,7 +370,8 @@ def measure_map(
             omega_d, zeta = identify_hold(rec, plan.lead, float(pred["dominant_omega_d_rad_s"]))
             split = (float(pred["omega_d1_rad_s"]), float(pred["omega_d2_rad_s"]))
             points.append(MapPoint(d, b, omega_d, zeta, float(pred["dominant_omega_d_rad_s"]),
-                                   float(pred["dominant_zeta"]), name, split))  # fmt: skip
+                                   float(pred["dominant_zeta"]), name, split,
+                                   higher_modes(rig, twin, plan)))  # fmt: skip
             progress(f"map {d:g} deg, {b:g} mm: omega_d {omega_d:.3f} rad/s (twin predicts "
                      f"{points[-1].predicted_omega_d:.3f}), zeta {zeta:.4f}")  # fmt: skip
     return points

@@ -18,6 +18,13 @@ stepper running late, is not a dead board), and a board is declared gone only wh
 the stated silence interval (:data:`SILENCE_S`: no sample from the DAQ, no reply from the stepper).
 :meth:`Rig.run_pulse` runs the paper's pulse from position 0. Streams are :func:`helpers.rig.stream.stream`'s.
 
+A run of several tendons is given its guard (``run(..., guard=...)``, a
+:class:`helpers.rig.trim.TensionGuard`): what may trim every tendon by whole steps to its target tension
+measured at rest before the programme, and what watches the floor on every parsed sample during it (a tendon
+below ``[arm] tension_floor_n`` for longer than ``[arm] floor_watch_ms`` of device time stops it, saved
+``aborted``). Neither is for one tendon, whose run is the paper's (``docs/safety.md``); the driver only calls
+them, so the paper's path does not hold them.
+
 Every run sits in one guard (:meth:`Rig._guarded`): on any exception (``KeyboardInterrupt``, and
 SIGTERM/SIGHUP turned into one by :mod:`helpers.base.signals`, a board that hangs, resets or disconnects) the
 stepper is sent ``ABORT`` and ``EN 0`` and the DAQ ``STOP``, and what was recorded is saved marked
@@ -166,6 +173,8 @@ class RunState:
     """Every sample of the run is in: an interrupt from now on cannot make it partial."""
     deviation: str | None = None
     """Why the motion differed from its command (a stream's underruns, clamps), or None."""
+    watch: Any = None
+    """What checks every parsed sample (``catch_up(rows)``, ``t0_us`` set at ``GO``; the guard's), or None."""
 
 
 class Rig:
@@ -196,6 +205,8 @@ class Rig:
         if not isinstance(rig, RigFile):
             raise ValueError(f"rig must be a rig file loaded by helpers.rigfile.load, got {rig!r}")
         self.rig, self.n, self.silence_s = rig, rig.n_tendons, silence_s
+        self.rest_window: list[Any] = []
+        """The counts of the last :meth:`wait_for_rest`'s window, one row per sample."""
         self.calibration = self._calibrations(calibration)
         urls = rig_urls(ports, rig, world or rig.name, (daq_options, stepper_options))
         self.daq = Link.open(urls[0], "daq", rig, rig.hardware.daq_baud, timeout, hello_timeout)
@@ -330,7 +341,7 @@ class Rig:
     def run(
         self, programme: Programme, *, path: str | os.PathLike, scenario: dict[str, Any] | None = None,
         rate_hz: int = 1000, tail_s: float = 0.1, progress: bool = True, replace: bool = False,
-        noise_seed: int | None = None, from_zero: bool = False,
+        noise_seed: int | None = None, from_zero: bool = False, guard: Any = None,
     ) -> Recording:  # fmt: skip
         """Run one programme as one board-timed experiment of every tendon; return (and save) its recording.
 
@@ -354,8 +365,16 @@ class Rig:
             In-process virtual rig: re-seed the sensor noise for this run (recorded in the scenario).
         from_zero : bool
             Refuse (:class:`NotAtZero`) unless every tendon is at position 0 (the paper's experiments).
+        guard : helpers.rig.trim.TensionGuard, optional
+            Several tendons (and needed for them): ``guard.before(rig, scenario, rate_hz)`` after the rest
+            (the trim: True if it moved the tendons, the programme then checked again from there) and
+            ``guard.watcher(rig, rate_hz)`` (the floor watch, or None). ``TensionGuard(watch=False)`` runs
+            without either. None for one tendon: the paper's run.
         """
         self._check_run(rate_hz, noise_seed, tail_s)
+        if guard is None and self.n > 1:
+            raise ValueError(f"a run of {self.n} tendons needs its guard: guard=helpers.rig.trim"
+                             ".TensionGuard() watches the floor (TensionGuard(watch=False): none)")
         check_programme(programme, self.rig, (0,) * self.n)  # before a byte: as far as it can be
         scenario = {"kind": "programme", **(scenario or {})}
         scenario.setdefault("programme", programme.to_dict())
@@ -373,9 +392,13 @@ class Rig:
                 )
             self._note_start(scenario, start, noise_seed)
             cum = programme.positions(0, self.n)  # steps from where the run starts (the DAQ's ZERO)
-            end = tuple(int(p) for p in programme.positions(start, self.n)[-1])  # every tendon's, after it
 
             def body(state: RunState) -> None:
+                if guard is not None and guard.before(self, scenario, rate_hz):  # the trim moved them
+                    state.start = self.positions()
+                    check_programme(programme, self.rig, state.start)  # from where the trim left it
+                    self._note_start(scenario, state.start, None)
+                end = tuple(int(p) for p in programme.positions(state.start, self.n)[-1])  # every tendon's
                 scenario["rest"] = self.wait_for_rest(rate_hz)
                 self.stepper.command("ABORT")  # a programme or stream an earlier session left running stops
                 self.daq.command("STOP")  # a stream left running by an earlier session stops
@@ -383,6 +406,7 @@ class Rig:
                 if ints(replies[-1])[-1] != len(programme):
                     raise BoardError(f"the stepper board holds {replies[-1]}, not {len(programme)} items")
                 state.windows = step_windows(programme, self.n)
+                state.watch = None if guard is None else guard.watcher(self, rate_hz)
                 self._start(rate_hz, list(zip(cum.min(axis=0), cum.max(axis=0), strict=True)))
                 self.stepper.command("EN 1")
                 self._go(state, "GO")
@@ -424,7 +448,8 @@ class Rig:
         Returns
         -------
         dict
-            ``waited_s`` (device s), ``std_counts``, ``noise_counts`` of the last window.
+            ``waited_s`` (device s), ``std_counts``, ``noise_counts`` of the last window, whose counts (every
+            channel's) stay in :attr:`rest_window` (what :func:`helpers.rig.trim.rest_tensions` measures).
         """
         self.daq.check_reset()
         self.daq.command("STOP")
@@ -433,10 +458,12 @@ class Rig:
         rest: dict[str, Any] = {}
 
         def steady(now: int) -> tuple[int, tuple[int, ...]] | None:  # read on: None; at rest: the end, now
-            ok, std, noise = rest_of([r[2 : 2 + c] for r in self.daq.rows[-n:]], rate_hz)
+            last = [r[2 : 2 + c] for r in self.daq.rows[-n:]]
+            ok, std, noise = rest_of(last, rate_hz)
             waited = (now - period) / 1e6  # from the first sample (the reader starts a period before it)
             if ok:
                 rest.update(waited_s=round(waited, 3), std_counts=std, noise_counts=noise)
+                self.rest_window = last
                 return now, ()
             if waited > REST_TIMEOUT_S:
                 raise NotAtRest(
@@ -477,6 +504,8 @@ class Rig:
     def _went(self, state: RunState, t_go_us: int) -> None:
         """Note GO's device time; from then on a count changing between the programme's steps is refused."""
         state.t_go_us = t_go_us
+        if state.watch is not None:
+            state.watch.t0_us = t_go_us
         if state.windows is not None:
             self.daq.parser.step_windows = [(s + t_go_us, e + t_go_us) for s, e in state.windows]
 
@@ -526,6 +555,8 @@ class Rig:
                 rows = self.daq.rows
                 if new and state.t_go_us is None:
                     self._went(state, rows[-new][1] - round(1e6 / rate_hz))
+                if state.watch is not None:  # every parsed sample against the floor (device time)
+                    state.watch.catch_up(rows)
                 if state.t_go_us is None:
                     continue
                 now = rows[-1][1] - state.t_go_us

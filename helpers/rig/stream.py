@@ -40,6 +40,7 @@ from helpers.recordings import Recording, reserve
 from helpers.rig.driver import Rig, RunState
 from helpers.rig.link import BoardError, CommandRefused, ints
 from helpers.rig.safety import SafetyError, check_slack
+from helpers.rig.trim import TensionGuard
 from helpers.rigfile import RigFile, derived
 
 STREAM_RATE_HZ = round(1.0 / (hs.PERIOD_TICKS * hs.TICK_S))
@@ -471,6 +472,7 @@ def stream(
     scenario: dict[str, Any] | None = None, lead_periods: int = 4,
     lead_in_s: float = 1.0, tail_s: float = 1.0, allow_clamps: bool = False, rate_hz: int = 1000,
     progress: bool = True, replace: bool = False, noise_seed: int | None = None,
+    guard: TensionGuard | None = None,
 ) -> Recording:  # fmt: skip
     """Stream every tendon's cable speeds through the board's shaper; return (and save) the recording.
 
@@ -500,6 +502,11 @@ def stream(
         Go on when the board clamps the shaped motion (the recording is then ``deviated``).
     rate_hz, progress, replace, noise_seed
         As :meth:`Rig.run`'s.
+    guard : helpers.rig.trim.TensionGuard, optional
+        As :meth:`Rig.run`'s: the trim (several tendons) before the stream, after the rest (the whole stream
+        checked again from where it leaves the tendons), and the floor watch on every sample. Unlike a run's,
+        optional for several tendons (None: neither): a stream is any motion, a teleoperator's or a test's,
+        that may slacken a tendon on purpose.
 
     Raises
     ------
@@ -531,10 +538,19 @@ def stream(
         check = ShapedCheck(board, start, rig.rig, refuse=not allow_clamps)
 
         def body(state: RunState) -> None:
+            nonlocal reach, check
+            if guard is not None and guard.before(rig, scene, rate_hz):
+                state.start = rig.positions()  # the stream counts from where the trim left the tendons
+                reach = _anywhere(rig.rig, state.start)
+                if units is not None:  # the whole stream checked again from there
+                    reach = check_stream(units * units_mm_s, rig.rig, state.start, board, allow_clamps).reach
+                check = ShapedCheck(board, state.start, rig.rig, refuse=not allow_clamps)
+                rig._note_start(scene, state.start, None)
             scene["rest"] = rig.wait_for_rest(rate_hz)
             rig.stepper.command("ABORT")  # whatever an earlier session left running stops; driver off
             rig.daq.command("STOP")
             rig.stepper.send_all(board.commands())  # SHAPER first: loading again discards it
+            state.watch = None if guard is None else guard.watcher(rig, rate_hz)
             rig._start(rate_hz, reach)
             timeout = rig.daq.port.timeout
             rig.daq.port.timeout = min(timeout or FEED_READ_S, FEED_READ_S)  # device time in small steps

@@ -174,6 +174,15 @@ ARM: tuple[Key, ...] = (
         "in task space (record move; below it a tendon is close to slack and stops controlling the arm)",
         10_000.0,
     ),
+    _int(
+        "floor_watch_ms",
+        20,
+        "during a run of several tendons, a tendon whose measured tension stays below tension_floor_n for "
+        "longer than this stops the run (saved aborted, the tendon named; device time, counted in samples); "
+        "longer than a pay-out step's dip (3 ms at the median)",
+        hi=60_000,
+        unit="ms",
+    ),
     _pos(
         "cable_stiffness_n_m",
         "N/m",
@@ -244,4 +253,16 @@ TENDON: tuple[Key, ...] = (
         "angle of the tendon around the backbone, counter-clockwise seen from the tip's side, 0 = tendon 1",
     ),
     *(_tendon_key(name, *fallback) for name, fallback in TENDON_FALLBACK.items()),
+    Key(
+        "twin_eyelet_error_mm",
+        "float",
+        "mm",
+        0.0,
+        "the virtual rig only (the spatial twin of helpers.virtual.spatial.from_rig; no planner reads it): "
+        "this tendon's cable path at rest off the geometry the planners know by this much, in the direction "
+        "that lowers its tension (an eyelet misplaced; the twin's arm holds it as if its cable were paid out "
+        "by this much at position 0); 0: the geometry as planned",
+        lo=0.0,
+        plausible=(0.0, 5.0),
+    ),
 )

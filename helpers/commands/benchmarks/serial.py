@@ -33,6 +33,7 @@ from helpers.board.protocol import frame
 from helpers.paper.calibration import uncalibrated
 from helpers.paper.shapers import design_tdfs
 from helpers.rig import Rig
+from helpers.rig.trim import TensionGuard
 from helpers.rigfile import default_rig, derived
 
 PULL_STEPS = 4
@@ -109,7 +110,8 @@ def pty_stream(device_s: float = 60.0, rate_hz: int = 1000, speed: float = 1.0,
         prog = Programme((Move(window_us, pull), Dwell(hold_ms), Move(window_us, back)))
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            rec = rig.run(prog, path=Path(tmp) / "bench", rate_hz=rate_hz, tail_s=0.2, progress=False)
+            rec = rig.run(prog, path=Path(tmp) / "bench", rate_hz=rate_hz, tail_s=0.2, progress=False,
+                          guard=TensionGuard() if rig.n > 1 else None)
             frame_ = rec.frame
             wall = time.perf_counter() - t0
         stats = rig.daq.parser.stats

@@ -272,7 +272,7 @@ def build_world(rig: RigFile, name: str | None = None, options: dict[str, str] |
         info = {"version": __version__, "parameters": parameters_dict(params), "seed": seed}
         world = VirtualWorld(ArmPlant(params), LoadCell(params, seed=seed), info=info, **common)
     else:
-        twin = spatial_rig(rig)
+        twin = spatial_rig(rig, as_built=True)  # [[tendon]] twin_eyelet_error_mm: the arm as built
         plant = SpatialPlant(twin)  # at the arm's step (RK4: within its stable step, 1/6 ms for four tendons)
         cells = [
             LoadCell(twin.arm, seed=seed if c == 0 else [seed, c], span_n=t.load_cell_range_n)

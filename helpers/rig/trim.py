@@ -1,0 +1,374 @@
+"""Tension held by measurement, on the host: the trim of every tendon by whole steps, and the floor watch.
+
+The load cells are on the DAQ board (the Mega) and the steppers on the stepper board (the Uno), and nothing
+links the two: a trim in firmware would need the Uno to read the Mega's tensions. The host reads every
+sample, calibrated per tendon, and already waits for the arm to come to rest (:meth:`Rig.wait_for_rest
+<helpers.rig.driver.Rig.wait_for_rest>`), so the host trims (``docs/safety.md``, ``docs/task_space.md``).
+
+- :func:`trim_steps`, the rule: at rest, each tendon's mean calibrated tension over the rest window is
+  compared with its target (the planner's static tension at that pose, passed in as numbers: this module
+  imports neither the twin nor the research wing), and each tendon is moved by whole steps to **the fewest
+  whole steps at which its measured tension is >= its target** (less :data:`TRIM_TOLERANCE_N`, the reading's
+  resolution): pulled in one step at a time while below, and, where it is above by at least the tension the
+  planner predicts for one step, let out one step at a time while it stays there (the step that takes it
+  below is pulled back). One step is about 2.7 N
+  on the four-tendon rigs (1 N is about 47 um of cable), so a band of +-1 N would oscillate; the band is
+  ``[target - tolerance, target - tolerance + one step)``. At most :data:`TRIM_MAX_STEPS` moves per tendon;
+  past them, :class:`TrimFailed` naming the tendon. Off for one tendon (the paper's Table II unchanged).
+- :func:`trim` (with :func:`rest_tensions`, :func:`nudge`): the rule on a :class:`~helpers.rig.driver.Rig`.
+- :class:`TensionGuard`: what a run of several tendons is given (``Rig.run(..., guard=...)``, ``stream(...,
+  guard=...)``): the trim before it (its targets, optional) and the floor watch during it. The driver only
+  calls it, so this module is off the paper's one-tendon path (``tests/test_reading_path.py``).
+- :class:`FloorWatch`: during a run, every parsed sample's calibrated tension of every tendon against
+  ``[arm] tension_floor_n``; a tendon below it for longer than ``[arm] floor_watch_ms`` (default 20 ms; a
+  pay-out step's dip lasts 3 ms at the median, the pre-pull's let-out 2-4 samples) raises :class:`BelowFloor`
+  naming the tendon, how long and when (device time), and the driver's guard saves the run ``aborted`` with
+  that reason. Time is counted in samples at the DAQ's rate, never on the wall clock.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from helpers.board.programmes import Move, Programme
+from helpers.rig.driver import Rig, RunState
+from helpers.rig.link import BoardError, ints
+from helpers.rig.safety import SafetyError, check_programme
+
+__all__ = [
+    "TRIM_MAX_STEPS", "TRIM_TOLERANCE_N", "BelowFloor", "FloorWatch", "TensionGuard", "TrimFailed",
+    "TrimResult", "nudge", "rest_tensions", "trim", "trim_steps",
+]  # fmt: skip
+
+TRIM_MAX_STEPS = 6
+"""Most moves of one step a tendon makes in one trim (about 16 N on the four-tendon rigs)."""
+
+TRIM_TOLERANCE_N = 0.1
+"""A measured tension this far below its target counts as at it (2-3 ADC counts of the four-tendon rigs'
+0.041 N per count: the mean over the rest window of a tendon exactly at its target reads within it)."""
+
+
+class TrimFailed(SafetyError):
+    """A tendon did not reach its target within :data:`TRIM_MAX_STEPS` moves (or a target was unusable)."""
+
+
+class BelowFloor(SafetyError):
+    """A tendon's measured tension stayed below the floor for longer than the watch time during a run."""
+
+
+@dataclass(frozen=True)
+class TrimResult:
+    """What a trim did.
+
+    Attributes
+    ----------
+    steps : tuple of int
+        Each tendon's net whole steps (+ pulled in).
+    moves : int
+        Moves of one step made (each followed by a wait for rest).
+    targets_n, before_n, after_n : tuple of float
+        Each tendon's target, and its mean measured tension before and after the trim, N.
+    tolerance_n : float
+        The tolerance below the target (:data:`TRIM_TOLERANCE_N`).
+    """
+
+    steps: tuple[int, ...]
+    moves: int
+    targets_n: tuple[float, ...]
+    before_n: tuple[float, ...]
+    after_n: tuple[float, ...]
+    tolerance_n: float
+
+    def metadata(self) -> dict[str, Any]:
+        """A recording's ``scenario.measured_trim``."""
+        return {
+            "steps": list(self.steps), "moves": self.moves,
+            "targets_n": [round(v, 6) for v in self.targets_n],
+            "before_n": [round(v, 6) for v in self.before_n], "after_n": [round(v, 6) for v in self.after_n],
+            "tolerance_n": self.tolerance_n,
+        }  # fmt: skip
+
+
+def _targets(targets_n: Sequence[float]) -> np.ndarray:
+    t = np.asarray(targets_n, dtype=float).reshape(-1)
+    if t.size == 0 or not np.all(np.isfinite(t)) or np.any(t < 0):
+        raise TrimFailed(
+            f"trim targets must be finite tensions >= 0 N, one per tendon, got {list(targets_n)}"
+        )
+    return t
+
+
+def trim_steps(
+    targets_n: Sequence[float],
+    measure: Callable[[], Sequence[float]],
+    move: Callable[[tuple[int, ...]], None],
+    *,
+    max_steps: int = TRIM_MAX_STEPS,
+    tolerance_n: float = TRIM_TOLERANCE_N,
+    step_n: Sequence[float] | None = None,
+) -> TrimResult:
+    """Trim every tendon by whole steps to the fewest at which its measured tension is >= its target.
+
+    Parameters
+    ----------
+    targets_n : sequence of float
+        Each tendon's target, N (the planner's static tension at the pose).
+    measure : callable
+        ``measure() -> tensions``: waits for rest and gives each tendon's mean calibrated tension over the
+        rest window, N.
+    move : callable
+        ``move(steps)``: moves every tendon by its whole ``steps`` (+ pulls in; one tendon at a time here).
+    max_steps : int
+        Most moves of one step per tendon; past them :class:`TrimFailed` names the tendon.
+    tolerance_n : float
+        A tension this far below its target counts as at it.
+    step_n : sequence of float, optional
+        Each tendon's tension change per step as the planner predicts it, N (about 2.7 on the four-tendon
+        rigs). Where given, a tendon whose measured tension is above its target by at least that is let out
+        one step at a time while it is (a let-out that took it below is pulled back); None: tendons above
+        their targets are left where they are (pulled in only).
+
+    Returns
+    -------
+    TrimResult
+
+    Raises
+    ------
+    TrimFailed
+        A tendon still below its target after ``max_steps`` moves, or a measurement that is not one finite
+        tension per tendon.
+    """
+    targets = _targets(targets_n)
+    n = targets.size
+    goal = targets - float(tolerance_n)
+
+    def read() -> np.ndarray:
+        got = np.asarray(measure(), dtype=float).reshape(-1)
+        if got.size != n or not np.all(np.isfinite(got)):
+            raise TrimFailed(f"the trim measured {got.tolist()}, not one finite tension per tendon ({n})")
+        return got
+
+    def step(i: int, sign: int) -> np.ndarray:
+        if moved[i] >= max_steps:
+            raise TrimFailed(
+                f"tendon {i + 1}: {tension[i]:.2f} N measured after {moved[i]} move(s) of one step "
+                f"(net {net[i]:+d}), not yet at its target {targets[i]:.2f} N (less {tolerance_n:g} N): "
+                f"more than the trim's {max_steps} moves; is its cable slack or its load cell off?"
+            )
+        vector = [0] * n
+        vector[i] = sign
+        move(tuple(vector))
+        moved[i] += 1
+        net[i] += sign
+        return read()
+
+    per_step = None if step_n is None else np.broadcast_to(np.asarray(step_n, dtype=float), (n,))
+    if per_step is not None and not np.all(np.isfinite(per_step) & (per_step > 0)):
+        raise TrimFailed(f"the tension per step must be > 0 N, one per tendon, got {list(step_n or [])}")
+    tension = before = read()
+    moved, net = [0] * n, [0] * n
+    if per_step is not None:  # let out: a whole step's tension above the target, and measured still above
+        for i in range(n):
+            while net[i] <= 0 and tension[i] - per_step[i] >= goal[i]:
+                tension = step(i, -1)
+                if tension[i] < goal[i]:  # one step too far: back to the fewest steps that hold it
+                    tension = step(i, +1)
+                    break
+    while True:  # pull in: one step on the tendon farthest below its target, then measure again
+        low = np.flatnonzero(tension < goal)
+        if low.size == 0:
+            break
+        i = int(low[np.argmin((tension - goal)[low])])
+        tension = step(i, +1)
+    return TrimResult(
+        steps=tuple(net), moves=sum(moved), targets_n=tuple(map(float, targets)),
+        before_n=tuple(map(float, before)), after_n=tuple(map(float, tension)),
+        tolerance_n=float(tolerance_n),
+    )  # fmt: skip
+
+
+def rest_tensions(rig: Rig, rate_hz: int = 1000) -> tuple[dict[str, Any], np.ndarray]:
+    """Wait for rest; its dict and every tendon's mean tension over the rest window, N.
+
+    :meth:`Rig.wait_for_rest <helpers.rig.driver.Rig.wait_for_rest>`, then each tendon's counts in the window
+    averaged and calibrated with its load cell's calibration.
+    """
+    rest = rig.wait_for_rest(rate_hz)
+    counts = np.asarray(rig.rest_window, dtype=float).reshape(len(rig.rest_window), -1).mean(axis=0)
+    return rest, np.array([(counts[i] - c.offset_counts) * c.newtons_per_count
+                           for i, c in enumerate(rig.calibration)])  # fmt: skip
+
+
+def nudge(rig: Rig, steps: Sequence[int], rate_hz: int = 1000, window_us: int = 20_000) -> tuple[int, ...]:
+    """Move every tendon by its whole ``steps`` in one ``MSEG`` item of ``window_us`` (not recorded).
+
+    Checked against every tendon's limits from where the stepper says they are; ``DONE`` awaited in device
+    time as a run's. Returns every tendon's position after it.
+    """
+    start = rig.positions()
+    programme = Programme((Move(window_us, tuple(int(s) for s in steps)),))
+    check_programme(programme, rig.rig, start)
+    end = tuple(int(p) for p in programme.positions(start, rig.n)[-1])
+    rig.stepper.command("ABORT")
+    rig.daq.command("STOP")
+    replies = rig.stepper.send_all(programme.commands(rig.n))
+    if ints(replies[-1])[-1] != len(programme):
+        raise BoardError(f"the stepper board holds {replies[-1]}, not {len(programme)} items")
+    rig._start(rate_hz, None, zero=False)
+    rig.stepper.command("EN 1")
+    state = RunState(start=start)
+    try:
+        rig._go(state, "GO")
+        rig._until_done(state, lambda now: (programme.duration_us, end), rate_hz, 0.0, None, False)
+    finally:
+        rig.daq.command("STOP")
+        rig.daq.rows.clear()
+    rig.stepper.command("EN 0")  # as a run leaves it
+    return end
+
+
+def trim(rig: Rig, targets_n: Sequence[float], rate_hz: int = 1000, step_n: Any = None) -> TrimResult:
+    """Trim every tendon of ``rig`` by whole steps to its target tension, measured at rest (several tendons).
+
+    :func:`trim_steps` with each measurement a wait for rest and its mean calibrated tension
+    (:func:`rest_tensions`), each move one whole step of one tendon (:func:`nudge`).
+
+    Raises
+    ------
+    ValueError
+        One tendon (the paper's protocol has no trim), or not one target per tendon.
+    TrimFailed
+        A tendon not at its target within :data:`TRIM_MAX_STEPS` moves (named).
+    """
+    if rig.n == 1:
+        raise ValueError("the trim is for rigs of several tendons (one tendon: the paper's protocol)")
+    if len(np.atleast_1d(np.asarray(targets_n, dtype=float))) != rig.n:
+        raise ValueError(f"{len(targets_n)} trim target(s) for the rig's {rig.n} tendons")
+    return trim_steps(targets_n, lambda: rest_tensions(rig, rate_hz)[1],
+                      lambda steps: nudge(rig, steps, rate_hz), step_n=step_n)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class TensionGuard:
+    """What holds every tendon of a run of several tendons taut: the trim before it, the floor watch during.
+
+    Attributes
+    ----------
+    targets_n : sequence of float, optional
+        Each tendon's target tension at the start (N, the planner's static tension at that pose): after the
+        rest every tendon is trimmed (:func:`trim`, the recording's ``scenario.measured_trim``). None: none.
+    step_n : sequence of float, optional
+        The planner's tension per step of each tendon (:func:`trim_steps`: a tendon that much above its
+        target is let out).
+    watch : bool
+        Watch every tendon's measured tension on every sample (:class:`FloorWatch`).
+    """
+
+    targets_n: Sequence[float] | None = None
+    step_n: Sequence[float] | None = None
+    watch: bool = True
+
+    def before(self, rig: Rig, scenario: dict[str, Any], rate_hz: int) -> bool:
+        """Trim (if there are targets), noted in ``scenario``; True if it ran (the tendons may have moved)."""
+        if self.targets_n is None:
+            return False
+        scenario["measured_trim"] = trim(rig, self.targets_n, rate_hz, self.step_n).metadata()
+        return True
+
+    def watcher(self, rig: Rig, rate_hz: int) -> FloorWatch | None:
+        """The rig's floor watch at ``rate_hz`` (``[arm] tension_floor_n``, ``floor_watch_ms``), or None."""
+        if not self.watch:
+            return None
+        arm, cal = rig.rig.arm, rig.calibration
+        return FloorWatch(arm.tension_floor_n, arm.floor_watch_ms, rate_hz,
+                          [c.newtons_per_count for c in cal], [c.offset_counts for c in cal])  # fmt: skip
+
+
+class FloorWatch:
+    """Every tendon's calibrated tension, sample by sample, against the floor (device time: samples).
+
+    Parameters
+    ----------
+    floor_n : float
+        ``[arm] tension_floor_n``.
+    watch_ms : float
+        ``[arm] floor_watch_ms``: below the floor for longer than this is :class:`BelowFloor`.
+    rate_hz : int
+        The DAQ's sample rate (a sample is ``1000 / rate_hz`` ms of device time).
+    newtons_per_count, offset_counts : sequence of float
+        Each tendon's load-cell calibration (tension ``(adc - offset) * newtons_per_count``).
+
+    A run of ``k`` consecutive samples below the floor lasts ``k`` sample periods; more than
+    ``watch_ms`` of them raises. The rows are the DAQ's parsed samples ``[seq, t_us, adc..., steps...]``.
+    """
+
+    def __init__(
+        self, floor_n: float, watch_ms: float, rate_hz: int, newtons_per_count: Sequence[float],
+        offset_counts: Sequence[float],
+    ) -> None:  # fmt: skip
+        self.floor_n, self.watch_ms, self.rate_hz = float(floor_n), float(watch_ms), int(rate_hz)
+        self.npc = np.asarray(newtons_per_count, dtype=float)
+        self.offset = np.asarray(offset_counts, dtype=float)
+        self.n = self.npc.size
+        self.limit = math.floor(self.watch_ms * self.rate_hz / 1000.0 + 1e-9)
+        """The most consecutive samples below the floor that are allowed."""
+        self.run = np.zeros(self.n, dtype=np.int64)
+        self.first_us = np.zeros(self.n, dtype=np.int64)
+        self.least = np.full(self.n, np.inf)
+        self.longest = np.zeros(self.n, dtype=np.int64)
+        """Each tendon's longest run below the floor so far (samples)."""
+        self.t0_us: int | None = None
+        """``GO``'s device time once known (the reason then gives times from it)."""
+        self.seen = 0
+        """Rows checked so far (:meth:`catch_up`)."""
+
+    def catch_up(self, rows: Any) -> None:
+        """Check the rows of ``rows`` (a run's growing list of parsed samples) not checked yet."""
+        if len(rows) > self.seen:
+            self.feed(rows[self.seen :])
+
+    def feed(self, rows: Any) -> None:
+        """Check a block of parsed samples; :class:`BelowFloor` at the first sample past the watch time.
+
+        Each tendon's run of samples below the floor is counted across blocks (a run carried over from the
+        last block goes on), in one pass of array operations per block.
+        """
+        if not len(rows):
+            return
+        r = np.asarray(rows, dtype=float).reshape(len(rows), -1)
+        self.seen += len(r)
+        tension = (r[:, 2 : 2 + self.n] - self.offset) * self.npc
+        below = tension < self.floor_n
+        k = np.arange(len(r))[:, None]
+        last_above = np.maximum.accumulate(np.where(below, -1, k), axis=0)  # -1: below since the block began
+        run = np.where(below, k - last_above + np.where(last_above < 0, self.run, 0), 0)
+        over = run > self.limit
+        if over.any():
+            k_over, i = np.unravel_index(np.argmax(over), over.shape)  # the first sample past the watch time
+            count = int(run[k_over, i])
+            begin = k_over - min(count, k_over + 1) + 1  # the run's first sample in this block
+            least = min(tension[begin : k_over + 1, i].min(), self.least[i] if count > k_over + 1 else np.inf)
+            first_us = self.first_us[i] if count > k_over + 1 else int(r[begin, 1])
+            ms = count * 1000.0 / self.rate_hz
+            t0, clock = (0, "on the DAQ's clock") if self.t0_us is None else (self.t0_us, "after GO")
+            raise BelowFloor(
+                f"tendon {i + 1} below the floor {self.floor_n:.2f} N for {ms:g} ms ({count} samples at "
+                f"{self.rate_hz} Hz, least {least:.2f} N) at device time "
+                f"t = {(r[k_over, 1] - t0) / 1e6:.3f} s {clock} (from {(first_us - t0) / 1e6:.3f} s): "
+                f"longer than the floor watch's {self.watch_ms:g} ms ([arm] floor_watch_ms)"
+            )
+        self.longest = np.maximum(self.longest, run.max(axis=0))
+        tail = run[-1]  # each tendon's run still going at the block's end, carried to the next block
+        for i in np.flatnonzero(tail):
+            begin = len(r) - min(int(tail[i]), len(r))
+            if tail[i] > len(r):  # going on since an earlier block
+                self.least[i] = min(self.least[i], tension[begin:, i].min())
+            else:
+                self.first_us[i], self.least[i] = int(r[begin, 1]), tension[begin:, i].min()
+        self.least[tail == 0] = np.inf
+        self.run = tail.astype(np.int64)
