@@ -361,3 +361,19 @@ def test_with_the_eyelets_off_open_loop_breaks_the_floor_and_the_measured_trim_k
     assert rec.meta["status"] == "complete"
     tension = rec.frame[[f"tension_n_{i}" for i in range(4)]].to_numpy()
     assert tension.min() >= rig.arm.tension_floor_n  # every sample of every tendon above the floor
+
+
+def test_a_nudge_interrupted_mid_move_leaves_the_stepper_aborted_and_disabled(monkeypatch):
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    with Rig("virtual", four, world="trim-nudge-interrupted") as trig:
+        world = get_world("trim-nudge-interrupted")
+
+        def interrupted(*args, **kwargs):
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(trig, "_until_done", interrupted)
+        sent = len(world.stepper.received)
+        with pytest.raises(KeyboardInterrupt):
+            nudge(trig, (1, 0, 0, 0))
+        after = [line.strip() for line in world.stepper.received[sent:]]
+        assert after[-2:] == ["ABORT", "EN 0"] and "GO" in after  # stopped and disabled after GO

@@ -208,7 +208,8 @@ def nudge(rig: Rig, steps: Sequence[int], rate_hz: int = 1000, window_us: int = 
     """Move every tendon by its whole ``steps`` in one ``MSEG`` item of ``window_us`` (not recorded).
 
     Checked against every tendon's limits from where the stepper says they are; ``DONE`` awaited in device
-    time as a run's. Returns every tendon's position after it.
+    time as a run's; on any exception (a signal included) the stepper is aborted and disabled and the DAQ
+    stopped before it is raised. Returns every tendon's position after it.
     """
     start = rig.positions()
     programme = Programme((Move(window_us, tuple(int(s) for s in steps)),))
@@ -225,9 +226,12 @@ def nudge(rig: Rig, steps: Sequence[int], rate_hz: int = 1000, window_us: int = 
     try:
         rig._go(state, "GO")
         rig._until_done(state, lambda now: (programme.duration_us, end), rate_hz, 0.0, None, False)
-    finally:
-        rig.daq.command("STOP")
+    except BaseException:  # a signal, a board gone: ABORT, EN 0 and STOP as a run's guard sends them
+        rig._cleanup(True)
         rig.daq.rows.clear()
+        raise
+    rig.daq.command("STOP")
+    rig.daq.rows.clear()
     rig.stepper.command("EN 0")  # as a run leaves it
     return end
 
