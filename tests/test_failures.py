@@ -23,7 +23,8 @@ from helpers.base.paths import DATA_DIR, REPO_ROOT
 from helpers.board.programmes import Programme, Segment
 from helpers.commands.home import PositionUnknown, home
 from helpers.rig import PortBusy, Rig
-from helpers.rig.link import Link, ints
+from helpers.rig.driver import SILENCE_S
+from helpers.rig.link import BoardTimeout, Link, ints, served_clock
 
 PAPER = rigfile.default_rig()
 
@@ -43,7 +44,7 @@ PROGRESS = re.compile(r"(\d+\.\d)/\d+\.\d s")
 class Server:
     """``python -m helpers serve-virtual-rig`` in a subprocess, with its two device paths."""
 
-    def __init__(self, speed: float = 10.0, *extra: str) -> None:
+    def __init__(self, speed: float = 10.0, *extra: str, ready: tuple[str, ...] = ("daq", "stepper")) -> None:
         self.proc = subprocess.Popen(
             [
                 PY,
@@ -72,8 +73,8 @@ class Server:
         assert set(paths) == {"daq", "stepper"}, self.proc.stderr.read()[-500:]
         self.daq, self.stepper = paths["daq"], paths["stepper"]
         # ready when both boards answer (on a loaded machine the server's first answers can take seconds)
-        for kind, path in (("daq", self.daq), ("stepper", self.stepper)):
-            _board(path, kind).close()
+        for kind in ready:
+            _board(getattr(self, kind), kind).close()
 
     @property
     def ports(self) -> str:
@@ -217,6 +218,42 @@ def _signal_mid_run(server: Server, data_dir: Path, sig: int, status: int) -> No
         assert _position(stepper) == 0
     finally:
         stepper.close()
+
+
+@pytest.mark.slow
+def test_a_server_the_host_does_not_run_pauses_its_boards_and_is_no_silent_board(own_server, data_dir):
+    """A machine too busy to run the server, made certain: the server is stopped (SIGSTOP) mid-run for three
+    times the 2 s silence interval. Its boards pause with it (the host counts their silence on the server's
+    awake clock), so the run completes; on the wall clock the recorder ended with "sent no sample"."""
+    proc = _record(data_dir, own_server.ports, quiet=False)
+    seen = _run_until(proc, 1.5)
+    own_server.proc.send_signal(signal.SIGSTOP)
+    try:
+        time.sleep(3 * SILENCE_S)  # the stop's length, not a deadline: any longer stop is the same
+    finally:
+        own_server.proc.send_signal(signal.SIGCONT)
+    out, err = proc.communicate(timeout=PROCESS_S)
+    assert proc.returncode == 0, seen + err
+    rec = recordings.load(data_dir / "g" / "p.csv")
+    assert rec.status == "complete" and rec.meta["source"]["via"] == "pseudo-terminal server"
+
+
+def test_a_hung_board_of_the_server_is_still_silent_on_its_awake_clock():
+    """The server runs and its DAQ stops answering 1 s of device time after it starts (``hang_at``): the awake
+    clock runs on, and the host's wait for a reply ends in one clear error (whether the board hangs before the
+    host has connected or after)."""
+    hung = Server(1.0, "--daq-faults", "hang_at=1", ready=("stepper",))
+    try:
+        assert served_clock(hung.daq) is not None  # the clock the wait counts on
+        with pytest.raises(BoardTimeout, match=r"no daq board answered|daq board did not answer 'PING'"):
+            link = Link.open(hung.daq, "daq", PAPER, PAPER.hardware.daq_baud, hello_timeout=SILENCE_S)
+            try:
+                while True:  # answered until the board hangs
+                    link.command("PING", timeout=SILENCE_S)
+            finally:
+                link.close()
+    finally:
+        hung.stop()
 
 
 def test_a_second_client_on_the_same_ports_gets_port_busy(server, data_dir):

@@ -13,7 +13,9 @@ that way raises :class:`LinkCorrupted`.
 
 Timeouts are counted by :class:`Waiter`: on the in-process virtual rig in its device time only (its port's
 ``device_time()``: the emulated boards' time moves only when the host reads, so a slow host never makes a
-spurious timeout), elsewhere the larger of wall time and the read timeouts that expired.
+spurious timeout), over ``serve-virtual-rig``'s pseudo-terminals on the server's awake clock
+(:func:`served_clock`: a host too busy to run the server makes no spurious timeout either), elsewhere the
+larger of wall time and the read timeouts that expired.
 
 Connecting: an Arduino resets when its USB port opens (DTR), and its bootloader listens for about 1.5-2 s
 before the sketch starts and sends ``HELLO``. The host sends nothing for :data:`BOOTLOADER_QUIET_S` (a
@@ -24,6 +26,10 @@ host's protocol and have been built for the rig file the host runs (its hash in 
 
 from __future__ import annotations
 
+import json
+import mmap
+import os
+import struct
 import time
 from collections import deque
 from collections.abc import Callable
@@ -32,6 +38,7 @@ from typing import Any
 
 import serial
 
+from helpers.base.paths import VIRTUAL_RIG_REGISTRY
 from helpers.base.signals import signals_held
 from helpers.board.protocol import PAPER_RIG_HASH, PROTOCOL_MAJOR, StreamParser, frame
 
@@ -147,6 +154,8 @@ def open_port(url: str, kind: str, baudrate: int, timeout: float, rig: Any = Non
                                      exclusive=True, do_not_open=True)  # fmt: skip
         port.rig = rig
         port.open()
+        if (clock := served_clock(url)) is not None:
+            port.device_time = clock  # a pseudo-terminal server's: its silences count on it
         return port
     except serial.SerialException as exc:
         if "exclusive" in str(exc) or "busy" in str(exc):
@@ -155,6 +164,43 @@ def open_port(url: str, kind: str, baudrate: int, timeout: float, rig: Any = Non
                 "notebook or serve-virtual-rig client); close it first"
             ) from exc
         raise BoardDisconnected(f"cannot open the {kind} board at {url}: {exc}") from exc
+
+
+SERVER_CLOCK = struct.Struct("<d")
+"""The layout of a ``serve-virtual-rig``'s awake clock file (its announcement's ``clock``): one double, the
+seconds its loop has run, each turn counted at most ``helpers.virtual.emulator.server.AWAKE_TURN_S``."""
+
+
+def announcement(paths: tuple[str, ...]) -> dict[str, Any] | None:
+    """The announcement of a running ``serve-virtual-rig`` serving any of ``paths`` (a dead one's ignored)."""
+    real = {os.path.realpath(p) for p in paths}
+    for f in VIRTUAL_RIG_REGISTRY.glob("*.json"):
+        try:
+            info = json.loads(f.read_text())
+            os.kill(int(info["pid"]), 0)
+            served = {os.path.realpath(info["daq"]), os.path.realpath(info["stepper"])}
+        except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
+            continue
+        if served & real:
+            return info
+    return None
+
+
+def served_clock(url: str) -> Callable[[], float] | None:
+    """The awake clock of a running ``serve-virtual-rig`` serving ``url``, or None (hardware, or in-process).
+
+    A board's silence over the server's pseudo-terminals is counted on it, as the in-process rig's on its
+    device clock: a host too busy to run the server (starved of the CPU, or stopped) pauses the server's
+    boards, and that is no silence. A served board that sends nothing (hung) is silent on it as on the wall
+    clock.
+    """
+    info = announcement((url,)) if "://" not in url else None
+    try:
+        with open(info["clock"], "rb") as f:  # type: ignore[index]
+            view = mmap.mmap(f.fileno(), SERVER_CLOCK.size, access=mmap.ACCESS_READ)
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return lambda: SERVER_CLOCK.unpack_from(view)[0]
 
 
 class Waiter:

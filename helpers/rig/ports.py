@@ -8,20 +8,18 @@ Known USB identities (:data:`KNOWN_BOARDS`): a genuine board's role follows from
 port is opened at each board's baud rate and asked ``PING`` (``PONG daq ...`` or ``PONG stepper ...``).
 
 Ports served by a running ``serve-virtual-rig`` (pseudo-terminals) are told apart from hardware by its
-announcement (:func:`virtual_source_for`), so that what they record is labelled ``virtual-rig``.
+announcement (:func:`virtual_source_for`), so that what they record is labelled ``virtual-rig`` (their
+silences are counted on the server's awake clock: :func:`helpers.rig.link.open_port`).
 """
 
 from __future__ import annotations
 
-import json
-import os
 from typing import Any
 
 from serial.tools import list_ports
 
-from helpers.base.paths import VIRTUAL_RIG_REGISTRY
 from helpers.base.validate import RIG_NAME
-from helpers.rig.link import BoardError, Link, OldFirmware, WrongRig
+from helpers.rig.link import BoardError, Link, OldFirmware, WrongRig, announcement
 
 KNOWN_BOARDS: dict[tuple[int, int], tuple[str, str]] = {
     (0x2341, 0x0042): ("daq", "Arduino Mega 2560 R3"),
@@ -31,6 +29,7 @@ KNOWN_BOARDS: dict[tuple[int, int], tuple[str, str]] = {
     (0x1A86, 0x7523): ("either", "CH340 USB-serial (clone board)"),
 }
 """(VID, PID) -> (role, description)."""
+
 
 
 class BoardsNotFound(BoardError):
@@ -94,16 +93,8 @@ def virtual_source_for(paths: tuple[str, str]) -> dict[str, Any] | None:
     """Provenance of a running ``serve-virtual-rig`` serving either of ``paths``, or None (it is hardware).
 
     The servers announce themselves in :data:`helpers.base.paths.VIRTUAL_RIG_REGISTRY`; a dead one's
-    announcement is ignored.
+    announcement is ignored (:func:`helpers.rig.link.announcement`).
     """
-    real = {os.path.realpath(p) for p in paths}
-    for f in VIRTUAL_RIG_REGISTRY.glob("*.json"):
-        try:
-            info = json.loads(f.read_text())
-            os.kill(int(info["pid"]), 0)
-            served = {os.path.realpath(info["daq"]), os.path.realpath(info["stepper"])}
-        except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
-            continue
-        if served & real:
-            return {"kind": "virtual-rig", "via": "pseudo-terminal server", **info.get("source", {})}
-    return None
+    info = announcement(paths)
+    return None if info is None else {"kind": "virtual-rig", "via": "pseudo-terminal server",
+                                      **info.get("source", {})}  # fmt: skip

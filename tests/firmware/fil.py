@@ -251,7 +251,7 @@ def record(wave: Waveform, action: str, kwargs: dict[str, Any], tmp: Path, pace:
         with warnings.catch_warnings():  # the simavr ports look like hardware until the source is said below
             warnings.simplefilter("ignore", UserWarning)
             rig = Rig((daq_path, stepper_path), default_rig(), _truth(wave.params, wave.sensor), timeout=60.0,
-                      hello_timeout=60.0)  # fmt: skip
+                      hello_timeout=60.0, silence_s=60.0)  # fmt: skip  # simavr on a busy host may stall
         rig.source = {
             "kind": "virtual-rig",
             "via": "firmware in the loop (both sketches in simavr, plant from helpers.virtual)",

@@ -208,7 +208,8 @@ def record(wave: Waveform, programme: Programme, elfs: dict[str, Path], tmp: Pat
         raise RuntimeError(f"harness did not report two pseudo-terminals: {first!r} {second!r}")
     t0 = time.monotonic()
     try:
-        rig = Rig(f"{first[1]},{second[1]}", four_rig(), timeout=60.0, hello_timeout=60.0)
+        rig = Rig(f"{first[1]},{second[1]}", four_rig(), timeout=60.0, hello_timeout=60.0,
+                  silence_s=60.0)  # simavr on a busy host may stall: only a failure waits this long
         rig.source = {"kind": "virtual-rig", "via": "firmware in the loop (both four-tendon sketches in "
                       "simavr, plant from helpers.virtual.spatial)"}  # fmt: skip
         # simavr runs the two boards below real time: the silence interval (wall time here), stretched

@@ -20,13 +20,19 @@ not collect pile up in the server; beyond ``--buffer`` bytes the oldest are drop
 would lose them (the host then sees gaps in ``seq``).
 
 While it runs, the server announces itself in :data:`helpers.base.paths.VIRTUAL_RIG_REGISTRY` so that
-recordings made through its ports are labelled ``virtual-rig``, never ``hardware``.
+recordings made through its ports are labelled ``virtual-rig``, never ``hardware``, and keeps an awake clock
+beside the announcement: the seconds its loop has run, a turn counted at most :data:`AWAKE_TURN_S`. A host's
+timeouts on these ports count on it (``helpers.rig.link.served_clock``), so a machine too busy to run the
+server (it was starved of the CPU, or stopped) pauses its boards, as a slow host pauses the in-process rig's,
+instead of making them look silent; a board that is served and sends nothing is silent on it as on the wall
+clock.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import mmap
 import os
 import re
 import select
@@ -42,11 +48,17 @@ from typing import Any
 from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import VIRTUAL_RIG_REGISTRY
+from helpers.rig.link import SERVER_CLOCK
 from helpers.virtual.emulator.boards import FAULT_OPTIONS, EmulatedBoard, Faults
 from helpers.virtual.emulator.world import VirtualWorld, build_world
 
 CATCH_UP_S = 0.02
 """Wall seconds the server integrates at most before it reads and answers the ports again."""
+
+AWAKE_TURN_S = 0.05
+"""Wall seconds one turn of the server's loop counts at most on its awake clock. A turn takes a few
+milliseconds (a 2 ms poll, then at most :data:`CATCH_UP_S` of integration); a longer one is a host that did
+not run the server."""
 
 MAX_LAG_S = 0.1
 """Wall seconds the device clock may fall behind ``speed`` x wall time before it slips (the pace is a
@@ -114,20 +126,45 @@ class _PtyPort:
                 pass
 
 
-def announce(world: VirtualWorld, ports: dict[str, str], speed: float) -> Path:
-    """Write this server's announcement (pid, device paths, provenance) and return its path."""
+class _AwakeClock:
+    """The server's awake clock, in a mapped file of :data:`helpers.rig.link.SERVER_CLOCK`."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        with open(path, "w+b") as f:
+            f.write(bytes(SERVER_CLOCK.size))
+            f.flush()
+            self.view = mmap.mmap(f.fileno(), SERVER_CLOCK.size)
+        self.seconds, self.last = 0.0, time.monotonic()
+
+    def tick(self) -> None:
+        """Count the turn since the last tick (at most :data:`AWAKE_TURN_S`)."""
+        now = time.monotonic()
+        self.seconds += min(now - self.last, AWAKE_TURN_S)
+        self.last = now
+        SERVER_CLOCK.pack_into(self.view, 0, self.seconds)
+
+    def close(self) -> None:
+        self.view.close()
+        self.path.unlink(missing_ok=True)
+
+
+def announce(world: VirtualWorld, ports: dict[str, str], speed: float) -> tuple[Path, _AwakeClock]:
+    """Write this server's awake clock and announcement (pid, device paths, clock, provenance); both back."""
     VIRTUAL_RIG_REGISTRY.mkdir(parents=True, exist_ok=True)
-    path = VIRTUAL_RIG_REGISTRY / f"{os.getpid()}.json"
+    path = VIRTUAL_RIG_REGISTRY / f"{os.getpid()}_{Path(ports['daq']).name}.json"  # one per server and port
+    clock = _AwakeClock(path.with_suffix(".clock"))
     info: dict[str, Any] = {
         "pid": os.getpid(),
         "rig": world.name,
         "rig_hash": world.rig_hash,
         "speed": speed,
         **ports,
+        "clock": str(clock.path),
         "source": {"rig": world.name, "speed": speed, **world.info},
     }
     path.write_text(json.dumps(info, default=str))
-    return path
+    return path, clock
 
 
 def serve(
@@ -168,7 +205,7 @@ def serve(
     world.daq.reset()
     world.stepper.reset()
     ports = [_PtyPort(world.daq, buffer_bytes), _PtyPort(world.stepper, buffer_bytes)]
-    note = announce(world, {"daq": ports[0].path, "stepper": ports[1].path}, speed)
+    note, clock = announce(world, {"daq": ports[0].path, "stepper": ports[1].path}, speed)
     print(f"daq {ports[0].path}", file=out, flush=True)
     print(f"stepper {ports[1].path}", file=out, flush=True)
     for p in ports:
@@ -179,6 +216,7 @@ def serve(
     step = world.chunk_s / 5
     try:
         while (duration is None or time.monotonic() - wall0 < duration) and not (stop and stop.is_set()):
+            clock.tick()
             fds = [p.master for p in ports]
             readable, _, _ = select.select(fds, [], [], 0.002)
             for p in ports:
@@ -208,6 +246,7 @@ def serve(
         for p in ports:
             p.close()
         note.unlink(missing_ok=True)
+        clock.close()
     return {"daq": ports[0].dropped_lines, "stepper": ports[1].dropped_lines}
 
 
