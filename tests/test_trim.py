@@ -17,14 +17,17 @@ from helpers.board import stream_reference as hs
 from helpers.board.programmes import Move, Programme
 from helpers.commands.home import home
 from helpers.rig import Rig
-from helpers.rig.stream import stream
+from helpers.rig.stream import ShapedCheck, board_shaper, stream
 from helpers.rig.trim import (
+    REST_WINDOW_S,
     TRIM_MAX_STEPS,
     BelowFloor,
     FloorWatch,
+    Rest,
     TensionGuard,
     TrimFailed,
     nudge,
+    rest_steps,
     rest_tensions,
     trim,
     trim_steps,
@@ -107,6 +110,95 @@ def test_a_tendon_that_cannot_reach_its_target_is_refused_naming_it():
         trim_steps([2.0, 2.0], lambda: [2.0, float("nan")], arm.move)
     with pytest.raises(TrimFailed, match="finite tensions >= 0"):
         trim_steps([2.0, -1.0], lambda: [2.0, 2.0], arm.move)
+
+
+# -- the trim at a stream's rest: one measurement, one set-point ------------------------------------------
+def test_a_rest_trim_takes_its_steps_from_one_measurement():
+    targets = [2.0, 2.0, 2.0, 2.0]
+    measured = [1.5, 2.0, 6.0, -3.0]  # 0.4 N below (less the 0.1 N tolerance), at it, 4.1 above, 4.9 below
+    assert rest_steps(measured, targets, [2.7] * 4) == (1, 0, -1, 2)  # ceil(.4/2.7), -, -floor(4.1/2.7), ceil
+    assert rest_steps(measured, targets) == (0, 0, 0, 1)  # no planner's step: one on the farthest below
+    assert rest_steps([1.95, 2.0, 2.0, 2.0], targets, [2.7] * 4) == (0, 0, 0, 0)  # within the tolerance
+    with pytest.raises(TrimFailed, match="tendon 2: -20.00 N measured .* needs more than the trim's 6 steps"):
+        rest_steps([2.0, -20.0, 2.0, 2.0], targets, [2.7] * 4)  # ceil(21.9 / 2.7) = 9 steps
+    with pytest.raises(TrimFailed, match="not one finite tension per tendon"):
+        rest_steps([2.0, float("nan"), 2.0, 2.0], targets)
+
+
+def test_a_rest_trim_predicts_with_the_coupling_so_one_step_lifts_an_opposed_pair():
+    pair = np.array([[2.7, 0.0, 2.5, 0.0], [0.0, 2.7, 0.0, 2.5], [2.5, 0.0, 2.7, 0.0], [0.0, 2.5, 0.0, 2.7]])
+    measured = [0.0, 2.0, 0.2, 2.0]  # tendons 1 and 3 (opposed) both about 2 N low
+    assert rest_steps(measured, [2.0] * 4, pair) == (1, 0, 0, 0)  # 1 lifts 3 with it: one step, not two
+    assert rest_steps(measured, [2.0] * 4, np.diag(pair)) == (1, 0, 1, 0)  # blind to the coupling: two
+    assert rest_steps([2.0, 2.0, 7.5, 2.0], [2.0] * 4, pair) == (0, 0, 0, 0)  # letting 3 out drops 1 too
+    with pytest.raises(TrimFailed, match="tension per step must be finite, > 0 N"):
+        rest_steps(measured, [2.0] * 4, -pair)
+
+
+class _Daq:
+    def __init__(self, counts):
+        self.rows = [(k, 1000 * k, *counts, 0, 0, 0, 0) for k in range(400)]
+
+
+class _Rig:
+    """What a rest trim reads of a rig: its calibration and the DAQ's parsed samples (counts held)."""
+
+    def __init__(self, counts):
+        self.n = 4
+        self.calibration = [type("Cal", (), {"newtons_per_count": 0.1, "offset_counts": 0.0})()] * 4
+        self.daq = _Daq(counts)
+
+
+def _planned_end(rows, check):
+    for row in rows:  # one at a time, as the stream takes them: a trim reads the plan so far
+        check.setpoint(tuple(row))
+    return np.array(check.end())
+
+
+@pytest.mark.parametrize("shaper", [None, "zvd"])
+@pytest.mark.parametrize("back, steps", [
+    (-60, [1, 0, -1, 2]),  # tendon 3 came back down (12.81 steps, counted 13): let out one
+    (0, [1, 0, 0, 2]),  # it stands above its count (14.53, counted 14): a let-out from there is not made
+])  # fmt: skip
+def test_a_rest_trims_set_point_moves_the_boards_count_by_exactly_its_steps(shaper, back, steps):
+    """The trim's one set-point, planned by the host's copy of the board's planner (as the board plans it):
+    every tendon's count at the end differs from the untrimmed stream's by exactly the trim's steps, from
+    wherever between two counts the stop left its commanded position."""
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    from helpers.paper.shapers import design_tdfs
+
+    board = board_shaper(design_tdfs(22.7, 0.05)[1] if shaper else None, 4)
+    start = (10, 10, 10, 10)
+    moves = [(37, -20, 95, 11)] * 5 + [(-13, 7, back, -3)] * 3  # leaves each tendon between two counts
+    rows = moves + [(0, 0, 0, 0)] * 120
+    plain = _planned_end(rows, ShapedCheck(board, start, four))
+    guard = TensionGuard(rests=[Rest(100, (2.0,) * 4, [2.7] * 4)], watch=False)
+    check, widened, notes = ShapedCheck(board, start, four), [], []
+    fed = guard.at_rests(iter(rows), _Rig([15, 20, 60, -30]), 1000, check.where,
+                         lambda: widened.append(1), 1640, notes)  # fmt: skip
+    trimmed = _planned_end(fed, check)
+    assert (trimmed - plain).tolist() == steps  # tensions 1.5, 2.0, 6.0, -3.0 N against 2.0
+    assert notes == [{"setpoint": 100, "targets_n": [2.0] * 4, "measured_n": [1.5, 2.0, 6.0, -3.0],
+                      "steps": steps}] and widened == [1]  # fmt: skip
+
+
+def test_a_rest_trim_asked_where_the_stream_moves_is_refused():
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    check = ShapedCheck(board_shaper(None, 4), (10,) * 4, four)
+    guard = TensionGuard(rests=[Rest(3, (2.0,) * 4)])
+    fed = guard.at_rests(iter([(5, 0, 0, 0)] * 10), _Rig([20] * 4), 1000, check.where, lambda: None, 1640, [])
+    with pytest.raises(TrimFailed, match="set-point 3 moves \\[5, 0, 0, 0\\]: a rest trim needs a rest"):
+        list(fed)
+
+
+def test_a_rest_trim_without_a_window_of_samples_measures_nothing_and_moves_nothing():
+    four = rigfile.load(rigfile.resolve("four-tendon"))
+    check, notes = ShapedCheck(board_shaper(None, 4), (10,) * 4, four), []
+    rig = _Rig([0] * 4)
+    rig.daq.rows = rig.daq.rows[: round(REST_WINDOW_S * 1000) - 1]  # one sample short of the window
+    guard = TensionGuard(rests=[Rest(2, (2.0,) * 4)])
+    fed = list(guard.at_rests(iter([(0,) * 4] * 5), rig, 1000, check.where, lambda: None, 1640, notes))
+    assert fed == [(0,) * 4] * 5 and notes[0]["skipped"].startswith("299 samples")
 
 
 # -- the floor watch on parsed samples (device time: counted in samples) ------------------------------------
@@ -377,3 +469,43 @@ def test_a_nudge_interrupted_mid_move_leaves_the_stepper_aborted_and_disabled(mo
             nudge(trig, (1, 0, 0, 0))
         after = [line.strip() for line in world.stepper.received[sent:]]
         assert after[-2:] == ["ABORT", "EN 0"] and "GO" in after  # stopped and disabled after GO
+
+
+@pytest.mark.slow
+def test_with_the_eyelets_off_a_stream_trimmed_at_its_rest_ends_taut_where_open_loop_ends_slack(tmp_path):
+    """The line to 10 mm towards 0 deg and back, pre-pulled one step, ZVD, on the twin with every eyelet
+    0.1 mm off (each tendon about 2 N below the planners' tension) and no trim before the stream, so that
+    the rest trims meet the error. At the stop every tendon is measured about 2 N low and one tendon of each
+    opposed pair is pulled a step (the planner's coupling lifts the other); back at rest every tendon is at
+    its target; from the trim to the end every tendon stays above the floor. Open loop the stream ends with
+    every tendon slack (its let-out returns the arm to the misplaced eyelets' 0.2-0.3 N)."""
+    from helpers.research.task_shaping import pretensioned
+    from helpers.research.tip_stream import figure_path, plan_stream, rest_trims, stream_design
+
+    four, off = rigfile.load(rigfile.resolve("four-tendon")), _with_errors([0.1] * 4)
+    floor = four.arm.tension_floor_n
+    path = figure_path("line", 10.0)
+    base = spatial_rig(four)
+    plan = plan_stream(four, path, spatial=base, prepull=1)
+    design = stream_design(four, path, "zvd", spatial=pretensioned(four, base, 1))
+    rests = rest_trims(plan, four, design.shaper, REST_WINDOW_S)  # the planners' tensions and coupling
+    assert len(rests) == 2  # the stop at 10 mm and the one back at rest (the 0.3 s lead is too short)
+    guards = {"open": TensionGuard(watch=False), "trimmed": TensionGuard(watch=False, rests=rests)}
+    recs = {}
+    for name, guard in guards.items():
+        with Rig("virtual", off, world=f"rest-trim-{name}") as trig:
+            recs[name] = stream(trig, plan.board_setpoints_mm_s, design.shaper, path=tmp_path / name,
+                                lead_in_s=0.2, progress=False, noise_seed=3, guard=guard)  # fmt: skip
+    stop, back = recs["trimmed"].meta["scenario"]["stream"]["rest_trims"]
+    assert stop["setpoint"] == rests[0].setpoint
+    assert all(t - 2.3 < m < t - 1.5 for m, t in zip(stop["measured_n"], stop["targets_n"], strict=True))
+    assert sorted(stop["steps"][0::2]) == [0, 1] and sorted(stop["steps"][1::2]) == [0, 1]  # one per pair
+    assert back["steps"] == [0, 0, 0, 0]
+    assert all(m >= t - 0.1 for m, t in zip(back["measured_n"], back["targets_n"], strict=True))
+    tensions = {}
+    for name, rec in recs.items():
+        f = rec.frame
+        after = (f["t_s"] >= (stop["setpoint"] + 2) * 0.01).to_numpy()  # from the trim's motion on
+        tensions[name] = f[[f"tension_n_{i}" for i in range(4)]].to_numpy()[after]
+    assert tensions["trimmed"].min() >= floor
+    assert np.all(tensions["open"][-500:].max(axis=0) < floor)  # the last 0.5 s: every tendon slack

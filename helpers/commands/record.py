@@ -322,7 +322,9 @@ def _tension_options(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument(
         "--trim", action="store_true",
         help=f"before the {what}, trim every tendon by whole steps until its measured tension at rest is at "
-        "its planned rest tension (the fewest steps at which it is >= it; helpers.rig.trim, docs/safety.md)",
+        "its planned rest tension (the fewest steps at which it is >= it; helpers.rig.trim, docs/safety.md)"
+        + (", and at every stop long enough, by one measurement, to the planner's tension at the board's "
+           "whole steps there" if what == "stream" else ""),
     )  # fmt: skip
     parser.add_argument(
         "--no-floor-watch", action="store_true",

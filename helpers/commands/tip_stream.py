@@ -14,7 +14,10 @@ pre-pull) passes, if one up to :data:`~helpers.research.task_shaping.MAX_PREPULL
 pre-pulled unless asked. The dry run prints each tendon's range of set-points and least planned tension
 against the floor, the shaper and the modes it was designed from, the least tensions at the board's whole
 steps, then names the recording it would make. Without it the stream is recorded (``helpers.rig.stream``; the
-tendons must stand at rest) into ``data/<group>/tip_<path>_<shaper>_b<bend>`` (``_pre<K>`` with a pre-pull).
+tendons must stand at rest) into ``data/<group>/tip_<path>_<shaper>_b<bend>`` (``_pre<K>`` with a pre-pull),
+the floor watched (``--no-floor-watch``: not); with ``--trim`` every tendon is trimmed by measurement before
+the stream and at every stop long enough for it (:func:`~helpers.research.tip_stream.rest_trims`,
+``docs/safety.md``).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -42,10 +46,12 @@ from helpers.research.tip_stream import (
     figure_path,
     interpolation_error,
     plan_stream,
+    rest_trims,
     stream_design,
 )
 from helpers.rig import SafetyError
 from helpers.rig.stream import stream
+from helpers.rig.trim import REST_WINDOW_S
 from helpers.virtual.spatial.from_rig import spatial_rig
 
 __all__ = ["record_tip_stream", "TIP_SPEED_MM_S", "TIP_TAIL_S"]
@@ -212,6 +218,9 @@ def record_tip_stream(args: argparse.Namespace) -> int:
         least = check_whole_steps(plan, rig, design.shaper).min(axis=0)
     except SafetyError as exc:
         raise SafetyError(f"{exc}; {_prepull_hint(args, rig)}") from None
+    guard = tension_guard(args, rig)
+    if args.trim:  # and at every rest long enough: to the statics' tension at the board's whole steps there
+        guard = replace(guard, rests=rest_trims(plan, rig, design.shaper, REST_WINDOW_S))
     if args.dry_run:
         figures = ", ".join(f"{t:.2f}" for t in least)
         print(
@@ -236,6 +245,6 @@ def record_tip_stream(args: argparse.Namespace) -> int:
         print(f"  {path.summary()}; shaper: {design.describe()}")
         rec = stream(trig, plan.board_setpoints_mm_s, design.shaper, path=target, scenario=scenario,
                      lead_in_s=0.2, rate_hz=args.rate, replace=args.replace, tail_s=TIP_TAIL_S,
-                     noise_seed=noise_seed, progress=False, guard=tension_guard(args, rig))  # fmt: skip
+                     noise_seed=noise_seed, progress=False, guard=guard)  # fmt: skip
     print(f"{rec.meta['status']}: {len(rec.frame)} samples -> {repo_path(rec.path)}")
     return 0

@@ -74,6 +74,7 @@ from helpers.research.task_shaping import (
 from helpers.research.task_space import MAX_TRIM_STEPS, shaper_metadata
 from helpers.rig.safety import SafetyError
 from helpers.rig.stream import CheckedStream, SetpointSource, check_stream
+from helpers.rig.trim import Rest
 from helpers.rigfile import RigFile
 from helpers.rigfile.derived import derived
 from helpers.virtual.spatial.direction_map import bend_equilibrium, frequency_map
@@ -907,6 +908,65 @@ def check_whole_steps(
     check_floor(tension, plan.floor_n, plan.path, what, plan.board_where,
                 "by statics at the board's whole steps")  # fmt: skip
     return tension
+
+
+REST_TRIM_LEAD_PERIODS = 4
+"""Periods a set-point is sent ahead of the board's taking it (``stream``'s ``lead_periods``): the samples
+a rest trim measures end about this much before its set-point."""
+
+REST_TRIM_SETTLE_PERIODS = 20
+"""Periods after a stop's shaped motion has ended before a rest trim's window may begin (the shaped stop's
+ringing, its residual a few % of an unshaped stop's, decays about 1/e in this time at the dominant mode's
+damping; what is left averages out over the window)."""
+
+
+def rest_trim_points(plan: StreamPlan, shaper: Shaper | hs.StreamShaper | None, window_s: float,
+                     ) -> list[int]:  # fmt: skip
+    """The board's set-points where the stream's rests are trimmed (``record tip-stream --trim``).
+
+    One per stop long enough for it, counted on the board's set-points (:attr:`StreamPlan.board_units`): the
+    trim's set-point ``j`` leaves the stop's end the shaper's duration and :data:`REST_TRIM_SETTLE_PERIODS`
+    (its own shaped motion ends and settles before the next leg), and its window of ``window_s`` before it
+    (less :data:`REST_TRIM_LEAD_PERIODS`) begins no earlier than the stop's shaped motion ended and settled.
+    Every set-point from the stop's start to ``j`` is zero (checked: a rest).
+    """
+    shaped = math.ceil(hs.board_shaper(shaper).duration_s / PERIOD_S - 1e-9) + 1
+    window = math.ceil(window_s / PERIOD_S - 1e-9)
+    out = []
+    for a, b in plan.path.stops:
+        first, last = plan.offset + a, plan.offset + b  # the stop's set-points: first .. last - 1
+        j = last - shaped - REST_TRIM_SETTLE_PERIODS
+        if j - REST_TRIM_LEAD_PERIODS - window < first + shaped + REST_TRIM_SETTLE_PERIODS:
+            continue
+        if np.any(plan.board_units[first : j + 1]):
+            raise ValueError(f"the stop at set-points {first}-{last - 1} moves a tendon: not a rest")
+        out.append(j)
+    return out
+
+
+def rest_trims(
+    plan: StreamPlan, rig: RigFile, shaper: Shaper | hs.StreamShaper | None, window_s: float,
+    spatial: SpatialRig | None = None,
+) -> list[Rest]:  # fmt: skip
+    """The rests a stream is trimmed at (``record tip-stream --trim``), the planner's targets and coupling.
+
+    At each of :func:`rest_trim_points`, the board's whole-step counts there (:func:`board_path`): the targets
+    are the statics' tensions at them (rotors free, on the twin of ``rig`` at its own rest, as
+    :func:`board_tensions`), and the tension per step is the statics' change of every tendon when each is
+    pulled one step more (an opposed pair's two tendons both rise: the backbone bends).
+    """
+    twin = spatial_rig(rig) if spatial is None else spatial
+    mm_m = np.asarray(derived(rig).mm_per_step, dtype=float) * 1e-3
+    counts = board_path(plan, rig, shaper)
+    out = []
+    for j in rest_trim_points(plan, shaper, window_s):
+        here = equilibrium(twin, counts[j] * mm_m, rotor="free")
+        per_step = np.column_stack([
+            equilibrium(twin, (counts[j] + e) * mm_m, rotor="free", start=here).tension - here.tension
+            for e in np.eye(rig.n_tendons, dtype=np.int64)
+        ])  # fmt: skip
+        out.append(Rest(j, tuple(round(float(t), 6) for t in here.tension), np.round(per_step, 6)))
+    return out
 
 
 # --- the shaper ------------------------------------------------------------------------------------------

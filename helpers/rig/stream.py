@@ -259,6 +259,10 @@ class ShapedCheck:
             self._plan(None, where="after the last set-point, ")
         return tuple(p.c for p in self.run.planners)
 
+    def where(self) -> tuple[list[int], np.ndarray]:
+        """Every tendon's step count and exact commanded position after the set-points planned so far."""
+        return [p.c for p in self.run.planners], self.commanded.copy()
+
     def reach(self) -> list[tuple[int, int]]:
         """Every tendon's lowest and highest step count the planned steps reach, from its start (``ZERO``)."""
         out = []
@@ -538,7 +542,7 @@ def stream(
         check = ShapedCheck(board, start, rig.rig, refuse=not allow_clamps)
 
         def body(state: RunState) -> None:
-            nonlocal reach, check
+            nonlocal reach, check, feed
             if guard is not None and guard.before(rig, scene, rate_hz):
                 state.start = rig.positions()  # the stream counts from where the trim left the tendons
                 reach = _anywhere(rig.rig, state.start)
@@ -546,6 +550,12 @@ def stream(
                     reach = check_stream(units * units_mm_s, rig.rig, state.start, board, allow_clamps).reach
                 check = ShapedCheck(board, state.start, rig.rig, refuse=not allow_clamps)
                 rig._note_start(scene, state.start, None)
+            if guard is not None and guard.rests:  # trimmed at its rests: off the planned path's counts then
+                def widen() -> None:
+                    rig.daq.parser.steps_range = _anywhere(rig.rig, state.start)
+
+                feed = guard.at_rests(feed, rig, rate_hz, check.where, widen, v_max(rig.rig),
+                                      record.data.setdefault("rest_trims", []))  # fmt: skip
             scene["rest"] = rig.wait_for_rest(rate_hz)
             rig.stepper.command("ABORT")  # whatever an earlier session left running stops; driver off
             rig.daq.command("STOP")

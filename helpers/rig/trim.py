@@ -17,8 +17,15 @@ sample, calibrated per tendon, and already waits for the arm to come to rest (:m
   past them, :class:`TrimFailed` naming the tendon. Off for one tendon (the paper's Table II unchanged).
 - :func:`trim` (with :func:`rest_tensions`, :func:`nudge`): the rule on a :class:`~helpers.rig.driver.Rig`.
 - :class:`TensionGuard`: what a run of several tendons is given (``Rig.run(..., guard=...)``, ``stream(...,
-  guard=...)``): the trim before it (its targets, optional) and the floor watch during it. The driver only
-  calls it, so this module is off the paper's one-tendon path (``tests/test_reading_path.py``).
+  guard=...)``): the trim before it (its targets, optional), the trims at a stream's rests (optional) and the
+  floor watch during it. The driver only calls it, so this module is off the paper's one-tendon path
+  (``tests/test_reading_path.py``).
+- :func:`rest_steps` and :meth:`TensionGuard.at_rests`: the trim at a stream's rest, where the stream goes on
+  and the host cannot wait and measure again: one measurement (each tendon's mean tension over the last
+  :data:`REST_WINDOW_S` of samples), the rule's whole steps from it at once, and one set-point that takes
+  each tendon's commanded position just past them, sent in place of one of the rest's zero set-points (so it
+  is shaped by the board's shaper as every set-point, and checked by the host's copy of the board's planner
+  before it is sent, as every set-point).
 - :class:`FloorWatch`: during a run, every parsed sample's calibrated tension of every tendon against
   ``[arm] tension_floor_n``; a tendon below it for longer than ``[arm] floor_watch_ms`` (default 20 ms; a
   pay-out step's dip lasts 3 ms at the median, the pre-pull's let-out 2-4 samples) raises :class:`BelowFloor`
@@ -29,20 +36,21 @@ sample, calibrated per tendon, and already waits for the arm to come to rest (:m
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from helpers.board import stream_reference as hs
 from helpers.board.programmes import Move, Programme
 from helpers.rig.driver import Rig, RunState
 from helpers.rig.link import BoardError, ints
 from helpers.rig.safety import SafetyError, check_programme
 
 __all__ = [
-    "TRIM_MAX_STEPS", "TRIM_TOLERANCE_N", "BelowFloor", "FloorWatch", "TensionGuard", "TrimFailed",
-    "TrimResult", "nudge", "rest_tensions", "trim", "trim_steps",
+    "REST_WINDOW_S", "TRIM_MAX_STEPS", "TRIM_TOLERANCE_N", "BelowFloor", "FloorWatch", "Rest",
+    "TensionGuard", "TrimFailed", "TrimResult", "nudge", "rest_steps", "rest_tensions", "trim", "trim_steps",
 ]  # fmt: skip
 
 TRIM_MAX_STEPS = 6
@@ -51,6 +59,25 @@ TRIM_MAX_STEPS = 6
 TRIM_TOLERANCE_N = 0.1
 """A measured tension this far below its target counts as at it (2-3 ADC counts of the four-tendon rigs'
 0.041 N per count: the mean over the rest window of a tendon exactly at its target reads within it)."""
+
+
+REST_WINDOW_S = 0.3
+"""Device seconds of samples a stream's rest trim averages each tendon's tension over (the last before its
+set-point is taken): about one period of the four-tendon arm's dominant mode (0.28 s at 22.7 rad/s), so that
+what still rings of the stop averages out."""
+
+PAST_STEP = 0.05
+"""Steps. The board steps when the commanded position reaches the count's next whole step (a hysteresis of one
+step, ``helpers.board.stream_reference``), and a set-point unit is 1/104.86 of a step, so no whole number
+of units moves a position by exactly whole steps: a rest trim moves it by its steps rounded up to a unit,
+where it stands at least this far on the side of the count it moves to, and otherwise (a pull only) to this
+far past the last step's threshold; a let-out from elsewhere is not made. So the count moves by exactly the
+trim's steps, and every later count is the plan's plus them or one step more, never less: the plan places a
+stop's position a thousandth of a step or so past its count, finer than a unit, and a later pay-out (the
+pre-pull's let-out included) may then stop one step short. Taut, never slacker."""
+
+UNITS_PER_STEP = (1 << 16) / hs.PERIOD
+"""Set-point units held for one period per step (104.8576)."""
 
 
 class TrimFailed(SafetyError):
@@ -192,6 +219,83 @@ def trim_steps(
     )  # fmt: skip
 
 
+@dataclass(frozen=True)
+class Rest:
+    """A stream's rest where every tendon is trimmed (:meth:`TensionGuard.at_rests`).
+
+    Attributes
+    ----------
+    setpoint : int
+        The index of a set-point inside the rest: zero set-points from where the stop's shaped motion and its
+        ringing have settled, at least :data:`REST_WINDOW_S` before it, to where the trim's own shaped motion
+        has ended.
+    targets_n : tuple of float
+        Each tendon's target there, N (the planner's static tension at that pose).
+    per_step_n : numpy.ndarray, optional
+        The planner's tension change of every tendon per step of each (N; ``[i, j]``: tendon ``i`` when
+        tendon ``j`` is pulled one step), which :func:`rest_steps` predicts with. None: one step on the
+        tendon farthest below, measured again at the next rest.
+    """
+
+    setpoint: int
+    targets_n: tuple[float, ...]
+    per_step_n: Any = None
+
+
+def rest_steps(
+    measured_n: Sequence[float], targets_n: Sequence[float], per_step_n: Any = None, *,
+    tolerance_n: float = TRIM_TOLERANCE_N, max_steps: int = TRIM_MAX_STEPS,
+) -> tuple[int, ...]:  # fmt: skip
+    """The trim's rule (:func:`trim_steps`) from one measurement: each tendon's whole steps (+ pulls in).
+
+    Where the stream goes on, the host cannot measure after each step, so it predicts with the planner's
+    tension per step, ``per_step_n`` (a matrix: every tendon's change per step of each, since pulling one
+    tendon of an opposed pair lifts both; a vector: no coupling). As :func:`trim_steps` measures, it predicts:
+    one step on the tendon farthest below its target less ``tolerance_n`` until none is, then, while every
+    tendon stays at its target, one step let out of the one farthest above. Without ``per_step_n``: one step
+    on the tendon farthest below (measured again at the next rest), none let out.
+
+    Raises
+    ------
+    TrimFailed
+        Not one finite measurement per tendon, an unusable ``per_step_n``, or a tendon that needs more than
+        ``max_steps`` (named).
+    """
+    targets = _targets(targets_n)
+    n = targets.size
+    measured = np.asarray(measured_n, dtype=float).reshape(-1)
+    if measured.size != n or not np.all(np.isfinite(measured)):
+        raise TrimFailed(f"the trim measured {measured.tolist()}, not one finite tension per tendon ({n})")
+    goal = targets - float(tolerance_n)
+    steps = np.zeros(n, dtype=int)
+    if per_step_n is None:
+        if np.any(measured < goal):
+            steps[int(np.argmin(measured - goal))] = 1
+        return tuple(int(k) for k in steps)
+    k = np.asarray(per_step_n, dtype=float)
+    k = np.diag(np.broadcast_to(k, (n,))) if k.ndim <= 1 else k
+    if k.shape != (n, n) or not np.all(np.isfinite(k)) or not np.all(np.diag(k) > 0):
+        raise TrimFailed(f"the tension per step must be finite, > 0 N on each tendon's own, one per tendon "
+                         f"(or {n} x {n}), got {np.asarray(per_step_n).tolist()}")  # fmt: skip
+    predicted = measured.copy()
+    while np.any(predicted < goal):  # pull in: the tendon farthest below, then predicted again
+        i = int(np.argmin(predicted - goal))
+        if steps[i] >= max_steps:
+            raise TrimFailed(
+                f"tendon {i + 1}: {measured[i]:.2f} N measured at rest against its target {targets[i]:.2f} N "
+                f"needs more than the trim's {max_steps} steps; is its cable slack or its load cell off?"
+            )
+        steps[i] += 1
+        predicted += k[:, i]
+    while True:  # let out: the tendon farthest above, while every tendon stays at its target
+        free = [i for i in range(n) if -max_steps < steps[i] <= 0 and np.all(predicted - k[:, i] >= goal)]
+        if not free:
+            return tuple(int(v) for v in steps)
+        i = max(free, key=lambda m: predicted[m] - goal[m])
+        steps[i] -= 1
+        predicted -= k[:, i]
+
+
 def rest_tensions(rig: Rig, rate_hz: int = 1000) -> tuple[dict[str, Any], np.ndarray]:
     """Wait for rest; its dict and every tendon's mean tension over the rest window, N.
 
@@ -271,11 +375,14 @@ class TensionGuard:
         target is let out).
     watch : bool
         Watch every tendon's measured tension on every sample (:class:`FloorWatch`).
+    rests : sequence of Rest, optional
+        A stream's rests where every tendon is trimmed (:meth:`at_rests`). None: none.
     """
 
     targets_n: Sequence[float] | None = None
     step_n: Sequence[float] | None = None
     watch: bool = True
+    rests: Sequence[Rest] | None = None
 
     def before(self, rig: Rig, scenario: dict[str, Any], rate_hz: int) -> bool:
         """Trim (if there are targets), noted in ``scenario``; True if it ran (the tendons may have moved)."""
@@ -283,6 +390,64 @@ class TensionGuard:
             return False
         scenario["measured_trim"] = trim(rig, self.targets_n, rate_hz, self.step_n).metadata()
         return True
+
+    def at_rests(
+        self, feed: Iterator[tuple[int, ...]], rig: Rig, rate_hz: int, where: Callable[[], tuple[Any, Any]],
+        widen: Callable[[], None], limit: int, notes: list[dict[str, Any]],
+    ) -> Iterator[tuple[int, ...]]:  # fmt: skip
+        """``feed`` (a stream's set-points, board units) with every tendon trimmed at this guard's rests.
+
+        At each rest's set-point: each tendon's mean calibrated tension over the last :data:`REST_WINDOW_S`
+        of samples received, the whole steps by :func:`rest_steps` (the rest's targets and tension per step),
+        and the set-point replaced (it must be
+        zero: a rest) by the one that moves every tendon's count by them (:data:`PAST_STEP`), from where
+        ``where()`` says the board's planner stands (every tendon's step count and exact commanded position
+        after the set-points planned so far). ``widen()`` is called before a trim's set-point is sent (the
+        tendons then leave the planned path's step counts); ``limit`` is the build's set-point limit (board
+        units); every rest's measurement and steps are appended to ``notes`` (the recording's
+        ``stream.rest_trims``).
+
+        Raises
+        ------
+        TrimFailed
+            A rest's set-point that is not zero (not a rest), or a tendon that needs more steps than the trim
+            makes (:func:`rest_steps`).
+        """
+        at = {int(r.setpoint): r for r in self.rests or ()}
+        cal = rig.calibration
+        npc = np.array([c.newtons_per_count for c in cal])
+        offset = np.array([c.offset_counts for c in cal])
+        window = max(1, round(REST_WINDOW_S * rate_hz))
+        for j, row in enumerate(feed):
+            if j in at:
+                if any(row):
+                    raise TrimFailed(f"the stream's set-point {j} moves {list(row)}: a rest trim needs a "
+                                     "rest")  # fmt: skip
+                samples = rig.daq.rows[-window:]
+                counts = np.asarray(samples, dtype=float).reshape(len(samples), -1)[:, 2 : 2 + rig.n]
+                measured = (counts.mean(axis=0) - offset) * npc if len(samples) == window else None
+                note: dict[str, Any] = {"setpoint": j, "targets_n": list(at[j].targets_n)}
+                if measured is None:  # the lead-in is shorter than the window: nothing measured, no trim
+                    note["skipped"] = f"{len(samples)} samples, fewer than the window's {window}"
+                else:
+                    steps = np.array(rest_steps(measured, at[j].targets_n, at[j].per_step_n))
+                    count, x = (np.asarray(v, dtype=float) for v in where())
+                    sign = np.sign(steps)
+                    along = sign * (x - count) >= PAST_STEP  # it stands on the side of the count it moves to
+                    steps = np.where((steps < 0) & ~along, 0, steps)  # a let-out only from there (PAST_STEP)
+                    sign = np.sign(steps)
+                    units = np.where(along, np.ceil(steps * UNITS_PER_STEP - 1e-9),
+                                     np.ceil((count + steps + PAST_STEP - x) * UNITS_PER_STEP))
+                    units = np.where(steps != 0, units, 0)
+                    if np.abs(units).max() > limit:
+                        raise TrimFailed(f"the rest trim at set-point {j} needs {units.tolist()} set-point "
+                                         f"units, over the build's limit of {limit}")  # fmt: skip
+                    note.update(measured_n=[round(float(v), 6) for v in measured], steps=steps.tolist())
+                    if steps.any():
+                        widen()
+                        row = tuple(int(u) for u in units)
+                notes.append(note)
+            yield row
 
     def watcher(self, rig: Rig, rate_hz: int) -> FloorWatch | None:
         """The rig's floor watch at ``rate_hz`` (``[arm] tension_floor_n``, ``floor_watch_ms``), or None."""
