@@ -82,7 +82,10 @@ def test_a_rig_named_in_the_parameters_cell_is_the_rig_the_cells_use() -> None:
 
 
 def _files(folder: Path) -> dict[Path, tuple[int, int]]:
-    return {p: (p.stat().st_size, p.stat().st_mtime_ns) for p in folder.rglob("*") if p.is_file()}
+    """Every data file's size and time; not the folder locks (``.lock``, gitignored), which any reader of the
+    folder creates if it is missing (in a fresh clone the first one, maybe another test's, at any moment)."""
+    return {p: (p.stat().st_size, p.stat().st_mtime_ns) for p in folder.rglob("*")
+            if p.is_file() and not p.name.endswith(".lock")}  # fmt: skip
 
 
 def test_live_cells_record_into_my_data_and_the_cells_below_analyse_it_there(tmp_path: Path) -> None:
