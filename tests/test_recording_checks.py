@@ -159,7 +159,9 @@ def _fixtures() -> dict[str, dict]:
         "start_positions_steps": [0, 0, 0, 0],
         "t_stream_us": 8_000,
         "shaper": None,
-        "stream": _stream(FOUR, [[0, 8, 8, 0], [0, -8, -8, 0], [0] * 4, [1, 0, 0, -1]]),
+        "stream": {**_stream(FOUR, [[0, 8, 8, 0], [0, -8, -8, 0], [0] * 4, [1, 0, 0, -1]]),
+                   "rest_trims": [{"setpoint": 2, "targets_n": [2.0] * 4, "measured_n": [1.5, 2.0, 2.1, 2.2],
+                                   "steps": [1, 0, 0, 0]}]},
     }
     v4 = {
         "v4 pulse (paper)": _v4(PAPER, dict(pulse["scenario"]), [pulse["calibration"]], done_position=0,
