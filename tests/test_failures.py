@@ -238,6 +238,7 @@ def test_a_server_the_host_does_not_run_pauses_its_boards_and_is_no_silent_board
     assert rec.status == "complete" and rec.meta["source"]["via"] == "pseudo-terminal server"
 
 
+@pytest.mark.slow  # a server process of its own and 2 s of silence (the default suite's budget)
 def test_a_hung_board_of_the_server_is_still_silent_on_its_awake_clock():
     """The server runs and its DAQ stops answering 1 s of device time after it starts (``hang_at``): the awake
     clock runs on, and the host's wait for a reply ends in one clear error (whether the board hangs before the
