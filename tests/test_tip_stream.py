@@ -245,6 +245,24 @@ def test_record_tip_stream_dry_run_prints_every_tendons_range_and_least_tension(
     assert not (tmp_path / "data").exists()
 
 
+@pytest.mark.slow  # the statics at the board's counts, then 5 s of the spatial twin
+def test_record_tip_stream_trim_trims_before_and_at_every_long_stop(tmp_path, capsys) -> None:
+    """``--trim`` as a user types it: the dry run names the rests, and the recording keeps what each measured.
+    On the nominal twin every tendon stands at its planned tension at each rest, so nothing moves there."""
+    argv = ["--rig", "four-tendon", "record", "tip-stream", "--path", "line", "--bend-mm", "10", "--prepull",
+            "1", "--shaper", "zvd", "--trim", "--data-dir", str(tmp_path / "data")]  # fmt: skip
+    assert main([*argv, "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "--trim: every tendon trimmed by measurement before the stream and at 2 of its stops" in out
+    assert main([*argv, "--quiet"]) == 0
+    rec = recordings.load(tmp_path / "data" / "tip_streams" / "tip_line_zvd_b10_pre1.csv")
+    assert rec.meta["status"] == "complete" and rec.meta["scenario"]["measured_trim"]["steps"] == [0] * 4
+    rests = rec.meta["scenario"]["stream"]["rest_trims"]
+    assert [r["steps"] for r in rests] == [[0] * 4] * 2
+    gaps = np.subtract([r["measured_n"] for r in rests], [r["targets_n"] for r in rests])
+    assert np.abs(gaps).max() < 0.05  # the twin's tension at the board's counts, measured through its noise
+
+
 def test_record_tip_stream_refuses_a_figure_the_rig_cannot_reach(two, tmp_path, monkeypatch, capsys) -> None:
     """The star's third direction, 90 deg, faces tendon 2; its fifth, 180 deg, faces no tendon at 0 or 90 deg
     (cos 180 deg < 0, cos 90 deg = 0)."""

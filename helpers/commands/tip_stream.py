@@ -233,6 +233,10 @@ def record_tip_stream(args: argparse.Namespace) -> int:
             f"{' (from the rest before the pre-pull)' if plan.prepull else ''} and stands at the plan's "
             "whole steps at every stop"
         )
+        if guard.rests is not None:
+            where, k = ", ".join(str(r.setpoint) for r in guard.rests) or "none long enough", len(guard.rests)
+            print(f"  --trim: every tendon trimmed by measurement before the stream and at {k} of its stops "
+                  f"(set-points {where}), to the statics' tensions at the board's counts there")
         print(f"dry run: 1 recording would be made on --ports {args.ports}: {repo_path(target)}; "
               "nothing was sent")  # fmt: skip
         return 0
