@@ -9,7 +9,9 @@ time since the server started (a busy host only makes it slower).
 from __future__ import annotations
 
 import argparse
+import fcntl
 import io
+import json
 import os
 import subprocess
 import sys
@@ -21,6 +23,8 @@ import serial
 
 from helpers import rigfile
 from helpers.board.protocol import checksum, frame
+from helpers.rig import link
+from helpers.rig.ports import virtual_source_for
 from helpers.virtual.emulator import server
 from helpers.virtual.emulator.world import build_world
 
@@ -147,3 +151,20 @@ def test_the_command_line_serves_the_rig_file_it_is_given() -> None:
     finally:
         proc.terminate()
         proc.wait(timeout=READY_S)
+
+
+def test_an_announcement_its_server_left_is_ignored_even_where_its_pid_lives_again(tmp_path, monkeypatch):
+    """A killed server leaves its announcement, and on a busy machine its pid may be another process's by now
+    (here: this test's own). The lock on its clock file went with it, so the ports are hardware again (a CI
+    run once labelled simavr's pseudo-terminals ``virtual-rig`` through such a leftover); held: virtual."""
+    monkeypatch.setattr(link, "VIRTUAL_RIG_REGISTRY", tmp_path)
+    clock = tmp_path / "1_0.clock"
+    clock.write_bytes(bytes(link.SERVER_CLOCK.size))
+    note = {"pid": os.getpid(), "daq": "/dev/pts/990", "stepper": "/dev/pts/991", "clock": str(clock)}
+    (tmp_path / "1_0.json").write_text(json.dumps(note))
+    assert virtual_source_for(("/dev/pts/990", "/dev/pts/991")) is None
+    assert link.served_clock("/dev/pts/990") is None
+    with open(clock, "r+b") as f:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX)  # as a running server holds it
+        assert virtual_source_for(("/dev/pts/990", "/dev/pts/991"))["kind"] == "virtual-rig"
+        assert link.served_clock("/dev/pts/990")() == 0.0

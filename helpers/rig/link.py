@@ -26,6 +26,7 @@ host's protocol and have been built for the rig file the host runs (its hash in 
 
 from __future__ import annotations
 
+import fcntl
 import json
 import mmap
 import os
@@ -172,18 +173,36 @@ seconds its loop has run, each turn counted at most ``helpers.virtual.emulator.s
 
 
 def announcement(paths: tuple[str, ...]) -> dict[str, Any] | None:
-    """The announcement of a running ``serve-virtual-rig`` serving any of ``paths`` (a dead one's ignored)."""
+    """The announcement of a running ``serve-virtual-rig`` serving any of ``paths`` (a dead one's ignored).
+
+    Running: the server holds its clock file's lock, which the kernel drops however the server ends (a
+    killed server leaves its announcement, and its pid may be another process's by now); an announcement
+    without a clock (an older server): its pid is alive.
+    """
     real = {os.path.realpath(p) for p in paths}
     for f in VIRTUAL_RIG_REGISTRY.glob("*.json"):
         try:
             info = json.loads(f.read_text())
-            os.kill(int(info["pid"]), 0)
+            if "clock" not in info:
+                os.kill(int(info["pid"]), 0)
+            elif not _held(info["clock"]):
+                continue
             served = {os.path.realpath(info["daq"]), os.path.realpath(info["stepper"])}
         except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
             continue
         if served & real:
             return info
     return None
+
+
+def _held(path: str) -> bool:
+    """Whether a process holds ``path``'s exclusive lock (a running server holds its clock file's)."""
+    with open(path, "rb") as f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        return False
 
 
 def served_clock(url: str) -> Callable[[], float] | None:

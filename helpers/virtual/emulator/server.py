@@ -31,6 +31,7 @@ clock.
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import mmap
 import os
@@ -131,10 +132,11 @@ class _AwakeClock:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        with open(path, "w+b") as f:
-            f.write(bytes(SERVER_CLOCK.size))
-            f.flush()
-            self.view = mmap.mmap(f.fileno(), SERVER_CLOCK.size)
+        self.file = open(path, "w+b")  # held open, and locked, while the server runs
+        self.file.write(bytes(SERVER_CLOCK.size))
+        self.file.flush()
+        fcntl.flock(self.file.fileno(), fcntl.LOCK_EX)  # the announcement's liveness (link.announcement)
+        self.view = mmap.mmap(self.file.fileno(), SERVER_CLOCK.size)
         self.seconds, self.last = 0.0, time.monotonic()
 
     def tick(self) -> None:
@@ -147,6 +149,7 @@ class _AwakeClock:
     def close(self) -> None:
         self.view.close()
         self.path.unlink(missing_ok=True)
+        self.file.close()
 
 
 def announce(world: VirtualWorld, ports: dict[str, str], speed: float) -> tuple[Path, _AwakeClock]:
