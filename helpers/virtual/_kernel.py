@@ -1374,6 +1374,19 @@ def advance(scheme, y, S, L, sample_times, step_times, step_signs, n_steps, P, U
     k1, st, ws, ws2, wf, wf2, bufs
         Work: ``m``, 4, :func:`workspace_size` (twice), :func:`wf_size` (twice), ``(10, m)``.
     """
+    # Each lane array enters as its own numba type (``LaneArray``); its full slice is a plain array of
+    # lanes, the type of every row taken from one inside (``bufs[4]``). Passing only plain arrays down
+    # compiles each function once per form (scalars, lanes) instead of once per mix of the two types: the
+    # lanes' first compile costs about half. The same arrays, the same arithmetic.
+    _advance(scheme, y[:], S[:], L, sample_times, step_times, step_signs, n_steps, P[:], U, mb[:], Jb[:],
+             disc, W[:], cw[:], k1[:], st[:], ws[:], ws2[:], wf[:], wf2[:], bufs[:], out_raw, out_filt,
+             out_theta)  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _advance(scheme, y, S, L, sample_times, step_times, step_signs, n_steps, P, U, mb, Jb, disc, W, cw,  # noqa: C901
+             k1, st, ws, ws2, wf, wf2, bufs, out_raw, out_filt, out_theta):  # fmt: skip
+    """:func:`advance` on plain arrays (of scalars or of lanes)."""
     nl = L.shape[0]
     n = mb.shape[0]
     m = y.shape[0]
