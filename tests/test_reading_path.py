@@ -68,10 +68,11 @@ the live cells' waits over ``serve-virtual-rig``'s pseudo-terminals counted on t
 read there once for it and for the provenance), since a CI machine under load had starved the server for
 2 s and a run was stopped as a silent board; 5,167 once a server's announcement counted as running only
 while the server holds its clock file's lock (11 lines: a killed server's leftover announcement, its pid
-reused by another process, had labelled simavr's pseudo-terminals ``virtual-rig`` in CI). 167 over the
-budget, which this test therefore fails."""
-CODE_LINES_CEILING = 5_167
-"""What the path holds today (the goal above missed by 167, 3.3 %): it may shrink; it grows only for a job
+reused by another process, had labelled simavr's pseudo-terminals ``virtual-rig`` in CI); 5,170 once that
+rule became one function, ``helpers.rig.link.running`` (3 lines), which a starting server also asks before
+it removes the announcements killed servers left. 170 over the budget, which this test therefore fails."""
+CODE_LINES_CEILING = 5_170
+"""What the path holds today (the goal above missed by 170, 3.4 %): it may shrink; it grows only for a job
 the paper's notebooks must do, said in the history above. The live cells'
 one driver carries every protection of the one-tendon path to 1-4 tendons (a run saved ``aborted`` on any
 end, device-time waits, the builds checked against the rig file), which the three slimming passes above did
@@ -197,7 +198,7 @@ def test_the_paper_notebooks_reach_no_more_than_today():
     assert total <= CODE_LINES_CEILING, f"{len(path)} modules, {total} code lines"
 
 
-@pytest.mark.xfail(strict=True, reason="the goal of 5,000 is missed by 167 lines: see CODE_LINES_CEILING")
+@pytest.mark.xfail(strict=True, reason="the goal of 5,000 is missed by 170 lines: see CODE_LINES_CEILING")
 def test_the_paper_notebooks_reach_a_core_one_can_read():
     path, total = _total()
     assert total <= CODE_LINES_BUDGET, f"{len(path)} modules, {total} code lines"

@@ -168,3 +168,25 @@ def test_an_announcement_its_server_left_is_ignored_even_where_its_pid_lives_aga
         fcntl.flock(f.fileno(), fcntl.LOCK_EX)  # as a running server holds it
         assert virtual_source_for(("/dev/pts/990", "/dev/pts/991"))["kind"] == "virtual-rig"
         assert link.served_clock("/dev/pts/990")() == 0.0
+
+
+def test_a_starting_server_removes_what_killed_servers_left_and_nothing_else(tmp_path):
+    """Leftovers pile up in the registry otherwise: a dead server's announcement and clock (its lock gone),
+    an older one without a clock whose pid is gone, one whose clock file is gone. A running server's (its
+    clock locked) and one that cannot be read yet (being written) stay."""
+    dead_clock = tmp_path / "1_0.clock"
+    dead_clock.write_bytes(bytes(link.SERVER_CLOCK.size))
+    (tmp_path / "1_0.json").write_text(json.dumps({"pid": os.getpid(), "clock": str(dead_clock)}))
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True, check=True)  # fmt: skip
+    (tmp_path / "2_0.json").write_text(json.dumps({"pid": int(gone.stdout)}))  # an older server's note
+    (tmp_path / "3_0.json").write_text(json.dumps({"pid": os.getpid(), "clock": str(tmp_path / "3_0.clock")}))
+    live_clock = tmp_path / "4_0.clock"
+    live_clock.write_bytes(bytes(link.SERVER_CLOCK.size))
+    (tmp_path / "4_0.json").write_text(json.dumps({"pid": os.getpid(), "clock": str(live_clock)}))
+    (tmp_path / "5_0.json").write_text('{"pid": ')  # being written
+    with open(live_clock, "r+b") as f:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX)  # as a running server holds it
+        removed = server.sweep_leftovers(tmp_path)
+    assert sorted(p.name for p in removed) == ["1_0.clock", "1_0.json", "2_0.json", "3_0.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["4_0.clock", "4_0.json", "5_0.json"]

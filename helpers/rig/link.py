@@ -183,9 +183,7 @@ def announcement(paths: tuple[str, ...]) -> dict[str, Any] | None:
     for f in VIRTUAL_RIG_REGISTRY.glob("*.json"):
         try:
             info = json.loads(f.read_text())
-            if "clock" not in info:
-                os.kill(int(info["pid"]), 0)
-            elif not _held(info["clock"]):
+            if not running(info):
                 continue
             served = {os.path.realpath(info["daq"]), os.path.realpath(info["stepper"])}
         except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
@@ -193,6 +191,14 @@ def announcement(paths: tuple[str, ...]) -> dict[str, Any] | None:
         if served & real:
             return info
     return None
+
+
+def running(info: dict[str, Any]) -> bool:
+    """Whether the server of announcement ``info`` runs (:func:`announcement`'s rule; raises if unread)."""
+    if "clock" in info:
+        return _held(info["clock"])
+    os.kill(int(info["pid"]), 0)  # an older server's (no clock): ProcessLookupError if it is gone
+    return True
 
 
 def _held(path: str) -> bool:

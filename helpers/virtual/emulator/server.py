@@ -31,6 +31,7 @@ clock.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import fcntl
 import json
 import mmap
@@ -49,7 +50,7 @@ from typing import Any
 from helpers import rigfile
 from helpers.base.cli import DefaultsHelp, arg_number
 from helpers.base.paths import VIRTUAL_RIG_REGISTRY
-from helpers.rig.link import SERVER_CLOCK
+from helpers.rig.link import SERVER_CLOCK, running
 from helpers.virtual.emulator.boards import FAULT_OPTIONS, EmulatedBoard, Faults
 from helpers.virtual.emulator.world import VirtualWorld, build_world
 
@@ -152,9 +153,37 @@ class _AwakeClock:
         self.file.close()
 
 
+def sweep_leftovers(registry: Path) -> list[Path]:
+    """Remove the announcements (and clocks) that servers no longer running left in ``registry``.
+
+    A killed server leaves both; they are ignored by every reader (:func:`helpers.rig.link.running`) and
+    removed here, when a server starts, so that they do not pile up. An announcement that cannot be read
+    (one being written) is left alone. Returns the paths removed.
+    """
+    removed = []
+    for note in sorted(registry.glob("*.json")):
+        try:
+            info = json.loads(note.read_text())
+            if running(info):
+                continue
+        except (FileNotFoundError, ProcessLookupError):  # its clock, or its pid, is gone: it ended
+            info = {}
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        for f in (note, Path(str(info.get("clock", note.with_suffix(".clock"))))):
+            with contextlib.suppress(FileNotFoundError):
+                f.unlink()
+                removed.append(f)
+    return removed
+
+
 def announce(world: VirtualWorld, ports: dict[str, str], speed: float) -> tuple[Path, _AwakeClock]:
-    """Write this server's awake clock and announcement (pid, device paths, clock, provenance); both back."""
+    """Write this server's awake clock and announcement (pid, device paths, clock, provenance); both back.
+
+    Announcements their servers left (killed) are removed first (:func:`sweep_leftovers`).
+    """
     VIRTUAL_RIG_REGISTRY.mkdir(parents=True, exist_ok=True)
+    sweep_leftovers(VIRTUAL_RIG_REGISTRY)
     path = VIRTUAL_RIG_REGISTRY / f"{os.getpid()}_{Path(ports['daq']).name}.json"  # one per server and port
     clock = _AwakeClock(path.with_suffix(".clock"))
     info: dict[str, Any] = {
