@@ -27,6 +27,12 @@ the taut tendons, whose net stretch ``g_i = e2_i - (H lam)_i`` is positive). Its
 low-pass integrated exactly for a tension linear over each step.
 
 State ``y = [phi (3N), phi' (3N), psi (nt), psi' (nt), x (nt), x' (nt)]``.
+
+Written once for one scenario (``float64`` arrays) and for several (:class:`helpers.virtual.lanes.Lanes`, one
+scenario per SIMD lane: :class:`helpers.virtual.spatial.plant.SpatialLanes`), as the planar kernel is: a
+branch that may differ between lanes is a :func:`~helpers.virtual.lanes.select` or a per-lane loop (the
+tension problem's active set, the implicit step's active cables, each lane's splits, searches and events), so
+every lane gets the bits of its scenario run alone.
 """
 
 from __future__ import annotations

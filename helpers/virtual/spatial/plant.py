@@ -5,7 +5,8 @@
 pretension, every stepper at position 0), keeps its state between calls, and integrates from the present
 time through the requested samples, splitting at every step of every tendon, every sample and every
 taut/slack transition of any cable. The amplifiers are part of the state, so chunked calls give the same
-samples as one call.
+samples as one call. :class:`SpatialLanes` drives several rigs in one kernel call (one per SIMD lane), each
+lane bitwise the same as its rig alone.
 """
 
 from __future__ import annotations
