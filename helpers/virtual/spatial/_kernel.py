@@ -185,69 +185,110 @@ def bow_p(x):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _solve_small(sp, n, out, k):
-    """Solve ``C[A, A] out[A] = e2[A]`` (symmetric positive definite, n <= 4); 0 outside ``A``; lane ``k``.
+def _solve_small(sp, n, out):
+    """Solve ``C[A, A] out[A] = e2[A]`` (symmetric positive definite, n <= 4); 0 outside ``A``.
 
-    ``C``, ``e2`` and the active set ``A`` are in the scratch ``sp`` (each lane its own active set: one
-    lane at a time, as scalars).
+    ``C``, ``e2`` and the active set ``A`` are in the scratch ``sp``. Cholesky over the active tendons in
+    their order, each term kept where (in the lanes where) its tendons are active: every lane solves over its
+    own active set with the arithmetic of that set alone. The factor and the solution are stored by tendon
+    (``S_CHOL + 4 i + j``, ``S_Z + i``).
     """
-    m = 0
-    for i in range(n):
-        out[i] = set_lane(out[i], k, 0.0)
-        if lane(sp[S_MASK + i], k) != 0.0:
-            sp[S_IDX + m] = set_lane(sp[S_IDX + m], k, float(i))
-            m += 1
-    if m == 0:
-        return
     w = S_CHOL
-    for r in range(m):
-        ir = int(lane(sp[S_IDX + r], k))
+    for r in range(n):
+        act_r = sp[S_MASK + r] != 0.0
+        if not any_lane(act_r):
+            continue
         for c in range(r + 1):
-            s = lane(sp[S_C + 4 * ir + int(lane(sp[S_IDX + c], k))], k)
-            for q in range(c):
-                s -= lane(sp[w + 4 * r + q], k) * lane(sp[w + 4 * c + q], k)
+            if not any_lane(act_r & (sp[S_MASK + c] != 0.0)):
+                continue
+            s = sp[S_C + 4 * r + c]
+            for k in range(c):
+                act_k = sp[S_MASK + k] != 0.0
+                if any_lane(act_k):
+                    s = select(act_k, s - sp[w + 4 * r + k] * sp[w + 4 * c + k], s)
             if r == c:
-                sp[w + 4 * r + r] = set_lane(sp[w + 4 * r + r], k, math.sqrt(s))
+                sp[w + 4 * r + r] = vsqrt(s)
             else:
-                sp[w + 4 * r + c] = set_lane(sp[w + 4 * r + c], k, s / lane(sp[w + 4 * c + c], k))
-    for r in range(m):
-        s = lane(sp[S_E2 + int(lane(sp[S_IDX + r], k))], k)
-        for q in range(r):
-            s -= lane(sp[w + 4 * r + q], k) * lane(sp[S_Z + q], k)
-        sp[S_Z + r] = set_lane(sp[S_Z + r], k, s / lane(sp[w + 4 * r + r], k))
-    for r in range(m - 1, -1, -1):
-        s = lane(sp[S_Z + r], k)
-        for q in range(r + 1, m):
-            s -= lane(sp[w + 4 * q + r], k) * lane(sp[S_Z + q], k)
-        sp[S_Z + r] = set_lane(sp[S_Z + r], k, s / lane(sp[w + 4 * r + r], k))
-    for r in range(m):
-        i = int(lane(sp[S_IDX + r], k))
-        out[i] = set_lane(out[i], k, lane(sp[S_Z + r], k))
+                sp[w + 4 * r + c] = s / sp[w + 4 * c + c]
+    for r in range(n):
+        act_r = sp[S_MASK + r] != 0.0
+        if not any_lane(act_r):
+            continue
+        s = sp[S_E2 + r]
+        for k in range(r):
+            act_k = sp[S_MASK + k] != 0.0
+            if any_lane(act_k):
+                s = select(act_k, s - sp[w + 4 * r + k] * sp[S_Z + k], s)
+        sp[S_Z + r] = s / sp[w + 4 * r + r]
+    for r in range(n - 1, -1, -1):
+        act_r = sp[S_MASK + r] != 0.0
+        if not any_lane(act_r):
+            continue
+        s = sp[S_Z + r]
+        for k in range(r + 1, n):
+            act_k = sp[S_MASK + k] != 0.0
+            if any_lane(act_k):
+                s = select(act_k, s - sp[w + 4 * k + r] * sp[S_Z + k], s)
+        sp[S_Z + r] = s / sp[w + 4 * r + r]
+    for r in range(n):
+        out[r] = select(sp[S_MASK + r] != 0.0, sp[S_Z + r], 0.0)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _tensions(sp, nt, lam):
-    """The arm-side tensions ``lam``: the small complementarity problem by active sets, lane by lane."""
-    for k in range(lane_count(lam[0])):
-        for _it in range(4 * nt + 2):
-            _solve_small(sp, nt, lam, k)
-            changed = False
+    """The arm-side tensions ``lam``: the small complementarity problem by active sets.
+
+    Each lane drops the active tendons its solve leaves in compression, or else adds the slack ones whose net
+    stretch is positive, until nothing changes (a lane done solves again over the same set: the same bits).
+    """
+    done = sp[S_MASK] != sp[S_MASK]  # (False in every lane)
+    for _it in range(4 * nt + 2):
+        _solve_small(sp, nt, lam)
+        dropped = done
+        for i in range(nt):
+            drop = lnot(done) & (sp[S_MASK + i] != 0.0) & (lam[i] < 0.0)
+            sp[S_MASK + i] = select(drop, 0.0, sp[S_MASK + i])
+            dropped = dropped | drop
+        added = done
+        rest = lnot(done | dropped)
+        if any_lane(rest):
             for i in range(nt):
-                if lane(sp[S_MASK + i], k) != 0.0 and lane(lam[i], k) < 0.0:
-                    sp[S_MASK + i] = set_lane(sp[S_MASK + i], k, 0.0)
-                    changed = True
-            if changed:
-                continue
-            for i in range(nt):
-                if lane(sp[S_MASK + i], k) == 0.0:
-                    g = lane(sp[S_E2 + i], k)
+                slack = rest & (sp[S_MASK + i] == 0.0)
+                if any_lane(slack):
+                    g = sp[S_E2 + i]
                     for j in range(nt):
-                        g -= lane(sp[S_H + 4 * i + j], k) * lane(lam[j], k)
-                    if g > 0.0:
-                        sp[S_MASK + i] = set_lane(sp[S_MASK + i], k, 1.0)
-                        changed = True
-            if not changed:
-                break
+                        g -= sp[S_H + 4 * i + j] * lam[j]
+                    add = slack & (g > 0.0)
+                    sp[S_MASK + i] = select(add, 1.0, sp[S_MASK + i])
+                    added = added | add
+        done = done | lnot(dropped | added)
+        if all_lane(done):
+            break
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _rotor(y, drive, geo, tp, st, i):
+    """Tendon i's rotor acceleration: the motor's torque on its lag, its damping, the spool-side cable's pull.
+
+    The only term of :func:`rhs` that the drive enters (``st[2]``: the spool-side tensions).
+    """
+    m2 = y.shape[0] - 4 * tp.shape[0]
+    psi = y[m2 + i]
+    psid = y[m2 + tp.shape[0] + i]
+    delta = drive[i] - psi
+    if any_lane(geo[G_TLAW] == 0.0):  # (equal in every lane)
+        tm = tp[i, T_TH] * geo[G_NR] * delta
+    else:
+        tm = tp[i, T_TH] * vsin(geo[G_NR] * delta)
+    return (tm - tp[i, T_CR] * psid - tp[i, T_R] * st[2, i]) / tp[i, T_JR]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _drive_moved(y, dy, drive, geo, tp, st):
+    """``dy = f(y)`` again after the drive moved: the rotor accelerations (all that depends on the drive)."""
+    m2 = y.shape[0] - 4 * tp.shape[0]
+    for i in range(tp.shape[0]):
+        dy[m2 + tp.shape[0] + i] = _rotor(y, drive, geo, tp, st, i)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -813,18 +854,11 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
         dy[nq + 3 * e + 1] = qb
         dy[nq + 3 * e + 2] = qc
     # ---- actuators ----
-    Nr = geo[G_NR]
     for i in range(nt):
-        psi = y[m2 + i]
         psid = y[m2 + nt + i]
         xd = y[m2 + 3 * nt + i]
-        delta = drive[i] - psi
-        if any_lane(geo[G_TLAW] == 0.0):  # (equal in every lane)
-            tm = tp[i, T_TH] * Nr * delta
-        else:
-            tm = tp[i, T_TH] * vsin(Nr * delta)
         dy[m2 + i] = psid
-        dy[m2 + nt + i] = (tm - tp[i, T_CR] * psid - tp[i, T_R] * st[2, i]) / tp[i, T_JR]
+        dy[m2 + nt + i] = _rotor(y, drive, geo, tp, st, i)
         dy[m2 + 2 * nt + i] = xd
         dy[m2 + 3 * nt + i] = (st[2, i] - lam[i] - tp[i, T_CC] * xd) / tp[i, T_MC]
 
@@ -1660,7 +1694,7 @@ def advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_ti
     while True:
         if pending:
             # the events of lanes that reached their targets; a step there evaluates the right-hand side
-            # again with the new drive (a function of the state and the drive alone: the other lanes get
+            # again with the new drive: the rotor accelerations, all the drive enters (the other lanes get
             # again what they hold)
             waiting = (S[D_ACTIVE] != 0.0) & (S[D_LEFT] == 0.0)
             while True:
@@ -1673,7 +1707,7 @@ def advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_ti
                 pend = S[D_PEND] != 0.0
                 if not any_lane(pend):
                     break
-                rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
+                _drive_moved(y, k1, drive, geo, tp, st)
                 now = pend & (S[D_TAU] <= 0.0)
                 for i in range(nt):
                     filt[i] = select(now, st[3, i], filt[i])
