@@ -154,6 +154,14 @@ def _checked(
     return ts, st, sk, sg
 
 
+def unstable_error(t_end: float, max_step: float) -> FloatingPointError:
+    """What :meth:`SpatialPlant.advance` raises when its call to ``t_end`` (s) became unstable."""
+    return FloatingPointError(
+        f"the integration became unstable before t = {t_end:.4f} s: max_step {max_step:.2e} s is too large "
+        "for this rig (helpers.virtual.spatial.statics.stable_max_step)"
+    )
+
+
 def _max_step(rig: SpatialRig, max_step: float | None) -> float:
     """:class:`SpatialPlant`'s largest step for ``rig`` (``max_step`` given, or its default), checked."""
     if max_step is None:
@@ -324,10 +332,7 @@ class SpatialPlant:
             a.cw, *self._work, out_raw, out_filt, out_q, out_tip,
         )  # fmt: skip
         if not (np.all(np.isfinite(self._y)) and np.all(np.isfinite(self._filt))):
-            raise FloatingPointError(
-                f"the integration became unstable before t = {ts[-1]:.4f} s: max_step {self.max_step:.2e} s "
-                "is too large for this rig (helpers.virtual.spatial.statics.stable_max_step)"
-            )
+            raise unstable_error(ts[-1], self.max_step)
         self._S[kern.D_T] = max(self._S[kern.D_T], ts[-1])
         if sg.size:
             np.add.at(self._steps, sk, sg.astype(np.int64))
@@ -413,6 +418,11 @@ class SpatialLanes:
     def t(self) -> np.ndarray:
         """Each lane's simulated time, s."""
         return self._S.data[kern.D_T, : self.lanes].copy()
+
+    @property
+    def max_steps(self) -> np.ndarray:
+        """Each lane's largest integrator step, s."""
+        return self._steps_h[: self.lanes].copy()
 
     @property
     def state(self) -> np.ndarray:
