@@ -86,6 +86,7 @@ HOW: dict[str, str] = {
     "python -m helpers bench segments": "slow",
     "python -m helpers bench convergence": "slow",
     "python -m helpers bench tune-lanes": "slow",
+    "python -m helpers bench tune-tendons-lanes": "slow",
     "python -m helpers virtual-rig frequency-map --preset hanging --directions 0,45 --bends 10": "quick",
     # real and independent data: tests/test_external_dropbear.py::test_the_command_prints_csv_and_notes,
     # tests/test_bare_rod.py::test_the_command_compares_the_twin_with_test_1_within_1_percent (slow)
@@ -450,7 +451,8 @@ def test_record_all_regenerates_the_paper_experiment(newcomer):
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "suite",
-    ["plant", "serial", "sweep", "playground", "spatial", "segments", "convergence", "tune-lanes"],
+    ["plant", "serial", "sweep", "playground", "spatial", "segments", "convergence", "tune-lanes",
+     "tune-tendons-lanes"],
 )
 def test_bench_prints_its_figures(suite):
     proc = subprocess.run(

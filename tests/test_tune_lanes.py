@@ -9,9 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import rigfile
 from helpers.paper.calibration import uncalibrated
 from helpers.paper.shapers import design_tdfs
-from helpers.research import design, tune
+from helpers.research import design, lane_runs, tune
+from helpers.research import tune_tendons as tt
 from helpers.rig import Rig
 from helpers.rigfile import default_rig, derived
 from helpers.virtual.emulator.lockstep import Lockstep
@@ -152,3 +154,42 @@ def test_a_lane_count_out_of_range_is_refused_before_any_run(tmp_path, lanes):
     with pytest.raises(ValueError, match=r"lanes must be an integer in 0-8"):
         tune.verify(None, _candidates(), tmp_path, 1, lanes=lanes)  # type: ignore[arg-type]
     assert not list(tmp_path.iterdir())
+
+
+# ---- several tendons: tune_tendons.verify(lanes=...) -----------------------------------------------------
+def _verify_tendons(folder: Path, lanes: int):
+    rig = rigfile.load(rigfile.resolve("four-tendon"))
+    points = [tt.MapPoint(d, 10.0, 25.0, 0.045, 0.0, 0.0, "r") for d in (0.0, 90.0, 180.0, 270.0)]
+    forget_world("tune-tendons-lanes-test", rig)
+    seeds = iter(range(500, 600))
+    with Rig("virtual", rig, world="tune-tendons-lanes-test") as r:
+        rows = tt.verify(r, points, folder, 2, directions=(45.0,), bends=(10.0,), systems=("unshaped", "zv"),
+                         seeds=lambda: next(seeds), reseed=r.world.reseed, lanes=lanes)  # fmt: skip
+    forget_world("tune-tendons-lanes-test", rig)
+    return rows
+
+
+@pytest.mark.slow
+def test_four_tendon_verification_in_lanes_does_not_depend_on_the_lane_width(tmp_path, monkeypatch):
+    made = []
+
+    class Counted(Lockstep):
+        def __init__(self, params):
+            super().__init__(params)
+            made.append(self)
+
+    monkeypatch.setattr(lane_runs, "Lockstep", Counted)
+    one = _verify_tendons(tmp_path / "one", 1)
+    assert made == []  # one run per world, each its own SpatialPlant
+    three = _verify_tendons(tmp_path / "three", 3)
+    assert len(made) == 1 and made[0].spatial and made[0].kernel_calls > 0  # three runs in one SpatialLanes
+    names = list(one["recording"].unique())
+    assert names == list(three["recording"].unique()) and len(names) == 4  # 2 designs x 2 runs
+    for name in names:
+        csv = f"{name}.csv"
+        assert (tmp_path / "one" / csv).read_bytes() == (tmp_path / "three" / csv).read_bytes()
+    numbers = one.select_dtypes("number").columns
+    assert np.array_equal(one[numbers].to_numpy(), three[numbers].to_numpy(), equal_nan=True)
+    # the two repetitions differ (their noise seeds), so equal files are not equal by construction
+    a, b = ((tmp_path / "one" / f"{n}.csv").read_bytes() for n in names[:2])
+    assert a != b

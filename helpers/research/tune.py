@@ -52,13 +52,12 @@ from helpers.paper.shapers import design_tdfs
 from helpers.paper.tension import load_calibration
 from helpers.recordings import RecordingExists
 from helpers.research import design, residuals, tune_tendons
+from helpers.research.lane_runs import in_lanes, record_in_lanes
 from helpers.research.modemap import ModeMap, load_map, refuse_map_of_other_rig
 from helpers.research.survey import POSITIONS_MM, survey
 from helpers.rig import Rig
 from helpers.rigfile import RigFile
 from helpers.virtual import ArmPlant
-from helpers.virtual.emulator.lockstep import Lockstep
-from helpers.virtual.emulator.world import build_world, forget_world, register_world
 from helpers.virtual.plant import LANE_WIDTHS
 from helpers.virtual.rig_file_tuning import refuse_other_rig
 
@@ -213,8 +212,10 @@ def verify(
         return r.run_pulse(v, x, d, system=system, path=folder / name, repetition=k, t_end_s=T_END_S,
                            rate_hz=rate_hz, progress=False, replace=replace, noise_seed=seed)  # fmt: skip
 
-    if lanes and rig.world is not None and isinstance(rig.world.plant, ArmPlant):
-        recs = _record_in_lanes(rig, jobs, names, [seeds() for _ in jobs], record, lanes, progress)
+    if lanes and in_lanes(rig) and isinstance(rig.world.plant, ArmPlant):
+        bar = tqdm(total=len(jobs), desc="verify", unit="run", disable=not progress)
+        recs = record_in_lanes(rig, jobs, names, [seeds() for _ in jobs], record, lanes, done=bar.update)
+        bar.close()
     else:
         recs = (record(rig, job, name, seeds()) for job, name in zip(jobs, names, strict=True))
         recs = tqdm(recs, total=len(jobs), desc="verify", unit="run", disable=not progress)
@@ -228,41 +229,6 @@ def verify(
         table.insert(0, "system", system)
         rows.append(table)
     return pd.concat(rows, ignore_index=True)
-
-
-def _record_in_lanes(
-    rig: Rig, jobs: list, names: list[str], seeds: list[int | None], record: Callable[..., Any], lanes: int,
-    progress: bool,
-) -> list[recordings.Recording]:  # fmt: skip
-    """Each job in a fresh world of its own (``<world>.<name>``), ``lanes`` at a time in lockstep."""
-    out: list[recordings.Recording] = []
-    bar = tqdm(total=len(jobs), desc="verify", unit="run", disable=not progress)
-    for start in range(0, len(jobs), lanes):
-        batch = list(range(start, min(start + lanes, len(jobs))))
-        worlds = [build_world(rig.rig, f"{rig.world.name}.{names[i]}") for i in batch]
-        # one run alone keeps its ArmPlant (the same bits, without idle lanes)
-        lockstep = Lockstep([w.plant.params for w in worlds]) if len(batch) > 1 else None
-        for k, w in enumerate(worlds):
-            if lockstep is not None:
-                w.plant = lockstep.plant(k)
-            register_world(w)
-
-        def session(i: int, w: Any) -> recordings.Recording:
-            with Rig("virtual", rig.rig, calibration=list(rig.calibration), world=w.name) as r:
-                return record(r, jobs[i], names[i], seeds[i])
-
-        try:
-            if lockstep is None:  # in this thread, as any run
-                out.append(session(batch[0], worlds[0]))
-            else:
-                pairs = zip(batch, worlds, strict=True)
-                out += lockstep.run([lambda i=i, w=w: session(i, w) for i, w in pairs])
-        finally:
-            for w in worlds:
-                forget_world(w.name, rig.rig)
-        bar.update(len(batch))
-    bar.close()
-    return out
 
 
 def summarise(rows: pd.DataFrame) -> pd.DataFrame:
@@ -494,9 +460,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--lanes", type=arg_number(0, 8, int), default=0,
-        help="in-process virtual rig of one tendon: each verification run in a fresh world of its own, up to "
-        "LANES at once with their plants in one kernel call (the recordings differ from the default's by the "
-        "state the chain carried; 0: every run in the one world, in turn, as data/tuning was made)",
+        help="in-process virtual rig (one tendon or several): each verification run in a fresh world of its "
+        "own, up to LANES at once with their plants in one kernel call (the recordings differ from the "
+        "default's by the state the chain carried; 0: every run in the one world, in turn, as data/tuning "
+        "was made)",
     )  # fmt: skip
     parser.add_argument("--replace", action="store_true", help="replace earlier tuning recordings and files")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")

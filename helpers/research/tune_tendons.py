@@ -55,6 +55,7 @@ from helpers.base.tables import to_markdown
 from helpers.paper.identify import fft_peak
 from helpers.paper.shapers import Shaper, design_tdfs
 from helpers.recordings import Recording, RecordingExists
+from helpers.research.lane_runs import in_lanes, record_in_lanes
 from helpers.research.residuals import recording_residuals
 from helpers.research.task_shaping import (
     MAX_PREPULL_STEPS,
@@ -71,6 +72,7 @@ from helpers.rig import Rig
 from helpers.rig.safety import SafetyError
 from helpers.rig.trim import TensionGuard
 from helpers.rigfile import RigFile
+from helpers.virtual.plant import LANE_WIDTHS
 from helpers.virtual.spatial.direction_map import frequency_map, parse_values
 from helpers.virtual.spatial.from_rig import spatial_rig
 from helpers.virtual.spatial.plant import SpatialPlant
@@ -401,11 +403,22 @@ def verify(
     reseed: Callable[[int], None] | None = None,
     replace: bool = False,
     progress: Callable[[str], None] = lambda _line: None,
+    lanes: int = 0,
 ) -> pd.DataFrame:
-    """Run every design on every bend ``repetitions`` times; one row per run, motion and signal."""
+    """Run every design on every bend ``repetitions`` times; one row per run, motion and signal.
+
+    ``lanes`` (0, the default: every run in ``trig``'s world, one after the other, each starting where the
+    one before left the arm and the device clock): on the in-process virtual rig, each run in a fresh world of
+    its own, up to ``lanes`` of them at once with their plants in the lanes of one kernel call
+    (:mod:`helpers.research.lane_runs`; each world reseeded with the run's seed). Its recordings do not depend
+    on ``lanes`` (1 to 8), and differ from the chained runs'. Hardware and the pseudo-terminal server ignore
+    it.
+    """
+    if type(lanes) is not int or not 0 <= lanes <= max(LANE_WIDTHS):
+        raise ValueError(f"lanes must be an integer in 0-{max(LANE_WIDTHS)}, got {lanes!r}")
     rig = trig.rig
     twin = pretensioned(rig, spatial_rig(rig), prepull)
-    parts = []
+    jobs = []
     for d in directions:
         for b in bends:
             plan = plan_move(rig, d, b, twin)
@@ -414,21 +427,40 @@ def verify(
                     _auto_design(rig, plan, prepull) if system == "auto"
                     else design_for(system, points, d, b, reference(rig))
                 )  # fmt: skip
-                duration = float(design.shaper.times[-1]) if design.shaper is not None else 0.0
                 for rep in range(1, repetitions + 1):
-                    name = f"{system}_d{d:g}_b{b:g}_r{rep}".replace(".", "p")
-                    rec = run_move(trig, plan, design, folder / name, seed=seeds(), reseed=reseed,
-                                   replace=replace, prepull=prepull)  # fmt: skip
-                    rows, _, _ = recording_residuals(rec)
-                    rows.insert(0, "repetition", rep)
-                    rows.insert(0, "system", system)
-                    rows.insert(0, "bend_mm", b)
-                    rows.insert(0, "direction_deg", d)
-                    rows["shaper_s"] = duration
-                    rows["shaper"] = design.shaper.name if design.shaper is not None else "none"
-                    rows["recording"] = name
-                    parts.append(rows)
+                    jobs.append((d, b, system, rep, plan, design))
+    names = [f"{system}_d{d:g}_b{b:g}_r{rep}".replace(".", "p") for d, b, system, rep, _, _ in jobs]
+
+    def record(r: Rig, job: tuple, name: str, seed: int | None) -> Recording:
+        _, _, _, _, plan, design = job
+        again = reseed if r is trig else (r.world.reseed if r.world is not None else None)
+        return run_move(r, plan, design, folder / name, seed=seed, reseed=again, replace=replace,
+                        prepull=prepull)  # fmt: skip
+
+    if lanes and in_lanes(trig):
+        def done(n: int) -> None:
+            progress(f"verify: {n} run(s) in lanes")
+
+        recs = record_in_lanes(trig, jobs, names, [seeds() for _ in jobs], record, lanes, done=done)
+    else:
+        recs = []
+        for job, name in zip(jobs, names, strict=True):
+            recs.append(record(trig, job, name, seeds()))
+            d, b, system, rep = job[:4]
+            if rep == repetitions:
                 progress(f"verify {d:g} deg, {b:g} mm, {system}: {repetitions} run(s)")
+    parts = []
+    for (d, b, system, rep, _, design), name, rec in zip(jobs, names, recs, strict=True):
+        duration = float(design.shaper.times[-1]) if design.shaper is not None else 0.0
+        rows, _, _ = recording_residuals(rec)
+        rows.insert(0, "repetition", rep)
+        rows.insert(0, "system", system)
+        rows.insert(0, "bend_mm", b)
+        rows.insert(0, "direction_deg", d)
+        rows["shaper_s"] = duration
+        rows["shaper"] = design.shaper.name if design.shaper is not None else "none"
+        rows["recording"] = name
+        parts.append(rows)
     return pd.concat(parts, ignore_index=True)
 
 
@@ -473,8 +505,12 @@ def tune_tendons(
     reseed: Callable[[int], None] | None = None,
     replace: bool = False,
     progress: Callable[[str], None] = lambda _line: None,
+    lanes: int = 0,
 ) -> dict[str, Any]:
-    """Measure the map, verify every design on the grid, write ``verification.json``; return its document."""
+    """Measure the map, verify every design on the grid, write ``verification.json``; return its document.
+
+    ``lanes``: the verification runs in lanes (:func:`verify`); the map is measured in ``trig``'s world.
+    """
     rig: RigFile = trig.rig
     start = time.perf_counter()
     prepull, prepull_lines = choose_prepull(rig, directions, bends, progress)
@@ -482,7 +518,7 @@ def tune_tendons(
                          replace=replace, progress=progress)  # fmt: skip
     t_map = time.perf_counter() - start
     rows = verify(trig, points, folder / "verify", repetitions, directions, bends, prepull=prepull,
-                  seeds=seeds, reseed=reseed, replace=replace, progress=progress)  # fmt: skip
+                  seeds=seeds, reseed=reseed, replace=replace, progress=progress, lanes=lanes)  # fmt: skip
     wall = time.perf_counter() - start
     summary = summarise(rows)
     document = {
@@ -491,6 +527,7 @@ def tune_tendons(
         "source": dict(trig.source), "repetitions": repetitions, "directions_deg": list(directions),
         "bends_mm": list(bends), "reference": list(reference(rig)), "move_times_s": list(MOVE_TIMES_S),
         "speed_mm_s": SPEED_MM_S, "prepull_steps": prepull, "prepull_check": prepull_lines,
+        "verify_lanes": lanes,
         "map": [p.__dict__ for p in points],
         "rows": rows.replace({math.nan: None}).to_dict(orient="records"),
         "summary": summary.replace({math.nan: None}).to_dict(orient="records"),
@@ -605,7 +642,8 @@ def run_tendons(args: Any, rig: RigFile) -> int:
             )
         reseed = None if world is None else world.reseed
         doc = tune_tendons(trig, folder, repetitions, directions=directions, bends=bends, seeds=seeds,
-                           reseed=reseed, replace=args.replace, progress=say)  # fmt: skip
+                           reseed=reseed, replace=args.replace, progress=say,
+                           lanes=getattr(args, "lanes", 0))  # fmt: skip
     summary = pd.DataFrame(doc["summary"])
     print(summary.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(

@@ -122,14 +122,18 @@ def spatial_system(rig: SpatialRig) -> System:
         return dy
 
     def step(y: np.ndarray, h: float, scheme: str) -> np.ndarray:
+        # one step of h from t = 0 to a sample at h, no drive, no amplifier (split at a taut/slack transition)
         y = np.array(y, dtype=float)
-        wb, wt, sp = skern.workspaces(n, nt, n)
-        st, k1 = np.zeros((4, nt)), np.empty(m)
-        skern.rhs(y, k1, drive, a.geo, a.mb, a.Jd, a.Jp, a.tp, a.W, a.cw, wb, wt, sp, st)
-        wfb, wft, wfs = skern.w_workspaces(n, nt)
-        skern.integrate(kern.SCHEMES.index(scheme), y, k1, st, h, drive, h, a.geo, a.mb, a.Jd, a.Jp, a.tp,
-                        a.W, a.cw, wb, wt, sp, wfb, wft, wfs, np.empty((10, m)), np.zeros((3, 4, nt)),
-                        np.zeros(nt), 0.0, np.zeros(2, np.int64), np.zeros(nt))  # fmt: skip
+        S = np.zeros(skern.N_STATE)
+        S[skern.D_HMAX] = h
+        none = np.zeros((1, 1))
+        z = np.zeros(nt)
+        lints = np.zeros((1, skern.N_LANE_INTS), np.int64)
+        skern.advance(kern.SCHEMES.index(scheme), y, S, lints, z.copy(), z, z.copy(), z.copy(),
+                      np.array([[h]]), none, np.zeros((1, 1), np.int64), none, np.zeros(1, np.int64), a.geo,
+                      a.mb, a.Jd, a.Jp, a.tp, a.W, a.cw, *skern.make_work(n, nt), np.empty((1, 1, nt)),
+                      np.empty((1, 1, nt)), np.empty((1, 1, 3 * n)),
+                      np.empty((1, 1, 3)))  # fmt: skip
         return y
 
     labels = tuple(f"node {e + 1} {c}" for e in range(n) for c in ("bend a", "bend b", "twist"))

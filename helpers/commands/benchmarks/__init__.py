@@ -15,7 +15,9 @@
 - ``convergence``: the implicit step against RK4 at a quarter of its step, Table I and four tendons;
 - ``tune-lanes``: runs per CPU second of ``tune``'s verification runs of one Table I condition, each alone in
   a world of its own and 8 worlds in lockstep (their plants in one kernel call), the ratio, and whether every
-  recording in lanes is byte-identical to the same run alone.
+  recording in lanes is byte-identical to the same run alone;
+- ``tune-tendons-lanes``: the same for ``tune``'s verification moves on ``four-tendon`` (one bend, every
+  design), their twins ``SpatialLanes`` in lanes.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from helpers.commands.benchmarks.segments import run_segments_benchmark
 from helpers.commands.benchmarks.serial import run_serial_benchmark
 from helpers.commands.benchmarks.spatial import run_spatial_benchmark
 from helpers.commands.benchmarks.sweep import run_sweep_benchmark
-from helpers.commands.benchmarks.tune_lanes import run_tune_lanes_benchmark
+from helpers.commands.benchmarks.tune_lanes import run_tune_lanes_benchmark, run_tune_tendons_lanes_benchmark
 
 SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "plant": run_plant_benchmark,
@@ -44,6 +46,7 @@ SUITES: dict[str, Callable[[], dict[str, Any]]] = {
     "segments": run_segments_benchmark,
     "convergence": run_convergence_benchmark,
     "tune-lanes": run_tune_lanes_benchmark,
+    "tune-tendons-lanes": run_tune_tendons_lanes_benchmark,
 }
 """suite name -> function; each prints its figures and returns them as a dict."""
 

@@ -12,7 +12,12 @@ first call also pays the JIT cache load, timed separately):
   and the tendons' stiffness implicit) at its own step; their real-time factors, ratio and the largest
   difference of every recorded signal (each amplifier's output, each tension, the coordinates, the tip);
 - **one tendon**: the paper's rig through the spatial twin on the planar benchmark's scenario (200 mm/s,
-  20 mm, unshaped), RK4 at the planar rig's 0.25 ms, with the planar plant timed in the same call.
+  20 mm, unshaped), RK4 at the planar rig's 0.25 ms, with the planar plant timed in the same call;
+- **four tendons in lanes**: eight runs of the first scenario's kind, 20 mm bends towards 0, 45, ..., 315
+  degrees (each its own step programmes), with the implicit step: four-tendon runs per CPU second one run
+  per kernel call (:class:`~helpers.virtual.spatial.plant.SpatialPlant`) and with 4 and 8 runs in the SIMD
+  lanes of one call (:class:`~helpers.virtual.spatial.plant.SpatialLanes`), taking turns so that a change in
+  the machine's load hits each alike; every lane is checked bit for bit against its run alone.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ import numpy as np
 from helpers.board.programmes import experiment_programme
 from helpers.virtual import ArmPlant, RigParameters
 from helpers.virtual.integrators import bend_programmes
-from helpers.virtual.spatial.plant import SpatialPlant
+from helpers.virtual.spatial.plant import SpatialLanes, SpatialPlant
 from helpers.virtual.spatial.rig import SpatialRig, four_tendon_rig, paper_rig
 from helpers.virtual.spatial.simulate import merge_programmes
 from helpers.virtual.spatial.statics import stable_max_step
@@ -49,6 +54,38 @@ def _time_run(plant: SpatialPlant, t: np.ndarray, steps: tuple, repeats: int) ->
     return best, out
 
 
+def _lanes_rates(t: np.ndarray, repeats: int) -> dict:
+    """Four-tendon runs per CPU second alone and with 4 and 8 per kernel call (module docstring)."""
+    rig = four_tendon_rig()  # the default integrator (the implicit step)
+    progs = []
+    for direction in range(0, 360, 45):
+        times, tendons, signs, _ = merge_programmes(bend_programmes(rig, float(direction), 20.0, 200.0), 4)
+        keep = times <= t[-1]
+        progs.append((times[keep], tendons[keep], signs[keep]))
+    SpatialPlant(rig).advance(t[:2])  # the kernels compiled or loaded before timing
+    for width in (4, 8):
+        SpatialLanes([rig] * width).advance_all(t[:2], [[]] * width, [[]] * width, [[]] * width)
+    cpu = {1: np.inf, 4: np.inf, 8: np.inf}
+    same = True
+    for _ in range(repeats):
+        c0 = time.process_time()
+        alone = [SpatialPlant(rig).advance(t, *p) for p in progs]
+        cpu[1] = min(cpu[1], time.process_time() - c0)
+        for width in (4, 8):
+            c0 = time.process_time()
+            outs = []
+            for j in range(0, len(progs), width):
+                part = progs[j : j + width]
+                steps = ([p[i] for p in part] for i in range(3))
+                got = SpatialLanes([rig] * len(part)).advance_all(t, *steps)
+                outs += [{k: v[m] for k, v in got.items()} for m in range(len(part))]
+            cpu[width] = min(cpu[width], time.process_time() - c0)
+            same &= all(np.array_equal(o[k], a[k]) for o, a in zip(outs, alone, strict=True) for k in a)
+    rates = {w: len(progs) / c for w, c in cpu.items()}
+    return {"runs": len(progs), "runs_per_cpu_s": rates, "ratio_4": rates[4] / rates[1],
+            "ratio_8": rates[8] / rates[1], "bitwise": bool(same)}  # fmt: skip
+
+
 def run_spatial_benchmark(repeats: int = 3, quiet: bool = False) -> dict:
     """Measure and print the spatial plant's speed (see the module docstring).
 
@@ -59,7 +96,8 @@ def run_spatial_benchmark(repeats: int = 3, quiet: bool = False) -> dict:
         ``four_transitions``, ``four_implicit_x_realtime``, ``four_implicit_over_rk4``,
         ``four_implicit_max_step_s``, ``four_implicit_steps``, ``four_max_diff`` (per signal),
         ``one_x_realtime``, ``one_cpu_s``, ``planar_x_realtime``, ``one_planar_diff_n``,
-        ``jit_first_call_s``.
+        ``jit_first_call_s``, ``lanes`` (``runs``, ``runs_per_cpu_s`` per runs per kernel call 1, 4, 8,
+        ``ratio_4``, ``ratio_8``, ``bitwise``: every lane its run alone).
     """
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats!r}")
@@ -115,6 +153,7 @@ def run_spatial_benchmark(repeats: int = 3, quiet: bool = False) -> dict:
         "planar_x_realtime": float(t[-1] / cpup),
         "one_planar_diff_n": float(np.max(np.abs(out1["output"][:, 0] - tension))),
         "jit_first_call_s": float(jit_s),
+        "lanes": _lanes_rates(t, max(1, repeats - 1)),
     }
     if not quiet:
         load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
@@ -134,6 +173,15 @@ def run_spatial_benchmark(repeats: int = 3, quiet: bool = False) -> dict:
               f"{cpup:.2f} s -> {out['planar_x_realtime']:.1f} x (ratio {cpu1 / cpup:.2f}); "
               f"largest difference {out['one_planar_diff_n']:.1e} N")
         print(f"  first call (JIT cache load or compile): {jit_s:.2f} s")
+        ln = out["lanes"]
+        r = ln["runs_per_cpu_s"]
+        load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+        print(f"spatial twin, four tendons in lanes ({ln['runs']} bends of 20 mm towards 0, 45, ..., 315 "
+              f"deg, 12 s each, the implicit step; runs per CPU second of one core, best of "
+              f"{max(1, repeats - 1)}; load average {load}):")
+        print(f"  one run per kernel call {r[1]:.3f}, 4 per call {r[4]:.3f} ({ln['ratio_4']:.2f}x), 8 per "
+              f"call {r[8]:.3f} ({ln['ratio_8']:.2f}x per core; aim >= 3x); every lane bit for bit its run "
+              f"alone: {'yes' if ln['bitwise'] else 'NO'}")
     return out
 
 

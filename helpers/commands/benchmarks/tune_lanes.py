@@ -17,6 +17,11 @@ so that a change in the machine's load hits all alike:
 CPU time is the process's (``time.process_time``): the boards, the lines, the host, the saving and each
 move's residuals as well as the plants. Every recording made in lanes is compared with the same run alone:
 csv bytes, and the json but its ``started_utc``.
+
+``tune-tendons-lanes`` does the same for ``tune`` on ``four-tendon``
+(:func:`helpers.research.tune_tendons.verify`: every design of ``SYSTEMS`` at one bend, 20 mm towards 45
+degrees, 3 runs each, at the pretension and from the map of the shipped ``data/tuning/tendons/four-tendon``;
+8 s moves at 1 kHz, four channels), its plants ``SpatialPlant`` alone and ``SpatialLanes`` in lanes.
 """
 
 from __future__ import annotations
@@ -29,14 +34,18 @@ import time
 from pathlib import Path
 from typing import Any
 
+from helpers import rigfile
 from helpers.base.paths import DATA_DIR
 from helpers.paper.tension import load_calibration
 from helpers.research import design, tune
+from helpers.research import tune_tendons as tt
 from helpers.rig import Rig
 from helpers.rigfile import default_rig
 from helpers.virtual.emulator.world import forget_world
+from helpers.virtual.spatial.plant import SpatialLanes
+from helpers.virtual.spatial.rig import four_tendon_rig
 
-__all__ = ["run_tune_lanes_benchmark"]
+__all__ = ["run_tune_lanes_benchmark", "run_tune_tendons_lanes_benchmark"]
 
 WORLD = "bench-tune-lanes"
 """The benchmark's world (the chain's; the runs alone and in lanes get ``<WORLD>.<run>``)."""
@@ -146,6 +155,77 @@ def run_tune_lanes_benchmark(
         f"per CPU second ({best['lanes']:.2f} s)")
     say(f"  the chain (every run in one world, as data/tuning was made; other recordings): "
         f"{rate['chain']:.2f} runs per CPU second ({best['chain']:.2f} s)")
+    say(f"  recordings in lanes byte-identical to the same run alone (csv bytes; json but started_utc): "
+        f"{identical} of {compared}")
+    say(f"  after: {after}")
+    say(f"runs per CPU second in lanes / alone: {ratio:.2f}x (lanes / the chain: "
+        f"{rate['lanes'] / rate['chain']:.2f}x)")
+    return {"runs": runs, "lanes": lanes, "runs_per_cpu_s": rate, "ratio": ratio, "identical": identical,
+            "compared": compared, "load": (before, after)}  # fmt: skip
+
+
+def _verify_tendons(
+    folder: Path, lanes: int, doc: dict[str, Any], systems: tuple[str, ...], reps: int = 3
+) -> float:
+    """CPU time (s) of ``tune_tendons.verify`` of ``systems`` at 20 mm towards 45 deg with ``lanes``."""
+    rig = rigfile.load(rigfile.resolve("four-tendon"))
+    points = [tt.MapPoint(**{k: tuple(map(tuple, v)) if k == "predicted_higher" else
+                             tuple(v) if k == "predicted_split" else v for k, v in p.items()})
+              for p in doc["map"]]  # fmt: skip
+    seeds = itertools.count(SEED)
+    forget_world(WORLD, rig)
+    try:
+        with Rig("virtual", rig, world=WORLD) as r:
+            c0 = time.process_time()
+            tt.verify(r, points, folder, reps, (45.0,), (20.0,), systems, prepull=int(doc["prepull_steps"]),
+                      seeds=lambda: next(seeds), reseed=r.world.reseed, lanes=lanes)  # fmt: skip
+            return time.process_time() - c0
+    finally:
+        forget_world(WORLD, rig)
+
+
+def run_tune_tendons_lanes_benchmark(lanes: int = 8, repeats: int = 1, quiet: bool = False) -> dict[str, Any]:
+    """The four-tendon ``tune``'s verification runs alone, in lanes and chained (module docstring).
+
+    Returns
+    -------
+    dict
+        As :func:`run_tune_lanes_benchmark`'s.
+    """
+    if not 2 <= lanes <= 8:
+        raise ValueError(f"lanes must be 2 to 8, got {lanes!r}")
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats!r}")
+    say = (lambda *a: None) if quiet else print
+    doc = json.loads((DATA_DIR / "tuning" / "tendons" / "four-tendon" / "verification.json").read_text())
+    systems = tuple(tt.SYSTEMS)
+    runs = len(systems) * 3
+    before = _load()
+    say(f"tune's verification runs on four-tendon, one bend (20 mm towards 45 deg): {len(systems)} designs "
+        f"x 3 = {runs} moves of {tt.MOVE_TIMES_S[-1]:g} s at 1 kHz (four channels), in-process virtual rig; "
+        f"{os.cpu_count()} cores; {before}")  # fmt: skip
+    ways = {"alone": 1, "lanes": lanes, "chain": 0}
+    best = dict.fromkeys(ways, float("inf"))
+    identical = compared = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        # every kernel (scalar, this lane width) compiled or loaded, the rig's statics made, not timed
+        _verify_tendons(Path(tmp, "warm"), 0, doc, ("unshaped",), 1)
+        SpatialLanes([four_tendon_rig()] * lanes).advance_all([1e-3], *([[]] * lanes,) * 3)
+        for turn in range(repeats):
+            for way, n in ways.items():
+                best[way] = min(best[way], _verify_tendons(Path(tmp, f"{way}{turn}"), n, doc, systems))
+            for path in sorted(Path(tmp, f"alone{turn}").glob("*.csv")):
+                compared += 1
+                identical += _same(path, Path(tmp, f"lanes{turn}", path.name))
+    after = _load()
+    rate = {way: runs / cpu for way, cpu in best.items()}
+    ratio = rate["lanes"] / rate["alone"]
+    say(f"  alone (each move in a world of its own, one at a time): {rate['alone']:.3f} runs per CPU second "
+        f"({best['alone']:.1f} s)")
+    say(f"  in lanes ({lanes} worlds in lockstep, their twins in one kernel call): {rate['lanes']:.3f} runs "
+        f"per CPU second ({best['lanes']:.1f} s)")
+    say(f"  the chain (every move in one world, as data/ was made; other recordings): {rate['chain']:.3f} "
+        f"runs per CPU second ({best['chain']:.1f} s)")
     say(f"  recordings in lanes byte-identical to the same run alone (csv bytes; json but started_utc): "
         f"{identical} of {compared}")
     say(f"  after: {after}")

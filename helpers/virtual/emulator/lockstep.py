@@ -4,7 +4,9 @@ For ``tune``'s verification runs on the in-process virtual rig (``tune --lanes N
 that opens a :class:`~helpers.rig.Rig` on its own world and records) runs in its own thread; its world's plant
 is a :class:`LanePlant` that hands every ``advance`` call to the :class:`Lockstep`, which waits until every
 session still running is waiting on its plant, integrates all their calls in one
-:class:`~helpers.virtual.ArmLanes` (one lane per session) and gives each session its outputs. Nothing is
+:class:`~helpers.virtual.ArmLanes` (one lane per session; rigs of several tendons: one
+:class:`~helpers.virtual.spatial.plant.SpatialLanes`, each call with its steps' tendons) and gives each
+session its outputs. Nothing is
 learnt in advance: whatever the host decides from the measured tension (the wait for rest, the checks), it
 decides from the very outputs its plant would have given alone, so each recording is the one its session
 makes alone (its lane takes exactly the steps its :class:`~helpers.virtual.ArmPlant` takes, and chunked
@@ -32,6 +34,8 @@ import numpy as np
 from helpers.base.signals import Interrupted, run_guard
 from helpers.virtual.parameters import RigParameters
 from helpers.virtual.plant import LANE_WIDTHS, ArmLanes, _checked_times, unstable_error
+from helpers.virtual.spatial import plant as spatial
+from helpers.virtual.spatial.rig import SpatialRig
 
 __all__ = ["Lockstep", "LanePlant"]
 
@@ -40,7 +44,12 @@ _PARK_DT = 1e-6
 
 
 class LanePlant:
-    """Lane ``k`` of a :class:`Lockstep` as a world's plant (``advance(sample_times, step_times, signs)``)."""
+    """Lane ``k`` of a :class:`Lockstep` as a world's plant.
+
+    ``advance(sample_times, step_times, step_signs)`` as :class:`~helpers.virtual.ArmPlant`'s, or (several
+    tendons) ``advance(sample_times, step_times, step_tendons, step_signs)`` as
+    :class:`~helpers.virtual.spatial.plant.SpatialPlant`'s.
+    """
 
     def __init__(self, lockstep: Lockstep, k: int) -> None:
         self.lockstep, self.k = lockstep, k
@@ -51,9 +60,9 @@ class LanePlant:
         """The lane's simulated time, s."""
         return self.lockstep.time(self.k)
 
-    def advance(self, sample_times: Any, step_times: Any = (), step_signs: Any = ()) -> np.ndarray:
-        """The amplifier's output at ``sample_times`` (as :meth:`ArmPlant.advance`), integrated in lanes."""
-        return self.lockstep.request(self.k, sample_times, step_times, step_signs)
+    def advance(self, sample_times: Any, *steps: Any) -> Any:
+        """The outputs at ``sample_times`` (as the lane's plant alone gives them), integrated in lanes."""
+        return self.lockstep.request(self.k, sample_times, *steps)
 
 
 class Lockstep:
@@ -61,22 +70,26 @@ class Lockstep:
 
     Parameters
     ----------
-    params : sequence of RigParameters
-        One rig per session (sharing :func:`~helpers.virtual.plant.lane_group`).
+    params : sequence of RigParameters or of SpatialRig
+        One rig per session (sharing :func:`~helpers.virtual.plant.lane_group`, or
+        :func:`~helpers.virtual.spatial.plant.lane_group` for spatial rigs).
     """
 
-    def __init__(self, params: Sequence[RigParameters]) -> None:
+    def __init__(self, params: Sequence[RigParameters | SpatialRig]) -> None:
         self.params = list(params)
         if not 1 <= len(self.params) <= max(LANE_WIDTHS):
             raise ValueError(f"Lockstep takes 1 to {max(LANE_WIDTHS)} sessions, got {len(self.params)}")
-        self.lanes = ArmLanes(self.params)
+        self.spatial = all(isinstance(p, SpatialRig) for p in self.params)
+        """Whether the lanes are spatial twins (calls with their steps' tendons, outputs as dicts)."""
+        self.lanes: ArmLanes | spatial.SpatialLanes = (
+            spatial.SpatialLanes(self.params) if self.spatial else ArmLanes(self.params))  # fmt: skip
         # one lock for the bookkeeping; one event wakes the broker (every running session waits on its
         # plant), one per lane wakes that session (its outputs are ready): no thread is woken for nothing
         self._lock = threading.Lock()
         self._ready = threading.Event()
         self._done = [threading.Event() for _ in self.params]
-        self._pending: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self._results: dict[int, np.ndarray | BaseException] = {}
+        self._pending: dict[int, tuple[np.ndarray, ...]] = {}
+        self._results: dict[int, Any] = {}
         self._running: set[int] = set()
         self._queue: list[int] = []
         self._interrupt: BaseException | None = None
@@ -98,16 +111,23 @@ class Lockstep:
         return self._unstable.get(k, float(self.lanes.t[k]))
 
     # --- the sessions' side --------------------------------------------------------------------------
-    def request(self, k: int, sample_times: Any, step_times: Any, step_signs: Any) -> np.ndarray:
-        """Session ``k``'s call: wait for its round, return its outputs (or the interrupt, once)."""
+    def request(self, k: int, sample_times: Any, *steps: Any) -> Any:
+        """Session ``k``'s call: wait for its round, return its outputs (or the interrupt, once).
+
+        ``steps``: the step times and signs (one tendon), or the times, tendons and signs (several).
+        """
         if self._interrupt is not None and k not in self._told:
             self._told.add(k)
             raise Interrupted(getattr(self._interrupt, "signum", signal.SIGINT))
+        kinds = (float, np.int64, float) if self.spatial else (float, float)
+        steps = steps + ((),) * (len(kinds) - len(steps))
+        if len(steps) != len(kinds):
+            raise TypeError(f"advance takes sample_times and {len(kinds)} step arrays, got {len(steps)}")
         ts = np.ascontiguousarray(sample_times, dtype=float).reshape(-1)
-        st = np.ascontiguousarray(step_times, dtype=float).reshape(-1)
-        sg = np.ascontiguousarray(step_signs, dtype=float).reshape(-1)
+        pairs = zip(steps, kinds, strict=True)
+        arrays = tuple(np.ascontiguousarray(a, dtype=d).reshape(-1) for a, d in pairs)
         with self._lock:
-            self._pending[k] = (ts, st, sg)
+            self._pending[k] = (ts, *arrays)
             self._pass_on()
         self._done[k].wait()
         self._done[k].clear()
@@ -196,64 +216,89 @@ class Lockstep:
             raise self._interrupt
         return results
 
-    def _serve(
-        self, calls: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]
-    ) -> dict[int, np.ndarray | BaseException]:
+    def _check(self, k: int, call: tuple[np.ndarray, ...]) -> None:
+        """What lane ``k``'s plant alone refuses of ``call`` (``ValueError``)."""
+        if self.spatial:
+            ts, st, sk, sg = call
+            spatial._checked(ts, st, sk, sg, self.time(k), self.params[k].n_tendons)
+        else:
+            _checked_times(*call, self.time(k))
+
+    def _unstable_error(self, k: int, t_end: float) -> FloatingPointError:
+        """What lane ``k``'s plant alone raises when its call to ``t_end`` (s) became unstable."""
+        if self.spatial:
+            return spatial.unstable_error(t_end, float(self.lanes.max_steps[k]))
+        return unstable_error(t_end, self.params[k].max_step)
+
+    def _serve(self, calls: dict[int, tuple[np.ndarray, ...]]) -> dict[int, Any]:
         """Integrate every lane's call; lanes without one are parked (restored after each kernel call).
 
-        A call :class:`~helpers.virtual.ArmPlant` would refuse gets its ``ValueError``; a lane that becomes
-        unstable gets its ``FloatingPointError`` (now and at every later call, as its plant alone); the others
-        go on.
+        A call the lane's plant alone would refuse gets its ``ValueError``; a lane that becomes unstable gets
+        its ``FloatingPointError`` (now and at every later call, as its plant alone); the others go on.
         """
         lanes = self.lanes
         nl = lanes.lanes
-        failed: dict[int, np.ndarray | BaseException] = {}
-        for k, (ts, st, sg) in list(calls.items()):
+        failed: dict[int, Any] = {}
+        for k, call in list(calls.items()):
             try:
-                _checked_times(ts, st, sg, self.time(k))
+                self._check(k, call)
             except ValueError as exc:
                 failed[k] = exc
                 del calls[k]
                 continue
+            ts = call[0]
             if k in self._unstable and ts.size:  # alone: its state is not finite, every call raises
-                failed[k] = unstable_error(ts[-1], self.params[k].max_step)
+                failed[k] = self._unstable_error(k, ts[-1])
                 self._unstable[k] = float(ts[-1])
                 del calls[k]
+        nsteps = 3 if self.spatial else 2
         at = {k: 0 for k in calls}  # samples of its call each lane has had
         st_at = {k: 0 for k in calls}
-        outs: dict[int, list[np.ndarray]] = {k: [] for k in calls}
+        outs: dict[int, list[Any]] = {k: [] for k in calls}
         while True:
             left = {k: calls[k][0].size - at[k] for k in calls if calls[k][0].size - at[k] > 0}
             if not left:
                 break
             m = min(left.values())
-            rows, steps, signs = [], [], []
+            rows = []
+            steps: list[list[np.ndarray]] = [[] for _ in range(nsteps)]
             for k in range(nl):
                 if k in left:
-                    ts, st, sg = calls[k]
+                    ts, st = calls[k][0], calls[k][1]
                     piece = ts[at[k] : at[k] + m]
                     j = int(np.searchsorted(st, piece[-1], side="right"))
                     rows.append(piece)
-                    steps.append(st[st_at[k] : j])
-                    signs.append(sg[st_at[k] : j])
+                    for i in range(nsteps):
+                        steps[i].append(calls[k][1 + i][st_at[k] : j])
                     st_at[k] = j
                 else:  # parked: a few microseconds of junk, then put back
                     rows.append(float(lanes.t[k]) + _PARK_DT * np.arange(1, m + 1))
-                    steps.append(np.empty(0))
-                    signs.append(np.empty(0))
+                    for i in range(nsteps):
+                        steps[i].append(np.empty(0, dtype=np.int64 if (self.spatial and i == 1) else float))
             saved = lanes.save()
-            out, _, _ = lanes.advance_all(np.stack(rows), steps, signs, check=False)
+            got = lanes.advance_all(np.stack(rows), *steps, check=False)
             self.kernel_calls += 1
             bad = set(lanes.unstable()) & set(left)
             for k in bad:  # its session gets what its plant alone raises; its lane is parked from now on
-                failed[k] = unstable_error(calls[k][0][-1], self.params[k].max_step)
+                failed[k] = self._unstable_error(k, calls[k][0][-1])
                 self._unstable[k] = float(calls[k][0][-1])
                 del calls[k], outs[k]
             lanes.restore(saved, [k for k in range(nl) if k not in left or k in bad])
             for k in set(left) - bad:
-                outs[k].append(out[k].copy())
+                piece = {key: v[k].copy() for key, v in got.items()} if self.spatial else got[0][k].copy()
+                outs[k].append(piece)
                 at[k] += m
-        for k, (_, st, _) in calls.items():
-            if st_at[k] != st.size:
+        for k, call in calls.items():
+            if st_at[k] != call[1].size:
                 raise ValueError(f"lane {k}: steps after its last sample time")
-        return failed | {k: np.concatenate(v) if v else np.empty(0) for k, v in outs.items()}
+        return failed | {k: self._joined(v, k) for k, v in outs.items()}
+
+    def _joined(self, pieces: list[Any], k: int) -> Any:
+        """Lane ``k``'s outputs of one call from the pieces it was served in."""
+        if not self.spatial:
+            return np.concatenate(pieces) if pieces else np.empty(0)
+        if not pieces:
+            n, nt = 3 * spatial.kernel_arrays(self.params[k]).n, self.params[k].n_tendons
+            return {"output": np.empty((0, nt)), "tension": np.empty((0, nt)), "q": np.empty((0, n)),
+                    "tip": np.empty((0, 3))}  # fmt: skip
+        return {key: np.concatenate([p[key] for p in pieces]) for key in pieces[0]}

@@ -27,16 +27,36 @@ the taut tendons, whose net stretch ``g_i = e2_i - (H lam)_i`` is positive). Its
 low-pass integrated exactly for a tension linear over each step.
 
 State ``y = [phi (3N), phi' (3N), psi (nt), psi' (nt), x (nt), x' (nt)]``.
+
+Written once for one scenario (``float64`` arrays) and for several (:class:`helpers.virtual.lanes.Lanes`, one
+scenario per SIMD lane: :class:`helpers.virtual.spatial.plant.SpatialLanes`), as the planar kernel is: a
+branch that may differ between lanes is a :func:`~helpers.virtual.lanes.select` or a per-lane loop (the
+tension problem's active set, the implicit step's active cables, each lane's splits, searches and events), so
+every lane gets the bits of its scenario run alone.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 
 from helpers.virtual._kernel import _RW_GAM, _RW_TA, _RW_TE, _RW_TM, SCHEME_ROSW
+from helpers.virtual.lanes import (
+    LaneArray,
+    all_lane,
+    any_lane,
+    lane,
+    lane_count,
+    lnot,
+    select,
+    set_lane,
+    vcos,
+    vsin,
+    vsqrt,
+)
 
 # scalar parameters (``geo``)
 (G_L, G_KB, G_KT, G_ALPHA, G_CB, G_CT, G_BOW, G_GX, G_GY, G_GZ, G_NR, G_TLAW) = range(12)
@@ -87,22 +107,20 @@ def _series(c, x, n):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def so3(x):
-    """The SO(3) functions of ``x = t^2`` and derivatives.
+def _so3_series(x):
+    A = 0.0
+    for k in range(_NS - 1, -1, -1):
+        A = A * x + _FA[k]
+    B, Bx, Bxx = _series(_FB, x, _NS)
+    C, Cx, Cxx = _series(_FC, x, _NS)
+    return A, B, C, 0.0 * x, Bx, Cx, Bxx, Cxx
 
-    ``A, B, C`` = ``sin t/t``, ``(1-cos t)/t^2``, ``(t-sin t)/t^3``, then ``A_x`` (unused: 0 below
-    ``x = 1``), ``B_x, C_x, B_xx, C_xx``.
-    """
-    if x < 1.0:
-        A = 0.0
-        for k in range(_NS - 1, -1, -1):
-            A = A * x + _FA[k]
-        B, Bx, Bxx = _series(_FB, x, _NS)
-        C, Cx, Cxx = _series(_FC, x, _NS)
-        return A, B, C, 0.0, Bx, Cx, Bxx, Cxx
-    t = math.sqrt(x)
-    s = math.sin(t)
-    co = math.cos(t)
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _so3_closed(x):
+    t = vsqrt(x)
+    s = vsin(t)
+    co = vcos(t)
     A = s / t
     B = (1.0 - co) / x
     C = (t - s) / (x * t)
@@ -113,15 +131,37 @@ def so3(x):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def bow_p(x):
-    """The bowing factor ``P`` of an element bent by ``D`` (``x = D^2``) and its x-derivative."""
-    if x < 2.25:
-        P, Px, _p = _series(_BP, x, _NB)
-        return P, Px
-    D = math.sqrt(x)
+def so3(x):
+    """The SO(3) functions of ``x = t^2`` and derivatives.
+
+    ``A, B, C`` = ``sin t/t``, ``(1-cos t)/t^2``, ``(t-sin t)/t^3``, then ``A_x`` (unused: 0 below
+    ``x = 1``), ``B_x, C_x, B_xx, C_xx``. Series below ``x = 1``, closed forms beyond; lanes on both sides
+    take both and keep their own.
+    """
+    small = x < 1.0
+    if all_lane(small):
+        return _so3_series(x)
+    if not any_lane(small):
+        return _so3_closed(x)
+    a = _so3_series(x)
+    b = _so3_closed(x)
+    return (select(small, a[0], b[0]), select(small, a[1], b[1]), select(small, a[2], b[2]),
+            select(small, a[3], b[3]), select(small, a[4], b[4]), select(small, a[5], b[5]),
+            select(small, a[6], b[6]), select(small, a[7], b[7]))  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _bow_p_series(x):
+    P, Px, _p = _series(_BP, x, _NB)
+    return P, Px
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _bow_p_closed(x):
+    D = vsqrt(x)
     iD = 1.0 / D
-    sD = math.sin(D)
-    cD = math.cos(D)
+    sD = vsin(D)
+    cD = vcos(D)
     S1 = sD * iD
     S2 = 2.0 * (1.0 - cD) * iD * iD
     dS1 = (cD - S1) * iD
@@ -132,42 +172,123 @@ def bow_p(x):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
+def bow_p(x):
+    """The bowing factor ``P`` of an element bent by ``D`` (``x = D^2``) and its x-derivative."""
+    small = x < 2.25
+    if all_lane(small):
+        return _bow_p_series(x)
+    if not any_lane(small):
+        return _bow_p_closed(x)
+    a = _bow_p_series(x)
+    b = _bow_p_closed(x)
+    return select(small, a[0], b[0]), select(small, a[1], b[1])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
 def _solve_small(sp, n, out):
     """Solve ``C[A, A] out[A] = e2[A]`` (symmetric positive definite, n <= 4); 0 outside ``A``.
 
-    ``C``, ``e2`` and the active set ``A`` are in the scratch ``sp``.
+    ``C``, ``e2`` and the active set ``A`` are in the scratch ``sp``. Cholesky over the active tendons in
+    their order, each term kept where (in the lanes where) its tendons are active: every lane solves over its
+    own active set with the arithmetic of that set alone. The factor and the solution are stored by tendon
+    (``S_CHOL + 4 i + j``, ``S_Z + i``).
     """
-    m = 0
-    for i in range(n):
-        out[i] = 0.0
-        if sp[S_MASK + i] != 0.0:
-            sp[S_IDX + m] = i
-            m += 1
-    if m == 0:
-        return
     w = S_CHOL
-    for r in range(m):
-        ir = int(sp[S_IDX + r])
+    for r in range(n):
+        act_r = sp[S_MASK + r] != 0.0
+        if not any_lane(act_r):
+            continue
         for c in range(r + 1):
-            s = sp[S_C + 4 * ir + int(sp[S_IDX + c])]
+            if not any_lane(act_r & (sp[S_MASK + c] != 0.0)):
+                continue
+            s = sp[S_C + 4 * r + c]
             for k in range(c):
-                s -= sp[w + 4 * r + k] * sp[w + 4 * c + k]
+                act_k = sp[S_MASK + k] != 0.0
+                if any_lane(act_k):
+                    s = select(act_k, s - sp[w + 4 * r + k] * sp[w + 4 * c + k], s)
             if r == c:
-                sp[w + 4 * r + r] = math.sqrt(s)
+                sp[w + 4 * r + r] = vsqrt(s)
             else:
                 sp[w + 4 * r + c] = s / sp[w + 4 * c + c]
-    for r in range(m):
-        s = sp[S_E2 + int(sp[S_IDX + r])]
+    for r in range(n):
+        act_r = sp[S_MASK + r] != 0.0
+        if not any_lane(act_r):
+            continue
+        s = sp[S_E2 + r]
         for k in range(r):
-            s -= sp[w + 4 * r + k] * sp[S_Z + k]
+            act_k = sp[S_MASK + k] != 0.0
+            if any_lane(act_k):
+                s = select(act_k, s - sp[w + 4 * r + k] * sp[S_Z + k], s)
         sp[S_Z + r] = s / sp[w + 4 * r + r]
-    for r in range(m - 1, -1, -1):
+    for r in range(n - 1, -1, -1):
+        act_r = sp[S_MASK + r] != 0.0
+        if not any_lane(act_r):
+            continue
         s = sp[S_Z + r]
-        for k in range(r + 1, m):
-            s -= sp[w + 4 * k + r] * sp[S_Z + k]
+        for k in range(r + 1, n):
+            act_k = sp[S_MASK + k] != 0.0
+            if any_lane(act_k):
+                s = select(act_k, s - sp[w + 4 * k + r] * sp[S_Z + k], s)
         sp[S_Z + r] = s / sp[w + 4 * r + r]
-    for r in range(m):
-        out[int(sp[S_IDX + r])] = sp[S_Z + r]
+    for r in range(n):
+        out[r] = select(sp[S_MASK + r] != 0.0, sp[S_Z + r], 0.0)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _tensions(sp, nt, lam):
+    """The arm-side tensions ``lam``: the small complementarity problem by active sets.
+
+    Each lane drops the active tendons its solve leaves in compression, or else adds the slack ones whose net
+    stretch is positive, until nothing changes (a lane done solves again over the same set: the same bits).
+    """
+    done = sp[S_MASK] != sp[S_MASK]  # (False in every lane)
+    for _it in range(4 * nt + 2):
+        _solve_small(sp, nt, lam)
+        dropped = done
+        for i in range(nt):
+            drop = lnot(done) & (sp[S_MASK + i] != 0.0) & (lam[i] < 0.0)
+            sp[S_MASK + i] = select(drop, 0.0, sp[S_MASK + i])
+            dropped = dropped | drop
+        added = done
+        rest = lnot(done | dropped)
+        if any_lane(rest):
+            for i in range(nt):
+                slack = rest & (sp[S_MASK + i] == 0.0)
+                if any_lane(slack):
+                    g = sp[S_E2 + i]
+                    for j in range(nt):
+                        g -= sp[S_H + 4 * i + j] * lam[j]
+                    add = slack & (g > 0.0)
+                    sp[S_MASK + i] = select(add, 1.0, sp[S_MASK + i])
+                    added = added | add
+        done = done | lnot(dropped | added)
+        if all_lane(done):
+            break
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _rotor(y, drive, geo, tp, st, i):
+    """Tendon i's rotor acceleration: the motor's torque on its lag, its damping, the spool-side cable's pull.
+
+    The only term of :func:`rhs` that the drive enters (``st[2]``: the spool-side tensions).
+    """
+    m2 = y.shape[0] - 4 * tp.shape[0]
+    psi = y[m2 + i]
+    psid = y[m2 + tp.shape[0] + i]
+    delta = drive[i] - psi
+    if any_lane(geo[G_TLAW] == 0.0):  # (equal in every lane)
+        tm = tp[i, T_TH] * geo[G_NR] * delta
+    else:
+        tm = tp[i, T_TH] * vsin(geo[G_NR] * delta)
+    return (tm - tp[i, T_CR] * psid - tp[i, T_R] * st[2, i]) / tp[i, T_JR]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _drive_moved(y, dy, drive, geo, tp, st):
+    """``dy = f(y)`` again after the drive moved: the rotor accelerations (all that depends on the drive)."""
+    m2 = y.shape[0] - 4 * tp.shape[0]
+    for i in range(tp.shape[0]):
+        dy[m2 + tp.shape[0] + i] = _rotor(y, drive, geo, tp, st, i)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -201,6 +322,7 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
     l_ = geo[G_L]
     alpha = geo[G_ALPHA]
     bow = geo[G_BOW]
+    bowing = any_lane(bow != 0.0)  # (equal in every lane of a call: :func:`lane_key`)
     # ---- pass 1: kinematics, velocities, bias, body inertias (ground coordinates) ----
     r00 = 1.0
     r01 = 0.0
@@ -409,12 +531,12 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
         chwx = npx - px
         chwy = npy - py
         chwz = npz - pz
-        Lc = math.sqrt(chwx * chwx + chwy * chwy + chwz * chwz)
+        Lc = vsqrt(chwx * chwx + chwy * chwy + chwz * chwz)
         o[W_CH + 0] = chwx / Lc
         o[W_CH + 1] = chwy / Lc
         o[W_CH + 2] = chwz / Lc
         o[W_CH + 3] = Lc
-        if bow != 0.0:
+        if bowing:
             P, Px = bow_p(a * a + b * b)
             o[W_BOW + 0] = P
             o[W_BOW + 2] = Px
@@ -522,7 +644,7 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
             dx = Ex - sc[i, k - 1, 0]
             dyy = Ey - sc[i, k - 1, 1]
             dz = Ez - sc[i, k - 1, 2]
-            L = math.sqrt(dx * dx + dyy * dyy + dz * dz)
+            L = vsqrt(dx * dx + dyy * dyy + dz * dz)
             ell += L
             sc[i, k, 0] = Ex
             sc[i, k, 1] = Ey
@@ -537,7 +659,7 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
         sc[i, 0, 9] = ell
     # ---- bowing compliance H = h sum_e P(D_e) 11^T (one element per run: no tilt term) ----
     hP = 0.0
-    if bow != 0.0:
+    if bowing:
         for e in range(n):
             hP += wb[e, W_BOW + 0]
         hP *= bow
@@ -548,41 +670,24 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
     for i in range(nt):
         e1 = tp[i, T_R] * y[m2 + i] - y[m2 + 2 * nt + i] - tp[i, T_S1]
         st[0, i] = e1
-        st[2, i] = tp[i, T_K1] * e1 if e1 > 0.0 else 0.0
+        st[2, i] = select(e1 > 0.0, tp[i, T_K1] * e1, 0.0)
         e2 = y[m2 + 2 * nt + i] + sc[i, 0, 9] - tp[i, T_ELL]
         sp[S_E2 + i] = e2
-        sp[S_MASK + i] = 1.0 if e2 > 0.0 else 0.0
+        sp[S_MASK + i] = select(e2 > 0.0, 1.0, 0.0)
         for j in range(nt):
             sp[S_C + 4 * i + j] = sp[S_H + 4 * i + j]
         sp[S_C + 5 * i] += 1.0 / tp[i, T_K2]
-    for _it in range(4 * nt + 2):
-        _solve_small(sp, nt, lam)
-        changed = False
-        for i in range(nt):
-            if sp[S_MASK + i] != 0.0 and lam[i] < 0.0:
-                sp[S_MASK + i] = 0.0
-                changed = True
-        if changed:
-            continue
-        for i in range(nt):
-            if sp[S_MASK + i] == 0.0:
-                g = sp[S_E2 + i]
-                for j in range(nt):
-                    g -= sp[S_H + 4 * i + j] * lam[j]
-                if g > 0.0:
-                    sp[S_MASK + i] = 1.0
-                    changed = True
-        if not changed:
-            break
+    _tensions(sp, nt, lam)
     for i in range(nt):
         g = sp[S_E2 + i]
         for j in range(nt):
             g -= sp[S_H + 4 * i + j] * lam[j]
         st[1, i] = g
-    # ---- tendon forces on the eyelets: T (u_{k+1} - u_k), the knot T (-u_last) ----
+    # ---- tendon forces on the eyelets: T (u_{k+1} - u_k), the knot T (-u_last); none from a slack one ----
     for i in range(nt):
         T = lam[i]
-        if T == 0.0:
+        on = T != 0.0
+        if not any_lane(on):
             continue
         for k in range(1, ne):
             Fx = -T * sc[i, k, 6]
@@ -596,27 +701,28 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
             Ex = sc[i, k, 0]
             Ey = sc[i, k, 1]
             Ez = sc[i, k, 2]
-            o[W_F + 0] += Ey * Fz - Ez * Fy
-            o[W_F + 1] += Ez * Fx - Ex * Fz
-            o[W_F + 2] += Ex * Fy - Ey * Fx
-            o[W_F + 3] += Fx
-            o[W_F + 4] += Fy
-            o[W_F + 5] += Fz
+            o[W_F + 0] = select(on, o[W_F + 0] + (Ey * Fz - Ez * Fy), o[W_F + 0])
+            o[W_F + 1] = select(on, o[W_F + 1] + (Ez * Fx - Ex * Fz), o[W_F + 1])
+            o[W_F + 2] = select(on, o[W_F + 2] + (Ex * Fy - Ey * Fx), o[W_F + 2])
+            o[W_F + 3] = select(on, o[W_F + 3] + Fx, o[W_F + 3])
+            o[W_F + 4] = select(on, o[W_F + 4] + Fy, o[W_F + 4])
+            o[W_F + 5] = select(on, o[W_F + 5] + Fz, o[W_F + 5])
     # ---- bowing: generalised forces (1/2) d(lam^T H lam)/dq = (1/2) h P_x(D_e^2) S^2 2 (a_e, b_e) ----
-    if bow != 0.0:
-        S = 0.0
+    if bowing:
+        S = 0.0 * bow  # 0.0 (bow > 0), as lanes where they are
         for i in range(nt):
             S += lam[i]
-        if S != 0.0:
+        on = S != 0.0
+        if any_lane(on):
             hs = bow * S * S
             for e in range(n):
                 dxb = hs * wb[e, W_BOW + 2]
-                wb[e, W_TAU + 0] += dxb * y[3 * e]
-                wb[e, W_TAU + 1] += dxb * y[3 * e + 1]
+                wb[e, W_TAU + 0] = select(on, wb[e, W_TAU + 0] + dxb * y[3 * e], wb[e, W_TAU + 0])
+                wb[e, W_TAU + 1] = select(on, wb[e, W_TAU + 1] + dxb * y[3 * e + 1], wb[e, W_TAU + 1])
     # ---- chord dashpots and the constant floor on phi' ----
     cb = geo[G_CB]
     ct = geo[G_CT]
-    if cb != 0.0 or ct != 0.0:
+    if any_lane((cb != 0.0) | (ct != 0.0)):  # (equal in every lane: :func:`lane_key`)
         for e in range(n):
             # d_{e-1} = (phi'_{e-1} + phi'_e)/2 (d_0 = phi'_1/2), d_e = (phi'_e + phi'_{e+1})/2
             for k in range(3):
@@ -748,18 +854,11 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
         dy[nq + 3 * e + 1] = qb
         dy[nq + 3 * e + 2] = qc
     # ---- actuators ----
-    Nr = geo[G_NR]
     for i in range(nt):
-        psi = y[m2 + i]
         psid = y[m2 + nt + i]
         xd = y[m2 + 3 * nt + i]
-        delta = drive[i] - psi
-        if geo[G_TLAW] == 0.0:
-            tm = tp[i, T_TH] * Nr * delta
-        else:
-            tm = tp[i, T_TH] * math.sin(Nr * delta)
         dy[m2 + i] = psid
-        dy[m2 + nt + i] = (tm - tp[i, T_CR] * psid - tp[i, T_R] * st[2, i]) / tp[i, T_JR]
+        dy[m2 + nt + i] = _rotor(y, drive, geo, tp, st, i)
         dy[m2 + 2 * nt + i] = xd
         dy[m2 + 3 * nt + i] = (st[2, i] - lam[i] - tp[i, T_CC] * xd) / tp[i, T_MC]
 
@@ -775,9 +874,11 @@ def rhs(y, dy, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st):  # noqa: C901
 # per body (``wfb`` columns): S (18), node position (3), disc axis (3), U D'^-1 (18), D'^-1 (9)
 (WB_S, WB_P, WB_T, WB_UD, WB_DI) = (0, 18, 21, 24, 42)
 N_WFB = 51
-# scalars (``wfs``): beta, active cables (count, then their indices: i < nt spool side of tendon i, nt + i
-# arm side), the arm sides' C_AA (4 x 4), the active cables' Q and its Cholesky factor (8 x 8), work vectors
-(WS_BETA, WS_NA, WS_IDX, WS_CAA, WS_Q, WS_V1, WS_V2, WS_V3, WS_HP, WS_IA, WS_U) = (
+# scalars (``wfs``): beta, the count of active cables, whether each cable is active (1.0 or 0.0; cable
+# ``i < nt`` is tendon i's spool side, ``nt + i`` its arm side), the arm sides' C_AA (4 x 4), Q over the
+# cables and its Cholesky factor (8 x 8, rows and columns by cable: only the active ones' entries are read, in
+# cable order, so each lane solves over its own active set), work vectors
+(WS_BETA, WS_NA, WS_ACT, WS_CAA, WS_Q, WS_V1, WS_V2, WS_V3, WS_HP, WS_IA, WS_U) = (
     0, 1, 2, 10, 26, 90, 98, 106, 114, 115, 151)  # fmt: skip
 N_WFS = 169
 MAX_SPLITS = 16
@@ -794,7 +895,8 @@ def w_workspaces(n: int, nt: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs):
     """Store what ``T`` needs of the state whose right-hand side :func:`rhs` left in ``wb, wt, sp``.
 
-    ``taut1[i]``, ``taut2[i]``: whether tendon i's spool side and arm side are taut on the step's branch.
+    ``taut1[i]``, ``taut2[i]``: whether tendon i's spool side and arm side are taut on the step's branch
+    (booleans; or a stretch, taut where positive: lanes pass the stretches ``sr`` at the piece's start).
     """
     n = wb.shape[0]
     nt = tp.shape[0]
@@ -842,15 +944,15 @@ def wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs):
                                                + Sv[WB_S + 12 + c] * f1 + Sv[WB_S + 15 + c] * f2)  # fmt: skip
     # the active cables and the arm sides' tension matrix C_AA = diag(1/k2) + H (H = hP 11^T)
     hP = sp[S_H]
-    na = 0
+    na = 0.0
     for i in range(nt):
-        if taut1[i]:
-            wfs[WS_IDX + na] = i
-            na += 1
+        on = taut1[i] > 0.0
+        wfs[WS_ACT + i] = select(on, 1.0, 0.0)
+        na = na + select(on, 1.0, 0.0)
     for i in range(nt):
-        if taut2[i]:
-            wfs[WS_IDX + na] = nt + i
-            na += 1
+        on = taut2[i] > 0.0
+        wfs[WS_ACT + nt + i] = select(on, 1.0, 0.0)
+        na = na + select(on, 1.0, 0.0)
     wfs[WS_NA] = na
     wfs[WS_HP] = hP
     for i in range(nt):
@@ -938,10 +1040,13 @@ def wfactor(geo, mb, Jd, Jp, tp, h, wfb, wft, wfs):
     nq = 3 * n
     gh = _RW_GAM * h
     beta = gh * gh
-    if gh < 1e-20:  # a sliver of a step at a transition: T = 0 (a W-method's order holds for any T); its
-        wfs[WS_BETA] = 0.0  # Woodbury form (K^-1 / beta) would divide by a beta that underflows to 0
+    # a sliver of a step at a transition: T = 0 (a W-method's order holds for any T); its Woodbury form
+    # (K^-1 / beta) would divide by a beta that underflows to 0 (lanes: those lanes' solves keep u, _wsolve)
+    sliver = gh < 1e-20
+    if all_lane(sliver):
+        wfs[WS_BETA] = 0.0
         return
-    wfs[WS_BETA] = beta
+    wfs[WS_BETA] = select(sliver, 0.0, beta)
     kd0 = beta * geo[G_KB]
     kd2 = beta * geo[G_KT]
     Ia = wfs[WS_IA:WS_IA + 36]
@@ -1034,11 +1139,14 @@ def wfactor(geo, mb, Jd, Jp, tp, h, wfb, wft, wfs):
         for j in range(nq):
             wft[1, i, j] = wft[0, i, j]
         _asolve(wfb, wft[1, i])
-    na = int(wfs[WS_NA])
-    for r in range(na):
-        cr = int(wfs[WS_IDX + r])
-        for c in range(r + 1):
-            cc = int(wfs[WS_IDX + c])
+    nc = 2 * nt
+    for cr in range(nc):
+        act_r = wfs[WS_ACT + cr] != 0.0
+        if not any_lane(act_r):
+            continue
+        for cc in range(cr + 1):
+            if not any_lane(act_r & (wfs[WS_ACT + cc] != 0.0)):
+                continue
             v = 0.0  # G_r^T A^-1 G_c
             if cr < nt and cc < nt:
                 if cr == cc:
@@ -1055,39 +1163,49 @@ def wfactor(geo, mb, Jd, Jp, tp, h, wfb, wft, wfs):
                 iar = (cc if cr < nt else cr) - nt
                 if isp == iar:
                     v = -1.0 / tp[isp, T_MC]
-            if r == c:  # K_a^-1 / beta: 1/k1, or C_AA
+            if cr == cc:  # K_a^-1 / beta: 1/k1, or C_AA
                 if cr < nt:
                     v += 1.0 / (tp[cr, T_K1] * beta)
                 else:
                     v += wfs[WS_CAA + 5 * (cr - nt)] / beta
             elif cr >= nt and cc >= nt:
                 v += wfs[WS_CAA + 4 * (cr - nt) + (cc - nt)] / beta
-            wfs[WS_Q + 8 * r + c] = v
-    # Cholesky in place (lower triangle)
-    for r in range(na):
+            wfs[WS_Q + 8 * cr + cc] = v
+    # Cholesky in place (lower triangle), over each lane's active cables
+    for r in range(nc):
+        act_r = wfs[WS_ACT + r] != 0.0
+        if not any_lane(act_r):
+            continue
         for c in range(r + 1):
+            if not any_lane(act_r & (wfs[WS_ACT + c] != 0.0)):
+                continue
             acc = wfs[WS_Q + 8 * r + c]
             for k in range(c):
-                acc -= wfs[WS_Q + 8 * r + k] * wfs[WS_Q + 8 * c + k]
+                act_k = wfs[WS_ACT + k] != 0.0
+                if any_lane(act_k):
+                    acc = select(act_k, acc - wfs[WS_Q + 8 * r + k] * wfs[WS_Q + 8 * c + k], acc)
             if r == c:
-                wfs[WS_Q + 8 * r + r] = math.sqrt(acc)
+                wfs[WS_Q + 8 * r + r] = vsqrt(acc)
             else:
                 wfs[WS_Q + 8 * r + c] = acc / wfs[WS_Q + 8 * c + c]
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _wsolve(geo, tp, gh, wfb, wft, wfs, u, tmp):
+def _wsolve(geo, tp, gh, wfb, wft, wfs, u, tmp):  # noqa: C901 - one solve, kept together
     """``u <- (I - gh T)^-1 u``: ``u_q = c - beta X``, ``u_v = u_v - gh X``, ``X = (M + beta K)^-1 K c``.
 
     ``X = y - M'^-1 G_a Q^-1 G_a^T y`` with ``y = M'^-1 K c`` (Woodbury; :func:`wfactor`); ``tmp``: a
-    position-space vector of work.
+    position-space vector of work. The sums over active cables run over every cable in order, each term
+    kept where (in the lanes where) its cable is active.
     """
     beta = wfs[WS_BETA]
-    if beta == 0.0:  # T = 0 for this step (wfactor): u unchanged
+    keep = beta == 0.0  # T = 0 for this step (wfactor): u unchanged
+    if all_lane(keep):
         return
     n = wfb.shape[0]
     nt = tp.shape[0]
     nq = 3 * n
+    nc = 2 * nt
     kb = geo[G_KB]
     kt = geo[G_KT]
     # c (positions) into tmp; the springs' joint forces K_b c into tmp's arm part after the cable terms
@@ -1096,29 +1214,29 @@ def _wsolve(geo, tp, gh, wfb, wft, wfs, u, tmp):
     for i in range(nt):
         tmp[nq + i] = u[2 * nq + i] + gh * u[2 * nq + nt + i]
         tmp[nq + nt + i] = u[2 * nq + 2 * nt + i] + gh * u[2 * nq + 3 * nt + i]
-    na = int(wfs[WS_NA])
     # w = G_a^T c, then K_a w (spool sides k1; arm sides C_AA^-1 w: solved below with the arm block)
     kw = wfs[WS_V1:WS_V1 + 8]
-    for r in range(na):
-        kw[r] = _gcol(int(wfs[WS_IDX + r]), nt, tp, wft, tmp, nq)
+    for c in range(nc):
+        if any_lane(wfs[WS_ACT + c] != 0.0):
+            kw[c] = _gcol(c, nt, tp, wft, tmp, nq)
     # the arm sides' block: C_AA kw_A = w_A (C_AA = diag(1/k2) + hP 11^T: Sherman-Morrison)
     sk = 0.0
     sw = 0.0
     hP = wfs[WS_HP]
-    for r in range(na):
-        c = int(wfs[WS_IDX + r])
-        if c >= nt:
+    for c in range(nt, nc):
+        act = wfs[WS_ACT + c] != 0.0
+        if any_lane(act):
             k2 = tp[c - nt, T_K2]
-            sk += k2
-            sw += k2 * kw[r]
+            sk = select(act, sk + k2, sk)
+            sw = select(act, sw + k2 * kw[c], sw)
     corr = hP * sw / (1.0 + hP * sk)
-    for r in range(na):
-        c = int(wfs[WS_IDX + r])
-        if c < nt:
-            kw[r] = tp[c, T_K1] * kw[r]
-        else:
-            k2 = tp[c - nt, T_K2]
-            kw[r] = k2 * (kw[r] - corr)
+    for c in range(nc):
+        if any_lane(wfs[WS_ACT + c] != 0.0):
+            if c < nt:
+                kw[c] = tp[c, T_K1] * kw[c]
+            else:
+                k2 = tp[c - nt, T_K2]
+                kw[c] = k2 * (kw[c] - corr)
     # y = M'^-1 K c: the springs' part by the recursion, the cables' part from the stored M'^-1 g
     cx = tmp  # reuse: keep c's actuator entries, overwrite the arm part with K_b c
     for e in range(n):
@@ -1130,24 +1248,28 @@ def _wsolve(geo, tp, gh, wfb, wft, wfs, u, tmp):
     for i in range(nt):
         yv[i] = 0.0
         yv[4 + i] = 0.0
-    for r in range(na):
-        c = int(wfs[WS_IDX + r])
+    for c in range(nc):
+        act = wfs[WS_ACT + c] != 0.0
+        if not any_lane(act):
+            continue
         if c < nt:
-            yv[c] += tp[c, T_R] * kw[r]
-            yv[4 + c] -= kw[r]
+            yv[c] = select(act, yv[c] + tp[c, T_R] * kw[c], yv[c])
+            yv[4 + c] = select(act, yv[4 + c] - kw[c], yv[4 + c])
         else:
             i = c - nt
-            yv[4 + i] += kw[r]
+            yv[4 + i] = select(act, yv[4 + i] + kw[c], yv[4 + i])
             g = wft[1, i]
             for j in range(nq):
-                cx[j] += kw[r] * g[j]
+                cx[j] = select(act, cx[j] + kw[c] * g[j], cx[j])
     for i in range(nt):
         yv[i] /= tp[i, T_JR]
         yv[4 + i] /= tp[i, T_MC]
     # z = Q^-1 G_a^T y
     z = wfs[WS_V3:WS_V3 + 8]
-    for r in range(na):
-        c = int(wfs[WS_IDX + r])
+    for c in range(nc):
+        act = wfs[WS_ACT + c] != 0.0
+        if not any_lane(act):
+            continue
         if c < nt:
             acc = tp[c, T_R] * yv[c] - yv[4 + c]
         else:
@@ -1156,67 +1278,71 @@ def _wsolve(geo, tp, gh, wfb, wft, wfs, u, tmp):
             g = wft[0, i]
             for j in range(nq):
                 acc += g[j] * cx[j]
-        for k in range(r):
-            acc -= wfs[WS_Q + 8 * r + k] * z[k]
-        z[r] = acc / wfs[WS_Q + 8 * r + r]
-    for r in range(na - 1, -1, -1):
-        acc = z[r]
-        for k in range(r + 1, na):
-            acc -= wfs[WS_Q + 8 * k + r] * z[k]
-        z[r] = acc / wfs[WS_Q + 8 * r + r]
+        for k in range(c):
+            act_k = wfs[WS_ACT + k] != 0.0
+            if any_lane(act_k):
+                acc = select(act_k, acc - wfs[WS_Q + 8 * c + k] * z[k], acc)
+        z[c] = acc / wfs[WS_Q + 8 * c + c]
+    for c in range(nc - 1, -1, -1):
+        act = wfs[WS_ACT + c] != 0.0
+        if not any_lane(act):
+            continue
+        acc = z[c]
+        for k in range(c + 1, nc):
+            act_k = wfs[WS_ACT + k] != 0.0
+            if any_lane(act_k):
+                acc = select(act_k, acc - wfs[WS_Q + 8 * k + c] * z[k], acc)
+        z[c] = acc / wfs[WS_Q + 8 * c + c]
     # X = y - M'^-1 G_a z
-    for r in range(na):
-        c = int(wfs[WS_IDX + r])
+    for c in range(nc):
+        act = wfs[WS_ACT + c] != 0.0
+        if not any_lane(act):
+            continue
         if c < nt:
-            yv[c] -= tp[c, T_R] * z[r] / tp[c, T_JR]
-            yv[4 + c] += z[r] / tp[c, T_MC]
+            yv[c] = select(act, yv[c] - tp[c, T_R] * z[c] / tp[c, T_JR], yv[c])
+            yv[4 + c] = select(act, yv[4 + c] + z[c] / tp[c, T_MC], yv[4 + c])
         else:
             i = c - nt
-            yv[4 + i] -= z[r] / tp[i, T_MC]
+            yv[4 + i] = select(act, yv[4 + i] - z[c] / tp[i, T_MC], yv[4 + i])
             g = wft[1, i]
             for j in range(nq):
-                cx[j] -= z[r] * g[j]
+                cx[j] = select(act, cx[j] - z[c] * g[j], cx[j])
     for j in range(nq):
         cj = u[j] + gh * u[nq + j]
-        u[nq + j] = u[nq + j] - gh * cx[j]
-        u[j] = cj - beta * cx[j]
+        u[nq + j] = select(keep, u[nq + j], u[nq + j] - gh * cx[j])
+        u[j] = select(keep, u[j], cj - beta * cx[j])
     for i in range(nt):
         ip = 2 * nq + i
         cp = u[ip] + gh * u[ip + nt]
-        u[ip + nt] = u[ip + nt] - gh * yv[i]
-        u[ip] = cp - beta * yv[i]
+        u[ip + nt] = select(keep, u[ip + nt], u[ip + nt] - gh * yv[i])
+        u[ip] = select(keep, u[ip], cp - beta * yv[i])
         ix = 2 * nq + 2 * nt + i
         cxx = u[ix] + gh * u[ix + nt]
-        u[ix + nt] = u[ix + nt] - gh * yv[4 + i]
-        u[ix] = cxx - beta * yv[4 + i]
+        u[ix + nt] = select(keep, u[ix + nt], u[ix + nt] - gh * yv[4 + i])
+        u[ix] = select(keep, u[ix], cxx - beta * yv[4 + i])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _first_flip(sa, sb, nt):
-    """Index (0..2nt-1) of the first transition function that changed sign between ``sa`` and ``sb``, or -1.
+def _which_flip(sa, sb, nt, k, earliest):
+    """Lane ``k``: the index (0..2nt-1) of a transition function whose sign differs in ``sa``, ``sb``, or -1.
 
-    Functions ``2 i``: tendon i's spool-side stretch; ``2 i + 1``: its net arm-side stretch.
+    Functions ``2 i``: tendon i's spool-side stretch; ``2 i + 1``: its net arm-side stretch. The first in that
+    order (RK4), or (``earliest``, the implicit step's choice: each taut/slack change located in time order)
+    the one whose sign change comes first on the chord ``sa`` to ``sb``.
     """
-    for i in range(nt):
-        if (sa[0, i] > 0.0) != (sb[0, i] > 0.0):
-            return 2 * i
-        if (sa[1, i] > 0.0) != (sb[1, i] > 0.0):
-            return 2 * i + 1
-    return -1
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _earliest_flip(sa, sb, nt):
-    """As :func:`_first_flip`, but the function whose sign change comes first on the chord ``sa`` to ``sb``.
-
-    The implicit step's choice: each taut/slack change is located in time order.
-    """
+    if not earliest:
+        for i in range(nt):
+            if (lane(sa[0, i], k) > 0.0) != (lane(sb[0, i], k) > 0.0):
+                return 2 * i
+            if (lane(sa[1, i], k) > 0.0) != (lane(sb[1, i], k) > 0.0):
+                return 2 * i + 1
+        return -1
     best = -1
     frac = 2.0
     for r in range(2):
         for i in range(nt):
-            a = sa[r, i]
-            b = sb[r, i]
+            a = lane(sa[r, i], k)
+            b = lane(sb[r, i], k)
             if (a > 0.0) != (b > 0.0):
                 f = a / (a - b) if a != b else 0.0
                 if f < frac:
@@ -1226,13 +1352,20 @@ def _earliest_flip(sa, sb, nt):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _filter(filt, tau, h, x0, x1):
-    """First-order low-pass ``tau y' = x - y`` over ``h`` for an input linear from ``x0`` to ``x1``."""
-    if tau <= 0.0:
-        filt[0] = x1
-        return
-    a = math.exp(-h / tau)
-    filt[0] = a * (filt[0] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
+def _filter_lane(filt, st, s1, tau, h, k):
+    """Lane ``k``'s amplifiers ``tau y' = x - y`` over ``h``, each input linear from ``st[3]`` to ``s1[3]``.
+
+    ``exp(-h / tau)`` once for every tendon (the same bits as once per tendon).
+    """
+    a = math.exp(-h / tau) if tau > 0.0 else 0.0
+    for i in range(filt.shape[0]):
+        x0 = lane(st[3, i], k)
+        x1 = lane(s1[3, i], k)
+        if tau <= 0.0:
+            v = x1
+        else:
+            v = a * (lane(filt[i], k) - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
+        filt[i] = set_lane(filt[i], k, v)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -1297,192 +1430,366 @@ def _branch(sa, taut1, taut2, nt):
         taut2[i] = sa[1, i] > 0.0
 
 
+# the driver's state of each lane, one row of ``S`` per quantity (lanes along it): what persists between
+# calls (time, the largest step, the amplifiers' time constant, steps and transitions counted), then the
+# present piece and step; integers in ``L[lane]``. Each tendon's drive, amplifier output and largest rotor lag
+# persist in arrays of their own (``drive``, ``filt``, ``health``).
+(D_T, D_HMAX, D_TAU, D_NSTEP, D_NTRANS, D_TARGET, D_H, D_REM, D_FLO, D_FHI, D_LO, D_HI, D_HC, D_HSTEP, D_FH,
+ D_FA, D_ACTIVE, D_LEFT, D_SPLITS, D_SEARCH, D_GEOM, D_COMMIT, D_FULL, D_PEND) = range(24)  # fmt: skip
+N_STATE = 24
+"""Rows of the driver's float state (:func:`advance`)."""
+D_PERSIST = D_TARGET
+"""Rows ``0 .. D_PERSIST - 1`` carry over from one call to the next; the rest is work."""
+(L_QI, L_JS, L_ROW, L_TI, L_SIDE, L_IT, L_TOSTEP, L_AIMED) = range(8)
+N_LANE_INTS = 8
+
+UNIFORM = (G_BOW, G_CB, G_CT, G_TLAW)
+"""Scalars (``geo``) whose zero-ness or value steers the kernel's branches: lanes of one call share them."""
+
+
+def lane_key(geo: np.ndarray, W: np.ndarray) -> tuple[float, ...]:
+    """What scenarios run in the lanes of one call must share, of their scalars ``geo`` and damping ``W``."""
+    return (float(geo[G_BOW] != 0.0), float(geo[G_CB] != 0.0 or geo[G_CT] != 0.0), float(geo[G_TLAW]),
+            float(W.shape[0]))  # fmt: skip
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
-def integrate(scheme, y, k1, st, dt, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, wfb, wft, wfs,  # noqa: C901
-              bufs, sbuf, filt, tau, stats, health):  # fmt: skip
-    """Integrate ``y`` over ``dt`` at constant ``drive``: equal steps ``<= h_max`` of ``scheme``.
+def _blend(mask, dst, src, count):
+    """``dst[:count] <- src[:count]`` in the lanes of ``mask``."""
+    if all_lane(mask):
+        for i in range(count):
+            dst[i] = src[i]
+    elif any_lane(mask):
+        for i in range(count):
+            dst[i] = select(mask, src[i], dst[i])
 
-    Steps are split at taut/slack transitions. With the implicit step (``SCHEME_ROSW``) each piece's
-    stiffness ``T`` is that of the branch the piece lies on: the cables taut at its start (the one just
-    crossed into counted so), and every transition in the step is located, in time order (up to
-    :data:`MAX_SPLITS`); RK4 splits at the first only.
 
-    ``k1`` holds ``f(y)`` on entry and exit, ``st`` the tendons' state of ``y``. A step across which any
-    tendon's spool-side or net arm-side stretch changes sign is split at the transition (Illinois method on
-    the step size). ``filt[i]`` is tendon i's amplifier output (time constant ``tau``); ``stats`` counts RK4
-    steps and transitions; ``health[i]`` is the largest rotor lag of tendon i (rad).
+@njit(cache=True, error_model="numpy", nogil=True)
+def _start_steps(S, mask, implicit, st, sr):
+    """The lanes of ``mask`` begin a step of their piece's size from their present state."""
+    h = S[D_H]
+    S[D_REM] = select(mask, h, S[D_REM])
+    S[D_HSTEP] = select(mask, h, S[D_HSTEP])
+    for r in range(2):
+        for i in range(st.shape[1]):
+            sr[r, i] = select(mask, st[r, i], sr[r, i])
+    if implicit:
+        S[D_GEOM] = select(mask, 1.0, S[D_GEOM])
+    S[D_SPLITS] = select(mask, 0.0, S[D_SPLITS])
+    S[D_SEARCH] = select(mask, 0.0, S[D_SEARCH])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _events(S, L, k, y, st, drive, d_drive, filt, wb, sample_times, step_times, step_tendon, step_signs,
+            n_steps, out_raw, out_filt, out_q, out_tip):  # fmt: skip
+    """Lane ``k`` has reached its target: record the sample or apply the step, then aim at the next target.
+
+    Stops at a step (its right-hand side must be evaluated again with the new drive: ``D_PEND``), at the
+    first piece with steps to take, or when the last sample is recorded (the lane goes idle).
     """
-    if dt <= 0.0:
+    n = wb.shape[0]
+    nt = out_raw.shape[2]
+    nq = sample_times.shape[1]
+    while True:
+        if L[k, L_AIMED] != 0 and lane(S[D_LEFT], k) == 0.0:  # arrived
+            L[k, L_AIMED] = 0
+            target = lane(S[D_TARGET], k)
+            if target > lane(S[D_T], k):
+                S[D_T] = set_lane(S[D_T], k, target)
+            if L[k, L_TOSTEP] != 0:
+                js = L[k, L_JS]
+                ti = step_tendon[k, js]
+                d = lane(drive[ti], k) + lane(d_drive[ti], k) * step_signs[k, js]
+                drive[ti] = set_lane(drive[ti], k, d)
+                L[k, L_JS] = js + 1
+                S[D_PEND] = set_lane(S[D_PEND], k, 1.0)
+                return
+            qi = L[k, L_QI]
+            for i in range(nt):
+                out_raw[k, qi, i] = lane(st[3, i], k)
+                out_filt[k, qi, i] = lane(filt[i], k)
+            for i in range(3 * n):
+                out_q[k, qi, i] = lane(y[i], k)
+            for c in range(3):
+                out_tip[k, qi, c] = lane(wb[n - 1, W_P + c], k)
+            L[k, L_QI] = qi + 1
+        qi = L[k, L_QI]
+        if qi == nq:
+            S[D_ACTIVE] = set_lane(S[D_ACTIVE], k, 0.0)
+            return
+        ts = sample_times[k, qi]
+        js = L[k, L_JS]
+        to_step = js < n_steps[k] and step_times[k, js] <= ts
+        target = step_times[k, js] if to_step else ts
+        L[k, L_TOSTEP] = 1 if to_step else 0
+        L[k, L_AIMED] = 1
+        S[D_TARGET] = set_lane(S[D_TARGET], k, target)
+        dt = target - lane(S[D_T], k)
+        nst = math.ceil(dt / lane(S[D_HMAX], k) - 1e-9) if dt > 0.0 else 0
+        if nst < 1:  # at the target, or within 1e-9 steps of it: arrived, as no step is taken
+            S[D_LEFT] = set_lane(S[D_LEFT], k, 0.0)
+            continue
+        S[D_LEFT] = set_lane(S[D_LEFT], k, float(nst))
+        S[D_H] = set_lane(S[D_H], k, dt / nst)
         return
-    nst = int(math.ceil(dt / h_max - 1e-9))
-    h = dt / nst
-    m = y.shape[0]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _decide(S, L, k, sr, s1, st, filt, implicit, cap):  # noqa: C901 - the step's one decision
+    """Lane ``k`` after a trial step that is not simply accepted: the first sign of a transition, or a search.
+
+    A transition starts the search for it (Illinois method on the step size). The search ends at the
+    transition, which becomes the state (``D_COMMIT``, the step not complete: ``D_FULL`` 0), the rest of the
+    step to follow on the branch just crossed into (``sr``: the cables taut from there, the one just crossed
+    marked crossed at the kink); otherwise the next trial's size is ``D_HSTEP``.
+    """
+    nt = st.shape[1]
+    tau = lane(S[D_TAU], k)
+    if lane(S[D_SEARCH], k) == 0.0:
+        which = _which_flip(sr, s1, nt, k, implicit)
+        rem = lane(S[D_REM], k)
+        if which < 0:  # no sign change after all (a transition function not finite): the step as it is
+            _filter_lane(filt, st, s1, tau, rem, k)
+            S[D_COMMIT] = set_lane(S[D_COMMIT], k, 1.0)
+            S[D_FULL] = set_lane(S[D_FULL], k, 1.0)
+            return
+        S[D_NTRANS] = set_lane(S[D_NTRANS], k, lane(S[D_NTRANS], k) + 1.0)
+        row = which % 2
+        ti = which // 2
+        f_lo = lane(sr[row, ti], k)
+        f_hi = lane(s1[row, ti], k)
+        lo = 0.0
+        hi = rem
+        side = 0
+        L[k, L_IT] = 0
+        L[k, L_ROW] = row
+        L[k, L_TI] = ti
+        S[D_SEARCH] = set_lane(S[D_SEARCH], k, 1.0)
+    else:
+        row = L[k, L_ROW]
+        ti = L[k, L_TI]
+        f_lo = lane(S[D_FLO], k)
+        f_hi = lane(S[D_FHI], k)
+        lo = lane(S[D_LO], k)
+        hi = lane(S[D_HI], k)
+        side = L[k, L_SIDE]
+        hc = lane(S[D_HC], k)
+        fc = lane(s1[row, ti], k)
+        it = L[k, L_IT] + 1
+        L[k, L_IT] = it
+        if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
+            # to the transition (the search's last point); the rest of the step from there, on the branch
+            # just crossed into
+            _filter_lane(filt, st, s1, tau, hc, k)
+            S[D_COMMIT] = set_lane(S[D_COMMIT], k, 1.0)
+            for r in range(2):
+                for i in range(nt):
+                    sr[r, i] = set_lane(sr[r, i], k, lane(s1[r, i], k))
+            if (lane(sr[row, ti], k) > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
+                sr[row, ti] = set_lane(sr[row, ti], k, 1e-300 if f_hi > 0.0 else -1e-300)
+            rem = lane(S[D_REM], k) - hc
+            S[D_REM] = set_lane(S[D_REM], k, rem)
+            S[D_HSTEP] = set_lane(S[D_HSTEP], k, rem)
+            S[D_SPLITS] = set_lane(S[D_SPLITS], k, lane(S[D_SPLITS], k) + 1.0)
+            if implicit:  # the branch from here: the one just crossed into, the others as they are
+                S[D_GEOM] = set_lane(S[D_GEOM], k, 1.0)
+            S[D_SEARCH] = set_lane(S[D_SEARCH], k, 0.0)
+            return
+        if (fc > 0.0) == (f_lo > 0.0):
+            lo = hc
+            f_lo = fc
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+        else:
+            hi = hc
+            f_hi = fc
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+    den = f_hi - f_lo
+    hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
+    if not (hc > lo and hc < hi):
+        hc = 0.5 * (lo + hi)
+    S[D_FLO] = set_lane(S[D_FLO], k, f_lo)
+    S[D_FHI] = set_lane(S[D_FHI], k, f_hi)
+    S[D_LO] = set_lane(S[D_LO], k, lo)
+    S[D_HI] = set_lane(S[D_HI], k, hi)
+    S[D_HC] = set_lane(S[D_HC], k, hc)
+    S[D_HSTEP] = set_lane(S[D_HSTEP], k, hc)
+    L[k, L_SIDE] = side
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _accept(S, accept, st, s1, filt):
+    """The amplifiers' outputs over the accepted steps (``D_REM`` each), lanes at once.
+
+    ``exp(-h / tau)`` is kept from the last step of the same size (the same bits as computing it again).
+    """
+    h = S[D_REM]
+    tau = S[D_TAU]
+    fresh = accept & (h != S[D_FH]) & (tau > 0.0)
+    if any_lane(fresh):
+        for k in range(lane_count(h)):
+            if lane(fresh, k):
+                hk = lane(h, k)
+                S[D_FA] = set_lane(S[D_FA], k, math.exp(-hk / lane(tau, k)))
+                S[D_FH] = set_lane(S[D_FH], k, hk)
+    a = S[D_FA]
+    for i in range(filt.shape[0]):
+        x0 = st[3, i]
+        x1 = s1[3, i]
+        v = a * (filt[i] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
+        filt[i] = select(accept, select(tau <= 0.0, x1, v), filt[i])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_times, step_tendon, step_signs,  # noqa: C901
+            n_steps, geo, mb, Jd, Jp, tp, W, cw, k1, st, sbuf, wb, wt, sp, wfb, wft, wfs, wfb2, wft2, wfs2,
+            bufs, out_raw, out_filt, out_q, out_tip):  # fmt: skip
+    """Advance every lane's ``y`` from its time ``S[D_T]`` through its sample times with ``scheme``.
+
+    One scenario (scalars) or several (lanes: one per scenario; ``y``, ``S``, ``drive``, ``d_drive``,
+    ``filt``, ``health``, :func:`rhs`'s parameters and the work arrays as lane arrays). Each lane takes equal
+    steps ``<= S[D_HMAX]`` between its events (its stepper steps and its samples). A step across which any
+    tendon's spool-side or net arm-side stretch changes sign is split at the transition (Illinois method on
+    the step size). With the implicit step (``SCHEME_ROSW``) each piece's stiffness ``T`` is that of the
+    branch the piece lies on (the cables taut at its start, the one just crossed into counted so), and every
+    transition in the step is located, in time order (up to :data:`MAX_SPLITS`); RK4 splits at the first
+    only. Every lane takes exactly the steps it takes alone: each pass of the loop below is one trial step of
+    every lane (of its own size) and one right-hand side at its end, then each lane's own decision (accept,
+    split, search, its next event), so a lane's arithmetic does not depend on the others.
+
+    Tendon ``step_tendon[lane, j]``'s commanded rotor angle ``drive`` jumps by ``d_drive[tendon] *
+    step_signs[lane, j]`` at ``step_times[lane, j]`` (each lane's first ``n_steps[lane]``, sorted); a step at
+    exactly a sample time is applied before that sample. At each sample every tendon's arm-side tension (raw
+    and amplifier output ``filt``, time constant ``S[D_TAU]``: the low-pass integrated exactly for a tension
+    linear over each step), the coordinates and the tip are written into ``out_*[lane]``. ``S[D_NSTEP]``,
+    ``S[D_NTRANS]`` count steps and transitions, ``health[i]`` is tendon i's largest rotor lag (rad).
+
+    Work: ``k1`` (m), ``st`` (4, nt), ``sbuf`` (3, 4, nt), ``wb, wt, sp`` (:func:`workspaces`), ``wfb, wft,
+    wfs`` and ``wfb2, wft2, wfs2`` (:func:`w_workspaces`), ``bufs`` (10, m): :func:`make_work`.
+    """
+    nl = L.shape[0]
     n = mb.shape[0]
     nt = tp.shape[0]
+    nq = 3 * n
+    m = y.shape[0]
+    implicit = scheme == SCHEME_ROSW
+    cap = MAX_SPLITS if implicit else 1
     y1 = bufs[4]
     k1n = bufs[6]
     s1 = sbuf[0]
+    sr = sbuf[1]
     sk = sbuf[2]
-    fv = np.empty(1)
-    taut1 = np.empty(nt, dtype=np.bool_)
-    taut2 = np.empty(nt, dtype=np.bool_)
-    sr = np.empty((2, nt))
-    implicit = scheme == SCHEME_ROSW
-    cap = MAX_SPLITS if implicit else 1
-    for _ in range(nst):
-        rem = h
-        splits = 0
+    rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
+    for j in range(D_PERSIST, N_STATE):
+        S[j] = 0.0
+    S[D_ACTIVE] = 1.0
+    for k in range(nl):
+        L[k, L_AIMED] = 0
+        L[k, L_QI] = 0
+        L[k, L_JS] = 0
+    pending = True  # lanes to move on to their next event
+    while True:
+        if pending:
+            # the events of lanes that reached their targets; a step there evaluates the right-hand side
+            # again with the new drive: the rotor accelerations, all the drive enters (the other lanes get
+            # again what they hold)
+            waiting = (S[D_ACTIVE] != 0.0) & (S[D_LEFT] == 0.0)
+            while True:
+                ready = (S[D_ACTIVE] != 0.0) & (S[D_LEFT] == 0.0)
+                for k in range(nl):
+                    if lane(ready, k):
+                        _events(S, L, k, y, st, drive, d_drive, filt, wb, sample_times, step_times,
+                                step_tendon, step_signs, n_steps, out_raw, out_filt, out_q,
+                                out_tip)  # fmt: skip
+                pend = S[D_PEND] != 0.0
+                if not any_lane(pend):
+                    break
+                _drive_moved(y, k1, drive, geo, tp, st)
+                now = pend & (S[D_TAU] <= 0.0)
+                for i in range(nt):
+                    filt[i] = select(now, st[3, i], filt[i])
+                S[D_PEND] = 0.0
+            started = waiting & (S[D_ACTIVE] != 0.0) & (S[D_LEFT] > 0.0)
+            _start_steps(S, started, implicit, st, sr)
+            pending = False
+        active = S[D_ACTIVE] != 0.0
+        if not any_lane(active):
+            break
+        # one trial step of every lane (idle lanes repeat a harmless step that nothing keeps)
+        if implicit:
+            geom = S[D_GEOM] != 0.0
+            if all_lane(geom):
+                wgeom(geo, tp, wb, wt, sp, sr[0], sr[1], wfb, wft, wfs)
+            elif any_lane(geom):
+                wgeom(geo, tp, wb, wt, sp, sr[0], sr[1], wfb2, wft2, wfs2)
+                for e in range(n):
+                    _blend(geom, wfb[e], wfb2[e], N_WFB)
+                for i in range(nt):
+                    _blend(geom, wft[0, i], wft2[0, i], nq)
+                _blend(geom, wfs, wfs2, N_WFS)
+            S[D_GEOM] = 0.0
+        _step(scheme, y, k1, S[D_HSTEP], drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk, wfb, wft, wfs,
+              bufs, y1)  # fmt: skip
+        rhs(y1, k1n, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, s1)
+        S[D_NSTEP] = select(active, S[D_NSTEP] + 1.0, S[D_NSTEP])
+        # the trial accepted where no cable changed between taut and slack (or no more splits are allowed)
+        flip = active ^ active
         for r in range(2):
             for i in range(nt):
-                sr[r, i] = st[r, i]
-        if implicit:
-            _branch(st, taut1, taut2, nt)
-            wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs)
-        search = False  # False: a trial of the rest of the step; True: the search for a transition
-        row = 0
-        ti = 0
-        f_lo = 0.0
-        f_hi = 0.0
-        lo = 0.0
-        hi = 0.0
-        side = 0
-        hc = rem
-        it = 0
-        while True:  # one step and one right-hand side per pass (one call site of each)
-            _step(scheme, y, k1, hc if search else rem, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk,
-                  wfb, wft, wfs, bufs, y1)  # fmt: skip
-            stats[0] += 1
-            rhs(y1, k1n, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, s1)
-            if not search:
-                which = -1
-                if splits < cap:
-                    which = _earliest_flip(sr, s1, nt) if implicit else _first_flip(sr, s1, nt)
-                if which < 0:
-                    for i in range(nt):
-                        fv[0] = filt[i]
-                        _filter(fv, tau, rem, st[3, i], s1[3, i])
-                        filt[i] = fv[0]
-                    break
-                stats[1] += 1
-                row = which % 2
-                ti = which // 2
-                f_lo = sr[row, ti]
-                f_hi = s1[row, ti]
-                lo = 0.0
-                hi = rem
-                side = 0
-                it = 0
-                search = True
-            else:
-                fc = s1[row, ti]
-                it += 1
-                if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
-                    # to the transition (the search's last point); the rest of the step from there, on the
-                    # branch just crossed into
-                    for i in range(m):
-                        y[i] = y1[i]
-                        k1[i] = k1n[i]
-                    for i in range(nt):
-                        fv[0] = filt[i]
-                        _filter(fv, tau, hc, st[3, i], s1[3, i])
-                        filt[i] = fv[0]
-                    for r in range(4):
-                        for i in range(nt):
-                            st[r, i] = s1[r, i]
-                    for r in range(2):
-                        for i in range(nt):
-                            sr[r, i] = s1[r, i]
-                    if (sr[row, ti] > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
-                        sr[row, ti] = 1e-300 if f_hi > 0.0 else -1e-300
-                    rem = rem - hc
-                    splits += 1
-                    if implicit:  # the branch from here: the one just crossed into, the others as they are
-                        _branch(sr, taut1, taut2, nt)
-                        wgeom(geo, tp, wb, wt, sp, taut1, taut2, wfb, wft, wfs)
-                    search = False
-                    continue
-                if (fc > 0.0) == (f_lo > 0.0):
-                    lo = hc
-                    f_lo = fc
-                    if side == -1:
-                        f_hi *= 0.5
-                    side = -1
-                else:
-                    hi = hc
-                    f_hi = fc
-                    if side == 1:
-                        f_lo *= 0.5
-                    side = 1
-            den = f_hi - f_lo
-            hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
-            if not (hc > lo and hc < hi):
-                hc = 0.5 * (lo + hi)
-        for i in range(m):
-            y[i] = y1[i]
-            k1[i] = k1n[i]
-        for r in range(4):
-            for i in range(nt):
-                st[r, i] = s1[r, i]
-        m2 = 6 * n
-        for i in range(nt):
-            lag = abs(drive[i] - y[m2 + i])
-            if lag > health[i]:
-                health[i] = lag
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def advance(scheme, y, t0, drive, d_drive, sample_times, step_times, step_tendon, step_signs, h_max, geo, mb,
-            Jd, Jp, tp, W, cw, filt, tau, out_raw, out_filt, out_q, out_tip, stats, health):  # fmt: skip
-    """Advance ``y`` from ``t0`` through every sample time with ``scheme``; return the time reached.
-
-    Tendon ``step_tendon[j]``'s commanded rotor angle ``drive`` jumps by ``d_drive[tendon] * step_signs[j]``
-    at ``step_times[j]`` (sorted); a step at exactly a sample time is applied before that sample. At each
-    sample every tendon's arm-side tension (raw and amplifier output), the coordinates and the tip are
-    written.
-    """
-    n = mb.shape[0]
-    nt = tp.shape[0]
-    m = y.shape[0]
-    wb = np.zeros((n, N_WB))
-    wt = np.zeros((nt, n + 1, N_WT))
-    sp = np.zeros(N_SP + 3 * n)
-    bufs = np.empty((10, m))
-    wfb = np.zeros((n, N_WFB))
-    wft = np.zeros((2, nt, 3 * n))
-    wfs = np.zeros(N_WFS)
-    sbuf = np.zeros((3, 4, nt))
-    k1 = np.empty(m)
-    st = np.zeros((4, nt))
-    t = t0
-    js = 0
-    nsteps = step_times.shape[0]
-    rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    qi = 0
-    nq = sample_times.shape[0]
-    while qi < nq:  # to the next step or sample: one call site of the integrator
-        ts = sample_times[qi]
-        to_step = js < nsteps and step_times[js] <= ts
-        target = step_times[js] if to_step else ts
-        integrate(scheme, y, k1, st, target - t, drive, h_max, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, wfb,
-                  wft, wfs, bufs, sbuf, filt, tau, stats, health)  # fmt: skip
-        if target > t:
-            t = target
-        if to_step:
-            ti = step_tendon[js]
-            drive[ti] += d_drive[ti] * step_signs[js]
-            js += 1
-            rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-            if tau <= 0.0:
+                flip = flip | ((sr[r, i] > 0.0) ^ (s1[r, i] > 0.0))
+        search = S[D_SEARCH] != 0.0
+        accept = active & lnot(search) & ((S[D_SPLITS] >= cap) | lnot(flip))
+        _accept(S, accept, st, s1, filt)
+        S[D_COMMIT] = select(accept, 1.0, 0.0)
+        S[D_FULL] = S[D_COMMIT]
+        other = active & lnot(accept)
+        if any_lane(other):
+            for k in range(nl):
+                if lane(other, k):
+                    _decide(S, L, k, sr, s1, st, filt, implicit, cap)
+        commit = S[D_COMMIT] != 0.0
+        if any_lane(commit):
+            _blend(commit, y, y1, m)
+            _blend(commit, k1, k1n, m)
+            for r in range(4):
                 for i in range(nt):
-                    filt[i] = st[3, i]
-            continue
-        for i in range(nt):
-            out_raw[qi, i] = st[3, i]
-            out_filt[qi, i] = filt[i]
-        for i in range(3 * n):
-            out_q[qi, i] = y[i]
-        out_tip[qi, 0] = wb[n - 1, W_P + 0]
-        out_tip[qi, 1] = wb[n - 1, W_P + 1]
-        out_tip[qi, 2] = wb[n - 1, W_P + 2]
-        qi += 1
-    return t
+                    st[r, i] = select(commit, s1[r, i], st[r, i])
+        full = S[D_FULL] != 0.0
+        if any_lane(full):
+            for i in range(nt):
+                lag = abs(drive[i] - y[2 * nq + i])
+                health[i] = select(full & (lag > health[i]), lag, health[i])
+            S[D_LEFT] = select(full, S[D_LEFT] - 1.0, S[D_LEFT])
+            _start_steps(S, full & (S[D_LEFT] > 0.0), implicit, st, sr)
+            pending = any_lane(full & (S[D_LEFT] == 0.0))
+
+
+class Work(NamedTuple):
+    """Work arrays of :func:`advance` (one set per plant, reused by every call)."""
+
+    k1: Any
+    st: Any
+    sbuf: Any
+    wb: Any
+    wt: Any
+    sp: Any
+    wfb: Any
+    wft: Any
+    wfs: Any
+    wfb2: Any
+    wft2: Any
+    wfs2: Any
+    bufs: Any
+
+
+def make_work(n: int, nt: int, lanes: int = 0) -> Work:
+    """:func:`advance`'s work arrays for ``n`` bodies and ``nt`` tendons: scalars, or ``lanes`` lanes."""
+    m = 6 * n + 4 * nt
+    shapes = ((m,), (4, nt), (3, 4, nt), (n, N_WB), (nt, n + 1, N_WT), (N_SP + 3 * n,), (n, N_WFB),
+              (2, nt, 3 * n), (N_WFS,), (n, N_WFB), (2, nt, 3 * n), (N_WFS,), (10, m))  # fmt: skip
+    if lanes == 0:
+        return Work(*(np.zeros(s) for s in shapes))
+    return Work(*(LaneArray(np.zeros((*s, lanes))) for s in shapes))
