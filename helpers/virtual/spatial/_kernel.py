@@ -1644,7 +1644,7 @@ def _accept(S, accept, st, s1, filt):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_times, step_tendon, step_signs,  # noqa: C901
+def advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_times, step_tendon, step_signs,
             n_steps, geo, mb, Jd, Jp, tp, W, cw, k1, st, sbuf, wb, wt, sp, wfb, wft, wfs, wfb2, wft2, wfs2,
             bufs, out_raw, out_filt, out_q, out_tip):  # fmt: skip
     """Advance every lane's ``y`` from its time ``S[D_T]`` through its sample times with ``scheme``.
@@ -1670,6 +1670,19 @@ def advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_ti
     Work: ``k1`` (m), ``st`` (4, nt), ``sbuf`` (3, 4, nt), ``wb, wt, sp`` (:func:`workspaces`), ``wfb, wft,
     wfs`` and ``wfb2, wft2, wfs2`` (:func:`w_workspaces`), ``bufs`` (10, m): :func:`make_work`.
     """
+    # plain arrays down (a lane array's full slice), as the planar kernel's advance does: each function
+    # compiles once per form instead of once per mix of a LaneArray and the arrays of lanes taken from it
+    _advance(scheme, y[:], S[:], L, drive[:], d_drive[:], filt[:], health[:], sample_times, step_times,
+             step_tendon, step_signs, n_steps, geo[:], mb[:], Jd[:], Jp[:], tp[:], W[:], cw[:], k1[:], st[:],
+             sbuf[:], wb[:], wt[:], sp[:], wfb[:], wft[:], wfs[:], wfb2[:], wft2[:], wfs2[:], bufs[:],
+             out_raw, out_filt, out_q, out_tip)  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_times, step_tendon,  # noqa: C901
+             step_signs, n_steps, geo, mb, Jd, Jp, tp, W, cw, k1, st, sbuf, wb, wt, sp, wfb, wft, wfs, wfb2,
+             wft2, wfs2, bufs, out_raw, out_filt, out_q, out_tip):  # fmt: skip
+    """:func:`advance` on plain arrays (of scalars or of lanes)."""
     nl = L.shape[0]
     n = mb.shape[0]
     nt = tp.shape[0]
