@@ -84,7 +84,8 @@ def _alone_and_in_lanes(rigs: list, progs: list, rows: list[np.ndarray], split: 
 
 @pytest.mark.parametrize(
     ("integrator", "width"),
-    [("rosw", 4), ("rk4", 4), pytest.param("rosw", 8, marks=pytest.mark.slow)],  # 8 wide: 22 s more to compile
+    # 8 wide: another 22 s of CPU to compile on a cold cache
+    [("rosw", 4), ("rk4", 4), pytest.param("rosw", 8, marks=pytest.mark.slow)],
 )
 def test_each_lane_takes_the_bits_and_steps_of_its_run_alone(integrator, width):
     # width - 1 rigs (the last lane repeats the last rig), two calls, a lane that goes slack
