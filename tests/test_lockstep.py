@@ -107,6 +107,7 @@ def _spatial_calls(k: int) -> list[tuple[np.ndarray, ...]]:
     return calls[: (len(calls), len(calls) - 2, len(calls))[k]]  # session 1 ends early: its lane is parked
 
 
+@pytest.mark.slow  # the spatial lanes' first compile: about 22 s of CPU on a cold cache
 def test_spatial_sessions_in_lockstep_get_the_outputs_they_get_alone():
     base = RigParameters()
     rigs = [four_tendon_rig(base.replace(alpha=base.alpha * f)) for f in (1.0, 0.8, 1.2)]

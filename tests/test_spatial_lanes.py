@@ -82,10 +82,10 @@ def _alone_and_in_lanes(rigs: list, progs: list, rows: list[np.ndarray], split: 
     return lanes
 
 
+@pytest.mark.slow  # the lanes' first compile: about 22 s of CPU per width on a cold cache
 @pytest.mark.parametrize(
     ("integrator", "width"),
-    # 8 wide: another 22 s of CPU to compile on a cold cache
-    [("rosw", 4), ("rk4", 4), pytest.param("rosw", 8, marks=pytest.mark.slow)],
+    [("rosw", 4), ("rk4", 4), ("rosw", 8)],
 )
 def test_each_lane_takes_the_bits_and_steps_of_its_run_alone(integrator, width):
     # width - 1 rigs (the last lane repeats the last rig), two calls, a lane that goes slack
@@ -93,12 +93,14 @@ def test_each_lane_takes_the_bits_and_steps_of_its_run_alone(integrator, width):
     _alone_and_in_lanes(_rigs(integrator, n), _programmes(n), [T] * n, split=170)
 
 
+@pytest.mark.slow  # the lanes' first compile: about 22 s of CPU per width on a cold cache
 def test_each_lane_on_its_own_samples_takes_the_bits_of_its_run_alone():
     # per-lane sample times (the lockstep of several worlds, each on its own clock)
     rows = [T + k * 0.37e-3 for k in range(4)]
     _alone_and_in_lanes(_rigs("rosw", 4), _programmes(4), rows, split=200)
 
 
+@pytest.mark.slow  # the lanes' first compile: about 22 s of CPU per width on a cold cache
 def test_a_lane_that_fails_leaves_the_others_their_bits_and_restore_puts_it_back():
     rigs, progs = _rigs("rosw", 3), _programmes(3)
     alone = [SpatialPlant(rig).advance(T, *prog) for rig, prog in zip(rigs, progs, strict=True)]
@@ -147,6 +149,7 @@ def _fused(asm: str) -> int:
     return len(re.findall(r"\tvfn?m(?:add|sub)", asm))
 
 
+@pytest.mark.slow  # the lanes' first compile: about 22 s of CPU per width on a cold cache
 def test_the_lanes_right_hand_side_is_packed_and_not_contracted():
     lanes = SpatialLanes([four_tendon_rig()] * 4)
     w = lanes._work
