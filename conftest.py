@@ -72,10 +72,44 @@ def _is_worker(config) -> bool:
     return hasattr(config, "workerinput")
 
 
+_KERNELS = (
+    # the planar plant, one scenario and four in lanes
+    "import numpy as np; from helpers.virtual.plant import ArmLanes, ArmPlant; "
+    "from helpers.virtual.parameters import RigParameters as R; t = np.array([1e-3]); e = np.empty(0); "
+    "ArmPlant(R()).advance(t, e, e); ArmLanes([R()] * 4).advance_all(t, [e] * 4, [e] * 4)",
+    # the spatial twin, one scenario
+    "import numpy as np; from helpers.virtual.spatial.plant import SpatialPlant; "
+    "from helpers.virtual.spatial.rig import four_tendon_rig as four; "
+    "SpatialPlant(four()).advance(np.array([1e-3]))",
+)
+"""What :func:`_compile_kernels_once` runs, each in a process of its own: the first call of each kernel."""
+
+
+def _compile_kernels_once(config) -> None:
+    """Compile the twins' kernels into numba's cache before the workers start (a parallel run only).
+
+    Two workers that first call the same kernel at once both compile it (about 11-20 s of CPU each, on a
+    fresh clone); compiled here, two kernels at a time, each is compiled once and every worker loads it
+    from the cache. With the cache warm this costs each process its imports (about 2 s of CPU).
+    """
+    if not (getattr(config.option, "numprocesses", 0) or 0) >= 2 or config.option.collectonly:
+        return
+    import subprocess
+    import sys
+
+    root = str(Path(__file__).resolve().parent)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}
+    procs = [subprocess.Popen([sys.executable, "-c", code], cwd=root, env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL) for code in _KERNELS]  # fmt: skip
+    for proc in procs:  # a failure here is the tests' to find, each where its own call fails
+        proc.wait()
+
+
 def pytest_sessionstart(session):
-    """Note what ``git status`` shows before the tests run."""
+    """Note what ``git status`` shows before the tests run; compile the kernels once (a parallel run)."""
     if not _is_worker(session.config):
         session.config.stash_git_status = _git_status()
+        _compile_kernels_once(session.config)
 
 
 def pytest_sessionfinish(session, exitstatus):

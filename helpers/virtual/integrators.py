@@ -129,7 +129,9 @@ def spatial_system(rig: SpatialRig) -> System:
         none = np.zeros((1, 1))
         z = np.zeros(nt)
         lints = np.zeros((1, skern.N_LANE_INTS), np.int64)
-        skern.advance(kern.SCHEMES.index(scheme), y, S, lints, z.copy(), z, z.copy(), z.copy(),
+        # the plant's own (read-only) step angles: the same argument types as SpatialPlant's calls, so that
+        # one compiled form of the kernel serves both (no step is given)
+        skern.advance(kern.SCHEMES.index(scheme), y, S, lints, z.copy(), a.d_drive, z.copy(), z.copy(),
                       np.array([[h]]), none, np.zeros((1, 1), np.int64), none, np.zeros(1, np.int64), a.geo,
                       a.mb, a.Jd, a.Jp, a.tp, a.W, a.cw, *skern.make_work(n, nt), np.empty((1, 1, nt)),
                       np.empty((1, 1, nt)), np.empty((1, 1, 3 * n)),
