@@ -31,6 +31,7 @@ import json
 import os
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -97,6 +98,60 @@ def _same(a: Path, b: Path) -> bool:
     return ja == jb
 
 
+def _take_turns(
+    tmp: str, ways: dict[str, int], repeats: int, verify: Callable[[Path, int], float]
+) -> tuple[dict[str, float], int, int]:
+    """The ways (name: lanes) in turns ``repeats`` times: the best CPU time of each, recordings compared.
+
+    ``verify(folder, lanes)`` makes one way's recordings in ``folder`` and returns its CPU time (s).
+
+    Returns
+    -------
+    tuple
+        ``(best, identical, compared)``: the best CPU time (s) of each way; the recordings in lanes equal to
+        the same run alone, of those compared.
+    """
+    best = dict.fromkeys(ways, float("inf"))
+    identical = compared = 0
+    for turn in range(repeats):
+        for way, n in ways.items():
+            best[way] = min(best[way], verify(Path(tmp, f"{way}{turn}"), n))
+        for path in sorted(Path(tmp, f"alone{turn}").glob("*.csv")):
+            compared += 1
+            identical += _same(path, Path(tmp, f"lanes{turn}", path.name))
+    return best, identical, compared
+
+
+def _report(
+    say: Callable[..., None], runs: int, lanes: int, turns: tuple[dict[str, float], int, int], before: str,
+    words: tuple[str, str, str], digits: tuple[int, int],
+) -> dict[str, Any]:
+    """Print the turns' figures (:func:`_take_turns`) and return them (as :func:`run_tune_lanes_benchmark`).
+
+    ``words``: what one run is, what the lanes share a kernel call of, where the chain's recordings are;
+    ``digits``: of the rates and of the CPU times.
+    """
+    best, identical, compared = turns
+    item, plants, made = words
+    dr, ds = digits
+    after = _load()
+    rate = {way: runs / cpu for way, cpu in best.items()}
+    ratio = rate["lanes"] / rate["alone"]
+    say(f"  alone (each {item} in a world of its own, one at a time): {rate['alone']:.{dr}f} runs per CPU "
+        f"second ({best['alone']:.{ds}f} s)")
+    say(f"  in lanes ({lanes} worlds in lockstep, their {plants} in one kernel call): {rate['lanes']:.{dr}f} "
+        f"runs per CPU second ({best['lanes']:.{ds}f} s)")
+    say(f"  the chain (every {item} in one world, as {made} was made; other recordings): "
+        f"{rate['chain']:.{dr}f} runs per CPU second ({best['chain']:.{ds}f} s)")
+    say(f"  recordings in lanes byte-identical to the same run alone (csv bytes; json but started_utc): "
+        f"{identical} of {compared}")
+    say(f"  after: {after}")
+    say(f"runs per CPU second in lanes / alone: {ratio:.2f}x (lanes / the chain: "
+        f"{rate['lanes'] / rate['chain']:.2f}x)")
+    return {"runs": runs, "lanes": lanes, "runs_per_cpu_s": rate, "ratio": ratio, "identical": identical,
+            "compared": compared, "load": (before, after)}  # fmt: skip
+
+
 def run_tune_lanes_benchmark(
     lanes: int = 8, v: float = 200.0, x: float = 20.0, repeats: int = 2, quiet: bool = False
 ) -> dict[str, Any]:
@@ -134,34 +189,12 @@ def run_tune_lanes_benchmark(
         f"{repetitions} = {runs} runs of {tune.T_END_S:g} s at {tune.RATE_HZ} Hz, in-process virtual rig; "
         f"{os.cpu_count()} cores; {before}")  # fmt: skip
     ways = {"alone": 1, "lanes": lanes, "chain": 0}
-    best = dict.fromkeys(ways, float("inf"))
-    identical = compared = 0
     with tempfile.TemporaryDirectory() as tmp:
         warm = tune.Candidates({(v, x): {systems[0]: candidates.designs[(v, x)][systems[0]]}}, {(v, x): {}})
         for way, n in ways.items():  # every kernel (scalar, this lane width) compiled or loaded, not timed
             _verify(Path(tmp, f"warm-{way}"), n, warm, max(n, 1))
-        for turn in range(repeats):
-            for way, n in ways.items():
-                best[way] = min(best[way], _verify(Path(tmp, f"{way}{turn}"), n, candidates, repetitions))
-            for path in sorted(Path(tmp, f"alone{turn}").glob("*.csv")):
-                compared += 1
-                identical += _same(path, Path(tmp, f"lanes{turn}", path.name))
-    after = _load()
-    rate = {way: runs / cpu for way, cpu in best.items()}
-    ratio = rate["lanes"] / rate["alone"]
-    say(f"  alone (each run in a world of its own, one at a time): {rate['alone']:.2f} runs per CPU second "
-        f"({best['alone']:.2f} s)")
-    say(f"  in lanes ({lanes} worlds in lockstep, their plants in one kernel call): {rate['lanes']:.2f} runs "
-        f"per CPU second ({best['lanes']:.2f} s)")
-    say(f"  the chain (every run in one world, as data/tuning was made; other recordings): "
-        f"{rate['chain']:.2f} runs per CPU second ({best['chain']:.2f} s)")
-    say(f"  recordings in lanes byte-identical to the same run alone (csv bytes; json but started_utc): "
-        f"{identical} of {compared}")
-    say(f"  after: {after}")
-    say(f"runs per CPU second in lanes / alone: {ratio:.2f}x (lanes / the chain: "
-        f"{rate['lanes'] / rate['chain']:.2f}x)")
-    return {"runs": runs, "lanes": lanes, "runs_per_cpu_s": rate, "ratio": ratio, "identical": identical,
-            "compared": compared, "load": (before, after)}  # fmt: skip
+        turns = _take_turns(tmp, ways, repeats, lambda f, n: _verify(f, n, candidates, repetitions))
+    return _report(say, runs, lanes, turns, before, ("run", "plants", "data/tuning"), (2, 2))
 
 
 def _verify_tendons(
@@ -205,34 +238,12 @@ def run_tune_tendons_lanes_benchmark(lanes: int = 8, repeats: int = 1, quiet: bo
         f"x 3 = {runs} moves of {tt.MOVE_TIMES_S[-1]:g} s at 1 kHz (four channels), in-process virtual rig; "
         f"{os.cpu_count()} cores; {before}")  # fmt: skip
     ways = {"alone": 1, "lanes": lanes, "chain": 0}
-    best = dict.fromkeys(ways, float("inf"))
-    identical = compared = 0
     with tempfile.TemporaryDirectory() as tmp:
         # every kernel (scalar, this lane width) compiled or loaded, the rig's statics made, not timed
         _verify_tendons(Path(tmp, "warm"), 0, doc, ("unshaped",), 1)
         SpatialLanes([four_tendon_rig()] * lanes).advance_all([1e-3], *([[]] * lanes,) * 3)
-        for turn in range(repeats):
-            for way, n in ways.items():
-                best[way] = min(best[way], _verify_tendons(Path(tmp, f"{way}{turn}"), n, doc, systems))
-            for path in sorted(Path(tmp, f"alone{turn}").glob("*.csv")):
-                compared += 1
-                identical += _same(path, Path(tmp, f"lanes{turn}", path.name))
-    after = _load()
-    rate = {way: runs / cpu for way, cpu in best.items()}
-    ratio = rate["lanes"] / rate["alone"]
-    say(f"  alone (each move in a world of its own, one at a time): {rate['alone']:.3f} runs per CPU second "
-        f"({best['alone']:.1f} s)")
-    say(f"  in lanes ({lanes} worlds in lockstep, their twins in one kernel call): {rate['lanes']:.3f} runs "
-        f"per CPU second ({best['lanes']:.1f} s)")
-    say(f"  the chain (every move in one world, as data/ was made; other recordings): {rate['chain']:.3f} "
-        f"runs per CPU second ({best['chain']:.1f} s)")
-    say(f"  recordings in lanes byte-identical to the same run alone (csv bytes; json but started_utc): "
-        f"{identical} of {compared}")
-    say(f"  after: {after}")
-    say(f"runs per CPU second in lanes / alone: {ratio:.2f}x (lanes / the chain: "
-        f"{rate['lanes'] / rate['chain']:.2f}x)")
-    return {"runs": runs, "lanes": lanes, "runs_per_cpu_s": rate, "ratio": ratio, "identical": identical,
-            "compared": compared, "load": (before, after)}  # fmt: skip
+        turns = _take_turns(tmp, ways, repeats, lambda f, n: _verify_tendons(f, n, doc, systems))
+    return _report(say, runs, lanes, turns, before, ("move", "twins", "data/"), (3, 1))
 
 
 if __name__ == "__main__":  # pragma: no cover
