@@ -57,6 +57,22 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from helpers.virtual._driver import (
+    L_JS,
+    L_QI,
+    L_TOSTEP,
+    N_DRIVER,
+    N_DRIVER_INTS,
+    aim,
+    arrive,
+    begin,
+    begin_search,
+    blend,
+    filter_gain,
+    search_step,
+    split,
+    start_steps,
+)
 from helpers.virtual.lanes import (
     BLOCK,
     LaneArray,
@@ -1147,43 +1163,26 @@ def _filter(tau, y, h, x0, x1):
     return a * (y - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
 
 
-# the driver's state of each lane, one row of ``S`` per quantity (lanes along it): what persists between
-# calls (time, drive, its increment, the largest step, the amplifier's time constant and output, the largest
-# rotor lag, steps and transitions counted), then the present piece and step; integers in ``L[lane]``
-(S_T, S_DRIVE, S_DDRIVE, S_HMAX, S_TAU, S_FILT, S_HEALTH, S_NSTEP, S_NTRANS, S_TARGET, S_H, S_REM, S_R0, S_R1,
- S_FLO, S_FHI, S_LO, S_HI, S_HC, S_HSTEP, S_FH, S_FA, S_ACTIVE, S_LEFT, S_SPLITS, S_SEARCH, S_GEOM, S_COMMIT,
- S_FULL, S_PEND) = range(30)  # fmt: skip
-N_STATE = 30
-"""Rows of the driver's float state (:func:`advance`)."""
-S_PERSIST = S_TARGET
-"""Rows ``0 .. S_PERSIST - 1`` carry over from one call to the next; the rest is work."""
-(L_QI, L_JS, L_USE1, L_SIDE, L_IT, L_TOSTEP, L_AIMED) = range(7)
-N_LANE_INTS = 7
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _blend(mask, dst, src, count):
-    """``dst[:count] <- src[:count]`` in the lanes of ``mask``."""
-    if all_lane(mask):
-        for i in range(count):
-            dst[i] = src[i]
-    elif any_lane(mask):
-        for i in range(count):
-            dst[i] = select(mask, src[i], dst[i])
+# the driver's state of each lane, one row of ``S`` per quantity (lanes along it): the shared rows
+# (:mod:`helpers.virtual._driver`), then what persists between calls here (drive, its increment, the
+# amplifier's output, the largest rotor lag) and the present step's start (its transition functions); integers
+# in ``L[lane]``
+(S_T, S_HMAX, S_TAU, S_NSTEP, S_NTRANS, S_TARGET, S_H, S_REM, S_FLO, S_FHI, S_LO, S_HI, S_HC, S_HSTEP, S_FH,
+ S_FA, S_ACTIVE, S_LEFT, S_SPLITS, S_SEARCH, S_GEOM, S_COMMIT, S_FULL, S_PEND) = range(N_DRIVER)  # fmt: skip
+(S_DRIVE, S_DDRIVE, S_FILT, S_HEALTH, S_R0, S_R1) = range(N_DRIVER, N_DRIVER + 6)
+N_STATE = N_DRIVER + 6
+"""Rows of the driver's float state (:func:`advance`): the work rows are ``D_PERSIST .. N_DRIVER - 1``,
+``S_R0``, ``S_R1``; the others carry over from one call to the next."""
+L_USE1 = N_DRIVER_INTS
+N_LANE_INTS = N_DRIVER_INTS + 1
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _start_steps(S, mask, implicit, mode2, st):
     """The lanes of ``mask`` begin a step of their piece's size from their present state."""
-    h = S[S_H]
-    S[S_REM] = select(mask, h, S[S_REM])
-    S[S_HSTEP] = select(mask, h, S[S_HSTEP])
+    start_steps(S, mask, implicit)
     S[S_R0] = select(mask, st[0] if mode2 else 1.0, S[S_R0])
     S[S_R1] = select(mask, st[1], S[S_R1])
-    if implicit:
-        S[S_GEOM] = select(mask, 1.0, S[S_GEOM])
-    S[S_SPLITS] = select(mask, 0.0, S[S_SPLITS])
-    S[S_SEARCH] = select(mask, 0.0, S[S_SEARCH])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -1195,13 +1194,8 @@ def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, ou
     first piece with steps to take, or when the last sample is recorded (the lane goes idle).
     """
     n = out_theta.shape[2]
-    nq = sample_times.shape[1]
     while True:
-        if L[k, L_AIMED] != 0 and lane(S[S_LEFT], k) == 0.0:  # arrived
-            L[k, L_AIMED] = 0
-            target = lane(S[S_TARGET], k)
-            if target > lane(S[S_T], k):
-                S[S_T] = set_lane(S[S_T], k, target)
+        if arrive(S, L, k):
             if L[k, L_TOSTEP] != 0:
                 js = L[k, L_JS]
                 drive = lane(S[S_DRIVE], k) + lane(S[S_DDRIVE], k) * step_signs[k, js]
@@ -1215,128 +1209,53 @@ def _events(S, L, k, y, st, U, sample_times, step_times, step_signs, n_steps, ou
             for i in range(n):
                 out_theta[k, qi, i] = lane(y[i], k)
             L[k, L_QI] = qi + 1
-        qi = L[k, L_QI]
-        if qi == nq:
-            S[S_ACTIVE] = set_lane(S[S_ACTIVE], k, 0.0)
+        if not aim(S, L, k, sample_times, step_times, n_steps):
             return
-        ts = sample_times[k, qi]
-        js = L[k, L_JS]
-        to_step = js < n_steps[k] and step_times[k, js] <= ts
-        target = step_times[k, js] if to_step else ts
-        L[k, L_TOSTEP] = 1 if to_step else 0
-        L[k, L_AIMED] = 1
-        S[S_TARGET] = set_lane(S[S_TARGET], k, target)
-        dt = target - lane(S[S_T], k)
-        nst = math.ceil(dt / lane(S[S_HMAX], k) - 1e-9) if dt > 0.0 else 0
-        if nst < 1:  # at the target, or within 1e-9 steps of it (a few ulps): arrived, as no step is taken
-            S[S_LEFT] = set_lane(S[S_LEFT], k, 0.0)
-            continue
-        S[S_LEFT] = set_lane(S[S_LEFT], k, float(nst))
-        S[S_H] = set_lane(S[S_H], k, dt / nst)
-        return
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap):  # noqa: C901 - the step's one decision
+def _decide(S, L, k, e1n, e2n, x0, x1, implicit, mode2, cap):
     """Lane ``k`` after a trial step that is not simply accepted: the first sign of a transition, or a search.
 
-    A transition starts the search for it (Illinois method on the step size). The search ends at the
-    transition, which becomes the state (``S_COMMIT``, the step not complete: ``S_FULL`` 0), the rest of the
-    step to follow on the branch just crossed into; otherwise the next trial's size is ``S_HSTEP``. ``x0``,
-    ``x1``: the measured tension at the piece's start and at the trial's end.
+    A transition starts the search for it (:func:`~helpers.virtual._driver.search_step`). The search ends at
+    the transition, which becomes the state (``S_COMMIT``, the step not complete: ``S_FULL`` 0), the rest of
+    the step to follow on the branch just crossed into; otherwise the next trial's size is ``S_HSTEP``.
+    ``x0``, ``x1``: the measured tension at the piece's start and at the trial's end.
     """
     if lane(S[S_SEARCH], k) == 0.0:
         r0 = lane(S[S_R0], k)
         r1 = lane(S[S_R1], k)
         a1 = e1n if mode2 else 1.0
-        S[S_NTRANS] = set_lane(S[S_NTRANS], k, lane(S[S_NTRANS], k) + 1.0)
         flip1 = (r0 > 0.0) != (a1 > 0.0)
         flip2 = (r1 > 0.0) != (e2n > 0.0)
         if implicit and flip1 and flip2:  # both: the one that comes first on the chord
             use1 = r0 / (r0 - a1) <= r1 / (r1 - e2n)
         else:
             use1 = mode2 and flip1
-        f_lo = r0 if use1 else r1
-        f_hi = a1 if use1 else e2n
-        lo = 0.0
-        hi = lane(S[S_REM], k)
-        side = 0
-        L[k, L_IT] = 0
-        S[S_SEARCH] = set_lane(S[S_SEARCH], k, 1.0)
         L[k, L_USE1] = 1 if use1 else 0
-    else:
-        use1 = L[k, L_USE1] != 0
-        f_lo = lane(S[S_FLO], k)
-        f_hi = lane(S[S_FHI], k)
-        lo = lane(S[S_LO], k)
-        hi = lane(S[S_HI], k)
-        side = L[k, L_SIDE]
-        hc = lane(S[S_HC], k)
-        fc = e1n if use1 else e2n
-        it = L[k, L_IT] + 1
-        L[k, L_IT] = it
-        if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
-            # to the transition (the search's last point); the rest of the step from there, on the branch
-            # just crossed into
-            S[S_FILT] = set_lane(S[S_FILT], k, _filter(lane(S[S_TAU], k), lane(S[S_FILT], k), hc, x0, x1))
-            S[S_COMMIT] = set_lane(S[S_COMMIT], k, 1.0)
-            r0 = e1n if mode2 else 1.0
-            r1 = e2n
-            if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
-                r0 = 1e-300 if f_hi > 0.0 else -1e-300
-            if not use1 and (r1 > 0.0) != (f_hi > 0.0):
-                r1 = 1e-300 if f_hi > 0.0 else -1e-300
-            S[S_R0] = set_lane(S[S_R0], k, r0)
-            S[S_R1] = set_lane(S[S_R1], k, r1)
-            rem = lane(S[S_REM], k) - hc
-            S[S_REM] = set_lane(S[S_REM], k, rem)
-            S[S_HSTEP] = set_lane(S[S_HSTEP], k, rem)
-            S[S_SPLITS] = set_lane(S[S_SPLITS], k, lane(S[S_SPLITS], k) + 1.0)
-            if implicit:
-                S[S_GEOM] = set_lane(S[S_GEOM], k, 1.0)
-            S[S_SEARCH] = set_lane(S[S_SEARCH], k, 0.0)
-            return
-        if (fc > 0.0) == (f_lo > 0.0):
-            lo = hc
-            f_lo = fc
-            if side == -1:
-                f_hi *= 0.5
-            side = -1
-        else:
-            hi = hc
-            f_hi = fc
-            if side == 1:
-                f_lo *= 0.5
-            side = 1
-    den = f_hi - f_lo
-    hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
-    if not (hc > lo and hc < hi):
-        hc = 0.5 * (lo + hi)
-    S[S_FLO] = set_lane(S[S_FLO], k, f_lo)
-    S[S_FHI] = set_lane(S[S_FHI], k, f_hi)
-    S[S_LO] = set_lane(S[S_LO], k, lo)
-    S[S_HI] = set_lane(S[S_HI], k, hi)
-    S[S_HC] = set_lane(S[S_HC], k, hc)
-    S[S_HSTEP] = set_lane(S[S_HSTEP], k, hc)
-    L[k, L_SIDE] = side
+        begin_search(S, L, k, r0 if use1 else r1, a1 if use1 else e2n)
+        return
+    use1 = L[k, L_USE1] != 0
+    found, hc, f_hi = search_step(S, L, k, e1n if use1 else e2n)
+    if found:
+        # to the transition (the search's last point); the rest of the step from there, on the branch just
+        # crossed into
+        S[S_FILT] = set_lane(S[S_FILT], k, _filter(lane(S[S_TAU], k), lane(S[S_FILT], k), hc, x0, x1))
+        r0 = e1n if mode2 else 1.0
+        r1 = e2n
+        if use1 and (r0 > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
+            r0 = 1e-300 if f_hi > 0.0 else -1e-300
+        if not use1 and (r1 > 0.0) != (f_hi > 0.0):
+            r1 = 1e-300 if f_hi > 0.0 else -1e-300
+        S[S_R0] = set_lane(S[S_R0], k, r0)
+        S[S_R1] = set_lane(S[S_R1], k, r1)
+        split(S, k, hc, implicit)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _accept(S, accept, x0, x1):
-    """The amplifier's output over the accepted steps (``S_REM`` each): :func:`_filter`, lanes at once.
-
-    ``exp(-h / tau)`` is kept from the last step of the same size (the same bits as computing it again).
-    """
-    h = S[S_REM]
-    tau = S[S_TAU]
-    fresh = accept & (h != S[S_FH]) & (tau > 0.0)
-    if any_lane(fresh):
-        for k in range(lane_count(h)):
-            if lane(fresh, k):
-                hk = lane(h, k)
-                S[S_FA] = set_lane(S[S_FA], k, math.exp(-hk / lane(tau, k)))
-                S[S_FH] = set_lane(S[S_FH], k, hk)
-    a = S[S_FA]
+    """The amplifier's output over the accepted steps (``S_REM`` each): :func:`_filter`, lanes at once."""
+    a, h, tau = filter_gain(S, accept)
     y = a * (S[S_FILT] - x0) + x1 - (x1 - x0) * (tau / h) * (1.0 - a)
     S[S_FILT] = select(accept, select(tau <= 0.0, x1, y), S[S_FILT])
 
@@ -1404,13 +1323,9 @@ def _advance(scheme, y, S, L, sample_times, step_times, step_signs, n_steps, P, 
     st[1] = e2
     st[2] = l1
     st[3] = l2
-    for j in range(S_PERSIST, N_STATE):
-        S[j] = 0.0
-    S[S_ACTIVE] = 1.0
-    for k in range(nl):
-        L[k, L_AIMED] = 0
-        L[k, L_QI] = 0
-        L[k, L_JS] = 0
+    begin(S, L)
+    S[S_R0] = 0.0
+    S[S_R1] = 0.0
     pending = True  # lanes to move on to their next event
     while True:
         if pending:
@@ -1430,8 +1345,8 @@ def _advance(scheme, y, S, L, sample_times, step_times, step_signs, n_steps, P, 
                     e1, e2, l1, l2 = rhs_ws(y, k1, S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws)
                 else:
                     e1, e2, l1, l2 = rhs_ws(y, k1e, S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws2)
-                    _blend(pend, k1, k1e, m)
-                    _blend(pend, ws, ws2, nws)
+                    blend(pend, k1, k1e, m)
+                    blend(pend, ws, ws2, nws)
                 st[0] = select(pend, e1, st[0])
                 st[1] = select(pend, e2, st[1])
                 st[2] = select(pend, l1, st[2])
@@ -1451,7 +1366,7 @@ def _advance(scheme, y, S, L, sample_times, step_times, step_signs, n_steps, P, 
                 wgeom(P, U, mb, disc, ws, S[S_R0] > 0.0, S[S_R1] > 0.0, wf)
             elif any_lane(geom):
                 wgeom(P, U, mb, disc, ws, S[S_R0] > 0.0, S[S_R1] > 0.0, wf2)
-                _blend(geom, wf, wf2, nwf)
+                blend(geom, wf, wf2, nwf)
             S[S_GEOM] = 0.0
         _step(scheme, y, k1, S[S_HSTEP], S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws, wf, bufs, y1)
         e1n, e2n, l1n, l2n = rhs_ws(y1, k1n, S[S_DRIVE], P, U, mb, Jb, disc, W, cw, ws)
@@ -1475,8 +1390,8 @@ def _advance(scheme, y, S, L, sample_times, step_times, step_signs, n_steps, P, 
                     _decide(S, L, k, e1k, e2k, lane(x0, k), lane(x1, k), implicit, mode2, cap)
         commit = S[S_COMMIT] != 0.0
         if any_lane(commit):
-            _blend(commit, y, y1, m)
-            _blend(commit, k1, k1n, m)
+            blend(commit, y, y1, m)
+            blend(commit, k1, k1n, m)
             st[0] = select(commit, e1n, st[0])
             st[1] = select(commit, e2n, st[1])
             st[2] = select(commit, l1n, st[2])

@@ -29,6 +29,7 @@ from helpers.paper import numbers as paper
 from helpers.paper.identify import identify
 from helpers.paper.metrics import recording_metrics
 from helpers.paper.shapers import design_tdfs
+from helpers.virtual import _driver as drv
 from helpers.virtual import _kernel as kern
 from helpers.virtual.parameters import RigParameters
 from helpers.virtual.plant import ArmPlant
@@ -125,7 +126,7 @@ def spatial_system(rig: SpatialRig) -> System:
         # one step of h from t = 0 to a sample at h, no drive, no amplifier (split at a taut/slack transition)
         y = np.array(y, dtype=float)
         S = np.zeros(skern.N_STATE)
-        S[skern.D_HMAX] = h
+        S[drv.D_HMAX] = h
         none = np.zeros((1, 1))
         z = np.zeros(nt)
         lints = np.zeros((1, skern.N_LANE_INTS), np.int64)

@@ -61,6 +61,15 @@ def _load() -> str:
         return "load average unavailable"
 
 
+def _say(lanes: int, repeats: int, quiet: bool) -> Callable[..., None]:
+    """What prints the lines (nothing if ``quiet``), once ``lanes`` and ``repeats`` are checked."""
+    if not 2 <= lanes <= 8:
+        raise ValueError(f"lanes must be 2 to 8, got {lanes!r}")
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats!r}")
+    return (lambda *a: None) if quiet else print
+
+
 def _candidates(v: float, x: float) -> tune.Candidates:
     """Every design ``tune`` saved in ``data/tuning/designs/`` for the condition, in ``CANDIDATES`` order."""
     name = tune.condition_name(v, x)
@@ -175,11 +184,7 @@ def run_tune_lanes_benchmark(
         alone), ``identical`` and ``compared`` (recordings in lanes equal to the same run alone), ``load``
         (before, after).
     """
-    if not 2 <= lanes <= 8:
-        raise ValueError(f"lanes must be 2 to 8, got {lanes!r}")
-    if repeats < 1:
-        raise ValueError(f"repeats must be >= 1, got {repeats!r}")
-    say = (lambda *a: None) if quiet else print
+    say = _say(lanes, repeats, quiet)
     candidates = _candidates(v, x)
     systems = list(candidates.designs[(v, x)])
     repetitions = tune.REPETITIONS["table-i"]
@@ -225,11 +230,7 @@ def run_tune_tendons_lanes_benchmark(lanes: int = 8, repeats: int = 1, quiet: bo
     dict
         As :func:`run_tune_lanes_benchmark`'s.
     """
-    if not 2 <= lanes <= 8:
-        raise ValueError(f"lanes must be 2 to 8, got {lanes!r}")
-    if repeats < 1:
-        raise ValueError(f"repeats must be >= 1, got {repeats!r}")
-    say = (lambda *a: None) if quiet else print
+    say = _say(lanes, repeats, quiet)
     doc = json.loads((DATA_DIR / "tuning" / "tendons" / "four-tendon" / "verification.json").read_text())
     systems = tuple(tt.SYSTEMS)
     runs = len(systems) * 3

@@ -43,13 +43,40 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from helpers.virtual._driver import (
+    D_ACTIVE,
+    D_COMMIT,
+    D_FULL,
+    D_GEOM,
+    D_HSTEP,
+    D_LEFT,
+    D_NSTEP,
+    D_PEND,
+    D_REM,
+    D_SEARCH,
+    D_SPLITS,
+    D_TAU,
+    L_JS,
+    L_QI,
+    L_TOSTEP,
+    N_DRIVER,
+    N_DRIVER_INTS,
+    aim,
+    arrive,
+    begin,
+    begin_search,
+    blend,
+    filter_gain,
+    search_step,
+    split,
+    start_steps,
+)
 from helpers.virtual._kernel import _RW_GAM, _RW_TA, _RW_TE, _RW_TM, SCHEME_ROSW
 from helpers.virtual.lanes import (
     LaneArray,
     all_lane,
     any_lane,
     lane,
-    lane_count,
     lnot,
     select,
     set_lane,
@@ -1430,18 +1457,14 @@ def _branch(sa, taut1, taut2, nt):
         taut2[i] = sa[1, i] > 0.0
 
 
-# the driver's state of each lane, one row of ``S`` per quantity (lanes along it): what persists between
-# calls (time, the largest step, the amplifiers' time constant, steps and transitions counted), then the
-# present piece and step; integers in ``L[lane]``. Each tendon's drive, amplifier output and largest rotor lag
-# persist in arrays of their own (``drive``, ``filt``, ``health``).
-(D_T, D_HMAX, D_TAU, D_NSTEP, D_NTRANS, D_TARGET, D_H, D_REM, D_FLO, D_FHI, D_LO, D_HI, D_HC, D_HSTEP, D_FH,
- D_FA, D_ACTIVE, D_LEFT, D_SPLITS, D_SEARCH, D_GEOM, D_COMMIT, D_FULL, D_PEND) = range(24)  # fmt: skip
-N_STATE = 24
+# the driver's state of each lane, one row of ``S`` per quantity (lanes along it): the shared rows
+# (:mod:`helpers.virtual._driver`); integers in ``L[lane]``, then the transition searched for. Each tendon's
+# drive, amplifier output and largest rotor lag persist in arrays of their own (``drive``, ``filt``,
+# ``health``).
+N_STATE = N_DRIVER
 """Rows of the driver's float state (:func:`advance`)."""
-D_PERSIST = D_TARGET
-"""Rows ``0 .. D_PERSIST - 1`` carry over from one call to the next; the rest is work."""
-(L_QI, L_JS, L_ROW, L_TI, L_SIDE, L_IT, L_TOSTEP, L_AIMED) = range(8)
-N_LANE_INTS = 8
+(L_ROW, L_TI) = range(N_DRIVER_INTS, N_DRIVER_INTS + 2)
+N_LANE_INTS = N_DRIVER_INTS + 2
 
 UNIFORM = (G_BOW, G_CB, G_CT, G_TLAW)
 """Scalars (``geo``) whose zero-ness or value steers the kernel's branches: lanes of one call share them."""
@@ -1454,29 +1477,12 @@ def lane_key(geo: np.ndarray, W: np.ndarray) -> tuple[float, ...]:
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _blend(mask, dst, src, count):
-    """``dst[:count] <- src[:count]`` in the lanes of ``mask``."""
-    if all_lane(mask):
-        for i in range(count):
-            dst[i] = src[i]
-    elif any_lane(mask):
-        for i in range(count):
-            dst[i] = select(mask, src[i], dst[i])
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
 def _start_steps(S, mask, implicit, st, sr):
     """The lanes of ``mask`` begin a step of their piece's size from their present state."""
-    h = S[D_H]
-    S[D_REM] = select(mask, h, S[D_REM])
-    S[D_HSTEP] = select(mask, h, S[D_HSTEP])
+    start_steps(S, mask, implicit)
     for r in range(2):
         for i in range(st.shape[1]):
             sr[r, i] = select(mask, st[r, i], sr[r, i])
-    if implicit:
-        S[D_GEOM] = select(mask, 1.0, S[D_GEOM])
-    S[D_SPLITS] = select(mask, 0.0, S[D_SPLITS])
-    S[D_SEARCH] = select(mask, 0.0, S[D_SEARCH])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -1489,13 +1495,8 @@ def _events(S, L, k, y, st, drive, d_drive, filt, wb, sample_times, step_times, 
     """
     n = wb.shape[0]
     nt = out_raw.shape[2]
-    nq = sample_times.shape[1]
     while True:
-        if L[k, L_AIMED] != 0 and lane(S[D_LEFT], k) == 0.0:  # arrived
-            L[k, L_AIMED] = 0
-            target = lane(S[D_TARGET], k)
-            if target > lane(S[D_T], k):
-                S[D_T] = set_lane(S[D_T], k, target)
+        if arrive(S, L, k):
             if L[k, L_TOSTEP] != 0:
                 js = L[k, L_JS]
                 ti = step_tendon[k, js]
@@ -1513,129 +1514,53 @@ def _events(S, L, k, y, st, drive, d_drive, filt, wb, sample_times, step_times, 
             for c in range(3):
                 out_tip[k, qi, c] = lane(wb[n - 1, W_P + c], k)
             L[k, L_QI] = qi + 1
-        qi = L[k, L_QI]
-        if qi == nq:
-            S[D_ACTIVE] = set_lane(S[D_ACTIVE], k, 0.0)
+        if not aim(S, L, k, sample_times, step_times, n_steps):
             return
-        ts = sample_times[k, qi]
-        js = L[k, L_JS]
-        to_step = js < n_steps[k] and step_times[k, js] <= ts
-        target = step_times[k, js] if to_step else ts
-        L[k, L_TOSTEP] = 1 if to_step else 0
-        L[k, L_AIMED] = 1
-        S[D_TARGET] = set_lane(S[D_TARGET], k, target)
-        dt = target - lane(S[D_T], k)
-        nst = math.ceil(dt / lane(S[D_HMAX], k) - 1e-9) if dt > 0.0 else 0
-        if nst < 1:  # at the target, or within 1e-9 steps of it: arrived, as no step is taken
-            S[D_LEFT] = set_lane(S[D_LEFT], k, 0.0)
-            continue
-        S[D_LEFT] = set_lane(S[D_LEFT], k, float(nst))
-        S[D_H] = set_lane(S[D_H], k, dt / nst)
-        return
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _decide(S, L, k, sr, s1, st, filt, implicit, cap):  # noqa: C901 - the step's one decision
+def _decide(S, L, k, sr, s1, st, filt, implicit, cap):
     """Lane ``k`` after a trial step that is not simply accepted: the first sign of a transition, or a search.
 
-    A transition starts the search for it (Illinois method on the step size). The search ends at the
-    transition, which becomes the state (``D_COMMIT``, the step not complete: ``D_FULL`` 0), the rest of the
-    step to follow on the branch just crossed into (``sr``: the cables taut from there, the one just crossed
-    marked crossed at the kink); otherwise the next trial's size is ``D_HSTEP``.
+    A transition starts the search for it (:func:`~helpers.virtual._driver.search_step`). The search ends at
+    the transition, which becomes the state (``D_COMMIT``, the step not complete: ``D_FULL`` 0), the rest of
+    the step to follow on the branch just crossed into (``sr``: the cables taut from there, the one just
+    crossed marked crossed at the kink); otherwise the next trial's size is ``D_HSTEP``.
     """
     nt = st.shape[1]
     tau = lane(S[D_TAU], k)
     if lane(S[D_SEARCH], k) == 0.0:
         which = _which_flip(sr, s1, nt, k, implicit)
-        rem = lane(S[D_REM], k)
         if which < 0:  # no sign change after all (a transition function not finite): the step as it is
-            _filter_lane(filt, st, s1, tau, rem, k)
+            _filter_lane(filt, st, s1, tau, lane(S[D_REM], k), k)
             S[D_COMMIT] = set_lane(S[D_COMMIT], k, 1.0)
             S[D_FULL] = set_lane(S[D_FULL], k, 1.0)
             return
-        S[D_NTRANS] = set_lane(S[D_NTRANS], k, lane(S[D_NTRANS], k) + 1.0)
         row = which % 2
         ti = which // 2
-        f_lo = lane(sr[row, ti], k)
-        f_hi = lane(s1[row, ti], k)
-        lo = 0.0
-        hi = rem
-        side = 0
-        L[k, L_IT] = 0
         L[k, L_ROW] = row
         L[k, L_TI] = ti
-        S[D_SEARCH] = set_lane(S[D_SEARCH], k, 1.0)
-    else:
-        row = L[k, L_ROW]
-        ti = L[k, L_TI]
-        f_lo = lane(S[D_FLO], k)
-        f_hi = lane(S[D_FHI], k)
-        lo = lane(S[D_LO], k)
-        hi = lane(S[D_HI], k)
-        side = L[k, L_SIDE]
-        hc = lane(S[D_HC], k)
-        fc = lane(s1[row, ti], k)
-        it = L[k, L_IT] + 1
-        L[k, L_IT] = it
-        if abs(fc) < 1e-13 or hi - lo < 1e-11 or it == 40:
-            # to the transition (the search's last point); the rest of the step from there, on the branch
-            # just crossed into
-            _filter_lane(filt, st, s1, tau, hc, k)
-            S[D_COMMIT] = set_lane(S[D_COMMIT], k, 1.0)
-            for r in range(2):
-                for i in range(nt):
-                    sr[r, i] = set_lane(sr[r, i], k, lane(s1[r, i], k))
-            if (lane(sr[row, ti], k) > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
-                sr[row, ti] = set_lane(sr[row, ti], k, 1e-300 if f_hi > 0.0 else -1e-300)
-            rem = lane(S[D_REM], k) - hc
-            S[D_REM] = set_lane(S[D_REM], k, rem)
-            S[D_HSTEP] = set_lane(S[D_HSTEP], k, rem)
-            S[D_SPLITS] = set_lane(S[D_SPLITS], k, lane(S[D_SPLITS], k) + 1.0)
-            if implicit:  # the branch from here: the one just crossed into, the others as they are
-                S[D_GEOM] = set_lane(S[D_GEOM], k, 1.0)
-            S[D_SEARCH] = set_lane(S[D_SEARCH], k, 0.0)
-            return
-        if (fc > 0.0) == (f_lo > 0.0):
-            lo = hc
-            f_lo = fc
-            if side == -1:
-                f_hi *= 0.5
-            side = -1
-        else:
-            hi = hc
-            f_hi = fc
-            if side == 1:
-                f_lo *= 0.5
-            side = 1
-    den = f_hi - f_lo
-    hc = (lo * f_hi - hi * f_lo) / den if den != 0.0 else 0.5 * (lo + hi)
-    if not (hc > lo and hc < hi):
-        hc = 0.5 * (lo + hi)
-    S[D_FLO] = set_lane(S[D_FLO], k, f_lo)
-    S[D_FHI] = set_lane(S[D_FHI], k, f_hi)
-    S[D_LO] = set_lane(S[D_LO], k, lo)
-    S[D_HI] = set_lane(S[D_HI], k, hi)
-    S[D_HC] = set_lane(S[D_HC], k, hc)
-    S[D_HSTEP] = set_lane(S[D_HSTEP], k, hc)
-    L[k, L_SIDE] = side
+        begin_search(S, L, k, lane(sr[row, ti], k), lane(s1[row, ti], k))
+        return
+    row = L[k, L_ROW]
+    ti = L[k, L_TI]
+    found, hc, f_hi = search_step(S, L, k, lane(s1[row, ti], k))
+    if found:
+        # to the transition (the search's last point); the rest of the step from there, on the branch just
+        # crossed into (the implicit step's: the one just crossed into, the others as they are)
+        _filter_lane(filt, st, s1, tau, hc, k)
+        for r in range(2):
+            for i in range(nt):
+                sr[r, i] = set_lane(sr[r, i], k, lane(s1[r, i], k))
+        if (lane(sr[row, ti], k) > 0.0) != (f_hi > 0.0):  # at the kink: count it as crossed
+            sr[row, ti] = set_lane(sr[row, ti], k, 1e-300 if f_hi > 0.0 else -1e-300)
+        split(S, k, hc, implicit)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _accept(S, accept, st, s1, filt):
-    """The amplifiers' outputs over the accepted steps (``D_REM`` each), lanes at once.
-
-    ``exp(-h / tau)`` is kept from the last step of the same size (the same bits as computing it again).
-    """
-    h = S[D_REM]
-    tau = S[D_TAU]
-    fresh = accept & (h != S[D_FH]) & (tau > 0.0)
-    if any_lane(fresh):
-        for k in range(lane_count(h)):
-            if lane(fresh, k):
-                hk = lane(h, k)
-                S[D_FA] = set_lane(S[D_FA], k, math.exp(-hk / lane(tau, k)))
-                S[D_FH] = set_lane(S[D_FH], k, hk)
-    a = S[D_FA]
+    """The amplifiers' outputs over the accepted steps (``D_REM`` each), lanes at once."""
+    a, h, tau = filter_gain(S, accept)
     for i in range(filt.shape[0]):
         x0 = st[3, i]
         x1 = s1[3, i]
@@ -1696,13 +1621,7 @@ def _advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_t
     sr = sbuf[1]
     sk = sbuf[2]
     rhs(y, k1, drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, st)
-    for j in range(D_PERSIST, N_STATE):
-        S[j] = 0.0
-    S[D_ACTIVE] = 1.0
-    for k in range(nl):
-        L[k, L_AIMED] = 0
-        L[k, L_QI] = 0
-        L[k, L_JS] = 0
+    begin(S, L)
     pending = True  # lanes to move on to their next event
     while True:
         if pending:
@@ -1739,10 +1658,10 @@ def _advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_t
             elif any_lane(geom):
                 wgeom(geo, tp, wb, wt, sp, sr[0], sr[1], wfb2, wft2, wfs2)
                 for e in range(n):
-                    _blend(geom, wfb[e], wfb2[e], N_WFB)
+                    blend(geom, wfb[e], wfb2[e], N_WFB)
                 for i in range(nt):
-                    _blend(geom, wft[0, i], wft2[0, i], nq)
-                _blend(geom, wfs, wfs2, N_WFS)
+                    blend(geom, wft[0, i], wft2[0, i], nq)
+                blend(geom, wfs, wfs2, N_WFS)
             S[D_GEOM] = 0.0
         _step(scheme, y, k1, S[D_HSTEP], drive, geo, mb, Jd, Jp, tp, W, cw, wb, wt, sp, sk, wfb, wft, wfs,
               bufs, y1)  # fmt: skip
@@ -1765,8 +1684,8 @@ def _advance(scheme, y, S, L, drive, d_drive, filt, health, sample_times, step_t
                     _decide(S, L, k, sr, s1, st, filt, implicit, cap)
         commit = S[D_COMMIT] != 0.0
         if any_lane(commit):
-            _blend(commit, y, y1, m)
-            _blend(commit, k1, k1n, m)
+            blend(commit, y, y1, m)
+            blend(commit, k1, k1n, m)
             for r in range(4):
                 for i in range(nt):
                     st[r, i] = select(commit, s1[r, i], st[r, i])

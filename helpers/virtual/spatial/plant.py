@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from helpers.virtual import _driver as drv
 from helpers.virtual._kernel import SCHEME_RK4, SCHEMES
 from helpers.virtual.lanes import LaneArray
 from helpers.virtual.plant import LANE_WIDTHS
@@ -188,8 +189,8 @@ def lane_group(rig: SpatialRig) -> tuple:
 def _reset_state(S: np.ndarray, arr: SpatialKernelArrays, max_step: float) -> None:
     """A lane's driver state at rest at ``t = 0`` (:data:`helpers.virtual.spatial._kernel.N_STATE` rows)."""
     S[:] = 0.0
-    S[kern.D_HMAX] = max_step
-    S[kern.D_TAU] = arr.tau
+    S[drv.D_HMAX] = max_step
+    S[drv.D_TAU] = arr.tau
 
 
 class SpatialPlant:
@@ -234,7 +235,7 @@ class SpatialPlant:
     @property
     def t(self) -> float:
         """Current simulated time, s."""
-        return float(self._S[kern.D_T])
+        return float(self._S[drv.D_T])
 
     @property
     def position_steps(self) -> np.ndarray:
@@ -265,12 +266,12 @@ class SpatialPlant:
     @property
     def integrator_steps(self) -> int:
         """Integrator steps taken since the last reset (transition searches included)."""
-        return int(self._S[kern.D_NSTEP])
+        return int(self._S[drv.D_NSTEP])
 
     @property
     def transitions(self) -> int:
         """Taut/slack transitions since the last reset."""
-        return int(self._S[kern.D_NTRANS])
+        return int(self._S[drv.D_NTRANS])
 
     @property
     def max_rotor_lag_steps(self) -> np.ndarray:
@@ -324,7 +325,7 @@ class SpatialPlant:
         out_filt = np.empty((1, ts.size, nt))
         out_q = np.empty((1, ts.size, 3 * n))
         out_tip = np.empty((1, ts.size, 3))
-        self._S[kern.D_HMAX] = self.max_step
+        self._S[drv.D_HMAX] = self.max_step
         steps = (st, sk, sg) if st.size else (np.zeros(1), np.zeros(1, np.int64), np.zeros(1))
         kern.advance(
             self._scheme, self._y, self._S, self._L, self._drive, a.d_drive, self._filt, self._health,
@@ -333,7 +334,7 @@ class SpatialPlant:
         )  # fmt: skip
         if not (np.all(np.isfinite(self._y)) and np.all(np.isfinite(self._filt))):
             raise unstable_error(ts[-1], self.max_step)
-        self._S[kern.D_T] = max(self._S[kern.D_T], ts[-1])
+        self._S[drv.D_T] = max(self._S[drv.D_T], ts[-1])
         if sg.size:
             np.add.at(self._steps, sk, sg.astype(np.int64))
         return {"output": out_filt[0], "tension": out_raw[0], "q": out_q[0], "tip": out_tip[0]}
@@ -417,7 +418,7 @@ class SpatialLanes:
     @property
     def t(self) -> np.ndarray:
         """Each lane's simulated time, s."""
-        return self._S.data[kern.D_T, : self.lanes].copy()
+        return self._S.data[drv.D_T, : self.lanes].copy()
 
     @property
     def max_steps(self) -> np.ndarray:
@@ -437,12 +438,12 @@ class SpatialLanes:
     @property
     def integrator_steps(self) -> np.ndarray:
         """Each lane's integrator steps since the last reset (as :attr:`SpatialPlant.integrator_steps`)."""
-        return self._S.data[kern.D_NSTEP, : self.lanes].astype(np.int64)
+        return self._S.data[drv.D_NSTEP, : self.lanes].astype(np.int64)
 
     @property
     def transitions(self) -> np.ndarray:
         """Each lane's taut/slack transitions since the last reset."""
-        return self._S.data[kern.D_NTRANS, : self.lanes].astype(np.int64)
+        return self._S.data[drv.D_NTRANS, : self.lanes].astype(np.int64)
 
     @property
     def max_rotor_lag_steps(self) -> np.ndarray:
@@ -514,7 +515,7 @@ class SpatialLanes:
         if each and np.shape(sample_times)[0] != lanes:
             raise ValueError(f"one row of sample_times per rig: {lanes}, got {np.shape(sample_times)[0]}")
         rows = list(sample_times) if each else [sample_times] * lanes
-        t_now = self._S.data[kern.D_T] if each else np.full(width, np.max(self._S.data[kern.D_T, :lanes]))
+        t_now = self._S.data[drv.D_T] if each else np.full(width, np.max(self._S.data[drv.D_T, :lanes]))
         groups = zip(rows, step_times, step_tendons, step_signs, strict=True)
         checked = [_checked(r, a, b, c, float(t_now[k]), nt) for k, (r, a, b, c) in enumerate(groups)]
         ts = checked[0][0]
@@ -551,7 +552,7 @@ class SpatialLanes:
                 f"the integration of lane(s) {bad} became unstable before t = {ts[-1]:.4f} s: max_step is "
                 "too large for those rigs (helpers.virtual.spatial.statics.stable_max_step)"
             )
-        self._S.data[kern.D_T] = np.maximum(self._S.data[kern.D_T], samples[:, -1])
+        self._S.data[drv.D_T] = np.maximum(self._S.data[drv.D_T], samples[:, -1])
         for k in range(lanes):
             _, _, tendons, signs = checked[k]
             if signs.size:
