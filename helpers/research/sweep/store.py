@@ -46,6 +46,7 @@ PHYSICS_FILES: tuple[Path, ...] = tuple(
     REPO_ROOT / "helpers" / rel
     for rel in (
         "virtual/_kernel.py",
+        "virtual/_driver.py",
         "virtual/parameters.py",
         "virtual/plant.py",
         "virtual/sensor.py",
@@ -61,8 +62,9 @@ LEGACY_FINGERPRINTS: dict[str, str] = {
     "c7ea1e195e31eb10": "34ade0a9fd216a8f",
     "82ebe100f05565cc": "34ade0a9fd216a8f",
     "9c6e7182e7a5c303": "34ade0a9fd216a8f",
-    "04b23f845147a1c0": "b992664fcc1c845a",
-    "1511e4c01b0a1df1": "b992664fcc1c845a",
+    "04b23f845147a1c0": "70d3f96c525c571c",
+    "1511e4c01b0a1df1": "70d3f96c525c571c",
+    "b992664fcc1c845a": "70d3f96c525c571c",
 }
 """Fingerprints of the same physics in an earlier form -> today's. The first form was a hash of the files'
 bytes (a moved import or a reworded docstring changed it); ``82ebe100f05565cc`` is the present form of the
@@ -77,7 +79,11 @@ made with the implicit step, the default since: a physics of its own. ``04b23f84
 physics before the integrator's docstring in ``virtual/parameters.py`` was reworded (the same code), and
 ``1511e4c01b0a1df1`` before :class:`~helpers.virtual.plant.ArmLanes` could save, restore and set aside a lane
 and take one row of sample times per rig (``tune --lanes``): the kernels unchanged, both integrators' bytes
-pinned by ``tests/test_virtual_world.py`` and every lane bitwise its run alone (``tests/test_lanes.py``)."""
+pinned by ``tests/test_virtual_world.py`` and every lane bitwise its run alone (``tests/test_lanes.py``).
+``b992664fcc1c845a`` is the same physics before the kernels' lane driver moved its shared pieces into
+``virtual/_driver.py`` (listed above since) and each kernel's ``advance`` began passing plain arrays down (one
+compiled form per kind of array): the first, middle and last chunk of each of the three stored atlases,
+recomputed by ``run_chunk``, gave the stored ``residual_pct`` and ``max_rotor_lag_steps`` bit for bit."""
 
 
 def _canonical(source: str) -> str:
